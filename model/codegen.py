@@ -1,0 +1,113 @@
+"""Generate numpy and CasADi functions from the symbolic source, with a disk cache.
+
+A symbolic expression set from :mod:`model.symbolic` is turned into the source text of one
+Python function (common subexpressions eliminated by ``sympy.cse``). The *same* text is
+executed twice: once in a namespace where ``sin``, ``cos``, ``sqrt`` are numpy's (a function
+vectorised over any batch of inputs), once where they are CasADi's (a function of SX
+symbols). Nothing is written twice by hand.
+
+Deriving and printing takes about a second; the source text is therefore cached on disk,
+keyed by a hash of the symbolic module, this module and the sympy version, so a warm
+``handeye calibrate`` never touches sympy's differentiation. The cache lives in
+``$HANDEYE_CACHE``, else ``$XDG_CACHE_HOME/handeye``, else ``~/.cache/handeye``; when it cannot
+be written the functions are simply regenerated each time.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import math
+import os
+import pathlib
+import tempfile
+
+import numpy as np
+
+_HERE = pathlib.Path(__file__).parent
+
+
+def cache_dir():
+    """Folder of the generated-code cache (see module docstring)."""
+    env = os.environ.get("HANDEYE_CACHE")
+    if env:
+        return pathlib.Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
+    return pathlib.Path(base) / "handeye"
+
+
+@functools.lru_cache(maxsize=None)
+def _source_fingerprint():
+    import sympy
+
+    h = hashlib.sha256(sympy.__version__.encode())
+    for name in ("symbolic.py", "codegen.py"):
+        h.update((_HERE / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _print_function(inputs, outputs):
+    """Source text of ``def generated(<inputs>): ... return [<outputs>]``."""
+    import sympy as sp
+
+    printer = sp.printing.str.StrPrinter({"full_prec": True})
+    flat = [sp.sympify(e) for e in outputs]
+    subs, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c"))
+    args = ", ".join(str(s) for s in inputs)
+    lines = [f"def generated({args}):"]
+    lines += [f"    {s} = {printer.doprint(v)}" for s, v in subs]
+    lines.append("    return [" + ", ".join(printer.doprint(v) for v in reduced) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def generated_source(name, build):
+    """Source text of a generated function, from the cache or freshly derived.
+
+    Parameters
+    ----------
+    name : str
+        Cache key (unique per expression set).
+    build : callable
+        ``build() -> (inputs, outputs)``: the sympy input symbols (in argument order) and the
+        flat list of output expressions. Called only on a cache miss.
+    """
+    path = cache_dir() / f"{name}-{_source_fingerprint()}.py"
+    try:
+        return path.read_text()
+    except OSError:
+        pass
+    inputs, outputs = build()
+    text = _print_function(inputs, outputs)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as fh:
+            fh.write(text)
+        os.replace(fh.name, path)
+    except OSError:
+        pass
+    return text
+
+
+def _compile(text, namespace):
+    scope = dict(namespace)
+    exec(compile(text, "<handeye-generated>", "exec"), scope)  # noqa: S102 - our own generated code
+    return scope["generated"]
+
+
+def numpy_function(text):
+    """Compile generated source with numpy's elementary functions (flat list of outputs)."""
+    return _compile(text, {"sin": np.sin, "cos": np.cos, "sqrt": np.sqrt, "pi": math.pi})
+
+
+def casadi_function(text):
+    """Compile generated source with CasADi's elementary functions (flat list of SX)."""
+    import casadi as ca
+
+    return _compile(text, {"sin": ca.sin, "cos": ca.cos, "sqrt": ca.sqrt, "pi": math.pi})
+
+
+def stack_outputs(values, batch_shape):
+    """Stack a flat list of scalars/arrays into one array of shape ``batch_shape + (len,)``."""
+    out = np.empty(tuple(batch_shape) + (len(values),))
+    for k, v in enumerate(values):
+        out[..., k] = v
+    return out

@@ -1,0 +1,79 @@
+"""Rotation matrices: the exponential map, its inverse, projection onto SO(3), distances.
+
+Used by the ``local`` parametrisation (``R = Rref exp([delta]x)``) and to compare results as
+transforms. Angles here are radians unless a name says ``deg``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def skew(v):
+    """Cross-product matrix ``[v]x``, shape (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    z = np.zeros(v.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -v[..., 2], v[..., 1]], -1),
+            np.stack([v[..., 2], z, -v[..., 0]], -1),
+            np.stack([-v[..., 1], v[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def matrix_from_rotvec(rotvec):
+    """Rodrigues' formula ``exp([w]x)``, shape (..., 3) -> (..., 3, 3); w in radians."""
+    w = np.asarray(rotvec, dtype=float)
+    theta = np.linalg.norm(w, axis=-1)[..., None, None]
+    k = skew(w)
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    return np.eye(3) + a * k + b * (k @ k)
+
+
+def rotvec_from_matrix(rot):
+    """Inverse of :func:`matrix_from_rotvec` (principal branch, angle in [0, pi])."""
+    r = np.asarray(rot, dtype=float)
+    cos_t = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    vee = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1)
+    sin_t = 0.5 * np.linalg.norm(vee, axis=-1)
+    theta = np.arctan2(sin_t, cos_t)
+    near_pi = cos_t < -0.99
+    # general and small angles: w = theta / (2 sin theta) * vee
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fac = np.where(sin_t > 1e-12, theta / np.where(sin_t > 1e-12, 2.0 * sin_t, 1.0), 0.5)
+    w = fac[..., None] * vee
+    if np.any(near_pi):
+        # near pi: axis from the symmetric part R + R^T = 2 cos I + 2 (1 - cos) n n^T
+        sym = (r + np.swapaxes(r, -1, -2)) / 2.0 - cos_t[..., None, None] * np.eye(3)
+        col = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
+        n = np.take_along_axis(sym, col[..., None, None], axis=-1)[..., 0]
+        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        n = np.where((np.sum(n * vee, -1) < 0)[..., None], -n, n)
+        w = np.where(near_pi[..., None], theta[..., None] * n, w)
+    return w
+
+
+def nearest_rotation(m):
+    """Nearest rotation (Frobenius norm) to a 3x3 matrix, det = +1 (SVD projection)."""
+    u, _, vt = np.linalg.svd(np.asarray(m, dtype=float))
+    d = np.sign(np.linalg.det(u @ vt))
+    u = u.copy()
+    u[..., :, -1] *= d[..., None] if np.ndim(d) else d
+    return u @ vt
+
+
+def rotation_angle_deg(r_a, r_b):
+    """Angle in degrees of the relative rotation ``R_a^T R_b``, shape (..., 3, 3) -> (...)."""
+    rel = np.swapaxes(np.asarray(r_a), -1, -2) @ np.asarray(r_b)
+    return np.degrees(np.linalg.norm(rotvec_from_matrix(rel), axis=-1))
+
+
+def transform_distance(t_a, t_b):
+    """Distance of two transforms: (translation difference in mm, rotation angle in degrees)."""
+    t_a, t_b = np.asarray(t_a), np.asarray(t_b)
+    dt = np.linalg.norm(t_a[..., :3, 3] - t_b[..., :3, 3], axis=-1)
+    return dt, rotation_angle_deg(t_a[..., :3, :3], t_b[..., :3, :3])

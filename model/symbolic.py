@@ -1,0 +1,208 @@
+"""The one symbolic source of the workbench's mathematics.
+
+Everything numeric in :mod:`model` -- the pose transform, the calibration residual with its
+exact Jacobian and second derivatives, the thesis's test function -- is derived here, once,
+with sympy. :mod:`model.codegen` turns these expressions into numpy (vectorised) and CasADi
+functions; nothing is copied by hand.
+
+Conventions
+-----------
+A pose ``p = (x, y, z, A, B, C)`` is in mm and degrees, KUKA convention (seed 2.1.2, C2)::
+
+    T(p) = Trans(x, y, z) . Rz(A) . Ry(B) . Rx(C)
+
+i.e. intrinsic Z-Y'-X'' angles. (The seed's formula (2-6) names the angles the other way round,
+``Rz(C) Ry(B) Rx(A)``; its code C2 and its text in 6.1.2 use ``Rz(A) Ry(B) Rx(C)``, which is
+KUKA's definition and the one the seed's data obey.)
+
+The calibration residual (seed 4-3) of measurement ``i`` is::
+
+    e_i = R1_i (R2 xs_i + t2) + t1_i - c
+
+with ``(R1_i, t1_i)`` the flange pose in the robot base, ``(R2, t2)`` the unknown sensor pose
+on the flange, ``xs_i`` the sphere centre measured in the sensor frame and ``c`` the sphere
+centre in the robot base.
+"""
+from __future__ import annotations
+
+import functools
+
+import sympy as sp
+
+#: Names of the rotation parametrisations of the unknown sensor rotation.
+ROTATIONS = ("euler", "matrix", "local")
+
+
+def rot_x(angle):
+    """Elementary rotation about x by ``angle`` (radians), 3x3 sympy matrix."""
+    c, s = sp.cos(angle), sp.sin(angle)
+    return sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rot_y(angle):
+    """Elementary rotation about y by ``angle`` (radians), 3x3 sympy matrix."""
+    c, s = sp.cos(angle), sp.sin(angle)
+    return sp.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rot_z(angle):
+    """Elementary rotation about z by ``angle`` (radians), 3x3 sympy matrix."""
+    c, s = sp.cos(angle), sp.sin(angle)
+    return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def matrix_from_kuka_deg(a, b, c):
+    """Rotation ``Rz(A) Ry(B) Rx(C)`` for angles given in degrees (symbolic)."""
+    k = sp.pi / 180
+    return rot_z(a * k) * rot_y(b * k) * rot_x(c * k)
+
+
+def skew(v):
+    """The cross-product matrix ``[v]x`` of a 3-vector (symbolic)."""
+    return sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+@functools.lru_cache(maxsize=None)
+def pose_transform():
+    """Symbolic homogeneous transform of a KUKA pose.
+
+    Returns
+    -------
+    inputs : tuple of sympy.Symbol
+        ``(x, y, z, A, B, C)``; mm and degrees.
+    transform : sympy.Matrix, shape (4, 4)
+        ``Trans(x, y, z) Rz(A) Ry(B) Rx(C)``.
+    """
+    x, y, z, a, b, c = sp.symbols("x y z A B C", real=True)
+    rot = matrix_from_kuka_deg(a, b, c)
+    t = sp.eye(4)
+    t[:3, :3] = rot
+    t[:3, 3] = sp.Matrix([x, y, z])
+    return (x, y, z, a, b, c), t
+
+
+def _sensor_rotation(rotation):
+    """Parameters ``q`` and the rotation ``R2(q)`` (plus extra inputs) of one parametrisation.
+
+    * ``euler``: q = (A, B, C) in degrees, ``R2 = Rz(A) Ry(B) Rx(C)``.
+    * ``matrix``: q = the nine entries of R2, row-major (orthogonality is a constraint).
+    * ``local``: q = delta (radians), ``R2 = Rref exp([delta]x)``. Only the value, first and
+      second derivatives at delta = 0 are used, and for those the second-order series
+      ``I + [d]x + [d]x^2 / 2`` is exact; ``Rref`` (nine entries) is an extra input.
+    """
+    if rotation == "euler":
+        q = sp.symbols("A2 B2 C2", real=True)
+        return q, matrix_from_kuka_deg(*q), ()
+    if rotation == "matrix":
+        q = sp.symbols("r2_0:9", real=True)
+        return q, sp.Matrix(3, 3, q), ()
+    if rotation == "local":
+        q = sp.symbols("d2_0:3", real=True)
+        ref = sp.symbols("ref_0:9", real=True)
+        w = skew(q)
+        return q, sp.Matrix(3, 3, ref) * (sp.eye(3) + w + w * w / 2), ref
+    raise ValueError(f"unknown rotation parametrisation {rotation!r}; choose one of {ROTATIONS}")
+
+
+@functools.lru_cache(maxsize=None)
+def calibration_residual(rotation):
+    """Symbolic residual of one measurement with its exact first and second derivatives.
+
+    Parameters
+    ----------
+    rotation : {'euler', 'matrix', 'local'}
+        Parametrisation of the sensor rotation R2.
+
+    Returns
+    -------
+    dict
+        ``theta``: the unknowns in order ``(t2 (3, mm), q (rotation), c (3, mm))``;
+        ``data``: per-measurement inputs ``(R1 row-major (9), t1 (3, mm), xs (3, mm))``;
+        ``extra``: further inputs (``Rref`` for ``local``);
+        ``e`` (3,), ``jac`` (3, n) and ``hess`` (3, n, n, as a list of n x n matrices):
+        residual and its derivatives with respect to ``theta``. For ``local`` they are
+        evaluated at delta = 0.
+    """
+    t2 = sp.symbols("tx2 ty2 tz2", real=True)
+    q, r2, extra = _sensor_rotation(rotation)
+    c = sp.symbols("cx cy cz", real=True)
+    r1 = sp.symbols("r1_0:9", real=True)
+    t1 = sp.symbols("tx1 ty1 tz1", real=True)
+    xs = sp.symbols("xs ys zs", real=True)
+    theta = tuple(t2) + tuple(q) + tuple(c)
+    e = sp.Matrix(3, 3, r1) * (r2 * sp.Matrix(xs) + sp.Matrix(t2)) + sp.Matrix(t1) - sp.Matrix(c)
+    jac = e.jacobian(theta)
+    hess = [sp.hessian(e[k], theta) for k in range(3)]
+    if rotation == "local":
+        at0 = {d: 0 for d in q}
+        e, jac = e.subs(at0), jac.subs(at0)
+        hess = [h.subs(at0) for h in hess]
+    return {
+        "theta": theta,
+        "data": tuple(r1) + tuple(t1) + tuple(xs),
+        "extra": tuple(extra),
+        "e": e,
+        "jac": jac,
+        "hess": hess,
+    }
+
+
+@functools.lru_cache(maxsize=None)
+def sphere_centre_from_plate():
+    """Symbolic sphere centre ``c = T(p3) x_p'`` and its Jacobian with respect to ``p3``.
+
+    This is the left-hand side of the seed's (4-1). Its 3x6 Jacobian has rank 3 at most:
+    through the calibration model only ``c`` is observable, never the plate pose ``p3`` itself.
+
+    Returns
+    -------
+    dict
+        ``p3`` (6 symbols, mm and degrees), ``xp`` (3 symbols, mm, plate frame),
+        ``c`` (3,) and ``jac`` (3, 6).
+    """
+    p3, t = pose_transform()
+    xp = sp.symbols("xp yp zp", real=True)
+    c = (t * sp.Matrix([*xp, 1]))[:3, 0]
+    return {"p3": p3, "xp": xp, "c": c, "jac": c.jacobian(p3)}
+
+
+@functools.lru_cache(maxsize=None)
+def test_function():
+    """The seed's test function (6-16) and its least-squares form.
+
+    ``f(x) = -100 / q1 - 200 / q2`` with ``q1 = (x1-1)^2 + (x2-1)^2 + 1`` and
+    ``q2 = (x1+1)^2 + (x2+2)^2 + 1``.
+
+    Since ``300 - 100/q1 - 200/q2 = 100 (q1-1)/q1 + 200 (q2-1)/q2`` and
+    ``(q1-1) = |x-a|^2``, ``(q2-1) = |x-b|^2``, the shifted function is exactly a sum of squares
+    ``f + 300 = |r|^2`` with the 4-vector residual
+    ``r(x) = [10 (x-a) / sqrt(q1) ; sqrt(200) (x-b) / sqrt(q2)]``, ``a = (1, 1)``,
+    ``b = (-1, -2)``.
+
+    Returns
+    -------
+    dict
+        ``x`` (2 symbols), ``f``, ``grad`` (2,), ``hess`` (2, 2), ``r`` (4,), ``rjac`` (4, 2).
+    """
+    x1, x2 = sp.symbols("x1 x2", real=True)
+    q1 = (x1 - 1) ** 2 + (x2 - 1) ** 2 + 1
+    q2 = (x1 + 1) ** 2 + (x2 + 2) ** 2 + 1
+    f = -100 / q1 - 200 / q2
+    x = sp.Matrix([x1, x2])
+    r = sp.Matrix(
+        [
+            10 * (x1 - 1) / sp.sqrt(q1),
+            10 * (x2 - 1) / sp.sqrt(q1),
+            sp.sqrt(200) * (x1 + 1) / sp.sqrt(q2),
+            sp.sqrt(200) * (x2 + 2) / sp.sqrt(q2),
+        ]
+    )
+    grad = sp.Matrix([f]).jacobian(x).T
+    return {
+        "x": (x1, x2),
+        "f": f,
+        "grad": grad,
+        "hess": sp.hessian(f, x),
+        "r": r,
+        "rjac": r.jacobian(x),
+    }
