@@ -1,0 +1,127 @@
+"""The seed's test function (6-16): values, derivatives, least-squares form, stationary points.
+
+Everything is generated from :func:`model.symbolic.test_function`. ``f + 300 = |r(x)|^2``
+exactly, so Gauss-Newton and Levenberg-Marquardt can be run on ``1/2 |r|^2 = (f + 300) / 2``,
+which has the same minimisers and saddle as f.
+
+All stationary points lie on the line through ``a = (1, 1)`` and ``b = (-1, -2)``:
+``grad f = 200 (x-a)/q1^2 + 400 (x-b)/q2^2 = 0`` forces ``x - a`` and ``x - b`` to be
+parallel. With ``x = a + s (b - a)`` the condition becomes the quintic
+``200 s q2(s)^2 + 400 (s - 1) q1(s)^2 = 0``, whose real roots are *all* the stationary points.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from model import codegen, symbolic
+
+A_POINT = np.array([1.0, 1.0])
+B_POINT = np.array([-1.0, -2.0])
+
+
+@functools.lru_cache(maxsize=None)
+def _functions():
+    def build():
+        s = symbolic.test_function()
+        outs = [s["f"], *s["grad"], *s["hess"], *s["r"], *s["rjac"]]
+        return s["x"], outs
+
+    return codegen.numpy_function(codegen.generated_source("testfunction", build))
+
+
+def _eval(x):
+    x = np.asarray(x, dtype=float)
+    vals = _functions()(x[..., 0], x[..., 1])
+    return codegen.stack_outputs(vals, x.shape[:-1])
+
+
+def value(x):
+    """f(x), shape (..., 2) -> (...)."""
+    return _eval(x)[..., 0]
+
+
+def gradient(x):
+    """grad f(x), shape (..., 2) -> (..., 2)."""
+    return _eval(x)[..., 1:3]
+
+
+def hessian(x):
+    """Hessian of f, shape (..., 2) -> (..., 2, 2)."""
+    v = _eval(x)
+    return v[..., 3:7].reshape(v.shape[:-1] + (2, 2))
+
+
+def residual(x):
+    """Least-squares residual r(x), shape (..., 2) -> (..., 4); ``|r|^2 = f + 300``."""
+    return _eval(x)[..., 7:11]
+
+
+def residual_jacobian(x):
+    """dr/dx, shape (..., 2) -> (..., 4, 2)."""
+    v = _eval(x)
+    return v[..., 11:19].reshape(v.shape[:-1] + (4, 2))
+
+
+@dataclasses.dataclass(frozen=True)
+class StationaryPoint:
+    """A stationary point of f with its classification.
+
+    Attributes
+    ----------
+    x : ndarray, shape (2,)
+    value : float
+    eigenvalues : ndarray, shape (2,)
+        Of the Hessian, ascending.
+    kind : str
+        ``'minimum'`` (both > 0), ``'maximum'`` (both < 0) or ``'saddle'``.
+    """
+
+    x: np.ndarray
+    value: float
+    eigenvalues: np.ndarray
+    kind: str
+
+
+def classify(eigenvalues):
+    """'minimum', 'maximum' or 'saddle' from Hessian eigenvalues (second-order conditions)."""
+    lo, hi = np.min(eigenvalues), np.max(eigenvalues)
+    if lo > 0:
+        return "minimum"
+    if hi < 0:
+        return "maximum"
+    if lo < 0 < hi:
+        return "saddle"
+    return "degenerate"
+
+
+@functools.lru_cache(maxsize=None)
+def stationary_points(digits=30):
+    """All stationary points, found as the real roots of the quintic (module docstring).
+
+    Roots are computed with sympy to ``digits`` significant digits, then rounded to float.
+
+    Returns
+    -------
+    tuple of StationaryPoint
+        Sorted by function value (global minimum first).
+    """
+    import sympy as sp
+
+    s = sp.symbols("s", real=True)
+    d = sp.Matrix(B_POINT - A_POINT).applyfunc(sp.nsimplify)
+    dd = (d.T * d)[0]
+    q1 = s**2 * dd + 1
+    q2 = (s - 1) ** 2 * dd + 1
+    poly = sp.Poly(sp.expand(200 * s * q2**2 + 400 * (s - 1) * q1**2), s)
+    points = []
+    for root in poly.nroots(n=digits):
+        if abs(sp.im(root)) > 10 ** (-digits // 2):
+            continue
+        sr = float(sp.re(root))
+        x = A_POINT + sr * (B_POINT - A_POINT)
+        w = np.linalg.eigvalsh(hessian(x))
+        points.append(StationaryPoint(x=x, value=float(value(x)), eigenvalues=w, kind=classify(w)))
+    return tuple(sorted(points, key=lambda p: p.value))
