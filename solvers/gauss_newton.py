@@ -9,7 +9,9 @@ residuals are small or nearly linear -- and takes the full step of the resulting
 
 This is the seed's 6.1.5 / C5. With ``jacobian='forward'`` J is replaced by forward
 differences with the seed's step (C4, 5e-7), for comparison with the exact Jacobian.
-No line search: like the seed, the method is local; Levenberg-Marquardt and the dogleg
+Where ``J`` is rank-deficient (at the Euler singularity B = +-90 deg, for instance) the
+minimum-norm solution of the linear least-squares problem is taken and counted in
+``result.extra['rank_deficient_steps']``. No line search: like the seed, the method is local; Levenberg-Marquardt and the dogleg
 trust region are its globalised relatives.
 """
 from __future__ import annotations
@@ -41,8 +43,10 @@ def minimize(problem, x0, opts):
             return t.finish(x, f, g, 1, k)
         p, _, rank, _ = np.linalg.lstsq(j, -r, rcond=None)
         if rank < problem.n:
-            t.extra["rank"] = int(rank)
-            return t.finish(x, f, g, -1, k, "numerical failure: J^T J is singular (rank %d < %d)" % (rank, problem.n))
+            # J^T J singular: take the minimum-norm Gauss-Newton step and say so
+            t.extra["rank_deficient_steps"] = t.extra.get("rank_deficient_steps", 0) + 1
+        if not np.all(np.isfinite(p)):
+            return t.finish(x, f, g, -1, k)
         x_old, f_old = x, f
         x = problem.move(x, p)
         r = t.residual(x)

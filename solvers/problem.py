@@ -93,7 +93,10 @@ class Options:
     subproblem : {'exact', 'cg'}
         Trust-region Newton only: More-Sorensen or Steihaug-CG.
     initial_radius : float or None
-        Trust-region radius at start; None: ``max(1, 0.1 |x0|)``.
+        Trust-region radius at start (in scaled units); None: the length of the model's
+        steepest-descent minimiser (the Cauchy step without a bound).
+    scaling : bool
+        Trust regions only: ellipsoidal region ``|D p| <= Delta`` (see :mod:`solvers.trust_region`).
     max_radius_factor : float
         Largest radius as a multiple of the initial one.
     eta : float
@@ -112,6 +115,7 @@ class Options:
     fd_step: float = 5e-7
     subproblem: str = "exact"
     initial_radius: Optional[float] = None
+    scaling: bool = True
     max_radius_factor: float = 1e3
     eta: float = 1e-4
     lm_tau: float = 1e-3

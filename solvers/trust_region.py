@@ -24,6 +24,11 @@ Models and subproblems:
 * ``dogleg`` -- Gauss-Newton model for least squares, ``B_k = J^T J`` (N&W 4.1, 10.3): the
   path from the Cauchy point ``-(g^T g / g^T B g) g`` to the Gauss-Newton point, cut at the
   boundary.
+
+Scaling (N&W 4.5; More 1978): when parameters have different units (mm and radians) a
+round trust region is a poor shape. With ``scaling=True`` the region is the ellipsoid
+``|D p| <= Delta`` with ``D = diag(sqrt(max_k |diag B_k|))`` (non-decreasing over iterations, as in
+MINPACK); the subproblem is solved in ``p~ = D p`` with ``g~ = D^-1 g``, ``B~ = D^-1 B D^-1``.
 """
 from __future__ import annotations
 
@@ -40,47 +45,46 @@ def _boundary_tau(p, d, radius):
     return (-b + np.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a)
 
 
-def subproblem_exact(g, b, radius, iters=50):
-    """More-Sorensen solution of the trust-region subproblem (N&W Algorithm 4.3)."""
-    n = len(g)
+def subproblem_exact(g, b, radius, iters=100):
+    """More-Sorensen solution of the trust-region subproblem (N&W Algorithm 4.3).
+
+    Works in the eigenbasis of B: ``p(lam) = -sum_i (q_i^T g) / (w_i + lam) q_i``;
+    ``phi(lam) = 1/|p(lam)| - 1/radius`` is increasing and nearly linear on
+    ``(max(0, -w_1), inf)``, where Newton's method, safeguarded by bisection, finds its root.
+    """
     w, v = np.linalg.eigh(b)
-    lam_min = w[0]
-    if lam_min > 0:
-        p = -np.linalg.solve(b, g)
+    gt = v.T @ g
+    tiny = 1e-12 * max(1.0, float(np.max(np.abs(w))))
+    if w[0] > tiny:
+        p = -(v @ (gt / w))
         if np.linalg.norm(p) <= radius:
             return p
-    # ||p(lam)|| = radius for some lam > max(0, -lam_min), unless the hard case occurs
-    gt = v.T @ g
-    lam = max(0.0, -lam_min) + 1e-12 * max(1.0, abs(lam_min))
-
-    def pnorm(l):
-        return np.linalg.norm(gt / (w + l))
-
-    if pnorm(lam) < radius and abs(gt[0]) < 1e-12 * max(1.0, np.linalg.norm(g)):
-        # hard case: p = -(B + lam I)^+ g + tau z, z the eigenvector of lam_min
-        lam = -lam_min
-        mask = np.abs(w + lam) > 1e-12 * max(1.0, abs(lam))
-        p = -(v[:, mask] @ (gt[mask] / (w[mask] + lam)))
-        z = v[:, 0]
-        return p + _boundary_tau(p, z, radius) * z
-    # safeguarded Newton iteration on phi(lam) = 1/|p| - 1/radius (N&W 4.3)
-    lo, hi = max(0.0, -lam_min), None
-    lam = max(lam, lo)
+    lo = max(0.0, -w[0])
+    lowest = np.abs(w - w[0]) <= tiny
+    if np.linalg.norm(gt[lowest]) <= 1e-10 * max(1.0, float(np.linalg.norm(g))):
+        # hard case candidate: g has no component along the lowest eigenvectors
+        rest = ~lowest
+        denom = w[rest] + lo
+        p = -(v[:, rest] @ (gt[rest] / np.where(np.abs(denom) > tiny, denom, np.inf)))
+        if np.linalg.norm(p) <= radius:
+            z = v[:, 0]
+            return p + _boundary_tau(p, z, radius) * z
+    hi = lo + float(np.linalg.norm(g)) / radius + tiny
+    lam = lo + tiny
     for _ in range(iters):
-        pn = pnorm(lam)
+        if not lo < lam < hi:
+            lam = 0.5 * (lo + hi)
+        q = gt / (w + lam)
+        pn = float(np.linalg.norm(q))
         if abs(pn - radius) <= 1e-10 * radius:
             break
-        q = gt / (w + lam)
-        dphi = np.sum(q**2 / (w + lam)) / pn**3
         phi = 1.0 / pn - 1.0 / radius
         if phi < 0:
             lo = lam
         else:
             hi = lam
-        lam_new = lam - phi / dphi
-        if lam_new <= lo or (hi is not None and lam_new >= hi):
-            lam_new = 0.5 * (lo + hi) if hi is not None else 2.0 * lam + 1e-12
-        lam = lam_new
+        dphi = float(np.sum(q**2 / (w + lam))) / pn**3
+        lam = lam - phi / dphi if dphi > 0 else 0.5 * (lo + hi)
     return -(v @ (gt / (w + lam)))
 
 
@@ -111,6 +115,14 @@ def subproblem_steihaug(g, b, radius, tol=None, max_iter=None):
     return z
 
 
+def _cauchy_length(g, b):
+    """Length of the steepest-descent minimiser of the model: the default initial radius."""
+    gg = float(g @ g)
+    curv = float(g @ b @ g)
+    length = gg**1.5 / curv if curv > 0 else np.sqrt(gg)
+    return max(length, 1e-8) if np.isfinite(length) else 1.0
+
+
 def subproblem_dogleg(g, b, radius):
     """Dogleg step for a positive semidefinite model (N&W 4.1)."""
     try:
@@ -133,10 +145,6 @@ def minimize(problem, x0, opts, model="newton"):
     name = "dogleg" if model == "gauss-newton" else f"tr-{opts.subproblem}"
     t = Tracker(problem, x0, name)
     x = np.array(x0, dtype=float)
-    radius = opts.initial_radius or max(1.0, 0.1 * float(np.linalg.norm(x)))
-    max_radius = opts.max_radius_factor * radius
-    min_radius = 1e-14 * max(1.0, float(np.linalg.norm(x)))
-    t.extra["radius"] = [radius]
 
     def evaluate(x):
         if model == "gauss-newton":
@@ -145,23 +153,44 @@ def minimize(problem, x0, opts, model="newton"):
             return 0.5 * float(r @ r), j.T @ r, j.T @ j
         return t.cost(x), t.grad(x), t.hess(x)
 
+    def cost(x):
+        if model == "gauss-newton":
+            r = t.residual(x)
+            return 0.5 * float(r @ r)
+        return t.cost(x)
+
+    def scale(b, previous):
+        if not opts.scaling:
+            return np.ones(problem.n)
+        d = np.sqrt(np.abs(np.diag(b)))
+        if previous is not None:
+            d = np.maximum(previous, d)
+        return np.where(d > 0, d, 1.0)
+
     f, g, b = evaluate(x)
+    diag = scale(b, None)
+    radius = opts.initial_radius or _cauchy_length(g / diag, b / np.outer(diag, diag))
+    max_radius = opts.max_radius_factor * radius
+    min_radius = 1e-14 * radius
+    t.extra["radius"] = [radius]
     for k in range(opts.max_iter):
         if not (np.isfinite(f) and np.all(np.isfinite(g)) and np.all(np.isfinite(b))):
             return t.finish(x, f, g, -1, k)
         if gradient_small(g, f, opts):
             return t.finish(x, f, g, 1, k)
+        gs, bs = g / diag, b / np.outer(diag, diag)
         if model == "gauss-newton":
-            p = subproblem_dogleg(g, b, radius)
+            ps = subproblem_dogleg(gs, bs, radius)
         elif opts.subproblem == "cg":
-            p = subproblem_steihaug(g, b, radius)
+            ps = subproblem_steihaug(gs, bs, radius)
         else:
-            p = subproblem_exact(g, b, radius)
+            ps = subproblem_exact(gs, bs, radius)
+        p = ps / diag
         predicted = -(g @ p + 0.5 * p @ b @ p)
         x_new = problem.move(x, p)
-        f_new = t.cost(x_new)
+        f_new = cost(x_new)
         rho = (f - f_new) / predicted if predicted > 0 else -1.0
-        pnorm = float(np.linalg.norm(p))
+        pnorm = float(np.linalg.norm(ps))
         if not np.isfinite(f_new) or rho < 0.25:
             radius = 0.25 * pnorm
         elif rho > 0.75 and pnorm >= 0.999 * radius:
@@ -172,6 +201,7 @@ def minimize(problem, x0, opts, model="newton"):
             x = x_new
             t.record(x)
             f, g, b = evaluate(x)
+            diag = scale(b, diag)
             if step_small(p, x_old, opts):
                 return t.finish(x, f, g, 3, k + 1)
             if reduction_small(f_old, f, opts):

@@ -1,0 +1,321 @@
+"""Datasets: a folder with ``measurements.csv`` and ``setup.toml``.
+
+``measurements.csv``
+    Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column.
+    ``id`` is unique text; ``x..c`` the flange pose in the robot base (KUKA: mm, degrees,
+    ``A, C`` in [-180, 180], ``B`` in [-90, 90], the controller's ranges; a start pose may
+    hold any angle in [-360, 360]); ``xs, ys, zs`` the sphere centre in the sensor
+    frame (mm). ``profile``, when present, is the path (relative to the folder) of a CSV with
+    header ``x,z``: laser-line points in the sensor's y = 0 plane, mm; then ``xs, ys, zs`` may
+    be empty and the centre is reconstructed as in the seed (C15, C16, 6-26, 6-27): a Kasa
+    circle fit gives the centre ``(x_c, z_c)`` and radius r, and
+    ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
+``setup.toml``
+    ``[sensor] start_pose`` (p2: six numbers); ``[sphere] diameter`` (mm) and either
+    ``center`` (three numbers, robot base) or ``base_pose`` (p3) with ``center_in_plate``
+    (x_p'); ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[truth]``
+    with ``sensor_pose`` (six numbers) and optionally ``sphere_center`` -- for simulated data,
+    never read by a calibration.
+
+Every problem found raises :class:`DatasetError`, whose text names file, row and column.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import pathlib
+import tomllib
+
+import numpy as np
+
+from model.pose import transform_from_pose
+
+REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
+OPTIONAL_COLUMNS = ("profile",)
+DATA_DIR = pathlib.Path(__file__).parent / "data"
+
+
+class DatasetError(ValueError):
+    """A dataset is missing, malformed or inconsistent.
+
+    Attributes
+    ----------
+    file : str
+    row : int or None
+        1-based line number in the file (the header is line 1).
+    column : str or None
+    problem : str
+    """
+
+    def __init__(self, file, problem, row=None, column=None):
+        self.file, self.row, self.column, self.problem = str(file), row, column, problem
+        where = self.file
+        if row is not None:
+            where += f", row {row}"
+        if column is not None:
+            where += f", column {column!r}"
+        super().__init__(f"{where}: {problem}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Dataset:
+    """A dataset read and checked by :func:`load`.
+
+    Attributes
+    ----------
+    name : str
+    path : pathlib.Path
+    ids : tuple of str
+    rows : tuple of int
+        Line of each measurement in ``measurements.csv``.
+    flange_poses : ndarray, shape (N, 6)
+        Flange in robot base, KUKA (mm, deg).
+    centre_in_sensor : ndarray, shape (N, 3)
+        Sphere centre in the sensor frame, mm.
+    start_pose : ndarray, shape (6,)
+        Start value of the sensor pose on the flange (p2), KUKA.
+    sphere_diameter : float
+        mm.
+    sphere_centre : ndarray, shape (3,)
+        Sphere centre in the robot base, mm (from ``center`` or ``T(p3) x_p'``).
+    plate_pose, centre_in_plate : ndarray or None
+        p3 (6,) and x_p' (3,) when the setup gives them.
+    side : int
+        Sign of the sensor-y coordinate of the centre for profile reconstruction.
+    truth : dict or None
+        ``sensor_pose`` (6,) and maybe ``sphere_center`` (3,); simulated data only.
+    """
+
+    name: str
+    path: pathlib.Path
+    ids: tuple
+    rows: tuple
+    flange_poses: np.ndarray
+    centre_in_sensor: np.ndarray
+    start_pose: np.ndarray
+    sphere_diameter: float
+    sphere_centre: np.ndarray
+    plate_pose: np.ndarray | None = None
+    centre_in_plate: np.ndarray | None = None
+    side: int = -1
+    truth: dict | None = None
+
+    def flange2base(self):
+        """Flange poses as homogeneous transforms, shape (N, 4, 4)."""
+        return transform_from_pose(self.flange_poses)
+
+    def __len__(self):
+        return len(self.ids)
+
+
+def embedded_names():
+    """Names of the datasets shipped with the package."""
+    return sorted(p.name for p in DATA_DIR.iterdir() if (p / "setup.toml").is_file())
+
+
+def resolve(name_or_path):
+    """Folder of a dataset given by an embedded name or a path."""
+    p = pathlib.Path(name_or_path)
+    if p.is_dir():
+        return p
+    if (DATA_DIR / str(name_or_path) / "setup.toml").is_file():
+        return DATA_DIR / str(name_or_path)
+    raise DatasetError(
+        name_or_path, f"no dataset folder or embedded dataset of that name (embedded: {', '.join(embedded_names())})"
+    )
+
+
+def _number(text, file, row, column):
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise DatasetError(file, f"not a number: {text!r}", row, column) from None
+    if not math.isfinite(v):
+        raise DatasetError(file, f"not a finite number: {text!r}", row, column)
+    return v
+
+
+def _vector(table, key, n, file, section):
+    value = table.get(key)
+    col = f"[{section}] {key}"
+    if value is None:
+        raise DatasetError(file, "missing", column=col)
+    if not isinstance(value, list) or len(value) != n:
+        raise DatasetError(file, f"needs a list of {n} numbers, got {value!r}", column=col)
+    out = []
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise DatasetError(file, f"needs finite numbers, got {v!r}", column=col)
+        out.append(float(v))
+    return np.array(out)
+
+
+#: Controller readings (flange and plate poses) lie in KUKA's principal ranges.
+READING_LIMITS = (180.0, 90.0, 180.0)
+#: A start guess may be any rotation (Table 7-2 starts at B = -90.1), but not beyond a turn.
+GUESS_LIMITS = (360.0, 360.0, 360.0)
+
+
+def _check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS):
+    for name, v, lim in zip("abc", pose[3:], limits):
+        if abs(v) > lim:
+            raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", row, column_prefix + name)
+
+
+_ALLOWED = {
+    "sensor": {"start_pose"},
+    "sphere": {"diameter", "center", "base_pose", "center_in_plate"},
+    "profile": {"side"},
+    "truth": {"sensor_pose", "sphere_center"},
+}
+
+
+def _read_setup(path):
+    file = path / "setup.toml"
+    try:
+        text = file.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DatasetError(file, "missing file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(file, f"cannot be read: {exc}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DatasetError(file, f"not valid TOML: {exc}") from None
+    for section, table in doc.items():
+        if section not in _ALLOWED or not isinstance(table, dict):
+            raise DatasetError(file, f"unknown section (known: {', '.join(sorted(_ALLOWED))})", column=f"[{section}]")
+        for key in table:
+            if key not in _ALLOWED[section]:
+                raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})", column=f"[{section}] {key}")
+    start = _vector(doc.get("sensor", {}), "start_pose", 6, file, "sensor")
+    _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
+    sphere = doc.get("sphere", {})
+    diam = sphere.get("diameter")
+    if isinstance(diam, bool) or not isinstance(diam, (int, float)) or not math.isfinite(diam) or diam <= 0:
+        raise DatasetError(file, f"needs a positive number (mm), got {diam!r}", column="[sphere] diameter")
+    plate_pose = centre_in_plate = None
+    if "center" in sphere:
+        if "base_pose" in sphere or "center_in_plate" in sphere:
+            raise DatasetError(file, "give either center or base_pose with center_in_plate, not both", column="[sphere]")
+        centre = _vector(sphere, "center", 3, file, "sphere")
+    else:
+        if "base_pose" not in sphere:
+            raise DatasetError(file, "needs center, or base_pose with center_in_plate", column="[sphere]")
+        plate_pose = _vector(sphere, "base_pose", 6, file, "sphere")
+        _check_angles(plate_pose, file, column_prefix="[sphere] base_pose ")
+        centre_in_plate = _vector(sphere, "center_in_plate", 3, file, "sphere")
+        centre = (transform_from_pose(plate_pose) @ np.append(centre_in_plate, 1.0))[:3]
+    side = doc.get("profile", {}).get("side", -1)
+    if side not in (1, -1) or isinstance(side, bool):
+        raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
+    truth = None
+    if "truth" in doc:
+        truth = {"sensor_pose": _vector(doc["truth"], "sensor_pose", 6, file, "truth")}
+        if "sphere_center" in doc["truth"]:
+            truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
+    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth
+
+
+def kasa_circle_fit(x, z):
+    """Algebraic (Kasa) circle fit of the seed's C15: centre (x_c, z_c) and radius r, mm."""
+    a = np.column_stack([x, z, np.ones_like(x)])
+    coef, *_ = np.linalg.lstsq(a, -(x**2 + z**2), rcond=None)
+    xc, zc = -0.5 * coef[0], -0.5 * coef[1]
+    return xc, zc, math.sqrt(max(coef[0] ** 2 / 4 + coef[1] ** 2 / 4 - coef[2], 0.0))
+
+
+def _centre_from_profile(folder, rel, radius, side, file, row):
+    pfile = folder / rel
+    try:
+        with open(pfile, newline="", encoding="utf-8-sig") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(file, f"profile file {rel!r} cannot be read: {exc}", row, "profile") from None
+    if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
+        raise DatasetError(pfile, "header must be 'x,z'", 1)
+    pts = []
+    for k, r in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in r):
+            continue
+        if len(r) != 2:
+            raise DatasetError(pfile, f"expected 2 fields, got {len(r)}", k)
+        pts.append([_number(r[0], pfile, k, "x"), _number(r[1], pfile, k, "z")])
+    if len(pts) < 3:
+        raise DatasetError(pfile, f"a circle needs at least 3 points, got {len(pts)}")
+    p = np.array(pts)
+    xc, zc, r = kasa_circle_fit(p[:, 0], p[:, 1])
+    if not math.isfinite(r) or r > radius:
+        raise DatasetError(pfile, f"fitted circle radius {r:.3f} mm exceeds the sphere radius {radius:.3f} mm")
+    return [xc, side * math.sqrt(radius**2 - r**2), zc]
+
+
+def load(name_or_path):
+    """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
+    folder = resolve(name_or_path)
+    start, diam, centre, plate_pose, centre_in_plate, side, truth = _read_setup(folder)
+    file = folder / "measurements.csv"
+    try:
+        with open(file, newline="", encoding="utf-8-sig") as fh:
+            table = list(csv.reader(fh))
+    except FileNotFoundError:
+        raise DatasetError(file, "missing file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DatasetError(file, f"cannot be read: {exc}") from None
+    if not table:
+        raise DatasetError(file, "empty file; needs the header " + ",".join(REQUIRED_COLUMNS), 1)
+    header = [h.strip() for h in table[0]]
+    for col in header:
+        if col not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS:
+            raise DatasetError(file, f"unknown column (expected {','.join(REQUIRED_COLUMNS)}[,profile])", 1, col)
+        if header.count(col) > 1:
+            raise DatasetError(file, "duplicate column", 1, col)
+    for col in REQUIRED_COLUMNS:
+        if col not in header:
+            raise DatasetError(file, "missing column", 1, col)
+    idx = {c: header.index(c) for c in header}
+    ids, rows, poses, centres = [], [], [], []
+    seen = {}
+    for line, fields in enumerate(table[1:], start=2):
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(header):
+            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
+        ident = fields[idx["id"]].strip()
+        if not ident:
+            raise DatasetError(file, "empty id", line, "id")
+        if ident in seen:
+            raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
+        seen[ident] = line
+        pose = np.array([_number(fields[idx[c]], file, line, c) for c in "xyzabc"])
+        _check_angles(pose, file, line)
+        cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
+        profile = fields[idx["profile"]].strip() if "profile" in idx else ""
+        if all(cells) or not profile:
+            xs = [_number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
+        elif any(cells):
+            raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
+        else:
+            xs = _centre_from_profile(folder, profile, diam / 2, side, file, line)
+        ids.append(ident)
+        rows.append(line)
+        poses.append(pose)
+        centres.append(xs)
+    if not ids:
+        raise DatasetError(file, "no measurements", 2)
+    return Dataset(
+        name=folder.name,
+        path=folder,
+        ids=tuple(ids),
+        rows=tuple(rows),
+        flange_poses=np.array(poses),
+        centre_in_sensor=np.array(centres, dtype=float),
+        start_pose=start,
+        sphere_diameter=diam,
+        sphere_centre=centre,
+        plate_pose=plate_pose,
+        centre_in_plate=centre_in_plate,
+        side=side,
+        truth=truth,
+    )

@@ -1,0 +1,1 @@
+"""handeye's application layer: calibration runs, reports, studies and the ``handeye`` CLI."""

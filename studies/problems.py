@@ -1,0 +1,58 @@
+"""Glue: the model's functions as :class:`solvers.Problem` objects."""
+from __future__ import annotations
+
+import numpy as np
+
+from model import testfunction
+from solvers import Problem
+
+
+def calibration_problem(model):
+    """A :class:`solvers.Problem` of a :class:`model.calibration.CalibrationModel`.
+
+    Least-squares callables and the exact Hessian for every parametrisation; the CasADi NLP
+    for ``euler`` and ``matrix``; the retraction for ``local``.
+    """
+    nlp = model.nlp() if model.rotation in ("euler", "matrix") else None
+    smooth = model.rotation != "matrix"  # the matrix entries need the constraints (IPOPT)
+    return Problem(
+        n=model.n,
+        residual=model.residual if smooth else None,
+        jacobian=model.jacobian if smooth else None,
+        hessian=model.cost_hessian if smooth else None,
+        retract=model.retract if model.rotation == "local" else None,
+        nlp=nlp,
+    )
+
+
+def testfunction_nlp():
+    """The test function (6-16) as a CasADi NLP dict, generated from the same source."""
+    import casadi as ca
+
+    from model import codegen, symbolic
+
+    def build():
+        s = symbolic.test_function()
+        return s["x"], [s["f"]]
+
+    gen = codegen.casadi_function(codegen.generated_source("testfunction_f", build))
+    x = ca.SX.sym("x", 2)
+    return {"x": x, "f": gen(x[0], x[1])[0], "g": ca.SX(0, 1), "lbg": np.zeros(0), "ubg": np.zeros(0)}
+
+
+def testfunction_problem():
+    """The test function with every form: f, gradient, Hessian (Newton, trust region),
+    the residual with ``1/2 |r|^2 = (f + 300) / 2`` (Gauss-Newton, LM, dogleg) and the NLP.
+
+    Note that ``objective`` is f itself, so costs reported by Newton-type and least-squares
+    methods differ by the constant and the factor: compare points, not costs.
+    """
+    return Problem(
+        n=2,
+        objective=testfunction.value,
+        gradient=testfunction.gradient,
+        hessian=testfunction.hessian,
+        residual=testfunction.residual,
+        jacobian=testfunction.residual_jacobian,
+        nlp=testfunction_nlp(),
+    )
