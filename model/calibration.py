@@ -32,20 +32,24 @@ import functools
 
 import numpy as np
 
-from model import codegen, rotation, symbolic
+from model import codegen, rotation
 from model.pose import kuka_from_matrix, matrix_from_kuka
 
 UNKNOWNS = ("sensor", "sensor+sphere")
-ROTATIONS = symbolic.ROTATIONS
+ROTATIONS = ("euler", "matrix", "local")  # as model.symbolic.ROTATIONS (tested)
 
 
 @functools.lru_cache(maxsize=None)
 def _sources(rot):
     def build_resjac():
+        from model import symbolic  # sympy only on a cache miss
+
         s = symbolic.calibration_residual(rot)
         return s["theta"] + s["extra"] + s["data"], list(s["e"]) + list(s["jac"])
 
     def build_hess():
+        from model import symbolic
+
         s = symbolic.calibration_residual(rot)
         return s["theta"] + s["extra"] + s["data"], [v for h in s["hess"] for v in h]
 

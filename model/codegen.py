@@ -37,9 +37,9 @@ def cache_dir():
 
 @functools.lru_cache(maxsize=None)
 def _source_fingerprint():
-    import sympy
+    from importlib.metadata import version
 
-    h = hashlib.sha256(sympy.__version__.encode())
+    h = hashlib.sha256(version("sympy").encode())
     for name in ("symbolic.py", "codegen.py"):
         h.update((_HERE / name).read_bytes())
     return h.hexdigest()[:16]

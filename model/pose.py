@@ -19,12 +19,14 @@ import functools
 
 import numpy as np
 
-from model import codegen, symbolic
+from model import codegen
 
 
 @functools.lru_cache(maxsize=None)
 def _source():
     def build():
+        from model import symbolic  # sympy only on a cache miss
+
         inputs, t = symbolic.pose_transform()
         return inputs, list(t[:3, :])
 

@@ -16,7 +16,7 @@ import functools
 
 import numpy as np
 
-from model import codegen, symbolic
+from model import codegen
 
 A_POINT = np.array([1.0, 1.0])
 B_POINT = np.array([-1.0, -2.0])
@@ -25,6 +25,8 @@ B_POINT = np.array([-1.0, -2.0])
 @functools.lru_cache(maxsize=None)
 def _functions():
     def build():
+        from model import symbolic  # sympy only on a cache miss
+
         s = symbolic.test_function()
         outs = [s["f"], *s["grad"], *s["hess"], *s["r"], *s["rjac"]]
         return s["x"], outs
