@@ -120,7 +120,8 @@ def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose
     Returns
     -------
     Identifiability
-        With parameter names ``tx..C`` (sensor, euler) and ``x3..C3`` (plate).
+        With parameter names ``tx..wz`` (sensor, local rotation: free of the Euler
+        singularity) and ``x3..C3`` (plate).
     """
     from model import codegen, symbolic
     from model.calibration import CalibrationModel
@@ -133,7 +134,7 @@ def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose
     gen = codegen.numpy_function(codegen.generated_source("plate_centre", build))
     vals = np.array(gen(*plate_pose, *centre_in_plate), dtype=float)
     c, dc = vals[:3], vals[3:].reshape(3, 6)
-    m = CalibrationModel(flange2base, centre_in_sensor, c, "euler", "sensor+sphere")
+    m = CalibrationModel(flange2base, centre_in_sensor, c, "local", "sensor+sphere")
     j = m.jacobian(m.point_from(sensor2flange, c))
     j12 = np.hstack([j[:, :6], j[:, 6:9] @ dc])
     names = m.names[:6] + ["x3", "y3", "z3", "A3", "B3", "C3"]

@@ -1,0 +1,80 @@
+"""Shared fixtures: a small seeded generator of simulated datasets, and a private code cache."""
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+import pytest
+
+from model.pose import pose_from_transform, transform_from_pose
+
+SEED_FILE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "seed" / "000_3098c10cdf8c6ab2.txt"
+
+
+def simulated_poses(rng, n):
+    """Flange poses looking at a sphere near (1500, -600, 1100) from varied orientations."""
+    poses = []
+    for _ in range(n):
+        a = rng.uniform(-180, 180)
+        b = rng.uniform(-60, 60)
+        c = rng.uniform(-180, 180)
+        poses.append([rng.uniform(1100, 1800), rng.uniform(-900, -300), rng.uniform(1200, 1550), a, b, c])
+    return np.array(poses)
+
+
+def write_dataset(folder, poses, centres, start, centre, diameter=59.94507, truth=None, ids=None):
+    """Write a dataset folder in our format; returns the folder."""
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    ids = ids or [f"m{k}" for k in range(len(poses))]
+    lines = ["id,x,y,z,a,b,c,xs,ys,zs"]
+    for i, p, xs in zip(ids, poses, centres):
+        lines.append(",".join([i] + [repr(float(v)) for v in p] + [repr(float(v)) for v in xs]))
+    (folder / "measurements.csv").write_text("\n".join(lines) + "\n")
+    toml = [
+        "[sensor]",
+        f"start_pose = [{', '.join(repr(float(v)) for v in start)}]",
+        "[sphere]",
+        f"diameter = {diameter}",
+        f"center = [{', '.join(repr(float(v)) for v in centre)}]",
+    ]
+    if truth is not None:
+        toml += ["[truth]", f"sensor_pose = [{', '.join(repr(float(v)) for v in truth)}]"]
+    (folder / "setup.toml").write_text("\n".join(toml) + "\n")
+    return folder
+
+
+def simulate(folder, seed=0, n=20, noise_mm=0.05, truth=(190.0, 100.0, 130.0, 178.0, -88.0, 0.5), start_offset=None):
+    """A simulated dataset with known truth; noise added to the measured centres (mm, sd)."""
+    rng = np.random.default_rng(seed)
+    t_true = transform_from_pose(truth)
+    centre = np.array([1534.0, -603.0, 1119.0])
+    # poses whose sensor sees the sphere: aim the sensor's z axis at the centre from 230 mm
+    poses = []
+    for _ in range(n):
+        rot = transform_from_pose([0, 0, 0, *rng.uniform([-180, -70, -180], [180, 70, 180])])[:3, :3]
+        sensor_in_base = np.eye(4)
+        sensor_in_base[:3, :3] = rot
+        sensor_in_base[:3, 3] = centre - rot @ np.array([0.0, -10.0, 230.0])
+        flange = sensor_in_base @ np.linalg.inv(t_true)
+        poses.append(pose_from_transform(flange))
+    poses = np.array(poses)
+    f2b = transform_from_pose(poses)
+    xs = np.linalg.solve(f2b @ t_true, np.append(centre, 1.0))[:, :3]
+    xs = xs + rng.normal(0.0, noise_mm, xs.shape)
+    start = np.array(truth) + (np.array(start_offset) if start_offset is not None else np.array([8, -6, 5, 3, 2, -3.0]))
+    return write_dataset(folder, poses, xs, start, centre, truth=truth)
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_cache(tmp_path_factory):
+    """Keep the generated-code cache of the test run apart from the user's."""
+    import os
+
+    old = os.environ.get("HANDEYE_CACHE")
+    os.environ["HANDEYE_CACHE"] = str(tmp_path_factory.mktemp("handeye-cache"))
+    yield
+    if old is None:
+        os.environ.pop("HANDEYE_CACHE", None)
+    else:
+        os.environ["HANDEYE_CACHE"] = old

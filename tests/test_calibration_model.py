@@ -1,0 +1,148 @@
+"""The calibration residual: exact derivatives against CasADi AD and central differences;
+what the data can and cannot determine (the seed's 12 unknowns)."""
+import numpy as np
+import pytest
+
+from model import identifiability, symbolic
+from model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
+from model.dataset import load
+from model.pose import transform_from_pose
+
+CASES = [(r, u) for r in ROTATIONS for u in UNKNOWNS]
+
+
+def random_model(rotation, unknowns, seed=0, n=12):
+    rng = np.random.default_rng(seed)
+    f2b = transform_from_pose(np.column_stack([rng.uniform(-800, 800, (n, 3)), rng.uniform(-170, 170, (n, 3)) * [1, 0.5, 1]]))
+    xs = rng.uniform(-20, 20, (n, 3)) + [0, 0, 230]
+    return CalibrationModel(f2b, xs, rng.uniform(-500, 500, 3), rotation, unknowns)
+
+
+def start_point(m, seed=1):
+    rng = np.random.default_rng(seed)
+    pose = np.concatenate([rng.uniform(-200, 200, 3), rng.uniform(-170, 170, 3) * [1, 0.5, 1]])
+    return m.point_from(transform_from_pose(pose), m.fixed_centre + rng.normal(0, 5, 3))
+
+
+def test_rotation_names_agree_with_the_symbolic_source():
+    assert ROTATIONS == symbolic.ROTATIONS
+
+
+@pytest.mark.parametrize("rotation,unknowns", CASES)
+def test_jacobian_against_central_differences(rotation, unknowns):
+    m = random_model(rotation, unknowns)
+    x = start_point(m)
+    j = m.jacobian(x)
+    h = 1e-6
+    fd = np.stack(
+        [(m.residual(m.retract(x, h * e)) - m.residual(m.retract(x, -h * e))) / (2 * h) for e in np.eye(m.n)], axis=1
+    )
+    np.testing.assert_allclose(j, fd, rtol=1e-6, atol=1e-6 * np.abs(j).max())
+
+
+@pytest.mark.parametrize("rotation,unknowns", [c for c in CASES if c[0] != "matrix"])
+def test_cost_hessian_against_second_differences(rotation, unknowns):
+    """Exact Hessian of the pull-back cost f(retract(x, d)) at d = 0."""
+    m = random_model(rotation, unknowns, seed=2)
+    x = start_point(m, seed=3)
+    hess = m.cost_hessian(x)
+    h = 1e-3  # cost ~1e7 mm^2: a larger step keeps rounding (eps f / h^2) below truncation
+    eye = np.eye(m.n)
+
+    def g(d):
+        return m.cost(m.retract(x, d))
+
+    fd = np.array([[(g(h * eye[i] + h * eye[j]) - g(h * eye[i] - h * eye[j]) - g(-h * eye[i] + h * eye[j])
+                     + g(-h * eye[i] - h * eye[j])) / (4 * h * h) for j in range(m.n)] for i in range(m.n)])
+    np.testing.assert_allclose(hess, fd, rtol=1e-5, atol=1e-5 * np.abs(hess).max())
+    np.testing.assert_allclose(hess, hess.T, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("rotation,unknowns", [c for c in CASES if c[0] != "local"])
+def test_derivatives_against_casadi_ad(rotation, unknowns):
+    """CasADi differentiates the NLP's cost by AD; compare gradient and Hessian."""
+    import casadi as ca
+
+    m = random_model(rotation, unknowns, seed=4)
+    x = start_point(m, seed=5)
+    nlp = m.nlp()
+    f = ca.Function("f", [nlp["x"], nlp["p"]], [nlp["f"]])
+    g = ca.Function("g", [nlp["x"], nlp["p"]], [ca.gradient(nlp["f"], nlp["x"])])
+    h = ca.Function("h", [nlp["x"], nlp["p"]], [ca.hessian(nlp["f"], nlp["x"])[0]])
+    p = nlp["p_value"]
+    assert float(f(x, p)) == pytest.approx(m.cost(x), rel=1e-12)
+    np.testing.assert_allclose(np.array(g(x, p)).ravel(), m.gradient(x), rtol=1e-10, atol=1e-8)
+    np.testing.assert_allclose(np.array(h(x, p)), m.cost_hessian(x), rtol=1e-10, atol=1e-8)
+
+
+def test_residual_is_the_seeds_chain():
+    """e_i = T(p1_i) T(p2) x_s,i - T(p3) x_p' (seed 4-3), written out with 4x4 matrices."""
+    d = load("thesis-real")
+    p2 = [150.0, 90.0, 120.0, 170.0, -80.0, 5.0]
+    m = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "euler")
+    x = m.point_from(transform_from_pose(p2))
+    lhs = transform_from_pose(d.flange_poses) @ transform_from_pose(p2) @ np.column_stack(
+        [d.centre_in_sensor, np.ones(len(d))])[..., None]
+    rhs = transform_from_pose(d.plate_pose) @ np.append(d.centre_in_plate, 1.0)
+    np.testing.assert_allclose(m.residuals(x), (lhs[..., 0] - rhs)[:, :3], atol=1e-9)
+
+
+def test_local_retraction_stays_on_so3():
+    m = random_model("local", "sensor")
+    x = start_point(m)
+    rng = np.random.default_rng(6)
+    for _ in range(50):
+        x = m.retract(x, rng.normal(0, 0.5, m.n))
+    r = m.sensor_rotation(x)
+    np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-13)
+
+
+def test_seed_step_two_plate_pose_is_not_identifiable():
+    """Seed 4.4.2 estimates p2 and p3 (12 unknowns); only c = T(p3) x_p' enters the residual."""
+    d = load("thesis-real")
+    ident = identifiability.plate_pose_analysis(
+        d.flange2base(), d.centre_in_sensor, transform_from_pose(d.start_pose), d.plate_pose, d.centre_in_plate)
+    assert ident.n == 12 and ident.rank == 9
+    assert ident.singular_values[8] > 1e-3 and ident.singular_values[9] < 1e-10
+    # the three null directions live entirely in the plate pose
+    for direction in ident.null_directions:
+        assert set(direction) <= {"x3", "y3", "z3", "A3", "B3", "C3"}
+    # while sensor + sphere centre (9 unknowns) are all identifiable from the same data
+    m = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "local", "sensor+sphere")
+    assert identifiability.structural(m, m.point_from(transform_from_pose(d.start_pose))).full_rank
+
+
+def test_degenerate_poses_are_detected():
+    d = load("thesis-real")
+    f2b = d.flange2base()
+    start = transform_from_pose(d.start_pose)
+    same = np.repeat(f2b[:1], 10, axis=0)
+    m = CalibrationModel(same, np.repeat(d.centre_in_sensor[:1], 10, 0), d.sphere_centre, "local", "sensor")
+    ident = identifiability.structural(m, m.point_from(start))
+    assert ident.rank == 3 and not ident.full_rank
+    # pure translations: fine for the sensor alone, not with the sphere centre unknown
+    shifted = np.repeat(f2b[:1], 6, axis=0)
+    shifted[:, :3, 3] += np.random.default_rng(7).uniform(-50, 50, (6, 3))
+    xs = np.repeat(d.centre_in_sensor[:1], 6, 0)
+    m = CalibrationModel(shifted, xs, d.sphere_centre, "local", "sensor")
+    assert identifiability.structural(m, m.point_from(start)).full_rank
+    m = CalibrationModel(shifted, xs, d.sphere_centre, "local", "sensor+sphere")
+    ident = identifiability.structural(m, m.point_from(start))
+    assert ident.rank == 6
+    assert all({"cx", "cy", "cz"} & set(v) for v in ident.null_directions)
+
+
+def test_euler_angles_are_singular_at_the_seeds_sensor_orientation():
+    """The seed's sensor sits at B = -90 deg: there A and C turn about the same axis, so the
+    Euler Jacobian loses rank, while the local (rotation-vector) chart does not."""
+    d = load("thesis-real")
+    start = transform_from_pose(d.start_pose)
+    for rotation, rank in (("euler", 5), ("local", 6)):
+        m = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, rotation)
+        ident = identifiability.analyse(m.jacobian(m.point_from(start)), m.names)
+        assert ident.rank == rank
+    (null,) = ident_euler = identifiability.analyse(
+        CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "euler").jacobian(
+            np.array([*d.start_pose])), ["tx", "ty", "tz", "A", "B", "C"]).null_directions
+    assert null in ({"A": 1.0, "C": -1.0}, {"A": -1.0, "C": 1.0})
+    assert ident_euler == [null]
