@@ -94,7 +94,7 @@ def minimize(problem, x0, opts):
     msg = STATUS_MESSAGES[status] + (f" ({ret})" if status in (0, 7) else "")
     if not history or not np.array_equal(history[0], np.asarray(x0, float)):
         history.insert(0, np.array(x0, dtype=float))
-    counts = {k: v.get("n_call", 0) for k, v in stats.items() if isinstance(v, dict) and "n_call" in v}
+    counts = {k[len("n_call_"):]: v for k, v in stats.items() if k.startswith("n_call_")}
     return OptimizeResult(
         x=x,
         cost=float(sol["f"]),

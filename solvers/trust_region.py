@@ -8,7 +8,8 @@ then compares the actual with the predicted reduction,
 
     rho_k = (f(x_k) - f(retract(x_k, p_k))) / (m_k(0) - m_k(p_k)),
 
-and updates the radius as N&W Algorithm 4.1 (the seed's 6.1.6 prints the same rules):
+(when both reductions are at rounding level, ``100 eps |f|``, the step is taken and the gradient
+test decides) and updates the radius as N&W Algorithm 4.1 (the seed's 6.1.6 prints the same rules):
 ``rho < 1/4`` shrinks Delta to ``|p|/4``; ``rho > 3/4`` with ``|p| = Delta`` doubles it (up to
 a maximum); the step is taken when ``rho > eta``.
 
@@ -190,6 +191,9 @@ def minimize(problem, x0, opts, model="newton"):
         x_new = problem.move(x, p)
         f_new = cost(x_new)
         rho = (f - f_new) / predicted if predicted > 0 else -1.0
+        noise = 100 * np.finfo(float).eps * max(1.0, abs(f))
+        if 0 <= predicted <= noise and np.isfinite(f_new) and f_new <= f + noise:
+            rho = 1.0  # reductions at rounding level: rho is noise; let the gradient decide
         pnorm = float(np.linalg.norm(ps))
         if not np.isfinite(f_new) or rho < 0.25:
             radius = 0.25 * pnorm
