@@ -33,7 +33,7 @@ import functools
 import numpy as np
 
 from model import codegen, rotation
-from model.pose import kuka_from_matrix, matrix_from_kuka
+from model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
 ROTATIONS = ("euler", "matrix", "local")  # as model.symbolic.ROTATIONS (tested)
@@ -127,6 +127,15 @@ class CalibrationModel:
         if self.unknowns == "sensor+sphere":
             parts.append(self.fixed_centre if sphere_centre is None else np.asarray(sphere_centre, float))
         return np.concatenate(parts)
+
+    def point_from_pose(self, pose, sphere_centre=None):
+        """Solver point of a KUKA pose (mm, deg); ``euler`` keeps the angles exactly as given
+        (B = -90.1 stays -90.1 rather than becoming its equivalent with B = -89.9)."""
+        pose = np.asarray(pose, dtype=float)
+        x = self.point_from(transform_from_pose(pose), sphere_centre)
+        if self.rotation == "euler":
+            x[3:6] = pose[3:6]
+        return x
 
     def _split(self, x):
         x = np.asarray(x, dtype=float)

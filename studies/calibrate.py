@@ -136,7 +136,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         JSON-ready: ``sensor_pose``, ``sensor_matrix``, ``sphere_center``, ``rms_mm``,
         ``max_residual_mm``, ``residuals``, ``iterations``, ``converged``, ``status``,
         ``message``, ``method``, ``rotation``, ``unknowns``, ``identifiability``, ``warnings``,
-        and ``history`` (sensor poses of the iterates).
+        ``history`` (sensor poses of the iterates) and ``solver_point`` (the solver's own final
+        point, e.g. the raw Euler angles before normalisation).
     """
     rotation = check_request(dataset, unknowns, method, rotation)
     start_pose = np.asarray(dataset.start_pose if start is None else start, dtype=float)
@@ -144,7 +145,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     check_identifiable(dataset, unknowns, start_t)
     model = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, rotation, unknowns)
     problem = calibration_problem(model)
-    x0 = model.point_from(start_t)
+    x0 = model.point_from_pose(start_pose)
     result = solvers.solve(problem, x0, method=method, options=options)
     warnings = []
     rot_raw = model.sensor_rotation(result.x)
@@ -197,5 +198,6 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         "identifiability": ident.as_dict(),
         "warnings": warnings,
         "history": history,
+        "solver_point": result.x.tolist(),
         "solver_extra": {k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
     }

@@ -49,13 +49,15 @@ def simulate(folder, seed=0, n=20, noise_mm=0.05, truth=(190.0, 100.0, 130.0, 17
     rng = np.random.default_rng(seed)
     t_true = transform_from_pose(truth)
     centre = np.array([1534.0, -603.0, 1119.0])
-    # poses whose sensor sees the sphere: aim the sensor's z axis at the centre from 230 mm
+    # poses whose sensor sees the sphere within its range: the centre lies at a varied point
+    # of the sensor frame (|y| below the radius, z in the 190-290 mm measuring range)
     poses = []
     for _ in range(n):
         rot = transform_from_pose([0, 0, 0, *rng.uniform([-180, -70, -180], [180, 70, 180])])[:3, :3]
+        seen_at = rng.uniform([-20.0, -25.0, 190.0], [20.0, -3.0, 290.0])
         sensor_in_base = np.eye(4)
         sensor_in_base[:3, :3] = rot
-        sensor_in_base[:3, 3] = centre - rot @ np.array([0.0, -10.0, 230.0])
+        sensor_in_base[:3, 3] = centre - rot @ seen_at
         flange = sensor_in_base @ np.linalg.inv(t_true)
         poses.append(pose_from_transform(flange))
     poses = np.array(poses)
