@@ -111,6 +111,26 @@ def _projected(transform):
     return out
 
 
+#: A residual this many robust standard deviations above the median is flagged.
+GROSS_ERROR_Z = 10.0
+
+
+def _gross_error_warnings(ids, norms):
+    """Flag residuals far above the rest (median + GROSS_ERROR_Z * 1.4826 MAD); never excludes."""
+    med = float(np.median(norms))
+    spread = 1.4826 * float(np.median(np.abs(norms - med)))
+    limit = med + GROSS_ERROR_Z * max(spread, 1e-9)
+    out = []
+    for i, n in zip(ids, norms):
+        if n > limit:
+            out.append(
+                f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
+                f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
+                "the whole calibration is pulled by it -- check or remove that sample"
+            )
+    return out
+
+
 def _orthogonality(rot):
     return float(np.linalg.norm(rot.T @ rot - np.eye(3))), float(np.linalg.det(rot))
 
@@ -170,6 +190,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     check = CalibrationModel(model.flange2base, model.centre_in_sensor, centre, "local", unknowns)
     e = check.residuals(check.point_from(sensor, centre))
     norms = np.linalg.norm(e, axis=1)
+    warnings += _gross_error_warnings(dataset.ids, norms)
     ident = identifiability.analyse(check.jacobian(check.point_from(sensor, centre)), check.names)
     if not ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")

@@ -1,0 +1,135 @@
+"""The handeye command line: outputs, exit codes, clean errors, warm start without sympy."""
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from conftest import simulate, write_dataset
+from studies.cli import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_default_is_ipopt_matrix_on_thesis_real_and_reports_everything(capsys):
+    code, out, err = run(capsys, "calibrate", "--json")
+    res = json.loads(out)
+    assert res["dataset"] == "thesis-real" and res["method"] == "ipopt" and res["rotation"] == "matrix"
+    for key in ("sensor_pose", "sensor_matrix", "sphere_center", "rms_mm", "max_residual_mm", "residuals",
+                "iterations", "converged", "method", "rotation", "unknowns", "identifiability"):
+        assert key in res
+    assert code == (EXIT_OK if res["converged"] else EXIT_NOT_CONVERGED)
+    assert len(res["residuals"]) == 31 and {"id", "vector", "norm"} <= set(res["residuals"][0])
+    ident = res["identifiability"]
+    assert ident["rank"] == 6 and len(ident["singular_values"]) == 6 and ident["condition_number"] > 1
+    assert len(res["sensor_matrix"]) == 4
+
+
+def test_text_report(capsys):
+    code, out, err = run(capsys, "calibrate", "thesis-sim", "--method", "lm")
+    assert code == EXIT_OK
+    assert "sensor pose" in out and "RMS residual" in out and "identifiability: rank 6 of 6" in out
+    assert "x+90" in out
+
+
+def test_sensor_and_sphere(capsys):
+    code, out, _ = run(capsys, "calibrate", "thesis-sim", "--unknowns", "sensor+sphere", "--method", "lm", "--json")
+    res = json.loads(out)
+    assert code == EXIT_OK and res["identifiability"]["n"] == 9
+    assert res["sphere_center"] == pytest.approx([30, 5, 10], abs=1e-6)
+
+
+def test_not_converged_exits_1_and_still_reports(capsys):
+    code, out, _ = run(capsys, "calibrate", "thesis-real", "--method", "gn", "--rotation", "euler", "--max-iter", "3")
+    assert code == EXIT_NOT_CONVERGED and "NOT CONVERGED" in out
+
+
+def test_start_option(capsys):
+    code, out, _ = run(capsys, "calibrate", "thesis-sim", "--start=75,75,55,0,-90,0", "--method", "gn", "--json")
+    assert code == EXIT_OK and json.loads(out)["start_pose"] == [75, 75, 55, 0, -90, 0]
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["calibrate", "nowhere"], "no dataset folder"),
+    (["calibrate", "thesis-sim", "--method", "gn", "--rotation", "matrix"], "does not work with --method gn"),
+    (["calibrate", "thesis-sim", "--rotation", "local"], "IPOPT has no retraction"),
+    (["calibrate", "thesis-sim", "--start", "1,2,3"], "six comma-separated numbers"),
+    (["calibrate", "thesis-sim", "--start", "1,2,3,a,5,6"], "not a number"),
+    (["calibrate", "thesis-sim", "--start", "1,2,3,4,5,nan"], "finite"),
+    (["calibrate", "thesis-sim", "--start", "1,2,3,4,500,6"], "out of range"),
+    (["calibrate", "thesis-sim", "--max-iter", "0"], "at least 1"),
+])
+def test_bad_options_exit_2_with_a_message(capsys, argv, needle):
+    code, out, err = run(capsys, *argv)
+    assert code == EXIT_BAD_INPUT
+    assert needle in err and "Traceback" not in err
+
+
+def test_unknown_choice_exits_2(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["calibrate", "thesis-sim", "--method", "simplex"])
+    assert exc.value.code == EXIT_BAD_INPUT and "invalid choice" in capsys.readouterr().err
+
+
+def test_bad_dataset_exits_2_naming_file_row_column(tmp_path, capsys):
+    folder = simulate(tmp_path / "sim", n=6)
+    csv = folder / "measurements.csv"
+    lines = csv.read_text().splitlines()
+    lines[3] = lines[3].replace(lines[3].split(",")[2], "oops", 1)
+    csv.write_text("\n".join(lines) + "\n")
+    code, out, err = run(capsys, "calibrate", str(folder))
+    assert code == EXIT_BAD_INPUT
+    assert str(csv) in err and "row 4" in err and "column 'y'" in err
+
+
+def test_too_few_measurements(tmp_path, capsys):
+    folder = simulate(tmp_path / "sim", n=3)
+    code, _, err = run(capsys, "calibrate", str(folder), "--unknowns", "sensor+sphere")
+    assert code == EXIT_BAD_INPUT and "need at least 4" in err
+
+
+def test_identical_poses_are_refused(tmp_path, capsys):
+    folder = write_dataset(tmp_path / "same", [[1500, -600, 1300, 10, 20, 30]] * 8,
+                           [[1.0, -10.0, 230.0]] * 8, [190, 100, 130, 178, -88, 0.5], [1534, -603, 1119])
+    code, _, err = run(capsys, "calibrate", str(folder), "--method", "lm")
+    assert code == EXIT_BAD_INPUT and "do not determine every unknown" in err
+
+
+def test_pure_translations_cannot_separate_sensor_and_sphere(tmp_path, capsys):
+    poses = [[1500 + 40 * k, -600 + 25 * (k % 3), 1300 + 30 * (k % 2), 10, 20, 30] for k in range(8)]
+    centres = [[1.0 + k, -10.0 - k, 230.0 + 2 * k] for k in range(8)]
+    folder = write_dataset(tmp_path / "trans", poses, centres, [190, 100, 130, 178, -88, 0.5], [1534, -603, 1119])
+    code, _, err = run(capsys, "calibrate", str(folder), "--unknowns", "sensor+sphere", "--method", "lm")
+    assert code == EXIT_BAD_INPUT and "cannot separate the sensor offset from the sphere centre" in err
+
+
+def test_datasets_command(capsys):
+    code, out, _ = run(capsys, "datasets")
+    assert code == EXIT_OK and "thesis-real" in out and "thesis-sim" in out
+
+
+def test_console_script_warm_start_needs_no_sympy(tmp_path):
+    """Generated functions are cached: after one run, a new process never imports sympy."""
+    env = dict(os.environ, HANDEYE_CACHE=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
+    probe = ("import sys; from studies.cli import main; code = main(['calibrate', 'thesis-sim', '--json']);"
+             "print('SYMPY', 'sympy' in sys.modules); sys.exit(code)")
+    cold = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=300)
+    assert cold.returncode == 0 and "SYMPY True" in cold.stdout
+    warm = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=300)
+    assert warm.returncode == 0 and "SYMPY False" in warm.stdout
+    assert any((tmp_path / "cache").iterdir())
+
+
+def test_gross_error_of_the_printed_real_data_is_flagged(capsys):
+    code, out, _ = run(capsys, "calibrate", "--json")
+    res = json.loads(out)
+    flagged = [w for w in res["warnings"] if "gross error" in w]
+    assert len(flagged) == 1 and "'x+22.5'" in flagged[0]
