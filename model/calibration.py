@@ -253,15 +253,13 @@ class CalibrationModel:
         e = ca.vertcat(*gen(*[theta[k] for k in range(theta.shape[0])], *[d[k] for k in range(15)])[:3])
         one = ca.Function("e", [theta, d], [e])
         data = ca.SX.sym("data", 15, self.n_meas)
+        p_value = np.stack(self._data).ravel(order="F")  # ca.vec is column-major
         if self.unknowns == "sensor+sphere":
-            p = ca.vec(data)
-            full = x
-            p_value = np.concatenate(self._data).reshape(15, -1).T.ravel()
+            p, full = ca.vec(data), x
         else:
             cfix = ca.SX.sym("c", 3)
-            p = ca.vertcat(ca.vec(data), cfix)
-            full = ca.vertcat(x, cfix)
-            p_value = np.concatenate([np.stack(self._data).ravel(order="F"), self.fixed_centre])
+            p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
+            p_value = np.concatenate([p_value, self.fixed_centre])
         e_all = one.map(self.n_meas)(full, data)
         f = 0.5 * ca.sumsqr(e_all)
         if self.rotation == "matrix":

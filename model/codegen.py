@@ -7,7 +7,8 @@ vectorised over any batch of inputs), once where they are CasADi's (a function o
 symbols). Nothing is written twice by hand.
 
 Deriving and printing takes about a second; the source text is therefore cached on disk,
-keyed by a hash of the symbolic module, this module and the sympy version, so a warm
+keyed by a hash of the symbolic module, this module, the module that chose the expressions
+and the sympy version, so a warm
 ``handeye calibrate`` never touches sympy's differentiation. The cache lives in
 ``$HANDEYE_CACHE``, else ``$XDG_CACHE_HOME/handeye``, else ``~/.cache/handeye``; when it cannot
 be written the functions are simply regenerated each time.
@@ -36,12 +37,17 @@ def cache_dir():
 
 
 @functools.lru_cache(maxsize=None)
-def _source_fingerprint():
+def _source_fingerprint(caller_file):
+    """Hash of sympy's version, the symbolic source, this module and the module whose
+    ``build`` chose the expressions (so a change to any of them invalidates the cache)."""
     from importlib.metadata import version
 
     h = hashlib.sha256(version("sympy").encode())
-    for name in ("symbolic.py", "codegen.py"):
-        h.update((_HERE / name).read_bytes())
+    for path in (_HERE / "symbolic.py", _HERE / "codegen.py", pathlib.Path(caller_file)):
+        try:
+            h.update(path.read_bytes())
+        except OSError:
+            h.update(str(path).encode())
     return h.hexdigest()[:16]
 
 
@@ -70,7 +76,7 @@ def generated_source(name, build):
         ``build() -> (inputs, outputs)``: the sympy input symbols (in argument order) and the
         flat list of output expressions. Called only on a cache miss.
     """
-    path = cache_dir() / f"{name}-{_source_fingerprint()}.py"
+    path = cache_dir() / f"{name}-{_source_fingerprint(build.__code__.co_filename)}.py"
     try:
         return path.read_text()
     except OSError:

@@ -104,17 +104,14 @@ def kuka_from_matrix(rot):
     b = np.arctan2(-r[..., 2, 0], cos_b)
     locked = cos_b < GIMBAL_TOLERANCE
     a = np.where(locked, np.arctan2(-r[..., 0, 1], r[..., 1, 1]), np.arctan2(r[..., 1, 0], r[..., 0, 0]))
-    # C from M = Ry(B)^T Rz(A)^T R = Rx(C): absorbs any error of A near the lock.
-    ca_, sa = np.cos(a), np.sin(a)
+    # C from M = Ry(B)^T Rz(A)^T R = Rx(C), whose column 1 is (0, cos C, sin C): this absorbs
+    # any error of A near the lock, so the angles always give R back.
+    ca_, sa = np.cos(a)[..., None], np.sin(a)[..., None]
     cb, sb = np.cos(b), np.sin(b)
-    # rows 1 and 2 of Rz(A)^T R
-    m1 = -sa[..., None] * r[..., 0, :] + ca_[..., None] * r[..., 1, :]
-    m0 = ca_[..., None] * r[..., 0, :] + sa[..., None] * r[..., 1, :]
-    m2 = r[..., 2, :]
-    # Ry(B)^T applied: row 2 = sb*m0 + cb*m2 ; we need M[2,1] and M[1,1]
-    s_c = sb * m0[..., 1] + cb * m2[..., 1]
-    c_c = m1[..., 1]
-    c = np.arctan2(s_c, c_c)
+    row0 = ca_ * r[..., 0, :] + sa * r[..., 1, :]  # rows of Rz(A)^T R
+    row1 = -sa * r[..., 0, :] + ca_ * r[..., 1, :]
+    row2 = r[..., 2, :]
+    c = np.arctan2(sb * row0[..., 1] + cb * row2[..., 1], row1[..., 1])
     out = np.degrees(np.stack([a, b, c], axis=-1))
     out = np.where(out <= -180.0, out + 360.0, out)
     return out
