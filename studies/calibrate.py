@@ -155,7 +155,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     dict
         JSON-ready: ``sensor_pose``, ``sensor_matrix``, ``sphere_center``, ``rms_mm``,
         ``max_residual_mm``, ``residuals``, ``iterations``, ``converged``, ``status``,
-        ``message``, ``method``, ``rotation``, ``unknowns``, ``identifiability``, ``warnings``,
+        ``message``, ``method``, ``rotation``, ``unknowns``, ``identifiability``,
+        ``hessian_eigenvalues`` (of the cost in the local chart: all positive at a minimum), ``warnings``,
         ``history`` (sensor poses of the iterates) and ``solver_point`` (the solver's own final
         point, e.g. the raw Euler angles before normalisation).
     """
@@ -191,7 +192,14 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     e = check.residuals(check.point_from(sensor, centre))
     norms = np.linalg.norm(e, axis=1)
     warnings += _gross_error_warnings(dataset.ids, norms)
-    ident = identifiability.analyse(check.jacobian(check.point_from(sensor, centre)), check.names)
+    # judged in the local chart, free of the Euler singularity and of the matrix constraints
+    final = check.point_from(sensor, centre)
+    ident = identifiability.analyse(check.jacobian(final), check.names)
+    hess_eig = np.linalg.eigvalsh(check.cost_hessian(final))
+    if converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
+        converged = False
+        message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
+                   "point, not a minimum (local Newton converges to any stationary point)")
     if not ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")
     history = [pose_from_transform(_projected(model.sensor2flange(x))).tolist() for x in result.history]
@@ -217,6 +225,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         "status": int(status),
         "message": message,
         "identifiability": ident.as_dict(),
+        "hessian_eigenvalues": hess_eig.tolist(),
         "warnings": warnings,
         "history": history,
         "solver_point": result.x.tolist(),

@@ -133,3 +133,12 @@ def test_gross_error_of_the_printed_real_data_is_flagged(capsys):
     res = json.loads(out)
     flagged = [w for w in res["warnings"] if "gross error" in w]
     assert len(flagged) == 1 and "'x+22.5'" in flagged[0]
+
+
+def test_a_saddle_point_is_not_reported_as_a_calibration(capsys):
+    """Local Newton on the printed real data stops at a stationary point whose cost Hessian
+    has a negative eigenvalue: exit 1, and the message says why."""
+    code, out, _ = run(capsys, "calibrate", "--method", "newton", "--json")
+    res = json.loads(out)
+    assert code == EXIT_NOT_CONVERGED and not res["converged"]
+    assert res["hessian_eigenvalues"][0] < 0 and "saddle" in res["message"]
