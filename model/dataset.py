@@ -11,7 +11,8 @@
     circle fit gives the centre ``(x_c, z_c)`` and radius r, and
     ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
 ``setup.toml``
-    ``[sensor] start_pose`` (p2: six numbers); ``[sphere] diameter`` (mm) and either
+    ``[sensor] start_pose`` (p2: six numbers; optional -- without it the calibration starts from
+    the closed-form estimate); ``[sphere] diameter`` (mm) and either
     ``center`` (three numbers, robot base) or ``base_pose`` (p3) with ``center_in_plate``
     (x_p'); ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[truth]``
     with ``sensor_pose`` (six numbers) and optionally ``sphere_center`` -- for simulated data,
@@ -73,8 +74,8 @@ class Dataset:
         Flange in robot base, KUKA (mm, deg).
     centre_in_sensor : ndarray, shape (N, 3)
         Sphere centre in the sensor frame, mm.
-    start_pose : ndarray, shape (6,)
-        Start value of the sensor pose on the flange (p2), KUKA.
+    start_pose : ndarray, shape (6,), or None
+        Start value of the sensor pose on the flange (p2), KUKA; None when the setup has none.
     sphere_diameter : float
         mm.
     sphere_centre : ndarray, shape (3,)
@@ -107,6 +108,27 @@ class Dataset:
 
     def __len__(self):
         return len(self.ids)
+
+    def subset(self, mask):
+        """The dataset restricted to the measurements where ``mask`` is true."""
+        mask = np.asarray(mask, bool)
+        return dataclasses.replace(
+            self,
+            ids=tuple(i for i, k in zip(self.ids, mask) if k),
+            rows=tuple(r for r, k in zip(self.rows, mask) if k),
+            flange_poses=self.flange_poses[mask],
+            centre_in_sensor=self.centre_in_sensor[mask],
+        )
+
+    def content_hash(self):
+        """SHA-256 of the files that make the dataset (setup, measurements, profiles)."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for path in sorted(p for p in self.path.rglob("*") if p.is_file() and p.suffix in (".csv", ".toml")):
+            h.update(str(path.relative_to(self.path)).encode())
+            h.update(path.read_bytes())
+        return h.hexdigest()
 
 
 def embedded_names():
@@ -189,8 +211,10 @@ def _read_setup(path):
         for key in table:
             if key not in _ALLOWED[section]:
                 raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})", column=f"[{section}] {key}")
-    start = _vector(doc.get("sensor", {}), "start_pose", 6, file, "sensor")
-    _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
+    start = None
+    if "start_pose" in doc.get("sensor", {}):
+        start = _vector(doc["sensor"], "start_pose", 6, file, "sensor")
+        _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
     sphere = doc.get("sphere", {})
     diam = sphere.get("diameter")
     if isinstance(diam, bool) or not isinstance(diam, (int, float)) or not math.isfinite(diam) or diam <= 0:

@@ -14,6 +14,10 @@ import numpy as np
 import solvers
 from model import identifiability
 from model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
+from model.closed_form import ClosedFormError, closed_form_estimate
+from model.statistics import covariance
+from studies import robust
+from studies.robust import ALPHA
 from model.dataset import GUESS_LIMITS
 from model.pose import pose_from_transform, transform_from_pose
 from studies.problems import calibration_problem
@@ -135,7 +139,58 @@ def _orthogonality(rot):
     return float(np.linalg.norm(rot.T @ rot - np.eye(3))), float(np.linalg.det(rot))
 
 
-def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None):
+def resolve_start(dataset, unknowns, start=None):
+    """The start pose and where it came from: ``--start``, the setup, or the closed form."""
+    if start is not None:
+        return np.asarray(start, dtype=float), "given (--start)"
+    if dataset.start_pose is not None:
+        return np.asarray(dataset.start_pose, dtype=float), "setup.toml start_pose"
+    return _closed_form_pose(dataset, unknowns), "closed-form estimate (no start pose given)"
+
+
+def _closed_form_pose(dataset, unknowns):
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    try:
+        t, _ = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, centre)
+    except ClosedFormError:
+        if centre is not None:
+            raise
+        t, _ = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre)
+    return pose_from_transform(t)
+
+
+def _solve(dataset, unknowns, method, rotation, start_pose, options):
+    model = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, rotation, unknowns)
+    result = solvers.solve(calibration_problem(model), model.point_from_pose(start_pose), method=method, options=options)
+    return model, result
+
+
+def _judge(model, result, unknowns):
+    """Final transform, convergence verdict and local-chart diagnostics of a solver result."""
+    converged, message, notes = bool(result.converged), result.message, []
+    if model.rotation == "matrix":
+        orth, det = _orthogonality(model.sensor_rotation(result.x))
+        if det <= 0:
+            converged, message = False, f"{message}; but det R = {det:.3g} <= 0: a reflection, not a rotation"
+        if orth > 1e-6:
+            notes.append(f"R^T R - I has norm {orth:.2e}; R is reported projected onto SO(3)")
+    sensor = _projected(model.sensor2flange(result.x))  # a no-op but for 'matrix'
+    centre = model.sphere_centre(result.x)
+    if not (np.all(np.isfinite(sensor)) and np.all(np.isfinite(centre))):
+        return sensor, centre, False, "numerical failure: non-finite result", notes, None, None
+    # judged in the local chart, free of the Euler singularity and of the matrix constraints
+    local = CalibrationModel(model.flange2base, model.centre_in_sensor, centre, "local", unknowns)
+    final = local.point_from(sensor, centre)
+    hess_eig = np.linalg.eigvalsh(local.cost_hessian(final))
+    if converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
+        converged = False
+        message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
+                   "point, not a minimum (local Newton converges to any stationary point)")
+    return sensor, centre, converged, message, notes, local, hess_eig
+
+
+def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None,
+              outliers=True, alpha=ALPHA, loo=True):
     """Calibrate the sensor pose on the flange from a dataset.
 
     Parameters
@@ -146,88 +201,146 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     rotation : {'matrix', 'local', 'euler'} or None
         None: ``matrix`` for IPOPT, ``local`` otherwise.
     start : array_like, shape (6,), optional
-        Start sensor pose (KUKA, mm and degrees); default the dataset's ``start_pose``.
+        Start sensor pose (KUKA, mm and degrees); default the dataset's ``start_pose``, else
+        the closed-form estimate. When the given start does not converge, the closed-form
+        estimate is tried, and the result says so.
     options : dict, optional
         Solver options (:class:`solvers.Options`).
+    outliers : bool
+        Detect and exclude gross errors (:mod:`studies.robust`); False fits every sample.
+    alpha : float
+        Family-wise level of the outlier tests.
+    loo : bool
+        Compute the leave-one-out prediction error (one refit per sample).
 
     Returns
     -------
     dict
-        JSON-ready: ``sensor_pose``, ``sensor_matrix``, ``sphere_center``, ``rms_mm``,
-        ``max_residual_mm``, ``residuals``, ``iterations``, ``converged``, ``status``,
-        ``message``, ``method``, ``rotation``, ``unknowns``, ``identifiability``,
-        ``hessian_eigenvalues`` (of the cost in the local chart: all positive at a minimum), ``warnings``,
-        ``history`` (sensor poses of the iterates) and ``solver_point`` (the solver's own final
-        point, e.g. the raw Euler angles before normalisation).
+        JSON-ready: ``sensor_pose``, ``sensor_matrix``, ``sphere_center``, ``rms_mm`` and
+        ``max_residual_mm`` (samples used), ``residuals`` (every sample, with ``used``),
+        ``outliers`` (ids) and ``excluded`` (with statistics and reasons), ``std``
+        (``sensor_translation_mm``, ``sensor_rotation_deg`` about the sensor's axes,
+        ``sphere_center_mm`` or None), ``sigma_mm``, ``correlation``, ``loo_error_mm``,
+        ``before`` (plain fit of every sample: ``rms_mm``, ``loo_error_mm``), ``iterations``,
+        ``converged``, ``status``, ``message``, ``method``, ``rotation``, ``unknowns``,
+        ``start_pose`` and ``start_used``, ``identifiability``, ``hessian_eigenvalues`` (cost,
+        local chart: all positive at a minimum), ``warnings``, ``history`` (sensor poses of the
+        iterates) and ``solver_point`` (the solver's own final point, e.g. raw Euler angles).
     """
     rotation = check_request(dataset, unknowns, method, rotation)
-    start_pose = np.asarray(dataset.start_pose if start is None else start, dtype=float)
+    start_pose, start_used = resolve_start(dataset, unknowns, start)
     start_t = transform_from_pose(start_pose)
     check_identifiable(dataset, unknowns, start_t)
-    model = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, rotation, unknowns)
-    problem = calibration_problem(model)
-    x0 = model.point_from_pose(start_pose)
-    result = solvers.solve(problem, x0, method=method, options=options)
     warnings = []
-    rot_raw = model.sensor_rotation(result.x)
-    converged = bool(result.converged)
-    status, message = result.status, result.message
-    if rotation == "matrix":
-        orth, det = _orthogonality(rot_raw)
-        if det <= 0:
-            converged, message = False, f"{message}; but det R = {det:.3g} <= 0: a reflection, not a rotation"
-        if orth > 1e-6:
-            warnings.append(f"R^T R - I has norm {orth:.2e}; R is reported projected onto SO(3)")
-    sensor = _projected(model.sensor2flange(result.x))  # a no-op but for 'matrix'
-    if not np.all(np.isfinite(sensor)):
-        converged, message = False, "numerical failure: non-finite result"
+    everything = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, "local",
+                                  unknowns)
+    plain = robust.least_squares(everything, everything.point_from(start_t)).x
+    plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
+    before = {"n": len(dataset), "rms_mm": float(np.sqrt(np.mean(plain_norms**2))),
+              "loo_error_mm": _rms(robust.leave_one_out(everything, plain)) if loo else None}
+    excluded, mask = [], np.ones(len(dataset), bool)
+    if outliers:
+        screening = robust.screen(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, unknowns,
+                                  start_t, dataset.ids, dataset.rows, alpha=alpha)
+        mask, excluded = screening.inliers, screening.excluded
+        if screening.note:
+            warnings.append(screening.note)
+    used = dataset.subset(mask)
+    model, result = _solve(used, unknowns, method, rotation, start_pose, options)
+    sensor, centre, converged, message, notes, local, hess_eig = _judge(model, result, unknowns)
+    if not converged and not start_used.startswith("closed-form"):
+        try:
+            retry_pose = _closed_form_pose(used, unknowns)
+        except ClosedFormError as exc:
+            warnings.append(f"the start did not converge and no closed-form restart is possible: {exc}")
+        else:
+            model2, result2 = _solve(used, unknowns, method, rotation, retry_pose, options)
+            judged = _judge(model2, result2, unknowns)
+            if judged[2]:
+                warnings.append(f"the start ({start_used}) did not converge ({message}); restarted from the "
+                                "closed-form estimate")
+                start_used = "closed-form estimate (after the given start failed)"
+                model, result = model2, result2
+                sensor, centre, converged, message, notes, local, hess_eig = judged
+    warnings += notes
     pose = pose_from_transform(sensor)
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:
         warnings.append(
             f"B = {pose[4]:.4f} deg is within {GIMBAL_WARN_DEG:g} deg of the Euler singularity: A and C are "
             "nearly one rotation and are not separately meaningful; compare transforms, not angles"
         )
-    centre = model.sphere_centre(result.x)
-    check = CalibrationModel(model.flange2base, model.centre_in_sensor, centre, "local", unknowns)
-    e = check.residuals(check.point_from(sensor, centre))
-    norms = np.linalg.norm(e, axis=1)
-    warnings += _gross_error_warnings(dataset.ids, norms)
-    # judged in the local chart, free of the Euler singularity and of the matrix constraints
-    final = check.point_from(sensor, centre)
-    ident = identifiability.analyse(check.jacobian(final), check.names)
-    hess_eig = np.linalg.eigvalsh(check.cost_hessian(final))
-    if converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
-        converged = False
-        message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
-                   "point, not a minimum (local Newton converges to any stationary point)")
-    if not ident.full_rank:
-        warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")
-    history = [pose_from_transform(_projected(model.sensor2flange(x))).tolist() for x in result.history]
-    return {
+    out = {
         "dataset": dataset.name,
+        "dataset_sha256": dataset.content_hash(),
         "method": method,
         "rotation": rotation,
         "unknowns": unknowns,
         "start_pose": start_pose.tolist(),
+        "start_used": start_used,
         "sensor_pose": pose.tolist(),
         "sensor_matrix": sensor.tolist(),
         "sphere_center": centre.tolist(),
-        "rms_mm": float(math.sqrt(np.mean(norms**2))),
-        "max_residual_mm": float(norms.max()),
-        "residuals": [
-            {"id": i, "row": r, "vector": v.tolist(), "norm": float(n)}
-            for i, r, v, n in zip(dataset.ids, dataset.rows, e, norms)
-        ],
-        "cost_mm2": float(0.5 * np.sum(norms**2)),
         "iterations": int(result.iterations),
         "evaluations": {"f": result.nfev, "jacobian": result.njev, "hessian": result.nhev},
         "converged": converged,
-        "status": int(status),
+        "status": int(result.status),
         "message": message,
-        "identifiability": ident.as_dict(),
-        "hessian_eigenvalues": hess_eig.tolist(),
+        "outliers": [e["id"] for e in excluded],
+        "excluded": excluded,
+        "before": before,
         "warnings": warnings,
-        "history": history,
+        "history": [pose_from_transform(_projected(model.sensor2flange(x))).tolist() for x in result.history],
         "solver_point": result.x.tolist(),
         "solver_extra": {k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
     }
+    if local is None:
+        return out
+    _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outliers)
+    return out
+
+
+def _rms(values):
+    values = np.asarray(values, float)
+    values = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(values**2))) if values.size else None
+
+
+def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outliers_on):
+    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit."""
+    allm = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, centre, "local", local.unknowns)
+    x_all = allm.point_from(sensor, centre)
+    e = allm.residuals(x_all)
+    norms = np.linalg.norm(e, axis=1)
+    final = local.point_from(sensor, centre)
+    r_used, j_used = local.residual(final), local.jacobian(final)
+    ident = identifiability.analyse(j_used, local.names)
+    if not ident.full_rank:
+        out["warnings"].append(f"at the solution the data do not determine: {ident.describe_null()}")
+    cov = covariance(r_used, j_used)
+    deg = np.degrees(cov.std[3:6])
+    loo_errors = robust.leave_one_out(allm, x_all, mask) if loo else np.full(len(mask), np.nan)
+    if not outliers_on:
+        out["warnings"] += _gross_error_warnings(dataset.ids, norms)
+    out.update({
+        "n_used": int(mask.sum()),
+        "rms_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
+        "max_residual_mm": float(norms[mask].max()),
+        "cost_mm2": float(0.5 * np.sum(norms[mask] ** 2)),
+        "residuals": [
+            {"id": i, "row": r, "vector": v.tolist(), "norm": float(n), "used": bool(u),
+             "loo_error_mm": None if not np.isfinite(l) else float(l)}
+            for i, r, v, n, u, l in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)
+        ],
+        "sigma_mm": cov.sigma,
+        "std": {
+            "sensor_translation_mm": cov.std[:3].tolist(),
+            "sensor_rotation_deg": deg.tolist(),
+            "sphere_center_mm": cov.std[6:9].tolist() if local.unknowns == "sensor+sphere" else None,
+        },
+        "correlation": {"names": local.names, "matrix": np.round(cov.correlation, 6).tolist()},
+        "loo_error_mm": _rms(loo_errors) if loo else None,
+        "identifiability": ident.as_dict(),
+        "hessian_eigenvalues": hess_eig.tolist(),
+        "noise_model": ("independent residual components with one common variance sigma^2, estimated as SSR/(3n - p); "
+                        "covariance sigma^2 (J^T J)^-1 on the local chart (rotation about the sensor's axes)"),
+    })

@@ -39,15 +39,61 @@ def build_parser():
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
                      help="start sensor pose, mm and degrees (write --start=-1,2,... for a leading minus)")
     cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")
+    cal.add_argument("--keep-all", action="store_true", help="fit every sample: no outlier detection")
+    cal.add_argument("--alpha", type=float, default=None, help="family-wise level of the outlier tests (default 0.01)")
+    cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
     cal.add_argument("--json", action="store_true", help="print the result as JSON")
+    cal.add_argument("--out", default=None, metavar="FILE",
+                     help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
     sub.add_parser("datasets", help="list the embedded datasets")
     return parser
+
+
+def tool_version():
+    """Installed version of handeye (or 'unknown' when run from a source tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("handeye")
+    except PackageNotFoundError:
+        return "unknown (source tree)"
+
+
+def provenance(args, dataset):
+    """What makes a result traceable: tool version, dataset hash and every option."""
+    import datetime
+
+    return {
+        "tool": "handeye",
+        "version": tool_version(),
+        "dataset_path": str(dataset.path),
+        "dataset_sha256": dataset.content_hash(),
+        "options": {k: v for k, v in vars(args).items() if k not in ("out",)},
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def write_json_atomically(path, data):
+    """Write JSON to ``path`` through a temporary file and a rename: never a half-written file."""
+    import pathlib
+    import tempfile
+
+    target = pathlib.Path(path)
+    folder = target.parent if str(target.parent) else pathlib.Path(".")
+    if not folder.is_dir():
+        raise ValueError(f"--out {path}: folder {folder} does not exist")
+    with tempfile.NamedTemporaryFile("w", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
+        json.dump(data, fh, indent=1)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(fh.name, target)
 
 
 def _calibrate(args):
     from model.dataset import load
     from studies.calibrate import calibrate, parse_pose
     from studies.report import calibration_text
+    from studies.robust import ALPHA
 
     dataset = load(args.dataset)
     start = parse_pose(args.start) if args.start is not None else None
@@ -56,8 +102,13 @@ def _calibrate(args):
         if args.max_iter < 1:
             raise ValueError("--max-iter must be at least 1")
         options["max_iter"] = args.max_iter
+    alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
     res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
-                    options=options)
+                    options=options, outliers=not args.keep_all, alpha=alpha, loo=not args.no_loo)
+    if args.out:
+        write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
     if args.json:
         print(json.dumps(res, indent=1))
     else:

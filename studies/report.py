@@ -6,6 +6,13 @@ def _fmt(values, width=10, prec=4):
     return " ".join(f"{v:{width}.{prec}f}" for v in values)
 
 
+def _loo_line(res):
+    if res["loo_error_mm"] is None:
+        return "leave-one-out error: not computed (--no-loo)"
+    return (f"leave-one-out error {res['loo_error_mm']:.4f} mm (RMS distance of each used sample's predicted sphere "
+            "centre from the centre fitted without it)")
+
+
 def calibration_text(res):
     """A readable report of :func:`studies.calibrate.calibrate`'s result."""
     ident = res["identifiability"]
@@ -21,12 +28,31 @@ def calibration_text(res):
     ]
     lines += ["  " + _fmt(row, 12, 6) for row in res["sensor_matrix"]]
     lines.append("sphere centre in base (mm): " + _fmt(res["sphere_center"], 12, 4))
-    lines += ["", f"{'id':>10} {'row':>4} {'ex':>9} {'ey':>9} {'ez':>9} {'|e|':>9}  (mm)"]
+    lines.append(f"start: {res['start_used']}")
+    lines += ["", f"{'id':>10} {'row':>4} {'ex':>9} {'ey':>9} {'ez':>9} {'|e|':>9} {'loo':>8}  (mm)"]
     for r in res["residuals"]:
-        lines.append(f"{r['id']:>10} {r['row']:>4} " + _fmt(r["vector"], 9, 3) + f" {r['norm']:9.3f}")
+        loo = f"{r['loo_error_mm']:8.3f}" if r["loo_error_mm"] is not None else " " * 8
+        flag = "" if r["used"] else "  EXCLUDED"
+        lines.append(f"{r['id']:>10} {r['row']:>4} " + _fmt(r["vector"], 9, 3) + f" {r['norm']:9.3f} {loo}{flag}")
+    if res["excluded"]:
+        lines += ["", "excluded samples (gross errors; not used in the fit):"]
+        lines += [f"  {e['id']} (row {e['row']}): {e['reason']}" for e in res["excluded"]]
     lines += [
         "",
-        f"RMS residual {res['rms_mm']:.4f} mm (root mean square of |e_i|), max {res['max_residual_mm']:.4f} mm",
+        f"RMS residual {res['rms_mm']:.4f} mm over {res['n_used']} samples used (root mean square of |e_i|), "
+        f"max {res['max_residual_mm']:.4f} mm",
+        _loo_line(res),
+        f"before exclusion (every sample, plain least squares): RMS {res['before']['rms_mm']:.4f} mm"
+        + (f", leave-one-out {res['before']['loo_error_mm']:.4f} mm" if res["before"]["loo_error_mm"] is not None else ""),
+        "",
+        f"uncertainty (1 sd; sigma = {res['sigma_mm']:.4f} mm per residual component, estimated from the fit):",
+        "  sensor translation (mm):      " + _fmt(res["std"]["sensor_translation_mm"]),
+        "  sensor rotation (deg, about sensor x y z): " + _fmt(res["std"]["sensor_rotation_deg"]),
+    ]
+    if res["std"]["sphere_center_mm"] is not None:
+        lines.append("  sphere centre (mm):           " + _fmt(res["std"]["sphere_center_mm"]))
+    lines += [
+        "",
         f"identifiability: rank {ident['rank']} of {ident['n']}, condition number {ident['condition_number']:.3g} "
         f"(column-scaled), singular values " + " ".join(f"{v:.3g}" for v in ident["singular_values"]),
     ]

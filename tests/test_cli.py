@@ -129,16 +129,26 @@ def test_console_script_warm_start_needs_no_sympy(tmp_path):
 
 
 def test_gross_error_of_the_printed_real_data_is_flagged(capsys):
-    code, out, _ = run(capsys, "calibrate", "--json")
+    """Without screening (--keep-all) the misprint is named in a warning; with it (default) it is
+    excluded, named with its statistic, and the fit is sane."""
+    code, out, _ = run(capsys, "calibrate", "--json", "--keep-all", "--no-loo")
     res = json.loads(out)
     flagged = [w for w in res["warnings"] if "gross error" in w]
-    assert len(flagged) == 1 and "'x+22.5'" in flagged[0]
+    assert len(flagged) == 1 and "'x+22.5'" in flagged[0] and res["outliers"] == []
+    code, out, _ = run(capsys, "calibrate", "--json")
+    res = json.loads(out)
+    assert code == EXIT_OK and "x+22.5" in res["outliers"]
+    misprint = next(e for e in res["excluded"] if e["id"] == "x+22.5")
+    assert misprint["residual_mm"] > 1500 and misprint["p_bonferroni"] < 1e-6 and "improbable" in misprint["reason"]
+    assert res["rms_mm"] < 10 and res["before"]["rms_mm"] > 300
+    assert res["loo_error_mm"] < 10 and res["before"]["loo_error_mm"] > 300
+    assert len(res["std"]["sensor_translation_mm"]) == 3 and res["std"]["sphere_center_mm"] is None
 
 
 def test_a_saddle_point_is_not_reported_as_a_calibration(capsys):
-    """Local Newton on the printed real data stops at a stationary point whose cost Hessian
+    """Local Newton on the printed real data (every sample) stops at a stationary point whose cost Hessian
     has a negative eigenvalue: exit 1, and the message says why."""
-    code, out, _ = run(capsys, "calibrate", "--method", "newton", "--json")
+    code, out, _ = run(capsys, "calibrate", "--method", "newton", "--json", "--keep-all", "--no-loo")
     res = json.loads(out)
     assert code == EXIT_NOT_CONVERGED and not res["converged"]
     assert res["hessian_eigenvalues"][0] < 0 and "saddle" in res["message"]
