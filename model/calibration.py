@@ -25,6 +25,15 @@ local      t2, R2 row-major (12)        dt (mm), dr (rad) (6)       t2 + dt, R2 
 =========  ===========================  ==========================  ============================
 
 With ``sensor+sphere`` the three coordinates of ``c`` (mm) follow in point and step.
+
+Residual kinds
+--------------
+The same chain gives three residuals (:func:`model.symbolic.calibration_residual`): the
+seed's ``centre`` residual (one row per measurement, 3 components, mm), the ``measurement``
+residual in the sensor's own space (circle centre and radius in the laser plane; one row per
+measurement) and the ``points`` residual (one row per profile point: distance from the sphere
+surface). Rows can be *whitened* by matrices ``W_i`` (``W_i^T W_i`` the inverse covariance of
+row i), so that the cost ``1/2 sum |W_i e_i|^2`` weights each component by its precision.
 """
 from __future__ import annotations
 
@@ -39,29 +48,32 @@ UNKNOWNS = ("sensor", "sensor+sphere")
 ROTATIONS = ("euler", "matrix", "local")  # as model.symbolic.ROTATIONS (tested)
 
 
+KINDS = {"centre": 3, "measurement": 3, "points": 1}  # as model.symbolic.KINDS (tested)
+
+
 @functools.lru_cache(maxsize=None)
-def _sources(rot):
+def _sources(rot, kind="centre"):
     def build_resjac():
         from model import symbolic  # sympy only on a cache miss
 
-        s = symbolic.calibration_residual(rot)
+        s = symbolic.calibration_residual(rot, kind)
         return s["theta"] + s["extra"] + s["data"], list(s["e"]) + list(s["jac"])
 
     def build_hess():
         from model import symbolic
 
-        s = symbolic.calibration_residual(rot)
+        s = symbolic.calibration_residual(rot, kind)
         return s["theta"] + s["extra"] + s["data"], [v for h in s["hess"] for v in h]
 
     return (
-        codegen.generated_source(f"calib_resjac_{rot}", build_resjac),
-        codegen.generated_source(f"calib_hess_{rot}", build_hess),
+        codegen.generated_source(f"calib_resjac_{rot}_{kind}", build_resjac),
+        codegen.generated_source(f"calib_hess_{rot}_{kind}", build_hess),
     )
 
 
 @functools.lru_cache(maxsize=None)
-def _numpy_functions(rot):
-    resjac, hess = _sources(rot)
+def _numpy_functions(rot, kind="centre"):
+    resjac, hess = _sources(rot, kind)
     return codegen.numpy_function(resjac), codegen.numpy_function(hess)
 
 
@@ -96,20 +108,37 @@ class CalibrationModel:
         start value (``'sensor+sphere'``).
     rotation : {'euler', 'matrix', 'local'}
     unknowns : {'sensor', 'sensor+sphere'}
+    kind : {'centre', 'measurement', 'points'}
+        Residual model; for the last two ``centre_in_sensor`` holds the rows' data instead:
+        circles ``(xc, zc, r)`` (N, 3) or profile points ``(x, z)`` (N, 2), one row each, with
+        ``flange2base`` given per row. See :meth:`from_circles` and :meth:`from_profiles`.
+    radius : float, optional
+        Sphere radius, mm (``measurement`` and ``points``).
+    whiten : array_like, shape (N, m, m), optional
+        Whitening matrices of the rows (module docstring).
     """
 
-    def __init__(self, flange2base, centre_in_sensor, sphere_centre, rotation="euler", unknowns="sensor"):
+    def __init__(self, flange2base, centre_in_sensor, sphere_centre, rotation="euler", unknowns="sensor",
+                 kind="centre", radius=None, whiten=None):
         if rotation not in ROTATIONS:
             raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
         if unknowns not in UNKNOWNS:
             raise ValueError(f"unknowns must be one of {UNKNOWNS}, got {unknowns!r}")
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {tuple(KINDS)}, got {kind!r}")
+        if kind != "centre" and radius is None:
+            raise ValueError(f"the {kind!r} residual needs the sphere radius")
         f2b = np.asarray(flange2base, dtype=float)
         xs = np.asarray(centre_in_sensor, dtype=float)
         self.rotation = rotation
         self.unknowns = unknowns
+        self.kind = kind
+        self.m = KINDS[kind]
+        self.radius = None if radius is None else float(radius)
+        self.whiten = None if whiten is None else np.asarray(whiten, dtype=float)
         self.n_meas = len(xs)
         self.fixed_centre = np.asarray(sphere_centre, dtype=float).reshape(3)
-        # per-measurement data in the generated functions' argument order: R1 (9), t1, xs
+        # per-row data in the generated functions' argument order: R1 (9), t1, the kind's data
         self._data = tuple(np.concatenate([f2b[:, :3, :3].reshape(-1, 9), f2b[:, :3, 3], xs], axis=1).T)
         self.flange2base = f2b
         self.centre_in_sensor = xs
@@ -117,6 +146,19 @@ class CalibrationModel:
         self._cols = slice(0, 3 + n_rot + (3 if unknowns == "sensor+sphere" else 0))
         self.n = self._cols.stop
         self.names = parameter_names(rotation, unknowns)
+
+    @classmethod
+    def from_circles(cls, flange2base, circles, radius, sphere_centre, rotation="local", unknowns="sensor",
+                     whiten=None):
+        """The ``measurement`` residual: one row per circle ``(xc, zc, r)`` (mm)."""
+        return cls(flange2base, circles, sphere_centre, rotation, unknowns, "measurement", radius, whiten)
+
+    @classmethod
+    def from_profiles(cls, flange2base, profiles, radius, sphere_centre, rotation="local", unknowns="sensor"):
+        """The ``points`` residual: one row per profile point; ``profiles`` is a list of (K_i, 2)."""
+        f2b = np.asarray(flange2base, dtype=float)
+        rows = np.concatenate([np.repeat(f2b[k : k + 1], len(p), axis=0) for k, p in enumerate(profiles)])
+        return cls(rows, np.concatenate(profiles), sphere_centre, rotation, unknowns, "points", radius)
 
     # -- points ----------------------------------------------------------------------------
     def point_from(self, sensor2flange, sphere_centre=None):
@@ -179,39 +221,49 @@ class CalibrationModel:
             theta, extra = [*t2, 0.0, 0.0, 0.0, *c], list(q)
         else:
             theta, extra = [*t2, *q, *c], []
+        if self.kind != "centre":
+            extra.append(self.radius)
         return (*theta, *extra, *self._data)
 
-    def residual_and_jacobian(self, x):
-        """Residuals (N, 3) in mm and Jacobian (N, 3, n) with respect to the step."""
-        resjac, _ = _numpy_functions(self.rotation)
+    def _raw(self, x):
+        resjac, _ = _numpy_functions(self.rotation, self.kind)
         vals = codegen.stack_outputs(resjac(*self._args(x)), (self.n_meas,))
-        e = vals[:, :3]
-        n_theta = (vals.shape[1] - 3) // 3
-        jac = vals[:, 3:].reshape(self.n_meas, 3, n_theta)[:, :, self._cols]
+        m = self.m
+        e = vals[:, :m]
+        n_theta = (vals.shape[1] - m) // m
+        jac = vals[:, m:].reshape(self.n_meas, m, n_theta)[:, :, self._cols]
+        return e, jac
+
+    def residual_and_jacobian(self, x):
+        """Whitened residuals (N, m) and Jacobian (N, m, n) with respect to the step."""
+        e, jac = self._raw(x)
+        if self.whiten is not None:
+            e = np.einsum("ikl,il->ik", self.whiten, e)
+            jac = np.einsum("ikl,iln->ikn", self.whiten, jac)
         return e, jac
 
     def residuals(self, x):
-        """Residual vectors (N, 3), mm."""
-        return self.residual_and_jacobian(x)[0]
+        """Residual rows (N, m) as the model defines them (mm), not whitened."""
+        return self._raw(x)[0]
 
     def residual(self, x):
-        """Stacked residual (3N,), mm."""
-        return self.residuals(x).ravel()
+        """Stacked whitened residual (N m,), what the solvers minimise."""
+        return self.residual_and_jacobian(x)[0].ravel()
 
     def jacobian(self, x):
-        """Stacked Jacobian (3N, n)."""
+        """Stacked whitened Jacobian (N m, n)."""
         return self.residual_and_jacobian(x)[1].reshape(-1, self.n)
 
     def second_derivatives(self, x):
-        """Second derivatives of each residual component, shape (N, 3, n, n)."""
-        _, hess = _numpy_functions(self.rotation)
+        """Second derivatives of each (unwhitened) residual component, shape (N, m, n, n)."""
+        _, hess = _numpy_functions(self.rotation, self.kind)
         vals = codegen.stack_outputs(hess(*self._args(x)), (self.n_meas,))
-        n_theta = int(round(np.sqrt(vals.shape[1] / 3)))
-        d2 = vals.reshape(self.n_meas, 3, n_theta, n_theta)
+        n_theta = int(round(np.sqrt(vals.shape[1] / self.m)))
+        d2 = vals.reshape(self.n_meas, self.m, n_theta, n_theta)
         return d2[:, :, self._cols, self._cols]
 
     def cost(self, x):
-        """``1/2 sum |e_i|^2`` in mm^2."""
+        """``1/2 sum |W_i e_i|^2`` (mm^2 without whitening)."""
         e = self.residual(x)
         return 0.5 * float(e @ e)
 
@@ -220,18 +272,19 @@ class CalibrationModel:
         return np.einsum("ik,ikn->n", e, jac)
 
     def cost_hessian(self, x):
-        """Exact Hessian of the cost: ``J^T J + sum_k e_k grad^2 e_k`` (n, n)."""
+        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``."""
         e, jac = self.residual_and_jacobian(x)
         d2 = self.second_derivatives(x)
-        return np.einsum("ikn,ikm->nm", jac, jac) + np.einsum("ik,iknm->nm", e, d2)
+        weighted = e if self.whiten is None else np.einsum("ilk,il->ik", self.whiten, e)  # W^T (W e)
+        return np.einsum("ikn,ikm->nm", jac, jac) + np.einsum("ik,iknm->nm", weighted, d2)
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):
         """The problem for IPOPT as a dict ``{'x', 'f', 'g', 'p'}`` plus values.
 
         ``x`` is the point (``euler`` or ``matrix``; ``local`` has no meaning without a
-        retraction). ``p`` holds the measurements (15 x N: R1 row-major, t1, xs) and, for
-        ``sensor``, the fixed sphere centre. With ``matrix`` the six independent entries of
+        retraction). ``p`` holds the rows (R1 row-major, t1, the kind's data and the whitening
+        matrix, row-major) and, for ``sensor``, the fixed sphere centre. With ``matrix`` the six independent entries of
         ``R^T R - I`` are equality constraints ``g = 0``.
 
         Returns
@@ -244,16 +297,22 @@ class CalibrationModel:
 
         if self.rotation == "local":
             raise ValueError("IPOPT works on 'euler' or 'matrix'; 'local' needs a retraction")
-        resjac, _ = _sources(self.rotation)
+        resjac, _ = _sources(self.rotation, self.kind)
         gen = codegen.casadi_function(resjac)
         nr = _N_ROT[self.rotation]
+        m = self.m
+        n_data = len(self._data)
         x = ca.SX.sym("x", self.n)
-        d = ca.SX.sym("d", 15)
+        d = ca.SX.sym("d", n_data + m * m)
         theta = ca.SX.sym("theta", 3 + nr + 3)
-        e = ca.vertcat(*gen(*[theta[k] for k in range(theta.shape[0])], *[d[k] for k in range(15)])[:3])
-        one = ca.Function("e", [theta, d], [e])
-        data = ca.SX.sym("data", 15, self.n_meas)
-        p_value = np.stack(self._data).ravel(order="F")  # ca.vec is column-major
+        extra = [self.radius] if self.kind != "centre" else []
+        e = ca.vertcat(*gen(*[theta[k] for k in range(theta.shape[0])], *extra, *[d[k] for k in range(n_data)])[:m])
+        w = ca.reshape(d[n_data:], m, m).T  # row-major entries -> matrix
+        one = ca.Function("e", [theta, d], [ca.mtimes(w, e)])
+        whiten = self.whiten if self.whiten is not None else np.broadcast_to(np.eye(m), (self.n_meas, m, m))
+        table = np.concatenate([np.stack(self._data), whiten.reshape(self.n_meas, m * m).T])
+        data = ca.SX.sym("data", table.shape[0], self.n_meas)
+        p_value = table.ravel(order="F")  # ca.vec is column-major
         if self.unknowns == "sensor+sphere":
             p, full = ca.vec(data), x
         else:

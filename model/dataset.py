@@ -7,9 +7,9 @@
     hold any angle in [-360, 360]); ``xs, ys, zs`` the sphere centre in the sensor
     frame (mm). ``profile``, when present, is the path (relative to the folder) of a CSV with
     header ``x,z``: laser-line points in the sensor's y = 0 plane, mm; then ``xs, ys, zs`` may
-    be empty and the centre is reconstructed as in the seed (C15, C16, 6-26, 6-27): a Kasa
-    circle fit gives the centre ``(x_c, z_c)`` and radius r, and
-    ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
+    be empty and the centre is reconstructed as in the seed (C15, C16, 6-26, 6-27), but with
+    the Hyper circle fit instead of the seed's biased Kasa fit (:mod:`model.circle`): centre
+    ``(x_c, z_c)`` and radius r, then ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
 ``setup.toml``
     ``[sensor] start_pose`` (p2: six numbers; optional -- without it the calibration starts from
     the closed-form estimate); ``[sphere] diameter`` (mm) and either
@@ -86,6 +86,9 @@ class Dataset:
         Sign of the sensor-y coordinate of the centre for profile reconstruction.
     truth : dict or None
         ``sensor_pose`` (6,) and maybe ``sphere_center`` (3,); simulated data only.
+    profiles : tuple or None
+        Per measurement the profile points (K, 2: sensor x, z in mm) or None; None when the
+        dataset has no profiles at all.
     """
 
     name: str
@@ -101,6 +104,7 @@ class Dataset:
     centre_in_plate: np.ndarray | None = None
     side: int = -1
     truth: dict | None = None
+    profiles: tuple | None = None
 
     def flange2base(self):
         """Flange poses as homogeneous transforms, shape (N, 4, 4)."""
@@ -118,6 +122,7 @@ class Dataset:
             rows=tuple(r for r, k in zip(self.rows, mask) if k),
             flange_poses=self.flange_poses[mask],
             centre_in_sensor=self.centre_in_sensor[mask],
+            profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
         )
 
     def content_hash(self):
@@ -242,20 +247,13 @@ def _read_setup(path):
     return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth
 
 
-def kasa_circle_fit(x, z):
-    """Algebraic (Kasa) circle fit of the seed's C15: centre (x_c, z_c) and radius r, mm."""
-    a = np.column_stack([x, z, np.ones_like(x)])
-    coef, *_ = np.linalg.lstsq(a, -(x**2 + z**2), rcond=None)
-    xc, zc = -0.5 * coef[0], -0.5 * coef[1]
-    return xc, zc, math.sqrt(max(coef[0] ** 2 / 4 + coef[1] ** 2 / 4 - coef[2], 0.0))
-
-
-def _centre_from_profile(folder, rel, radius, side, file, row):
+def _read_profile(folder, rel, file, row):
+    """Points (K, 2) of a profile CSV with header ``x,z``; errors name the profile file."""
     pfile = folder / rel
     try:
         with open(pfile, newline="", encoding="utf-8-sig") as fh:
             rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DatasetError(file, f"profile file {rel!r} cannot be read: {exc}", row, "profile") from None
     if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
         raise DatasetError(pfile, "header must be 'x,z'", 1)
@@ -268,11 +266,20 @@ def _centre_from_profile(folder, rel, radius, side, file, row):
         pts.append([_number(r[0], pfile, k, "x"), _number(r[1], pfile, k, "z")])
     if len(pts) < 3:
         raise DatasetError(pfile, f"a circle needs at least 3 points, got {len(pts)}")
-    p = np.array(pts)
-    xc, zc, r = kasa_circle_fit(p[:, 0], p[:, 1])
-    if not math.isfinite(r) or r > radius:
-        raise DatasetError(pfile, f"fitted circle radius {r:.3f} mm exceeds the sphere radius {radius:.3f} mm")
-    return [xc, side * math.sqrt(radius**2 - r**2), zc]
+    return np.array(pts)
+
+
+def _centre_from_profile(points, radius, side, pfile):
+    from model import circle
+
+    try:
+        return circle.sphere_centre_from_circle(circle.fit_circle(points[:, 0], points[:, 1], PROFILE_FIT), radius, side)
+    except circle.CircleFitError as exc:
+        raise DatasetError(pfile, str(exc)) from None
+
+
+#: Circle fit used to reconstruct a centre from a profile when xs, ys, zs are empty.
+PROFILE_FIT = "hyper"
 
 
 def load(name_or_path):
@@ -299,7 +306,7 @@ def load(name_or_path):
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
-    ids, rows, poses, centres = [], [], [], []
+    ids, rows, poses, centres, profiles = [], [], [], [], []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -316,12 +323,14 @@ def load(name_or_path):
         _check_angles(pose, file, line)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
+        points = _read_profile(folder, profile, file, line) if profile else None
         if all(cells) or not profile:
             xs = [_number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
         elif any(cells):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:
-            xs = _centre_from_profile(folder, profile, diam / 2, side, file, line)
+            xs = _centre_from_profile(points, diam / 2, side, folder / profile)
+        profiles.append(points)
         ids.append(ident)
         rows.append(line)
         poses.append(pose)
@@ -342,4 +351,5 @@ def load(name_or_path):
         centre_in_plate=centre_in_plate,
         side=side,
         truth=truth,
+        profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
     )

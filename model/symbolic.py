@@ -104,42 +104,73 @@ def _sensor_rotation(rotation):
     raise ValueError(f"unknown rotation parametrisation {rotation!r}; choose one of {ROTATIONS}")
 
 
+#: Residual models: what one row of data says, and how many residual components it gives.
+KINDS = {"centre": 3, "measurement": 3, "points": 1}
+
+
 @functools.lru_cache(maxsize=None)
-def calibration_residual(rotation):
-    """Symbolic residual of one measurement with its exact first and second derivatives.
+def calibration_residual(rotation, kind="centre"):
+    """Symbolic residual of one row of data with its exact first and second derivatives.
 
     Parameters
     ----------
     rotation : {'euler', 'matrix', 'local'}
         Parametrisation of the sensor rotation R2.
+    kind : {'centre', 'measurement', 'points'}
+        * ``centre`` (seed 4-3): data ``xs`` (the centre measured in the sensor, 3);
+          ``e = R1 (R2 xs + t2) + t1 - c`` (mm, base frame).
+        * ``measurement``: data ``(xc, zc, r)``, the circle fitted to the profile in the laser
+          plane; the model predicts the centre in the sensor, ``p = R2^T (R1^T (c - t1) - t2)``,
+          and ``e = (p_x - xc, p_z - zc, (R^2 - p_y^2 - r^2) / (2 r))``. The third component is
+          the radius error to first order (``sqrt(R^2 - p_y^2) - r``) but stays finite when
+          ``|p_y| > R``; it depends on ``p_y^2`` only, so the side of the laser plane needs no
+          sign. Extra input: the sphere radius R.
+        * ``points``: data ``(x, z)``, one profile point in the laser plane (sensor y = 0);
+          ``e = |R1 (R2 (x, 0, z) + t2) + t1 - c| - R`` (mm). Extra input: R.
 
     Returns
     -------
     dict
         ``theta``: the unknowns in order ``(t2 (3, mm), q (rotation), c (3, mm))``;
-        ``data``: per-measurement inputs ``(R1 row-major (9), t1 (3, mm), xs (3, mm))``;
-        ``extra``: further inputs (``Rref`` for ``local``);
-        ``e`` (3,), ``jac`` (3, n) and ``hess`` (3, n, n, as a list of n x n matrices):
-        residual and its derivatives with respect to ``theta``. For ``local`` they are
-        evaluated at delta = 0.
+        ``data``: per-row inputs ``(R1 row-major (9), t1 (3, mm), <kind's data>)``;
+        ``extra``: further scalar inputs (``Rref`` (9) for ``local``, then ``R`` for
+        ``measurement`` and ``points``);
+        ``e`` (m,), ``jac`` (m, n) and ``hess`` (list of m n x n matrices): residual and its
+        derivatives with respect to ``theta``. For ``local`` they are evaluated at delta = 0.
     """
+    if kind not in KINDS:
+        raise ValueError(f"unknown residual kind {kind!r}; choose one of {tuple(KINDS)}")
     t2 = sp.symbols("tx2 ty2 tz2", real=True)
     q, r2, extra = _sensor_rotation(rotation)
     c = sp.symbols("cx cy cz", real=True)
     r1 = sp.symbols("r1_0:9", real=True)
     t1 = sp.symbols("tx1 ty1 tz1", real=True)
-    xs = sp.symbols("xs ys zs", real=True)
     theta = tuple(t2) + tuple(q) + tuple(c)
-    e = sp.Matrix(3, 3, r1) * (r2 * sp.Matrix(xs) + sp.Matrix(t2)) + sp.Matrix(t1) - sp.Matrix(c)
+    rot1 = sp.Matrix(3, 3, r1)
+    if kind == "centre":
+        row = sp.symbols("xs ys zs", real=True)
+        e = rot1 * (r2 * sp.Matrix(row) + sp.Matrix(t2)) + sp.Matrix(t1) - sp.Matrix(c)
+    elif kind == "measurement":
+        row = sp.symbols("xc zc rc", real=True)
+        radius = sp.Symbol("R", positive=True)
+        extra = tuple(extra) + (radius,)
+        p = r2.T * (rot1.T * (sp.Matrix(c) - sp.Matrix(t1)) - sp.Matrix(t2))
+        e = sp.Matrix([p[0] - row[0], p[2] - row[1], (radius**2 - p[1] ** 2 - row[2] ** 2) / (2 * row[2])])
+    else:
+        row = sp.symbols("xp zp", real=True)
+        radius = sp.Symbol("R", positive=True)
+        extra = tuple(extra) + (radius,)
+        d = rot1 * (r2 * sp.Matrix([row[0], 0, row[1]]) + sp.Matrix(t2)) + sp.Matrix(t1) - sp.Matrix(c)
+        e = sp.Matrix([sp.sqrt(d.dot(d)) - radius])
     jac = e.jacobian(theta)
-    hess = [sp.hessian(e[k], theta) for k in range(3)]
+    hess = [sp.hessian(e[k], theta) for k in range(e.shape[0])]
     if rotation == "local":
         at0 = {d: 0 for d in q}
         e, jac = e.subs(at0), jac.subs(at0)
         hess = [h.subs(at0) for h in hess]
     return {
         "theta": theta,
-        "data": tuple(r1) + tuple(t1) + tuple(xs),
+        "data": tuple(r1) + tuple(t1) + tuple(row),
         "extra": tuple(extra),
         "e": e,
         "jac": jac,

@@ -9,13 +9,22 @@ from model.dataset import load
 from model.pose import transform_from_pose
 
 CASES = [(r, u) for r in ROTATIONS for u in UNKNOWNS]
+KIND_CASES = [(r, k) for r in ROTATIONS for k in ("measurement", "points")]
 
 
-def random_model(rotation, unknowns, seed=0, n=12):
+def random_model(rotation, unknowns, seed=0, n=12, kind="centre"):
     rng = np.random.default_rng(seed)
     f2b = transform_from_pose(np.column_stack([rng.uniform(-800, 800, (n, 3)), rng.uniform(-170, 170, (n, 3)) * [1, 0.5, 1]]))
-    xs = rng.uniform(-20, 20, (n, 3)) + [0, 0, 230]
-    return CalibrationModel(f2b, xs, rng.uniform(-500, 500, 3), rotation, unknowns)
+    centre = rng.uniform(-500, 500, 3)
+    if kind == "centre":
+        xs = rng.uniform(-20, 20, (n, 3)) + [0, 0, 230]
+        return CalibrationModel(f2b, xs, centre, rotation, unknowns)
+    if kind == "measurement":
+        circles = np.column_stack([rng.uniform(-10, 10, n), rng.uniform(200, 260, n), rng.uniform(20, 29, n)])
+        a = rng.normal(size=(n, 3, 3))
+        return CalibrationModel.from_circles(f2b, circles, 29.97, centre, rotation, unknowns, whiten=a)
+    profiles = [np.column_stack([rng.uniform(-20, 20, 5), rng.uniform(200, 260, 5)]) for _ in range(n)]
+    return CalibrationModel.from_profiles(f2b, profiles, 29.97, centre, rotation, unknowns)
 
 
 def start_point(m, seed=1):
@@ -25,7 +34,45 @@ def start_point(m, seed=1):
 
 
 def test_rotation_names_agree_with_the_symbolic_source():
+    from model.calibration import KINDS
+
     assert ROTATIONS == symbolic.ROTATIONS
+    assert KINDS == symbolic.KINDS
+
+
+@pytest.mark.parametrize("rotation,kind", KIND_CASES)
+def test_measurement_and_point_residuals_derivatives(rotation, kind):
+    """Jacobians against central differences; cost gradient and Hessian against CasADi AD
+    (where IPOPT's parametrisations apply) or second differences (local)."""
+    import casadi as ca
+
+    m = random_model(rotation, "sensor+sphere", seed=7, kind=kind)
+    x = start_point(m, seed=8)
+    j = m.jacobian(x)
+    h = 1e-6
+    fd = np.stack([(m.residual(m.retract(x, h * e)) - m.residual(m.retract(x, -h * e))) / (2 * h)
+                   for e in np.eye(m.n)], axis=1)
+    np.testing.assert_allclose(j, fd, rtol=1e-5, atol=1e-6 * np.abs(j).max())
+    if rotation == "local":
+        return
+    nlp = m.nlp()
+    f = ca.Function("f", [nlp["x"], nlp["p"]], [nlp["f"]])
+    hs = ca.Function("h", [nlp["x"], nlp["p"]], [ca.hessian(nlp["f"], nlp["x"])[0]])
+    assert float(f(x, nlp["p_value"])) == pytest.approx(m.cost(x), rel=1e-10)
+    np.testing.assert_allclose(np.array(hs(x, nlp["p_value"])), m.cost_hessian(x), rtol=1e-8,
+                               atol=1e-8 * np.abs(m.cost_hessian(x)).max())
+
+
+def test_measurement_residual_matches_its_definition():
+    """e = (p_x - xc, p_z - zc, (R^2 - p_y^2 - r^2) / 2r) with p the centre predicted in the sensor."""
+    m = random_model("local", "sensor", seed=9, kind="measurement")
+    m = CalibrationModel.from_circles(m.flange2base, m.centre_in_sensor, m.radius, m.fixed_centre)
+    x = start_point(m, seed=10)
+    t2 = m.sensor2flange(x)
+    p = np.linalg.solve(m.flange2base @ t2, np.append(m.fixed_centre, 1.0))[:, :3]
+    xc, zc, r = m.centre_in_sensor.T
+    expected = np.column_stack([p[:, 0] - xc, p[:, 2] - zc, (m.radius**2 - p[:, 1] ** 2 - r**2) / (2 * r)])
+    np.testing.assert_allclose(m.residuals(x), expected, atol=1e-9)
 
 
 @pytest.mark.parametrize("rotation,unknowns", CASES)

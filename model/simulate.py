@@ -1,0 +1,261 @@
+"""A realistic simulator of the thesis's cell: robot, laser-line sensor, certified sphere.
+
+Ground truth: the sensor pose on the flange (``sensor_pose``) and the sphere centre in the
+robot base. For each measurement the sensor is placed so that its laser plane cuts the
+sphere; the flange pose follows from the truth, the robot records it with repeatability noise,
+the sensor records a profile of the cut circle, and the centre is reconstructed from the
+profile as the seed does (circle fit, ``y = side sqrt(R^2 - r^2)``).
+
+Pose strategies
+---------------
+``thesis`` (seed 6.4.2): the sensor looks down at the sphere; its orientation is turned about
+the base axes x and y and about x*, y* (x, y turned by alpha = 45 deg about z) by
+``22.5 deg * n``, ``n = -4..4``: up to 36 poses (``n_poses`` keeps an evenly spread subset).
+An operator never places the sphere at the same spot of the sensor's view twice, and neither
+does this simulator: the centre is seen at x ~ U(-10, 10) mm, |y| ~ U(3, 20) mm on the
+``side`` of the laser plane, z ~ U(210, 270) mm (inside the 190-290 mm measuring range).
+A custom list of flange poses can be given instead.
+
+Noise model (documented assumptions)
+------------------------------------
+* Robot: the recorded flange position differs from the true one by N(0, sigma_robot) per axis,
+  sigma_robot = 0.025 mm (the KR 60 HA's +-0.05 mm repeatability read as 2 sigma).
+* Sensor: 1280 points over a 100 mm line (sensor x in [-50, 50] mm); the near side of the cut
+  circle is seen where the surface is inclined less than 75 deg to the line of sight and z
+  lies in 190-290 mm. Each point's z gets N(0, sigma_point), sigma_point = 0.01 mm, and a
+  linearity error ``0.0016 * 100 mm * sin(2 pi (z - 190) / 100)`` (+-0.16 % of the range).
+* Sphere: the certified diameter 59.94507 mm (C11).
+
+Effects that can be hidden in the data (parameters zero when absent)
+--------------------------------------------------------------------
+* ``sphere_center=dx,dy,dz``: the true centre is the setup's plus (dx, dy, dz) mm (base frame).
+* ``sensor_scale=s``: the sensor's coordinates are scaled by 1 + s.
+* ``sphere_radius=dr``: the true radius exceeds the setup's by dr mm.
+* ``sign_flip=ID,ID...``: the centre of these samples is reconstructed on the wrong side.
+* ``outlier=ID,ID...``: a gross error of 30 mm in a random direction is added to these
+  samples' centres.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+
+import numpy as np
+
+from model import circle
+from model.pose import pose_from_transform, transform_from_pose
+from model.rotation import matrix_from_rotvec
+
+EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier")
+CERTIFIED_DIAMETER = 59.94507
+THESIS_CENTRE = (1534.1314, -603.2729, 1118.8028)
+
+
+class SimulationError(ValueError):
+    """A simulation request that cannot be carried out (bad effect, pose missing the sphere)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """Ground truth and noise levels of a simulation (module docstring for their meaning)."""
+
+    sensor_pose: tuple = (190.0, 100.0, 125.0, 180.0, -88.0, 0.0)
+    sphere_centre: tuple = THESIS_CENTRE
+    diameter: float = CERTIFIED_DIAMETER
+    side: int = -1
+    sigma_robot: float = 0.025
+    sigma_point: float = 0.01
+    linearity: float = 0.0016
+    n_points: int = 1280
+    line_length: float = 100.0
+    z_range: tuple = (190.0, 290.0)
+    max_incidence_deg: float = 75.0
+    circle_fit: str = "hyper"
+
+
+def parse_effects(specs):
+    """``['sphere_center=1,2,3', 'sign_flip=a,b']`` -> dict; raises SimulationError."""
+    out = {}
+    for spec in specs or []:
+        name, sep, value = str(spec).partition("=")
+        name = name.strip()
+        if not sep or name not in EFFECTS:
+            raise SimulationError(f"--effect {spec!r}: expected NAME=VALUE with NAME one of {', '.join(EFFECTS)}")
+        parts = [p.strip() for p in value.split(",") if p.strip()]
+        if name in ("sign_flip", "outlier"):
+            if not parts:
+                raise SimulationError(f"--effect {spec!r}: give one or more sample ids")
+            out[name] = parts
+            continue
+        try:
+            nums = [float(p) for p in parts]
+        except ValueError:
+            raise SimulationError(f"--effect {spec!r}: not a number") from None
+        want = 3 if name == "sphere_center" else 1
+        if len(nums) != want or not np.all(np.isfinite(nums)):
+            raise SimulationError(f"--effect {spec!r}: needs {want} finite number(s)")
+        out[name] = nums if want == 3 else nums[0]
+    return out
+
+
+def _axis(name):
+    c = np.cos(np.radians(45.0))
+    return {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]),
+            "x*": np.array([c, c, 0]), "y*": np.array([-c, c, 0])}[name]
+
+
+def thesis_orientations(n_poses=36):
+    """(id, sensor-to-base rotation) of the seed's strategy; an evenly spread subset of n_poses."""
+    items = []
+    for name in ("x", "y", "x*", "y*"):
+        u = _axis(name)
+        z_s = np.array([0.0, 0.0, -1.0])
+        x_s = u
+        base = np.column_stack([x_s, np.cross(z_s, x_s), z_s])
+        for n in range(-4, 5):
+            angle = 22.5 * n
+            items.append((f"{name}{angle:+g}", matrix_from_rotvec(np.radians(angle) * u) @ base))
+    if not 1 <= n_poses <= len(items):
+        raise SimulationError(f"the thesis strategy has 1 to {len(items)} poses, asked for {n_poses}")
+    keep = np.unique(np.round(np.linspace(0, len(items) - 1, n_poses)).astype(int))
+    return [items[k] for k in keep]
+
+
+def profile_points(centre_in_sensor, radius, setup, rng):
+    """Noisy laser-line points (K, 2) of a sphere whose centre is at ``centre_in_sensor``."""
+    sx, sy, sz = centre_in_sensor
+    if abs(sy) >= radius:
+        raise SimulationError(f"the laser plane misses the sphere (|y| = {abs(sy):.1f} mm >= R = {radius:.1f} mm)")
+    rho = np.sqrt(radius**2 - sy**2)
+    x = np.linspace(-setup.line_length / 2, setup.line_length / 2, setup.n_points)
+    u = (x - sx) / rho
+    seen = np.abs(u) < np.sin(np.radians(setup.max_incidence_deg))
+    x = x[seen]
+    z = sz - rho * np.sqrt(1.0 - u[seen] ** 2)
+    lo, hi = setup.z_range
+    z = z + setup.linearity * (hi - lo) * np.sin(2 * np.pi * (z - lo) / (hi - lo))
+    z = z + rng.normal(0.0, setup.sigma_point, z.shape)
+    inside = (z >= lo) & (z <= hi)
+    if inside.sum() < 10:
+        raise SimulationError(f"fewer than 10 profile points inside the measuring range {lo:g}-{hi:g} mm")
+    return np.column_stack([x[inside], z[inside]])
+
+
+@dataclasses.dataclass
+class Simulation:
+    """A simulated dataset before it is written (all lengths mm, angles deg)."""
+
+    ids: list
+    flange_poses: np.ndarray
+    centre_in_sensor: np.ndarray
+    profiles: list
+    setup: Setup
+    effects: dict
+    true_centre: np.ndarray
+    seed: int
+
+
+def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None):
+    """Simulate a dataset (module docstring).
+
+    Parameters
+    ----------
+    setup : Setup
+    seed : int
+        Seed of ``np.random.default_rng``; the same seed gives the same dataset.
+    effects : dict, optional
+        From :func:`parse_effects`.
+    flange_poses : array_like, shape (N, 6), optional
+        Custom flange poses (KUKA) instead of the thesis strategy.
+    n_poses : int
+        Poses of the thesis strategy (1..36).
+    ids : list of str, optional
+        Ids of custom poses (default ``p1, p2, ...``).
+    """
+    rng = np.random.default_rng(seed)
+    effects = dict(effects or {})
+    t_x = transform_from_pose(setup.sensor_pose)
+    radius_setup = setup.diameter / 2
+    radius_true = radius_setup + effects.get("sphere_radius", 0.0)
+    centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
+    if flange_poses is None:
+        out_ids, true_flanges = [], []
+        for ident, rot in thesis_orientations(n_poses):
+            seen_at = np.array([rng.uniform(-10, 10), setup.side * rng.uniform(3, 20), rng.uniform(210, 270)])
+            sensor = np.eye(4)
+            sensor[:3, :3] = rot
+            sensor[:3, 3] = centre - rot @ seen_at
+            out_ids.append(ident)
+            true_flanges.append(sensor @ np.linalg.inv(t_x))
+        true_flanges = np.array(true_flanges)
+    else:
+        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
+        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+    for name in ("sign_flip", "outlier"):
+        unknown = sorted(set(effects.get(name, [])) - set(out_ids))
+        if unknown:
+            raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
+    scale = 1.0 + effects.get("sensor_scale", 0.0)
+    recorded, centres, profiles = [], [], []
+    for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
+        in_sensor = np.linalg.solve(flange @ t_x, np.append(centre, 1.0))[:3]
+        try:
+            pts = profile_points(in_sensor, radius_true, setup, rng) * scale
+        except SimulationError as exc:
+            raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
+        side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
+        fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
+        try:
+            xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
+        except circle.CircleFitError as exc:
+            raise SimulationError(f"pose {ident}: {exc}") from None
+        if ident in effects.get("outlier", []):
+            direction = rng.normal(size=3)
+            xs = xs + 30.0 * direction / np.linalg.norm(direction)
+        noisy = flange.copy()
+        noisy[:3, 3] += rng.normal(0.0, setup.sigma_robot, 3)
+        recorded.append(pose_from_transform(noisy))
+        centres.append(xs)
+        profiles.append(pts)
+    return Simulation(out_ids, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed)
+
+
+def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0)):
+    """Write a simulation as a dataset folder (with ``[truth]``) plus ``simulation.json``.
+
+    The setup's start pose is the truth plus ``start_offset`` (a CAD-like guess); the setup's
+    sphere centre and diameter are the nominal ones, without hidden effects.
+    """
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    header = "id,x,y,z,a,b,c,xs,ys,zs" + (",profile" if profiles else "")
+    lines = [header]
+    if profiles:
+        (folder / "profiles").mkdir(exist_ok=True)
+    for ident, pose, xs, pts in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles):
+        safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
+        row = [ident] + [f"{v:.6f}" for v in pose] + [f"{v:.6f}" for v in xs]
+        if profiles:
+            name = f"profiles/{safe}.csv"
+            np.savetxt(folder / name, pts, fmt="%.6f", delimiter=",", header="x,z", comments="")
+            row.append(name)
+        lines.append(",".join(row))
+    (folder / "measurements.csv").write_text("\n".join(lines) + "\n")
+    s = sim.setup
+    start = np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)
+
+    def vec(v):
+        return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
+
+    (folder / "setup.toml").write_text(
+        f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
+        f"[sensor]\nstart_pose = {vec(start)}\n\n"
+        f"[sphere]\ndiameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
+        f"[profile]\nside = {s.side}\n\n"
+        f"[truth]\nsensor_pose = {vec(s.sensor_pose)}\nsphere_center = {vec(sim.true_centre)}\n"
+    )
+    meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
+            "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
+    (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
+    return folder
