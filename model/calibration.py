@@ -142,6 +142,8 @@ class CalibrationModel:
         self._data = tuple(np.concatenate([f2b[:, :3, :3].reshape(-1, 9), f2b[:, :3, 3], xs], axis=1).T)
         self.flange2base = f2b
         self.centre_in_sensor = xs
+        #: rows that share one measurement (profile points); None: every row its own
+        self.groups = None
         n_rot = _N_ROT[rotation]
         self._cols = slice(0, 3 + n_rot + (3 if unknowns == "sensor+sphere" else 0))
         self.n = self._cols.stop
@@ -158,7 +160,17 @@ class CalibrationModel:
         """The ``points`` residual: one row per profile point; ``profiles`` is a list of (K_i, 2)."""
         f2b = np.asarray(flange2base, dtype=float)
         rows = np.concatenate([np.repeat(f2b[k : k + 1], len(p), axis=0) for k, p in enumerate(profiles)])
-        return cls(rows, np.concatenate(profiles), sphere_centre, rotation, unknowns, "points", radius)
+        model = cls(rows, np.concatenate(profiles), sphere_centre, rotation, unknowns, "points", radius)
+        model.groups = np.concatenate([np.full(len(p), k) for k, p in enumerate(profiles)])
+        return model
+
+    def with_rotation(self, rotation, sphere_centre=None):
+        """The same rows, kind and whitening in another parametrisation (and fixed centre)."""
+        twin = CalibrationModel(self.flange2base, self.centre_in_sensor,
+                                self.fixed_centre if sphere_centre is None else sphere_centre,
+                                rotation, self.unknowns, self.kind, self.radius, self.whiten)
+        twin.groups = self.groups
+        return twin
 
     # -- points ----------------------------------------------------------------------------
     def point_from(self, sensor2flange, sphere_centre=None):

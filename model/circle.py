@@ -127,3 +127,25 @@ def sphere_centre_from_circle(circle, radius, side=-1):
     if circle.r > radius:
         raise CircleFitError(f"fitted circle radius {circle.r:.3f} mm exceeds the sphere radius {radius:.3f} mm")
     return np.array([circle.x, side * np.sqrt(radius**2 - circle.r**2), circle.z])
+
+
+def circle_covariance(x, z, fitted):
+    """Covariance (3, 3) of ``(xc, zc, r)`` of a circle fitted to points, from the geometric
+    model: ``s^2 (J^T J)^-1`` with J the Jacobian of the orthogonal distances and ``s^2`` their
+    mean square (K - 3 degrees of freedom)."""
+    x, z = _points(x, z)
+    dx, dz = x - fitted.x, z - fitted.z
+    d = np.maximum(np.hypot(dx, dz), 1e-300)
+    j = np.column_stack([-dx / d, -dz / d, -np.ones_like(x)])
+    res = d - fitted.r
+    dof = max(len(x) - 3, 1)
+    return float(res @ res) / dof * np.linalg.pinv(j.T @ j)
+
+
+def centre_covariance(fitted, cov_circle, radius, side=-1):
+    """Covariance (3, 3) of the sphere centre in the sensor ``(x, y, z)`` propagated from the
+    circle's: ``y = side sqrt(R^2 - r^2)`` makes ``dy/dr = -side r / |y|``, so the y error grows
+    like ``(r / |y|) sigma_r`` as the laser plane nears the equator."""
+    y = np.sqrt(max(radius**2 - fitted.r**2, 1e-12))
+    a = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -side * fitted.r / y], [0.0, 1.0, 0.0]])
+    return a @ cov_circle @ a.T

@@ -73,8 +73,14 @@ class Covariance:
     correlation: np.ndarray
 
 
-def covariance(residual, jacobian):
-    """:class:`Covariance` from the stacked residual (m,) and Jacobian (m, p) at the solution."""
+def covariance(residual, jacobian, groups=None):
+    """:class:`Covariance` from the stacked residual (m,) and Jacobian (m, p) at the solution.
+
+    With ``groups`` (m,) -- rows that share errors, such as the points of one profile, which
+    one robot pose error moves together -- the cluster-robust (sandwich) estimate
+    ``G/(G-1) (J^T J)^-1 (sum_g J_g^T r_g r_g^T J_g) (J^T J)^-1`` is returned instead, which
+    does not assume independent rows.
+    """
     r = np.asarray(residual, float)
     j = np.asarray(jacobian, float)
     m, p = j.shape
@@ -82,7 +88,15 @@ def covariance(residual, jacobian):
     if dof <= 0:
         raise ValueError(f"no degrees of freedom left for a covariance ({m} residuals, {p} unknowns)")
     sigma2 = float(r @ r) / dof
-    cov = sigma2 * np.linalg.pinv(j.T @ j)
+    bread = np.linalg.pinv(j.T @ j)
+    if groups is None:
+        cov = sigma2 * bread
+    else:
+        groups = np.asarray(groups)
+        labels = np.unique(groups)
+        scores = np.array([j[groups == g].T @ r[groups == g] for g in labels])
+        g = len(labels)
+        cov = g / max(g - 1, 1) * bread @ (scores.T @ scores) @ bread
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(np.where(std > 0, std, 1.0), np.where(std > 0, std, 1.0))
     return Covariance(float(np.sqrt(sigma2)), dof, cov, std, corr)

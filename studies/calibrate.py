@@ -15,6 +15,7 @@ import solvers
 from model import identifiability
 from model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
 from model.closed_form import ClosedFormError, closed_form_estimate
+from model import observations
 from model.statistics import covariance
 from studies import robust
 from studies.robust import ALPHA
@@ -159,8 +160,8 @@ def _closed_form_pose(dataset, unknowns):
     return pose_from_transform(t)
 
 
-def _solve(dataset, unknowns, method, rotation, start_pose, options):
-    model = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, rotation, unknowns)
+def _solve(dataset, unknowns, method, rotation, start_pose, options, kind, robot_sigma):
+    model = observations.build(dataset, kind, rotation, unknowns, robot_sigma)
     result = solvers.solve(calibration_problem(model), model.point_from_pose(start_pose), method=method, options=options)
     return model, result
 
@@ -179,7 +180,7 @@ def _judge(model, result, unknowns):
     if not (np.all(np.isfinite(sensor)) and np.all(np.isfinite(centre))):
         return sensor, centre, False, "numerical failure: non-finite result", notes, None, None
     # judged in the local chart, free of the Euler singularity and of the matrix constraints
-    local = CalibrationModel(model.flange2base, model.centre_in_sensor, centre, "local", unknowns)
+    local = model.with_rotation("local", centre)
     final = local.point_from(sensor, centre)
     hess_eig = np.linalg.eigvalsh(local.cost_hessian(final))
     if converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
@@ -190,7 +191,7 @@ def _judge(model, result, unknowns):
 
 
 def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None,
-              outliers=True, alpha=ALPHA, loo=True):
+              outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=observations.ROBOT_SIGMA):
     """Calibrate the sensor pose on the flange from a dataset.
 
     Parameters
@@ -212,6 +213,12 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         Family-wise level of the outlier tests.
     loo : bool
         Compute the leave-one-out prediction error (one refit per sample).
+    model : {'centre', 'measurement', 'points'} or None
+        Residual of the final fit (:mod:`model.observations`); None: ``measurement`` when every
+        sample has a profile, else ``centre``. Screening and leave-one-out always use the
+        reconstructed centres.
+    robot_sigma : float
+        Assumed robot repeatability (mm, 1 sd per axis) for the weights of profile models.
 
     Returns
     -------
@@ -228,6 +235,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         iterates) and ``solver_point`` (the solver's own final point, e.g. raw Euler angles).
     """
     rotation = check_request(dataset, unknowns, method, rotation)
+    kind = model or observations.default_kind(dataset)
+    observations.build(dataset, kind, "local", unknowns)  # refuses early what the data cannot give
     start_pose, start_used = resolve_start(dataset, unknowns, start)
     start_t = transform_from_pose(start_pose)
     check_identifiable(dataset, unknowns, start_t)
@@ -246,21 +255,21 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         if screening.note:
             warnings.append(screening.note)
     used = dataset.subset(mask)
-    model, result = _solve(used, unknowns, method, rotation, start_pose, options)
-    sensor, centre, converged, message, notes, local, hess_eig = _judge(model, result, unknowns)
+    fitted, result = _solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma)
+    sensor, centre, converged, message, notes, local, hess_eig = _judge(fitted, result, unknowns)
     if not converged and not start_used.startswith("closed-form"):
         try:
             retry_pose = _closed_form_pose(used, unknowns)
         except ClosedFormError as exc:
             warnings.append(f"the start did not converge and no closed-form restart is possible: {exc}")
         else:
-            model2, result2 = _solve(used, unknowns, method, rotation, retry_pose, options)
+            model2, result2 = _solve(used, unknowns, method, rotation, retry_pose, options, kind, robot_sigma)
             judged = _judge(model2, result2, unknowns)
             if judged[2]:
                 warnings.append(f"the start ({start_used}) did not converge ({message}); restarted from the "
                                 "closed-form estimate")
                 start_used = "closed-form estimate (after the given start failed)"
-                model, result = model2, result2
+                fitted, result = model2, result2
                 sensor, centre, converged, message, notes, local, hess_eig = judged
     warnings += notes
     pose = pose_from_transform(sensor)
@@ -275,6 +284,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         "method": method,
         "rotation": rotation,
         "unknowns": unknowns,
+        "model": kind,
+        "robot_sigma_mm": robot_sigma if kind != "centre" or dataset.profiles is not None else None,
         "start_pose": start_pose.tolist(),
         "start_used": start_used,
         "sensor_pose": pose.tolist(),
@@ -289,7 +300,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         "excluded": excluded,
         "before": before,
         "warnings": warnings,
-        "history": [pose_from_transform(_projected(model.sensor2flange(x))).tolist() for x in result.history],
+        "history": [pose_from_transform(_projected(fitted.sensor2flange(x))).tolist() for x in result.history],
         "solver_point": result.x.tolist(),
         "solver_extra": {k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
     }
@@ -305,6 +316,21 @@ def _rms(values):
     return float(np.sqrt(np.mean(values**2))) if values.size else None
 
 
+def _noise_model_text(local):
+    rows = {"centre": "reconstructed centres", "measurement": "measured circles", "points": "profile points"}[local.kind]
+    if local.kind == "points":
+        weights = ("equal weights; covariance cluster-robust over the profiles (a robot pose error moves a whole "
+                   "profile), sigma = sqrt(SSR/(m - p)) is the point scatter")
+        return f"residual: {rows}; {weights}"
+    if local.whiten is None:
+        weights = "independent components with one common variance sigma^2, estimated as SSR/(m - p)"
+    else:
+        weights = ("each row whitened by its covariance (circle fit + robot repeatability); sigma_scale, estimated as "
+                   "sqrt(SSR/(m - p)), should be near 1 and scales the covariance")
+    return (f"residual: {rows}; {weights}; covariance sigma^2 (J^T J)^-1 on the local chart "
+            "(rotation about the sensor's axes)")
+
+
 def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outliers_on):
     """Residuals, uncertainty, identifiability and leave-one-out error of the final fit."""
     allm = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, centre, "local", local.unknowns)
@@ -316,7 +342,8 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
     ident = identifiability.analyse(j_used, local.names)
     if not ident.full_rank:
         out["warnings"].append(f"at the solution the data do not determine: {ident.describe_null()}")
-    cov = covariance(r_used, j_used)
+    groups = None if local.groups is None else np.repeat(local.groups, local.m)
+    cov = covariance(r_used, j_used, groups)
     deg = np.degrees(cov.std[3:6])
     loo_errors = robust.leave_one_out(allm, x_all, mask) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
@@ -331,7 +358,8 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
              "loo_error_mm": None if not np.isfinite(l) else float(l)}
             for i, r, v, n, u, l in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)
         ],
-        "sigma_mm": cov.sigma,
+        "sigma_mm": cov.sigma if local.whiten is None else None,
+        "sigma_scale": cov.sigma if local.whiten is not None else None,
         "std": {
             "sensor_translation_mm": cov.std[:3].tolist(),
             "sensor_rotation_deg": deg.tolist(),
@@ -341,6 +369,5 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
         "loo_error_mm": _rms(loo_errors) if loo else None,
         "identifiability": ident.as_dict(),
         "hessian_eigenvalues": hess_eig.tolist(),
-        "noise_model": ("independent residual components with one common variance sigma^2, estimated as SSR/(3n - p); "
-                        "covariance sigma^2 (J^T J)^-1 on the local chart (rotation about the sensor's axes)"),
+        "noise_model": _noise_model_text(local),
     })

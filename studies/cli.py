@@ -39,6 +39,9 @@ def build_parser():
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
                      help="start sensor pose, mm and degrees (write --start=-1,2,... for a leading minus)")
     cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")
+    cal.add_argument("--model", default=None, choices=["centre", "measurement", "points"],
+                     help="residual: reconstructed centres, measured circles, or profile points "
+                          "(default: measurement when every sample has a profile, else centre)")
     cal.add_argument("--keep-all", action="store_true", help="fit every sample: no outlier detection")
     cal.add_argument("--alpha", type=float, default=None, help="family-wise level of the outlier tests (default 0.01)")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
@@ -106,7 +109,7 @@ def _calibrate(args):
     if not 0 < alpha < 1:
         raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
     res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
-                    options=options, outliers=not args.keep_all, alpha=alpha, loo=not args.no_loo)
+                    options=options, outliers=not args.keep_all, alpha=alpha, loo=not args.no_loo, model=args.model)
     if args.out:
         write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
     if args.json:
@@ -119,6 +122,8 @@ def _calibrate(args):
 def main(argv=None):
     """Entry point of the ``handeye`` console script; returns the exit code."""
     from model.dataset import DatasetError
+    from model.observations import ObservationError
+    from model.simulate import SimulationError
     from solvers import UnsupportedProblem
     from studies.calibrate import CalibrationInputError
 
@@ -130,7 +135,7 @@ def main(argv=None):
             print("\n".join(embedded_names()))
             return EXIT_OK
         return _calibrate(args)
-    except (DatasetError, CalibrationInputError, UnsupportedProblem, ValueError) as exc:
+    except (DatasetError, CalibrationInputError, ObservationError, SimulationError, UnsupportedProblem, ValueError) as exc:
         print(f"handeye: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except Exception as exc:  # pragma: no cover - a bug, reported without a traceback

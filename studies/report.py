@@ -18,7 +18,7 @@ def calibration_text(res):
     ident = res["identifiability"]
     lines = [
         f"handeye calibrate: dataset {res['dataset']}, method {res['method']}, rotation {res['rotation']}, "
-        f"unknowns {res['unknowns']}",
+        f"unknowns {res['unknowns']}, model {res['model']}",
         f"status: {'converged' if res['converged'] else 'NOT CONVERGED'} after {res['iterations']} iterations "
         f"({res['message']})",
         "",
@@ -45,7 +45,8 @@ def calibration_text(res):
         f"before exclusion (every sample, plain least squares): RMS {res['before']['rms_mm']:.4f} mm"
         + (f", leave-one-out {res['before']['loo_error_mm']:.4f} mm" if res["before"]["loo_error_mm"] is not None else ""),
         "",
-        f"uncertainty (1 sd; sigma = {res['sigma_mm']:.4f} mm per residual component, estimated from the fit):",
+        "uncertainty (1 sd; " + (f"sigma = {res['sigma_mm']:.4f} mm per residual component" if res["sigma_mm"] is not None
+                                 else f"weighted residual, scale {res['sigma_scale']:.3f}") + ", estimated from the fit):",
         "  sensor translation (mm):      " + _fmt(res["std"]["sensor_translation_mm"]),
         "  sensor rotation (deg, about sensor x y z): " + _fmt(res["std"]["sensor_rotation_deg"]),
     ]
