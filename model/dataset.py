@@ -282,6 +282,41 @@ def _centre_from_profile(points, radius, side, pfile):
 PROFILE_FIT = "hyper"
 
 
+def read_pose_list(path):
+    """Flange poses from a CSV with header ``id,x,y,z,a,b,c`` (KUKA, mm, degrees).
+
+    Returns ``(ids, poses (N, 6))``; raises :class:`DatasetError` naming file, row and column.
+    """
+    file = pathlib.Path(path)
+    try:
+        with open(file, newline="", encoding="utf-8-sig") as fh:
+            table = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DatasetError(file, f"cannot be read: {exc}") from None
+    want = ["id", "x", "y", "z", "a", "b", "c"]
+    if not table or [h.strip() for h in table[0]] != want:
+        raise DatasetError(file, "header must be " + ",".join(want), 1)
+    ids, poses, seen = [], [], {}
+    for line, fields in enumerate(table[1:], start=2):
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(want):
+            raise DatasetError(file, f"expected {len(want)} fields, got {len(fields)}", line)
+        ident = fields[0].strip()
+        if not ident:
+            raise DatasetError(file, "empty id", line, "id")
+        if ident in seen:
+            raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
+        seen[ident] = line
+        pose = np.array([_number(fields[k], file, line, want[k]) for k in range(1, 7)])
+        _check_angles(pose, file, line)
+        ids.append(ident)
+        poses.append(pose)
+    if not poses:
+        raise DatasetError(file, "no poses", 2)
+    return ids, np.array(poses)
+
+
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)

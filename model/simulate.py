@@ -30,7 +30,8 @@ Effects that can be hidden in the data (parameters zero when absent)
 --------------------------------------------------------------------
 * ``sphere_center=dx,dy,dz``: the true centre is the setup's plus (dx, dy, dz) mm (base frame).
 * ``sensor_scale=s``: the sensor's coordinates are scaled by 1 + s.
-* ``sphere_radius=dr``: the true radius exceeds the setup's by dr mm.
+* ``sphere_radius=dr``: the true radius exceeds the setup's by dr mm (where the fitted circle
+  then exceeds the setup's radius, the reconstructed y is 0, the nearest real value).
 * ``sign_flip=ID,ID...``: the centre of these samples is reconstructed on the wrong side.
 * ``outlier=ID,ID...``: a gross error of 30 mm in a random direction is added to these
   samples' centres.
@@ -206,10 +207,10 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
             raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
         side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
         fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
-        try:
-            xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
-        except circle.CircleFitError as exc:
-            raise SimulationError(f"pose {ident}: {exc}") from None
+        # a hidden radius effect can make the circle larger than the setup's sphere near the
+        # equator; the nearest real reconstruction is then y = 0
+        fitted = dataclasses.replace(fitted, r=min(fitted.r, radius_setup))
+        xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
         if ident in effects.get("outlier", []):
             direction = rng.normal(size=3)
             xs = xs + 30.0 * direction / np.linalg.norm(direction)
@@ -235,10 +236,10 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
         (folder / "profiles").mkdir(exist_ok=True)
     for ident, pose, xs, pts in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles):
         safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
-        row = [ident] + [f"{v:.6f}" for v in pose] + [f"{v:.6f}" for v in xs]
+        row = [ident] + [f"{v:.9f}" for v in pose] + [f"{v:.9f}" for v in xs]
         if profiles:
             name = f"profiles/{safe}.csv"
-            np.savetxt(folder / name, pts, fmt="%.6f", delimiter=",", header="x,z", comments="")
+            np.savetxt(folder / name, pts, fmt="%.9f", delimiter=",", header="x,z", comments="")
             row.append(name)
         lines.append(",".join(row))
     (folder / "measurements.csv").write_text("\n".join(lines) + "\n")

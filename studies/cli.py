@@ -49,6 +49,19 @@ def build_parser():
     cal.add_argument("--out", default=None, metavar="FILE",
                      help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
     sub.add_parser("datasets", help="list the embedded datasets")
+    sim = sub.add_parser("simulate", help="write a simulated dataset with known truth (model.simulate)")
+    sim.add_argument("--out", required=True, metavar="DIR", help="dataset folder to write (must be empty or new)")
+    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
+                     help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | "
+                          "sign_flip=ID,ID | outlier=ID,ID (repeatable)")
+    sim.add_argument("--profiles", action="store_true", help="also write the laser profiles")
+    sim.add_argument("--poses", default=None, metavar="CSV",
+                     help="flange poses (header id,x,y,z,a,b,c) instead of the thesis strategy")
+    sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
+    sim.add_argument("--linearity", type=float, default=0.0,
+                     help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
+    sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
     return parser
 
 
@@ -90,6 +103,32 @@ def write_json_atomically(path, data):
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(fh.name, target)
+
+
+def _simulate(args):
+    import dataclasses
+    import pathlib
+
+    from model import simulate
+    from model.dataset import read_pose_list
+    from studies.calibrate import parse_pose
+
+    out = pathlib.Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {out}: exists and is not an empty folder; choose a new one")
+    if not 0 <= args.linearity < 0.1:
+        raise ValueError(f"--linearity must lie in [0, 0.1), got {args.linearity}")
+    setup = simulate.Setup(linearity=args.linearity)
+    if args.truth is not None:
+        setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(args.truth, "--truth")))
+    effects = simulate.parse_effects(args.effect)
+    poses, ids = (None, None)
+    if args.poses is not None:
+        ids, poses = read_pose_list(args.poses)
+    sim = simulate.simulate(setup, seed=args.seed, effects=effects, flange_poses=poses, n_poses=args.n_poses, ids=ids)
+    simulate.write(sim, out, profiles=args.profiles)
+    print(f"wrote {len(sim.ids)} simulated measurements to {out} (seed {args.seed}, effects {effects or 'none'})")
+    return EXIT_OK
 
 
 def _calibrate(args):
@@ -134,6 +173,8 @@ def main(argv=None):
 
             print("\n".join(embedded_names()))
             return EXIT_OK
+        if args.command == "simulate":
+            return _simulate(args)
         return _calibrate(args)
     except (DatasetError, CalibrationInputError, ObservationError, SimulationError, UnsupportedProblem, ValueError) as exc:
         print(f"handeye: error: {exc}", file=sys.stderr)
