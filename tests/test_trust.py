@@ -205,7 +205,7 @@ def test_simulate_cli_and_pose_lists(tmp_path, capsys):
     assert str(poses) in err and "row 3" in err and "column 'z'" in err
     poses.write_text("id,x,y,z,a,b,c\np1,0,0,0,0,0,0\n")
     assert main(["simulate", "--out", str(tmp_path / "z"), "--poses", str(poses)]) == EXIT_BAD_INPUT
-    assert "misses the sphere" in capsys.readouterr().err or True
+    assert "pose p1 (number 1): the laser plane misses the sphere" in capsys.readouterr().err
 
 
 def test_out_file_is_written_atomically_with_provenance(tmp_path, capsys):
