@@ -22,6 +22,8 @@ import numpy as np
 
 #: Relative singular value below which a direction counts as not identifiable.
 RTOL = 1e-8
+#: Inverse condition number (O2) below which a direction counts as badly constrained.
+WEAK = 1e-2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +43,13 @@ class Identifiability:
         Ratio of largest to smallest scaled singular value (inf when rank-deficient).
     null_directions : list of dict
         For each unidentifiable direction: parameter name -> component (|c| > 0.05 shown).
+    weakest_direction : dict
+        The direction of the smallest scaled singular value (parameter name -> component).
+    observability : dict
+        Indices of the scaled Jacobian (m rows, singular values s_1 >= ... >= s_n):
+        ``O1 = (s_1 ... s_n)^(1/n) / sqrt(m)`` (Borm & Menq 1991), ``O2 = s_n / s_1`` (inverse
+        condition number), ``O3 = s_n`` (minimum singular value), ``O4 = s_n^2 / s_1`` (noise
+        amplification index, Nahvi & Hollerbach 1996). Larger is better for all four.
     """
 
     rank: int
@@ -49,6 +58,8 @@ class Identifiability:
     raw_singular_values: np.ndarray
     condition: float
     null_directions: list
+    weakest_direction: dict = dataclasses.field(default_factory=dict)
+    observability: dict = dataclasses.field(default_factory=dict)
 
     @property
     def full_rank(self):
@@ -69,6 +80,8 @@ class Identifiability:
             "raw_singular_values": [float(v) for v in self.raw_singular_values],
             "condition_number": float(self.condition),
             "not_identifiable": self.null_directions,
+            "weakest_direction": self.weakest_direction,
+            "observability": self.observability,
         }
 
 
@@ -90,7 +103,19 @@ def analyse(jacobian, names, rtol=RTOL):
         v = v / np.max(np.abs(v))
         null.append({names[i]: round(float(v[i]), 4) for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.05})
     cond = float(s_full[0] / s_full[-1]) if rank == j.shape[1] and s_full[-1] > 0 else float("inf")
-    return Identifiability(rank, j.shape[1], s_full, raw, cond, null)
+    n = j.shape[1]
+    weakest = {}
+    if vt.shape[0] == n:
+        v = vt[-1] / np.max(np.abs(vt[-1]))
+        weakest = {names[i]: round(float(v[i]), 4) for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.05}
+    smin = float(s_full[-1])
+    obs = {
+        "O1": float(np.exp(np.mean(np.log(np.maximum(s_full, 1e-300)))) / np.sqrt(j.shape[0])),
+        "O2": float(smin / smax) if smax > 0 else 0.0,
+        "O3": smin,
+        "O4": float(smin**2 / smax) if smax > 0 else 0.0,
+    }
+    return Identifiability(rank, n, s_full, raw, cond, null, weakest, obs)
 
 
 def structural(model, x, rtol=RTOL):

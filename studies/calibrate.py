@@ -342,6 +342,11 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
     ident = identifiability.analyse(j_used, local.names)
     if not ident.full_rank:
         out["warnings"].append(f"at the solution the data do not determine: {ident.describe_null()}")
+    elif ident.observability["O2"] < identifiability.WEAK:
+        weak = " + ".join(f"{v:+.2f}*{k}" for k, v in ident.weakest_direction.items())
+        out["warnings"].append(
+            f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
+            f"{identifiability.WEAK:g}): {weak}; add poses that move it (handeye plan)")
     groups = None if local.groups is None else np.repeat(local.groups, local.m)
     cov = covariance(r_used, j_used, groups)
     deg = np.degrees(cov.std[3:6])

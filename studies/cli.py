@@ -7,6 +7,7 @@ Exit codes
 2  bad input: unreadable or malformed dataset, bad option, too few or degenerate poses;
    one line on stderr naming file, row and column where there is one
 3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
+4  a study's data did not support its claim (``handeye study``)
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import json
 import os
 import sys
 
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
 
 
 class _Parser(argparse.ArgumentParser):
@@ -23,6 +24,27 @@ class _Parser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         print(f"handeye: error: {message}", file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _plan_args(sub):
+    plan = sub.add_parser("plan", help="choose the N most informative poses (D-optimal) from candidates")
+    plan.add_argument("--n", type=int, default=12, help="number of poses to choose (default 12)")
+    plan.add_argument("--candidates", default=None, metavar="CSV",
+                      help="candidate flange poses (header id,x,y,z,a,b,c); default: the thesis strategy's 36 "
+                           "orientations with cuts at 5, 15 and 25 mm (108 poses)")
+    plan.add_argument("--dataset", default=None,
+                      help="take the nominal sensor pose (start_pose), sphere centre and diameter from this dataset")
+    plan.add_argument("--out", default=None, metavar="CSV", help="write the chosen poses (id,x,y,z,a,b,c)")
+    plan.add_argument("--json", action="store_true")
+
+
+def _study_args(sub):
+    from studies.study import STUDIES
+
+    st = sub.add_parser("study", help="run a study (figures, tables, JSON) and check its claims")
+    st.add_argument("name", choices=list(STUDIES) + ["all"])
+    st.add_argument("--out", default="out", metavar="DIR", help="output folder (default ./out)")
+    st.add_argument("--quick", action="store_true", help="small, honest version (CI)")
 
 
 def build_parser():
@@ -61,6 +83,8 @@ def build_parser():
     sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
     sim.add_argument("--linearity", type=float, default=0.0,
                      help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
+    _plan_args(sub)
+    _study_args(sub)
     sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
     return parser
 
@@ -89,8 +113,8 @@ def provenance(args, dataset):
     }
 
 
-def write_json_atomically(path, data):
-    """Write JSON to ``path`` through a temporary file and a rename: never a half-written file."""
+def write_text_atomically(path, text):
+    """Write ``text`` to ``path`` through a temporary file and a rename: never a half-written file."""
     import pathlib
     import tempfile
 
@@ -99,10 +123,68 @@ def write_json_atomically(path, data):
     if not folder.is_dir():
         raise ValueError(f"--out {path}: folder {folder} does not exist")
     with tempfile.NamedTemporaryFile("w", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
-        json.dump(data, fh, indent=1)
+        fh.write(text)
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(fh.name, target)
+
+
+def write_json_atomically(path, data):
+    """JSON through :func:`write_text_atomically`."""
+    write_text_atomically(path, json.dumps(data, indent=1))
+
+
+def _plan(args):
+    import dataclasses
+
+    import numpy as np
+
+    from model import planning, simulate
+    from model.dataset import load, read_pose_list
+
+    setup = simulate.Setup(linearity=0.0)
+    centre = np.asarray(setup.sphere_centre)
+    if args.dataset is not None:
+        d = load(args.dataset)
+        if d.start_pose is None:
+            raise ValueError(f"--dataset {args.dataset}: its setup.toml has no start_pose to plan around")
+        setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
+        centre = d.sphere_centre
+    if args.candidates is not None:
+        ids, poses = read_pose_list(args.candidates)
+    else:
+        ids, poses = planning.thesis_candidates(setup, centre)
+    if args.n < 1:
+        raise ValueError("--n must be at least 1")
+    result = planning.plan(ids, poses, args.n, setup, centre)
+    if args.out:
+        lines = ["id,x,y,z,a,b,c"] + [",".join([i] + [f"{v:.4f}" for v in p]) for i, p in zip(result.ids, result.poses)]
+        write_text_atomically(args.out, "\n".join(lines) + "\n")
+    report = {"n": args.n, "ids": result.ids, "poses": result.poses.tolist(), "logdet": result.logdet,
+              "predicted_sd": {"sensor_translation_mm": result.predicted_sd[:3].tolist(),
+                               "sensor_rotation_deg": result.predicted_sd[3:6].tolist()},
+              "skipped": [{"id": i, "reason": r} for i, r in result.skipped],
+              "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)"}
+    if args.json:
+        print(json.dumps(report, indent=1))
+    else:
+        print(f"chose {args.n} of {len(ids) - len(result.skipped)} usable candidate poses (D-optimal, log det {result.logdet:.2f})")
+        print("predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in result.predicted_sd[:3])
+              + "; rotation deg " + " ".join(f"{v:.4f}" for v in result.predicted_sd[3:6]))
+        for i, p in zip(result.ids, result.poses):
+            print(f"  {i:>14} " + " ".join(f"{v:10.3f}" for v in p))
+        for i, r in result.skipped:
+            print(f"  skipped {i}: {r}")
+    return EXIT_OK
+
+
+def _study(args):
+    from studies import study
+
+    results = study.run(args.name, args.out, quick=args.quick)
+    for name in results:
+        print(f"study {name}: claims hold; figures, tables and summary.json in {args.out}/{name}")
+    return EXIT_OK
 
 
 def _simulate(args):
@@ -165,6 +247,7 @@ def main(argv=None):
     from model.simulate import SimulationError
     from solvers import UnsupportedProblem
     from studies.calibrate import CalibrationInputError
+    from studies.study import StudyClaimFailed
 
     args = build_parser().parse_args(argv)
     try:
@@ -175,10 +258,20 @@ def main(argv=None):
             return EXIT_OK
         if args.command == "simulate":
             return _simulate(args)
+        if args.command == "plan":
+            return _plan(args)
+        if args.command == "study":
+            return _study(args)
         return _calibrate(args)
     except (DatasetError, CalibrationInputError, ObservationError, SimulationError, UnsupportedProblem, ValueError) as exc:
         print(f"handeye: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing left to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except StudyClaimFailed as exc:
+        print(f"handeye: {exc}", file=sys.stderr)
+        return EXIT_CLAIM_FAILED
     except Exception as exc:  # pragma: no cover - a bug, reported without a traceback
         if os.environ.get("HANDEYE_DEBUG"):
             raise

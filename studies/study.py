@@ -1,0 +1,73 @@
+"""Studies: each tells one story (model, data, solve, report), writes its figures (PNG),
+tables (CSV and Markdown) and a JSON summary into ``out``, and ends by asserting what it
+claims. ``quick`` runs a small, honest version (fewer replicates) for CI.
+
+``handeye study NAME [--out DIR] [--quick]``; ``handeye study all`` runs every study.
+"""
+from __future__ import annotations
+
+import csv
+import importlib
+import json
+import pathlib
+
+#: study name -> module (each has ``run(out, quick) -> dict``)
+STUDIES = {
+    "circle-fits": "studies.study_circle_fits",
+    "accuracy": "studies.study_accuracy",
+    "random-starts": "studies.study_random_starts",
+    "pose-planning": "studies.study_planning",
+}
+
+
+class StudyClaimFailed(AssertionError):
+    """A study's data did not support its claim."""
+
+
+def claim(condition, text):
+    """Assert a study's claim; the message says what was claimed."""
+    if not condition:
+        raise StudyClaimFailed(f"claim not supported by the data: {text}")
+
+
+def write_table(out, name, header, rows):
+    """Write ``name.csv`` and ``name.md`` with the same rows."""
+    out = pathlib.Path(out)
+    with open(out / f"{name}.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+
+    def fmt(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in rows]
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+
+
+def write_summary(out, summary):
+    (pathlib.Path(out) / "summary.json").write_text(json.dumps(summary, indent=1, default=float) + "\n")
+
+
+def figure():
+    """A matplotlib figure on the non-interactive backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def run(name, out, quick=False):
+    """Run one study (or ``all``); returns ``{name: summary}``."""
+    names = list(STUDIES) if name == "all" else [name]
+    results = {}
+    for n in names:
+        if n not in STUDIES:
+            raise ValueError(f"unknown study {n!r}; choose one of {', '.join(STUDIES)} or all")
+        folder = pathlib.Path(out) / n
+        folder.mkdir(parents=True, exist_ok=True)
+        results[n] = importlib.import_module(STUDIES[n]).run(folder, quick=quick)
+    return results

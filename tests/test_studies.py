@@ -1,0 +1,56 @@
+"""The studies, in their quick versions (the full versions: `handeye study NAME`), and the
+pose planner."""
+import json
+
+import numpy as np
+import pytest
+
+from model import bounds, planning, simulate
+from studies.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from studies.study import STUDIES
+
+
+@pytest.mark.parametrize("name", sorted(STUDIES))
+def test_quick_study_runs_and_its_claims_hold(tmp_path, capsys, name):
+    assert main(["study", name, "--quick", "--out", str(tmp_path)]) == EXIT_OK
+    folder = tmp_path / name
+    assert (folder / "summary.json").is_file()
+    assert list(folder.glob("*.png")) and list(folder.glob("*.csv")) and list(folder.glob("*.md"))
+    json.loads((folder / "summary.json").read_text())
+
+
+def test_unknown_study_is_refused(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["study", "nonsense"])
+    assert exc.value.code == EXIT_BAD_INPUT
+
+
+def test_d_optimal_selection_beats_random_subsets():
+    setup = simulate.Setup()
+    ids, poses = planning.thesis_candidates(setup, setup.sphere_centre)
+    info = bounds.information(poses, setup, setup.sphere_centre)
+    chosen, value = planning.select(info, 10)
+    assert len(set(chosen)) == 10
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        other = rng.choice(len(ids), 10, replace=False)
+        assert planning.logdet(info[other].sum(axis=0)) <= value + 1e-9
+
+
+def test_plan_cli(tmp_path, capsys):
+    out = tmp_path / "plan.csv"
+    assert main(["plan", "--n", "6", "--dataset", "thesis-real", "--out", str(out), "--json"]) == EXIT_OK
+    report = json.loads(capsys.readouterr().out)
+    assert len(report["ids"]) == 6 and len(report["predicted_sd"]["sensor_translation_mm"]) == 3
+    lines = out.read_text().splitlines()
+    assert lines[0] == "id,x,y,z,a,b,c" and len(lines) == 7
+    # the written pose list is a valid candidate list again
+    assert main(["plan", "--n", "3", "--candidates", str(out)]) == EXIT_OK
+    capsys.readouterr()
+    assert main(["plan", "--n", "9", "--candidates", str(out)]) == EXIT_BAD_INPUT
+    assert "cannot choose 9" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("id,x,y,z,a,b,c\nq1,1,2,3,4,5\n")
+    assert main(["plan", "--candidates", str(bad)]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert str(bad) in err and "row 2" in err
