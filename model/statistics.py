@@ -31,7 +31,7 @@ def f_survival(x, d1, d2):
     if d2 <= 0:
         return float("nan")
     z = d1 * x / (d1 * x + d2)
-    return float(mpmath.betainc(d1 / 2.0, d2 / 2.0, z, 1, regularized=True))
+    return min(max(float(mpmath.betainc(d1 / 2.0, d2 / 2.0, z, 1, regularized=True)), 0.0), 1.0)
 
 
 def chi2_survival(x, k):
@@ -40,7 +40,7 @@ def chi2_survival(x, k):
 
     if x <= 0:
         return 1.0
-    return float(mpmath.gammainc(k / 2.0, x / 2.0, mpmath.inf, regularized=True))
+    return min(max(float(mpmath.gammainc(k / 2.0, x / 2.0, mpmath.inf, regularized=True)), 0.0), 1.0)
 
 
 def chi_median(k):
