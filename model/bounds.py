@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 
-from model import circle
+from model import circle, observations
 from model.calibration import CalibrationModel
 from model.pose import transform_from_pose
 
@@ -52,14 +52,10 @@ def information(flange_poses, setup, sphere_centre, unknowns="sensor"):
         in_sensor = np.linalg.solve(flange @ t_x, np.append(centre, 1.0))[:3]
         pts = simulate.profile_points(in_sensor, radius, quiet, np.random.default_rng(0))
         exact = circle.Circle(in_sensor[0], in_sensor[2], float(np.sqrt(radius**2 - in_sensor[1] ** 2)))
-        dx, dz = pts[:, 0] - exact.x, pts[:, 1] - exact.z
-        d = np.hypot(dx, dz)
-        j = np.column_stack([-dx / d, -dz / d, -np.ones(len(d))])
-        cov = setup.sigma_point**2 * np.linalg.inv(j.T @ j)
-        cov += setup.sigma_robot**2 * np.diag([1.0, 1.0, in_sensor[1] ** 2 / exact.r**2])
+        cov = circle.circle_covariance(pts[:, 0], pts[:, 1], exact, sigma=setup.sigma_point)
         circles.append([exact.x, exact.z, exact.r])
-        covs.append(cov)
-    whiten = np.linalg.inv(np.linalg.cholesky(np.array(covs)))
+        covs.append(observations.circle_noise(cov, exact.r, radius, setup.sigma_robot))
+    whiten = observations.whitening(np.array(covs))
     model = CalibrationModel.from_circles(flanges, np.array(circles), radius, centre, "local", unknowns, whiten=whiten)
     _, jac = model.residual_and_jacobian(model.point_from(t_x, centre))
     return np.einsum("ikn,ikm->inm", jac, jac)

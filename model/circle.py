@@ -129,17 +129,23 @@ def sphere_centre_from_circle(circle, radius, side=-1):
     return np.array([circle.x, side * np.sqrt(radius**2 - circle.r**2), circle.z])
 
 
-def circle_covariance(x, z, fitted):
-    """Covariance (3, 3) of ``(xc, zc, r)`` of a circle fitted to points, from the geometric
-    model: ``s^2 (J^T J)^-1`` with J the Jacobian of the orthogonal distances and ``s^2`` their
-    mean square (K - 3 degrees of freedom)."""
+def distance_jacobian(x, z, fitted):
+    """Orthogonal distances ``|p_i - c| - r`` (K,) of points from a circle and their Jacobian
+    (K, 3) with respect to ``(xc, zc, r)``."""
     x, z = _points(x, z)
     dx, dz = x - fitted.x, z - fitted.z
     d = np.maximum(np.hypot(dx, dz), 1e-300)
-    j = np.column_stack([-dx / d, -dz / d, -np.ones_like(x)])
-    res = d - fitted.r
-    dof = max(len(x) - 3, 1)
-    return float(res @ res) / dof * np.linalg.pinv(j.T @ j)
+    return d - fitted.r, np.column_stack([-dx / d, -dz / d, -np.ones_like(x)])
+
+
+def circle_covariance(x, z, fitted, sigma=None):
+    """Covariance (3, 3) of ``(xc, zc, r)`` of a circle fitted to points, from the geometric
+    model: ``s^2 (J^T J)^-1`` with J the Jacobian of the orthogonal distances and ``s^2`` the
+    given point variance ``sigma^2`` or, by default, the distances' mean square (K - 3 degrees
+    of freedom)."""
+    res, j = distance_jacobian(x, z, fitted)
+    s2 = float(res @ res) / max(len(res) - 3, 1) if sigma is None else sigma**2
+    return s2 * np.linalg.pinv(j.T @ j)
 
 
 def centre_covariance(fitted, cov_circle, radius, side=-1):

@@ -60,6 +60,14 @@ def circles(dataset, fit=CIRCLE_FIT):
     return np.array(out), np.array(covs)
 
 
+def circle_noise(cov_circle, r, radius, robot_sigma):
+    """Covariance of a measured circle ``(xc, zc, r)`` as the measurement residual sees it:
+    the circle fit's plus the robot's repeatability, which moves the predicted centre
+    isotropically and so the radius residual by ``-(p_y / r) dp_y``."""
+    y_squared = max(radius**2 - r**2, 1e-12)
+    return cov_circle + robot_sigma**2 * np.diag([1.0, 1.0, y_squared / r**2])
+
+
 def whitening(cov):
     """Matrices W (N, m, m) with ``W^T W = cov^-1`` (inverse Cholesky factors)."""
     return np.linalg.inv(np.linalg.cholesky(cov))
@@ -84,7 +92,5 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
             whiten = whitening(cov + robot_sigma**2 * np.eye(3))
         return CalibrationModel(f2b, dataset.centre_in_sensor, centre, rotation, unknowns, whiten=whiten)
     circ, covs = circles(dataset)
-    y_squared = np.maximum(radius**2 - circ[:, 2] ** 2, 1e-12)
-    # robot error moves the predicted centre isotropically; e3 ~ -(p_y / r) dp_y
-    robot = robot_sigma**2 * np.stack([np.diag([1.0, 1.0, y2 / r**2]) for y2, r in zip(y_squared, circ[:, 2])])
-    return CalibrationModel.from_circles(f2b, circ, radius, centre, rotation, unknowns, whiten=whitening(covs + robot))
+    total = np.array([circle_noise(cov, r, radius, robot_sigma) for cov, r in zip(covs, circ[:, 2])])
+    return CalibrationModel.from_circles(f2b, circ, radius, centre, rotation, unknowns, whiten=whitening(total))
