@@ -101,14 +101,14 @@ def _compile(text, namespace):
 
 def numpy_function(text):
     """Compile generated source with numpy's elementary functions (flat list of outputs)."""
-    return _compile(text, {"sin": np.sin, "cos": np.cos, "sqrt": np.sqrt, "pi": math.pi})
+    return _compile(text, {"sin": np.sin, "cos": np.cos, "sqrt": np.sqrt, "sign": np.sign, "pi": math.pi})
 
 
 def casadi_function(text):
     """Compile generated source with CasADi's elementary functions (flat list of SX)."""
     import casadi as ca
 
-    return _compile(text, {"sin": ca.sin, "cos": ca.cos, "sqrt": ca.sqrt, "pi": math.pi})
+    return _compile(text, {"sin": ca.sin, "cos": ca.cos, "sqrt": ca.sqrt, "sign": ca.sign, "pi": math.pi})
 
 
 def stack_outputs(values, batch_shape):

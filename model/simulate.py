@@ -32,8 +32,10 @@ Effects that can be hidden in the data (parameters zero when absent)
 --------------------------------------------------------------------
 * ``sphere_center=dx,dy,dz``: the true centre is the setup's plus (dx, dy, dz) mm (base frame).
 * ``sensor_scale=s``: the sensor's coordinates are scaled by 1 + s.
-* ``sphere_radius=dr``: the true radius exceeds the setup's by dr mm (where the fitted circle
-  then exceeds the setup's radius, the reconstructed y is 0, the nearest real value).
+* ``sphere_radius=dr``: the true radius exceeds the setup's by dr mm. Where the fitted circle
+  then exceeds the setup's radius (a cut within ``sqrt(2 R dr)`` of the equator) no centre can
+  be reconstructed; like a real pipeline, the simulator drops the sample and lists it in
+  ``simulation.json`` under ``dropped``.
 * ``sign_flip=ID,ID...``: the centre of these samples is reconstructed on the wrong side.
 * ``outlier=ID,ID...``: a gross error of 30 mm in a random direction is added to these
   samples' centres.
@@ -157,6 +159,7 @@ class Simulation:
     effects: dict
     true_centre: np.ndarray
     seed: int
+    dropped: list = dataclasses.field(default_factory=list)
 
 
 def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None):
@@ -200,7 +203,7 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         if unknown:
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
     scale = 1.0 + effects.get("sensor_scale", 0.0)
-    recorded, centres, profiles = [], [], []
+    recorded, centres, profiles, kept, dropped = [], [], [], [], []
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
         in_sensor = np.linalg.solve(flange @ t_x, np.append(centre, 1.0))[:3]
         try:
@@ -209,9 +212,11 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
             raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
         side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
         fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
-        # a hidden radius effect can make the circle larger than the setup's sphere near the
-        # equator; the nearest real reconstruction is then y = 0
-        fitted = dataclasses.replace(fitted, r=min(fitted.r, radius_setup))
+        if fitted.r >= radius_setup:
+            # a hidden radius effect makes the circle larger than the setup's sphere near the
+            # equator: no real y; a real pipeline loses such a sample, and so does this one
+            dropped.append((ident, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"))
+            continue
         xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
         if ident in effects.get("outlier", []):
             direction = rng.normal(size=3)
@@ -221,7 +226,8 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         recorded.append(pose_from_transform(noisy))
         centres.append(xs)
         profiles.append(pts)
-    return Simulation(out_ids, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed)
+        kept.append(ident)
+    return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped)
 
 
 def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0)):
@@ -259,6 +265,7 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
         f"[truth]\nsensor_pose = {vec(s.sensor_pose)}\nsphere_center = {vec(sim.true_centre)}\n"
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
+            "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],
             "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
     (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder

@@ -83,6 +83,11 @@ def build_parser():
     sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
     sim.add_argument("--linearity", type=float, default=0.0,
                      help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
+    diag = sub.add_parser("diagnose", help="find, name and add the effects the model is missing")
+    diag.add_argument("dataset", nargs="?", default="thesis-real")
+    diag.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the tests (default 0.01)")
+    diag.add_argument("--json", action="store_true")
+    diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
     _plan_args(sub)
     _study_args(sub)
     sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
@@ -178,6 +183,19 @@ def _plan(args):
     return EXIT_OK
 
 
+def _diagnose(args):
+    from model.dataset import load
+    from studies import diagnose
+
+    if not 0 < args.alpha < 1:
+        raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
+    res = diagnose.diagnose(load(args.dataset), alpha=args.alpha)
+    if args.figures:
+        diagnose.figures(res, args.figures)
+    print(json.dumps(res, indent=1) if args.json else diagnose.text(res))
+    return EXIT_OK
+
+
 def _study(args):
     from studies import study
 
@@ -210,6 +228,8 @@ def _simulate(args):
     sim = simulate.simulate(setup, seed=args.seed, effects=effects, flange_poses=poses, n_poses=args.n_poses, ids=ids)
     simulate.write(sim, out, profiles=args.profiles)
     print(f"wrote {len(sim.ids)} simulated measurements to {out} (seed {args.seed}, effects {effects or 'none'})")
+    for ident, reason in sim.dropped:
+        print(f"dropped {ident}: {reason}")
     return EXIT_OK
 
 
@@ -258,6 +278,8 @@ def main(argv=None):
             return EXIT_OK
         if args.command == "simulate":
             return _simulate(args)
+        if args.command == "diagnose":
+            return _diagnose(args)
         if args.command == "plan":
             return _plan(args)
         if args.command == "study":

@@ -1,0 +1,69 @@
+"""The effect catalogue: named extensions of the measurement model.
+
+Every effect's parameters are zero when it is absent, so models nest. Three kinds:
+
+* ``data`` -- the effect changes what the sensor reports; the module gives the symbolic
+  *correction* ``xs_true = g(xs_measured; params)`` (sympy, from which the Jacobian with respect
+  to the parameters is generated like the base model's). ``sensor_scale``, ``sphere_radius``.
+* ``centre`` -- ``sphere_center``: the true centre is the setup's plus (dx, dy, dz); estimated by
+  making the centre an unknown.
+* ``discrete`` -- ``sign_flip`` and ``outlier``: per-sample, decided by the final outlier test.
+* ``structural`` -- effects the poses can never separate from the sensor pose and the sphere
+  centre (a constant error of the robot base frame or of the flange frame, a laser-plane
+  offset or tilt). They are in the catalogue to be *reported* as absorbed, never named.
+
+Adding an effect is one small module with ``NAME``, ``KIND``, ``PARAMS``, ``DOC`` and, for
+``data`` effects, ``correction(xm, ym, zm, R, params)`` returning the corrected centre
+(sympy), or, for ``structural`` ones, ``columns(parts)`` returning its Jacobian columns.
+"""
+from __future__ import annotations
+
+import functools
+import importlib
+
+import numpy as np
+
+from model import codegen
+
+MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier",
+           "base_frame", "flange_frame", "laser_plane")
+
+
+@functools.lru_cache(maxsize=None)
+def get(name):
+    """The effect module called ``name``."""
+    if name not in MODULES:
+        raise ValueError(f"unknown effect {name!r}; the catalogue has {', '.join(MODULES)}")
+    return importlib.import_module(f"model.effects.{name}")
+
+
+def catalogue(kind=None):
+    """Effect modules, optionally of one kind."""
+    return [get(n) for n in MODULES if kind is None or get(n).KIND == kind]
+
+
+@functools.lru_cache(maxsize=None)
+def _correction_function(name):
+    effect = get(name)
+
+    def build():
+        import sympy as sp
+
+        xm, ym, zm = sp.symbols("xm ym zm", real=True)
+        radius = sp.Symbol("R", positive=True)
+        params = sp.symbols(" ".join(f"p_{p}" for p in effect.PARAMS) + ",", real=True)
+        corrected = sp.Matrix(effect.correction(xm, ym, zm, radius, params))
+        jac = corrected.jacobian(params)
+        return (xm, ym, zm, radius, *params), list(corrected) + list(jac)
+
+    return codegen.numpy_function(codegen.generated_source(f"effect_{name}", build))
+
+
+def correct(name, xs, radius, params):
+    """Corrected centres (N, 3) and their derivative with respect to the parameters (N, 3, k)."""
+    effect = get(name)
+    xs = np.asarray(xs, float)
+    vals = codegen.stack_outputs(_correction_function(name)(xs[:, 0], xs[:, 1], xs[:, 2], radius, *params),
+                                 (len(xs),))
+    k = len(effect.PARAMS)
+    return vals[:, :3], vals[:, 3:].reshape(len(xs), 3, k)

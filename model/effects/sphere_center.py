@@ -1,0 +1,9 @@
+"""``sphere_center``: the sphere centre differs from the setup's by (dx, dy, dz) mm, base frame.
+
+The residual ``e = R1 (R2 xs + t2) + t1 - (c + d)`` has columns ``-I`` for d. Estimated by
+making the centre an unknown (``--unknowns sensor+sphere``); reported as ``c_est - c_setup``.
+"""
+KIND = "centre"
+NAME = "sphere_center"
+PARAMS = ("dx", "dy", "dz")
+DOC = "sphere centre offset from the setup's, mm (base frame)"
