@@ -17,6 +17,7 @@ STUDIES = {
     "accuracy": "studies.study_accuracy",
     "random-starts": "studies.study_random_starts",
     "pose-planning": "studies.study_planning",
+    "discrepancy-power": "studies.study_power",
 }
 
 
