@@ -7,7 +7,6 @@ and return a JSON-ready dict. Nothing here prints.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

@@ -73,7 +73,7 @@ class Fit:
         return self.ssr / max(self.m - self.p, 1)
 
 
-class Problem:
+class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
 
     def __init__(self, dataset):
@@ -238,7 +238,7 @@ def _summaries(prob, structure, fit, mask):
 
 def diagnose(dataset, alpha=ALPHA, start=None):
     """Run the procedure (module docstring) on a dataset; returns a JSON-ready dict."""
-    prob = Problem(dataset)
+    prob = Samples(dataset)
     if start is not None:
         start_pose = np.asarray(start, float)
     elif dataset.start_pose is not None:
@@ -473,7 +473,7 @@ def text(res):
     for step in res["steps"]:
         lines.append(f"{step['step']:<34} {step['rms_mm']:9.4f} {step['heldout_rms_mm']:9.4f} {step['chi2_dof']:9.2f}")
     lines += ["", f"chi2/dof against a nominal sigma of {res['nominal_sigma_mm']} mm per component",
-              f"sensor pose (x y z mm, A B C deg): " + " ".join(f"{v:.4f}" for v in res["sensor_pose"]),
+              "sensor pose (x y z mm, A B C deg): " + " ".join(f"{v:.4f}" for v in res["sensor_pose"]),
               "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res["sphere_center"]),
               f"unexplained: {res['unexplained']}"]
     return "\n".join(lines)

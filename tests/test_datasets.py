@@ -1,5 +1,4 @@
 """Datasets: the seed's printed numbers, and a reader that fails cleanly on any malformed file."""
-import pathlib
 
 import numpy as np
 import pytest

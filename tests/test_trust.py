@@ -7,7 +7,7 @@ import pytest
 
 from model import circle, simulate
 from model.closed_form import ClosedFormError, closed_form_estimate
-from model.dataset import DatasetError, load, read_pose_list
+from model.dataset import load
 from model.pose import transform_from_pose
 from model.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
 from studies.calibrate import calibrate
