@@ -101,7 +101,8 @@ def _compile(text, namespace):
 
 def numpy_function(text):
     """Compile generated source with numpy's elementary functions (flat list of outputs)."""
-    return _compile(text, {"sin": np.sin, "cos": np.cos, "sqrt": np.sqrt, "sign": np.sign, "pi": math.pi})
+    return _compile(text, {"sin": np.sin, "cos": np.cos, "sqrt": np.sqrt, "sign": np.sign, "pi": math.pi,
+                           "sinc": lambda x: np.sinc(np.asarray(x) / math.pi)})  # numpy's sinc is normalised
 
 
 def casadi_function(text):

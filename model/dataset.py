@@ -1,7 +1,10 @@
 """Datasets: a folder with ``measurements.csv`` and ``setup.toml``.
 
 ``measurements.csv``
-    Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column.
+    Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column; with
+    ``[robot] convention`` other than ``kuka`` the pose columns are those of that convention
+    (``x,y,z,q1,q2,q3,q4`` for abb, ``x,y,z,rx,ry,rz`` for ur, ``x,y,z,w,p,r`` for fanuc;
+    :mod:`model.conventions`), and so is ``start_pose``.
     ``id`` is unique text; ``x..c`` the flange pose in the robot base (KUKA: mm, degrees,
     ``A, C`` in [-180, 180], ``B`` in [-90, 90], the controller's ranges; a start pose may
     hold any angle in [-360, 360]); ``xs, ys, zs`` the sphere centre in the sensor
@@ -30,6 +33,7 @@ import tomllib
 
 import numpy as np
 
+from model import conventions
 from model.pose import transform_from_pose
 
 REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
@@ -89,6 +93,9 @@ class Dataset:
     profiles : tuple or None
         Per measurement the profile points (K, 2: sensor x, z in mm) or None; None when the
         dataset has no profiles at all.
+    convention : str
+        The robot-brand convention of the files (:mod:`model.conventions`); poses here are
+        always KUKA.
     """
 
     name: str
@@ -105,6 +112,7 @@ class Dataset:
     side: int = -1
     truth: dict | None = None
     profiles: tuple | None = None
+    convention: str = "kuka"
 
     def flange2base(self):
         """Flange poses as homogeneous transforms, shape (N, 4, 4)."""
@@ -191,6 +199,7 @@ def _check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS)
 
 
 _ALLOWED = {
+    "robot": {"convention"},
     "sensor": {"start_pose"},
     "sphere": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
@@ -216,10 +225,17 @@ def _read_setup(path):
         for key in table:
             if key not in _ALLOWED[section]:
                 raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})", column=f"[{section}] {key}")
+    convention = doc.get("robot", {}).get("convention", "kuka")
+    if convention not in conventions.CONVENTIONS:
+        raise DatasetError(file, f"unknown convention {convention!r} (known: {', '.join(conventions.CONVENTIONS)})",
+                           column="[robot] convention")
     start = None
     if "start_pose" in doc.get("sensor", {}):
-        start = _vector(doc["sensor"], "start_pose", 6, file, "sensor")
-        _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
+        start = _vector(doc["sensor"], "start_pose", len(conventions.columns(convention)), file, "sensor")
+        if convention == "kuka":
+            _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
+        else:
+            start = _to_kuka(start, convention, file, None, "[sensor] start_pose")
     sphere = doc.get("sphere", {})
     diam = sphere.get("diameter")
     if isinstance(diam, bool) or not isinstance(diam, (int, float)) or not math.isfinite(diam) or diam <= 0:
@@ -244,7 +260,20 @@ def _read_setup(path):
         truth = {"sensor_pose": _vector(doc["truth"], "sensor_pose", 6, file, "truth")}
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
-    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth
+    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention
+
+
+#: Principal ranges of controller readings per convention (degrees), for the range check.
+READING_RANGES = {"kuka": (180.0, 90.0, 180.0), "fanuc": (180.0, 90.0, 180.0)}
+
+
+def _to_kuka(pose, convention, file, row, column):
+    """A pose in ``convention`` as KUKA (mm, deg); errors name file, row and column."""
+    try:
+        return conventions.convert(pose, convention, "kuka")
+    except conventions.ConventionError as exc:
+        names = ",".join(conventions.CONVENTIONS[convention])
+        raise DatasetError(file, str(exc), row, column or names) from None
 
 
 def _read_profile(folder, rel, file, row):
@@ -320,7 +349,9 @@ def read_pose_list(path):
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    start, diam, centre, plate_pose, centre_in_plate, side, truth = _read_setup(folder)
+    start, diam, centre, plate_pose, centre_in_plate, side, truth, convention = _read_setup(folder)
+    pose_columns = conventions.columns(convention)
+    required = ("id",) + pose_columns + ("xs", "ys", "zs")
     file = folder / "measurements.csv"
     try:
         with open(file, newline="", encoding="utf-8-sig") as fh:
@@ -330,14 +361,15 @@ def load(name_or_path):
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DatasetError(file, f"cannot be read: {exc}") from None
     if not table:
-        raise DatasetError(file, "empty file; needs the header " + ",".join(REQUIRED_COLUMNS), 1)
+        raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
     for col in header:
-        if col not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS:
-            raise DatasetError(file, f"unknown column (expected {','.join(REQUIRED_COLUMNS)}[,profile])", 1, col)
+        if col not in required + OPTIONAL_COLUMNS:
+            raise DatasetError(file, f"unknown column (expected {','.join(required)}[,profile] for the "
+                                     f"{convention} convention)", 1, col)
         if header.count(col) > 1:
             raise DatasetError(file, "duplicate column", 1, col)
-    for col in REQUIRED_COLUMNS:
+    for col in required:
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
@@ -354,8 +386,14 @@ def load(name_or_path):
         if ident in seen:
             raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
         seen[ident] = line
-        pose = np.array([_number(fields[idx[c]], file, line, c) for c in "xyzabc"])
-        _check_angles(pose, file, line)
+        pose = np.array([_number(fields[idx[c]], file, line, c) for c in pose_columns])
+        if convention in READING_RANGES:
+            limits = READING_RANGES[convention]
+            for name, v, lim in zip(pose_columns[3:], pose[3:], limits):
+                if abs(v) > lim:
+                    raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", line, name)
+        if convention != "kuka":
+            pose = _to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
         points = _read_profile(folder, profile, file, line) if profile else None
@@ -387,4 +425,5 @@ def load(name_or_path):
         side=side,
         truth=truth,
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
+        convention=convention,
     )

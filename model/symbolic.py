@@ -62,6 +62,52 @@ def skew(v):
     return sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
 
 
+#: Robot-brand rotation conventions and their parameters (units).
+CONVENTIONS = {
+    "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
+    "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)
+    "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
+    "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
+}
+
+
+@functools.lru_cache(maxsize=None)
+def rotation_from(convention):
+    """Symbolic rotation matrix of a robot brand's orientation parameters.
+
+    Returns
+    -------
+    symbols : tuple of sympy.Symbol
+        The parameters, named as in :data:`CONVENTIONS`.
+    rotation : sympy.Matrix, shape (3, 3)
+
+    Notes
+    -----
+    ``ur`` uses ``R = I + sinc(t) [r]x + sinc(t/2)^2 / 2 [r]x^2`` with ``t = |r|``, which is
+    Rodrigues' formula written without a division by t, so it is exact and finite at t = 0.
+    """
+    names = CONVENTIONS[convention]
+    sym = sp.symbols(" ".join(names), real=True)
+    k = sp.pi / 180
+    if convention == "kuka":
+        a, b, c = sym
+        return sym, rot_z(a * k) * rot_y(b * k) * rot_x(c * k)
+    if convention == "fanuc":
+        w, p, r = sym
+        return sym, rot_z(r * k) * rot_y(p * k) * rot_x(w * k)
+    if convention == "abb":
+        w, x, y, z = sym
+        return sym, sp.Matrix([
+            [1 - 2 * (y**2 + z**2), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x**2 + z**2), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x**2 + y**2)],
+        ])
+    r = sp.Matrix(sym)
+    t = sp.sqrt(r.dot(r))
+    w = skew(r)
+    return sym, sp.eye(3) + sp.sinc(t) * w + sp.sinc(t / 2) ** 2 / 2 * w * w
+
+
 @functools.lru_cache(maxsize=None)
 def pose_transform():
     """Symbolic homogeneous transform of a KUKA pose.

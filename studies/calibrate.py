@@ -44,9 +44,24 @@ class CalibrationInputError(ValueError):
     """The request cannot be calibrated as asked (bad option, too few or degenerate poses)."""
 
 
-def parse_pose(text, what="--start"):
-    """Parse ``'X,Y,Z,A,B,C'`` (mm, degrees) into a pose; raises CalibrationInputError."""
+def parse_pose(text, what="--start", convention="kuka"):
+    """Parse a pose written in a robot convention (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees)
+    into a KUKA pose; raises CalibrationInputError."""
+    from model import conventions
+
+    cols = conventions.columns(convention)
     parts = [p.strip() for p in str(text).split(",")]
+    if convention != "kuka":
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            raise CalibrationInputError(f"{what}: not a number in {text!r}") from None
+        if len(values) != len(cols):
+            raise CalibrationInputError(f"{what}: needs {len(cols)} numbers {','.join(cols)} ({convention}), got {text!r}")
+        try:
+            return conventions.convert(values, convention, "kuka")
+        except conventions.ConventionError as exc:
+            raise CalibrationInputError(f"{what}: {exc}") from None
     if len(parts) != 6:
         raise CalibrationInputError(f"{what}: needs six comma-separated numbers X,Y,Z,A,B,C, got {text!r}")
     try:

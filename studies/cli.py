@@ -60,6 +60,8 @@ def build_parser():
                      help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
                      help="start sensor pose, mm and degrees (write --start=-1,2,... for a leading minus)")
+    cal.add_argument("--convention", default=None, choices=["kuka", "abb", "ur", "fanuc"],
+                     help="robot convention of --start and of the reported pose (default: the dataset's)")
     cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")
     cal.add_argument("--model", default=None, choices=["centre", "measurement", "points"],
                      help="residual: reconstructed centres, measured circles, or profile points "
@@ -239,8 +241,11 @@ def _calibrate(args):
     from studies.report import calibration_text
     from studies.robust import ALPHA
 
+    from model import conventions
+
     dataset = load(args.dataset)
-    start = parse_pose(args.start) if args.start is not None else None
+    convention = args.convention or dataset.convention
+    start = parse_pose(args.start, convention=convention) if args.start is not None else None
     options = {}
     if args.max_iter is not None:
         if args.max_iter < 1:
@@ -251,6 +256,8 @@ def _calibrate(args):
         raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
     res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
                     options=options, outliers=not args.keep_all, alpha=alpha, loo=not args.no_loo, model=args.model)
+    res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
+                             "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:
         write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
     if args.json:

@@ -24,6 +24,11 @@ def calibration_text(res):
         "",
         "start pose   (x y z mm, A B C deg): " + _fmt(res["start_pose"]),
         "sensor pose  (x y z mm, A B C deg): " + _fmt(res["sensor_pose"]),
+    ]
+    if "sensor_pose_as" in res and res["sensor_pose_as"]["convention"] != "kuka":
+        conv = res["sensor_pose_as"]
+        lines.append(f"sensor pose ({conv['convention']}: {','.join(conv['columns'])}): " + _fmt(conv["pose"], 10, 6))
+    lines += [
         "sensor2flange (4x4):",
     ]
     lines += ["  " + _fmt(row, 12, 6) for row in res["sensor_matrix"]]

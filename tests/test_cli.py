@@ -5,6 +5,7 @@ import pathlib
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from conftest import simulate, write_dataset
@@ -154,3 +155,14 @@ def test_a_saddle_point_is_not_reported_as_a_calibration(capsys):
     assert any("saddle" in w and "restarted from the closed-form estimate" in w for w in res["warnings"])
     assert res["start_used"] == "closed-form estimate (after the given start failed)"
     assert code == EXIT_OK and res["converged"] and min(res["hessian_eigenvalues"]) > 0
+
+
+def test_conventions_on_the_command_line(capsys):
+    code, out, _ = run(capsys, "calibrate", "thesis-sim", "--method", "lm", "--no-loo", "--json", "--convention", "abb",
+                       "--start=75,75,55,0.7071068,0,-0.7071068,0")
+    res = json.loads(out)
+    assert code == EXIT_OK and res["sensor_pose_as"]["convention"] == "abb"
+    q = np.array(res["sensor_pose_as"]["pose"][3:])
+    assert abs(np.linalg.norm(q) - 1) < 1e-9 and res["sensor_pose"] == pytest.approx([5, 0, 5, 0, -90, 0], abs=1e-6)
+    code, _, err = run(capsys, "calibrate", "thesis-sim", "--convention", "ur", "--start=1,2,3,9,0,0")
+    assert code == EXIT_BAD_INPUT and "2 pi" in err

@@ -95,7 +95,8 @@ BAD = [
     (dict(toml=GOOD_TOML.replace("center = [1, 2, 3]", "center = [1, 2]")), "needs a list of 3 numbers"),
     (dict(toml=GOOD_TOML.replace("center = [1, 2, 3]", "")), "needs center, or base_pose"),
     (dict(toml=GOOD_TOML.replace("start_pose = [150, 90, 120, 180, -90, 0]", "start_pose = [1, 2]")), "[sensor] start_pose"),
-    (dict(toml=GOOD_TOML + "[robot]\nconvention = 'kuka'\n"), "unknown section"),
+    (dict(toml=GOOD_TOML + "[camera]\nmodel = 'x'\n"), "unknown section"),
+    (dict(toml=GOOD_TOML + "[robot]\nconvention = 'yaskawa'\n"), "column '[robot] convention': unknown convention"),
     (dict(toml=GOOD_TOML.replace("[sphere]", "[sphere]\ncentre = 4")), "[sphere] centre"),
     (dict(toml=GOOD_TOML + "[profile]\nside = 0\n"), "[profile] side"),
 ]
@@ -156,3 +157,35 @@ def test_random_bytes_in_setup_raise_only_dataset_errors(tmp_path, blob):
     (folder / "setup.toml").write_bytes(blob)
     with pytest.raises(DatasetError):
         load(folder)
+
+
+@pytest.mark.parametrize("convention", ["kuka", "abb", "ur", "fanuc"])
+def test_datasets_in_every_robot_convention_read_the_same(tmp_path, convention):
+    """thesis-sim rewritten in another brand's convention reads back to the same transforms."""
+    from model import conventions
+
+    d = load("thesis-sim")
+    cols = conventions.columns(convention)
+    poses = conventions.convert(d.flange_poses, "kuka", convention)
+    lines = [",".join(("id",) + cols + ("xs", "ys", "zs"))]
+    for i, p, xs in zip(d.ids, poses, d.centre_in_sensor):
+        lines.append(",".join([i] + [repr(float(v)) for v in p] + [repr(float(v)) for v in xs]))
+    start = conventions.convert(d.start_pose, "kuka", convention)
+    toml = (f"[robot]\nconvention = '{convention}'\n[sensor]\nstart_pose = [{', '.join(repr(float(v)) for v in start)}]\n"
+            "[sphere]\ndiameter = 10.0\ncenter = [30.0, 5.0, 10.0]\n")
+    folder = make(tmp_path, csv="\n".join(lines) + "\n", toml=toml)
+    other = load(folder)
+    assert other.convention == convention
+    np.testing.assert_allclose(other.flange2base(), d.flange2base(), atol=1e-9)
+    np.testing.assert_allclose(transform_from_pose(other.start_pose), transform_from_pose(d.start_pose), atol=1e-9)
+
+
+def test_bad_values_in_a_convention_name_row_and_columns(tmp_path):
+    toml = GOOD_TOML.replace("start_pose = [150, 90, 120, 180, -90, 0]", "start_pose = [150, 90, 120, 1, 0, 0, 0]")
+    toml += "[robot]\nconvention = 'abb'\n"
+    csv = "id,x,y,z,q1,q2,q3,q4,xs,ys,zs\nm1,1,2,3,1,0,0,0,1,2,230\nm2,1,2,3,0.5,0.5,0.5,0.4,1,2,230\n"
+    with pytest.raises(DatasetError, match=r"row 3, column 'q1,q2,q3,q4': an ABB quaternion must have unit norm"):
+        load(make(tmp_path, csv=csv, toml=toml))
+    csv = "id,x,y,z,a,b,c,xs,ys,zs\nm1,1,2,3,1,0,0,1,2,230\n"
+    with pytest.raises(DatasetError, match="column 'a': unknown column .* abb convention"):
+        load(make(tmp_path, csv=csv, toml=toml))
