@@ -105,6 +105,14 @@ def numpy_function(text):
                            "sinc": lambda x: np.sinc(np.asarray(x) / math.pi)})  # numpy's sinc is normalised
 
 
+def math_function(text):
+    """Compile generated source with the ``math`` module's functions: for one point given as
+    Python floats it is several times faster than numpy's (no array overhead)."""
+    return _compile(text, {"sin": math.sin, "cos": math.cos, "sqrt": math.sqrt, "pi": math.pi,
+                           "sign": lambda v: math.copysign(1.0, v) if v else 0.0,
+                           "sinc": lambda v: math.sin(v) / v if v else 1.0})
+
+
 def casadi_function(text):
     """Compile generated source with CasADi's elementary functions (flat list of SX)."""
     import casadi as ca

@@ -45,6 +45,7 @@ def _study_args(sub):
     st.add_argument("name", choices=list(STUDIES) + ["all"])
     st.add_argument("--out", default="out", metavar="DIR", help="output folder (default ./out)")
     st.add_argument("--quick", action="store_true", help="small, honest version (CI)")
+    st.add_argument("--jobs", type=int, default=None, help="worker processes for sweeps (default: all cores)")
 
 
 def build_parser():
@@ -199,8 +200,11 @@ def _diagnose(args):
 
 
 def _study(args):
-    from studies import study
+    from studies import study, sweep
 
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError("--jobs must be at least 1")
+    sweep.JOBS["n"] = args.jobs
     results = study.run(args.name, args.out, quick=args.quick)
     for name in results:
         print(f"study {name}: claims hold; figures, tables and summary.json in {args.out}/{name}")

@@ -13,6 +13,7 @@ import pathlib
 
 #: study name -> module (each has ``run(out, quick) -> dict``)
 STUDIES = {
+    "testfunction": "studies.study_testfunction",
     "circle-fits": "studies.study_circle_fits",
     "accuracy": "studies.study_accuracy",
     "random-starts": "studies.study_random_starts",
