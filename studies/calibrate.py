@@ -36,6 +36,9 @@ SUPPORTED = {
 #: Parametrisation used when none is asked for.
 DEFAULT_ROTATION = {"ipopt": "matrix"}
 
+#: A converged point must be stationary on the local chart too: |grad| <= LOCAL_GTOL max(1, f).
+LOCAL_GTOL = 1e-4
+
 #: Within this many degrees of B = +-90 the Euler angles A and C are nearly one rotation.
 GIMBAL_WARN_DEG = 1.0
 
@@ -197,7 +200,12 @@ def _judge(model, result, unknowns):
     local = model.with_rotation("local", centre)
     final = local.point_from(sensor, centre)
     hess_eig = np.linalg.eigvalsh(local.cost_hessian(final))
-    if converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
+    grad_local = float(np.max(np.abs(local.gradient(final))))
+    if converged and grad_local > LOCAL_GTOL * max(1.0, local.cost(final)):
+        converged = False
+        message = (f"{message}; but the gradient on the local chart is {grad_local:.3g}: stationary only in the "
+                   f"{model.rotation} chart, which is singular here (gimbal lock), not a minimum")
+    elif converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
         converged = False
         message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
                    "point, not a minimum (local Newton converges to any stationary point)")

@@ -14,6 +14,8 @@ import pathlib
 #: study name -> module (each has ``run(out, quick) -> dict``)
 STUDIES = {
     "testfunction": "studies.study_testfunction",
+    "start-poses": "studies.study_start_poses",
+    "real-data": "studies.study_real_data",
     "circle-fits": "studies.study_circle_fits",
     "accuracy": "studies.study_accuracy",
     "random-starts": "studies.study_random_starts",
