@@ -7,7 +7,9 @@ Along a descent direction p (``g^T p < 0``) from x, a step length alpha is accep
 * **strong Wolfe** (N&W 3.7): Armijo and ``|g(x + alpha p)^T p| <= c2 |g^T p|``, found by
   bracketing and zooming (N&W Algorithms 3.5 and 3.6, with bisection inside the bracket).
 
-Points move through the problem's retraction, so the same code serves manifolds.
+Points move through the problem's retraction, so the same code serves manifolds. When no
+step is acceptable because the possible decrease ``|g^T p|`` is below ``100 eps |f|``, the
+point is as converged as f's precision allows (status 2), not a failure.
 
 Damped Newton, steepest descent and BFGS (N&W 3.3, 6.1) are written here on top of them.
 """
@@ -89,6 +91,10 @@ def _run(problem, x0, opts, name, direction, search, update=None):
 
         alpha, f_new = (armijo(phi, f, slope) if search == "armijo" else wolfe(phi, dphi, f, slope))
         if alpha is None:
+            if abs(slope) <= 100 * np.finfo(float).eps * max(1.0, abs(f)):
+                # the possible decrease is at rounding level: as converged as f's precision allows
+                return t.finish(x, f, g, 2, k, "converged to the precision of f: the possible decrease along the "
+                                               "direction is below rounding")
             return t.finish(x, f, g, -1, k, "line search failed: no acceptable step along the direction")
         x_new = problem.move(x, alpha * p)
         g_new = t.grad(x_new)

@@ -71,6 +71,7 @@ def build_parser():
     cal.add_argument("--alpha", type=float, default=None, help="family-wise level of the outlier tests (default 0.01)")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
     cal.add_argument("--json", action="store_true", help="print the result as JSON")
+    cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
     cal.add_argument("--out", default=None, metavar="FILE",
                      help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
     sub.add_parser("datasets", help="list the embedded datasets")
@@ -91,6 +92,7 @@ def build_parser():
     diag.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the tests (default 0.01)")
     diag.add_argument("--json", action="store_true")
     diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
+    diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
     _plan_args(sub)
     _study_args(sub)
     sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
@@ -195,6 +197,13 @@ def _diagnose(args):
     res = diagnose.diagnose(load(args.dataset), alpha=args.alpha)
     if args.figures:
         diagnose.figures(res, args.figures)
+    if args.plot:
+        import pathlib
+        import shutil
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            shutil.copyfile(diagnose.figures(res, tmp)[1], pathlib.Path(args.plot))
     print(json.dumps(res, indent=1) if args.json else diagnose.text(res))
     return EXIT_OK
 
@@ -264,6 +273,10 @@ def _calibrate(args):
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:
         write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
+    if args.plot:
+        from studies.report import calibration_plot
+
+        calibration_plot(res, dataset, args.plot)
     if args.json:
         print(json.dumps(res, indent=1))
     else:

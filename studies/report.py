@@ -64,3 +64,35 @@ def calibration_text(res):
     ]
     lines += [f"warning: {w}" for w in res["warnings"]]
     return "\n".join(lines)
+
+
+def calibration_plot(res, dataset, path):
+    """Residual per measurement and the sphere centres seen through the calibrated chain
+    (base frame, mm) around the calibrated centre; written to ``path`` (PNG)."""
+    import numpy as np
+
+    from studies.study import figure
+
+    plt = figure()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
+    norms = np.array([r["norm"] for r in res["residuals"]])
+    used = np.array([r["used"] for r in res["residuals"]])
+    k = np.arange(len(norms))
+    axes[0].bar(k[used], norms[used], color="C0", label="used")
+    axes[0].bar(k[~used], norms[~used], color="C3", label="excluded")
+    axes[0].set_xticks(k, [r["id"] for r in res["residuals"]], rotation=90, fontsize=6)
+    axes[0].set(ylabel="|e_i| (mm)", yscale="log",
+                title=f"{res['dataset']}: residuals ({res['method']}, {res['rotation']}, RMS {res['rms_mm']:.3f} mm)")
+    axes[0].legend()
+    sensor = np.array(res["sensor_matrix"])
+    seen = (dataset.flange2base() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
+    d = seen[:, :3, 0] - np.array(res["sphere_center"])
+    axes[1].scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="coolwarm", s=18, label="used (colour: dz)")
+    axes[1].scatter(d[~used, 0], d[~used, 1], marker="x", color="C3", label="excluded")
+    lim = max(3 * np.percentile(np.abs(d[used, :2]), 95), 1e-3)
+    axes[1].set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="dx (mm, base)", ylabel="dy (mm, base)",
+                title="sphere centres through the chain", aspect="equal")
+    axes[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
