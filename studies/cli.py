@@ -95,6 +95,9 @@ def build_parser():
     diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
     _plan_args(sub)
     _study_args(sub)
+    bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
+    bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
+    bench.add_argument("--json", action="store_true")
     sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
     return parser
 
@@ -208,6 +211,14 @@ def _diagnose(args):
     return EXIT_OK
 
 
+def _bench(args):
+    from studies import bench
+
+    res = bench.run(quick=args.quick)
+    print(json.dumps(res, indent=1) if args.json else bench.text(res))
+    return EXIT_OK
+
+
 def _study(args):
     from studies import study, sweep
 
@@ -304,6 +315,8 @@ def main(argv=None):
             return _simulate(args)
         if args.command == "diagnose":
             return _diagnose(args)
+        if args.command == "bench":
+            return _bench(args)
         if args.command == "plan":
             return _plan(args)
         if args.command == "study":
