@@ -17,7 +17,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
-import pathlib
 import subprocess
 
 import numpy as np

@@ -66,6 +66,15 @@ def nearest_rotation(m):
     return u @ vt
 
 
+def nearest_transform(transform):
+    """A 4x4 transform with its rotation block replaced by the nearest rotation (SVD);
+    non-finite input is returned unchanged."""
+    out = np.array(transform, dtype=float)
+    if np.all(np.isfinite(out)):
+        out[:3, :3] = nearest_rotation(out[:3, :3])
+    return out
+
+
 def rotation_angle_deg(r_a, r_b):
     """Angle in degrees of the relative rotation ``R_a^T R_b``, shape (..., 3, 3) -> (...)."""
     rel = np.swapaxes(np.asarray(r_a), -1, -2) @ np.asarray(r_b)

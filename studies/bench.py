@@ -28,7 +28,7 @@ from model import fast, simulate
 from model.calibration import CalibrationModel
 from model.dataset import load
 from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import transform_distance
+from model.rotation import nearest_transform, transform_distance
 from studies import robust
 
 SIZES = (30, 300, 3000, 30000)
@@ -88,10 +88,7 @@ def _methods(f2b, xs, centre, start, n):
 
         def ipopt():
             res = solvers.solve(problem, xm, "ipopt")
-            t = matrix.sensor2flange(res.x)
-            u, _, vt = np.linalg.svd(t[:3, :3])
-            t[:3, :3] = u @ vt
-            return t, res.iterations, res.cost
+            return nearest_transform(matrix.sensor2flange(res.x)), res.iterations, res.cost
 
         out["ipopt-matrix"] = ipopt
 

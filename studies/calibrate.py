@@ -20,6 +20,7 @@ from studies import robust
 from studies.robust import ALPHA
 from model.dataset import GUESS_LIMITS
 from model.pose import pose_from_transform, transform_from_pose
+from model.rotation import nearest_transform
 from studies.problems import calibration_problem
 
 METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
@@ -124,15 +125,6 @@ def check_identifiable(dataset, unknowns, start_transform):
     return ident
 
 
-def _projected(transform):
-    """The transform with its rotation block replaced by the nearest rotation (SVD)."""
-    out = np.array(transform, dtype=float)
-    if np.all(np.isfinite(out)):
-        u, _, vt = np.linalg.svd(out[:3, :3])
-        out[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-    return out
-
-
 #: A residual this many robust standard deviations above the median is flagged.
 GROSS_ERROR_Z = 10.0
 
@@ -192,7 +184,7 @@ def _judge(model, result, unknowns):
             converged, message = False, f"{message}; but det R = {det:.3g} <= 0: a reflection, not a rotation"
         if orth > 1e-6:
             notes.append(f"R^T R - I has norm {orth:.2e}; R is reported projected onto SO(3)")
-    sensor = _projected(model.sensor2flange(result.x))  # a no-op but for 'matrix'
+    sensor = nearest_transform(model.sensor2flange(result.x))  # a no-op but for 'matrix'
     centre = model.sphere_centre(result.x)
     if not (np.all(np.isfinite(sensor)) and np.all(np.isfinite(centre))):
         return sensor, centre, False, "numerical failure: non-finite result", notes, None, None
@@ -322,7 +314,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         "excluded": excluded,
         "before": before,
         "warnings": warnings,
-        "history": [pose_from_transform(_projected(fitted.sensor2flange(x))).tolist() for x in result.history],
+        "history": [pose_from_transform(nearest_transform(fitted.sensor2flange(x))).tolist() for x in result.history],
         "solver_point": result.x.tolist(),
         "solver_extra": {k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
     }

@@ -37,6 +37,7 @@ from model.calibration import CalibrationModel
 from model.pose import pose_from_transform, transform_from_pose
 from model.statistics import chi2_survival, deletion_statistics, f_survival
 from studies import robust
+from studies.calibrate import resolve_start
 
 #: Family-wise level of the effect tests and of the outlier tests.
 ALPHA = 0.01
@@ -114,8 +115,7 @@ class Samples:
         params0 = {n: np.zeros(len(effects.get(n).PARAMS)) for n in structure.data_effects} | (params0 or {})
         keys = list(structure.data_effects)
         sizes = [len(effects.get(n).PARAMS) for n in keys]
-        retract_model = CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local",
-                                         "sensor+sphere" if structure.centre else "sensor")
+        retract_model = self._chart(structure.centre)
         n_pt = len(x0)
         n_theta = retract_model.n
 
@@ -146,10 +146,13 @@ class Samples:
         ssr = float(np.sum(e[mask] ** 2))
         return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), jac.shape[2])
 
+    def _chart(self, centre_free):
+        """A one-row local-chart model: the point layout and retraction of a structure."""
+        return CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local",
+                                "sensor+sphere" if centre_free else "sensor")
+
     def point(self, structure, sensor2flange, centre=None):
-        model = CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local",
-                                 "sensor+sphere" if structure.centre else "sensor")
-        return model.point_from(sensor2flange, self.d.sphere_centre if centre is None else centre)
+        return self._chart(structure.centre).point_from(sensor2flange, self.d.sphere_centre if centre is None else centre)
 
     def heldout_rms(self, structure, mask, fit):
         """RMS prediction error (mm) of held-out samples, 5-fold cross-validation over ``mask``."""
@@ -164,8 +167,7 @@ class Samples:
         return float(np.sqrt(np.mean(np.concatenate(errs))))
 
     def transform(self, x):
-        model = CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local")
-        return model.sensor2flange(x[:12])
+        return self._chart(False).sensor2flange(x[:12])
 
     def centre(self, structure, x):
         return x[12:15] if structure.centre else self.d.sphere_centre
@@ -239,14 +241,7 @@ def _summaries(prob, structure, fit, mask):
 def diagnose(dataset, alpha=ALPHA, start=None):
     """Run the procedure (module docstring) on a dataset; returns a JSON-ready dict."""
     prob = Samples(dataset)
-    if start is not None:
-        start_pose = np.asarray(start, float)
-    elif dataset.start_pose is not None:
-        start_pose = np.asarray(dataset.start_pose, float)
-    else:
-        from studies.calibrate import _closed_form_pose
-
-        start_pose = _closed_form_pose(dataset, "sensor")
+    start_pose, _ = resolve_start(dataset, "sensor", start)
     screening = robust.screen(prob.f2b, dataset.centre_in_sensor, dataset.sphere_centre, "sensor",
                               transform_from_pose(start_pose), dataset.ids, dataset.rows, alpha=alpha)
     mask = screening.inliers.copy()

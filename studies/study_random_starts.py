@@ -19,7 +19,7 @@ import solvers
 from model import observations, simulate
 from model.dataset import load
 from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import matrix_from_rotvec, rotation_angle_deg, transform_distance
+from model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
 from studies.calibrate import SUPPORTED, calibrate
 from studies.problems import calibration_problem
 from studies.study import claim, figure, write_summary, write_table
@@ -56,7 +56,7 @@ def run(out, quick=False):
                 for rotation in SUPPORTED[method]:
                     model = observations.build(d, "centre", rotation)
                     plain = solvers.solve(calibration_problem(model), model.point_from(start), method)
-                    dt, dr = transform_distance(_nearest(model.sensor2flange(plain.x)), reference)
+                    dt, dr = transform_distance(nearest_transform(model.sensor2flange(plain.x)), reference)
                     ok_plain = bool(plain.converged and dt < 1e-4 and dr < 1e-4)
                     res = calibrate(d, method=method, rotation=rotation, start=pose_from_transform(start), loo=False,
                                     outliers=False)
@@ -90,10 +90,3 @@ def run(out, quick=False):
     for method, s in summary["methods"].items():
         claim(s["success_rate"] == 1.0, f"{method} with the closed-form restart succeeds from every start")
     return summary
-
-
-def _nearest(t):
-    u, _, vt = np.linalg.svd(t[:3, :3])
-    out = t.copy()
-    out[:3, :3] = u @ np.diag([1, 1, np.linalg.det(u @ vt)]) @ vt
-    return out
