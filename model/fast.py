@@ -1,28 +1,90 @@
-"""The fast path: the calibration's normal equations in one CasADi call.
+"""The fast path: Levenberg-Marquardt on the calibration's normal equations, compiled.
 
-For the ``local`` parametrisation and the ``centre`` residual, one call returns, for all N
-measurements at once,
+For the ``local`` parametrisation and the ``centre`` residual, one measurement i contributes
 
-    H = sum_i J_i^T J_i  (6 x 6),   g = sum_i J_i^T e_i  (6),   f = 1/2 sum_i |e_i|^2,
+    H_i = J_i^T J_i  (6 x 6),   g_i = J_i^T e_i  (6),   f_i = 1/2 |e_i|^2
 
-from the same generated source as every other evaluation (:mod:`model.codegen`). The
-per-measurement function is mapped over the measurements (``casadi.Function.map``) and the
-sums are taken inside the CasADi graph, so an iteration of Gauss-Newton or
-Levenberg-Marquardt costs one call plus a 6 x 6 solve. ``compile=True`` additionally
-generates C code for the function and compiles it with the system's C compiler (gcc), cached
-next to the generated Python source.
+to the Gauss-Newton normal equations. ``normal_one`` is that CasADi function, built from the
+same generated source as every other evaluation (:mod:`model.codegen`, one sympy derivation),
+never written by hand. Two ways to run the iteration (Marquardt's scaled damping, Nocedal &
+Wright 2006, section 10.3):
+
+* compiled (default when a C compiler is present): CasADi generates C for ``normal_one``, which
+  is compiled together with a small C driver (``fast_lm.c``: sum over the measurements, 6 x 6
+  Cholesky, Rodrigues update, the same acceptance and stopping rules) into a shared library,
+  cached in the generated-code cache and called through ctypes. A calibration is one call;
+  ``calibrate_many`` runs many in one call (Monte Carlo).
+* otherwise the same iteration in Python, with the sums evaluated by ``normal_one`` mapped over
+  the measurements in the CasADi virtual machine (same numbers, about 100x slower).
+
+The result is the least-squares solution of the unweighted ``centre`` residual, the same
+solution as :class:`model.calibration.CalibrationModel` with any solver (tests check this).
+Data that leave a combination of the six unknowns unconstrained end with status -3, never
+with a "converged" pose. This is the engine for Monte Carlo studies and benchmarks; for a
+calibration of real data use :func:`studies.calibrate.calibrate` (screening, weights,
+uncertainty).
 """
 from __future__ import annotations
 
+import ctypes
 import functools
 import hashlib
 import math
+import os
+import pathlib
+import shutil
 import subprocess
+import tempfile
+from typing import NamedTuple
 
 import numpy as np
 
 from model import codegen
 from model.calibration import _sources
+
+DRIVER = pathlib.Path(__file__).with_name("fast_lm.c")
+CFLAGS = ("-O3", "-fPIC", "-shared")
+
+#: ``status`` codes of the iteration (fast_lm.c), with what they mean.
+STATUS = {
+    0: "iteration limit reached",
+    1: "gradient below 1e-10 max(1, cost)",
+    2: "step below 1e-12 (relative to the translation in mm; rad)",
+    3: "no measurable progress: decrease below rounding and the gradient no longer falls",
+    -1: "non-finite cost or gradient",
+    -2: "normal equations singular even with large damping (degenerate data)",
+    -3: "a combination of the unknowns is not constrained by the data (scaled J^T J singular)",
+}
+
+
+class FastResult(NamedTuple):
+    """Result of the fast path.
+
+    Attributes
+    ----------
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor frame in the flange frame (mm).
+    iterations, evaluations : int
+        LM iterations and evaluations of the normal equations.
+    cost : float
+        1/2 sum |e_i|^2 at the result (mm^2).
+    status : int
+        Key of :data:`STATUS`; ``converged`` is ``status > 0``.
+    """
+
+    sensor2flange: np.ndarray
+    iterations: int
+    evaluations: int
+    cost: float
+    status: int
+
+    @property
+    def converged(self):
+        return self.status > 0
+
+    @property
+    def message(self):
+        return STATUS[self.status]
 
 
 @functools.lru_cache(maxsize=None)
@@ -45,105 +107,240 @@ def _per_measurement():
 
 
 @functools.lru_cache(maxsize=None)
-def normal_equations(n, compile=False):
-    """CasADi function ``(x = (t2, Rref row-major) (12), c (3), data (15 x n)) -> [H (36), g (6), f]``."""
+def normal_equations(n):
+    """CasADi function ``(x = (t2, R2 row-major) (12), c (3), data (15 x n)) -> [H (36), g (6), f]``."""
     import casadi as ca
 
     one = _per_measurement()
     x, c = ca.SX.sym("x", 12), ca.SX.sym("c", 3)
     data = ca.SX.sym("data", 15, n)
     h, g, f = one.map(n, "serial")(x[:3], x[3:], c, data)
-    fun = ca.Function("normal_all", [x, c, data], [ca.vertcat(ca.sum2(h), ca.sum2(g), ca.sum2(f))])
-    if not compile:
-        return fun
-    try:
-        return _compiled(fun)
-    except (OSError, subprocess.CalledProcessError):
-        return fun  # no C compiler here: the CasADi virtual machine gives the same numbers
+    return ca.Function("normal_all", [x, c, data], [ca.vertcat(ca.sum2(h), ca.sum2(g), ca.sum2(f))])
 
 
-def _compiled(fun):
+@functools.lru_cache(maxsize=None)
+def library():
+    """The compiled driver (ctypes), or None when no C compiler is available."""
     import casadi as ca
 
+    one = _per_measurement()
+    gen = ca.CodeGenerator("normal_one.c", {"with_header": False})
+    gen.add(one)
+    generated = gen.dump()
+    driver = DRIVER.read_text()
+    flags = (*CFLAGS, f"-DHE_SZ_W={max(one.sz_w(), 1)}")
+    key = hashlib.sha256("\0".join([generated, driver, *flags]).encode()).hexdigest()[:16]
     folder = codegen.cache_dir() / "c"
-    folder.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(fun.serialize().encode()).hexdigest()[:16]
-    lib = folder / f"{fun.name()}_{key}.so"
+    lib = folder / f"fast_lm_{key}.so"
     if not lib.is_file():
-        src = f"{fun.name()}_{key}.c"
-        gen = ca.CodeGenerator(src, {"with_header": False})
-        gen.add(fun)
-        gen.generate(str(folder) + "/")
-        subprocess.run(["gcc", "-O3", "-fPIC", "-shared", str(folder / src), "-o", str(lib)], check=True,
-                       capture_output=True)
-    return ca.external(fun.name(), str(lib))
+        compiler = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+        if compiler is None:
+            return None
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=folder) as tmp:
+                (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
+                (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
+                out = pathlib.Path(tmp) / "lib.so"
+                subprocess.run([compiler, *flags, "fast_lm.c", "normal_one.c", "-o", str(out), "-lm"], cwd=tmp,
+                               check=True, capture_output=True)
+                os.replace(out, lib)  # atomic: parallel workers never load a half-written library
+        except (OSError, subprocess.CalledProcessError):
+            return None
+    dll = ctypes.CDLL(str(lib))
+    pointer = ctypes.c_void_p  # addresses of C-contiguous float64 arrays (see _ptr)
+    dll.he_lm.argtypes = [ctypes.c_int, pointer, pointer, pointer, ctypes.c_int, pointer]
+    dll.he_lm_batch.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, pointer, ctypes.c_int, pointer]
+    dll.he_lm.restype = dll.he_lm_batch.restype = ctypes.c_int
+    return dll
 
 
-def data_matrix(flange2base, centre_in_sensor):
-    """The 15 x N data of the generated functions: R1 row-major, t1, xs per column."""
-    f2b = np.asarray(flange2base, float)
-    return np.concatenate([f2b[:, :3, :3].reshape(-1, 9), f2b[:, :3, 3], np.asarray(centre_in_sensor, float)], axis=1).T
+def data_rows(flange2base, centre_in_sensor):
+    """Data of the generated functions, one row per measurement: R1 row-major, t1, xs.
 
-
-def calibrate_fast(flange2base, centre_in_sensor, sphere_centre, sensor2flange, max_iter=100, compile=False):
-    """Levenberg-Marquardt on the normal equations, local rotation chart.
+    Parameters
+    ----------
+    flange2base : ndarray, shape (..., n, 4, 4)
+        Flange frame in the robot base frame (mm).
+    centre_in_sensor : ndarray, shape (..., n, 3)
+        Sphere centre measured in the sensor frame (mm).
 
     Returns
     -------
-    sensor2flange : ndarray (4, 4)
-    iterations : int
-    cost : float
-    converged : bool
+    ndarray, shape (..., n, 15), C-contiguous float64
     """
+    f2b = np.asarray(flange2base, float)
+    xs = np.asarray(centre_in_sensor, float)
+    lead = f2b.shape[:-2]
+    return np.ascontiguousarray(np.concatenate([f2b[..., :3, :3].reshape(*lead, 9), f2b[..., :3, 3], xs], axis=-1))
+
+
+def _state(sensor2flange):
+    s = np.asarray(sensor2flange, float)
+    return np.ascontiguousarray(np.concatenate([s[..., :3, 3], s[..., :3, :3].reshape(*s.shape[:-2], 9)], axis=-1))
+
+
+def _pose(x):
+    out = np.eye(4)
+    out[:3, :3] = x[3:].reshape(3, 3)
+    out[:3, 3] = x[:3]
+    return out
+
+
+def _ptr(a):
+    """Address of a C-contiguous float64 array (cheaper than ``ctypes.data_as``)."""
+    assert a.dtype == np.float64 and a.flags.c_contiguous
+    return a.ctypes.data
+
+
+def calibrate_fast(flange2base, centre_in_sensor, sphere_centre, sensor2flange, max_iter=100, compiled=True):
+    """Least-squares sensor pose from the ``centre`` residual, Levenberg-Marquardt on the local chart.
+
+    Parameters
+    ----------
+    flange2base : ndarray, shape (n, 4, 4)
+        Flange frames in the robot base frame (mm).
+    centre_in_sensor : ndarray, shape (n, 3)
+        Sphere centre measured in the sensor frame (mm).
+    sphere_centre : ndarray, shape (3,)
+        Sphere centre in the base frame (mm).
+    sensor2flange : ndarray, shape (4, 4)
+        Start: sensor frame in the flange frame (mm).
+    max_iter : int
+    compiled : bool
+        Use the compiled driver when a C compiler is available (else the Python loop).
+
+    Returns
+    -------
+    FastResult
+    """
+    data = data_rows(flange2base, centre_in_sensor)
+    c = np.ascontiguousarray(sphere_centre, float)
+    x = _state(sensor2flange)
+    dll = library() if compiled else None
+    if dll is None:
+        return _calibrate_python(data, c, x, max_iter)
+    info = np.zeros(5)
+    dll.he_lm(len(data), _ptr(data), _ptr(c), _ptr(x), int(max_iter), _ptr(info))
+    return FastResult(_pose(x), int(info[0]), int(info[1]), float(info[2]), int(info[3]))
+
+
+def calibrate_many(flange2base, centre_in_sensor, sphere_centre, sensor2flange, max_iter=100):
+    """m independent calibrations of n measurements each, in one call of the compiled driver.
+
+    Parameters
+    ----------
+    flange2base : ndarray, shape (m, n, 4, 4)
+    centre_in_sensor : ndarray, shape (m, n, 3)
+    sphere_centre : ndarray, shape (m, 3)
+    sensor2flange : ndarray, shape (m, 4, 4)
+        Starts.
+
+    Returns
+    -------
+    sensor2flange : ndarray, shape (m, 4, 4)
+    info : ndarray, shape (m, 5)
+        iterations, evaluations, cost, status, max |gradient| per calibration.
+    """
+    data = data_rows(flange2base, centre_in_sensor)
+    m, n = data.shape[:2]
+    c = np.ascontiguousarray(np.broadcast_to(np.asarray(sphere_centre, float), (m, 3)))
+    x = _state(sensor2flange)
+    info = np.zeros((m, 5))
+    dll = library()
+    if dll is None:
+        for j in range(m):
+            res = _calibrate_python(data[j], c[j], x[j], max_iter)
+            x[j] = _state(res.sensor2flange)
+            info[j] = res.iterations, res.evaluations, res.cost, res.status, np.nan
+    else:
+        dll.he_lm_batch(m, n, _ptr(data), _ptr(c), _ptr(x), int(max_iter), _ptr(info))
+    poses = np.tile(np.eye(4), (m, 1, 1))
+    poses[:, :3, :3] = x[:, 3:].reshape(m, 3, 3)
+    poses[:, :3, 3] = x[:, :3]
+    return poses, info
+
+
+def _calibrate_python(data, c, x, max_iter):
+    """fast_lm.c's iteration, line for line, with the sums from the CasADi virtual machine."""
     import casadi as ca
 
-    n = len(centre_in_sensor)
-    fun = normal_equations(n, compile)
-    data = ca.DM(data_matrix(flange2base, centre_in_sensor))  # converted once, not per call
-    c = ca.DM(np.asarray(sphere_centre, float))
-    t2 = np.array(sensor2flange[:3, 3], float)
-    rot = np.array(sensor2flange[:3, :3], float)
+    fun = normal_equations(len(data))
+    cdm, ddm = ca.DM(c), ca.DM(data.T)
 
-    def evaluate(t, r):
-        out = fun.call([ca.DM(np.concatenate([t, r.ravel()])), c, data])[0].full().ravel()
+    def evaluate(state):
+        out = fun.call([ca.DM(state), cdm, ddm])[0].full().ravel()
         return out[:36].reshape(6, 6), out[36:42], float(out[42])
 
-    h, g, f = evaluate(t2, rot)
-    mu = 1e-9 * float(np.max(np.diag(h)))  # nearly Gauss-Newton; raised only when a step fails
-    for k in range(max_iter):
-        if np.max(np.abs(g)) <= 1e-10 * max(1.0, f):
-            return _pose(t2, rot), k, f, True
-        step = np.linalg.solve(h + mu * np.diag(np.diag(h)), -g)
-        predicted = -float(g @ step) - 0.5 * float(step @ h @ step)
-        if predicted <= 100 * np.finfo(float).eps * max(1.0, f):
-            return _pose(t2, rot), k, f, True  # nothing left to gain above rounding
-        t_new = t2 + step[:3]
-        r_new = rot @ _rodrigues(step[3], step[4], step[5])
-        h_new, g_new, f_new = evaluate(t_new, r_new)
-        if f_new < f:
-            done = f - f_new <= 1e-14 * max(1.0, f)
-            t2, rot, h, g, f = t_new, r_new, h_new, g_new, f_new
+    eps = np.finfo(float).eps
+    x = np.array(x, float)
+    h, g, f = evaluate(x)
+    mu, k, evals, status = 1e-6, 0, 1, 0
+    while True:
+        gmax = np.max(np.abs(g))
+        if not (np.isfinite(f) and np.isfinite(gmax)):
+            status = -1
+            break
+        if gmax <= 1e-10 * max(1.0, f):
+            status = 1
+            break
+        if k >= max_iter:
+            break
+        k += 1
+        try:
+            a = h + mu * np.diag(np.diag(h))
+            np.linalg.cholesky(a)
+            p = np.linalg.solve(a, -g)
+        except np.linalg.LinAlgError:
+            if mu > 1e12:
+                status = -2
+                break
+            mu = max(mu * 4.0, 1e-12)
+            continue
+        if np.max(np.abs(p[:3])) <= 1e-12 * (1.0 + np.max(np.abs(x[:3]))) and np.max(np.abs(p[3:])) <= 1e-12:
+            status = 2
+            break
+        predicted = -float(g @ p) - 0.5 * float(p @ h @ p)
+        xn = np.concatenate([x[:3] + p[:3], (x[3:].reshape(3, 3) @ _rodrigues(*p[3:])).ravel()])
+        hn, gn, fn = evaluate(xn)
+        evals += 1
+        if predicted <= 100 * eps * max(1.0, f):  # the cost cannot judge the step: the gradient does
+            accept = np.max(np.abs(gn)) < gmax
+            if not accept:
+                status = 3
+                break
+        else:
+            accept = fn < f
+        if accept:
+            x, h, g, f = xn, hn, gn, fn
             mu = max(mu / 3.0, 1e-12)
-            if done:
-                return _pose(t2, rot), k + 1, f, True
         else:
             mu *= 4.0
-    return _pose(t2, rot), max_iter, f, False
+    if status > 0 and _rank_deficient(h):
+        status = -3
+    return FastResult(_pose(x), k, evals, f, status)
+
+
+def _rank_deficient(h):
+    """fast_lm.c's test: the column-scaled J^T J minus 1e-12 I is not positive definite."""
+    d = np.diag(h)
+    if np.any(~(d > 0)):
+        return True
+    s = h / np.sqrt(np.outer(d, d)) - 1e-12 * np.eye(6)
+    try:
+        np.linalg.cholesky(s)
+    except np.linalg.LinAlgError:
+        return True
+    return False
 
 
 def _rodrigues(wx, wy, wz):
-    """exp([w]x) for one small rotation vector, in plain floats (faster than the batched form)."""
-    theta = math.sqrt(wx * wx + wy * wy + wz * wz)
+    """exp([w]x) for one rotation vector (rad)."""
+    theta2 = wx * wx + wy * wy + wz * wz
+    theta = math.sqrt(theta2)
     if theta < 1e-8:
-        a, b = 1.0 - theta * theta / 6.0, 0.5 - theta * theta / 24.0
+        a, b = 1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0
     else:
-        a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / (theta * theta)
+        a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta2
     k = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
     return np.eye(3) + a * k + b * (k @ k)
-
-
-def _pose(t2, rot):
-    out = np.eye(4)
-    out[:3, :3] = rot
-    out[:3, 3] = t2
-    return out

@@ -24,6 +24,10 @@ import numpy as np
 RTOL = 1e-8
 #: Inverse condition number (O2) below which a direction counts as badly constrained.
 WEAK = 1e-2
+#: Inverse condition number below which the poses count as degenerate even though the rank
+#: is full: 0.01 mm of noise would move the weakest direction by decimetres (e.g. rotations
+#: about the sphere with the sphere always at one sensor point: 1e-6).
+NEARLY_SINGULAR = 1e-4
 
 
 @dataclasses.dataclass(frozen=True)

@@ -225,6 +225,49 @@ def calibration_residual(rotation, kind="centre"):
 
 
 @functools.lru_cache(maxsize=None)
+def axxb_linear(form="matrix"):
+    """Kim & Cho's relative-motion equation ``A X = X B`` (seed 2-44) as linear ``D U = F``.
+
+    ``X`` is the unknown sensor pose on the flange with ``U = (x11, x12, x13, x14, x21, ...,
+    x34)`` its first three rows, row-major (seed Appendix A). With row-major vectorisation,
+    ``vec(A X) = (A (x) I4) vec X`` and ``vec(X B) = (I3 (x) B^T) vec X`` (Kronecker products;
+    Magnus & Neudecker), and the fourth row of ``X`` is the constant ``(0 0 0 1)``, so
+
+    * ``form="matrix"`` (Appendix A, 12 equations): ``D = A33 (x) I4 - I3 (x) B^T`` and
+      ``F = -(0, 0, 0, a14, 0, 0, 0, a24, 0, 0, 0, a34)``, from the first three rows of
+      ``A X - X B = 0``. ``B = (X_S^P X_W^T)(X_S^Q X_W^T)^-1`` needs at least four non-coplanar
+      points measured at both poses (Kim & Cho's cube corners).
+    * ``form="point"`` (3 equations): ``A X p = X q`` for one point measured as ``p`` and ``q``
+      (homogeneous, last entry 1) at the two poses: ``D = A33 (x) p^T - I3 (x) q^T``,
+      ``F = -(a14, a24, a34)``. It is the matrix form multiplied by the point matrix, and what
+      one sphere provides: every pair of samples of a fixed sphere is a motion pair.
+
+    Returns
+    -------
+    dict
+        ``a`` (12 symbols a11..a34), ``b`` (16 symbols b11..b44) or ``p``, ``q`` (3 symbols
+        each), ``D`` (12 x 12 or 3 x 12), ``F`` (12 or 3), ``U`` (12 symbols u1..u12).
+    """
+    a = sp.Matrix(3, 4, sp.symbols("a11:15 a21:25 a31:35", real=True))
+    a4 = a.col_join(sp.Matrix([[0, 0, 0, 1]]))
+    u = sp.symbols("u1:13", real=True)
+    out = {"a": tuple(a), "U": u}
+    if form == "matrix":
+        b = sp.Matrix(4, 4, sp.symbols("b11:15 b21:25 b31:35 b41:45", real=True))
+        d = sp.kronecker_product(a4[:3, :3], sp.eye(4)) - sp.kronecker_product(sp.eye(3), b.T)
+        f = -sp.Matrix([a4[i, 3] if j == 3 else 0 for i in range(3) for j in range(4)])
+        out.update(b=tuple(b), D=d, F=f)
+    elif form == "point":
+        p = sp.Matrix(sp.symbols("p1:4", real=True))
+        q = sp.Matrix(sp.symbols("q1:4", real=True))
+        d = (sp.kronecker_product(a4[:3, :3], p.col_join(sp.Matrix([1])).T)
+             - sp.kronecker_product(sp.eye(3), q.col_join(sp.Matrix([1])).T))
+        out.update(p=tuple(p), q=tuple(q), D=d, F=-a4[:3, 3])
+    else:
+        raise ValueError(f"unknown AX = XB form {form!r} (matrix or point)")
+    return out
+
+
 def sphere_centre_from_plate():
     """Symbolic sphere centre ``c = T(p3) x_p'`` and its Jacobian with respect to ``p3``.
 

@@ -122,6 +122,13 @@ def check_identifiable(dataset, unknowns, start_transform):
             + (", and not only translations (they cannot separate the sensor offset from the sphere centre)"
                if unknowns == "sensor+sphere" else "")
         )
+    if ident.observability["O2"] < identifiability.NEARLY_SINGULAR:
+        weak = " + ".join(f"{v:+.2f}*{k}" for k, v in ident.weakest_direction.items())
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: the robot poses nearly leave a direction undetermined "
+            f"(inverse condition number {ident.observability['O2']:.1e} < {identifiability.NEARLY_SINGULAR:g}): "
+            f"{weak}. This happens when the sphere is always seen at one sensor point (pure rotations about it): "
+            "add poses that see it elsewhere in the laser plane, or pure translations")
     return ident
 
 

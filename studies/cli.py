@@ -50,13 +50,16 @@ def _study_args(sub):
 
 def build_parser():
     from studies.calibrate import METHODS
+    from studies.classic import METHODS as CLASSIC_METHODS
 
     parser = _Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     cal = sub.add_parser("calibrate", help="calibrate the sensor pose on the flange from a dataset")
     cal.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder (default thesis-real)")
     cal.add_argument("--unknowns", default="sensor", choices=["sensor", "sensor+sphere"])
-    cal.add_argument("--method", default="ipopt", choices=list(METHODS))
+    cal.add_argument("--method", default="ipopt", choices=list(METHODS) + list(CLASSIC_METHODS),
+                     help="solver of the least squares, or a closed-form baseline: kim-cho (AX = XB, linear) or "
+                          "li-two-step (pure translations, then rotations; see model/classics.py)")
     cal.add_argument("--rotation", default=None, choices=["matrix", "local", "euler"],
                      help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
@@ -98,6 +101,13 @@ def build_parser():
     bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
     bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
     bench.add_argument("--json", action="store_true")
+    bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
+    bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
+    sim.add_argument("--motions", default="thesis", choices=["thesis", "about-sphere"],
+                     help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same "
+                          "orientations rotating about the sphere (seen at one sensor point)")
+    sim.add_argument("--translations", type=int, default=0, metavar="K",
+                     help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)")
     sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
     return parser
 
@@ -214,7 +224,9 @@ def _diagnose(args):
 def _bench(args):
     from studies import bench
 
-    res = bench.run(quick=args.quick)
+    res = bench.run(quick=args.quick, with_startup=not args.no_startup)
+    if args.plot:
+        bench.plot(res, args.plot)
     print(json.dumps(res, indent=1) if args.json else bench.text(res))
     return EXIT_OK
 
@@ -250,12 +262,41 @@ def _simulate(args):
     effects = simulate.parse_effects(args.effect)
     poses, ids = (None, None)
     if args.poses is not None:
+        if args.motions != "thesis" or args.translations:
+            raise ValueError("--poses gives the poses: --motions and --translations do not apply")
         ids, poses = read_pose_list(args.poses)
+    elif args.motions != "thesis" or args.translations:
+        import numpy as np
+
+        from model import motions
+        from model.pose import pose_from_transform
+
+        ids, flanges = motions.strategy(setup, np.random.default_rng(args.seed), args.motions, args.n_poses,
+                                        args.translations)
+        poses = pose_from_transform(flanges)
     sim = simulate.simulate(setup, seed=args.seed, effects=effects, flange_poses=poses, n_poses=args.n_poses, ids=ids)
     simulate.write(sim, out, profiles=args.profiles)
     print(f"wrote {len(sim.ids)} simulated measurements to {out} (seed {args.seed}, effects {effects or 'none'})")
     for ident, reason in sim.dropped:
         print(f"dropped {ident}: {reason}")
+    return EXIT_OK
+
+
+def _calibrate_classic(args, dataset, convention):
+    from model import conventions
+    from studies.classic import calibrate_classic, classic_text
+
+    ignored = [name for name, given in (("--start", args.start), ("--rotation", args.rotation),
+                                        ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot))
+               if given is not None]
+    if ignored:
+        raise ValueError(f"--method {args.method} is closed form: {', '.join(ignored)} do(es) not apply")
+    res = calibrate_classic(dataset, args.method, args.unknowns)
+    res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
+                             "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
+    if args.out:
+        write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
+    print(json.dumps(res, indent=1) if args.json else classic_text(res))
     return EXIT_OK
 
 
@@ -269,6 +310,8 @@ def _calibrate(args):
 
     dataset = load(args.dataset)
     convention = args.convention or dataset.convention
+    if args.method in ("kim-cho", "li-two-step"):
+        return _calibrate_classic(args, dataset, convention)
     start = parse_pose(args.start, convention=convention) if args.start is not None else None
     options = {}
     if args.max_iter is not None:

@@ -21,6 +21,7 @@ STUDIES = {
     "random-starts": "studies.study_random_starts",
     "pose-planning": "studies.study_planning",
     "discrepancy-power": "studies.study_power",
+    "classics": "studies.study_classics",
 }
 
 
