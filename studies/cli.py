@@ -290,7 +290,7 @@ def _calibrate_classic(args, dataset, convention):
                                         ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot))
                if given is not None]
     if ignored:
-        raise ValueError(f"--method {args.method} is closed form: {', '.join(ignored)} do(es) not apply")
+        raise ValueError(f"--method {args.method} is closed form; these options do not apply to it: {', '.join(ignored)}")
     res = calibrate_classic(dataset, args.method, args.unknowns)
     res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
