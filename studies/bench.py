@@ -147,8 +147,7 @@ def compare(cases, reps):
         for method in ORDER:
             if method not in methods:
                 continue
-            n_reps = reps if len(xs) <= 3000 else max(3, reps // 5)
-            times, (t, its, evals, cost) = _time(methods[method], n_reps)
+            times, (t, its, evals, cost) = _time(methods[method], reps)
             ref = t if ref is None else ref
             dt, dr = transform_distance(t, ref)
             table[method] = {"median_ms": float(np.median(times) * 1e3), "min_ms": float(np.min(times) * 1e3),

@@ -287,7 +287,9 @@ def _calibrate_classic(args, dataset, convention):
     from studies.classic import calibrate_classic, classic_text
 
     ignored = [name for name, given in (("--start", args.start), ("--rotation", args.rotation),
-                                        ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot))
+                                        ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot),
+                                        ("--alpha", args.alpha), ("--keep-all", args.keep_all or None),
+                                        ("--no-loo", args.no_loo or None))
                if given is not None]
     if ignored:
         raise ValueError(f"--method {args.method} is closed form; these options do not apply to it: {', '.join(ignored)}")
