@@ -224,6 +224,12 @@ def _diagnose(args):
 def _bench(args):
     from studies import bench
 
+    try:
+        import scipy.optimize  # noqa: F401 - the baseline of every ratio
+    except ImportError:
+        raise ValueError("handeye bench compares against scipy, which is not installed: "
+                         "pip install 'handeye[bench]'") from None
+
     res = bench.run(quick=args.quick, with_startup=not args.no_startup)
     if args.plot:
         bench.plot(res, args.plot)
