@@ -17,7 +17,13 @@ Kim & Cho [KCK2001], the relative-motion form ``A X = X B`` (seed 2-44)
     non-parallel axes *and* the measured points ``p`` span 3-D: the 12 entries are fitted
     freely, so the columns of the rotation block are seen only through the spread of ``p``.
     Data where the sphere is always seen near one sensor point (rotations about the sphere)
-    leave it ill-conditioned; :class:`MissingMotions` says so.
+    leave it ill-conditioned, and so do data where every pose has the same flange position
+    (thesis-sim: rotations about the flange origin only). Then ``T_i X p_i = t + R_i (R_X p_i +
+    t_X) = c`` for every i, and the top rows of X scaled by any factor ``s`` give
+    ``t + s (c - t)``, the same point for every i: a null direction of the 12 linear unknowns
+    (the sphere position is not an input) that only the orthogonality of R_X, which the linear
+    method ignores, would exclude.
+    :class:`MissingMotions` says so.
 
 Li et al. [LCJ+2011], two steps (seed 2-40 to 2-42)
     1. Pure robot translations (flange rotation R_0 unchanged, the sphere fixed) give the
@@ -188,10 +194,16 @@ def kim_cho(flange2base, centre_in_sensor, pairs="all"):
         axes = np.array([_axis(r) for r, ang in zip(rel, angles) if ang > 1.0]).reshape(-1, 3)
         axis_rank = np.linalg.matrix_rank(axes, tol=0.05) if len(axes) else 0
         spread = np.linalg.svd(xs - xs.mean(axis=0), compute_uv=False)
-        return (f"kim-cho: the stacked D U = F is rank-deficient (scaled singular values {sv[-1]:.1e} .. {sv[0]:.1e}); "
-                f"it needs relative rotations about at least 2 non-parallel axes (these data: {axis_rank}) and measured "
+        moved = float(np.max(np.linalg.norm(t[:, :3, 3] - t[0, :3, 3], axis=1)))
+        text = (f"kim-cho: the stacked D U = F is rank-deficient (scaled singular values {sv[-1]:.1e} .. {sv[0]:.1e}); "
+                f"it needs relative rotations about at least 2 non-parallel axes (these data: {axis_rank}), measured "
                 f"sphere centres that span 3-D in the sensor frame (spread, singular values: "
                 f"{', '.join(f'{v:.2g}' for v in spread)} mm)")
+        if moved < MIN_TRANSLATION_MM:
+            text += (f", and flange positions that differ: here every pose has the same flange position (spread "
+                     f"{moved:.2g} mm), so X with its top rows scaled by any factor solves the linear equations as "
+                     "well (only the orthogonality the linear method ignores would fix the scale)")
+        return text
 
     u, sv = _solve_linear(d, f, what)
     x_lin = np.vstack([u.reshape(3, 4), [0, 0, 0, 1]])

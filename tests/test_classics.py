@@ -184,6 +184,16 @@ def test_kim_cho_refuses_rotations_about_the_sphere_alone():
         classics.kim_cho(flanges[:2], xs[:2])
 
 
+def test_kim_cho_refuses_poses_that_share_one_flange_position():
+    """thesis-sim rotates the flange about its own origin only: the linear method has a null
+    direction there (module docstring), while the nonlinear least squares is well posed."""
+    from model.dataset import load
+
+    d = load("thesis-sim")
+    with pytest.raises(classics.MissingMotions, match="same flange position"):
+        classics.kim_cho(d.flange2base(), d.centre_in_sensor)
+
+
 def test_translation_pairs_are_found_exactly():
     flanges, _, _, _ = _noise_free(translations=4, n=36)
     pairs = classics.translation_pairs(flanges)
@@ -224,3 +234,20 @@ def test_cli_about_sphere_data_are_refused_by_the_least_squares_too(tmp_path, ca
     assert cli.main(["calibrate", str(out), "--method", "lm"]) == cli.EXIT_BAD_INPUT
     assert "nearly leave a direction undetermined" in capsys.readouterr().err
     assert cli.main(["simulate", "--out", str(tmp_path / "x"), "--translations", "9"]) == cli.EXIT_BAD_INPUT
+
+
+def test_the_null_direction_at_one_flange_position_is_a_scaling_of_x():
+    """The docstring's claim, numerically: with one flange position the relative motions have no
+    translation, so F = 0, and every multiple s X of the true top rows solves D U = 0."""
+    from model.dataset import load
+
+    d = load("thesis-sim")
+    t = d.flange2base()
+    idx = classics.motion_pairs(len(t))
+    a = np.linalg.solve(t[idx[:, 1]], t[idx[:, 0]])
+    dmat, f = classics.axxb_system(a, p=d.centre_in_sensor[idx[:, 0]], q=d.centre_in_sensor[idx[:, 1]])
+    truth = transform_from_pose(np.array(d.truth["sensor_pose"]))
+    u = truth[:3].ravel()
+    assert np.allclose(f, 0.0, atol=1e-9)
+    for s in (1.0, 0.3, 1.7):
+        assert np.allclose(dmat @ (s * u), f, atol=1e-6)
