@@ -148,9 +148,9 @@ def library():
         except (OSError, subprocess.CalledProcessError):
             return None
     dll = ctypes.CDLL(str(lib))
-    pointer = ctypes.c_void_p  # addresses of C-contiguous float64 arrays (see _ptr)
-    dll.he_lm.argtypes = [ctypes.c_int, pointer, pointer, pointer, ctypes.c_int, pointer]
-    dll.he_lm_batch.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, pointer, ctypes.c_int, pointer]
+    pointer = ctypes.c_void_p  # addresses (ndarray.ctypes.data) of C-contiguous float64 arrays
+    dll.he_lm.argtypes = [ctypes.c_int, pointer, pointer, pointer, pointer, ctypes.c_int, pointer]
+    dll.he_lm_batch.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, pointer, pointer, ctypes.c_int, pointer]
     dll.he_lm.restype = dll.he_lm_batch.restype = ctypes.c_int
     return dll
 
@@ -187,10 +187,9 @@ def _pose(x):
     return out
 
 
-def _ptr(a):
-    """Address of a C-contiguous float64 array (cheaper than ``ctypes.data_as``)."""
-    assert a.dtype == np.float64 and a.flags.c_contiguous
-    return a.ctypes.data
+def _array(a):
+    """C-contiguous float64 view (no copy when it already is one) for the compiled driver."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def calibrate_fast(flange2base, centre_in_sensor, sphere_centre, sensor2flange, max_iter=100, compiled=True):
@@ -214,15 +213,19 @@ def calibrate_fast(flange2base, centre_in_sensor, sphere_centre, sensor2flange, 
     -------
     FastResult
     """
-    data = data_rows(flange2base, centre_in_sensor)
-    c = np.ascontiguousarray(sphere_centre, float)
-    x = _state(sensor2flange)
     dll = library() if compiled else None
     if dll is None:
-        return _calibrate_python(data, c, x, max_iter)
-    info = np.zeros(5)
-    dll.he_lm(len(data), _ptr(data), _ptr(c), _ptr(x), int(max_iter), _ptr(info))
-    return FastResult(_pose(x), int(info[0]), int(info[1]), float(info[2]), int(info[3]))
+        return _calibrate_python(data_rows(flange2base, centre_in_sensor), np.asarray(sphere_centre, float),
+                                 _state(sensor2flange), max_iter)
+    f2b, xs, c = _array(flange2base), _array(centre_in_sensor), _array(sphere_centre)
+    pose, info = np.array(sensor2flange, float, order="C"), np.zeros(5)  # a fresh copy: written in place
+    n = len(xs)
+    if f2b.shape != (n, 4, 4) or xs.shape != (n, 3) or c.shape != (3,) or pose.shape != (4, 4):
+        raise ValueError(f"calibrate_fast: shapes {f2b.shape}, {xs.shape}, {c.shape}, {pose.shape}; expected "
+                         f"(n, 4, 4), (n, 3), (3,), (4, 4)")
+    dll.he_lm(len(xs), f2b.ctypes.data, xs.ctypes.data, c.ctypes.data, pose.ctypes.data, int(max_iter),
+              info.ctypes.data)
+    return FastResult(pose, int(info[0]), int(info[1]), float(info[2]), int(info[3]))
 
 
 def calibrate_many(flange2base, centre_in_sensor, sphere_centre, sensor2flange, max_iter=100):
@@ -242,22 +245,21 @@ def calibrate_many(flange2base, centre_in_sensor, sphere_centre, sensor2flange, 
     info : ndarray, shape (m, 5)
         iterations, evaluations, cost, status, max |gradient| per calibration.
     """
-    data = data_rows(flange2base, centre_in_sensor)
-    m, n = data.shape[:2]
+    f2b, xs = _array(flange2base), _array(centre_in_sensor)
+    m, n = xs.shape[:2]
     c = np.ascontiguousarray(np.broadcast_to(np.asarray(sphere_centre, float), (m, 3)))
-    x = _state(sensor2flange)
-    info = np.zeros((m, 5))
+    poses, info = np.array(np.broadcast_to(sensor2flange, (m, 4, 4)), float, order="C"), np.zeros((m, 5))
+    if f2b.shape != (m, n, 4, 4) or xs.shape != (m, n, 3):
+        raise ValueError(f"calibrate_many: shapes {f2b.shape}, {xs.shape}; expected (m, n, 4, 4), (m, n, 3)")
     dll = library()
     if dll is None:
         for j in range(m):
-            res = _calibrate_python(data[j], c[j], x[j], max_iter)
-            x[j] = _state(res.sensor2flange)
+            res = _calibrate_python(data_rows(f2b[j], xs[j]), c[j], _state(poses[j]), max_iter)
+            poses[j] = res.sensor2flange
             info[j] = res.iterations, res.evaluations, res.cost, res.status, np.nan
     else:
-        dll.he_lm_batch(m, n, _ptr(data), _ptr(c), _ptr(x), int(max_iter), _ptr(info))
-    poses = np.tile(np.eye(4), (m, 1, 1))
-    poses[:, :3, :3] = x[:, 3:].reshape(m, 3, 3)
-    poses[:, :3, 3] = x[:, :3]
+        dll.he_lm_batch(m, n, f2b.ctypes.data, xs.ctypes.data, c.ctypes.data, poses.ctypes.data, int(max_iter),
+                        info.ctypes.data)
     return poses, info
 
 

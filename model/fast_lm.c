@@ -29,19 +29,26 @@ int normal_one(const double **arg, double **res, he_int *iw, double *w, int mem)
 
 enum { HE_MAXITER = 0, HE_GTOL = 1, HE_XTOL = 2, HE_STALL = 3, HE_NONFINITE = -1, HE_SINGULAR = -2, HE_DEGENERATE = -3 };
 
-static void evaluate(int n, const double *data, const double *c, const double *x, double *h, double *g,
-                     double *f) {
-    double w[HE_SZ_W], hi[36], gi[6], fi;
-    const double *arg[4];
+/* The 15 data of measurement i as the generated function takes them: R1 row-major, t1, xs,
+ * read from the flange transform (4 x 4 row-major) and the measured centre. */
+static void measurement(const double *f2b, const double *xs, double *d) {
+    for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) d[3 * r + k] = f2b[4 * r + k];
+        d[9 + r] = f2b[4 * r + 3];
+        d[12 + r] = xs[r];
+    }
+}
+
+static void evaluate(int n, const double *f2b, const double *xs, const double *c, const double *x, double *h,
+                     double *g, double *f) {
+    double w[HE_SZ_W], hi[36], gi[6], fi, d[15];
+    const double *arg[4] = {x, x + 3, c, d};
     double *res[3] = {hi, gi, &fi};
     memset(h, 0, 36 * sizeof(double));
     memset(g, 0, 6 * sizeof(double));
     *f = 0.0;
-    arg[0] = x;
-    arg[1] = x + 3;
-    arg[2] = c;
     for (int i = 0; i < n; ++i) {
-        arg[3] = data + 15 * i;
+        measurement(f2b + 16 * i, xs + 3 * i, d);
         normal_one(arg, res, 0, w, 0);
         for (int k = 0; k < 36; ++k) h[k] += hi[k];
         for (int k = 0; k < 6; ++k) g[k] += gi[k];
@@ -116,14 +123,18 @@ static void rotate(const double *r, const double *w, double *out) {
         }
 }
 
-/* One calibration. data: n x 15 (R1 row-major, t1, xs), c: sphere centre (3),
- * x: (t2, R2 row-major) (12), start in, result out.
+/* One calibration. f2b: n flange transforms (4 x 4 row-major, mm), xs: n measured centres (3),
+ * c: sphere centre (3), s2f: sensor2flange (4 x 4 row-major), start in, result out.
  * info out: iterations, evaluations, cost, status, max|g|. Returns the status. */
-int he_lm(int n, const double *data, const double *c, double *x, int max_iter, double *info) {
+int he_lm(int n, const double *f2b, const double *xs, const double *c, double *s2f, int max_iter, double *info) {
     const double eps = 2.220446049250313e-16;
-    double h[36], g[6], f, hn[36], gn[6], fn, a[36], p[6], mg[6], xn[12], mu = 1e-6;
+    double x[12], h[36], g[6], f, hn[36], gn[6], fn, a[36], p[6], mg[6], xn[12], mu = 1e-6;
     int k = 0, evals = 1, status = HE_MAXITER;
-    evaluate(n, data, c, x, h, g, &f);
+    for (int r = 0; r < 3; ++r) { /* state: t2, R2 row-major */
+        x[r] = s2f[4 * r + 3];
+        for (int q = 0; q < 3; ++q) x[3 + 3 * r + q] = s2f[4 * r + q];
+    }
+    evaluate(n, f2b, xs, c, x, h, g, &f);
     for (;;) {
         double gmax = 0.0;
         for (int i = 0; i < 6; ++i) gmax = fmax(gmax, fabs(g[i]));
@@ -153,7 +164,7 @@ int he_lm(int n, const double *data, const double *c, double *x, int max_iter, d
         }
         for (int i = 0; i < 3; ++i) xn[i] = x[i] + p[i];
         rotate(x + 3, p + 3, xn + 3);
-        evaluate(n, data, c, xn, hn, gn, &fn);
+        evaluate(n, f2b, xs, c, xn, hn, gn, &fn);
         ++evals;
         int accept;
         if (predicted <= 100.0 * eps * fmax(1.0, f)) {
@@ -176,6 +187,12 @@ int he_lm(int n, const double *data, const double *c, double *x, int max_iter, d
         }
     }
     if (status > 0 && rank_deficient(h)) status = HE_DEGENERATE;
+    for (int r = 0; r < 3; ++r) {
+        s2f[4 * r + 3] = x[r];
+        for (int q = 0; q < 3; ++q) s2f[4 * r + q] = x[3 + 3 * r + q];
+    }
+    s2f[12] = s2f[13] = s2f[14] = 0.0;
+    s2f[15] = 1.0;
     double gmax = 0.0;
     for (int i = 0; i < 6; ++i) gmax = fmax(gmax, fabs(g[i]));
     info[0] = k;
@@ -186,11 +203,14 @@ int he_lm(int n, const double *data, const double *c, double *x, int max_iter, d
     return status;
 }
 
-/* m independent calibrations of n measurements each: data m x n x 15, c m x 3, x m x 12,
- * info m x 5. For Monte Carlo studies: one call, no Python in between. */
-int he_lm_batch(int m, int n, const double *data, const double *c, double *x, int max_iter, double *info) {
+/* m independent calibrations of n measurements each: f2b m x n x 16, xs m x n x 3, c m x 3,
+ * s2f m x 16, info m x 5. For Monte Carlo studies: one call, no Python in between.
+ * Returns the number that did not converge. */
+int he_lm_batch(int m, int n, const double *f2b, const double *xs, const double *c, double *s2f, int max_iter,
+                double *info) {
     int failed = 0;
     for (int j = 0; j < m; ++j)
-        failed += he_lm(n, data + (long)15 * n * j, c + 3 * j, x + 12 * j, max_iter, info + 5 * j) <= HE_MAXITER;
+        failed += he_lm(n, f2b + (long)16 * n * j, xs + (long)3 * n * j, c + 3 * j, s2f + 16 * j, max_iter,
+                        info + 5 * j) <= HE_MAXITER;
     return failed;
 }

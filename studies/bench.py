@@ -163,13 +163,13 @@ def _driver(case):
     ``n=0`` measures the bare ctypes call."""
     f2b, xs, centre, start = case
     lib = fast.library()
-    data, c = fast.data_rows(f2b, xs), np.ascontiguousarray(centre, float)
-    x0, x, info = fast._state(start), fast._state(start), np.zeros(5)
-    pd, pc, px, pi = (a.ctypes.data for a in (data, c, x, info))
+    f2b, xs, c = (np.ascontiguousarray(a, float) for a in (f2b, xs, centre))
+    pose0, pose, info = np.array(start, float, order="C"), np.array(start, float, order="C"), np.zeros(5)
+    pf, px, pc, pp, pi = (a.ctypes.data for a in (f2b, xs, c, pose, info))
 
-    def run(max_iter=100, n=len(data), _keep=(data, c)):  # _keep: the arrays behind pd, pc stay alive
-        x[:] = x0
-        lib.he_lm(n, pd, pc, px, max_iter, pi)
+    def run(max_iter=100, n=len(xs), _keep=(f2b, xs, c)):  # _keep: the arrays behind the addresses stay alive
+        pose[:] = pose0
+        lib.he_lm(n, pf, px, pc, pp, max_iter, pi)
         return int(info[1])
 
     return run

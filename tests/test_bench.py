@@ -84,3 +84,13 @@ def test_bench_plot(tmp_path):
     res = bench.run(reps=1, sizes=(30, 100), throughput_n=4, with_startup=False, scaling_sizes=(30, 100))
     bench.plot(res, tmp_path / "bench.png")
     assert (tmp_path / "bench.png").stat().st_size > 10_000
+
+
+def test_fast_path_refuses_wrong_shapes_instead_of_reading_past_the_arrays():
+    f2b, xs, centre, start = bench.simulated_case(30, seed=1)
+    with pytest.raises(ValueError, match="shapes"):
+        fast.calibrate_fast(f2b, xs[:-1], centre, start)
+    with pytest.raises(ValueError, match="shapes"):
+        fast.calibrate_fast(f2b, xs, centre[:2], start)
+    res = fast.calibrate_fast(f2b, xs, centre, np.asfortranarray(start))  # any memory layout is accepted
+    assert res.converged and np.allclose(res.sensor2flange[3], [0, 0, 0, 1])
