@@ -127,14 +127,30 @@ def axxb_system(a, b=None, p=None, q=None):
     return out[:, : 12 * rows].reshape(-1, 12), out[:, 12 * rows:].reshape(-1)
 
 
-def motion_pairs(n, pairs="all"):
-    """Index pairs (P, Q) of samples: ``all`` i < j, or ``consecutive``."""
+#: ``auto`` pairs: every pair up to this many, else each sample with its next few (cyclically).
+MAX_PAIRS = 20_000
+
+
+def motion_pairs(n, pairs="auto"):
+    """Index pairs (P, Q) of samples.
+
+    ``all``: every i < j (N (N - 1) / 2); ``consecutive``: (i, i + 1); ``auto`` (default):
+    ``all`` while that is at most :data:`MAX_PAIRS`, else each sample with its next
+    ``MAX_PAIRS // N`` samples, cyclically (memory stays bounded for large datasets).
+    """
+    if pairs == "auto":
+        if n * (n - 1) // 2 <= MAX_PAIRS:
+            pairs = "all"
+        else:
+            k = max(1, MAX_PAIRS // n)
+            i = np.repeat(np.arange(n), k)
+            return np.column_stack([i, (i + np.tile(np.arange(1, k + 1), n)) % n])
     if pairs == "all":
         i, j = np.triu_indices(n, 1)
         return np.column_stack([i, j])
     if pairs == "consecutive":
         return np.column_stack([np.arange(n - 1), np.arange(1, n)])
-    raise ValueError(f"pairs must be 'all' or 'consecutive', got {pairs!r}")
+    raise ValueError(f"pairs must be 'auto', 'all' or 'consecutive', got {pairs!r}")
 
 
 def _rotation_angle_deg(r):
@@ -159,7 +175,7 @@ def _rigid(x_lin):
     return out
 
 
-def kim_cho(flange2base, centre_in_sensor, pairs="all"):
+def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
     """Kim & Cho's linear AX = XB for one fixed sphere (module docstring).
 
     Parameters
@@ -168,8 +184,8 @@ def kim_cho(flange2base, centre_in_sensor, pairs="all"):
         Flange frames in the robot base (mm).
     centre_in_sensor : ndarray, shape (N, 3)
         Sphere centre measured in the sensor frame (mm).
-    pairs : {'all', 'consecutive'}
-        Motion pairs to stack.
+    pairs : {'auto', 'all', 'consecutive'}
+        Motion pairs to stack (:func:`motion_pairs`).
 
     Returns
     -------

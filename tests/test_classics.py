@@ -194,6 +194,18 @@ def test_kim_cho_refuses_poses_that_share_one_flange_position():
         classics.kim_cho(d.flange2base(), d.centre_in_sensor)
 
 
+def test_motion_pairs_stay_bounded_for_large_datasets():
+    assert len(classics.motion_pairs(36)) == 630
+    big = classics.motion_pairs(3000)
+    assert len(big) <= classics.MAX_PAIRS and np.all(big[:, 0] != big[:, 1])
+    flanges, xs, _, truth = _noise_free(n=36)
+    reps = np.arange(600) % 36  # 600 samples: 179,700 pairs if all were used
+    res = classics.kim_cho(flanges[reps], xs[reps])
+    assert res.details["pairs"] <= classics.MAX_PAIRS
+    dt, dr = transform_distance(res.sensor2flange, truth)
+    assert dt < 1e-6 and dr < 1e-6
+
+
 def test_translation_pairs_are_found_exactly():
     flanges, _, _, _ = _noise_free(translations=4, n=36)
     pairs = classics.translation_pairs(flanges)
