@@ -294,12 +294,16 @@ def _calibrate_classic(args, dataset, convention):
 
     ignored = [name for name, given in (("--start", args.start), ("--rotation", args.rotation),
                                         ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot),
-                                        ("--alpha", args.alpha), ("--keep-all", args.keep_all or None),
                                         ("--no-loo", args.no_loo or None))
                if given is not None]
     if ignored:
         raise ValueError(f"--method {args.method} is closed form; these options do not apply to it: {', '.join(ignored)}")
-    res = calibrate_classic(dataset, args.method, args.unknowns)
+    from studies.robust import ALPHA
+
+    alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
+    res = calibrate_classic(dataset, args.method, args.unknowns, outliers=not args.keep_all, alpha=alpha)
     res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:

@@ -222,6 +222,16 @@ def test_cli_li_two_step_on_thesis_real_names_the_missing_motions(capsys):
     assert "measurements.csv" in err and "pure robot translations" in err
 
 
+def test_cli_kim_cho_on_thesis_real_screens_the_misprint_first(capsys):
+    assert cli.main(["calibrate", "--method", "kim-cho", "--json"]) == cli.EXIT_OK
+    res = json.loads(capsys.readouterr().out)
+    assert "x+22.5" in res["outliers"] and res["n_used"] == 27
+    assert res["rms_mm"] < 10 and res["least_squares_from_here"]["converged"]
+    assert cli.main(["calibrate", "--method", "kim-cho", "--json", "--keep-all"]) == cli.EXIT_OK
+    raw = json.loads(capsys.readouterr().out)
+    assert raw["outliers"] == [] and raw["rms_mm"] > 100  # the 2,000 mm misprint ruins the linear fit
+
+
 def test_cli_classics_on_a_simulated_dataset(tmp_path, capsys):
     out = tmp_path / "sim"
     assert cli.main(["simulate", "--out", str(out), "--translations", "3", "--seed", "5"]) == 0
