@@ -15,14 +15,14 @@ Wright 2006, section 10.3):
   cached in the generated-code cache and called through ctypes. A calibration is one call;
   ``calibrate_many`` runs many in one call (Monte Carlo).
 * otherwise the same iteration in Python, with the sums evaluated by ``normal_one`` mapped over
-  the measurements in the CasADi virtual machine (same numbers, about 100x slower).
+  the measurements in the CasADi virtual machine (same numbers, about 50x slower).
 
 The result is the least-squares solution of the unweighted ``centre`` residual, the same
 solution as :class:`model.calibration.CalibrationModel` with any solver (tests check this).
 Data that leave a combination of the six unknowns unconstrained end with status -3, never
-with a "converged" pose. This is the engine for Monte Carlo studies and benchmarks; for a
-calibration of real data use :func:`studies.calibrate.calibrate` (screening, weights,
-uncertainty).
+with a "converged" pose. This is the engine for Monte Carlo studies and benchmarks; a
+calibration of real data wants the full pipeline of ``handeye calibrate`` (screening,
+weights, uncertainty).
 """
 from __future__ import annotations
 
