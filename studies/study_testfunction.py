@@ -12,7 +12,7 @@ Methods: local Newton, damped Newton (Armijo), steepest descent (Armijo), BFGS (
 Gauss-Newton and Levenberg-Marquardt on the exact sum-of-squares form ``f + 300 = |r|^2``,
 trust-region Newton, IPOPT. Grids: 301 x 301 over [-50, 50]^2 (covering the thesis's x0max up
 to 45) and over [-4, 4]^2; ``--quick`` uses 21 x 21 grids. The full study runs about 1.5
-million solves (about 25 minutes on two cores).
+million solves; measured here: about 7-8 minutes per method and grid on two cores, some two hours in all.
 
 Claims: (1) plain Newton converges to the saddle point from a set of starts of positive area
 (the thesis says no method finds it); (2) for at least one method the basin of the global
