@@ -211,7 +211,7 @@ def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
         axis_rank = np.linalg.matrix_rank(axes, tol=0.05) if len(axes) else 0
         spread = np.linalg.svd(xs - xs.mean(axis=0), compute_uv=False)
         moved = float(np.max(np.linalg.norm(t[:, :3, 3] - t[0, :3, 3], axis=1)))
-        text = (f"kim-cho: the stacked D U = F is rank-deficient (scaled singular values {sv[-1]:.1e} .. {sv[0]:.1e}); "
+        text = (f"kim-cho: the stacked D U = F is (nearly) rank-deficient (scaled singular values {sv[-1]:.1e} .. {sv[0]:.1e}); "
                 f"it needs relative rotations about at least 2 non-parallel axes (these data: {axis_rank}), measured "
                 f"sphere centres that span 3-D in the sensor frame (spread, singular values: "
                 f"{', '.join(f'{v:.2g}' for v in spread)} mm)")
