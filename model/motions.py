@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from model.pose import transform_from_pose
-from model.simulate import SimulationError, thesis_orientations
+from model.simulate import SimulationError, flanges_for_views, random_view, thesis_orientations
 
 STRATEGIES = ("thesis", "about-sphere")
 
@@ -27,14 +26,6 @@ STRATEGIES = ("thesis", "about-sphere")
 #: sphere stays in the laser plane and the range.
 TRANSLATION_STEPS = np.array([[15.0, 0.0, 0.0], [0.0, 0.0, 20.0], [0.0, 5.0, 0.0], [-10.0, 0.0, -15.0],
                               [8.0, -4.0, 10.0], [-12.0, 3.0, 12.0]])
-
-
-def _flange(setup, rotation, seen_at):
-    """Flange pose that shows the sphere at ``seen_at`` (sensor frame) with sensor rotation ``rotation``."""
-    sensor = np.eye(4)
-    sensor[:3, :3] = rotation
-    sensor[:3, 3] = np.asarray(setup.sphere_centre, float) - rotation @ seen_at
-    return sensor @ np.linalg.inv(transform_from_pose(setup.sensor_pose))
 
 
 def strategy(setup, rng, name="thesis", n_poses=36, translations=0):
@@ -62,10 +53,9 @@ def strategy(setup, rng, name="thesis", n_poses=36, translations=0):
     fixed = np.array([0.0, setup.side * 10.0, 240.0])
     ids, flanges, orientations = [], [], thesis_orientations(n_poses)
     for ident, rot in orientations:
-        seen_at = fixed if name == "about-sphere" else np.array(
-            [rng.uniform(-10, 10), setup.side * rng.uniform(3, 20), rng.uniform(210, 270)])
+        seen_at = fixed if name == "about-sphere" else random_view(setup, rng)
         ids.append(ident)
-        flanges.append(_flange(setup, rot, seen_at))
+        flanges.append(flanges_for_views(setup, rot, seen_at))
     if translations:
         picks = sorted({0, len(orientations) // 2})
         for k in picks:
@@ -73,7 +63,7 @@ def strategy(setup, rng, name="thesis", n_poses=36, translations=0):
             for m, step in enumerate(TRANSLATION_STEPS[:translations]):
                 seen_at = fixed - step * np.array([1.0, -setup.side, 1.0])  # the sensor moves by step
                 ids.append(f"{ident}/t{m + 1}")
-                flanges.append(_flange(setup, rot, seen_at))
+                flanges.append(flanges_for_views(setup, rot, seen_at))
             ids.append(f"{ident}/t0")
-            flanges.append(_flange(setup, rot, fixed))
+            flanges.append(flanges_for_views(setup, rot, fixed))
     return ids, np.array(flanges)

@@ -52,6 +52,10 @@ from model import circle
 from model.pose import pose_from_transform, transform_from_pose
 from model.rotation import matrix_from_rotvec
 
+#: Where the thesis strategy sees the sphere centre in the sensor frame (mm): x, |y| on the
+#: setup's side of the laser plane, z (module docstring).
+VIEW = ((-10.0, 10.0), (3.0, 20.0), (210.0, 270.0))
+
 EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier")
 CERTIFIED_DIAMETER = 59.94507
 THESIS_CENTRE = (1534.1314, -603.2729, 1118.8028)
@@ -127,6 +131,44 @@ def thesis_orientations(n_poses=36):
     return [items[k] for k in keep]
 
 
+def random_view(setup, rng, size=()):
+    """Sphere centres in the sensor frame drawn from :data:`VIEW`, shape ``size + (3,)`` (mm).
+
+    Draws x, then y, then z (each of ``size``) from ``rng``.
+    """
+    (x0, x1), (y0, y1), (z0, z1) = VIEW
+    return np.stack([rng.uniform(x0, x1, size), setup.side * rng.uniform(y0, y1, size), rng.uniform(z0, z1, size)],
+                    axis=-1)
+
+
+def flanges_for_views(setup, rotations, seen_at, centre=None):
+    """Flange poses that show the sphere at ``seen_at`` with the sensor rotated by ``rotations``.
+
+    Parameters
+    ----------
+    setup : Setup
+        Its ``sensor_pose`` (the true sensor pose on the flange) and, unless ``centre`` is
+        given, its ``sphere_centre``.
+    rotations : ndarray, shape (..., 3, 3)
+        Sensor rotations in the robot base frame.
+    seen_at : ndarray, shape (..., 3)
+        Sphere centre in the sensor frame (mm); broadcast against ``rotations``.
+    centre : ndarray, shape (3,), optional
+        Sphere centre in the base frame (mm).
+
+    Returns
+    -------
+    ndarray, shape (..., 4, 4)
+        Flange frames in the robot base frame (mm).
+    """
+    centre = np.asarray(setup.sphere_centre if centre is None else centre, float)
+    rotations, seen_at = np.asarray(rotations, float), np.asarray(seen_at, float)
+    sensor = np.tile(np.eye(4), np.broadcast_shapes(rotations.shape[:-2], seen_at.shape[:-1]) + (1, 1))
+    sensor[..., :3, :3] = rotations
+    sensor[..., :3, 3] = centre - (rotations @ seen_at[..., None])[..., 0]
+    return sensor @ np.linalg.inv(transform_from_pose(setup.sensor_pose))
+
+
 def profile_points(centre_in_sensor, radius, setup, rng):
     """Noisy laser-line points (K, 2) of a sphere whose centre is at ``centre_in_sensor``."""
     sx, sy, sz = centre_in_sensor
@@ -186,15 +228,9 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
     if flange_poses is None:
-        out_ids, true_flanges = [], []
-        for ident, rot in thesis_orientations(n_poses):
-            seen_at = np.array([rng.uniform(-10, 10), setup.side * rng.uniform(3, 20), rng.uniform(210, 270)])
-            sensor = np.eye(4)
-            sensor[:3, :3] = rot
-            sensor[:3, 3] = centre - rot @ seen_at
-            out_ids.append(ident)
-            true_flanges.append(sensor @ np.linalg.inv(t_x))
-        true_flanges = np.array(true_flanges)
+        out_ids, rots = zip(*thesis_orientations(n_poses))
+        seen_at = np.array([random_view(setup, rng) for _ in rots])
+        true_flanges = flanges_for_views(setup, np.array(rots), seen_at, centre)
     else:
         true_flanges = transform_from_pose(np.asarray(flange_poses, float))
         out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]

@@ -63,12 +63,8 @@ def simulated_batch(m, n, seed=0):
     truth = transform_from_pose(setup.sensor_pose)
     rots = np.array([r for _, r in simulate.thesis_orientations(36)])[np.arange(n) % 36]
     centre = np.asarray(setup.sphere_centre, float)
-    seen_at = np.stack([rng.uniform(-10, 10, (m, n)), setup.side * rng.uniform(3, 20, (m, n)),
-                        rng.uniform(210, 270, (m, n))], axis=-1)
-    sensor = np.tile(np.eye(4), (m, n, 1, 1))
-    sensor[..., :3, :3] = rots
-    sensor[..., :3, 3] = centre - np.einsum("nij,mnj->mni", rots, seen_at)
-    flanges = sensor @ np.linalg.inv(truth)
+    seen_at = simulate.random_view(setup, rng, (m, n))
+    flanges = simulate.flanges_for_views(setup, rots, seen_at)
     xs = seen_at + rng.normal(0, 0.02, seen_at.shape)
     start = transform_from_pose(np.asarray(setup.sensor_pose) + [40, -30, 20, 3, 2, -3])
     return flanges, xs, centre, start, truth
