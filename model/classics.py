@@ -44,7 +44,7 @@ import functools
 import numpy as np
 
 from model import codegen
-from model.rotation import nearest_rotation
+from model.rotation import nearest_rotation, nearest_transform, rotation_angle_deg, rotvec_from_matrix
 
 #: Flange rotations closer than this (degrees) count as equal: a pure translation.
 SAME_ROTATION_DEG = 0.01
@@ -153,10 +153,6 @@ def motion_pairs(n, pairs="auto"):
     raise ValueError(f"pairs must be 'auto', 'all' or 'consecutive', got {pairs!r}")
 
 
-def _rotation_angle_deg(r):
-    return np.degrees(np.arccos(np.clip((np.trace(r, axis1=-2, axis2=-1) - 1) / 2, -1, 1)))
-
-
 def _solve_linear(d, f, what):
     """Least squares of D U = F with a column-scaled rank check; U and the scaled singular values."""
     scale = np.linalg.norm(d, axis=0)
@@ -166,13 +162,6 @@ def _solve_linear(d, f, what):
         raise MissingMotions(what(sv))
     u = np.linalg.lstsq(d / scale, f, rcond=None)[0] / scale
     return u, sv
-
-
-def _rigid(x_lin):
-    out = np.eye(4)
-    out[:3, :3] = nearest_rotation(x_lin[:3, :3])
-    out[:3, 3] = x_lin[:3, 3]
-    return out
 
 
 def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
@@ -205,9 +194,9 @@ def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
     d, f = axxb_system(a, p=xs[idx[:, 0]], q=xs[idx[:, 1]])
 
     def what(sv):
-        rel = t[idx[:, 0], :3, :3].transpose(0, 2, 1) @ t[idx[:, 1], :3, :3]
-        angles = _rotation_angle_deg(rel)
-        axes = np.array([_axis(r) for r, ang in zip(rel, angles) if ang > 1.0]).reshape(-1, 3)
+        w = rotvec_from_matrix(t[idx[:, 0], :3, :3].transpose(0, 2, 1) @ t[idx[:, 1], :3, :3])
+        turned = np.degrees(np.linalg.norm(w, axis=1)) > 1.0
+        axes = w[turned] / np.linalg.norm(w[turned], axis=1, keepdims=True)
         axis_rank = np.linalg.matrix_rank(axes, tol=0.05) if len(axes) else 0
         spread = np.linalg.svd(xs - xs.mean(axis=0), compute_uv=False)
         moved = float(np.max(np.linalg.norm(t[:, :3, 3] - t[0, :3, 3], axis=1)))
@@ -224,7 +213,7 @@ def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
     u, sv = _solve_linear(d, f, what)
     x_lin = np.vstack([u.reshape(3, 4), [0, 0, 0, 1]])
     r = x_lin[:3, :3]
-    return ClassicResult(_rigid(x_lin), x_lin, None, "kim-cho", {
+    return ClassicResult(nearest_transform(x_lin), x_lin, None, "kim-cho", {
         "pairs": len(idx), "equations": len(d), "singular_values": sv.tolist(),
         "condition": float(sv[0] / sv[-1]), "orthogonality_error": float(np.linalg.norm(r.T @ r - np.eye(3)))})
 
@@ -247,13 +236,7 @@ def kim_cho_matrix(a, b):
     u, sv = _solve_linear(d, f, lambda sv: f"kim-cho (matrix form): D is rank-deficient ({sv[-1]:.1e}); at least two "
                                            "motions with non-parallel rotation axes are needed")
     x_lin = np.vstack([u.reshape(3, 4), [0, 0, 0, 1]])
-    return ClassicResult(_rigid(x_lin), x_lin, None, "kim-cho", {"pairs": len(a), "singular_values": sv.tolist()})
-
-
-def _axis(r):
-    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    n = np.linalg.norm(w)
-    return w / n if n > 0 else w
+    return ClassicResult(nearest_transform(x_lin), x_lin, None, "kim-cho", {"pairs": len(a), "singular_values": sv.tolist()})
 
 
 def translation_pairs(flange2base, same_deg=SAME_ROTATION_DEG, min_mm=MIN_TRANSLATION_MM):
@@ -270,8 +253,7 @@ def translation_pairs(flange2base, same_deg=SAME_ROTATION_DEG, min_mm=MIN_TRANSL
     group = -np.ones(len(t), int)
     for i in range(len(t)):
         if group[i] < 0:
-            rel = t[i, :3, :3].T @ t[:, :3, :3]
-            same = (_rotation_angle_deg(rel) < same_deg) & (group < 0)
+            same = (rotation_angle_deg(t[i, :3, :3], t[:, :3, :3]) < same_deg) & (group < 0)
             group[same] = i
     out = [(g, j) for j, g in enumerate(group) if j != g and np.linalg.norm(t[j, :3, 3] - t[g, :3, 3]) > min_mm]
     return np.array(out, int).reshape(-1, 2)
@@ -321,8 +303,7 @@ def li_two_step(flange2base, centre_in_sensor, sphere_centre=None, sign="derived
         sol = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
         centre = None
     else:
-        angles = _rotation_angle_deg(r0[0].T @ r0)
-        if np.max(angles) < 1.0:
+        if np.max(rotation_angle_deg(r0[0], r0)) < 1.0:
             raise MissingMotions("li-two-step step 2 without a known sphere centre needs robot rotations about the "
                                  "sphere (flange orientations differing by more than 1 deg); these data have none")
         lhs = np.concatenate([r0, -np.broadcast_to(np.eye(3), r0.shape)], axis=2).reshape(-1, 6)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import ctypes
 import functools
 import hashlib
-import math
 import os
 import pathlib
 import shutil
@@ -41,6 +40,7 @@ import numpy as np
 
 from model import codegen
 from model.calibration import _sources
+from model.rotation import matrix_from_rotvec
 
 DRIVER = pathlib.Path(__file__).with_name("fast_lm.c")
 CFLAGS = ("-O3", "-fPIC", "-shared")
@@ -303,7 +303,7 @@ def _calibrate_python(data, c, x, max_iter):
             status = 2
             break
         predicted = -float(g @ p) - 0.5 * float(p @ h @ p)
-        xn = np.concatenate([x[:3] + p[:3], (x[3:].reshape(3, 3) @ _rodrigues(*p[3:])).ravel()])
+        xn = np.concatenate([x[:3] + p[:3], (x[3:].reshape(3, 3) @ matrix_from_rotvec(p[3:])).ravel()])
         hn, gn, fn = evaluate(xn)
         evals += 1
         if predicted <= 100 * eps * max(1.0, f):  # the cost cannot judge the step: the gradient does
@@ -334,15 +334,3 @@ def _rank_deficient(h):
     except np.linalg.LinAlgError:
         return True
     return False
-
-
-def _rodrigues(wx, wy, wz):
-    """exp([w]x) for one rotation vector (rad)."""
-    theta2 = wx * wx + wy * wy + wz * wz
-    theta = math.sqrt(theta2)
-    if theta < 1e-8:
-        a, b = 1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0
-    else:
-        a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta2
-    k = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
-    return np.eye(3) + a * k + b * (k @ k)

@@ -51,7 +51,8 @@ def rotvec_from_matrix(rot):
         sym = (r + np.swapaxes(r, -1, -2)) / 2.0 - cos_t[..., None, None] * np.eye(3)
         col = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
         n = np.take_along_axis(sym, col[..., None, None], axis=-1)[..., 0]
-        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):  # rows far from pi: 0/0, discarded below
+            n = n / np.linalg.norm(n, axis=-1, keepdims=True)
         n = np.where((np.sum(n * vee, -1) < 0)[..., None], -n, n)
         w = np.where(near_pi[..., None], theta[..., None] * n, w)
     return w
