@@ -71,10 +71,11 @@ class Identifiability:
 
     def describe_null(self):
         """Human-readable text of the unidentifiable directions."""
-        parts = []
-        for d in self.null_directions:
-            parts.append(" + ".join(f"{v:+.2f}*{k}" for k, v in d.items()))
-        return "; ".join(parts)
+        return "; ".join(_direction_text(d) for d in self.null_directions)
+
+    def describe_weakest(self):
+        """Human-readable text of the direction of the smallest scaled singular value."""
+        return _direction_text(self.weakest_direction)
 
     def as_dict(self):
         return {
@@ -87,6 +88,10 @@ class Identifiability:
             "weakest_direction": self.weakest_direction,
             "observability": self.observability,
         }
+
+
+def _direction_text(direction):
+    return " + ".join(f"{v:+.2f}*{k}" for k, v in direction.items())
 
 
 def analyse(jacobian, names, rtol=RTOL):

@@ -123,11 +123,10 @@ def check_identifiable(dataset, unknowns, start_transform):
                if unknowns == "sensor+sphere" else "")
         )
     if ident.observability["O2"] < identifiability.NEARLY_SINGULAR:
-        weak = " + ".join(f"{v:+.2f}*{k}" for k, v in ident.weakest_direction.items())
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: the robot poses nearly leave a direction undetermined "
             f"(inverse condition number {ident.observability['O2']:.1e} < {identifiability.NEARLY_SINGULAR:g}): "
-            f"{weak}. This happens when the sphere is always seen at one sensor point (pure rotations about it): "
+            f"{ident.describe_weakest()}. This happens when the sphere is always seen at one sensor point (pure rotations about it): "
             "add poses that see it elsewhere in the laser plane, or pure translations")
     return ident
 
@@ -364,10 +363,9 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
     if not ident.full_rank:
         out["warnings"].append(f"at the solution the data do not determine: {ident.describe_null()}")
     elif ident.observability["O2"] < identifiability.WEAK:
-        weak = " + ".join(f"{v:+.2f}*{k}" for k, v in ident.weakest_direction.items())
         out["warnings"].append(
             f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
-            f"{identifiability.WEAK:g}): {weak}; add poses that move it (handeye plan)")
+            f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
     groups = None if local.groups is None else np.repeat(local.groups, local.m)
     cov = covariance(r_used, j_used, groups)
     deg = np.degrees(cov.std[3:6])

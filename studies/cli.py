@@ -288,6 +288,16 @@ def _simulate(args):
     return EXIT_OK
 
 
+def _alpha(args):
+    """--alpha of calibrate, checked (default: the outlier tests' family-wise level)."""
+    from studies.robust import ALPHA
+
+    alpha = ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
+    return alpha
+
+
 def _calibrate_classic(args, dataset, convention):
     from model import conventions
     from studies.classic import calibrate_classic, classic_text
@@ -298,12 +308,7 @@ def _calibrate_classic(args, dataset, convention):
                if given is not None]
     if ignored:
         raise ValueError(f"--method {args.method} is closed form; these options do not apply to it: {', '.join(ignored)}")
-    from studies.robust import ALPHA
-
-    alpha = ALPHA if args.alpha is None else args.alpha
-    if not 0 < alpha < 1:
-        raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
-    res = calibrate_classic(dataset, args.method, args.unknowns, outliers=not args.keep_all, alpha=alpha)
+    res = calibrate_classic(dataset, args.method, args.unknowns, outliers=not args.keep_all, alpha=_alpha(args))
     res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:
@@ -315,14 +320,14 @@ def _calibrate_classic(args, dataset, convention):
 def _calibrate(args):
     from model.dataset import load
     from studies.calibrate import calibrate, parse_pose
+    from studies.classic import METHODS as CLASSIC_METHODS
     from studies.report import calibration_text
-    from studies.robust import ALPHA
 
     from model import conventions
 
     dataset = load(args.dataset)
     convention = args.convention or dataset.convention
-    if args.method in ("kim-cho", "li-two-step"):
+    if args.method in CLASSIC_METHODS:
         return _calibrate_classic(args, dataset, convention)
     start = parse_pose(args.start, convention=convention) if args.start is not None else None
     options = {}
@@ -330,11 +335,9 @@ def _calibrate(args):
         if args.max_iter < 1:
             raise ValueError("--max-iter must be at least 1")
         options["max_iter"] = args.max_iter
-    alpha = ALPHA if args.alpha is None else args.alpha
-    if not 0 < alpha < 1:
-        raise ValueError(f"--alpha must lie in (0, 1), got {alpha}")
     res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
-                    options=options, outliers=not args.keep_all, alpha=alpha, loo=not args.no_loo, model=args.model)
+                    options=options, outliers=not args.keep_all, alpha=_alpha(args), loo=not args.no_loo,
+                    model=args.model)
     res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:
