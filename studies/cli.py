@@ -298,9 +298,9 @@ def _alpha(args):
     return alpha
 
 
-def _calibrate_classic(args, dataset, convention):
-    from model import conventions
-    from studies.classic import calibrate_classic, classic_text
+def _calibrate_classic(args, dataset):
+    """Result of a closed-form method; options that only the least squares has are refused."""
+    from studies.classic import calibrate_classic
 
     ignored = [name for name, given in (("--start", args.start), ("--rotation", args.rotation),
                                         ("--max-iter", args.max_iter), ("--model", args.model), ("--plot", args.plot),
@@ -308,19 +308,13 @@ def _calibrate_classic(args, dataset, convention):
                if given is not None]
     if ignored:
         raise ValueError(f"--method {args.method} is closed form; these options do not apply to it: {', '.join(ignored)}")
-    res = calibrate_classic(dataset, args.method, args.unknowns, outliers=not args.keep_all, alpha=_alpha(args))
-    res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
-                             "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
-    if args.out:
-        write_json_atomically(args.out, dict(res, provenance=provenance(args, dataset)))
-    print(json.dumps(res, indent=1) if args.json else classic_text(res))
-    return EXIT_OK
+    return calibrate_classic(dataset, args.method, args.unknowns, outliers=not args.keep_all, alpha=_alpha(args))
 
 
 def _calibrate(args):
     from model.dataset import load
     from studies.calibrate import calibrate, parse_pose
-    from studies.classic import METHODS as CLASSIC_METHODS
+    from studies.classic import METHODS as CLASSIC_METHODS, classic_text
     from studies.report import calibration_text
 
     from model import conventions
@@ -328,16 +322,18 @@ def _calibrate(args):
     dataset = load(args.dataset)
     convention = args.convention or dataset.convention
     if args.method in CLASSIC_METHODS:
-        return _calibrate_classic(args, dataset, convention)
-    start = parse_pose(args.start, convention=convention) if args.start is not None else None
-    options = {}
-    if args.max_iter is not None:
-        if args.max_iter < 1:
-            raise ValueError("--max-iter must be at least 1")
-        options["max_iter"] = args.max_iter
-    res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
-                    options=options, outliers=not args.keep_all, alpha=_alpha(args), loo=not args.no_loo,
-                    model=args.model)
+        res, text = _calibrate_classic(args, dataset), classic_text
+    else:
+        start = parse_pose(args.start, convention=convention) if args.start is not None else None
+        options = {}
+        if args.max_iter is not None:
+            if args.max_iter < 1:
+                raise ValueError("--max-iter must be at least 1")
+            options["max_iter"] = args.max_iter
+        res = calibrate(dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation, start=start,
+                        options=options, outliers=not args.keep_all, alpha=_alpha(args), loo=not args.no_loo,
+                        model=args.model)
+        text = calibration_text
     res["sensor_pose_as"] = {"convention": convention, "columns": list(conventions.columns(convention)),
                              "pose": conventions.pose_from(convention, res["sensor_matrix"]).tolist()}
     if args.out:
@@ -346,10 +342,7 @@ def _calibrate(args):
         from studies.report import calibration_plot
 
         calibration_plot(res, dataset, args.plot)
-    if args.json:
-        print(json.dumps(res, indent=1))
-    else:
-        print(calibration_text(res))
+    print(json.dumps(res, indent=1) if args.json else text(res))
     return EXIT_OK if res["converged"] else EXIT_NOT_CONVERGED
 
 
