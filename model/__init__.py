@@ -1,7 +1,7 @@
 """handeye's model: the kinematic chain, derived once symbolically, and the datasets.
 
-Submodules: :mod:`model.symbolic` (the one source), :mod:`model.codegen` (numpy/CasADi
-functions generated from it), :mod:`model.pose`, :mod:`model.rotation`,
-:mod:`model.testfunction`, :mod:`model.calibration`, :mod:`model.dataset`,
-:mod:`model.identifiability`.
+Submodules: :mod:`handeye.model.symbolic` (the one source), :mod:`handeye.model.codegen` (numpy/CasADi
+functions generated from it), :mod:`handeye.model.pose`, :mod:`handeye.model.rotation`,
+:mod:`handeye.model.testfunction`, :mod:`handeye.model.calibration`, :mod:`handeye.model.dataset`,
+:mod:`handeye.model.identifiability`.
 """

@@ -18,9 +18,9 @@ import dataclasses
 
 import numpy as np
 
-from model import circle, observations
-from model.calibration import CalibrationModel
-from model.pose import transform_from_pose
+from handeye.model import circle, observations
+from handeye.model.calibration import CalibrationModel
+from handeye.model.pose import transform_from_pose
 
 
 def information(flange_poses, setup, sphere_centre, unknowns="sensor"):
@@ -40,7 +40,7 @@ def information(flange_poses, setup, sphere_centre, unknowns="sensor"):
     model.simulate.SimulationError
         When a pose's laser plane misses the sphere or sees too little of it.
     """
-    from model import simulate
+    from handeye.model import simulate
 
     quiet = dataclasses.replace(setup, sigma_point=0.0, sigma_robot=0.0, linearity=0.0)
     t_x = transform_from_pose(setup.sensor_pose)

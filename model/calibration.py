@@ -9,7 +9,7 @@ For measurement ``i`` (flange pose ``flange2base_i = (R1_i, t1_i)``, sphere cent
 centre ``c`` in the robot base. The cost is ``1/2 sum |e_i|^2`` (mm^2).
 
 Residual, Jacobian and the second derivatives needed for Newton's exact Hessian
-``H = J^T J + sum_k e_k grad^2 e_k`` are generated from :func:`model.symbolic.calibration_residual`.
+``H = J^T J + sum_k e_k grad^2 e_k`` are generated from :func:`handeye.model.symbolic.calibration_residual`.
 
 Points and steps
 ----------------
@@ -28,7 +28,7 @@ With ``sensor+sphere`` the three coordinates of ``c`` (mm) follow in point and s
 
 Residual kinds
 --------------
-The same chain gives three residuals (:func:`model.symbolic.calibration_residual`): the
+The same chain gives three residuals (:func:`handeye.model.symbolic.calibration_residual`): the
 seed's ``centre`` residual (one row per measurement, 3 components, mm), the ``measurement``
 residual in the sensor's own space (circle centre and radius in the laser plane; one row per
 measurement) and the ``points`` residual (one row per profile point: distance from the sphere
@@ -41,26 +41,28 @@ import functools
 
 import numpy as np
 
-from model import codegen, rotation
-from model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
+from handeye.model import codegen, rotation
+from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
-ROTATIONS = ("euler", "matrix", "local")  # as model.symbolic.ROTATIONS (tested)
+#: Names of the rotation parametrisations of the unknown sensor rotation (model.symbolic uses these).
+ROTATIONS = ("euler", "matrix", "local")
 
 
-KINDS = {"centre": 3, "measurement": 3, "points": 1}  # as model.symbolic.KINDS (tested)
+#: Residual kinds and the rows of one residual (model.symbolic uses these).
+KINDS = {"centre": 3, "measurement": 3, "points": 1}
 
 
 @functools.lru_cache(maxsize=None)
 def _sources(rot, kind="centre"):
     def build_resjac():
-        from model import symbolic  # sympy only on a cache miss
+        from handeye.model import symbolic  # sympy only on a cache miss
 
         s = symbolic.calibration_residual(rot, kind)
         return s["theta"] + s["extra"] + s["data"], list(s["e"]) + list(s["jac"])
 
     def build_hess():
-        from model import symbolic
+        from handeye.model import symbolic
 
         s = symbolic.calibration_residual(rot, kind)
         return s["theta"] + s["extra"] + s["data"], [v for h in s["hess"] for v in h]
@@ -148,6 +150,21 @@ class CalibrationModel:
         self._cols = slice(0, 3 + n_rot + (3 if unknowns == "sensor+sphere" else 0))
         self.n = self._cols.stop
         self.names = parameter_names(rotation, unknowns)
+
+    @classmethod
+    def from_dataset(cls, dataset, rotation="local", unknowns="sensor", sphere_centre=None):
+        """The centre-residual model of every sample of a dataset.
+
+        Parameters
+        ----------
+        dataset : handeye.model.dataset.Dataset
+        rotation : {'euler', 'matrix', 'local'}
+        unknowns : {'sensor', 'sensor+sphere'}
+        sphere_centre : array_like, shape (3,), optional
+            Robot base, mm; default the dataset's (known value, or start value when free).
+        """
+        centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
+        return cls(dataset.flange2base(), dataset.centre_in_sensor, centre, rotation, unknowns)
 
     @classmethod
     def from_circles(cls, flange2base, circles, radius, sphere_centre, rotation="local", unknowns="sensor",

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from handeye.model.errors import InputError
 
 FITS = ("kasa", "hyper", "geometric")
 
@@ -32,7 +33,7 @@ class Circle:
     r: float
 
 
-class CircleFitError(ValueError):
+class CircleFitError(InputError):
     """Too few or degenerate points (e.g. collinear) for a circle."""
 
 
@@ -90,7 +91,7 @@ def hyper(x, z):
 
 def geometric(x, z, start=None, max_iter=100):
     """Orthogonal-distance fit by Levenberg-Marquardt (from ``start`` or the Hyper fit)."""
-    import solvers
+    from handeye import solvers
 
     x, z = _points(x, z)
     c0 = start or hyper(x, z)

@@ -8,7 +8,7 @@ Kim & Cho [KCK2001], the relative-motion form ``A X = X B`` (seed 2-44)
     pose on the flange. A fixed sphere seen as ``p`` at P and ``q`` at Q gives ``A X p = X q``
     (the equation does not contain the sphere's position: it need not be known). In the 12
     entries ``U`` of X's first three rows this is linear, ``D U = F``, with ``D`` and ``F``
-    generated from :func:`model.symbolic.axxb_linear` (``point`` form; the ``matrix`` form of
+    generated from :func:`handeye.model.symbolic.axxb_linear` (``point`` form; the ``matrix`` form of
     Appendix A needs four or more points per pose, :func:`kim_cho_matrix`). Stacking every
     pair of samples (2-46) and solving by linear least squares gives an affine ``X``; the
     result is its nearest rigid transform (SVD projection of the rotation block).
@@ -43,8 +43,9 @@ import functools
 
 import numpy as np
 
-from model import codegen
-from model.rotation import nearest_rotation, nearest_transform, rotation_angle_deg, rotvec_from_matrix
+from handeye.model import codegen
+from handeye.model.rotation import nearest_rotation, nearest_transform, rotation_angle_deg, rotvec_from_matrix
+from handeye.model.errors import InputError
 
 #: Flange rotations closer than this (degrees) count as equal: a pure translation.
 SAME_ROTATION_DEG = 0.01
@@ -56,7 +57,7 @@ MIN_TRANSLATION_MM = 1.0
 CONDITION_LIMIT_INV = 1e-4
 
 
-class MissingMotions(ValueError):
+class MissingMotions(InputError):
     """The dataset lacks the robot motions a method needs (the message says which)."""
 
 
@@ -88,7 +89,7 @@ class ClassicResult:
 @functools.lru_cache(maxsize=None)
 def _axxb_function(form):
     def build():
-        from model import symbolic
+        from handeye.model import symbolic
 
         s = symbolic.axxb_linear(form)
         inputs = list(s["a"]) + (list(s["b"]) if form == "matrix" else list(s["p"]) + list(s["q"]))

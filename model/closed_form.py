@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from model.rotation import nearest_rotation
+from handeye.model.rotation import nearest_rotation
+from handeye.model.errors import InputError
 
 
-class ClosedFormError(ValueError):
+class ClosedFormError(InputError):
     """The poses do not determine the linear problem (its matrix is rank-deficient)."""
 
 

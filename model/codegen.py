@@ -1,6 +1,6 @@
 """Generate numpy and CasADi functions from the symbolic source, with a disk cache.
 
-A symbolic expression set from :mod:`model.symbolic` is turned into the source text of one
+A symbolic expression set from :mod:`handeye.model.symbolic` is turned into the source text of one
 Python function (common subexpressions eliminated by ``sympy.cse``). The *same* text is
 executed twice: once in a namespace where ``sin``, ``cos``, ``sqrt`` are numpy's (a function
 vectorised over any batch of inputs), once where they are CasADi's (a function of SX

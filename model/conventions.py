@@ -1,4 +1,4 @@
-"""Robot-brand pose conventions, all generated from :func:`model.symbolic.rotation_from`.
+"""Robot-brand pose conventions, all generated from :func:`handeye.model.symbolic.rotation_from`.
 
 =========  =======================  ==========================================================
 name       pose columns             orientation
@@ -14,7 +14,7 @@ KUKA ``(156.99, 87.55, 115, 180, -90, 0)``, is FANUC ``(156.99, 87.55, 115, 0, -
 ABB ``(156.99, 87.55, 115, 0, 0.7071, 0, 0.7071)`` and UR
 ``(156.99, 87.55, 115, 2.2214, 0, 2.2214)`` (a half turn about (1, 0, 1) / sqrt 2).
 
-Inverses: ``kuka`` and ``fanuc`` share the Z-Y-X decomposition of :mod:`model.pose` (C = 0 /
+Inverses: ``kuka`` and ``fanuc`` share the Z-Y-X decomposition of :mod:`handeye.model.pose` (C = 0 /
 W = 0 at the singularity), ``abb`` returns the quaternion with w >= 0 (Shepperd's method),
 ``ur`` the rotation vector of angle in [0, pi].
 """
@@ -24,17 +24,23 @@ import functools
 
 import numpy as np
 
-from model import codegen
-from model.pose import kuka_from_matrix
-from model.rotation import rotvec_from_matrix
+from handeye.model import codegen
+from handeye.model.pose import kuka_from_matrix
+from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.errors import InputError
 
-CONVENTIONS = {"kuka": ("a", "b", "c"), "fanuc": ("w", "p", "r"), "abb": ("q1", "q2", "q3", "q4"),
-               "ur": ("rx", "ry", "rz")}  # as model.symbolic.CONVENTIONS (tested)
+#: Robot-brand rotation conventions and their parameters (units); model.symbolic derives each.
+CONVENTIONS = {
+    "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
+    "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)
+    "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
+    "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
+}
 #: Tolerance on |q| - 1 for ABB quaternions (they are normalised within it).
 QUATERNION_TOLERANCE = 1e-3
 
 
-class ConventionError(ValueError):
+class ConventionError(InputError):
     """Orientation values that are not valid in their convention."""
 
 
@@ -52,7 +58,7 @@ def check(convention):
 @functools.lru_cache(maxsize=None)
 def _function(convention):
     def build():
-        from model import symbolic
+        from handeye.model import symbolic
 
         sym, rot = symbolic.rotation_from(convention)
         return sym, list(rot)

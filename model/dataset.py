@@ -4,14 +4,14 @@
     Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column; with
     ``[robot] convention`` other than ``kuka`` the pose columns are those of that convention
     (``x,y,z,q1,q2,q3,q4`` for abb, ``x,y,z,rx,ry,rz`` for ur, ``x,y,z,w,p,r`` for fanuc;
-    :mod:`model.conventions`), and so is ``start_pose``.
+    :mod:`handeye.model.conventions`), and so is ``start_pose``.
     ``id`` is unique text; ``x..c`` the flange pose in the robot base (KUKA: mm, degrees,
     ``A, C`` in [-180, 180], ``B`` in [-90, 90], the controller's ranges; a start pose may
     hold any angle in [-360, 360]); ``xs, ys, zs`` the sphere centre in the sensor
     frame (mm). ``profile``, when present, is the path (relative to the folder) of a CSV with
     header ``x,z``: laser-line points in the sensor's y = 0 plane, mm; then ``xs, ys, zs`` may
     be empty and the centre is reconstructed as in the seed (C15, C16, 6-26, 6-27), but with
-    the Hyper circle fit instead of the seed's biased Kasa fit (:mod:`model.circle`): centre
+    the Hyper circle fit instead of the seed's biased Kasa fit (:mod:`handeye.model.circle`): centre
     ``(x_c, z_c)`` and radius r, then ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
 ``setup.toml``
     ``[sensor] start_pose`` (p2: six numbers; optional -- without it the calibration starts from
@@ -33,15 +33,16 @@ import tomllib
 
 import numpy as np
 
-from model import conventions
-from model.pose import transform_from_pose
+from handeye.model import conventions
+from handeye.model.pose import transform_from_pose
+from handeye.model.errors import InputError
 
 REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
 OPTIONAL_COLUMNS = ("profile",)
 DATA_DIR = pathlib.Path(__file__).parent / "data"
 
 
-class DatasetError(ValueError):
+class DatasetError(InputError):
     """A dataset is missing, malformed or inconsistent.
 
     Attributes
@@ -94,7 +95,7 @@ class Dataset:
         Per measurement the profile points (K, 2: sensor x, z in mm) or None; None when the
         dataset has no profiles at all.
     convention : str
-        The robot-brand convention of the files (:mod:`model.conventions`); poses here are
+        The robot-brand convention of the files (:mod:`handeye.model.conventions`); poses here are
         always KUKA.
     """
 
@@ -299,7 +300,7 @@ def _read_profile(folder, rel, file, row):
 
 
 def _centre_from_profile(points, radius, side, pfile):
-    from model import circle
+    from handeye.model import circle
 
     try:
         return circle.sphere_centre_from_circle(circle.fit_circle(points[:, 0], points[:, 1], PROFILE_FIT), radius, side)

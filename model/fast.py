@@ -5,7 +5,7 @@ For the ``local`` parametrisation and the ``centre`` residual, one measurement i
     H_i = J_i^T J_i  (6 x 6),   g_i = J_i^T e_i  (6),   f_i = 1/2 |e_i|^2
 
 to the Gauss-Newton normal equations. ``normal_one`` is that CasADi function, built from the
-same generated source as every other evaluation (:mod:`model.codegen`, one sympy derivation),
+same generated source as every other evaluation (:mod:`handeye.model.codegen`, one sympy derivation),
 never written by hand. Two ways to run the iteration (Marquardt's scaled damping, Nocedal &
 Wright 2006, section 10.3):
 
@@ -18,7 +18,7 @@ Wright 2006, section 10.3):
   the measurements in the CasADi virtual machine (same numbers, about 50x slower).
 
 The result is the least-squares solution of the unweighted ``centre`` residual, the same
-solution as :class:`model.calibration.CalibrationModel` with any solver (tests check this).
+solution as :class:`handeye.model.calibration.CalibrationModel` with any solver (tests check this).
 Data that leave a combination of the six unknowns unconstrained end with status -3, never
 with a "converged" pose. This is the engine for Monte Carlo studies and benchmarks; a
 calibration of real data wants the full pipeline of ``handeye calibrate`` (screening,
@@ -38,9 +38,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from model import codegen
-from model.calibration import _sources
-from model.rotation import matrix_from_rotvec
+from handeye.model import codegen
+from handeye.model.calibration import _sources
+from handeye.model.rotation import matrix_from_rotvec
 
 DRIVER = pathlib.Path(__file__).with_name("fast_lm.c")
 CFLAGS = ("-O3", "-fPIC", "-shared")

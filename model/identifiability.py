@@ -20,6 +20,8 @@ import dataclasses
 
 import numpy as np
 
+from handeye.model.rotation import nearest_transform
+
 #: Relative singular value below which a direction counts as not identifiable.
 RTOL = 1e-8
 #: Inverse condition number (O2) below which a direction counts as badly constrained.
@@ -77,7 +79,8 @@ class Identifiability:
         """Human-readable text of the direction of the smallest scaled singular value."""
         return _direction_text(self.weakest_direction)
 
-    def as_dict(self):
+    def to_dict(self):
+        """JSON-ready dict (the ``identifiability`` object of a calibration's JSON)."""
         return {
             "rank": self.rank,
             "n": self.n,
@@ -133,12 +136,11 @@ def structural(model, x, rtol=RTOL):
     The measured sensor vectors are replaced by those predicted at ``x``:
     ``xs_i = T2^-1 T1_i^-1 c``; the Jacobian there depends on the robot poses alone.
     """
-    from model.calibration import CalibrationModel
+    from handeye.model.calibration import CalibrationModel
 
     t2 = model.sensor2flange(x)
-    if model.rotation == "matrix":
-        u, _, vt = np.linalg.svd(t2[:3, :3])
-        t2[:3, :3] = u @ vt
+    if model.rotation == "matrix":  # the nearest rotation, det +1 (an SVD alone may give a reflection)
+        t2 = nearest_transform(t2)
     c = model.sphere_centre(x)
     ideal = np.linalg.solve(model.flange2base @ t2, np.append(c, 1.0))[:, :3]
     twin = CalibrationModel(model.flange2base, ideal, c, model.rotation, model.unknowns)
@@ -157,8 +159,8 @@ def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose
         With parameter names ``tx..wz`` (sensor, local rotation: free of the Euler
         singularity) and ``x3..C3`` (plate).
     """
-    from model import codegen, symbolic
-    from model.calibration import CalibrationModel
+    from handeye.model import codegen, symbolic
+    from handeye.model.calibration import CalibrationModel
 
     s = symbolic.sphere_centre_from_plate()
 

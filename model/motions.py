@@ -4,7 +4,7 @@ translations.
 Every function returns ``(ids, flange2base)`` with ``flange2base`` of shape (N, 4, 4) in mm:
 the flange poses that put the sensor (true pose ``setup.sensor_pose`` on the flange) where it
 sees the sphere (``setup.sphere_centre``) at the requested sensor-frame point. They feed
-:func:`model.simulate.simulate` (``flange_poses``) and ``handeye simulate --motions``.
+:func:`handeye.model.simulate.simulate` (``flange_poses``) and ``handeye simulate --motions``.
 
 * ``thesis``: the seed's 36 orientations, the sphere seen at a random point of the working
   range (x in +-10 mm, |y| 3-20 mm on the setup's side, z 210-270 mm);
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from model.simulate import SimulationError, flanges_for_views, random_view, thesis_orientations
+from handeye.model.simulate import SimulationError, flanges_for_views, random_view, thesis_orientations
 
 STRATEGIES = ("thesis", "about-sphere")
 

@@ -1,6 +1,6 @@
 """From a dataset to a calibration model: which residual, which weights.
 
-Three residual models (:mod:`model.calibration`):
+Three residual models (:mod:`handeye.model.calibration`):
 
 * ``centre`` -- the seed's: the sphere centre reconstructed in the sensor frame. Without
   profiles every component gets the same weight. With profiles each sample is whitened by
@@ -18,15 +18,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from model import circle
-from model.calibration import CalibrationModel
+from handeye.model import circle
+from handeye.model.calibration import CalibrationModel
+from handeye.model.errors import InputError
 
 MODEL_KINDS = ("centre", "measurement", "points")
 ROBOT_SIGMA = 0.025
 CIRCLE_FIT = "geometric"
 
 
-class ObservationError(ValueError):
+class ObservationError(InputError):
     """The dataset lacks what the residual model needs (profiles)."""
 
 

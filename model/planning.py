@@ -1,6 +1,6 @@
 """Which poses to measure: D-optimal selection from a candidate set.
 
-Each candidate flange pose i contributes a Fisher information F_i (:func:`model.bounds.information`,
+Each candidate flange pose i contributes a Fisher information F_i (:func:`handeye.model.bounds.information`,
 for the nominal setup and the simulator's noise model). A set S of poses gives the covariance
 bound ``(sum_{i in S} F_i)^-1``; D-optimality maximises ``log det sum_{i in S} F_i``, i.e. shrinks
 the volume of the confidence ellipsoid. The selection is greedy (each step adds the pose
@@ -14,8 +14,14 @@ import dataclasses
 
 import numpy as np
 
-from model import bounds, simulate
-from model.pose import pose_from_transform, transform_from_pose
+from handeye.model import bounds, simulate
+from handeye.model.errors import InputError
+from handeye.model.pose import pose_from_transform, transform_from_pose
+
+
+
+class PlanningError(InputError):
+    """A pose plan that cannot be made (fewer usable candidates than poses asked for)."""
 
 
 def logdet(m):
@@ -34,7 +40,7 @@ def select(info, n, exchange=True, ridge=1e-9):
     info = np.asarray(info, float)
     total = len(info)
     if not 1 <= n <= total:
-        raise ValueError(f"cannot choose {n} poses from {total} candidates")
+        raise PlanningError(f"cannot choose {n} poses from {total} candidates")
     p = info.shape[1]
     scale = np.trace(info.sum(axis=0)) / p
     base = ridge * scale * np.eye(p)
@@ -107,7 +113,7 @@ def plan(candidate_ids, candidate_poses, n, setup, sphere_centre):
         except simulate.SimulationError as exc:
             skipped.append((ident, str(exc)))
     if len(keep) < n:
-        raise ValueError(f"only {len(keep)} candidate poses see the sphere; cannot choose {n}")
+        raise PlanningError(f"only {len(keep)} candidate poses see the sphere; cannot choose {n}")
     info = np.array(infos)
     chosen, value = select(info, n)
     idx = [keep[c] for c in chosen]

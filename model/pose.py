@@ -1,7 +1,7 @@
 """KUKA poses ``(x, y, z, A, B, C)`` and 4x4 homogeneous transforms.
 
 ``T = Trans(x, y, z) Rz(A) Ry(B) Rx(C)``, mm and degrees (seed 2.1.2, C2). The forward map is
-generated from :func:`model.symbolic.pose_transform`; the inverse is written here, because it
+generated from :func:`handeye.model.symbolic.pose_transform`; the inverse is written here, because it
 is a choice, not a derivation.
 
 Gimbal lock
@@ -11,7 +11,7 @@ documented choice of :func:`pose_from_transform` there is ``C = 0``: A carries t
 rotation about the (then common) axis. Near the lock the angles are computed so that the
 transform they give back is right to machine precision, however ill-determined A and C are
 individually: A from the first column, then C from what remains of R after ``Rz(A) Ry(B)``.
-Compare poses as transforms (:func:`model.rotation.transform_distance`), never as angles.
+Compare poses as transforms (:func:`handeye.model.rotation.transform_distance`), never as angles.
 """
 from __future__ import annotations
 
@@ -19,13 +19,13 @@ import functools
 
 import numpy as np
 
-from model import codegen
+from handeye.model import codegen
 
 
 @functools.lru_cache(maxsize=None)
 def _source():
     def build():
-        from model import symbolic  # sympy only on a cache miss
+        from handeye.model import symbolic  # sympy only on a cache miss
 
         inputs, t = symbolic.pose_transform()
         return inputs, list(t[:3, :])

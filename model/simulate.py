@@ -48,9 +48,10 @@ import pathlib
 
 import numpy as np
 
-from model import circle
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import matrix_from_rotvec
+from handeye.model import circle
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.errors import InputError
 
 #: Where the thesis strategy sees the sphere centre in the sensor frame (mm): x, |y| on the
 #: setup's side of the laser plane, z (module docstring).
@@ -61,7 +62,7 @@ CERTIFIED_DIAMETER = 59.94507
 THESIS_CENTRE = (1534.1314, -603.2729, 1118.8028)
 
 
-class SimulationError(ValueError):
+class SimulationError(InputError):
     """A simulation request that cannot be carried out (bad effect, pose missing the sphere)."""
 
 

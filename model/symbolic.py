@@ -1,8 +1,8 @@
 """The one symbolic source of the workbench's mathematics.
 
-Everything numeric in :mod:`model` -- the pose transform, the calibration residual with its
+Everything numeric in :mod:`handeye.model` -- the pose transform, the calibration residual with its
 exact Jacobian and second derivatives, the thesis's test function -- is derived here, once,
-with sympy. :mod:`model.codegen` turns these expressions into numpy (vectorised) and CasADi
+with sympy. :mod:`handeye.model.codegen` turns these expressions into numpy (vectorised) and CasADi
 functions; nothing is copied by hand.
 
 Conventions
@@ -29,8 +29,9 @@ import functools
 
 import sympy as sp
 
-#: Names of the rotation parametrisations of the unknown sensor rotation.
-ROTATIONS = ("euler", "matrix", "local")
+from handeye.model.calibration import KINDS, ROTATIONS  # noqa: F401 - defined once, without sympy
+from handeye.model.conventions import CONVENTIONS
+
 
 
 def rot_x(angle):
@@ -62,13 +63,6 @@ def skew(v):
     return sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
 
 
-#: Robot-brand rotation conventions and their parameters (units).
-CONVENTIONS = {
-    "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
-    "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)
-    "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
-    "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
-}
 
 
 @functools.lru_cache(maxsize=None)
@@ -151,7 +145,6 @@ def _sensor_rotation(rotation):
 
 
 #: Residual models: what one row of data says, and how many residual components it gives.
-KINDS = {"centre": 3, "measurement": 3, "points": 1}
 
 
 @functools.lru_cache(maxsize=None)

@@ -1,6 +1,6 @@
 """The seed's test function (6-16): values, derivatives, least-squares form, stationary points.
 
-Everything is generated from :func:`model.symbolic.test_function`. ``f + 300 = |r(x)|^2``
+Everything is generated from :func:`handeye.model.symbolic.test_function`. ``f + 300 = |r(x)|^2``
 exactly, so Gauss-Newton and Levenberg-Marquardt can be run on ``1/2 |r|^2 = (f + 300) / 2``,
 which has the same minimisers and saddle as f.
 
@@ -16,7 +16,7 @@ import functools
 
 import numpy as np
 
-from model import codegen
+from handeye.model import codegen
 
 A_POINT = np.array([1.0, 1.0])
 B_POINT = np.array([-1.0, -2.0])
@@ -25,7 +25,7 @@ B_POINT = np.array([-1.0, -2.0])
 @functools.lru_cache(maxsize=None)
 def _source():
     def build():
-        from model import symbolic  # sympy only on a cache miss
+        from handeye.model import symbolic  # sympy only on a cache miss
 
         s = symbolic.test_function()
         outs = [s["f"], *s["grad"], *s["hess"], *s["r"], *s["rjac"]]

@@ -1,12 +1,12 @@
 """handeye's solvers: unconstrained and least-squares minimisation, written from their
 definitions (Nocedal & Wright), plus IPOPT through CasADi. Knows nothing of robots.
 
->>> from solvers import Problem, solve
+>>> from handeye.solvers import Problem, solve
 >>> res = solve(Problem(n=1, residual=lambda x: x - 3, jacobian=lambda x: [[1.0]]), [0.0], "gn")
 """
-from solvers.api import METHODS, solve, supports
-from solvers.problem import Options, Problem, UnsupportedProblem, forward_difference_jacobian
-from solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult
+from handeye.solvers.api import METHODS, solve, supports
+from handeye.solvers.problem import Options, Problem, UnsupportedProblem, forward_difference_jacobian
+from handeye.solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult
 
 __all__ = [
     "CONVERGED",

@@ -1,8 +1,8 @@
 """The one front end: ``solve(problem, x0, method=..., options=...)``."""
 from __future__ import annotations
 
-from solvers import gauss_newton, ipopt, levenberg_marquardt, line_search, newton, trust_region
-from solvers.problem import Options, Problem, UnsupportedProblem
+from handeye.solvers import gauss_newton, ipopt, levenberg_marquardt, line_search, newton, trust_region
+from handeye.solvers.problem import Options, Problem, UnsupportedProblem
 
 #: method -> (what the problem must provide, description)
 METHODS = {
@@ -52,7 +52,7 @@ def solve(problem: Problem, x0, method="lm", options=None):
     method : str
         Key of :data:`METHODS`.
     options : dict or Options, optional
-        See :class:`solvers.problem.Options`; a dict is copied, never mutated.
+        See :class:`handeye.solvers.problem.Options`; a dict is copied, never mutated.
 
     Returns
     -------

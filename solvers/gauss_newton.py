@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.problem import forward_difference_jacobian
-from solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.problem import forward_difference_jacobian
+from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
 
 
 def minimize(problem, x0, opts):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
 
 
 def minimize(problem, x0, opts):

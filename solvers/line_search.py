@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
 
 C1, C2, RHO = 1e-4, 0.9, 0.5
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.result import Tracker, gradient_small, step_small
+from handeye.solvers.result import Tracker, gradient_small, step_small
 
 
 def minimize(problem, x0, opts):

@@ -1,7 +1,7 @@
 """What a solver is given: a problem as a bundle of callables, and its options.
 
 A problem knows nothing of robots. Every field is optional; each method states what it needs
-(``REQUIRES`` in :mod:`solvers.api`) and :func:`solvers.solve` refuses, with a clear message, a
+(``REQUIRES`` in :mod:`handeye.solvers.api`) and :func:`handeye.solvers.solve` refuses, with a clear message, a
 problem that lacks it.
 
 * Least squares: ``residual(x) -> r (m,)`` and ``jacobian(x) -> J (m, n)``; the cost is
@@ -96,7 +96,7 @@ class Options:
         Trust-region radius at start (in scaled units); None: the length of the model's
         steepest-descent minimiser (the Cauchy step without a bound).
     scaling : bool
-        Trust regions only: ellipsoidal region ``|D p| <= Delta`` (see :mod:`solvers.trust_region`).
+        Trust regions only: ellipsoidal region ``|D p| <= Delta`` (see :mod:`handeye.solvers.trust_region`).
     max_radius_factor : float
         Largest radius as a multiple of the initial one.
     eta : float

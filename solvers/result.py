@@ -22,7 +22,7 @@ CONVERGED = frozenset({1, 2, 3, 5, 6})
 
 @dataclasses.dataclass
 class OptimizeResult:
-    """Outcome of :func:`solvers.solve`.
+    """Outcome of :func:`handeye.solvers.solve`.
 
     Attributes
     ----------

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
 
 
 def _boundary_tau(p, d, radius):

@@ -1,1 +1,1 @@
-"""handeye's application layer: calibration runs, reports, studies and the ``handeye`` CLI."""
+"""handeye's studies: each tells one story (model, data, solve, report) and asserts its claims."""

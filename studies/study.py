@@ -11,23 +11,9 @@ import importlib
 import json
 import pathlib
 
-#: study name -> module (each has ``run(out, quick) -> dict``)
-STUDIES = {
-    "testfunction": "studies.study_testfunction",
-    "start-poses": "studies.study_start_poses",
-    "real-data": "studies.study_real_data",
-    "circle-fits": "studies.study_circle_fits",
-    "accuracy": "studies.study_accuracy",
-    "random-starts": "studies.study_random_starts",
-    "pose-planning": "studies.study_planning",
-    "discrepancy-power": "studies.study_power",
-    "classics": "studies.study_classics",
-}
-
-
-class StudyClaimFailed(AssertionError):
-    """A study's data did not support its claim."""
-
+from handeye.app.errors import RequestError
+from handeye.app.plotting import figure  # noqa: F401 - the studies' figures
+from handeye.app.registry import STUDIES, StudyClaimFailed
 
 def claim(condition, text):
     """Assert a study's claim; the message says what was claimed."""
@@ -55,23 +41,13 @@ def write_summary(out, summary):
     (pathlib.Path(out) / "summary.json").write_text(json.dumps(summary, indent=1, default=float) + "\n")
 
 
-def figure():
-    """A matplotlib figure on the non-interactive backend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def run(name, out, quick=False):
     """Run one study (or ``all``); returns ``{name: summary}``."""
     names = list(STUDIES) if name == "all" else [name]
     results = {}
     for n in names:
         if n not in STUDIES:
-            raise ValueError(f"unknown study {n!r}; choose one of {', '.join(STUDIES)} or all")
+            raise RequestError(f"unknown study {n!r}; choose one of {', '.join(STUDIES)} or all")
         folder = pathlib.Path(out) / n
         folder.mkdir(parents=True, exist_ok=True)
         results[n] = importlib.import_module(STUDIES[n]).run(folder, quick=quick)

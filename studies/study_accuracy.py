@@ -4,7 +4,7 @@ Story. One measurement design (the thesis strategy, 36 poses, simulated once) is
 again and again with fresh noise (robot repeatability 0.025 mm, profile points 0.01 mm). Each
 replicate is calibrated with the ``centre``, ``measurement`` and ``points`` residuals. The root
 mean square error of each pose parameter is compared with the bound of
-:func:`model.bounds.crlb`, and the standard deviations the tool reports with the observed
+:func:`handeye.model.bounds.crlb`, and the standard deviations the tool reports with the observed
 scatter.
 
 The accuracy figure the tool reports for real data, the leave-one-out error of the sphere
@@ -23,12 +23,12 @@ import tempfile
 
 import numpy as np
 
-from model import bounds, simulate
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import rotvec_from_matrix
-from studies.calibrate import calibrate
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model import bounds, simulate
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.calibrate import calibrate
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 KINDS = ("centre", "measurement", "points")
 NAMES = ["tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg"]

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from model import circle
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model import circle
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 RADIUS = 25.0
 

@@ -4,16 +4,16 @@ Story. The seed reviews two published closed-form hand-eye methods (2.6, Appendi
 rates them on paper (Table 4-1: Kim & Cho 22/50, Li et al. 26/50). Here they run on the same
 simulated data as the nonlinear least squares (NLS).
 
-Model. :func:`model.classics.kim_cho` (every pair of samples of the fixed sphere is a motion
-pair; the sphere position is not used), :func:`model.classics.li_two_step` (pure
+Model. :func:`handeye.model.classics.kim_cho` (every pair of samples of the fixed sphere is a motion
+pair; the sphere position is not used), :func:`handeye.model.classics.li_two_step` (pure
 translations -> rotation; every pose -> translation with the known sphere centre), and the NLS
-of the ``centre`` residual (:func:`model.fast.calibrate_fast`, started at the nominal pose).
+of the ``centre`` residual (:func:`handeye.model.fast.calibrate_fast`, started at the nominal pose).
 
 Data. The thesis strategy (n orientations, the sphere seen at random points of the working
 range) plus, at two orientations, four pure flange translations of 10-20 mm and their base
 pose (10 samples: what Li et al. need). Robot repeatability 0.025 mm and profile-point noise
 0.01 mm, both scaled by a factor k. Sweeps: k = 0.5 ... 8 at 36 orientations, and n = 9 ... 36
-at k = 1, with R replicates each. The Cramer-Rao bound (:func:`model.bounds.crlb`) of each
+at k = 1, with R replicates each. The Cramer-Rao bound (:func:`handeye.model.bounds.crlb`) of each
 design is the floor.
 
 Basins. For each replicate at k = 1 the plain local Newton method (exact Hessian, no
@@ -41,15 +41,15 @@ import time
 
 import numpy as np
 
-import solvers
-from model import bounds, classics, fast, motions, simulate
-from model.calibration import CalibrationModel
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import transform_distance
-from studies import sweep
-from studies.problems import calibration_problem
-from studies.study import claim, figure, write_summary, write_table
-from studies.study_random_starts import random_start
+from handeye import solvers
+from handeye.model import bounds, classics, fast, motions, simulate
+from handeye.model.calibration import CalibrationModel
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import transform_distance
+from handeye.app import sweep
+from handeye.app.problems import calibration_problem
+from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study_random_starts import random_start
 
 METHODS = ("nls", "kim-cho", "li-two-step")
 NOISE = (0.5, 1.0, 2.0, 4.0, 8.0)
@@ -192,8 +192,8 @@ def run(out, quick=False):
 def _real_data():
     """thesis-real without its gross errors: Kim & Cho beside the least squares with the plate-
     taught sphere centre and with the centre free (Li et al. has no pure translations there)."""
-    from model.calibration import CalibrationModel
-    from studies import bench, robust
+    from handeye.model.calibration import CalibrationModel
+    from handeye.app import bench, robust
 
     f2b, xs, c, start = bench.real_case()
     kc = classics.kim_cho(f2b, xs).sensor2flange

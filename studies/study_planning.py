@@ -16,12 +16,12 @@ import tempfile
 
 import numpy as np
 
-from model import bounds, planning, simulate
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import rotvec_from_matrix
-from studies.calibrate import calibrate
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model import bounds, planning, simulate
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.calibrate import calibrate
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 
 def _rmse(setup, ids, poses, reps):

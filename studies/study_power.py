@@ -15,10 +15,10 @@ import tempfile
 
 import numpy as np
 
-from model import simulate
-from model.dataset import load
-from studies.diagnose import diagnose
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model import simulate
+from handeye.model.dataset import load
+from handeye.app.diagnose import diagnose
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 GRIDS = {
     "sphere_center": [0.01, 0.02, 0.04, 0.08, 0.16],  # mm, along a fixed unit direction

@@ -15,14 +15,14 @@ import tempfile
 
 import numpy as np
 
-import solvers
-from model import observations, simulate
-from model.dataset import load
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
-from studies.calibrate import SUPPORTED, calibrate
-from studies.problems import calibration_problem
-from studies.study import claim, figure, write_summary, write_table
+from handeye import solvers
+from handeye.model import observations, simulate
+from handeye.model.dataset import load
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
+from handeye.app.calibrate import SUPPORTED, calibrate
+from handeye.app.problems import calibration_problem
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("lm", "gn", "dogleg", "tr", "newton", "ipopt")
 

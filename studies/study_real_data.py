@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import transform_distance
-from studies.calibrate import SUPPORTED, calibrate
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import transform_distance
+from handeye.app.calibrate import SUPPORTED, calibrate
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 TABLE_7_4 = (189.69, 99.71, 130.36, -181.40, -89.24, 0.155)
 

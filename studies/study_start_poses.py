@@ -16,11 +16,11 @@ import time
 
 import numpy as np
 
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import transform_distance
-from studies.calibrate import SUPPORTED, calibrate
-from studies.study import claim, figure, write_summary, write_table
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import transform_distance
+from handeye.app.calibrate import SUPPORTED, calibrate
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 TABLE_7_2 = [
     (5, 0, 5, 0, -90, 0), (75, 0, 5, 0, -90, 0), (5, 60, 5, 0, -90, 0), (5, 0, 45, 0, -90, 0),

@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
-import solvers
-from model import testfunction
-from studies import sweep
-from studies.problems import testfunction_problem
-from studies.study import claim, figure, write_summary, write_table
+from handeye import solvers
+from handeye.model import testfunction
+from handeye.app import sweep
+from handeye.app.problems import testfunction_problem
+from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 KINDS = ("global", "local", "saddle", "none")

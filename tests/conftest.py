@@ -6,7 +6,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from model.pose import pose_from_transform, transform_from_pose
+from handeye.model.pose import pose_from_transform, transform_from_pose
 
 SEED_FILE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "seed" / "000_3098c10cdf8c6ab2.txt"
 

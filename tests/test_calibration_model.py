@@ -3,10 +3,10 @@ what the data can and cannot determine (the seed's 12 unknowns)."""
 import numpy as np
 import pytest
 
-from model import identifiability, symbolic
-from model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
-from model.dataset import load
-from model.pose import transform_from_pose
+from handeye.model import identifiability, symbolic
+from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
 
 CASES = [(r, u) for r in ROTATIONS for u in UNKNOWNS]
 KIND_CASES = [(r, k) for r in ROTATIONS for k in ("measurement", "points")]
@@ -34,7 +34,7 @@ def start_point(m, seed=1):
 
 
 def test_rotation_names_agree_with_the_symbolic_source():
-    from model.calibration import KINDS
+    from handeye.model.calibration import KINDS
 
     assert ROTATIONS == symbolic.ROTATIONS
     assert KINDS == symbolic.KINDS

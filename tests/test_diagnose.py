@@ -4,11 +4,11 @@ import json
 import numpy as np
 import pytest
 
-from model import effects, simulate
-from model.dataset import load
-from model.pose import pose_from_transform, transform_from_pose
-from studies.cli import EXIT_OK, main
-from studies.diagnose import diagnose
+from handeye.model import effects, simulate
+from handeye.model.dataset import load
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.app.cli import EXIT_OK, main
+from handeye.app.diagnose import diagnose
 
 SETUP = simulate.Setup()
 STRUCTURAL = {"base_frame", "flange_frame", "laser_plane"}

@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from model import rotation
-from model.pose import (
+from handeye.model import rotation
+from handeye.model.pose import (
     kuka_from_matrix,
     matrix_from_kuka,
     pose_from_transform,

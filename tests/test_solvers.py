@@ -7,15 +7,15 @@ linear least-squares problem, and the calibration of thesis-sim in each parametr
 import numpy as np
 import pytest
 
-import solvers
-from model import testfunction
-from model.calibration import CalibrationModel
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import transform_distance
-from solvers import Options, Problem, UnsupportedProblem, solve
-from studies.problems import calibration_problem
-from studies.problems import testfunction_problem as potential_problem
+from handeye import solvers
+from handeye.model import testfunction
+from handeye.model.calibration import CalibrationModel
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import transform_distance
+from handeye.solvers import Options, Problem, UnsupportedProblem, solve
+from handeye.app.problems import calibration_problem
+from handeye.app.problems import testfunction_problem as potential_problem
 
 ALL_METHODS = sorted(solvers.METHODS)
 
@@ -140,7 +140,7 @@ def test_trust_region_subproblems_agree_and_cg_is_accepted():
 
 
 def test_more_sorensen_solves_the_subproblem():
-    from solvers.trust_region import subproblem_exact
+    from handeye.solvers.trust_region import subproblem_exact
 
     rng = np.random.default_rng(3)
     for _ in range(50):

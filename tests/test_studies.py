@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from model import bounds, planning, simulate
-from studies.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from studies.study import STUDIES
+from handeye.model import bounds, planning, simulate
+from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.studies.study import STUDIES
 
 
 @pytest.mark.parametrize("name", sorted(STUDIES))

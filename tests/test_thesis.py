@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from conftest import simulate
-from model.calibration import CalibrationModel
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import rotvec_from_matrix, transform_distance
-from studies.calibrate import SUPPORTED, calibrate
+from handeye.model.calibration import CalibrationModel
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import rotvec_from_matrix, transform_distance
+from handeye.app.calibrate import SUPPORTED, calibrate
 
 TABLE_7_2 = [
     (5, 0, 5, 0, -90, 0), (75, 0, 5, 0, -90, 0), (5, 60, 5, 0, -90, 0), (5, 0, 45, 0, -90, 0),

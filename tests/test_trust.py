@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from model import circle, simulate
-from model.closed_form import ClosedFormError, closed_form_estimate
-from model.dataset import load
-from model.pose import transform_from_pose
-from model.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
-from studies.calibrate import calibrate
-from studies.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.model import circle, simulate
+from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+from handeye.model.dataset import load
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
+from handeye.app.calibrate import calibrate
+from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
 
 IDEAL = simulate.Setup(linearity=0.0)
 
@@ -97,7 +97,7 @@ def test_profile_models_need_profiles(tmp_path):
     assert d.profiles is None
     res = calibrate(d, method="lm", loo=False)
     assert res["model"] == "centre"
-    from model.observations import ObservationError
+    from handeye.model.observations import ObservationError
 
     with pytest.raises(ObservationError, match="needs a profile for every sample"):
         calibrate(d, method="lm", model="points")
@@ -133,7 +133,7 @@ def test_random_starts_all_converge_with_the_closed_form_restart(tmp_path, metho
         start[:3, :3] = rot
         offset = rng.normal(size=3)
         start[:3, 3] = truth[:3, 3] + rng.uniform(0, 500) * offset / np.linalg.norm(offset)
-        from model.pose import pose_from_transform
+        from handeye.model.pose import pose_from_transform
 
         res = calibrate(d, method=method, start=pose_from_transform(start), loo=False, outliers=False)
         assert res["converged"]
@@ -227,8 +227,8 @@ def test_plain_fit_of_every_sample_converges_despite_the_misprint():
     """thesis-real with its 2,000 mm misprint is a large-residual problem: LM creeps (2,256
     iterations to its tolerance); the fit hands over to exact-Hessian trust region and
     converges, and so does every leave-one-out refit of the unscreened data."""
-    from model.calibration import CalibrationModel
-    from studies import robust
+    from handeye.model.calibration import CalibrationModel
+    from handeye.app import robust
 
     d = load("thesis-real")
     model = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "local")

@@ -23,7 +23,7 @@ import importlib
 
 import numpy as np
 
-from model import codegen
+from handeye.model import codegen
 
 MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier",
            "base_frame", "flange_frame", "laser_plane")
@@ -34,7 +34,7 @@ def get(name):
     """The effect module called ``name``."""
     if name not in MODULES:
         raise ValueError(f"unknown effect {name!r}; the catalogue has {', '.join(MODULES)}")
-    return importlib.import_module(f"model.effects.{name}")
+    return importlib.import_module(f"handeye.model.effects.{name}")
 
 
 def catalogue(kind=None):

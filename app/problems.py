@@ -1,14 +1,14 @@
-"""Glue: the model's functions as :class:`solvers.Problem` objects."""
+"""Glue: the model's functions as :class:`handeye.solvers.Problem` objects."""
 from __future__ import annotations
 
 import numpy as np
 
-from model import testfunction
-from solvers import Problem
+from handeye.model import testfunction
+from handeye.solvers import Problem
 
 
 def calibration_problem(model):
-    """A :class:`solvers.Problem` of a :class:`model.calibration.CalibrationModel`.
+    """A :class:`handeye.solvers.Problem` of a :class:`handeye.model.calibration.CalibrationModel`.
 
     Least-squares callables and the exact Hessian for every parametrisation; the CasADi NLP
     for ``euler`` and ``matrix``; the retraction for ``local``.
@@ -29,7 +29,7 @@ def testfunction_nlp():
     """The test function (6-16) as a CasADi NLP dict, generated from the same source."""
     import casadi as ca
 
-    from model import codegen, symbolic
+    from handeye.model import codegen, symbolic
 
     def build():
         s = symbolic.test_function()

@@ -11,7 +11,7 @@ Methods, each from the same start (the dataset's; for simulations 40 mm and a fe
   with tolerances 1e-15 so that it gets as close to the minimum as it can;
 * ``scipy-exact`` -- the same with our exact Jacobian;
 * ``ipopt-matrix`` -- CasADi IPOPT on the rotation-matrix parametrisation (up to 3,000);
-* ``fast-vm`` -- :mod:`model.fast`'s Levenberg-Marquardt in Python, normal equations from the
+* ``fast-vm`` -- :mod:`handeye.model.fast`'s Levenberg-Marquardt in Python, normal equations from the
   CasADi virtual machine (up to 3,000);
 * ``fast`` -- the same iteration compiled: generated C for the model, C driver, one call.
 
@@ -32,13 +32,13 @@ import time
 
 import numpy as np
 
-import solvers
-from model import fast, simulate
-from model.calibration import CalibrationModel
-from model.dataset import load
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import nearest_transform, transform_distance
-from studies import robust
+from handeye import solvers
+from handeye.model import fast, simulate
+from handeye.model.calibration import CalibrationModel
+from handeye.model.dataset import load
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import nearest_transform, transform_distance
+from handeye.app import robust
 
 SIZES = (30, 300, 3000, 30000)
 SCALING = (30, 100, 300, 1000, 3000, 10000, 30000)
@@ -80,7 +80,7 @@ def real_case():
     """thesis-real without the samples the robust screening flags, and its CAD start."""
     d = load("thesis-real")
     start = transform_from_pose(d.start_pose)
-    s = robust.screen(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "sensor", start, d.ids, d.rows)
+    s = robust.screen(d, "sensor", start)
     return d.flange2base()[s.inliers], d.centre_in_sensor[s.inliers], d.sphere_centre, start
 
 
@@ -235,7 +235,7 @@ def throughput(quick=False, n=None, chunk=1000):
     """Monte Carlo: independent calibrations of 31 measurements per second on all cores (joblib),
     wall clock including the simulation of their data; and the calibration-only rate of one core.
     Every calibration must converge."""
-    from studies import sweep
+    from handeye.app import sweep
 
     n = n or (4000 if quick else 40000)
     jobs = sweep.n_jobs()
@@ -253,7 +253,7 @@ def throughput(quick=False, n=None, chunk=1000):
 def startup():
     """Wall time of ``handeye calibrate`` (default options, thesis-real) with an empty
     generated-code cache (cold: sympy derives and CasADi builds) and then with it filled (warm)."""
-    cmd = [sys.executable, "-m", "studies.cli", "calibrate", "--json"]
+    cmd = [sys.executable, "-m", "handeye.app.cli", "calibrate", "--json"]
     out = {}
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, HANDEYE_CACHE=cache)

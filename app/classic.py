@@ -1,8 +1,8 @@
 """``handeye calibrate --method kim-cho|li-two-step``: the closed-form baselines on a dataset.
 
 Gross errors are screened first, exactly as ``calibrate`` does (robust pass and deletion
-tests, :func:`studies.robust.screen`; ``--keep-all`` skips it), then the closed-form method of
-:mod:`model.classics` runs on the samples kept. The estimate is reported beside what the
+tests, :func:`handeye.app.robust.screen`; ``--keep-all`` skips it), then the closed-form method of
+:mod:`handeye.model.classics` runs on the samples kept. The estimate is reported beside what the
 nonlinear least squares makes of the same samples when started from it (distance,
 iterations), so a user sees at once how far the linear method is from the least-squares
 optimum. No uncertainty: these are baselines, and the report says so.
@@ -13,13 +13,15 @@ import time
 
 import numpy as np
 
-from model import classics
-from model.calibration import CalibrationModel
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import transform_distance
-from studies import robust
-from studies.calibrate import CalibrationInputError, resolve_start
-from studies.robust import ALPHA
+from handeye.app import robust
+from handeye.app.calibrate import resolve_start
+from handeye.app.errors import CalibrationInputError
+from handeye.app.results import CalibrationResult, ClosedFormDetails, SampleResidual
+from handeye.app.robust import ALPHA
+from handeye.model import classics, conventions
+from handeye.model.calibration import CalibrationModel
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import transform_distance
 
 METHODS = ("kim-cho", "li-two-step")
 
@@ -33,21 +35,23 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
     raise CalibrationInputError(f"--method: unknown closed-form method {method!r}; choose one of {', '.join(METHODS)}")
 
 
-def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA):
-    """JSON-ready result of a closed-form method on ``dataset``.
+def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA, convention=None):
+    """A closed-form method on ``dataset``, as a :class:`handeye.app.results.CalibrationResult`.
 
     ``unknowns='sensor+sphere'`` does not use the dataset's sphere centre: Kim & Cho never
     need it (the centre is then the mean of the predicted centres), Li et al. estimate it in
     step 2. ``outliers`` screens gross errors first (module docstring). Raises
     CalibrationInputError naming the file when the motions the method needs are missing.
+    The result has ``status`` None (no solver ran), no uncertainty and no leave-one-out
+    error; ``closed_form`` holds the linear solution and where the least squares goes from it.
     """
+    convention = conventions.check(convention or dataset.convention)
     f2b_all, xs_all = dataset.flange2base(), dataset.centre_in_sensor
     known = None if unknowns == "sensor+sphere" else np.asarray(dataset.sphere_centre, float)
     mask, excluded = np.ones(len(xs_all), bool), []
     if outliers:
         start = transform_from_pose(resolve_start(dataset, unknowns)[0])
-        screening = robust.screen(f2b_all, xs_all, dataset.sphere_centre, unknowns, start, dataset.ids, dataset.rows,
-                                  alpha=alpha)
+        screening = robust.screen(dataset, unknowns, start, alpha=alpha)
         mask, excluded = screening.inliers, screening.excluded
     f2b, xs = f2b_all[mask], xs_all[mask]
     classics.axxb_system(np.eye(4)[None], p=np.zeros((1, 3)), q=np.zeros((1, 3)))  # load the generated code untimed
@@ -74,40 +78,48 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     if est.details.get("orthogonality_error", 0) > 0.01:
         warnings.append(f"the linear solution's rotation block was {est.details['orthogonality_error']:.3g} from "
                         "orthogonal (|R^T R - I|) before projection onto SO(3)")
-    return {
-        "dataset": str(dataset.path), "method": method, "unknowns": unknowns, "converged": True,
-        "status": "closed form", "message": "closed-form estimate (no iterations)",
-        "sensor_pose": pose_from_transform(est.sensor2flange).tolist(),
-        "sensor_matrix": est.sensor2flange.tolist(), "linear_matrix": est.linear.tolist(),
-        "sphere_center": np.asarray(centre).tolist(), "n_used": int(mask.sum()),
-        "rms_mm": float(np.sqrt(np.mean(norms[mask] ** 2))), "max_residual_mm": float(norms[mask].max()),
-        "residuals": [{"id": i, "row": int(r), "vector": v.tolist(), "norm": float(n), "used": bool(u)}
-                      for i, r, v, n, u in zip(dataset.ids, dataset.rows, e, norms, mask)],
-        "excluded": excluded, "outliers": [x["id"] for x in excluded],
-        "details": est.details, "time_ms": elapsed * 1e3,
-        "least_squares_from_here": {"distance_mm": float(dt), "distance_deg": float(dr),
-                                    "iterations": int(refined.iterations), "converged": bool(refined.status > 0),
-                                    "rms_mm": float(np.sqrt(2 * refined.cost / len(xs)))},
-        "warnings": warnings,
-    }
+    pose = pose_from_transform(est.sensor2flange)
+    return CalibrationResult(
+        dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
+        method=method, unknowns=unknowns, converged=True, status=None,
+        message="closed-form estimate (no iterations)",
+        sensor2flange=est.sensor2flange, sensor_pose_kuka=pose,
+        sensor_pose=conventions.pose_from(convention, est.sensor2flange), convention=convention,
+        columns=conventions.columns(convention), sphere_centre=np.asarray(centre, float),
+        n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
+        max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
+        residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
+                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, e, norms, mask)],
+        excluded=list(excluded), warnings=warnings,
+        closed_form=ClosedFormDetails(
+            linear_matrix=est.linear, details=est.details, time_ms=elapsed * 1e3,
+            least_squares_from_here={"distance_mm": float(dt), "distance_deg": float(dr),
+                                     "iterations": int(refined.iterations), "converged": bool(refined.converged),
+                                     "rms_mm": float(np.sqrt(2 * refined.cost / len(xs)))}),
+    )
 
 
 def classic_text(res):
-    """Readable report of :func:`calibrate_classic`."""
-    d, ls = res["details"], res["least_squares_from_here"]
+    """Readable report of :func:`calibrate_classic` (a CalibrationResult with ``closed_form``)."""
+    d, ls = res.closed_form.details, res.closed_form.least_squares_from_here
     used = (f"{d['pairs']} motion pairs, condition number {d['condition']:.3g} (column-scaled D)" if "pairs" in d
             else f"{len(d['translation_pairs'])} pure-translation pairs spanning {d['directions']} directions")
     lines = [
-        f"handeye calibrate: dataset {res['dataset']}, method {res['method']} (closed form), unknowns {res['unknowns']}",
-        f"used: {used}; {res['time_ms']:.2f} ms",
-        "sensor pose  (x y z mm, A B C deg): " + " ".join(f"{v:10.4f}" for v in res["sensor_pose"]),
-        "sphere centre in base (mm): " + " ".join(f"{v:12.4f}" for v in res["sphere_center"]),
-        f"RMS residual {res['rms_mm']:.4f} mm over {res['n_used']} samples used, max {res['max_residual_mm']:.4f} mm",
+        f"handeye calibrate: dataset {res.dataset}, method {res.method} (closed form), unknowns {res.unknowns}",
+        f"used: {used}; {res.closed_form.time_ms:.2f} ms",
+        "sensor pose  (x y z mm, A B C deg): " + " ".join(f"{v:10.4f}" for v in res.sensor_pose_kuka),
+    ]
+    if res.convention != "kuka":
+        lines.append(f"sensor pose ({res.convention}: {','.join(res.columns)}): "
+                     + " ".join(f"{v:10.6f}" for v in res.sensor_pose))
+    lines += [
+        "sphere centre in base (mm): " + " ".join(f"{v:12.4f}" for v in res.sphere_centre),
+        f"RMS residual {res.rms_mm:.4f} mm over {res.n_used} samples used, max {res.max_residual_mm:.4f} mm",
         f"least squares started here: {'converged' if ls['converged'] else 'NOT converged'} in {ls['iterations']} "
         f"iterations, {ls['distance_mm']:.4f} mm and {ls['distance_deg']:.4f} deg away, RMS {ls['rms_mm']:.4f} mm",
     ]
-    if res["excluded"]:
+    if res.excluded:
         lines.append("excluded samples (gross errors, screened as calibrate does):")
-        lines += [f"  {x['id']} (row {x['row']}): {x['reason']}" for x in res["excluded"]]
-    lines += [f"warning: {w}" for w in res["warnings"]]
+        lines += [f"  {x.id} (row {x.row}): {x.reason}" for x in res.excluded]
+    lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)

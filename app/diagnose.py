@@ -6,10 +6,10 @@ it *finds* a gap), a catalogue of named candidate effects (like sparse model dis
 *names* terms), and an identifiability gate (like robot-calibration practice it refuses what
 the poses cannot separate):
 
-1. Robust first fit; gross outliers screened with a robust scale (:mod:`studies.robust`).
+1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.robust`).
 2. Least-squares fit of the current model; residuals per sample and component, RMS, chi2/dof
    against a stated noise level, 5-fold held-out prediction error.
-3. For every candidate of the catalogue (:mod:`model.effects`): its Jacobian columns at the
+3. For every candidate of the catalogue (:mod:`handeye.model.effects`): its Jacobian columns at the
    fit; the identifiability gate -- the part of the columns orthogonal to the current model's
    must keep at least ``GATE`` of their size, otherwise the effect is "absorbed by" the current
    parameters that reproduce it, and never named; the score (Lagrange multiplier) test
@@ -31,16 +31,17 @@ import dataclasses
 
 import numpy as np
 
-import solvers
-from model import effects
-from model.calibration import CalibrationModel
-from model.pose import pose_from_transform, transform_from_pose
-from model.statistics import chi2_survival, deletion_statistics, f_survival
-from studies import robust
-from studies.calibrate import resolve_start
+from handeye import solvers
+from handeye.model import effects
+from handeye.model.calibration import CalibrationModel
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.statistics import chi2_survival, deletion_statistics, f_survival
+from handeye.app import robust
+from handeye.app.results import DiagnosisResidual, DiagnosisResult, NamedEffect, ScoreTest, Step
+from handeye.app.calibrate import resolve_start
 
-#: Family-wise level of the effect tests and of the outlier tests.
-ALPHA = 0.01
+#: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
+ALPHA = robust.ALPHA
 #: Fraction of an effect's columns that must lie outside the current model's span.
 GATE = 1e-3
 #: Nominal noise per residual component (mm) for chi2/dof: robot repeatability and centre
@@ -239,11 +240,23 @@ def _summaries(prob, structure, fit, mask):
 
 
 def diagnose(dataset, alpha=ALPHA, start=None):
-    """Run the procedure (module docstring) on a dataset; returns a JSON-ready dict."""
+    """Run the procedure (module docstring) on a dataset.
+
+    Parameters
+    ----------
+    dataset : handeye.model.dataset.Dataset
+    alpha : float
+        Family-wise level of the effect and outlier tests.
+    start : array_like, shape (6,), optional
+        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.calibrate.resolve_start`.
+
+    Returns
+    -------
+    handeye.app.results.DiagnosisResult
+    """
     prob = Samples(dataset)
     start_pose, _ = resolve_start(dataset, "sensor", start)
-    screening = robust.screen(prob.f2b, dataset.centre_in_sensor, dataset.sphere_centre, "sensor",
-                              transform_from_pose(start_pose), dataset.ids, dataset.rows, alpha=alpha)
+    screening = robust.screen(dataset, "sensor", transform_from_pose(start_pose), alpha=alpha)
     mask = screening.inliers.copy()
     structure = Structure()
     fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
@@ -396,48 +409,48 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     corr = cov / np.outer(np.where(std > 0, std, 1), np.where(std > 0, std, 1))
     index = {name: k for k, name in enumerate(fit.names)}
-    named = []
+    named, all_cols = [], []
     if structure.centre:
         ks = [index["cx"], index["cy"], index["cz"]]
         delta = fit.x[12:15] - d.sphere_centre
-        named.append({"name": "sphere_center", "parameters": dict(zip(("dx", "dy", "dz"), delta.tolist())),
-                      "std": dict(zip(("dx", "dy", "dz"), std[ks].tolist())), "columns": ks})
+        named.append(NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
+                                 dict(zip(("dx", "dy", "dz"), std[ks].tolist()))))
+        all_cols += ks
     for name in structure.data_effects:
         pnames = effects.get(name).PARAMS
         ks = [index[f"{name}.{p}"] for p in pnames]
-        named.append({"name": name, "parameters": dict(zip(pnames, fit.params[name].tolist())),
-                      "std": dict(zip(pnames, std[ks].tolist())), "columns": ks})
-    all_cols = [k for eff in named for k in eff.pop("columns")]
+        named.append(NamedEffect(name, dict(zip(pnames, fit.params[name].tolist())),
+                                 dict(zip(pnames, std[ks].tolist()))))
+        all_cols += ks
     if flips:
-        named.append({"name": "sign_flip", "parameters": {"ids": [d.ids[i] for i in flips]}, "std": None})
+        named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     after_norms = np.linalg.norm(fit.e, axis=1)
-    return {
-        "dataset": d.name,
-        "effects": named,
-        "outliers": [d.ids[i] for i in outliers],
-        "not_identifiable": sorted(absorbed),
-        "absorbed_by": absorbed,
-        "rms_before_mm": before["rms_mm"],
-        "rms_after_mm": after["rms_mm"],
-        "heldout_rms_before_mm": before["heldout_rms_mm"],
-        "heldout_rms_after_mm": after["heldout_rms_mm"],
-        "chi2_dof_before": before["chi2_dof"],
-        "chi2_dof_after": after["chi2_dof"],
-        "nominal_sigma_mm": NOMINAL_SIGMA,
-        "sigma_after_mm": after["sigma_mm"],
-        "sensor_pose": pose_from_transform(sensor).tolist(),
-        "sensor_matrix": sensor.tolist(),
-        "sphere_center": prob.centre(structure, fit.x).tolist(),
-        "effect_correlations": {"names": [fit.names[k] for k in all_cols],
-                                "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
-        "steps": steps,
-        "tests": tested,
-        "residuals": [{"id": i, "before_mm": float(b), "after_mm": float(a), "used": bool(u)}
-                      for i, b, a, u in zip(d.ids, before_norms, after_norms, mask)],
-        "screened_out_first": [e["id"] for e in screening.excluded],
-        "unexplained": _unexplained(after),
-    }
+    return DiagnosisResult(
+        dataset=d.name,
+        effects=named,
+        outliers=[d.ids[i] for i in outliers],
+        absorbed_by=absorbed,
+        rms_before_mm=before["rms_mm"],
+        rms_after_mm=after["rms_mm"],
+        heldout_rms_before_mm=before["heldout_rms_mm"],
+        heldout_rms_after_mm=after["heldout_rms_mm"],
+        chi2_dof_before=before["chi2_dof"],
+        chi2_dof_after=after["chi2_dof"],
+        nominal_sigma_mm=NOMINAL_SIGMA,
+        sigma_after_mm=after["sigma_mm"],
+        sensor_pose=pose_from_transform(sensor),
+        sensor2flange=sensor,
+        sphere_centre=np.asarray(prob.centre(structure, fit.x), float),
+        effect_correlations={"names": [fit.names[k] for k in all_cols],
+                             "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
+        steps=[Step(**s) for s in steps],
+        tests=[[ScoreTest(**c) for c in round_] for round_ in tested],
+        residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
+                   for i, b, a, u in zip(d.ids, before_norms, after_norms, mask)],
+        screened_out_first=[e.id for e in screening.excluded],
+        unexplained=_unexplained(after),
+    )
 
 
 def _unexplained(after):
@@ -449,28 +462,28 @@ def _unexplained(after):
 
 
 def text(res):
-    """A readable report of :func:`diagnose`."""
-    lines = [f"handeye diagnose: dataset {res['dataset']}", ""]
-    if res["effects"]:
+    """A readable report of a :class:`handeye.app.results.DiagnosisResult`."""
+    lines = [f"handeye diagnose: dataset {res.dataset}", ""]
+    if res.effects:
         lines.append("effects named:")
-        for eff in res["effects"]:
-            if eff["std"] is None:
-                lines.append(f"  {eff['name']}: {', '.join(eff['parameters']['ids'])}")
+        for eff in res.effects:
+            if eff.std is None:
+                lines.append(f"  {eff.name}: {', '.join(eff.parameters['ids'])}")
             else:
-                lines.append(f"  {eff['name']}: " + ", ".join(
-                    f"{k} = {v:.5g} +- {eff['std'][k]:.2g}" for k, v in eff["parameters"].items()))
+                lines.append(f"  {eff.name}: " + ", ".join(
+                    f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items()))
     else:
         lines.append("effects named: none")
-    lines.append("outliers excluded: " + (", ".join(res["outliers"]) or "none"))
+    lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
     lines.append("not identifiable (absorbed): " + "; ".join(
-        f"{k} by {', '.join(v)}" for k, v in res["absorbed_by"].items()) if res["absorbed_by"] else "none")
+        f"{k} by {', '.join(v)}" for k, v in res.absorbed_by.items()) if res.absorbed_by else "none")
     lines += ["", f"{'step':<34} {'RMS mm':>9} {'held-out':>9} {'chi2/dof':>9}"]
-    for step in res["steps"]:
-        lines.append(f"{step['step']:<34} {step['rms_mm']:9.4f} {step['heldout_rms_mm']:9.4f} {step['chi2_dof']:9.2f}")
-    lines += ["", f"chi2/dof against a nominal sigma of {res['nominal_sigma_mm']} mm per component",
-              "sensor pose (x y z mm, A B C deg): " + " ".join(f"{v:.4f}" for v in res["sensor_pose"]),
-              "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res["sphere_center"]),
-              f"unexplained: {res['unexplained']}"]
+    for step in res.steps:
+        lines.append(f"{step.step:<34} {step.rms_mm:9.4f} {step.heldout_rms_mm:9.4f} {step.chi2_dof:9.2f}")
+    lines += ["", f"chi2/dof against a nominal sigma of {res.nominal_sigma_mm} mm per component",
+              "sensor pose (x y z mm, A B C deg): " + " ".join(f"{v:.4f}" for v in res.sensor_pose),
+              "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res.sphere_centre),
+              f"unexplained: {res.unexplained}"]
     return "\n".join(lines)
 
 
@@ -478,29 +491,29 @@ def figures(res, out):
     """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
     import pathlib
 
-    from studies.study import figure
+    from handeye.app.plotting import figure
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     plt = figure()
     fig, ax = plt.subplots(figsize=(10, 4))
-    ids = [r["id"] for r in res["residuals"]]
+    ids = [r.id for r in res.residuals]
     k = np.arange(len(ids))
-    ax.bar(k - 0.2, [r["before_mm"] for r in res["residuals"]], 0.4, label="base model")
-    ax.bar(k + 0.2, [r["after_mm"] for r in res["residuals"]], 0.4, label="with named effects")
-    for i, r in enumerate(res["residuals"]):
-        if not r["used"]:
-            ax.annotate("excluded", (i, r["after_mm"]), rotation=90, fontsize=6, ha="center", va="bottom")
+    ax.bar(k - 0.2, [r.before_mm for r in res.residuals], 0.4, label="base model")
+    ax.bar(k + 0.2, [r.after_mm for r in res.residuals], 0.4, label="with named effects")
+    for i, r in enumerate(res.residuals):
+        if not r.used:
+            ax.annotate("excluded", (i, r.after_mm), rotation=90, fontsize=6, ha="center", va="bottom")
     ax.set_xticks(k, ids, rotation=90, fontsize=6)
-    ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res['dataset']}: residuals per measurement")
+    ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res.dataset}: residuals per measurement")
     ax.legend()
     fig.tight_layout()
     fig.savefig(out / "residuals.png", dpi=120)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(6, 4))
-    labels = [s["step"] for s in res["steps"]]
-    ax.plot(labels, [s["rms_mm"] for s in res["steps"]], "o-", label="fitted")
-    ax.plot(labels, [s["heldout_rms_mm"] for s in res["steps"]], "s--", label="held out (5-fold)")
+    labels = [s.step for s in res.steps]
+    ax.plot(labels, [s.rms_mm for s in res.steps], "o-", label="fitted")
+    ax.plot(labels, [s.heldout_rms_mm for s in res.steps], "s--", label="held out (5-fold)")
     ax.set(ylabel="RMS (mm)", yscale="log", title="the gap, step by step")
     ax.tick_params(axis="x", rotation=20)
     ax.legend()

@@ -7,7 +7,7 @@
 2. **Screening.** A sample whose robust residual is improbable under ``|e|^2 / sigma^2 ~
    chi^2_3`` after a Bonferroni correction over the N samples starts out excluded.
 3. **Test on the fit.** Least squares on the remaining samples; externally studentised
-   deletion statistics for every sample (:func:`model.statistics.deletion_statistics`),
+   deletion statistics for every sample (:func:`handeye.model.statistics.deletion_statistics`),
    Bonferroni-adjusted. The worst significant fitted sample is excluded, or the most
    plausible excluded sample reinstated, one at a time, until no change is called for.
 
@@ -21,9 +21,10 @@ import dataclasses
 
 import numpy as np
 
-import solvers
-from model.calibration import CalibrationModel
-from model.statistics import chi2_survival, chi_median, deletion_statistics
+from handeye import solvers
+from handeye.app.results import ExcludedSample
+from handeye.model.calibration import CalibrationModel
+from handeye.model.statistics import chi2_survival, chi_median, deletion_statistics
 
 #: Family-wise significance level of the outlier tests.
 ALPHA = 0.01
@@ -37,9 +38,9 @@ class Screening:
     Attributes
     ----------
     inliers : ndarray of bool, shape (N,)
-    excluded : list of dict
-        ``id``, ``row``, ``residual_mm`` (prediction error from the final fit),
-        ``statistic`` (F), ``p_bonferroni``, ``reason``.
+    excluded : list of handeye.app.results.ExcludedSample
+        With the prediction error from the final fit, the statistic (F), the Bonferroni
+        p-value and the reason.
     robust_sigma_mm : float
         Robust scale of the robust pass, per component.
     robust_sensor2flange : ndarray, shape (4, 4)
@@ -106,24 +107,27 @@ def _subset(model, mask):
                             model.rotation, model.unknowns)
 
 
-def screen(flange2base, centre_in_sensor, sphere_centre, unknowns, start, ids, rows, alpha=ALPHA, min_keep=None):
+def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     """Find gross errors (module docstring).
 
     Parameters
     ----------
-    flange2base, centre_in_sensor, sphere_centre
-        As :class:`model.calibration.CalibrationModel`.
-    unknowns : str
+    dataset : handeye.model.dataset.Dataset
+        Every sample (ids and rows name them in the report).
+    unknowns : {'sensor', 'sensor+sphere'}
     start : ndarray, shape (4, 4)
-        Start sensor pose.
-    ids, rows : sequences
-        For the report.
+        Start sensor pose (sensor in flange, mm).
     alpha : float
         Family-wise significance level.
     min_keep : int, optional
         Never keep fewer samples; default ``max(N // 2 + 1, 4)``.
+
+    Returns
+    -------
+    Screening
     """
-    full = CalibrationModel(flange2base, centre_in_sensor, sphere_centre, "local", unknowns)
+    ids, rows = dataset.ids, dataset.rows
+    full = CalibrationModel.from_dataset(dataset, "local", unknowns)
     n = full.n_meas
     min_keep = min_keep or max(n // 2 + 1, 4)
     x_rob, sigma, _ = robust_fit(full, full.point_from(start))
@@ -165,16 +169,16 @@ def screen(flange2base, centre_in_sensor, sphere_centre, unknowns, start, ids, r
     adj = np.minimum(pval * n, 1.0)
     excluded = []
     for k in np.where(~inliers)[0]:
-        excluded.append({
-            "id": ids[k],
-            "row": int(rows[k]),
-            "residual_mm": float(np.linalg.norm(e[k])),
-            "robust_residual_mm": float(norms[k]),
-            "statistic": float(stat[k]),
-            "p_bonferroni": float(adj[k]),
-            "reason": (f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
-                       f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
-        })
+        excluded.append(ExcludedSample(
+            id=ids[k],
+            row=int(rows[k]),
+            residual_mm=float(np.linalg.norm(e[k])),
+            robust_residual_mm=float(norms[k]),
+            statistic=float(stat[k]),
+            p_bonferroni=float(adj[k]),
+            reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
+                    f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
+        ))
     return Screening(
         inliers=inliers,
         excluded=excluded,

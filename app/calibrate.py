@@ -2,26 +2,28 @@
 
 The pipeline is: check the request (method and parametrisation fit together, enough
 measurements), check that the robot poses determine every unknown (structural
-identifiability, :func:`model.identifiability.structural`), solve with the chosen method,
-and return a JSON-ready dict. Nothing here prints.
+identifiability, :func:`handeye.model.identifiability.structural`), solve with the chosen method,
+and return a :class:`handeye.app.results.CalibrationResult`. Nothing here prints.
 """
 from __future__ import annotations
 
+import dataclasses
 
 import numpy as np
 
-import solvers
-from model import identifiability
-from model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
-from model.closed_form import ClosedFormError, closed_form_estimate
-from model import observations
-from model.statistics import covariance
-from studies import robust
-from studies.robust import ALPHA
-from model.dataset import GUESS_LIMITS
-from model.pose import pose_from_transform, transform_from_pose
-from model.rotation import nearest_transform
-from studies.problems import calibration_problem
+from handeye import solvers
+from handeye.app import robust
+from handeye.app.errors import CalibrationInputError
+from handeye.app.problems import calibration_problem
+from handeye.app.results import Before, CalibrationResult, SampleResidual, Uncertainty
+from handeye.app.robust import ALPHA
+from handeye.model import conventions, identifiability, observations
+from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
+from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+from handeye.model.dataset import GUESS_LIMITS
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.rotation import nearest_transform
+from handeye.model.statistics import covariance
 
 METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
 
@@ -44,15 +46,9 @@ LOCAL_GTOL = 1e-4
 GIMBAL_WARN_DEG = 1.0
 
 
-class CalibrationInputError(ValueError):
-    """The request cannot be calibrated as asked (bad option, too few or degenerate poses)."""
-
-
 def parse_pose(text, what="--start", convention="kuka"):
     """Parse a pose written in a robot convention (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees)
     into a KUKA pose; raises CalibrationInputError."""
-    from model import conventions
-
     cols = conventions.columns(convention)
     parts = [p.strip() for p in str(text).split(",")]
     if convention != "kuka":
@@ -112,7 +108,7 @@ def check_request(dataset, unknowns, method, rotation):
 
 def check_identifiable(dataset, unknowns, start_transform):
     """Raise CalibrationInputError when the robot poses leave an unknown undetermined."""
-    probe = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, "local", unknowns)
+    probe = CalibrationModel.from_dataset(dataset, "local", unknowns)
     ident = identifiability.structural(probe, probe.point_from(start_transform))
     if not ident.full_rank:
         raise CalibrationInputError(
@@ -176,12 +172,28 @@ def _closed_form_pose(dataset, unknowns):
 
 
 def _solve(dataset, unknowns, method, rotation, start_pose, options, kind, robot_sigma):
+    """(model, solver result) of one solve from ``start_pose``."""
     model = observations.build(dataset, kind, rotation, unknowns, robot_sigma)
     result = solvers.solve(calibration_problem(model), model.point_from_pose(start_pose), method=method, options=options)
     return model, result
 
 
-def _judge(model, result, unknowns):
+@dataclasses.dataclass
+class _Verdict:
+    """A solver result judged: final transform and centre, convergence, local-chart diagnostics."""
+
+    model: object
+    result: object
+    sensor: np.ndarray
+    centre: np.ndarray
+    converged: bool
+    message: str
+    notes: list
+    local: object = None
+    hess_eig: np.ndarray | None = None
+
+
+def _judge(model, result):
     """Final transform, convergence verdict and local-chart diagnostics of a solver result."""
     converged, message, notes = bool(result.converged), result.message, []
     if model.rotation == "matrix":
@@ -193,7 +205,7 @@ def _judge(model, result, unknowns):
     sensor = nearest_transform(model.sensor2flange(result.x))  # a no-op but for 'matrix'
     centre = model.sphere_centre(result.x)
     if not (np.all(np.isfinite(sensor)) and np.all(np.isfinite(centre))):
-        return sensor, centre, False, "numerical failure: non-finite result", notes, None, None
+        return _Verdict(model, result, sensor, centre, False, "numerical failure: non-finite result", notes)
     # judged in the local chart, free of the Euler singularity and of the matrix constraints
     local = model.with_rotation("local", centre)
     final = local.point_from(sensor, centre)
@@ -207,16 +219,30 @@ def _judge(model, result, unknowns):
         converged = False
         message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
                    "point, not a minimum (local Newton converges to any stationary point)")
-    return sensor, centre, converged, message, notes, local, hess_eig
+    return _Verdict(model, result, sensor, centre, converged, message, notes, local, hess_eig)
+
+
+def _solver_options(options):
+    """Solver options checked up front: an unknown key is bad input, not a crash."""
+    options = dict(options or {})
+    try:
+        solvers.Options.from_mapping(options)
+    except solvers.UnsupportedProblem as exc:
+        raise CalibrationInputError(f"options: {exc}") from None
+    return options
 
 
 def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None,
-              outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=observations.ROBOT_SIGMA):
+              outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=observations.ROBOT_SIGMA,
+              convention=None):
     """Calibrate the sensor pose on the flange from a dataset.
+
+    The engine of :func:`handeye.calibrate` (which takes the CLI's option names); this
+    function takes the checked values.
 
     Parameters
     ----------
-    dataset : model.dataset.Dataset
+    dataset : handeye.model.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton'}
     rotation : {'matrix', 'local', 'euler'} or None
@@ -226,108 +252,104 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         the closed-form estimate. When the given start does not converge, the closed-form
         estimate is tried, and the result says so.
     options : dict, optional
-        Solver options (:class:`solvers.Options`).
+        Solver options (:class:`handeye.solvers.Options`).
     outliers : bool
-        Detect and exclude gross errors (:mod:`studies.robust`); False fits every sample.
+        Detect and exclude gross errors (:mod:`handeye.app.robust`); False fits every sample.
     alpha : float
         Family-wise level of the outlier tests.
     loo : bool
         Compute the leave-one-out prediction error (one refit per sample).
     model : {'centre', 'measurement', 'points'} or None
-        Residual of the final fit (:mod:`model.observations`); None: ``measurement`` when every
-        sample has a profile, else ``centre``. Screening and leave-one-out always use the
-        reconstructed centres.
+        Residual of the final fit (:mod:`handeye.model.observations`); None: ``measurement``
+        when every sample has a profile, else ``centre``. Screening and leave-one-out always
+        use the reconstructed centres.
     robot_sigma : float
         Assumed robot repeatability (mm, 1 sd per axis) for the weights of profile models.
+    convention : str, optional
+        Robot convention of the reported ``sensor_pose``; default the dataset's.
 
     Returns
     -------
-    dict
-        JSON-ready: ``sensor_pose``, ``sensor_matrix``, ``sphere_center``, ``rms_mm`` and
-        ``max_residual_mm`` (samples used), ``residuals`` (every sample, with ``used``),
-        ``outliers`` (ids) and ``excluded`` (with statistics and reasons), ``std``
-        (``sensor_translation_mm``, ``sensor_rotation_deg`` about the sensor's axes,
-        ``sphere_center_mm`` or None), ``sigma_mm``, ``correlation``, ``loo_error_mm``,
-        ``before`` (plain fit of every sample: ``rms_mm``, ``loo_error_mm``), ``iterations``,
-        ``converged``, ``status``, ``message``, ``method``, ``rotation``, ``unknowns``,
-        ``start_pose`` and ``start_used``, ``identifiability``, ``hessian_eigenvalues`` (cost,
-        local chart: all positive at a minimum), ``warnings``, ``history`` (sensor poses of the
-        iterates) and ``solver_point`` (the solver's own final point, e.g. raw Euler angles).
+    handeye.app.results.CalibrationResult
+        Complete on every path: after a numerical failure the fields that need a finite
+        solution (residuals' statistics, covariance, identifiability) are None.
     """
     rotation = check_request(dataset, unknowns, method, rotation)
+    options = _solver_options(options)
+    convention = conventions.check(convention or dataset.convention)
     kind = model or observations.default_kind(dataset)
     observations.build(dataset, kind, "local", unknowns)  # refuses early what the data cannot give
     start_pose, start_used = resolve_start(dataset, unknowns, start)
     start_t = transform_from_pose(start_pose)
     check_identifiable(dataset, unknowns, start_t)
     warnings = []
-    everything = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, "local",
-                                  unknowns)
+    everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
     plain = robust.least_squares(everything, everything.point_from(start_t)).x
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
-    before = {"n": len(dataset), "rms_mm": float(np.sqrt(np.mean(plain_norms**2))),
-              "loo_error_mm": _rms(robust.leave_one_out(everything, plain)) if loo else None}
+    before = Before(len(dataset), float(np.sqrt(np.mean(plain_norms**2))),
+                    _rms(robust.leave_one_out(everything, plain)) if loo else None)
     excluded, mask = [], np.ones(len(dataset), bool)
     if outliers:
-        screening = robust.screen(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre, unknowns,
-                                  start_t, dataset.ids, dataset.rows, alpha=alpha)
+        screening = robust.screen(dataset, unknowns, start_t, alpha=alpha)
         mask, excluded = screening.inliers, screening.excluded
         if screening.note:
             warnings.append(screening.note)
     used = dataset.subset(mask)
-    fitted, result = _solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma)
-    sensor, centre, converged, message, notes, local, hess_eig = _judge(fitted, result, unknowns)
-    if not converged and not start_used.startswith("closed-form"):
+    fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma))
+    if not fit.converged and not start_used.startswith("closed-form"):
         try:
             retry_pose = _closed_form_pose(used, unknowns)
         except ClosedFormError as exc:
             warnings.append(f"the start did not converge and no closed-form restart is possible: {exc}")
         else:
-            model2, result2 = _solve(used, unknowns, method, rotation, retry_pose, options, kind, robot_sigma)
-            judged = _judge(model2, result2, unknowns)
-            if judged[2]:
-                warnings.append(f"the start ({start_used}) did not converge ({message}); restarted from the "
+            retry = _judge(*_solve(used, unknowns, method, rotation, retry_pose, options, kind, robot_sigma))
+            if retry.converged:
+                warnings.append(f"the start ({start_used}) did not converge ({fit.message}); restarted from the "
                                 "closed-form estimate")
                 start_used = "closed-form estimate (after the given start failed)"
-                fitted, result = model2, result2
-                sensor, centre, converged, message, notes, local, hess_eig = judged
-    warnings += notes
-    pose = pose_from_transform(sensor)
+                fit = retry
+    warnings += fit.notes
+    pose = pose_from_transform(fit.sensor)
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:
         warnings.append(
             f"B = {pose[4]:.4f} deg is within {GIMBAL_WARN_DEG:g} deg of the Euler singularity: A and C are "
             "nearly one rotation and are not separately meaningful; compare transforms, not angles"
         )
-    out = {
-        "dataset": dataset.name,
-        "dataset_sha256": dataset.content_hash(),
-        "method": method,
-        "rotation": rotation,
-        "unknowns": unknowns,
-        "model": kind,
-        "robot_sigma_mm": robot_sigma if kind != "centre" or dataset.profiles is not None else None,
-        "start_pose": start_pose.tolist(),
-        "start_used": start_used,
-        "sensor_pose": pose.tolist(),
-        "sensor_matrix": sensor.tolist(),
-        "sphere_center": centre.tolist(),
-        "iterations": int(result.iterations),
-        "evaluations": {"f": result.nfev, "jacobian": result.njev, "hessian": result.nhev},
-        "converged": converged,
-        "status": int(result.status),
-        "message": message,
-        "outliers": [e["id"] for e in excluded],
-        "excluded": excluded,
-        "before": before,
-        "warnings": warnings,
-        "history": [pose_from_transform(nearest_transform(fitted.sensor2flange(x))).tolist() for x in result.history],
-        "solver_point": result.x.tolist(),
-        "solver_extra": {k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
-    }
-    if local is None:
-        return out
-    _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outliers)
-    return out
+    result = fit.result
+    common = dict(
+        dataset=dataset.name,
+        dataset_path=str(dataset.path),
+        dataset_sha256=dataset.content_hash(),
+        method=method,
+        rotation=rotation,
+        unknowns=unknowns,
+        model=kind,
+        robot_sigma_mm=robot_sigma if kind != "centre" or dataset.profiles is not None else None,
+        start_pose=start_pose,
+        start_used=start_used,
+        sensor2flange=fit.sensor,
+        sensor_pose_kuka=pose,
+        sensor_pose=conventions.pose_from(convention, fit.sensor) if np.all(np.isfinite(fit.sensor)) else pose,
+        convention=convention,
+        columns=conventions.columns(convention),
+        sphere_centre=fit.centre,
+        iterations=int(result.iterations),
+        evaluations={"f": result.nfev, "jacobian": result.njev, "hessian": result.nhev},
+        converged=fit.converged,
+        status=int(result.status),
+        message=fit.message,
+        excluded=list(excluded),
+        before=before,
+        history=np.array([pose_from_transform(nearest_transform(fit.model.sensor2flange(x)))
+                          for x in result.history]).reshape(-1, 6),
+        solver_point=np.asarray(result.x, float),
+        solver_extra={k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")},
+    )
+    if fit.local is None:  # numerical failure: nothing to describe, but the same complete type
+        residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
+                     for i, r, u in zip(dataset.ids, dataset.rows, mask)]
+        return CalibrationResult(residuals=residuals, warnings=warnings, **common)
+    return CalibrationResult(warnings=warnings, **common, **_describe_fit(dataset, mask, fit, loo, outliers, warnings))
 
 
 def _rms(values):
@@ -351,9 +373,11 @@ def _noise_model_text(local):
             "(rotation about the sensor's axes)")
 
 
-def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outliers_on):
-    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit."""
-    allm = CalibrationModel(dataset.flange2base(), dataset.centre_in_sensor, centre, "local", local.unknowns)
+def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings):
+    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit
+    (fields of :class:`CalibrationResult`); appends to ``warnings``."""
+    local, sensor, centre = fit.local, fit.sensor, fit.centre
+    allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
     x_all = allm.point_from(sensor, centre)
     e = allm.residuals(x_all)
     norms = np.linalg.norm(e, axis=1)
@@ -361,37 +385,31 @@ def _describe_fit(out, dataset, mask, sensor, centre, local, hess_eig, loo, outl
     r_used, j_used = local.residual(final), local.jacobian(final)
     ident = identifiability.analyse(j_used, local.names)
     if not ident.full_rank:
-        out["warnings"].append(f"at the solution the data do not determine: {ident.describe_null()}")
+        warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")
     elif ident.observability["O2"] < identifiability.WEAK:
-        out["warnings"].append(
+        warnings.append(
             f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
             f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
     groups = None if local.groups is None else np.repeat(local.groups, local.m)
     cov = covariance(r_used, j_used, groups)
-    deg = np.degrees(cov.std[3:6])
     loo_errors = robust.leave_one_out(allm, x_all, mask) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
-        out["warnings"] += _gross_error_warnings(dataset.ids, norms)
-    out.update({
-        "n_used": int(mask.sum()),
-        "rms_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
-        "max_residual_mm": float(norms[mask].max()),
-        "cost_mm2": float(0.5 * np.sum(norms[mask] ** 2)),
-        "residuals": [
-            {"id": i, "row": r, "vector": v.tolist(), "norm": float(n), "used": bool(u),
-             "loo_error_mm": None if not np.isfinite(l) else float(l)}
-            for i, r, v, n, u, l in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)
-        ],
-        "sigma_mm": cov.sigma if local.whiten is None else None,
-        "sigma_scale": cov.sigma if local.whiten is not None else None,
-        "std": {
-            "sensor_translation_mm": cov.std[:3].tolist(),
-            "sensor_rotation_deg": deg.tolist(),
-            "sphere_center_mm": cov.std[6:9].tolist() if local.unknowns == "sensor+sphere" else None,
-        },
-        "correlation": {"names": local.names, "matrix": np.round(cov.correlation, 6).tolist()},
-        "loo_error_mm": _rms(loo_errors) if loo else None,
-        "identifiability": ident.as_dict(),
-        "hessian_eigenvalues": hess_eig.tolist(),
-        "noise_model": _noise_model_text(local),
-    })
+        warnings += _gross_error_warnings(dataset.ids, norms)
+    return dict(
+        n_used=int(mask.sum()),
+        rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
+        max_residual_mm=float(norms[mask].max()),
+        cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
+        residuals=[SampleResidual(i, int(r), v, float(n), bool(u), None if not np.isfinite(lo) else float(lo))
+                   for i, r, v, n, u, lo in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)],
+        sigma_mm=cov.sigma if local.whiten is None else None,
+        sigma_scale=cov.sigma if local.whiten is not None else None,
+        std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]),
+                        cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
+        parameter_names=tuple(local.names),
+        correlation=np.asarray(cov.correlation),
+        loo_error_mm=_rms(loo_errors) if loo else None,
+        identifiability=ident,
+        hessian_eigenvalues=fit.hess_eig,
+        noise_model=_noise_model_text(local),
+    )

@@ -1,0 +1,396 @@
+"""The public Python API: ``import handeye``, then the CLI's commands as functions.
+
+Each function takes the CLI's options as keyword arguments, with the same names and the same
+defaults (``--keep-all`` is ``keep_all=False``, ``--max-iter`` is ``max_iter=None``), and
+returns a typed result whose ``to_dict()`` is the command's ``--json`` object and whose
+``summary()`` is its text report. The CLI (:mod:`handeye.app.cli`) only parses arguments,
+calls these functions and prints: there is one code path.
+
+>>> import handeye
+>>> r = handeye.calibrate("thesis-sim")            # doctest: +SKIP
+>>> r.sensor2flange.shape, r.converged             # doctest: +SKIP
+((4, 4), True)
+
+Bad input raises :class:`handeye.InputError` (a ``ValueError``) with a message naming the
+file, row and column or the option; the CLI turns exactly that class into exit code 2.
+"""
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+
+#: The outlier tests' family-wise level when none is given (``--alpha``).
+DEFAULT_ALPHA = 0.01
+
+
+def load_dataset(name_or_folder):
+    """Read and check a dataset.
+
+    Parameters
+    ----------
+    name_or_folder : str, pathlib.Path or Dataset
+        An embedded dataset (``'thesis-real'``, ``'thesis-sim'``; see
+        :func:`handeye.model.dataset.embedded_names`) or a folder holding ``measurements.csv``
+        and ``setup.toml``. A Dataset is returned as it is.
+
+    Returns
+    -------
+    handeye.model.dataset.Dataset
+
+    Raises
+    ------
+    handeye.model.dataset.DatasetError
+        Naming file, row and column of the first problem found.
+    """
+    from handeye.model.dataset import Dataset, load
+
+    if isinstance(name_or_folder, Dataset):
+        return name_or_folder
+    return load(name_or_folder)
+
+
+def _alpha(alpha):
+    alpha = DEFAULT_ALPHA if alpha is None else alpha
+    if not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
+        raise RequestError(f"--alpha must lie in (0, 1), got {alpha}")
+    return float(alpha)
+
+
+def start_pose_from(start, convention):
+    """A start pose given as ``'X,Y,Z,...'`` text or numbers, in ``convention``, as KUKA (6,).
+
+    Parameters
+    ----------
+    start : str or array_like
+        The columns of ``convention`` (:func:`handeye.model.conventions.columns`): mm, then
+        degrees (KUKA, FANUC), a quaternion w, x, y, z (ABB) or a rotation vector in radians
+        (UR).
+    convention : str
+    """
+    from handeye.app.calibrate import parse_pose
+
+    text = start if isinstance(start, str) else ",".join(repr(float(v)) for v in np.ravel(start))
+    return parse_pose(text, "--start", convention=convention)
+
+
+def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo):
+    ignored = [name for name, given in (("--start", start), ("--rotation", rotation), ("--max-iter", max_iter),
+                                        ("--model", model), ("--plot", plot), ("--no-loo", no_loo or None))
+               if given is not None]
+    if ignored:
+        raise RequestError(f"--method {method} is closed form; these options do not apply to it: {', '.join(ignored)}")
+
+
+def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotation=None, start=None,
+              convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
+              out=None):
+    """Calibrate the sensor pose on the flange (``handeye calibrate``).
+
+    Parameters
+    ----------
+    dataset : str, pathlib.Path or Dataset
+        Embedded name or folder (:func:`load_dataset`); default ``'thesis-real'``.
+    unknowns : {'sensor', 'sensor+sphere'}
+        The sensor pose (6 unknowns), or the sensor pose and the sphere centre in the base (9).
+    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}
+        A least-squares solver, or a closed-form baseline (the last two).
+    rotation : {'matrix', 'local', 'euler'}, optional
+        Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
+    start : str or array_like, optional
+        Start sensor pose in ``convention`` (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees);
+        default the setup's ``start_pose``, else the closed-form estimate.
+    convention : {'kuka', 'abb', 'ur', 'fanuc'}, optional
+        Robot convention of ``start`` and of the result's ``sensor_pose``; default the
+        dataset's.
+    max_iter : int, optional
+        Iteration limit of the solver.
+    model : {'centre', 'measurement', 'points'}, optional
+        Residual; default ``measurement`` when every sample has a profile, else ``centre``.
+    keep_all : bool
+        Fit every sample: no outlier screening.
+    alpha : float, optional
+        Family-wise level of the outlier tests (default 0.01).
+    no_loo : bool
+        Skip the leave-one-out error (one refit per sample).
+    plot : str or pathlib.Path, optional
+        Draw residuals and the sphere centres through the chain to this PNG.
+    out : str or pathlib.Path, optional
+        Also write the JSON result, with the dataset's hash, the tool's version and the
+        options (``provenance``), atomically.
+
+    Returns
+    -------
+    handeye.app.results.CalibrationResult
+        ``to_dict()`` is ``handeye calibrate --json``; ``summary()`` its text report.
+
+    Raises
+    ------
+    handeye.InputError
+        Bad dataset, bad option, too few or degenerate poses, missing motions.
+    """
+    from handeye.app.calibrate import METHODS, calibrate as run
+    from handeye.app.classic import METHODS as CLOSED_FORM, calibrate_classic
+    from handeye.app.files import provenance
+    from handeye.model import conventions
+
+    options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
+               "unknowns": unknowns, "method": method, "rotation": rotation,
+               "start": start if start is None or isinstance(start, str) else np.ravel(start).tolist(),
+               "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
+               "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot)}
+    if method not in METHODS + CLOSED_FORM:
+        raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
+    data = load_dataset(dataset)
+    convention = conventions.check(convention or data.convention)
+    level = _alpha(alpha)
+    if method in CLOSED_FORM:
+        _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
+        result = calibrate_classic(data, method, unknowns, outliers=not keep_all, alpha=level, convention=convention)
+    else:
+        solver_options = {}
+        if max_iter is not None:
+            if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+                raise RequestError(f"--max-iter must be an integer of at least 1, got {max_iter}")
+            solver_options["max_iter"] = int(max_iter)
+        start_kuka = start_pose_from(start, convention) if start is not None else None
+        result = run(data, unknowns=unknowns, method=method, rotation=rotation, start=start_kuka,
+                     options=solver_options, outliers=not keep_all, alpha=level, loo=not no_loo, model=model,
+                     convention=convention)
+    if out is not None:
+        result = dataclasses.replace(result, provenance=provenance(data, options))
+        result.save(out)
+    if plot is not None:
+        from handeye.app.report import calibration_plot
+
+        calibration_plot(result, data, plot)
+    return result
+
+
+def diagnose(dataset="thesis-real", *, alpha=0.01, figures=None, plot=None):
+    """Find, name and add the effects the model is missing (``handeye diagnose``).
+
+    Parameters
+    ----------
+    dataset : str, pathlib.Path or Dataset
+    alpha : float
+        Family-wise level of the tests (default 0.01).
+    figures : str or pathlib.Path, optional
+        Folder to write ``residuals.png`` and ``gap.png`` into.
+    plot : str or pathlib.Path, optional
+        Write the gap-shrinking figure to this PNG.
+
+    Returns
+    -------
+    handeye.app.results.DiagnosisResult
+    """
+    from handeye.app import diagnose as procedure
+
+    level = _alpha(alpha)
+    result = procedure.diagnose(load_dataset(dataset), alpha=level)
+    if figures is not None:
+        procedure.figures(result, figures)
+    if plot is not None:
+        import shutil
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            shutil.copyfile(procedure.figures(result, tmp)[1], pathlib.Path(plot))
+    return result
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulationResult:
+    """A simulated dataset written by :func:`simulate`.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The dataset folder.
+    ids : list of str
+        Measurements written.
+    dropped : list of (str, str)
+        Poses that could not see the sphere, with the reason.
+    seed : int
+    effects : dict
+        Hidden effects (name -> value).
+    """
+
+    path: pathlib.Path
+    ids: list
+    dropped: list
+    seed: int
+    effects: dict
+
+    @property
+    def dataset(self):
+        """The written dataset, loaded (:func:`load_dataset`)."""
+        return load_dataset(self.path)
+
+    def to_dict(self):
+        return {"path": str(self.path), "ids": list(self.ids), "dropped": [list(d) for d in self.dropped],
+                "seed": self.seed, "effects": {k: np.asarray(v).tolist() for k, v in self.effects.items()}}
+
+    def summary(self):
+        lines = [f"wrote {len(self.ids)} simulated measurements to {self.path} (seed {self.seed}, "
+                 f"effects {self.effects or 'none'})"]
+        lines += [f"dropped {ident}: {reason}" for ident, reason in self.dropped]
+        return "\n".join(lines)
+
+
+def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
+             translations=0, truth=None):
+    """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        Dataset folder to write (must be new or empty).
+    seed : int
+    effect : sequence of str
+        Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
+        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``.
+    profiles : bool
+        Also write the laser profiles.
+    poses : str or pathlib.Path, optional
+        A pose list (header ``id,x,y,z,a,b,c``, KUKA) instead of the thesis strategy.
+    n_poses : int
+        Poses of the thesis strategy (1-36).
+    linearity : float
+        Sensor linearity error as a fraction of the 100 mm range, in [0, 0.1).
+    motions : {'thesis', 'about-sphere'}
+    translations : int
+        Pure flange translations (0-6) at each of two orientations.
+    truth : str or array_like, optional
+        True sensor pose, KUKA (mm, degrees); default (190, 100, 125, 180, -88, 0).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    from handeye.app.calibrate import parse_pose
+    from handeye.model import motions as motion_strategies
+    from handeye.model import simulate as sim
+    from handeye.model.dataset import read_pose_list
+    from handeye.model.pose import pose_from_transform
+
+    folder = pathlib.Path(out)
+    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+        raise RequestError(f"--out {folder}: exists and is not an empty folder; choose a new one")
+    if not 0 <= linearity < 0.1:
+        raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
+    setup = sim.Setup(linearity=linearity)
+    if truth is not None:
+        text = truth if isinstance(truth, str) else ",".join(repr(float(v)) for v in np.ravel(truth))
+        setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(text, "--truth")))
+    effects = sim.parse_effects(list(effect))
+    ids, flange_poses = None, None
+    if poses is not None:
+        if motions != "thesis" or translations:
+            raise RequestError("--poses gives the poses: --motions and --translations do not apply")
+        ids, flange_poses = read_pose_list(poses)
+    elif motions != "thesis" or translations:
+        ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
+        flange_poses = pose_from_transform(flanges)
+    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids)
+    sim.write(made, folder, profiles=profiles)
+    return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanResult:
+    """Poses chosen by :func:`plan`, with their predicted accuracy.
+
+    Attributes
+    ----------
+    n : int
+    ids : list of str
+    poses : ndarray, shape (n, 6)
+        Flange poses in the robot base, KUKA (mm, degrees).
+    logdet : float
+        log det of the information matrix (the D-optimality criterion).
+    predicted_sd : ndarray, shape (6,)
+        Cramer-Rao bound: translation (mm), rotation (degrees).
+    skipped : list of (str, str)
+        Candidates that cannot see the sphere, with the reason.
+    usable : int
+        Candidates that can.
+    """
+
+    n: int
+    ids: list
+    poses: np.ndarray
+    logdet: float
+    predicted_sd: np.ndarray
+    skipped: list
+    usable: int
+
+    def to_dict(self):
+        """The ``handeye plan --json`` object."""
+        return {"n": self.n, "ids": list(self.ids), "poses": np.asarray(self.poses).tolist(), "logdet": self.logdet,
+                "predicted_sd": {"sensor_translation_mm": np.asarray(self.predicted_sd[:3]).tolist(),
+                                 "sensor_rotation_deg": np.asarray(self.predicted_sd[3:6]).tolist()},
+                "skipped": [{"id": i, "reason": r} for i, r in self.skipped],
+                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)"}
+
+    def pose_list(self):
+        """The chosen poses as a pose-list CSV (``id,x,y,z,a,b,c``), ready for the robot."""
+        lines = ["id,x,y,z,a,b,c"] + [",".join([i] + [f"{v:.4f}" for v in p]) for i, p in zip(self.ids, self.poses)]
+        return "\n".join(lines) + "\n"
+
+    def summary(self):
+        lines = [f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})",
+                 "predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in self.predicted_sd[:3])
+                 + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6])]
+        lines += [f"  {i:>14} " + " ".join(f"{v:10.3f}" for v in p) for i, p in zip(self.ids, self.poses)]
+        lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
+        return "\n".join(lines)
+
+
+def plan(*, n=12, candidates=None, dataset=None, out=None):
+    """Choose the ``n`` most informative poses, D-optimal (``handeye plan``).
+
+    Parameters
+    ----------
+    n : int
+        Number of poses to choose.
+    candidates : str or pathlib.Path, optional
+        Candidate flange poses (pose list, header ``id,x,y,z,a,b,c``); default the thesis
+        strategy's 36 orientations with cuts at 5, 15 and 25 mm (108 poses).
+    dataset : str, pathlib.Path or Dataset, optional
+        Take the nominal sensor pose (``start_pose``), sphere centre and diameter from it.
+    out : str or pathlib.Path, optional
+        Write the chosen poses as a pose list.
+
+    Returns
+    -------
+    PlanResult
+    """
+    from handeye.app.files import write_text_atomically
+    from handeye.model import planning
+    from handeye.model import simulate as sim
+    from handeye.model.dataset import read_pose_list
+
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise RequestError(f"--n must be an integer of at least 1, got {n}")
+    setup = sim.Setup(linearity=0.0)
+    centre = np.asarray(setup.sphere_centre)
+    if dataset is not None:
+        d = load_dataset(dataset)
+        if d.start_pose is None:
+            raise RequestError(f"--dataset {dataset}: its setup.toml has no start_pose to plan around")
+        setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
+        centre = d.sphere_centre
+    if candidates is not None:
+        ids, poses = read_pose_list(candidates)
+    else:
+        ids, poses = planning.thesis_candidates(setup, centre)
+    chosen = planning.plan(ids, poses, int(n), setup, centre)
+    result = PlanResult(int(n), list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
+                        np.asarray(chosen.predicted_sd), list(chosen.skipped), len(ids) - len(chosen.skipped))
+    if out is not None:
+        write_text_atomically(out, result.pose_list(), option="--out")
+    return result

@@ -1,0 +1,225 @@
+"""The ``handeye`` command line.
+
+Exit codes
+----------
+0  calibration converged
+1  calibration did not converge (the result is still printed, and flagged)
+2  bad input: unreadable or malformed dataset, bad option, too few or degenerate poses;
+   one line on stderr naming file, row and column where there is one
+3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
+4  a study's data did not support its claim (``handeye study``)
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from handeye.app.errors import RequestError
+
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        self.print_usage(sys.stderr)
+        print(f"handeye: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _plan_args(sub):
+    plan = sub.add_parser("plan", help="choose the N most informative poses (D-optimal) from candidates")
+    plan.add_argument("--n", type=int, default=12, help="number of poses to choose (default 12)")
+    plan.add_argument("--candidates", default=None, metavar="CSV",
+                      help="candidate flange poses (header id,x,y,z,a,b,c); default: the thesis strategy's 36 "
+                           "orientations with cuts at 5, 15 and 25 mm (108 poses)")
+    plan.add_argument("--dataset", default=None,
+                      help="take the nominal sensor pose (start_pose), sphere centre and diameter from this dataset")
+    plan.add_argument("--out", default=None, metavar="CSV", help="write the chosen poses (id,x,y,z,a,b,c)")
+    plan.add_argument("--json", action="store_true")
+
+
+def _study_args(sub):
+    from handeye.app.registry import STUDIES
+
+    st = sub.add_parser("study", help="run a study (figures, tables, JSON) and check its claims")
+    st.add_argument("name", choices=list(STUDIES) + ["all"])
+    st.add_argument("--out", default="out", metavar="DIR", help="output folder (default ./out)")
+    st.add_argument("--quick", action="store_true", help="small, honest version (CI)")
+    st.add_argument("--jobs", type=int, default=None, help="worker processes for sweeps (default: all cores)")
+
+
+def build_parser():
+    from handeye.app.calibrate import METHODS
+    from handeye.app.classic import METHODS as CLASSIC_METHODS
+    from handeye.model.calibration import KINDS, ROTATIONS, UNKNOWNS
+    from handeye.model.conventions import CONVENTIONS
+
+    parser = _Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    cal = sub.add_parser("calibrate", help="calibrate the sensor pose on the flange from a dataset")
+    cal.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder (default thesis-real)")
+    cal.add_argument("--unknowns", default="sensor", choices=list(UNKNOWNS))
+    cal.add_argument("--method", default="ipopt", choices=list(METHODS) + list(CLASSIC_METHODS),
+                     help="solver of the least squares, or a closed-form baseline: kim-cho (AX = XB, linear) or "
+                          "li-two-step (pure translations, then rotations; see model/classics.py)")
+    cal.add_argument("--rotation", default=None, choices=list(ROTATIONS),
+                     help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
+    cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
+                     help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)")
+    cal.add_argument("--convention", default=None, choices=list(CONVENTIONS),
+                     help="robot convention of --start and of the reported pose (default: the dataset's)")
+    cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")
+    cal.add_argument("--model", default=None, choices=list(KINDS),
+                     help="residual: reconstructed centres, measured circles, or profile points "
+                          "(default: measurement when every sample has a profile, else centre)")
+    cal.add_argument("--keep-all", action="store_true", help="fit every sample: no outlier detection")
+    cal.add_argument("--alpha", type=float, default=None, help="family-wise level of the outlier tests (default 0.01)")
+    cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
+    cal.add_argument("--json", action="store_true", help="print the result as JSON")
+    cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
+    cal.add_argument("--out", default=None, metavar="FILE",
+                     help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
+    sub.add_parser("datasets", help="list the embedded datasets")
+    sim = sub.add_parser("simulate", help="write a simulated dataset with known truth (model.simulate)")
+    sim.add_argument("--out", required=True, metavar="DIR", help="dataset folder to write (must be empty or new)")
+    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
+                     help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | "
+                          "sign_flip=ID,ID | outlier=ID,ID (repeatable)")
+    sim.add_argument("--profiles", action="store_true", help="also write the laser profiles")
+    sim.add_argument("--poses", default=None, metavar="CSV",
+                     help="flange poses (header id,x,y,z,a,b,c) instead of the thesis strategy")
+    sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
+    sim.add_argument("--linearity", type=float, default=0.0,
+                     help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
+    diag = sub.add_parser("diagnose", help="find, name and add the effects the model is missing")
+    diag.add_argument("dataset", nargs="?", default="thesis-real")
+    diag.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the tests (default 0.01)")
+    diag.add_argument("--json", action="store_true")
+    diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
+    diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
+    _plan_args(sub)
+    _study_args(sub)
+    bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
+    bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
+    bench.add_argument("--json", action="store_true")
+    bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
+    bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
+    sim.add_argument("--motions", default="thesis", choices=["thesis", "about-sphere"],
+                     help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same "
+                          "orientations rotating about the sphere (seen at one sensor point)")
+    sim.add_argument("--translations", type=int, default=0, metavar="K",
+                     help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)")
+    sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
+    return parser
+
+
+def _plan(args):
+    from handeye.app import api
+
+    result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out)
+    print(json.dumps(result.to_dict(), indent=1) if args.json else result.summary())
+    return EXIT_OK
+
+
+def _diagnose(args):
+    from handeye.app import api
+
+    result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot)
+    print(result.to_json() if args.json else result.summary())
+    return EXIT_OK
+
+
+def _bench(args):
+    from handeye.app import bench
+
+    try:
+        import scipy.optimize  # noqa: F401 - the baseline of every ratio
+    except ImportError:
+        raise RequestError("handeye bench compares against scipy, which is not installed: "
+                           "pip install 'handeye[bench]'") from None
+
+    res = bench.run(quick=args.quick, with_startup=not args.no_startup)
+    if args.plot:
+        bench.plot(res, args.plot)
+    print(json.dumps(res, indent=1) if args.json else bench.text(res))
+    return EXIT_OK
+
+
+def _study(args):
+    from handeye.app import sweep
+    from handeye.studies import study  # the one import of the studies, only when one is run
+
+    if args.jobs is not None and args.jobs < 1:
+        raise RequestError("--jobs must be at least 1")
+    sweep.JOBS["n"] = args.jobs
+    results = study.run(args.name, args.out, quick=args.quick)
+    for name in results:
+        print(f"study {name}: claims hold; figures, tables and summary.json in {args.out}/{name}")
+    return EXIT_OK
+
+
+def _simulate(args):
+    from handeye.app import api
+
+    result = api.simulate(args.out, seed=args.seed, effect=args.effect, profiles=args.profiles, poses=args.poses,
+                          n_poses=args.n_poses, linearity=args.linearity, motions=args.motions,
+                          translations=args.translations, truth=args.truth)
+    print(result.summary())
+    return EXIT_OK
+
+
+def _calibrate(args):
+    from handeye.app import api
+
+    result = api.calibrate(args.dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation,
+                           start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
+                           keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
+                           out=args.out)
+    print(result.to_json() if args.json else result.summary())
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
+
+
+def main(argv=None):
+    """Entry point of the ``handeye`` console script; returns the exit code."""
+    from handeye.app.registry import StudyClaimFailed
+    from handeye.model.errors import InputError
+
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "datasets":
+            from handeye.model.dataset import embedded_names
+
+            print("\n".join(embedded_names()))
+            return EXIT_OK
+        if args.command == "simulate":
+            return _simulate(args)
+        if args.command == "diagnose":
+            return _diagnose(args)
+        if args.command == "bench":
+            return _bench(args)
+        if args.command == "plan":
+            return _plan(args)
+        if args.command == "study":
+            return _study(args)
+        return _calibrate(args)
+    except InputError as exc:  # exactly the bad-input hierarchy: anything else is a bug (exit 3)
+        print(f"handeye: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing left to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except StudyClaimFailed as exc:
+        print(f"handeye: {exc}", file=sys.stderr)
+        return EXIT_CLAIM_FAILED
+    except Exception as exc:  # pragma: no cover - a bug, reported without a traceback
+        if os.environ.get("HANDEYE_DEBUG"):
+            raise
+        print(f"handeye: internal error: {type(exc).__name__}: {exc} (set HANDEYE_DEBUG=1 for details)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,112 @@
+"""Plain-text and figure presentation of a calibration result (the CLI prints what this returns)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _fmt(values, width=10, prec=4):
+    return " ".join(f"{v:{width}.{prec}f}" for v in values)
+
+
+def _loo_line(res):
+    if res.loo_error_mm is None:
+        return "leave-one-out error: not computed (--no-loo)"
+    return (f"leave-one-out error {res.loo_error_mm:.4f} mm (RMS distance of each used sample's predicted sphere "
+            "centre from the centre fitted without it)")
+
+
+def calibration_text(res):
+    """A readable report of a :class:`handeye.app.results.CalibrationResult`."""
+    if res.closed_form is not None:
+        from handeye.app.classic import classic_text
+
+        return classic_text(res)
+    lines = [
+        f"handeye calibrate: dataset {res.dataset}, method {res.method}, rotation {res.rotation}, "
+        f"unknowns {res.unknowns}, model {res.model}",
+        f"status: {'converged' if res.converged else 'NOT CONVERGED'} after {res.iterations} iterations "
+        f"({res.message})",
+        "",
+        "start pose   (x y z mm, A B C deg): " + _fmt(res.start_pose),
+        "sensor pose  (x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka),
+    ]
+    if res.convention != "kuka":
+        lines.append(f"sensor pose ({res.convention}: {','.join(res.columns)}): " + _fmt(res.sensor_pose, 10, 6))
+    lines.append("sensor2flange (4x4):")
+    lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
+    lines.append("sphere centre in base (mm): " + _fmt(res.sphere_centre, 12, 4))
+    lines.append(f"start: {res.start_used}")
+    if res.rms_mm is None:  # no finite solution: nothing more to describe
+        lines += ["", "no residuals, uncertainty or identifiability: the solve ended without a finite solution"]
+        lines += [f"warning: {w}" for w in res.warnings]
+        return "\n".join(lines)
+    lines += ["", f"{'id':>10} {'row':>4} {'ex':>9} {'ey':>9} {'ez':>9} {'|e|':>9} {'loo':>8}  (mm)"]
+    for r in res.residuals:
+        loo = f"{r.loo_error_mm:8.3f}" if r.loo_error_mm is not None else " " * 8
+        flag = "" if r.used else "  EXCLUDED"
+        lines.append(f"{r.id:>10} {r.row:>4} " + _fmt(r.vector, 9, 3) + f" {r.norm:9.3f} {loo}{flag}")
+    if res.excluded:
+        lines += ["", "excluded samples (gross errors; not used in the fit):"]
+        lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded]
+    lines += [
+        "",
+        f"RMS residual {res.rms_mm:.4f} mm over {res.n_used} samples used (root mean square of |e_i|), "
+        f"max {res.max_residual_mm:.4f} mm",
+        _loo_line(res),
+        f"before exclusion (every sample, plain least squares): RMS {res.before.rms_mm:.4f} mm"
+        + (f", leave-one-out {res.before.loo_error_mm:.4f} mm" if res.before.loo_error_mm is not None else ""),
+        "",
+        "uncertainty (1 sd; " + (f"sigma = {res.sigma_mm:.4f} mm per residual component" if res.sigma_mm is not None
+                                 else f"weighted residual, scale {res.sigma_scale:.3f}") + ", estimated from the fit):",
+        "  sensor translation (mm):      " + _fmt(res.std.sensor_translation_mm),
+        "  sensor rotation (deg, about sensor x y z): " + _fmt(res.std.sensor_rotation_deg),
+    ]
+    if res.std.sphere_center_mm is not None:
+        lines.append("  sphere centre (mm):           " + _fmt(res.std.sphere_center_mm))
+    ident = res.identifiability
+    lines += [
+        "",
+        f"identifiability: rank {ident.rank} of {ident.n}, condition number {ident.condition:.3g} "
+        f"(column-scaled), singular values " + " ".join(f"{v:.3g}" for v in ident.singular_values),
+    ]
+    lines += [f"warning: {w}" for w in res.warnings]
+    return "\n".join(lines)
+
+
+def calibration_plot(res, dataset, path):
+    """Residual per measurement and the sphere centres seen through the calibrated chain
+    (base frame, mm) around the calibrated centre; written to ``path`` (PNG).
+
+    Parameters
+    ----------
+    res : handeye.app.results.CalibrationResult
+    dataset : handeye.model.dataset.Dataset
+        The dataset ``res`` was calibrated on.
+    path : str or pathlib.Path
+    """
+    from handeye.app.plotting import figure
+
+    plt = figure()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
+    norms = np.array([r.norm for r in res.residuals])
+    used = np.array([r.used for r in res.residuals])
+    k = np.arange(len(norms))
+    axes[0].bar(k[used], norms[used], color="C0", label="used")
+    axes[0].bar(k[~used], norms[~used], color="C3", label="excluded")
+    axes[0].set_xticks(k, [r.id for r in res.residuals], rotation=90, fontsize=6)
+    rms = "n/a" if res.rms_mm is None else f"{res.rms_mm:.3f} mm"
+    axes[0].set(ylabel="|e_i| (mm)", yscale="log",
+                title=f"{res.dataset}: residuals ({res.method}, {res.rotation}, RMS {rms})")
+    axes[0].legend()
+    sensor = np.asarray(res.sensor2flange)
+    seen = (dataset.flange2base() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
+    d = seen[:, :3, 0] - np.asarray(res.sphere_centre)
+    axes[1].scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="coolwarm", s=18, label="used (colour: dz)")
+    axes[1].scatter(d[~used, 0], d[~used, 1], marker="x", color="C3", label="excluded")
+    lim = max(3 * np.percentile(np.abs(d[used, :2]), 95), 1e-3)
+    axes[1].set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="dx (mm, base)", ylabel="dy (mm, base)",
+                title="sphere centres through the chain", aspect="equal")
+    axes[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,530 @@
+"""Typed results of a calibration: what :func:`handeye.calibrate` returns.
+
+One type for every method -- least squares (IPOPT, Gauss-Newton, ...) and the closed-form
+baselines -- as :class:`scipy.optimize.OptimizeResult` is one type for every solver. Every
+exit of a calibration builds the complete type: fields that a path cannot fill (no
+covariance after a numerical failure, no leave-one-out for a closed-form method) are None,
+never missing. :meth:`CalibrationResult.to_dict` is exactly the ``handeye calibrate --json``
+object (the CLI prints it; there is no second code path), :meth:`~CalibrationResult.summary`
+the CLI's text report, and ``_repr_html_`` a compact table in Jupyter.
+
+Frames and units: ``sensor2flange`` is the sensor frame in the flange frame (4x4, mm);
+``sphere_centre`` is in the robot base (mm); poses are ``x, y, z`` in mm and the orientation
+in the named robot convention (:mod:`handeye.model.conventions`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import html
+import json
+
+import numpy as np
+
+
+def _list(value):
+    return None if value is None else np.asarray(value, float).tolist()
+
+
+@dataclasses.dataclass(frozen=True)
+class SampleResidual:
+    """Residual of one measurement at the calibration.
+
+    Attributes
+    ----------
+    id : str
+    row : int
+        Line of the measurement in ``measurements.csv``.
+    vector : ndarray, shape (3,)
+        Predicted minus known sphere centre, robot base, mm.
+    norm : float
+        ``|vector|``, mm.
+    used : bool
+        False when excluded as a gross error.
+    loo_error_mm : float or None
+        Leave-one-out prediction error (None when not computed or not used).
+    """
+
+    id: str
+    row: int
+    vector: np.ndarray
+    norm: float
+    used: bool
+    loo_error_mm: float | None = None
+
+    def to_dict(self):
+        return {"id": self.id, "row": int(self.row), "vector": _list(self.vector), "norm": float(self.norm),
+                "used": bool(self.used), "loo_error_mm": self.loo_error_mm}
+
+
+@dataclasses.dataclass(frozen=True)
+class ExcludedSample:
+    """A sample excluded as a gross error, with the evidence (:mod:`handeye.app.robust`).
+
+    Attributes
+    ----------
+    id : str
+    row : int
+    residual_mm : float
+        Prediction error from the fit of the other samples, mm.
+    robust_residual_mm : float
+        Residual of the robust pass, mm.
+    statistic : float
+        Externally studentised deletion statistic (F).
+    p_bonferroni : float
+        Bonferroni-adjusted p-value.
+    reason : str
+    """
+
+    id: str
+    row: int
+    residual_mm: float
+    robust_residual_mm: float
+    statistic: float
+    p_bonferroni: float
+    reason: str
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class Before:
+    """The plain least-squares fit of every sample, before any exclusion.
+
+    Attributes
+    ----------
+    n : int
+    rms_mm : float
+    loo_error_mm : float or None
+    """
+
+    n: int
+    rms_mm: float
+    loo_error_mm: float | None
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """1-sd uncertainty of the calibration (local rotation chart).
+
+    Attributes
+    ----------
+    sensor_translation_mm : ndarray, shape (3,)
+        Of the sensor origin in the flange frame, mm.
+    sensor_rotation_deg : ndarray, shape (3,)
+        About the sensor's own x, y, z axes, degrees.
+    sphere_center_mm : ndarray, shape (3,), or None
+        Of the sphere centre (``unknowns='sensor+sphere'`` only), robot base, mm.
+    """
+
+    sensor_translation_mm: np.ndarray
+    sensor_rotation_deg: np.ndarray
+    sphere_center_mm: np.ndarray | None = None
+
+    def to_dict(self):
+        return {"sensor_translation_mm": _list(self.sensor_translation_mm),
+                "sensor_rotation_deg": _list(self.sensor_rotation_deg),
+                "sphere_center_mm": _list(self.sphere_center_mm)}
+
+
+@dataclasses.dataclass(frozen=True)
+class ClosedFormDetails:
+    """What only a closed-form method (``kim-cho``, ``li-two-step``) reports.
+
+    Attributes
+    ----------
+    linear_matrix : ndarray, shape (4, 4)
+        The linear solution before its rotation block is projected onto SO(3).
+    details : dict
+        The method's own figures (pairs, condition number, translation pairs ...).
+    time_ms : float
+        Time of the closed-form solve alone.
+    least_squares_from_here : dict
+        Where the nonlinear least squares goes from this estimate: ``distance_mm``,
+        ``distance_deg``, ``iterations``, ``converged``, ``rms_mm``.
+    """
+
+    linear_matrix: np.ndarray
+    details: dict
+    time_ms: float
+    least_squares_from_here: dict
+
+    def to_dict(self):
+        return {"linear_matrix": _list(self.linear_matrix), "details": self.details, "time_ms": float(self.time_ms),
+                "least_squares_from_here": dict(self.least_squares_from_here)}
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationResult:
+    """The outcome of :func:`handeye.calibrate` (module docstring).
+
+    Attributes
+    ----------
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor frame in the flange frame (mm). JSON key ``sensor_matrix``.
+    sensor_pose : ndarray
+        The same pose in ``convention`` (``x, y, z`` mm, then its orientation columns).
+    sensor_pose_kuka : ndarray, shape (6,)
+        The same pose as KUKA ``x, y, z, A, B, C`` (mm, degrees).
+    convention, columns : str, tuple of str
+        Robot convention of ``sensor_pose`` (the dataset's unless asked otherwise) and its
+        column names.
+    sphere_centre : ndarray, shape (3,)
+        Sphere centre in the robot base, mm (given, or estimated with
+        ``unknowns='sensor+sphere'``). JSON key ``sphere_center``.
+    converged : bool
+        The method met its convergence test at a minimum (not a saddle, not only stationary
+        in a singular Euler chart). The CLI exits 1 when False.
+    status : int or None
+        Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
+    message : str
+    rms_mm, max_residual_mm, cost_mm2 : float or None
+        Over the samples used; None after a numerical failure.
+    residuals : list of SampleResidual
+        Every sample, used or excluded.
+    excluded : list of ExcludedSample
+        Gross errors excluded, with statistic and reason (``outliers`` in the JSON: their ids).
+    std : Uncertainty or None
+    identifiability : handeye.model.identifiability.Identifiability or None
+        Rank, singular values and observability of the final Jacobian.
+    warnings : list of str
+    before : Before or None
+        The plain fit of every sample.
+    closed_form : ClosedFormDetails or None
+        Set for the closed-form methods only.
+    provenance : dict or None
+        Tool version, dataset hash, options and time, set when the result is saved.
+
+    The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
+    ``start_pose`` (KUKA), ``start_used``, ``iterations``, ``evaluations``, ``history`` (KUKA
+    poses of the iterates), ``solver_point``, ``sigma_mm``, ``sigma_scale``, ``correlation``
+    with ``parameter_names``, ``loo_error_mm``, ``hessian_eigenvalues``, ``noise_model``)
+    carry the JSON keys of the same name.
+    """
+
+    dataset: str
+    dataset_path: str
+    dataset_sha256: str
+    method: str
+    unknowns: str
+    sensor2flange: np.ndarray
+    sensor_pose: np.ndarray
+    sensor_pose_kuka: np.ndarray
+    convention: str
+    columns: tuple
+    sphere_centre: np.ndarray
+    converged: bool
+    status: int | None
+    message: str
+    residuals: list
+    excluded: list
+    warnings: list
+    rotation: str | None = None
+    model: str | None = None
+    robot_sigma_mm: float | None = None
+    start_pose: np.ndarray | None = None
+    start_used: str | None = None
+    iterations: int = 0
+    evaluations: dict | None = None
+    before: Before | None = None
+    history: np.ndarray | None = None
+    solver_point: np.ndarray | None = None
+    solver_extra: dict | None = None
+    n_used: int | None = None
+    rms_mm: float | None = None
+    max_residual_mm: float | None = None
+    cost_mm2: float | None = None
+    sigma_mm: float | None = None
+    sigma_scale: float | None = None
+    std: Uncertainty | None = None
+    parameter_names: tuple | None = None
+    correlation: np.ndarray | None = None
+    loo_error_mm: float | None = None
+    identifiability: object | None = None
+    hessian_eigenvalues: np.ndarray | None = None
+    noise_model: str | None = None
+    closed_form: ClosedFormDetails | None = None
+    provenance: dict | None = None
+
+    @property
+    def outliers(self):
+        """Ids of the excluded samples."""
+        return [e.id for e in self.excluded]
+
+    def to_dict(self):
+        """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None)."""
+        out = {
+            "dataset": self.dataset,
+            "dataset_path": self.dataset_path,
+            "dataset_sha256": self.dataset_sha256,
+            "method": self.method,
+            "rotation": self.rotation,
+            "unknowns": self.unknowns,
+            "model": self.model,
+            "robot_sigma_mm": self.robot_sigma_mm,
+            "start_pose": _list(self.start_pose),
+            "start_used": self.start_used,
+            "sensor_pose": _list(self.sensor_pose),
+            "sensor_pose_kuka": _list(self.sensor_pose_kuka),
+            "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
+                               "pose": _list(self.sensor_pose)},
+            "sensor_matrix": _list(self.sensor2flange),
+            "sphere_center": _list(self.sphere_centre),
+            "iterations": int(self.iterations),
+            "evaluations": self.evaluations,
+            "converged": bool(self.converged),
+            "status": None if self.status is None else int(self.status),
+            "message": self.message,
+            "outliers": self.outliers,
+            "excluded": [e.to_dict() for e in self.excluded],
+            "before": None if self.before is None else self.before.to_dict(),
+            "warnings": list(self.warnings),
+            "history": [] if self.history is None else _list(self.history),
+            "solver_point": _list(self.solver_point),
+            "solver_extra": self.solver_extra,
+            "n_used": self.n_used,
+            "rms_mm": self.rms_mm,
+            "max_residual_mm": self.max_residual_mm,
+            "cost_mm2": self.cost_mm2,
+            "residuals": [r.to_dict() for r in self.residuals],
+            "sigma_mm": self.sigma_mm,
+            "sigma_scale": self.sigma_scale,
+            "std": None if self.std is None else self.std.to_dict(),
+            "correlation": None if self.correlation is None else {
+                "names": list(self.parameter_names), "matrix": np.round(self.correlation, 6).tolist()},
+            "loo_error_mm": self.loo_error_mm,
+            "identifiability": None if self.identifiability is None else self.identifiability.to_dict(),
+            "hessian_eigenvalues": _list(self.hessian_eigenvalues),
+            "noise_model": self.noise_model,
+            "closed_form": None if self.closed_form is None else self.closed_form.to_dict(),
+        }
+        if self.provenance is not None:
+            out["provenance"] = self.provenance
+        return out
+
+    def to_json(self, indent=1):
+        """:meth:`to_dict` as JSON text."""
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def summary(self):
+        """The CLI's text report."""
+        from handeye.app import report
+
+        return report.calibration_text(self)
+
+    def save(self, path):
+        """Write :meth:`to_json` atomically to ``path`` (with ``provenance`` when set)."""
+        from handeye.app.files import write_text_atomically
+
+        write_text_atomically(path, self.to_json(), option="--out")
+
+    def _repr_html_(self):
+        verdict = "converged" if self.converged else "NOT CONVERGED"
+        rows = [
+            ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
+                        f" used, {len(self.excluded)} excluded)"),
+            ("method", f"{self.method}" + (f", rotation {self.rotation}" if self.rotation else "")
+             + f", unknowns {self.unknowns}" + (f", model {self.model}" if self.model else "")),
+            ("status", f"{verdict}: {self.message}"),
+            (f"sensor pose ({self.convention}: {','.join(self.columns)})",
+             " ".join(f"{v:.4f}" for v in self.sensor_pose)),
+            ("sphere centre (base, mm)", " ".join(f"{v:.3f}" for v in self.sphere_centre)),
+        ]
+        if self.rms_mm is not None:
+            rows.append(("RMS / max residual (mm)", f"{self.rms_mm:.4f} / {self.max_residual_mm:.4f}"))
+        if self.loo_error_mm is not None:
+            rows.append(("leave-one-out error (mm)", f"{self.loo_error_mm:.4f}"))
+        if self.std is not None:
+            rows.append(("1 sd translation (mm)", " ".join(f"{v:.4f}" for v in self.std.sensor_translation_mm)))
+            rows.append(("1 sd rotation (deg)", " ".join(f"{v:.4f}" for v in self.std.sensor_rotation_deg)))
+        rows += [("warning", w) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
+                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
+        return f"<table><caption>handeye calibration</caption>{body}</table>"
+
+    def __repr__(self):
+        verdict = "converged" if self.converged else "NOT CONVERGED"
+        rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
+        return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "
+                f"sensor_pose[{self.convention}]={np.round(self.sensor_pose, 4).tolist()})")
+
+
+@dataclasses.dataclass(frozen=True)
+class NamedEffect:
+    """An effect :func:`handeye.diagnose` named, with its parameters and their 1-sd errors.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name (:mod:`handeye.model.effects`) or ``sign_flip``.
+    parameters : dict
+        Parameter name -> value (units of the effect; ``sign_flip``: ``{'ids': [...]}``).
+    std : dict or None
+        Parameter name -> 1 sd (None for ``sign_flip``).
+    """
+
+    name: str
+    parameters: dict
+    std: dict | None
+
+    def to_dict(self):
+        return {"name": self.name, "parameters": dict(self.parameters),
+                "std": None if self.std is None else dict(self.std)}
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One step of the diagnosis: the fit after it (mm; chi2/dof against the nominal sigma)."""
+
+    step: str
+    rms_mm: float
+    chi2_dof: float
+    sigma_mm: float
+    heldout_rms_mm: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class ScoreTest:
+    """A candidate effect's score test in one round (Bonferroni over the round's candidates)."""
+
+    name: str
+    score: float
+    p_bonferroni: float
+    gate: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnosisResidual:
+    """|residual| of one sample before (base model) and after (with the named effects), mm."""
+
+    id: str
+    before_mm: float
+    after_mm: float
+    used: bool
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnosisResult:
+    """The outcome of :func:`handeye.diagnose`; :meth:`to_dict` is ``handeye diagnose --json``.
+
+    Attributes
+    ----------
+    effects : list of NamedEffect
+    outliers : list of str
+        Ids excluded as outliers at the end.
+    absorbed_by : dict
+        Effect name -> the parameters that reproduce it (not identifiable from these poses).
+    rms_before_mm, rms_after_mm, heldout_rms_before_mm, heldout_rms_after_mm : float
+        Fitted and 5-fold held-out RMS, base model and with the named effects, mm.
+    chi2_dof_before, chi2_dof_after : float
+        Against ``nominal_sigma_mm`` per residual component.
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor in flange (mm) of the final model. JSON key ``sensor_matrix``.
+    sensor_pose : ndarray, shape (6,)
+        KUKA x, y, z, A, B, C (mm, deg).
+    sphere_centre : ndarray, shape (3,)
+        Robot base, mm. JSON key ``sphere_center``.
+    steps : list of Step
+    tests : list of list of ScoreTest
+        The score tests of each round.
+    residuals : list of DiagnosisResidual
+    unexplained : str
+        What remains after the named effects.
+    """
+
+    dataset: str
+    effects: list
+    outliers: list
+    absorbed_by: dict
+    rms_before_mm: float
+    rms_after_mm: float
+    heldout_rms_before_mm: float
+    heldout_rms_after_mm: float
+    chi2_dof_before: float
+    chi2_dof_after: float
+    nominal_sigma_mm: float
+    sigma_after_mm: float
+    sensor_pose: np.ndarray
+    sensor2flange: np.ndarray
+    sphere_centre: np.ndarray
+    effect_correlations: dict
+    steps: list
+    tests: list
+    residuals: list
+    screened_out_first: list
+    unexplained: str
+
+    @property
+    def not_identifiable(self):
+        """Names of the catalogue effects these poses cannot separate from the model."""
+        return sorted(self.absorbed_by)
+
+    def to_dict(self):
+        """The ``handeye diagnose --json`` object."""
+        return {
+            "dataset": self.dataset,
+            "effects": [e.to_dict() for e in self.effects],
+            "outliers": list(self.outliers),
+            "not_identifiable": self.not_identifiable,
+            "absorbed_by": {k: list(v) for k, v in self.absorbed_by.items()},
+            "rms_before_mm": self.rms_before_mm,
+            "rms_after_mm": self.rms_after_mm,
+            "heldout_rms_before_mm": self.heldout_rms_before_mm,
+            "heldout_rms_after_mm": self.heldout_rms_after_mm,
+            "chi2_dof_before": self.chi2_dof_before,
+            "chi2_dof_after": self.chi2_dof_after,
+            "nominal_sigma_mm": self.nominal_sigma_mm,
+            "sigma_after_mm": self.sigma_after_mm,
+            "sensor_pose": _list(self.sensor_pose),
+            "sensor_matrix": _list(self.sensor2flange),
+            "sphere_center": _list(self.sphere_centre),
+            "effect_correlations": self.effect_correlations,
+            "steps": [s.to_dict() for s in self.steps],
+            "tests": [[t.to_dict() for t in round_] for round_ in self.tests],
+            "residuals": [r.to_dict() for r in self.residuals],
+            "screened_out_first": list(self.screened_out_first),
+            "unexplained": self.unexplained,
+        }
+
+    def to_json(self, indent=1):
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def summary(self):
+        """The CLI's text report."""
+        from handeye.app import diagnose
+
+        return diagnose.text(self)
+
+    def figures(self, folder):
+        """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""
+        from handeye.app import diagnose
+
+        return diagnose.figures(self, folder)
+
+    def _repr_html_(self):
+        named = "; ".join(
+            e.name + (": " + ", ".join(e.parameters["ids"]) if e.std is None else
+                      ": " + ", ".join(f"{k} = {v:.4g} ± {e.std[k]:.2g}" for k, v in e.parameters.items()))
+            for e in self.effects) or "none"
+        rows = [("dataset", self.dataset), ("effects named", named),
+                ("outliers", ", ".join(self.outliers) or "none"),
+                ("absorbed (not identifiable)", ", ".join(self.not_identifiable) or "none"),
+                ("RMS before → after (mm)", f"{self.rms_before_mm:.4f} → {self.rms_after_mm:.4f}"),
+                ("held-out RMS before → after (mm)",
+                 f"{self.heldout_rms_before_mm:.4f} → {self.heldout_rms_after_mm:.4f}"),
+                ("unexplained", self.unexplained)]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
+                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
+        return f"<table><caption>handeye diagnosis</caption>{body}</table>"
