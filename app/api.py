@@ -132,8 +132,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     handeye.InputError
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
-    from handeye.app.calibrate import METHODS, calibrate as run
-    from handeye.app.classic import METHODS as CLOSED_FORM, calibrate_classic
+    from handeye.app.calibrate import METHODS
+    from handeye.app.calibrate import calibrate as run
+    from handeye.app.classic import METHODS as CLOSED_FORM
+    from handeye.app.classic import calibrate_classic
     from handeye.app.files import provenance
     from handeye.model import conventions
 

@@ -122,7 +122,8 @@ def check_identifiable(dataset, unknowns, start_transform):
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: the robot poses nearly leave a direction undetermined "
             f"(inverse condition number {ident.observability['O2']:.1e} < {identifiability.NEARLY_SINGULAR:g}): "
-            f"{ident.describe_weakest()}. This happens when the sphere is always seen at one sensor point (pure rotations about it): "
+            f"{ident.describe_weakest()}. This happens when the sphere is always seen at one sensor point "
+            "(pure rotations about it): "
             "add poses that see it elsewhere in the laser plane, or pure translations")
     return ident
 

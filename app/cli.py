@@ -67,7 +67,8 @@ def build_parser():
     cal.add_argument("--rotation", default=None, choices=list(ROTATIONS),
                      help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
-                     help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)")
+                     help="start sensor pose in --convention's columns (KUKA: mm and degrees; "
+                          "write --start=-1,2,... for a leading minus)")
     cal.add_argument("--convention", default=None, choices=list(CONVENTIONS),
                      help="robot convention of --start and of the reported pose (default: the dataset's)")
     cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")

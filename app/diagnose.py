@@ -32,13 +32,13 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
+from handeye.app import robust
+from handeye.app.calibrate import resolve_start
+from handeye.app.results import DiagnosisResidual, DiagnosisResult, NamedEffect, ScoreTest, Step
 from handeye.model import effects
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.statistics import chi2_survival, deletion_statistics, f_survival
-from handeye.app import robust
-from handeye.app.results import DiagnosisResidual, DiagnosisResult, NamedEffect, ScoreTest, Step
-from handeye.app.calibrate import resolve_start
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA

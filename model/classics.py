@@ -44,8 +44,8 @@ import functools
 import numpy as np
 
 from handeye.model import codegen
-from handeye.model.rotation import nearest_rotation, nearest_transform, rotation_angle_deg, rotvec_from_matrix
 from handeye.model.errors import InputError
+from handeye.model.rotation import nearest_rotation, nearest_transform, rotation_angle_deg, rotvec_from_matrix
 
 #: Flange rotations closer than this (degrees) count as equal: a pure translation.
 SAME_ROTATION_DEG = 0.01

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.model.rotation import nearest_rotation
 from handeye.model.errors import InputError
+from handeye.model.rotation import nearest_rotation
 
 
 class ClosedFormError(InputError):

@@ -25,9 +25,9 @@ import functools
 import numpy as np
 
 from handeye.model import codegen
+from handeye.model.errors import InputError
 from handeye.model.pose import kuka_from_matrix
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.model.errors import InputError
 
 #: Robot-brand rotation conventions and their parameters (units); model.symbolic derives each.
 CONVENTIONS = {
@@ -36,6 +36,8 @@ CONVENTIONS = {
     "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
     "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
 }
+#: No angle (KUKA, FANUC; degrees) may exceed a full turn, start guesses included.
+ANGLE_LIMIT_DEG = 360.0
 #: Tolerance on |q| - 1 for ABB quaternions (they are normalised within it).
 QUATERNION_TOLERANCE = 1e-3
 
@@ -77,8 +79,8 @@ def validate(convention, values):
             raise ConventionError(f"an ABB quaternion must have unit norm (|q| = {float(np.max(norm)):.6g})")
         v = v / norm
     elif convention in ("kuka", "fanuc"):
-        if np.any(np.abs(v) > 360.0):
-            raise ConventionError("angles must lie in [-360, 360] degrees")
+        if np.any(np.abs(v) > ANGLE_LIMIT_DEG):
+            raise ConventionError(f"angles must lie in [-{ANGLE_LIMIT_DEG:g}, {ANGLE_LIMIT_DEG:g}] degrees")
     elif np.any(np.linalg.norm(v, axis=-1) > 2 * np.pi + 1e-9):
         raise ConventionError("a UR rotation vector is at most 2 pi rad long")
     return v

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import math
 import pathlib
 import tomllib
@@ -34,8 +35,8 @@ import tomllib
 import numpy as np
 
 from handeye.model import conventions
-from handeye.model.pose import transform_from_pose
 from handeye.model.errors import InputError
+from handeye.model.pose import transform_from_pose
 
 REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
 OPTIONAL_COLUMNS = ("profile",)
@@ -116,8 +117,15 @@ class Dataset:
     convention: str = "kuka"
 
     def flange2base(self):
-        """Flange poses as homogeneous transforms, shape (N, 4, 4)."""
-        return transform_from_pose(self.flange_poses)
+        """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
+        dataset and read-only (copy it to change it)."""
+        return self._flange2base
+
+    @functools.cached_property
+    def _flange2base(self):
+        out = transform_from_pose(self.flange_poses)
+        out.setflags(write=False)
+        return out
 
     def __len__(self):
         return len(self.ids)
@@ -187,16 +195,30 @@ def _vector(table, key, n, file, section):
     return np.array(out)
 
 
-#: Controller readings (flange and plate poses) lie in KUKA's principal ranges.
-READING_LIMITS = (180.0, 90.0, 180.0)
+#: Principal ranges of controller readings per angle convention (degrees): flange and plate
+#: poses must lie in them.
+READING_RANGES = {"kuka": (180.0, 90.0, 180.0), "fanuc": (180.0, 90.0, 180.0)}
+#: KUKA readings (flange and plate poses, pose lists).
+READING_LIMITS = READING_RANGES["kuka"]
 #: A start guess may be any rotation (Table 7-2 starts at B = -90.1), but not beyond a turn.
-GUESS_LIMITS = (360.0, 360.0, 360.0)
+GUESS_LIMITS = (conventions.ANGLE_LIMIT_DEG,) * 3
 
 
-def _check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS):
-    for name, v, lim in zip("abc", pose[3:], limits):
+def _check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS, names=("a", "b", "c")):
+    for name, v, lim in zip(names, pose[3:], limits):
         if abs(v) > lim:
             raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", row, column_prefix + name)
+
+
+def _row_id(fields, column, seen, file, line):
+    """The id of a data row: non-empty and unique (``seen``: id -> first row, updated)."""
+    ident = fields[column].strip()
+    if not ident:
+        raise DatasetError(file, "empty id", line, "id")
+    if ident in seen:
+        raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
+    seen[ident] = line
+    return ident
 
 
 _ALLOWED = {
@@ -225,7 +247,8 @@ def _read_setup(path):
             raise DatasetError(file, f"unknown section (known: {', '.join(sorted(_ALLOWED))})", column=f"[{section}]")
         for key in table:
             if key not in _ALLOWED[section]:
-                raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})", column=f"[{section}] {key}")
+                raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})",
+                                   column=f"[{section}] {key}")
     convention = doc.get("robot", {}).get("convention", "kuka")
     if convention not in conventions.CONVENTIONS:
         raise DatasetError(file, f"unknown convention {convention!r} (known: {', '.join(conventions.CONVENTIONS)})",
@@ -262,10 +285,6 @@ def _read_setup(path):
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
     return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention
-
-
-#: Principal ranges of controller readings per convention (degrees), for the range check.
-READING_RANGES = {"kuka": (180.0, 90.0, 180.0), "fanuc": (180.0, 90.0, 180.0)}
 
 
 def _to_kuka(pose, convention, file, row, column):
@@ -332,12 +351,7 @@ def read_pose_list(path):
             continue
         if len(fields) != len(want):
             raise DatasetError(file, f"expected {len(want)} fields, got {len(fields)}", line)
-        ident = fields[0].strip()
-        if not ident:
-            raise DatasetError(file, "empty id", line, "id")
-        if ident in seen:
-            raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
-        seen[ident] = line
+        ident = _row_id(fields, 0, seen, file, line)
         pose = np.array([_number(fields[k], file, line, want[k]) for k in range(1, 7)])
         _check_angles(pose, file, line)
         ids.append(ident)
@@ -381,18 +395,10 @@ def load(name_or_path):
             continue
         if len(fields) != len(header):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
-        ident = fields[idx["id"]].strip()
-        if not ident:
-            raise DatasetError(file, "empty id", line, "id")
-        if ident in seen:
-            raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
-        seen[ident] = line
+        ident = _row_id(fields, idx["id"], seen, file, line)
         pose = np.array([_number(fields[idx[c]], file, line, c) for c in pose_columns])
         if convention in READING_RANGES:
-            limits = READING_RANGES[convention]
-            for name, v, lim in zip(pose_columns[3:], pose[3:], limits):
-                if abs(v) > lim:
-                    raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", line, name)
+            _check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
         if convention != "kuka":
             pose = _to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]

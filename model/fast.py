@@ -41,16 +41,19 @@ import numpy as np
 from handeye.model import codegen
 from handeye.model.calibration import _sources
 from handeye.model.rotation import matrix_from_rotvec
+from handeye.solvers import CONVERGED
 
 DRIVER = pathlib.Path(__file__).with_name("fast_lm.c")
 CFLAGS = ("-O3", "-fPIC", "-shared")
 
-#: ``status`` codes of the iteration (fast_lm.c), with what they mean.
+#: ``status`` codes of the iteration (fast_lm.c): the keys of the solvers' table
+#: (:data:`handeye.solvers.STATUS_MESSAGES`, same meaning, same ``converged``), with the
+#: fast path's own thresholds.
 STATUS = {
     0: "iteration limit reached",
     1: "gradient below 1e-10 max(1, cost)",
-    2: "step below 1e-12 (relative to the translation in mm; rad)",
-    3: "no measurable progress: decrease below rounding and the gradient no longer falls",
+    2: "no measurable progress: decrease below rounding and the gradient no longer falls",
+    3: "step below 1e-12 (relative to the translation in mm; rad)",
     -1: "non-finite cost or gradient",
     -2: "normal equations singular even with large damping (degenerate data)",
     -3: "a combination of the unknowns is not constrained by the data (scaled J^T J singular)",
@@ -69,7 +72,8 @@ class FastResult(NamedTuple):
     cost : float
         1/2 sum |e_i|^2 at the result (mm^2).
     status : int
-        Key of :data:`STATUS`; ``converged`` is ``status > 0``.
+        Key of :data:`STATUS` (and of :data:`handeye.solvers.STATUS_MESSAGES`); ``converged``
+        is ``status in handeye.solvers.CONVERGED``.
     """
 
     sensor2flange: np.ndarray
@@ -80,7 +84,7 @@ class FastResult(NamedTuple):
 
     @property
     def converged(self):
-        return self.status > 0
+        return self.status in CONVERGED
 
     @property
     def message(self):
@@ -300,7 +304,7 @@ def _calibrate_python(data, c, x, max_iter):
             mu = max(mu * 4.0, 1e-12)
             continue
         if np.max(np.abs(p[:3])) <= 1e-12 * (1.0 + np.max(np.abs(x[:3]))) and np.max(np.abs(p[3:])) <= 1e-12:
-            status = 2
+            status = 3
             break
         predicted = -float(g @ p) - 0.5 * float(p @ h @ p)
         xn = np.concatenate([x[:3] + p[:3], (x[3:].reshape(3, 3) @ matrix_from_rotvec(p[3:])).ravel()])
@@ -309,7 +313,7 @@ def _calibrate_python(data, c, x, max_iter):
         if predicted <= 100 * eps * max(1.0, f):  # the cost cannot judge the step: the gradient does
             accept = np.max(np.abs(gn)) < gmax
             if not accept:
-                status = 3
+                status = 2
                 break
         else:
             accept = fn < f

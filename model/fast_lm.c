@@ -27,7 +27,8 @@ int normal_one(const double **arg, double **res, he_int *iw, double *w, int mem)
 #define HE_SZ_W 64
 #endif
 
-enum { HE_MAXITER = 0, HE_GTOL = 1, HE_XTOL = 2, HE_STALL = 3, HE_NONFINITE = -1, HE_SINGULAR = -2, HE_DEGENERATE = -3 };
+/* The status codes of handeye.solvers.STATUS_MESSAGES, so that a code means one thing everywhere. */
+enum { HE_MAXITER = 0, HE_GTOL = 1, HE_STALL = 2, HE_XTOL = 3, HE_NONFINITE = -1, HE_SINGULAR = -2, HE_DEGENERATE = -3 };
 
 /* The 15 data of measurement i as the generated function takes them: R1 row-major, t1, xs,
  * read from the flange transform (4 x 4 row-major) and the measured centre. */

@@ -19,7 +19,6 @@ from handeye.model.errors import InputError
 from handeye.model.pose import pose_from_transform, transform_from_pose
 
 
-
 class PlanningError(InputError):
     """A pose plan that cannot be made (fewer usable candidates than poses asked for)."""
 

@@ -49,9 +49,9 @@ import pathlib
 import numpy as np
 
 from handeye.model import circle
+from handeye.model.errors import InputError
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec
-from handeye.model.errors import InputError
 
 #: Where the thesis strategy sees the sphere centre in the sensor frame (mm): x, |y| on the
 #: setup's side of the laser plane, z (module docstring).

@@ -47,7 +47,10 @@ def chi_median(k):
     """Median of the chi distribution with k degrees of freedom (norm of a k-vector of N(0,1))."""
     import mpmath
 
-    return float(mpmath.sqrt(mpmath.findroot(lambda x: mpmath.gammainc(k / 2.0, 0, x / 2.0, regularized=True) - 0.5, k - 2.0 / 3.0)))
+    def below_half(x):
+        return mpmath.gammainc(k / 2.0, 0, x / 2.0, regularized=True) - 0.5
+
+    return float(mpmath.sqrt(mpmath.findroot(below_half, k - 2.0 / 3.0)))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -33,7 +33,6 @@ from handeye.model.calibration import KINDS, ROTATIONS  # noqa: F401 - defined o
 from handeye.model.conventions import CONVENTIONS
 
 
-
 def rot_x(angle):
     """Elementary rotation about x by ``angle`` (radians), 3x3 sympy matrix."""
     c, s = sp.cos(angle), sp.sin(angle)

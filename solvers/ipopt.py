@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.solvers.result import OptimizeResult, STATUS_MESSAGES
+from handeye.solvers.result import STATUS_MESSAGES, OptimizeResult
 
 _DEFAULTS = {
     "ipopt.print_level": 0,

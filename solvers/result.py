@@ -13,6 +13,8 @@ STATUS_MESSAGES = {
     2: "relative cost reduction below ftol",
     3: "step size below xtol",
     4: "trust-region radius fell below its minimum without progress",
+    -2: "normal equations singular even with large damping",
+    -3: "rank-deficient at the solution: a combination of the unknowns is not constrained (scaled J^T J singular)",
     5: "IPOPT: optimal solution found",
     6: "IPOPT: solved to acceptable level",
     7: "IPOPT: did not converge",

@@ -15,6 +15,7 @@ from handeye.app.errors import RequestError
 from handeye.app.plotting import figure  # noqa: F401 - the studies' figures
 from handeye.app.registry import STUDIES, StudyClaimFailed
 
+
 def claim(condition, text):
     """Assert a study's claim; the message says what was claimed."""
     if not condition:

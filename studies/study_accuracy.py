@@ -23,11 +23,11 @@ import tempfile
 
 import numpy as np
 
+import handeye
 from handeye.model import bounds, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.app.calibrate import calibrate
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 KINDS = ("centre", "measurement", "points")
@@ -51,16 +51,16 @@ def run(out, quick=False):
             d = load(simulate.write(sim, f"{tmp}/rep{r}", profiles=True))
             new = simulate.simulate(setup, seed=10_000 + r, n_poses=12)
             for kind in KINDS:
-                res = calibrate(d, method="lm", model=kind, loo=kind == "measurement", outliers=False)
+                res = handeye.calibrate(d, method="lm", model=kind, no_loo=kind != "measurement", keep_all=True)
                 if kind == "measurement":
-                    loo.append(res["loo_error_mm"])
-                    pred = transform_from_pose(new.flange_poses) @ np.array(res["sensor_matrix"]) @ np.column_stack(
+                    loo.append(res.loo_error_mm)
+                    pred = transform_from_pose(new.flange_poses) @ res.sensor2flange @ np.column_stack(
                         [new.centre_in_sensor, np.ones(len(new.ids))])[..., None]
                     heldout.append(np.sqrt(np.mean(np.sum((pred[:, :3, 0] - new.true_centre) ** 2, axis=1))))
-                est = np.array(res["sensor_matrix"])
+                est = res.sensor2flange
                 errors[kind].append(np.concatenate([
                     est[:3, 3] - truth[:3, 3], np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
-                reported[kind].append(res["std"]["sensor_translation_mm"] + res["std"]["sensor_rotation_deg"])
+                reported[kind].append([*res.std.sensor_translation_mm, *res.std.sensor_rotation_deg])
     rows, summary = [], {"replicates": reps, "crlb_sd": dict(zip(NAMES, bound_sd.tolist())), "models": {}}
     for kind in KINDS:
         e = np.array(errors[kind])

@@ -42,12 +42,12 @@ import time
 import numpy as np
 
 from handeye import solvers
+from handeye.app import sweep
+from handeye.app.problems import calibration_problem
 from handeye.model import bounds, classics, fast, motions, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.app import sweep
-from handeye.app.problems import calibration_problem
 from handeye.studies.study import claim, figure, write_summary, write_table
 from handeye.studies.study_random_starts import random_start
 
@@ -72,7 +72,7 @@ def _newton_success(f2b, xs, centre, start, reference):
     model = CalibrationModel(f2b, xs, centre, "local")
     res = solvers.solve(calibration_problem(model), model.point_from(start), "newton", {"max_iter": 100})
     dt, dr = transform_distance(model.sensor2flange(res.x), reference)
-    return bool(res.status > 0 and dt < 1e-6 and dr < 1e-6)
+    return bool(res.converged and dt < 1e-6 and dr < 1e-6)
 
 
 def replicate(k, n_orientations, seed, basins=False):
@@ -192,8 +192,8 @@ def run(out, quick=False):
 def _real_data():
     """thesis-real without its gross errors: Kim & Cho beside the least squares with the plate-
     taught sphere centre and with the centre free (Li et al. has no pure translations there)."""
-    from handeye.model.calibration import CalibrationModel
     from handeye.app import bench, robust
+    from handeye.model.calibration import CalibrationModel
 
     f2b, xs, c, start = bench.real_case()
     kc = classics.kim_cho(f2b, xs).sensor2flange

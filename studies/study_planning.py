@@ -16,11 +16,11 @@ import tempfile
 
 import numpy as np
 
+import handeye
 from handeye.model import bounds, planning, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.app.calibrate import calibrate
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 
@@ -31,8 +31,8 @@ def _rmse(setup, ids, poses, reps):
         for r in range(reps):
             sim = simulate.simulate(setup, seed=500 + r, flange_poses=poses, ids=ids)
             d = load(simulate.write(sim, f"{tmp}/r{r}", profiles=True))
-            res = calibrate(d, method="lm", model="measurement", loo=False, outliers=False)
-            est = np.array(res["sensor_matrix"])
+            res = handeye.calibrate(d, method="lm", model="measurement", no_loo=True, keep_all=True)
+            est = res.sensor2flange
             errs.append(np.concatenate([est[:3, 3] - truth[:3, 3],
                                         np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
     return np.sqrt(np.mean(np.array(errs) ** 2, axis=0))
@@ -94,5 +94,6 @@ def run(out, quick=False):
     write_summary(out, summary)
     ratio = observed / predicted
     tol = 0.35 * (1 + 2 / np.sqrt(reps)) if quick else 0.35
-    claim(np.all(np.abs(ratio - 1) <= tol), f"simulated RMSE of the planned 12 poses matches prediction (ratios {np.round(ratio, 2)})")
+    claim(np.all(np.abs(ratio - 1) <= tol),
+          f"simulated RMSE of the planned 12 poses matches prediction (ratios {np.round(ratio, 2)})")
     return summary

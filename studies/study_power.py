@@ -15,9 +15,9 @@ import tempfile
 
 import numpy as np
 
+import handeye
 from handeye.model import simulate
 from handeye.model.dataset import load
-from handeye.app.diagnose import diagnose
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 GRIDS = {
@@ -44,8 +44,8 @@ def run(out, quick=False):
                 hits = 0
                 for seed in range(seeds):
                     sim = simulate.simulate(simulate.Setup(), seed=2000 + seed, effects=_hidden(name, size))
-                    res = diagnose(load(simulate.write(sim, f"{tmp}/{name}-{size}-{seed}")))
-                    hits += [e["name"] for e in res["effects"]] == [name]
+                    res = handeye.diagnose(load(simulate.write(sim, f"{tmp}/{name}-{size}-{seed}")))
+                    hits += [e.name for e in res.effects] == [name]
                 rates.append(hits / seeds)
                 rows.append((name, size, hits / seeds))
             detect = [s for s, r in zip(grid, rates) if r >= 0.9]

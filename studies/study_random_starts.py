@@ -15,13 +15,14 @@ import tempfile
 
 import numpy as np
 
+import handeye
 from handeye import solvers
+from handeye.app.calibrate import SUPPORTED
+from handeye.app.problems import calibration_problem
 from handeye.model import observations, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
-from handeye.app.calibrate import SUPPORTED, calibrate
-from handeye.app.problems import calibration_problem
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("lm", "gn", "dogleg", "tr", "newton", "ipopt")
@@ -45,7 +46,7 @@ def run(out, quick=False):
     rng = np.random.default_rng(7)
     with tempfile.TemporaryDirectory() as tmp:
         d = load(simulate.write(simulate.simulate(simulate.Setup(), seed=3), tmp + "/sim"))
-        reference = np.array(calibrate(d, method="lm", loo=False, outliers=False)["sensor_matrix"])
+        reference = handeye.calibrate(d, method="lm", no_loo=True, keep_all=True).sensor2flange
         truth = transform_from_pose(d.truth["sensor_pose"])
         rows = []
         for k in range(n_starts):
@@ -58,10 +59,10 @@ def run(out, quick=False):
                     plain = solvers.solve(calibration_problem(model), model.point_from(start), method)
                     dt, dr = transform_distance(nearest_transform(model.sensor2flange(plain.x)), reference)
                     ok_plain = bool(plain.converged and dt < 1e-4 and dr < 1e-4)
-                    res = calibrate(d, method=method, rotation=rotation, start=pose_from_transform(start), loo=False,
-                                    outliers=False)
-                    dt, dr = transform_distance(np.array(res["sensor_matrix"]), reference)
-                    ok_full = bool(res["converged"] and dt < 1e-4 and dr < 1e-4)
+                    res = handeye.calibrate(d, method=method, rotation=rotation, start=pose_from_transform(start),
+                                            no_loo=True, keep_all=True)
+                    dt, dr = transform_distance(res.sensor2flange, reference)
+                    ok_full = bool(res.converged and dt < 1e-4 and dr < 1e-4)
                     rows.append((k, f"{method}/{rotation}", rot_err, trans_err, ok_plain, ok_full))
     write_table(out, "random_starts", ["start", "method", "rotation_error_deg", "translation_error_mm",
                                        "plain_success", "with_closed_form_success"], rows)

@@ -13,12 +13,11 @@ Claims: with screening, every method and parametrisation lands on the same trans
 """
 from __future__ import annotations
 
-import numpy as np
-
+import handeye
+from handeye.app.calibrate import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.app.calibrate import SUPPORTED, calibrate
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 TABLE_7_4 = (189.69, 99.71, 130.36, -181.40, -89.24, 0.155)
@@ -31,13 +30,13 @@ def run(out, quick=False):
     for screened in (False, True):
         for method, rotations in SUPPORTED.items():
             for rotation in rotations:
-                res = calibrate(d, method=method, rotation=rotation, outliers=screened, loo=False)
-                est = np.array(res["sensor_matrix"])
+                res = handeye.calibrate(d, method=method, rotation=rotation, keep_all=not screened, no_loo=True)
+                est = res.sensor2flange
                 dt, dr = transform_distance(est, thesis)
                 results[(screened, method, rotation)] = (res, est)
-                rows.append(("screened" if screened else "all samples", method, rotation, bool(res["converged"]),
-                             int(res["iterations"]), float(res["rms_mm"]), float(dt), float(dr),
-                             " ".join(f"{v:.2f}" for v in res["sensor_pose"]), ",".join(res["outliers"])))
+                rows.append(("screened" if screened else "all samples", method, rotation, bool(res.converged),
+                             int(res.iterations), float(res.rms_mm), float(dt), float(dr),
+                             " ".join(f"{v:.2f}" for v in res.sensor_pose_kuka), ",".join(res.outliers)))
     write_table(out, "real_data", ["fit", "method", "rotation", "converged", "iterations", "rms_mm",
                                    "distance_to_table_7_4_mm", "distance_to_table_7_4_deg", "sensor_pose",
                                    "excluded"], rows)
@@ -45,14 +44,14 @@ def run(out, quick=False):
     ref = screened[0][1][1]
     spread = max(max(transform_distance(est, ref)) for _, (_, est) in screened)
     summary = {"screened_agreement": float(spread),
-               "screened_rms_mm": float(screened[0][1][0]["rms_mm"]),
-               "unscreened_rms_mm": [float(v[0]["rms_mm"]) for k, v in results.items() if not k[0]],
+               "screened_rms_mm": float(screened[0][1][0].rms_mm),
+               "unscreened_rms_mm": [float(v[0].rms_mm) for k, v in results.items() if not k[0]],
                "table_7_4_distance": [float(x) for x in transform_distance(ref, thesis)]}
     plt = figure()
     fig, ax = plt.subplots(figsize=(10, 4))
     for screened_flag, label in ((False, "every sample (as the thesis)"), (True, "gross errors screened")):
         res = results[(screened_flag, "ipopt", "matrix")][0]
-        ax.semilogy([r["norm"] for r in res["residuals"]], "o-" if screened_flag else "s--", label=label, ms=4)
+        ax.semilogy([r.norm for r in res.residuals], "o-" if screened_flag else "s--", label=label, ms=4)
     ax.set_xticks(range(len(d)), d.ids, rotation=90, fontsize=6)
     ax.set(ylabel="|e_i| (mm)", title="thesis-real: residual per measurement (IPOPT, matrix)")
     ax.legend()

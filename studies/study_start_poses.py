@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
-
+import handeye
+from handeye.app.calibrate import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.app.calibrate import SUPPORTED, calibrate
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 TABLE_7_2 = [
@@ -39,12 +38,12 @@ def run(out, quick=False):
         for rotation in rotations:
             for k, start in enumerate(TABLE_7_2):
                 t0 = time.perf_counter()
-                res = calibrate(d, method=method, rotation=rotation, start=start, outliers=False, loo=False)
+                res = handeye.calibrate(d, method=method, rotation=rotation, start=start, keep_all=True, no_loo=True)
                 elapsed = (time.perf_counter() - t0) * 1e3
-                dt, dr = transform_distance(np.array(res["sensor_matrix"]), truth)
+                dt, dr = transform_distance(res.sensor2flange, truth)
                 thesis = TABLE_7_3.get(method, [None] * 10)[k] if rotation == "euler" else None
-                rows.append((k, method, rotation, int(res["iterations"]), bool(res["converged"]), float(dt), float(dr),
-                             elapsed, "-" if thesis is None else thesis, res["start_used"]))
+                rows.append((k, method, rotation, int(res.iterations), bool(res.converged), float(dt), float(dr),
+                             elapsed, "-" if thesis is None else thesis, res.start_used))
     write_table(out, "start_poses", ["start", "method", "rotation", "iterations", "converged", "error_mm", "error_deg",
                                      "time_ms", "thesis_iterations", "start_used"], rows)
     summary = {}

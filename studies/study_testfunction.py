@@ -23,9 +23,9 @@ from __future__ import annotations
 import numpy as np
 
 from handeye import solvers
-from handeye.model import testfunction
 from handeye.app import sweep
 from handeye.app.problems import testfunction_problem
+from handeye.model import testfunction
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")

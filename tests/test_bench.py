@@ -4,10 +4,10 @@ degenerate data are refused; the benchmark reports every method (speed is measur
 import numpy as np
 import pytest
 
+from handeye.app import bench
 from handeye.model import fast
 from handeye.model.calibration import CalibrationModel
 from handeye.model.rotation import transform_distance
-from handeye.app import bench
 
 
 def _newton_polished(f2b, xs, centre, sensor2flange, steps=4):

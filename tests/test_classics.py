@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from handeye.app import cli
 from handeye.model import classics, motions, simulate, symbolic
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec, transform_distance
-from handeye.app import cli
 
 
 def _noise_free(name="thesis", translations=0, n=36, seed=0):
@@ -226,7 +226,7 @@ def test_cli_kim_cho_on_thesis_real_screens_the_misprint_first(capsys):
     assert cli.main(["calibrate", "--method", "kim-cho", "--json"]) == cli.EXIT_OK
     res = json.loads(capsys.readouterr().out)
     assert "x+22.5" in res["outliers"] and res["n_used"] == 27
-    assert res["rms_mm"] < 10 and res["least_squares_from_here"]["converged"]
+    assert res["rms_mm"] < 10 and res["closed_form"]["least_squares_from_here"]["converged"]
     assert cli.main(["calibrate", "--method", "kim-cho", "--json", "--keep-all"]) == cli.EXIT_OK
     raw = json.loads(capsys.readouterr().out)
     assert raw["outliers"] == [] and raw["rms_mm"] > 100  # the 2,000 mm misprint ruins the linear fit
@@ -243,7 +243,7 @@ def test_cli_classics_on_a_simulated_dataset(tmp_path, capsys):
         truth = transform_from_pose(np.array([190.0, 100.0, 125.0, 180.0, -88.0, 0.0]))
         dt, dr = transform_distance(np.array(res["sensor_matrix"]), truth)
         assert dt < 2.0 and dr < 1.0
-        ls = res["least_squares_from_here"]
+        ls = res["closed_form"]["least_squares_from_here"]
         assert ls["converged"] and ls["distance_mm"] < 2.0
     assert cli.main(["calibrate", str(out), "--method", "kim-cho", "--start=1,2,3,4,5,6"]) == cli.EXIT_BAD_INPUT
     assert "do not apply to it: --start" in capsys.readouterr().err

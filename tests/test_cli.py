@@ -7,8 +7,8 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import simulate, write_dataset
+
 from handeye.app.cli import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -163,6 +163,7 @@ def test_conventions_on_the_command_line(capsys):
     res = json.loads(out)
     assert code == EXIT_OK and res["sensor_pose_as"]["convention"] == "abb"
     q = np.array(res["sensor_pose_as"]["pose"][3:])
-    assert abs(np.linalg.norm(q) - 1) < 1e-9 and res["sensor_pose"] == pytest.approx([5, 0, 5, 0, -90, 0], abs=1e-6)
+    assert abs(np.linalg.norm(q) - 1) < 1e-9 and res["sensor_pose_kuka"] == pytest.approx([5, 0, 5, 0, -90, 0], abs=1e-6)
+    assert res["sensor_pose"] == res["sensor_pose_as"]["pose"]  # the result's pose is in the asked convention
     code, _, err = run(capsys, "calibrate", "thesis-sim", "--convention", "ur", "--start=1,2,3,9,0,0")
     assert code == EXIT_BAD_INPUT and "2 pi" in err

@@ -4,11 +4,11 @@ import json
 import numpy as np
 import pytest
 
+from handeye.app.cli import EXIT_OK, main
+from handeye.app.diagnose import diagnose
 from handeye.model import effects, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.app.cli import EXIT_OK, main
-from handeye.app.diagnose import diagnose
 
 SETUP = simulate.Setup()
 STRUCTURAL = {"base_frame", "flange_frame", "laser_plane"}
@@ -28,7 +28,7 @@ CASES = {
 
 def run(tmp_path, effects_, seed):
     sim = simulate.simulate(SETUP, seed=seed, effects=effects_)
-    return diagnose(load(simulate.write(sim, tmp_path / f"d{seed}"))), sim
+    return diagnose(load(simulate.write(sim, tmp_path / f"d{seed}"))).to_dict(), sim
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
@@ -72,7 +72,7 @@ def test_a_base_frame_offset_is_absorbed_not_named(tmp_path):
     sim = simulate.simulate(SETUP, seed=3)
     base_error = transform_from_pose([0.8, -0.5, 0.6, 0.02, -0.01, 0.015])
     sim.flange_poses = pose_from_transform(base_error @ transform_from_pose(sim.flange_poses))
-    res = diagnose(load(simulate.write(sim, tmp_path / "base")))
+    res = diagnose(load(simulate.write(sim, tmp_path / "base"))).to_dict()
     names = {e["name"] for e in res["effects"]}
     assert "base_frame" not in names and "base_frame" in res["not_identifiable"]
     assert set(res["absorbed_by"]["base_frame"]) <= {"cx", "cy", "cz"}

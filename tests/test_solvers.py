@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from handeye import solvers
+from handeye.app.problems import calibration_problem
+from handeye.app.problems import testfunction_problem as potential_problem
 from handeye.model import testfunction
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance
 from handeye.solvers import Options, Problem, UnsupportedProblem, solve
-from handeye.app.problems import calibration_problem
-from handeye.app.problems import testfunction_problem as potential_problem
 
 ALL_METHODS = sorted(solvers.METHODS)
 

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from handeye.model import bounds, planning, simulate
 from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.model import bounds, planning, simulate
 from handeye.studies.study import STUDIES
 
 

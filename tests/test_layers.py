@@ -1,0 +1,95 @@
+"""The layers import one way: solvers <- model <- app <- studies (the CLI's ``handeye study`` aside).
+
+Every module's imports are read with ``ast`` (module level and inside functions), so an import
+against the order fails here before it ties the layers together. ``solvers`` knows nothing of
+robots, ``model`` nothing of the application, the application nothing of the studies; the
+package root (the public API) is part of the application layer.
+"""
+import ast
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+#: folder -> (layer name, rank); a module may import its own rank or lower ones
+LAYERS = {"solvers": 0, "model": 1, "app": 2, "studies": 3}
+#: the one allowed upward import: the CLI runs a study only when asked (``handeye study``)
+ALLOWED_UPWARD = {("app/cli.py", "_study", "handeye.studies")}
+
+
+def _modules():
+    out = [ROOT / "__init__.py"]
+    for folder in LAYERS:
+        out += sorted((ROOT / folder).rglob("*.py"))
+    return out
+
+
+def _layer_of_module(name):
+    """Rank of an imported module name, or None when it is not handeye's."""
+    parts = name.split(".")
+    if parts[0] != "handeye":
+        return None
+    if len(parts) == 1 or parts[1] not in LAYERS:
+        return LAYERS["app"]  # the package root and its names are the public API: application layer
+    return LAYERS[parts[1]]
+
+
+def _imports(tree):
+    """(imported module, enclosing function name or None) for every import in a module."""
+    found = []
+
+    def visit(node, function):
+        for child in ast.iter_child_nodes(node):
+            name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+            if isinstance(child, ast.Import):
+                found.extend((a.name, function) for a in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                assert child.level == 0, "relative imports: use handeye.<layer>.<module>"
+                if child.module == "handeye":  # from handeye import solvers (a layer) or calibrate (the API)
+                    found.extend((f"handeye.{a.name}", function) for a in child.names)
+                else:
+                    found.append((child.module, function))
+            visit(child, name)
+
+    visit(tree, None)
+    return found
+
+
+def _own_rank(path):
+    rel = path.relative_to(ROOT)
+    return LAYERS["app"] if rel.parts == ("__init__.py",) else LAYERS[rel.parts[0]]
+
+
+@pytest.mark.parametrize("path", _modules(), ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_imports_point_down_the_layers(path):
+    rank = _own_rank(path)
+    rel = path.relative_to(ROOT).as_posix()
+    for name, function in _imports(ast.parse(path.read_text(), rel)):
+        assert name.split(".")[0] not in ("model", "solvers", "studies", "app"), (
+            f"{rel} imports {name!r}: the source folders install as handeye.<layer>, never top-level")
+        target = _layer_of_module(name)
+        if target is None or target <= rank:
+            continue
+        allowed = any(rel == f and function == fn and name.startswith(mod) for f, fn, mod in ALLOWED_UPWARD)
+        assert allowed, f"{rel} imports {name} (inside {function or 'the module'}): against solvers <- model <- app <- studies"
+
+
+def test_the_checker_sees_a_violation():
+    """The test above would fail on an upward import (the checker is not vacuous)."""
+    tree = ast.parse("def f():\n    from handeye.app import calibrate\n")
+    assert _imports(tree) == [("handeye.app", "f")]
+    assert _layer_of_module("handeye.app.calibrate") > LAYERS["model"]
+    assert _layer_of_module("handeye") == LAYERS["app"] == _layer_of_module("handeye.calibrate")
+    assert _imports(ast.parse("from handeye import solvers")) == [("handeye.solvers", None)]
+    assert _layer_of_module("numpy") is None
+
+
+def test_importing_handeye_imports_no_study_and_no_sympy():
+    """``import handeye`` is cheap and layered: no studies, no sympy, no casadi at import."""
+    import subprocess
+    import sys
+
+    code = ("import sys, handeye; bad = sorted(m for m in sys.modules if m.startswith('handeye.studies') or "
+            "m in ('sympy', 'casadi', 'matplotlib')); print(','.join(bad))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="/")
+    assert out.stdout.strip() == "", out.stdout
