@@ -83,7 +83,7 @@ def build_parser():
     cal.add_argument("--out", default=None, metavar="FILE",
                      help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
     sub.add_parser("datasets", help="list the embedded datasets")
-    sim = sub.add_parser("simulate", help="write a simulated dataset with known truth (model.simulate)")
+    sim = sub.add_parser("simulate", help="write a simulated dataset with known truth (handeye.model.simulate)")
     sim.add_argument("--out", required=True, metavar="DIR", help="dataset folder to write (must be empty or new)")
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",

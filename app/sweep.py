@@ -3,11 +3,12 @@
 ``handeye study NAME --jobs N`` sets the number of worker processes (default: all cores).
 To take a sweep onto a cluster, register joblib's Dask backend before running a study::
 
+    import handeye.studies.study
     from dask.distributed import Client
     from joblib import parallel_config
     client = Client("scheduler-address:8786")
     with parallel_config(backend="dask"):
-        studies.study.run("testfunction", "out")
+        handeye.studies.study.run("testfunction", "out")
 
 (``dask[distributed]`` is not a dependency of handeye; install it where the cluster is.)
 """

@@ -30,14 +30,14 @@ def information(flange_poses, setup, sphere_centre, unknowns="sensor"):
     ----------
     flange_poses : array_like, shape (N, 6)
         Flange poses (KUKA) of the design.
-    setup : model.simulate.Setup
+    setup : handeye.model.simulate.Setup
         Nominal sensor pose, sphere and noise levels.
     sphere_centre : array_like, shape (3,)
         mm, base frame.
 
     Raises
     ------
-    model.simulate.SimulationError
+    handeye.model.simulate.SimulationError
         When a pose's laser plane misses the sphere or sees too little of it.
     """
     from handeye.model import simulate
@@ -66,7 +66,7 @@ def crlb(simulation, unknowns="sensor"):
 
     Parameters
     ----------
-    simulation : model.simulate.Simulation
+    simulation : handeye.model.simulate.Simulation
         Any simulation; its poses and setup are used (the noise is re-derived noise-free).
     """
     info = information(simulation.flange_poses, simulation.setup, simulation.true_centre, unknowns)

@@ -45,11 +45,11 @@ from handeye.model import codegen, rotation
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
-#: Names of the rotation parametrisations of the unknown sensor rotation (model.symbolic uses these).
+#: Names of the rotation parametrisations of the unknown sensor rotation (handeye.model.symbolic uses these).
 ROTATIONS = ("euler", "matrix", "local")
 
 
-#: Residual kinds and the rows of one residual (model.symbolic uses these).
+#: Residual kinds and the rows of one residual (handeye.model.symbolic uses these).
 KINDS = {"centre": 3, "measurement": 3, "points": 1}
 
 

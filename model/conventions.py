@@ -29,7 +29,7 @@ from handeye.model.errors import InputError
 from handeye.model.pose import kuka_from_matrix
 from handeye.model.rotation import rotvec_from_matrix
 
-#: Robot-brand rotation conventions and their parameters (units); model.symbolic derives each.
+#: Robot-brand rotation conventions and their parameters (units); handeye.model.symbolic derives each.
 CONVENTIONS = {
     "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
     "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)

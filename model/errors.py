@@ -8,20 +8,19 @@ exactly this class to exit code 2 and anything else to exit code 3 (a bug), so a
 pass as bad input. ``InputError`` is a ``ValueError``, so code that catches ``ValueError``
 keeps working.
 
-=========================================  =====================================  =====
-class                                       raised for                             where
-=========================================  =====================================  =====
-``DatasetError``                            a file, row or column of a dataset      model.dataset
-``ConventionError``                         a pose invalid in its robot convention  model.conventions
-``ObservationError``                        the residual model needs what is absent model.observations
-``SimulationError``                         a simulation that cannot be made        model.simulate
-``CircleFitError``                          degenerate profile points               model.circle
-``ClosedFormError``                         poses that do not fix the linear system model.closed_form
-``MissingMotions``                          motions a closed-form method needs      model.classics
-``PlanningError``                           a pose plan that cannot be made         model.planning
-``RequestError``                            an option or argument that cannot work  handeye.app
-``CalibrationInputError``                   a calibration request (too few poses..) handeye.app.calibrate
-=========================================  =====================================  =====
+The classes, and where each is raised:
+
+- ``DatasetError`` (:mod:`handeye.model.dataset`): a file, row or column of a dataset;
+- ``ConventionError`` (:mod:`handeye.model.conventions`): a pose invalid in its robot convention;
+- ``ObservationError`` (:mod:`handeye.model.observations`): a residual model needs what the
+  data lack (profiles);
+- ``SimulationError`` (:mod:`handeye.model.simulate`): a simulation that cannot be made;
+- ``CircleFitError`` (:mod:`handeye.model.circle`): degenerate profile points;
+- ``ClosedFormError`` (:mod:`handeye.model.closed_form`): poses that do not fix the linear system;
+- ``MissingMotions`` (:mod:`handeye.model.classics`): motions a closed-form method needs;
+- ``PlanningError`` (:mod:`handeye.model.planning`): a pose plan that cannot be made;
+- ``RequestError`` (:mod:`handeye.app.errors`): an option or argument that cannot work, and its
+  subclass ``CalibrationInputError``: a calibration request (too few or degenerate poses).
 """
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ def strategy(setup, rng, name="thesis", n_poses=36, translations=0):
 
     Parameters
     ----------
-    setup : model.simulate.Setup
+    setup : handeye.model.simulate.Setup
     rng : numpy.random.Generator
     name : {'thesis', 'about-sphere'}
     n_poses : int

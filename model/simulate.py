@@ -264,6 +264,9 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         centres.append(xs)
         profiles.append(pts)
         kept.append(ident)
+    if not kept:  # an empty dataset is not a simulation: say why instead of writing it
+        ident, reason = dropped[0]
+        raise SimulationError(f"every pose was dropped (first: {ident}: {reason}); check the effects and the setup")
     return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped)
 
 

@@ -1,0 +1,162 @@
+"""The public Python API: `import handeye`, the CLI's options as keywords, typed results whose
+`to_dict()` is the CLI's JSON, every exit a complete result, one bad-input error class."""
+import dataclasses
+import inspect
+import json
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app import api, cli
+from handeye.app import calibrate as engine
+from handeye.app.results import CalibrationResult, DiagnosisResult
+from handeye.model import circle, classics, closed_form, conventions, dataset, observations, planning, simulate
+
+
+def _cli_json(capsys, *argv):
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, json.loads(out), err
+
+
+def _strip_timing(d):
+    d = json.loads(json.dumps(d))
+    if d.get("closed_form"):
+        d["closed_form"].pop("time_ms")
+    return d
+
+
+def test_calibrate_matches_the_cli_json(capsys):
+    r = handeye.calibrate("thesis-sim")
+    assert isinstance(r, CalibrationResult) and r.sensor2flange.shape == (4, 4) and r.converged
+    code, cli_json, _ = _cli_json(capsys, "calibrate", "thesis-sim", "--json")
+    assert code == cli.EXIT_OK
+    assert json.loads(json.dumps(r.to_dict())) == cli_json  # same keys, same values, JSON-serialisable
+
+
+def test_closed_form_result_is_the_same_type_and_matches_the_cli(capsys):
+    r = handeye.calibrate("thesis-real", method="kim-cho", unknowns="sensor+sphere")
+    code, cli_json, _ = _cli_json(capsys, "calibrate", "--method", "kim-cho", "--unknowns", "sensor+sphere", "--json")
+    assert code == cli.EXIT_OK and isinstance(r, CalibrationResult)
+    assert _strip_timing(r.to_dict()) == _strip_timing(cli_json)
+    ls = handeye.calibrate("thesis-sim", method="lm").to_dict()
+    # one schema: the same keys, the dataset named the same way, status an int or None
+    assert set(cli_json) == set(ls)
+    assert cli_json["dataset"] == "thesis-real" and ls["dataset"] == "thesis-sim"
+    assert cli_json["status"] is None and isinstance(ls["status"], int)
+    assert cli_json["closed_form"]["least_squares_from_here"]["converged"] in (True, False)
+
+
+def test_summary_is_the_cli_text(capsys):
+    r = handeye.calibrate("thesis-sim", method="lm")
+    assert cli.main(["calibrate", "thesis-sim", "--method", "lm"]) == cli.EXIT_OK
+    assert capsys.readouterr().out.rstrip("\n") == r.summary()
+    html = r._repr_html_()
+    assert html.startswith("<table>") and "converged" in html and "sensor pose (kuka" in html
+
+
+def test_keywords_are_the_cli_options_with_the_cli_defaults():
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices
+    cases = {"calibrate": api.calibrate, "diagnose": api.diagnose, "simulate": api.simulate, "plan": api.plan}
+    for command, function in cases.items():
+        params = inspect.signature(function).parameters
+        for action in sub[command]._actions:
+            if action.dest in ("help", "json"):
+                continue
+            assert action.dest in params, f"handeye {command} {action.option_strings}: no keyword {action.dest}"
+            default = params[action.dest].default
+            if default is not inspect.Parameter.empty:
+                cli_default = action.default
+                assert (list(default) if isinstance(default, tuple) else default) == cli_default, (command, action.dest)
+
+
+def test_start_in_the_datasets_convention_as_text_or_numbers():
+    kuka = handeye.calibrate("thesis-sim", method="lm", start="75,75,55,0.01,-90.1,0.01", no_loo=True)
+    numbers = handeye.calibrate("thesis-sim", method="lm", start=(75, 75, 55, 0.01, -90.1, 0.01), no_loo=True)
+    assert np.array_equal(kuka.start_pose, numbers.start_pose)
+    ur_start = conventions.convert(kuka.start_pose, "kuka", "ur")
+    ur = handeye.calibrate("thesis-sim", method="lm", start=ur_start, convention="ur", no_loo=True)
+    assert np.allclose(ur.start_pose[:3], kuka.start_pose[:3])
+    assert ur.convention == "ur" and ur.columns == ("x", "y", "z", "rx", "ry", "rz")
+    assert np.allclose(ur.sensor_pose, conventions.pose_from("ur", ur.sensor2flange))
+    assert np.allclose(ur.sensor2flange, kuka.sensor2flange, atol=1e-9)
+
+
+def test_every_bad_input_is_an_input_error_and_nothing_else_is():
+    for cls in (dataset.DatasetError, conventions.ConventionError, observations.ObservationError,
+                simulate.SimulationError, circle.CircleFitError, closed_form.ClosedFormError,
+                classics.MissingMotions, planning.PlanningError, engine.CalibrationInputError):
+        assert issubclass(cls, handeye.InputError) and issubclass(cls, ValueError), cls
+    with pytest.raises(handeye.InputError, match="--alpha"):
+        handeye.calibrate("thesis-sim", alpha=2)
+    with pytest.raises(handeye.InputError, match="--max-iter"):
+        handeye.calibrate("thesis-sim", max_iter=0)
+    with pytest.raises(handeye.InputError, match="closed form"):
+        handeye.calibrate("thesis-sim", method="kim-cho", start="1,2,3,4,5,6")
+    with pytest.raises(handeye.InputError, match="options"):
+        engine.calibrate(handeye.load_dataset("thesis-sim"), method="lm", options={"no_such_option": 1})
+    with pytest.raises(handeye.InputError, match="no dataset folder"):
+        handeye.load_dataset("no-such-dataset")
+
+
+def test_cli_maps_exactly_input_errors_to_exit_2(capsys, monkeypatch):
+    def bad_input(*args, **kwargs):
+        raise handeye.InputError("a bad option")
+
+    def bug(*args, **kwargs):
+        raise ValueError("a bug that happens to be a ValueError")
+
+    monkeypatch.setattr(api, "calibrate", bad_input)
+    assert cli.main(["calibrate", "thesis-sim"]) == cli.EXIT_BAD_INPUT
+    monkeypatch.setattr(api, "calibrate", bug)
+    assert cli.main(["calibrate", "thesis-sim"]) == cli.EXIT_INTERNAL
+    assert "internal error" in capsys.readouterr().err
+
+
+def test_a_non_finite_solve_builds_the_complete_result_and_exits_1(capsys, monkeypatch):
+    """The early exit of a numerical failure: same type, same keys, a report, exit 1 (not 3)."""
+    real_solve = engine.solvers.solve
+
+    def broken(problem, x0, method, options=None):
+        res = real_solve(problem, x0, method=method, options=options)
+        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1,
+                                   message="numerical failure (injected)")
+
+    complete = set(handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True).to_dict())
+    monkeypatch.setattr(engine.solvers, "solve", broken)
+    r = handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True)
+    assert not r.converged and r.std is None and r.identifiability is None and r.rms_mm is None
+    assert set(r.to_dict()) == complete
+    json.dumps(r.to_dict())
+    assert "NOT CONVERGED" in r.summary()
+    assert cli.main(["calibrate", "thesis-sim", "--method", "lm", "--no-loo", "--keep-all"]) == cli.EXIT_NOT_CONVERGED
+
+
+def test_diagnose_plan_and_simulate_from_python(tmp_path, capsys):
+    sim = handeye.simulate(tmp_path / "sim", seed=2, n_poses=12, effect=["sensor_scale=0.002"])
+    assert len(sim.ids) + len(sim.dropped) == 12 and sim.dataset.name == "sim"
+    d = handeye.diagnose(sim.path)
+    assert isinstance(d, DiagnosisResult)
+    code, cli_json, _ = _cli_json(capsys, "diagnose", str(sim.path), "--json")
+    assert code == cli.EXIT_OK and json.loads(json.dumps(d.to_dict())) == cli_json
+    assert d.summary().startswith("handeye diagnose") and d._repr_html_().startswith("<table>")
+    p = handeye.plan(n=6, out=tmp_path / "plan.csv")
+    code, cli_json, _ = _cli_json(capsys, "plan", "--n", "6", "--json")
+    assert json.loads(json.dumps(p.to_dict())) == cli_json
+    ids, poses = dataset.read_pose_list(tmp_path / "plan.csv")
+    assert ids == p.ids and np.allclose(poses, p.poses, atol=1e-4)
+
+
+def test_out_writes_the_result_with_provenance(tmp_path):
+    r = handeye.calibrate("thesis-sim", method="lm", no_loo=True, out=tmp_path / "r.json")
+    saved = json.loads((tmp_path / "r.json").read_text())
+    assert saved["provenance"]["options"]["method"] == "lm" and saved["provenance"]["dataset_sha256"] == r.dataset_sha256
+    assert saved["sensor_matrix"] == r.to_dict()["sensor_matrix"]
+
+
+def test_a_simulation_that_drops_every_pose_is_refused(tmp_path):
+    with pytest.raises(handeye.InputError, match="every pose was dropped"):
+        handeye.simulate(tmp_path / "none", n_poses=4, effect=["sensor_scale=1.002"])  # a 100 % scale error
+    assert not (tmp_path / "none" / "measurements.csv").exists()
