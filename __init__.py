@@ -9,7 +9,7 @@ The public API (the ``handeye`` command's functions, with its options as keyword
     r.to_dict()                                    # == handeye calibrate thesis-sim --json
     print(r.summary())                             # == its text report
     d = handeye.diagnose(data)                     # a DiagnosisResult
-    handeye.simulate("my-sim", seed=1, effect=["sensor_scale=1.001"])
+    handeye.simulate("my-sim", seed=1, effect=["sensor_scale=0.001"])
     handeye.plan(n=12)
 
 Bad input raises :class:`InputError` (a ``ValueError``), naming file, row and column or the

@@ -43,13 +43,18 @@ def load_dataset(name_or_folder):
 
     Raises
     ------
-    handeye.model.dataset.DatasetError
-        Naming file, row and column of the first problem found.
+    handeye.InputError
+        A :class:`handeye.model.dataset.DatasetError` naming file, row and column of the first
+        problem found.
     """
+    import os
+
     from handeye.model.dataset import Dataset, load
 
     if isinstance(name_or_folder, Dataset):
         return name_or_folder
+    if not isinstance(name_or_folder, (str, os.PathLike)):
+        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {name_or_folder!r}")
     return load(name_or_folder)
 
 
@@ -136,7 +141,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     from handeye.app.calibrate import calibrate as run
     from handeye.app.classic import METHODS as CLOSED_FORM
     from handeye.app.classic import calibrate_classic
-    from handeye.app.files import provenance
+    from handeye.app.files import check_output_path, provenance
     from handeye.model import conventions
 
     options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
@@ -146,6 +151,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot)}
     if method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
+    for path, option in ((out, "--out"), (plot, "--plot")):
+        if path is not None:
+            check_output_path(path, option)  # before the work: never half a result
     data = load_dataset(dataset)
     convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
@@ -190,8 +198,13 @@ def diagnose(dataset="thesis-real", *, alpha=0.01, figures=None, plot=None):
     handeye.app.results.DiagnosisResult
     """
     from handeye.app import diagnose as procedure
+    from handeye.app.files import check_output_folder, check_output_path
 
     level = _alpha(alpha)
+    if figures is not None:
+        check_output_folder(figures, "--figures")
+    if plot is not None:
+        check_output_path(plot, "--plot")
     result = procedure.diagnose(load_dataset(dataset), alpha=level)
     if figures is not None:
         procedure.figures(result, figures)
@@ -252,7 +265,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     out : str or pathlib.Path
         Dataset folder to write (must be new or empty).
     seed : int
-    effect : sequence of str
+    effect : str or sequence of str
         Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
         ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``.
     profiles : bool
@@ -288,7 +301,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     if truth is not None:
         text = truth if isinstance(truth, str) else ",".join(repr(float(v)) for v in np.ravel(truth))
         setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(text, "--truth")))
-    effects = sim.parse_effects(list(effect))
+    effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
     ids, flange_poses = None, None
     if poses is not None:
         if motions != "thesis" or translations:
@@ -371,13 +384,15 @@ def plan(*, n=12, candidates=None, dataset=None, out=None):
     -------
     PlanResult
     """
-    from handeye.app.files import write_text_atomically
+    from handeye.app.files import check_output_path, write_text_atomically
     from handeye.model import planning
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
     if not isinstance(n, (int, np.integer)) or n < 1:
         raise RequestError(f"--n must be an integer of at least 1, got {n}")
+    if out is not None:
+        check_output_path(out, "--out")
     setup = sim.Setup(linearity=0.0)
     centre = np.asarray(setup.sphere_centre)
     if dataset is not None:

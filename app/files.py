@@ -39,6 +39,30 @@ def provenance(dataset, options):
     }
 
 
+def check_output_path(path, option):
+    """Refuse, before any work, an output file whose folder does not exist or that is a folder.
+
+    Raises :class:`RequestError` naming ``option``.
+    """
+    target = pathlib.Path(path)
+    folder = target.parent if str(target.parent) else pathlib.Path(".")
+    if not folder.is_dir():
+        raise RequestError(f"{option} {path}: folder {folder} does not exist")
+    if target.is_dir():
+        raise RequestError(f"{option} {path}: is a folder; give a file name")
+    return target
+
+
+def check_output_folder(path, option):
+    """Refuse, before any work, an output folder that exists as a file or whose parent is missing."""
+    target = pathlib.Path(path)
+    if target.exists() and not target.is_dir():
+        raise RequestError(f"{option} {path}: exists and is not a folder")
+    if not target.exists() and not (target.parent if str(target.parent) else pathlib.Path(".")).is_dir():
+        raise RequestError(f"{option} {path}: folder {target.parent} does not exist")
+    return target
+
+
 def write_text_atomically(path, text, option="--out"):
     """Write ``text`` to ``path`` through a temporary file and a rename: never a half-written file.
 

@@ -129,7 +129,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     ids, rows = dataset.ids, dataset.rows
     full = CalibrationModel.from_dataset(dataset, "local", unknowns)
     n = full.n_meas
-    min_keep = min_keep or max(n // 2 + 1, 4)
+    min_keep = min(min_keep or max(n // 2 + 1, 4), n)
     x_rob, sigma, _ = robust_fit(full, full.point_from(start))
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
     p_chi = np.array([chi2_survival((v / sigma) ** 2, 3) for v in norms])
@@ -139,7 +139,8 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
         keep = np.argsort(norms)[:min_keep]
         inliers = np.zeros(n, bool)
         inliers[keep] = True
-        note = f"the robust pass found more than {n - min_keep} improbable samples; kept the {min_keep} best"
+        note = (f"the robust pass found {n - int(inliers.sum())} improbable sample(s), but at least {min_keep} of "
+                f"{n} must be kept; kept the {min_keep} best")
     seen = set()
     x = x_rob
     for _ in range(2 * n):

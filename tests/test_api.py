@@ -160,3 +160,32 @@ def test_a_simulation_that_drops_every_pose_is_refused(tmp_path):
     with pytest.raises(handeye.InputError, match="every pose was dropped"):
         handeye.simulate(tmp_path / "none", n_poses=4, effect=["sensor_scale=1.002"])  # a 100 % scale error
     assert not (tmp_path / "none" / "measurements.csv").exists()
+
+
+def test_output_paths_are_checked_before_the_work(tmp_path, capsys):
+    missing = tmp_path / "no-such-folder" / "x.png"
+    with pytest.raises(handeye.InputError, match="--plot"):
+        handeye.calibrate("thesis-sim", plot=missing)
+    assert cli.main(["calibrate", "thesis-sim", "--plot", str(missing)]) == cli.EXIT_BAD_INPUT
+    assert cli.main(["calibrate", "thesis-sim", "--out", str(tmp_path)]) == cli.EXIT_BAD_INPUT  # a folder
+    assert cli.main(["diagnose", "thesis-sim", "--plot", str(missing)]) == cli.EXIT_BAD_INPUT
+    assert cli.main(["plan", "--out", str(missing)]) == cli.EXIT_BAD_INPUT
+    assert "--plot" in capsys.readouterr().err
+
+
+def test_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
+    for bad in (None, 123):
+        with pytest.raises(handeye.InputError, match="dataset"):
+            handeye.calibrate(bad)
+    one = handeye.simulate(tmp_path / "one", n_poses=8, effect="sphere_center=0.1,0,0")  # one effect as a string
+    assert one.effects and "sphere_center" in one.effects
+
+
+def test_screening_never_speaks_of_a_negative_count():
+    """With fewer samples than the screening's minimum, it keeps them all and says so sensibly."""
+    from handeye.app import robust
+    from handeye.model.pose import transform_from_pose
+
+    d = handeye.load_dataset("thesis-real").subset(np.arange(31) < 3)
+    s = robust.screen(d, "sensor", transform_from_pose(handeye.load_dataset("thesis-real").start_pose))
+    assert s.inliers.sum() <= 3 and "-1" not in s.note
