@@ -17,19 +17,32 @@ option. The layers: :mod:`handeye.solvers` (knows nothing of robots) <- :mod:`ha
 (the mathematics, derived once) <- :mod:`handeye.app` (calibrate, diagnose, reports, CLI) <-
 :mod:`handeye.studies` (studies that assert their claims).
 """
-from handeye.app.api import PlanResult, SimulationResult, calibrate, diagnose, load_dataset, plan, simulate
-from handeye.app.results import CalibrationResult, DiagnosisResult
-from handeye.model.errors import InputError
+import importlib
 
-__all__ = [
-    "CalibrationResult",
-    "DiagnosisResult",
-    "InputError",
-    "PlanResult",
-    "SimulationResult",
-    "calibrate",
-    "diagnose",
-    "load_dataset",
-    "plan",
-    "simulate",
-]
+#: public name -> module that defines it; imported on first use (PEP 562), so that importing a
+#: lower layer (``import handeye.solvers``) loads nothing of the application.
+_PUBLIC = {
+    "load_dataset": "handeye.app.api",
+    "calibrate": "handeye.app.api",
+    "diagnose": "handeye.app.api",
+    "simulate": "handeye.app.api",
+    "plan": "handeye.app.api",
+    "PlanResult": "handeye.app.api",
+    "SimulationResult": "handeye.app.api",
+    "CalibrationResult": "handeye.app.results",
+    "DiagnosisResult": "handeye.app.results",
+    "InputError": "handeye.model.errors",
+}
+__all__ = sorted(_PUBLIC)
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'handeye' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -22,9 +22,7 @@ import pathlib
 import numpy as np
 
 from handeye.app.errors import RequestError
-
-#: The outlier tests' family-wise level when none is given (``--alpha``).
-DEFAULT_ALPHA = 0.01
+from handeye.app.robust import ALPHA
 
 
 def load_dataset(name_or_folder):
@@ -59,8 +57,8 @@ def load_dataset(name_or_folder):
 
 
 def _alpha(alpha):
-    alpha = DEFAULT_ALPHA if alpha is None else alpha
-    if not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
+    alpha = ALPHA if alpha is None else alpha
+    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
         raise RequestError(f"--alpha must lie in (0, 1), got {alpha}")
     return float(alpha)
 
@@ -78,8 +76,23 @@ def start_pose_from(start, convention):
     """
     from handeye.app.calibrate import parse_pose
 
-    text = start if isinstance(start, str) else ",".join(repr(float(v)) for v in np.ravel(start))
-    return parse_pose(text, "--start", convention=convention)
+    return parse_pose(_pose_text(start, "--start"), "--start", convention=convention)
+
+
+def _pose_text(pose, option):
+    """A pose given as text or numbers, as text (numbers that are not numbers are bad input)."""
+    if isinstance(pose, str):
+        return pose
+    try:
+        return ",".join(repr(float(v)) for v in np.ravel(np.asarray(pose, dtype=object)))
+    except (TypeError, ValueError):
+        raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
+
+
+def _integer(value, option, low):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise RequestError(f"{option} must be an integer of at least {low}, got {value!r}")
+    return int(value)
 
 
 def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo):
@@ -143,6 +156,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     from handeye.app.classic import calibrate_classic
     from handeye.app.files import check_output_path, provenance
     from handeye.model import conventions
+    from handeye.model.calibration import UNKNOWNS
 
     options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
                "unknowns": unknowns, "method": method, "rotation": rotation,
@@ -151,6 +165,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot)}
     if method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
+    if unknowns not in UNKNOWNS:
+        raise RequestError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
     for path, option in ((out, "--out"), (plot, "--plot")):
         if path is not None:
             check_output_path(path, option)  # before the work: never half a result
@@ -163,9 +179,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     else:
         solver_options = {}
         if max_iter is not None:
-            if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-                raise RequestError(f"--max-iter must be an integer of at least 1, got {max_iter}")
-            solver_options["max_iter"] = int(max_iter)
+            solver_options["max_iter"] = _integer(max_iter, "--max-iter", 1)
         start_kuka = start_pose_from(start, convention) if start is not None else None
         result = run(data, unknowns=unknowns, method=method, rotation=rotation, start=start_kuka,
                      options=solver_options, outliers=not keep_all, alpha=level, loo=not no_loo, model=model,
@@ -180,7 +194,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     return result
 
 
-def diagnose(dataset="thesis-real", *, alpha=0.01, figures=None, plot=None):
+def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
     Parameters
@@ -295,12 +309,14 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     folder = pathlib.Path(out)
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise RequestError(f"--out {folder}: exists and is not an empty folder; choose a new one")
-    if not 0 <= linearity < 0.1:
+    if isinstance(linearity, bool) or not isinstance(linearity, (int, float)) or not 0 <= linearity < 0.1:
         raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
+    seed = _integer(seed, "--seed", 0)
+    n_poses = _integer(n_poses, "--n-poses", 1)
+    translations = _integer(translations, "--translations", 0)
     setup = sim.Setup(linearity=linearity)
     if truth is not None:
-        text = truth if isinstance(truth, str) else ",".join(repr(float(v)) for v in np.ravel(truth))
-        setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(text, "--truth")))
+        setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(_pose_text(truth, "--truth"), "--truth")))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
     ids, flange_poses = None, None
     if poses is not None:
@@ -389,8 +405,7 @@ def plan(*, n=12, candidates=None, dataset=None, out=None):
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise RequestError(f"--n must be an integer of at least 1, got {n}")
+    n = _integer(n, "--n", 1)
     if out is not None:
         check_output_path(out, "--out")
     setup = sim.Setup(linearity=0.0)

@@ -56,6 +56,8 @@ def parse_pose(text, what="--start", convention="kuka"):
             values = [float(p) for p in parts]
         except ValueError:
             raise CalibrationInputError(f"{what}: not a number in {text!r}") from None
+        if not all(np.isfinite(values)):
+            raise CalibrationInputError(f"{what}: values must be finite, got {text!r}")
         if len(values) != len(cols):
             raise CalibrationInputError(f"{what}: needs {len(cols)} numbers {','.join(cols)} ({convention}), got {text!r}")
         try:
@@ -273,7 +275,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     -------
     handeye.app.results.CalibrationResult
         Complete on every path: after a numerical failure the fields that need a finite
-        solution (residuals' statistics, covariance, identifiability) are None.
+        solution (residual statistics, covariance, identifiability, leave-one-out) are None
+        and the poses NaN.
     """
     rotation = check_request(dataset, unknowns, method, rotation)
     options = _solver_options(options)
@@ -330,7 +333,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         start_used=start_used,
         sensor2flange=fit.sensor,
         sensor_pose_kuka=pose,
-        sensor_pose=conventions.pose_from(convention, fit.sensor) if np.all(np.isfinite(fit.sensor)) else pose,
+        sensor_pose=(conventions.pose_from(convention, fit.sensor) if np.all(np.isfinite(fit.sensor))
+                     else np.full(len(conventions.columns(convention)), np.nan)),
         convention=convention,
         columns=conventions.columns(convention),
         sphere_centre=fit.centre,
@@ -349,7 +353,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     if fit.local is None:  # numerical failure: nothing to describe, but the same complete type
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
                      for i, r, u in zip(dataset.ids, dataset.rows, mask)]
-        return CalibrationResult(residuals=residuals, warnings=warnings, **common)
+        return CalibrationResult(residuals=residuals, warnings=warnings, n_used=int(mask.sum()), **common)
     return CalibrationResult(warnings=warnings, **common, **_describe_fit(dataset, mask, fit, loo, outliers, warnings))
 
 

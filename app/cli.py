@@ -53,6 +53,7 @@ def _study_args(sub):
 def build_parser():
     from handeye.app.calibrate import METHODS
     from handeye.app.classic import METHODS as CLASSIC_METHODS
+    from handeye.app.robust import ALPHA
     from handeye.model.calibration import KINDS, ROTATIONS, UNKNOWNS
     from handeye.model.conventions import CONVENTIONS
 
@@ -76,7 +77,8 @@ def build_parser():
                      help="residual: reconstructed centres, measured circles, or profile points "
                           "(default: measurement when every sample has a profile, else centre)")
     cal.add_argument("--keep-all", action="store_true", help="fit every sample: no outlier detection")
-    cal.add_argument("--alpha", type=float, default=None, help="family-wise level of the outlier tests (default 0.01)")
+    cal.add_argument("--alpha", type=float, default=None,
+                     help=f"family-wise level of the outlier tests (default {ALPHA:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
     cal.add_argument("--json", action="store_true", help="print the result as JSON")
     cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
@@ -97,7 +99,7 @@ def build_parser():
                      help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
     diag = sub.add_parser("diagnose", help="find, name and add the effects the model is missing")
     diag.add_argument("dataset", nargs="?", default="thesis-real")
-    diag.add_argument("--alpha", type=float, default=0.01, help="family-wise level of the tests (default 0.01)")
+    diag.add_argument("--alpha", type=float, default=ALPHA, help=f"family-wise level of the tests (default {ALPHA:g})")
     diag.add_argument("--json", action="store_true")
     diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
     diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")

@@ -87,6 +87,13 @@ def calibration_plot(res, dataset, path):
     from handeye.app.plotting import figure
 
     plt = figure()
+    if res.rms_mm is None:  # no finite solution: a figure that says so, not a crash
+        fig, ax = plt.subplots(figsize=(6, 2))
+        ax.axis("off")
+        ax.text(0.5, 0.5, f"{res.dataset}: no finite solution ({res.message})", ha="center", va="center", wrap=True)
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        return
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
     norms = np.array([r.norm for r in res.residuals])
     used = np.array([r.used for r in res.residuals])

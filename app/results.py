@@ -227,7 +227,7 @@ class CalibrationResult:
     robot_sigma_mm: float | None = None
     start_pose: np.ndarray | None = None
     start_used: str | None = None
-    iterations: int = 0
+    iterations: int | None = None
     evaluations: dict | None = None
     before: Before | None = None
     history: np.ndarray | None = None
@@ -273,7 +273,7 @@ class CalibrationResult:
                                "pose": _list(self.sensor_pose)},
             "sensor_matrix": _list(self.sensor2flange),
             "sphere_center": _list(self.sphere_centre),
-            "iterations": int(self.iterations),
+            "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
             "status": None if self.status is None else int(self.status),
@@ -282,7 +282,7 @@ class CalibrationResult:
             "excluded": [e.to_dict() for e in self.excluded],
             "before": None if self.before is None else self.before.to_dict(),
             "warnings": list(self.warnings),
-            "history": [] if self.history is None else _list(self.history),
+            "history": _list(self.history),
             "solver_point": _list(self.solver_point),
             "solver_extra": self.solver_extra,
             "n_used": self.n_used,

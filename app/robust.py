@@ -136,11 +136,12 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     inliers = np.minimum(p_chi * n, 1.0) >= alpha
     note = ""
     if inliers.sum() < min_keep:
+        improbable = n - int(inliers.sum())
         keep = np.argsort(norms)[:min_keep]
         inliers = np.zeros(n, bool)
         inliers[keep] = True
-        note = (f"the robust pass found {n - int(inliers.sum())} improbable sample(s), but at least {min_keep} of "
-                f"{n} must be kept; kept the {min_keep} best")
+        note = (f"the robust pass found {improbable} improbable sample(s), but at least {min_keep} of {n} must be "
+                f"kept; kept the {min_keep} best")
     seen = set()
     x = x_rob
     for _ in range(2 * n):

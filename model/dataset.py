@@ -250,7 +250,7 @@ def _read_setup(path):
                 raise DatasetError(file, f"unknown key (known: {', '.join(sorted(_ALLOWED[section]))})",
                                    column=f"[{section}] {key}")
     convention = doc.get("robot", {}).get("convention", "kuka")
-    if convention not in conventions.CONVENTIONS:
+    if not isinstance(convention, str) or convention not in conventions.CONVENTIONS:
         raise DatasetError(file, f"unknown convention {convention!r} (known: {', '.join(conventions.CONVENTIONS)})",
                            column="[robot] convention")
     start = None

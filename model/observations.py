@@ -19,10 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.model import circle
-from handeye.model.calibration import CalibrationModel
+from handeye.model.calibration import KINDS, CalibrationModel
 from handeye.model.errors import InputError
 
-MODEL_KINDS = ("centre", "measurement", "points")
+MODEL_KINDS = tuple(KINDS)  # the residual kinds, defined once in handeye.model.calibration
 ROBOT_SIGMA = 0.025
 CIRCLE_FIT = "geometric"
 

@@ -29,7 +29,8 @@ import functools
 
 import sympy as sp
 
-from handeye.model.calibration import KINDS, ROTATIONS  # noqa: F401 - defined once, without sympy
+# the names of rotations and residual kinds are defined once, where no sympy is imported
+from handeye.model.calibration import KINDS, ROTATIONS
 from handeye.model.conventions import CONVENTIONS
 
 

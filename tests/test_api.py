@@ -189,3 +189,37 @@ def test_screening_never_speaks_of_a_negative_count():
     d = handeye.load_dataset("thesis-real").subset(np.arange(31) < 3)
     s = robust.screen(d, "sensor", transform_from_pose(handeye.load_dataset("thesis-real").start_pose))
     assert s.inliers.sum() <= 3 and "-1" not in s.note
+
+
+def test_more_bad_arguments_are_input_errors(tmp_path, capsys):
+    """What a review found exiting 3 (or silently accepted): each is bad input now."""
+    assert cli.main(["calibrate", "thesis-sim", "--convention", "ur", "--start=nan,0,0,0,0,0"]) == cli.EXIT_BAD_INPUT
+    assert cli.main(["simulate", "--out", str(tmp_path / "s"), "--seed", "-1"]) == cli.EXIT_BAD_INPUT
+    assert "finite" in capsys.readouterr().err
+    with pytest.raises(handeye.InputError, match="--unknowns"):
+        handeye.calibrate("thesis-sim", method="kim-cho", unknowns="sphere", keep_all=True)
+    with pytest.raises(handeye.InputError, match="--start"):
+        handeye.calibrate("thesis-sim", start=[1, 2, 3, "a", 5, 6])
+    for kwargs in ({"seed": 1.5}, {"n_poses": "4"}, {"truth": [1, 2, "x", 0, 0, 0]}):
+        with pytest.raises(handeye.InputError):
+            handeye.simulate(tmp_path / "t", **kwargs)
+    folder = tmp_path / "listconv"
+    handeye.simulate(folder, n_poses=8)
+    setup = (folder / "setup.toml").read_text()
+    (folder / "setup.toml").write_text('[robot]\nconvention = ["kuka"]\n' + setup)
+    with pytest.raises(handeye.InputError, match="convention"):
+        handeye.load_dataset(folder)
+
+
+def test_a_non_finite_solve_in_another_convention_and_its_plot(tmp_path, monkeypatch):
+    real_solve = engine.solvers.solve
+
+    def broken(problem, x0, method, options=None):
+        res = real_solve(problem, x0, method=method, options=options)
+        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1)
+
+    monkeypatch.setattr(engine.solvers, "solve", broken)
+    r = handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True, convention="abb",
+                          plot=tmp_path / "p.png")
+    assert len(r.sensor_pose) == len(r.columns) == 7 and r.n_used == len(r.residuals)
+    assert (tmp_path / "p.png").stat().st_size > 0

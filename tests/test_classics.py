@@ -1,4 +1,4 @@
-"""Kim & Cho's AX = XB and Li et al.'s two-step method (model.classics): derivation against
+"""Kim & Cho's AX = XB and Li et al.'s two-step method (handeye.model.classics): derivation against
 Appendix A, exactness on noise-free data, the seed's sign typo in (2-41), refusal of data
 without the motions a method needs, and the CLI."""
 import json

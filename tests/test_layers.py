@@ -93,3 +93,16 @@ def test_importing_handeye_imports_no_study_and_no_sympy():
             "m in ('sympy', 'casadi', 'matplotlib')); print(','.join(bad))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd="/")
     assert out.stdout.strip() == "", out.stdout
+
+
+def test_importing_a_lower_layer_loads_nothing_above_it():
+    """The package root is lazy (PEP 562): ``import handeye.solvers`` loads no model and no app,
+    ``import handeye.model.calibration`` no app."""
+    import subprocess
+    import sys
+
+    code = ("import sys, importlib; importlib.import_module(sys.argv[1]); "
+            "print(','.join(sorted({m.split('.')[1] for m in sys.modules if m.startswith('handeye.')})))")
+    for module, allowed in (("handeye.solvers", {"solvers"}), ("handeye.model.calibration", {"solvers", "model"})):
+        out = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True, cwd="/")
+        assert set(filter(None, out.stdout.strip().split(","))) <= allowed, (module, out.stdout)
