@@ -89,6 +89,13 @@ def _pose_text(pose, option):
         raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
 
 
+def _number(value, option, low, high, low_open=False):
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) and np.isfinite(value)
+    if not ok or value > high or value < low or (low_open and value == low):
+        raise RequestError(f"{option} must lie in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
 def _integer(value, option, low):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
         raise RequestError(f"{option} must be an integer of at least {low}, got {value!r}")
@@ -215,11 +222,15 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
     from handeye.app.files import check_output_folder, check_output_path
 
     level = _alpha(alpha)
+    data = load_dataset(dataset)
+    if data.sphere_centre is None:
+        raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
+                           "known sphere centre; give it (or calibrate with unknowns='sensor+sphere')")
     if figures is not None:
         check_output_folder(figures, "--figures")
     if plot is not None:
         check_output_path(plot, "--plot")
-    result = procedure.diagnose(load_dataset(dataset), alpha=level)
+    result = procedure.diagnose(data, alpha=level)
     if figures is not None:
         procedure.figures(result, figures)
     if plot is not None:
@@ -271,7 +282,8 @@ class SimulationResult:
 
 
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
-             translations=0, truth=None):
+             translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
+             no_start=False):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
     Parameters
@@ -294,18 +306,31 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     translations : int
         Pure flange translations (0-6) at each of two orientations.
     truth : str or array_like, optional
-        True sensor pose, KUKA (mm, degrees); default (190, 100, 125, 180, -88, 0).
+        True sensor pose in ``convention`` (KUKA: mm, degrees); default the thesis's
+        (190, 100, 125, 180, -88, 0) in KUKA terms.
+    diameter : float, optional
+        Sphere diameter, mm; default the thesis's certified 59.94507.
+    center : str or array_like, optional
+        Sphere centre in the robot base, mm (``'X,Y,Z'`` or three numbers); default the thesis's.
+    convention : {'kuka', 'abb', 'ur', 'fanuc'}
+        Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
+    max_tilt : float
+        Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
+    no_start : bool
+        Write no ``start_pose``: a calibration then starts from the closed-form estimate.
 
     Returns
     -------
     SimulationResult
     """
     from handeye.app.calibrate import parse_pose
+    from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
     from handeye.model.pose import pose_from_transform
 
+    conventions.check(convention)
     folder = pathlib.Path(out)
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise RequestError(f"--out {folder}: exists and is not an empty folder; choose a new one")
@@ -314,9 +339,17 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     seed = _integer(seed, "--seed", 0)
     n_poses = _integer(n_poses, "--n-poses", 1)
     translations = _integer(translations, "--translations", 0)
-    setup = sim.Setup(linearity=linearity)
+    setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
     if truth is not None:
-        setup = dataclasses.replace(setup, sensor_pose=tuple(parse_pose(_pose_text(truth, "--truth"), "--truth")))
+        pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
+        setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
+    if diameter is not None:
+        setup = dataclasses.replace(setup, diameter=_number(diameter, "--diameter", 0.0, 10_000.0, low_open=True))
+    if center is not None:
+        values = [float(v) for v in _pose_text(center, "--center").split(",")]
+        if len(values) != 3 or not np.all(np.isfinite(values)):
+            raise RequestError(f"--center needs three finite numbers X,Y,Z (mm), got {center!r}")
+        setup = dataclasses.replace(setup, sphere_centre=tuple(values))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
     ids, flange_poses = None, None
     if poses is not None:
@@ -327,7 +360,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
     made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids)
-    sim.write(made, folder, profiles=profiles)
+    sim.write(made, folder, profiles=profiles, convention=convention, **({"start_offset": None} if no_start else {}))
     return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
 
 
@@ -412,8 +445,9 @@ def plan(*, n=12, candidates=None, dataset=None, out=None):
     centre = np.asarray(setup.sphere_centre)
     if dataset is not None:
         d = load_dataset(dataset)
-        if d.start_pose is None:
-            raise RequestError(f"--dataset {dataset}: its setup.toml has no start_pose to plan around")
+        if d.start_pose is None or d.sphere_centre is None:
+            raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
+                               "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
         centre = d.sphere_centre
     if candidates is not None:

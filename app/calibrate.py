@@ -22,7 +22,7 @@ from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.dataset import GUESS_LIMITS
 from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import nearest_transform
+from handeye.model.rotation import nearest_transform, transform_distance
 from handeye.model.statistics import covariance
 
 METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
@@ -41,6 +41,8 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 
 #: A converged point must be stationary on the local chart too: |grad| <= LOCAL_GTOL max(1, f).
 LOCAL_GTOL = 1e-4
+#: Iterations of the trust-region Newton polish of a solver that stopped early.
+POLISH_ITER = 50
 
 #: Within this many degrees of B = +-90 the Euler angles A and C are nearly one rotation.
 GIMBAL_WARN_DEG = 1.0
@@ -106,6 +108,28 @@ def check_request(dataset, unknowns, method, rotation):
             f"need at least {need} (3 equations each for {3 * need - 3} unknowns, plus redundancy)"
         )
     return rotation
+
+
+def with_sphere_centre(dataset, unknowns):
+    """The dataset with a sphere centre to start from, and a note when it was estimated.
+
+    A setup without ``[sphere] center`` can be calibrated only with the centre free
+    (``unknowns='sensor+sphere'``): its start value is then the closed-form estimate.
+    """
+    if dataset.sphere_centre is not None:
+        return dataset, None
+    setup = dataset.path / "setup.toml"
+    if unknowns != "sensor+sphere":
+        raise CalibrationInputError(f"{setup}, column '[sphere] center': the setup gives no sphere centre (nor base_pose "
+                                    "with center_in_plate): give it, or estimate it with --unknowns sensor+sphere")
+    try:
+        _, centre = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, None)
+    except ClosedFormError as exc:
+        raise CalibrationInputError(f"{setup}: no sphere centre given, and the poses do not determine the closed-form "
+                                    f"estimate of it: {exc}") from None
+    return dataclasses.replace(dataset, sphere_centre=centre), (
+        "the setup gives no sphere centre: it is estimated with the sensor pose, starting from the closed-form "
+        f"estimate ({', '.join(f'{v:.2f}' for v in centre)}) mm")
 
 
 def check_identifiable(dataset, unknowns, start_transform):
@@ -196,8 +220,21 @@ class _Verdict:
     hess_eig: np.ndarray | None = None
 
 
-def _judge(model, result):
-    """Final transform, convergence verdict and local-chart diagnostics of a solver result."""
+def _polish(local, point):
+    """Trust-region Newton (exact Hessian) on the local chart from ``point``: the minimum to
+    machine precision when ``point`` is in its basin; None when it does not converge."""
+    res = solvers.solve(calibration_problem(local), point, "tr", {"max_iter": POLISH_ITER})
+    return res if res.converged and np.all(np.isfinite(res.x)) else None
+
+
+def _judge(model, result, polish=True):
+    """Final transform, convergence verdict and local-chart diagnostics of a solver result.
+
+    The verdict is the first-order conditions at the returned point on the local chart (and a
+    positive definite Hessian), not the solver's return string alone: a solver that stops
+    early (IPOPT's ``Search_Direction_Becomes_Too_Small`` next to the minimum) is polished by
+    trust-region Newton when ``polish``, and the message says so.
+    """
     converged, message, notes = bool(result.converged), result.message, []
     if model.rotation == "matrix":
         orth, det = _orthogonality(model.sensor_rotation(result.x))
@@ -212,6 +249,17 @@ def _judge(model, result):
     # judged in the local chart, free of the Euler singularity and of the matrix constraints
     local = model.with_rotation("local", centre)
     final = local.point_from(sensor, centre)
+    if not converged and polish:
+        polished = _polish(local, final)
+        if polished is not None:
+            dt, dr = transform_distance(local.sensor2flange(polished.x), sensor)
+            notes.append(f"{result.method} stopped before its convergence test ({result.message}) {dt:.2g} mm and "
+                         f"{dr:.2g} deg from the minimum; polished by trust-region Newton on the local chart "
+                         f"({polished.iterations} iterations), where the first-order conditions hold")
+            message = (f"first-order conditions met on the local chart after a trust-region Newton polish "
+                       f"({result.method} had stopped early: {result.message})")
+            converged, final = True, polished.x
+            sensor, centre = local.sensor2flange(final), local.sphere_centre(final)
     hess_eig = np.linalg.eigvalsh(local.cost_hessian(final))
     grad_local = float(np.max(np.abs(local.gradient(final))))
     if converged and grad_local > LOCAL_GTOL * max(1.0, local.cost(final)):
@@ -279,6 +327,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         and the poses NaN.
     """
     rotation = check_request(dataset, unknowns, method, rotation)
+    dataset, centre_note = with_sphere_centre(dataset, unknowns)
     options = _solver_options(options)
     convention = conventions.check(convention or dataset.convention)
     kind = model or observations.default_kind(dataset)
@@ -286,7 +335,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     start_pose, start_used = resolve_start(dataset, unknowns, start)
     start_t = transform_from_pose(start_pose)
     check_identifiable(dataset, unknowns, start_t)
-    warnings = []
+    warnings = [] if centre_note is None else [centre_note]
     everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
     plain = robust.least_squares(everything, everything.point_from(start_t)).x
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
@@ -299,14 +348,16 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         if screening.note:
             warnings.append(screening.note)
     used = dataset.subset(mask)
-    fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma))
+    polish = "max_iter" not in options  # a limit the user set is respected, not polished past
+    fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma), polish=polish)
     if not fit.converged and not start_used.startswith("closed-form"):
         try:
             retry_pose = _closed_form_pose(used, unknowns)
         except ClosedFormError as exc:
             warnings.append(f"the start did not converge and no closed-form restart is possible: {exc}")
         else:
-            retry = _judge(*_solve(used, unknowns, method, rotation, retry_pose, options, kind, robot_sigma))
+            retry = _judge(*_solve(used, unknowns, method, rotation, retry_pose, options, kind, robot_sigma),
+                           polish=polish)
             if retry.converged:
                 warnings.append(f"the start ({start_used}) did not converge ({fit.message}); restarted from the "
                                 "closed-form estimate")
@@ -329,7 +380,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         unknowns=unknowns,
         model=kind,
         robot_sigma_mm=robot_sigma if kind != "centre" or dataset.profiles is not None else None,
-        start_pose=start_pose,
+        start_pose=conventions.convert(start_pose, "kuka", convention) if convention != "kuka" else start_pose,
+        start_pose_kuka=start_pose,
         start_used=start_used,
         sensor2flange=fit.sensor,
         sensor_pose_kuka=pose,

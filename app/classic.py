@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from handeye.app import robust
-from handeye.app.calibrate import resolve_start
+from handeye.app.calibrate import resolve_start, with_sphere_centre
 from handeye.app.errors import CalibrationInputError
 from handeye.app.results import CalibrationResult, ClosedFormDetails, SampleResidual
 from handeye.app.robust import ALPHA
@@ -46,6 +46,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     error; ``closed_form`` holds the linear solution and where the least squares goes from it.
     """
     convention = conventions.check(convention or dataset.convention)
+    dataset, centre_note = with_sphere_centre(dataset, unknowns)
     f2b_all, xs_all = dataset.flange2base(), dataset.centre_in_sensor
     known = None if unknowns == "sensor+sphere" else np.asarray(dataset.sphere_centre, float)
     mask, excluded = np.ones(len(xs_all), bool), []
@@ -75,6 +76,8 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     dt, dr = transform_distance(model.sensor2flange(refined.x), est.sensor2flange)
     warnings = ["closed-form baseline: no uncertainty estimate"
                 + ("" if outliers else "; every sample used (--keep-all: no outlier screening)")]
+    if centre_note:
+        warnings.append(centre_note)
     if est.details.get("orthogonality_error", 0) > 0.01:
         warnings.append(f"the linear solution's rotation block was {est.details['orthogonality_error']:.3g} from "
                         "orthogonal (|R^T R - I|) before projection onto SO(3)")

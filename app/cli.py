@@ -93,7 +93,8 @@ def build_parser():
                           "sign_flip=ID,ID | outlier=ID,ID (repeatable)")
     sim.add_argument("--profiles", action="store_true", help="also write the laser profiles")
     sim.add_argument("--poses", default=None, metavar="CSV",
-                     help="flange poses (header id,x,y,z,a,b,c) instead of the thesis strategy")
+                     help="flange poses (a pose list in any convention: id,x,y,z,a,b,c is KUKA, id,x,y,z,rx,ry,rz UR, "
+                          "...) instead of the thesis strategy")
     sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
     sim.add_argument("--linearity", type=float, default=0.0,
                      help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
@@ -115,7 +116,15 @@ def build_parser():
                           "orientations rotating about the sphere (seen at one sensor point)")
     sim.add_argument("--translations", type=int, default=0, metavar="K",
                      help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)")
-    sim.add_argument("--truth", default=None, metavar="X,Y,Z,A,B,C", help="true sensor pose (default 190,100,125,180,-88,0)")
+    sim.add_argument("--truth", default=None, metavar="POSE",
+                     help="true sensor pose in --convention's columns (default KUKA 190,100,125,180,-88,0)")
+    sim.add_argument("--diameter", type=float, default=None, metavar="MM", help="sphere diameter (default 59.94507)")
+    sim.add_argument("--center", default=None, metavar="X,Y,Z", help="sphere centre in the robot base, mm")
+    sim.add_argument("--convention", default="kuka", choices=list(CONVENTIONS),
+                     help="robot convention of the written dataset and of --truth (default kuka)")
+    sim.add_argument("--max-tilt", type=float, default=90.0, metavar="DEG",
+                     help="largest sensor tilt from straight down (default 90, the thesis's)")
+    sim.add_argument("--no-start", action="store_true", help="write no start pose (calibrate starts from the closed form)")
     return parser
 
 
@@ -169,7 +178,9 @@ def _simulate(args):
 
     result = api.simulate(args.out, seed=args.seed, effect=args.effect, profiles=args.profiles, poses=args.poses,
                           n_poses=args.n_poses, linearity=args.linearity, motions=args.motions,
-                          translations=args.translations, truth=args.truth)
+                          translations=args.translations, truth=args.truth, diameter=args.diameter,
+                          center=args.center, convention=args.convention, max_tilt=args.max_tilt,
+                          no_start=args.no_start)
     print(result.summary())
     return EXIT_OK
 

@@ -16,6 +16,7 @@ STUDIES = {
     "pose-planning": "handeye.studies.study_planning",
     "discrepancy-power": "handeye.studies.study_power",
     "classics": "handeye.studies.study_classics",
+    "honest-default": "handeye.studies.study_default",
 }
 
 

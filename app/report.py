@@ -3,6 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 
+#: What the orientation columns of each convention hold.
+_CONVENTION_UNITS = {"abb": "mm, unit quaternion w x y z", "ur": "mm, rotation vector in rad",
+                     "fanuc": "mm, W P R in deg", "kuka": "mm, A B C in deg"}
+
 
 def _fmt(values, width=10, prec=4):
     return " ".join(f"{v:{width}.{prec}f}" for v in values)
@@ -27,11 +31,15 @@ def calibration_text(res):
         f"status: {'converged' if res.converged else 'NOT CONVERGED'} after {res.iterations} iterations "
         f"({res.message})",
         "",
-        "start pose   (x y z mm, A B C deg): " + _fmt(res.start_pose),
-        "sensor pose  (x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka),
     ]
-    if res.convention != "kuka":
-        lines.append(f"sensor pose ({res.convention}: {','.join(res.columns)}): " + _fmt(res.sensor_pose, 10, 6))
+    if res.convention == "kuka":
+        lines += ["start pose   (kuka: x y z mm, A B C deg): " + _fmt(res.start_pose),
+                  "sensor pose  (kuka: x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka)]
+    else:
+        units = _CONVENTION_UNITS[res.convention]
+        lines += [f"start pose   ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.start_pose, 10, 6),
+                  f"sensor pose  ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.sensor_pose, 10, 6),
+                  "sensor pose  (as KUKA x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka)]
     lines.append("sensor2flange (4x4):")
     lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
     lines.append("sphere centre in base (mm): " + _fmt(res.sphere_centre, 12, 4))

@@ -199,7 +199,8 @@ class CalibrationResult:
         Tool version, dataset hash, options and time, set when the result is saved.
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
-    ``start_pose`` (KUKA), ``start_used``, ``iterations``, ``evaluations``, ``history`` (KUKA
+    ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
+    ``evaluations``, ``history`` (KUKA
     poses of the iterates), ``solver_point``, ``sigma_mm``, ``sigma_scale``, ``correlation``
     with ``parameter_names``, ``loo_error_mm``, ``hessian_eigenvalues``, ``noise_model``)
     carry the JSON keys of the same name.
@@ -226,6 +227,7 @@ class CalibrationResult:
     model: str | None = None
     robot_sigma_mm: float | None = None
     start_pose: np.ndarray | None = None
+    start_pose_kuka: np.ndarray | None = None
     start_used: str | None = None
     iterations: int | None = None
     evaluations: dict | None = None
@@ -266,6 +268,7 @@ class CalibrationResult:
             "model": self.model,
             "robot_sigma_mm": self.robot_sigma_mm,
             "start_pose": _list(self.start_pose),
+            "start_pose_kuka": _list(self.start_pose_kuka),
             "start_used": self.start_used,
             "sensor_pose": _list(self.sensor_pose),
             "sensor_pose_kuka": _list(self.sensor_pose_kuka),

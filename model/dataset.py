@@ -17,9 +17,10 @@
     ``[sensor] start_pose`` (p2: six numbers; optional -- without it the calibration starts from
     the closed-form estimate); ``[sphere] diameter`` (mm) and either
     ``center`` (three numbers, robot base) or ``base_pose`` (p3) with ``center_in_plate``
-    (x_p'); ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[truth]``
-    with ``sensor_pose`` (six numbers) and optionally ``sphere_center`` -- for simulated data,
-    never read by a calibration.
+    (x_p'), or neither when the centre is to be estimated (``--unknowns sensor+sphere``);
+    ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[truth]`` with
+    ``sensor_pose`` (in the dataset's convention) and optionally ``sphere_center`` -- for
+    simulated data, never read by a calibration.
 
 Every problem found raises :class:`DatasetError`, whose text names file, row and column.
 """
@@ -84,8 +85,10 @@ class Dataset:
         Start value of the sensor pose on the flange (p2), KUKA; None when the setup has none.
     sphere_diameter : float
         mm.
-    sphere_centre : ndarray, shape (3,)
-        Sphere centre in the robot base, mm (from ``center`` or ``T(p3) x_p'``).
+    sphere_centre : ndarray, shape (3,), or None
+        Sphere centre in the robot base, mm (from ``center`` or ``T(p3) x_p'``); None when the
+        setup gives neither (then only ``unknowns='sensor+sphere'`` can calibrate: the closed
+        form estimates the centre).
     plate_pose, centre_in_plate : ndarray or None
         p3 (6,) and x_p' (3,) when the setup gives them.
     side : int
@@ -269,6 +272,8 @@ def _read_setup(path):
         if "base_pose" in sphere or "center_in_plate" in sphere:
             raise DatasetError(file, "give either center or base_pose with center_in_plate, not both", column="[sphere]")
         centre = _vector(sphere, "center", 3, file, "sphere")
+    elif "base_pose" not in sphere and "center_in_plate" not in sphere:
+        centre = None  # unknown: estimated with the sensor pose (--unknowns sensor+sphere)
     else:
         if "base_pose" not in sphere:
             raise DatasetError(file, "needs center, or base_pose with center_in_plate", column="[sphere]")
@@ -281,7 +286,10 @@ def _read_setup(path):
         raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
     truth = None
     if "truth" in doc:
-        truth = {"sensor_pose": _vector(doc["truth"], "sensor_pose", 6, file, "truth")}
+        truth_pose = _vector(doc["truth"], "sensor_pose", len(conventions.columns(convention)), file, "truth")
+        if convention != "kuka":  # in the dataset's convention, as every pose of the dataset
+            truth_pose = _to_kuka(truth_pose, convention, file, None, "[truth] sensor_pose")
+        truth = {"sensor_pose": truth_pose}
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
     return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention
@@ -331,10 +339,22 @@ def _centre_from_profile(points, radius, side, pfile):
 PROFILE_FIT = "hyper"
 
 
-def read_pose_list(path):
-    """Flange poses from a CSV with header ``id,x,y,z,a,b,c`` (KUKA, mm, degrees).
+def pose_list_convention(header):
+    """The robot convention a pose list's header names (``id,x,y,z,`` + the convention's columns)."""
+    for name in conventions.CONVENTIONS:
+        if list(header) == ["id", *conventions.columns(name)]:
+            return name
+    return None
 
-    Returns ``(ids, poses (N, 6))``; raises :class:`DatasetError` naming file, row and column.
+
+def read_pose_list(path, with_convention=False):
+    """Flange poses from a pose list, in any robot convention, told by its header.
+
+    ``id,x,y,z,a,b,c`` is KUKA (mm, degrees), ``id,x,y,z,w,p,r`` FANUC, ``id,x,y,z,q1,q2,q3,q4``
+    ABB, ``id,x,y,z,rx,ry,rz`` UR (:mod:`handeye.model.conventions`).
+
+    Returns ``(ids, poses (N, 6))`` with the poses as KUKA, and the convention when
+    ``with_convention``; raises :class:`DatasetError` naming file, row and column.
     """
     file = pathlib.Path(path)
     try:
@@ -342,23 +362,38 @@ def read_pose_list(path):
             table = list(csv.reader(fh))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DatasetError(file, f"cannot be read: {exc}") from None
-    want = ["id", "x", "y", "z", "a", "b", "c"]
-    if not table or [h.strip() for h in table[0]] != want:
-        raise DatasetError(file, "header must be " + ",".join(want), 1)
+    header = [h.strip() for h in table[0]] if table else []
+    convention = pose_list_convention(header)
+    if convention is None:
+        known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
+        raise DatasetError(file, f"header must name a convention's pose columns: {known}", 1)
     ids, poses, seen = [], [], {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
             continue
-        if len(fields) != len(want):
-            raise DatasetError(file, f"expected {len(want)} fields, got {len(fields)}", line)
+        if len(fields) != len(header):
+            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
         ident = _row_id(fields, 0, seen, file, line)
-        pose = np.array([_number(fields[k], file, line, want[k]) for k in range(1, 7)])
-        _check_angles(pose, file, line)
+        pose = np.array([_number(fields[k], file, line, header[k]) for k in range(1, len(header))])
+        if convention in READING_RANGES:
+            _check_angles(pose, file, line, limits=READING_RANGES[convention], names=header[4:])
+        if convention != "kuka":
+            pose = _to_kuka(pose, convention, file, line, None)
         ids.append(ident)
         poses.append(pose)
     if not poses:
         raise DatasetError(file, "no poses", 2)
-    return ids, np.array(poses)
+    return (ids, np.array(poses), convention) if with_convention else (ids, np.array(poses))
+
+
+def pose_list_text(ids, poses, convention="kuka"):
+    """A pose list (CSV text) of KUKA poses (N, 6), written in ``convention``."""
+    lines = [",".join(["id", *conventions.columns(convention)])]
+    for ident, pose in zip(ids, poses):
+        values = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
+        fmt = "{:.4f}" if convention == "kuka" else "{:.10g}"
+        lines.append(",".join([str(ident)] + [fmt.format(v) for v in values]))
+    return "\n".join(lines) + "\n"
 
 
 def load(name_or_path):

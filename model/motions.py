@@ -51,7 +51,7 @@ def strategy(setup, rng, name="thesis", n_poses=36, translations=0):
     if not 0 <= translations <= len(TRANSLATION_STEPS):
         raise SimulationError(f"translations must lie in 0..{len(TRANSLATION_STEPS)}, got {translations}")
     fixed = np.array([0.0, setup.side * 10.0, 240.0])
-    ids, flanges, orientations = [], [], thesis_orientations(n_poses)
+    ids, flanges, orientations = [], [], thesis_orientations(n_poses, setup.max_tilt_deg)
     for ident, rot in orientations:
         seen_at = fixed if name == "about-sphere" else random_view(setup, rng)
         ids.append(ident)

@@ -82,6 +82,7 @@ class Setup:
     z_range: tuple = (190.0, 290.0)
     max_incidence_deg: float = 75.0
     circle_fit: str = "hyper"
+    max_tilt_deg: float = 90.0
 
 
 def parse_effects(specs):
@@ -115,8 +116,16 @@ def _axis(name):
             "x*": np.array([c, c, 0]), "y*": np.array([-c, c, 0])}[name]
 
 
-def thesis_orientations(n_poses=36):
-    """(id, sensor-to-base rotation) of the seed's strategy; an evenly spread subset of n_poses."""
+def thesis_orientations(n_poses=36, max_tilt_deg=90.0):
+    """(id, sensor-to-base rotation) of the seed's strategy; an evenly spread subset of n_poses.
+
+    The seed tilts the sensor about four horizontal axes in steps of 22.5 degrees up to +-90
+    (the flange then points sideways, and for some mounts below the sphere); ``max_tilt_deg``
+    spreads the nine tilts of each axis over +-max_tilt_deg instead (ids keep the seed's step
+    names only at the default).
+    """
+    if not 0.0 < max_tilt_deg <= 90.0:
+        raise SimulationError(f"--max-tilt must lie in (0, 90] degrees, got {max_tilt_deg}")
     items = []
     for name in ("x", "y", "x*", "y*"):
         u = _axis(name)
@@ -124,7 +133,7 @@ def thesis_orientations(n_poses=36):
         x_s = u
         base = np.column_stack([x_s, np.cross(z_s, x_s), z_s])
         for n in range(-4, 5):
-            angle = 22.5 * n
+            angle = max_tilt_deg / 4 * n
             items.append((f"{name}{angle:+g}", matrix_from_rotvec(np.radians(angle) * u) @ base))
     if not 1 <= n_poses <= len(items):
         raise SimulationError(f"the thesis strategy has 1 to {len(items)} poses, asked for {n_poses}")
@@ -133,11 +142,14 @@ def thesis_orientations(n_poses=36):
 
 
 def random_view(setup, rng, size=()):
-    """Sphere centres in the sensor frame drawn from :data:`VIEW`, shape ``size + (3,)`` (mm).
+    """Sphere centres in the sensor frame drawn from :data:`VIEW`, shape ``size + (3,)`` (mm);
+    the range of |y| is narrowed to 0.1 R .. 0.7 R for a sphere smaller than the thesis's.
 
     Draws x, then y, then z (each of ``size``) from ``rng``.
     """
     (x0, x1), (y0, y1), (z0, z1) = VIEW
+    radius = setup.diameter / 2  # the laser plane must cut the sphere: |y| well inside R for any sphere
+    y0, y1 = min(y0, 0.1 * radius), min(y1, 0.7 * radius)
     return np.stack([rng.uniform(x0, x1, size), setup.side * rng.uniform(y0, y1, size), rng.uniform(z0, z1, size)],
                     axis=-1)
 
@@ -229,7 +241,7 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
     if flange_poses is None:
-        out_ids, rots = zip(*thesis_orientations(n_poses))
+        out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
         seen_at = np.array([random_view(setup, rng) for _ in rots])
         true_flanges = flanges_for_views(setup, np.array(rots), seen_at, centre)
     else:
@@ -270,21 +282,28 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped)
 
 
-def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0)):
+def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0), convention="kuka"):
     """Write a simulation as a dataset folder (with ``[truth]``) plus ``simulation.json``.
 
-    The setup's start pose is the truth plus ``start_offset`` (a CAD-like guess); the setup's
-    sphere centre and diameter are the nominal ones, without hidden effects.
+    The setup's start pose is the truth plus ``start_offset`` (a CAD-like guess; None writes
+    no start pose, so that a calibration starts from the closed form); the setup's sphere
+    centre and diameter are the nominal ones, without hidden effects. ``convention`` is the
+    robot convention of the files (:mod:`handeye.model.conventions`): the flange poses, the
+    start pose and the true sensor pose are written in it.
     """
+    from handeye.model import conventions
+
+    conventions.check(convention)
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    header = "id,x,y,z,a,b,c,xs,ys,zs" + (",profile" if profiles else "")
+    header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs")) + (",profile" if profiles else "")
     lines = [header]
     if profiles:
         (folder / "profiles").mkdir(exist_ok=True)
     for ident, pose, xs, pts in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles):
         safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
-        row = [ident] + [f"{v:.9f}" for v in pose] + [f"{v:.9f}" for v in xs]
+        written = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
+        row = [ident] + [f"{v:.12g}" if convention != "kuka" else f"{v:.9f}" for v in written] + [f"{v:.9f}" for v in xs]
         if profiles:
             name = f"profiles/{safe}.csv"
             np.savetxt(folder / name, pts, fmt="%.9f", delimiter=",", header="x,z", comments="")
@@ -292,17 +311,23 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
         lines.append(",".join(row))
     (folder / "measurements.csv").write_text("\n".join(lines) + "\n")
     s = sim.setup
-    start = np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)
+
+    def as_written(kuka_pose):
+        return kuka_pose if convention == "kuka" else conventions.convert(kuka_pose, "kuka", convention)
 
     def vec(v):
         return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
+    start = ("" if start_offset is None else
+             f"[sensor]\nstart_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
-        f"[sensor]\nstart_pose = {vec(start)}\n\n"
+        + (f"[robot]\nconvention = \"{convention}\"\n\n" if convention != "kuka" else "")
+        + start +
         f"[sphere]\ndiameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
         f"[profile]\nside = {s.side}\n\n"
-        f"[truth]\nsensor_pose = {vec(s.sensor_pose)}\nsphere_center = {vec(sim.true_centre)}\n"
+        f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
+        f"sphere_center = {vec(sim.true_centre)}\n"
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],

@@ -223,3 +223,18 @@ def test_a_non_finite_solve_in_another_convention_and_its_plot(tmp_path, monkeyp
                           plot=tmp_path / "p.png")
     assert len(r.sensor_pose) == len(r.columns) == 7 and r.n_used == len(r.residuals)
     assert (tmp_path / "p.png").stat().st_size > 0
+
+
+def test_the_sphere_centre_is_optional_when_it_is_an_unknown(tmp_path, capsys):
+    sim = handeye.simulate(tmp_path / "c", seed=4, n_poses=20, center="900,150,400", diameter=50.8)
+    setup = sim.path / "setup.toml"
+    setup.write_text("\n".join(line for line in setup.read_text().splitlines() if not line.startswith("center")) + "\n")
+    assert handeye.load_dataset(sim.path).sphere_centre is None
+    with pytest.raises(handeye.InputError, match=r"\[sphere\] center.*sensor\+sphere"):
+        handeye.calibrate(sim.path)
+    r = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True)
+    assert r.converged and np.linalg.norm(r.sphere_centre - [900, 150, 400]) < 0.5
+    assert any("no sphere centre" in w for w in r.warnings)
+    k = handeye.calibrate(sim.path, unknowns="sensor+sphere", method="kim-cho")
+    assert np.linalg.norm(k.sphere_centre - [900, 150, 400]) < 1.0
+    assert cli.main(["diagnose", str(sim.path)]) == cli.EXIT_BAD_INPUT

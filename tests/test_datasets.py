@@ -93,7 +93,7 @@ BAD = [
     (dict(csv=""), "row 1: empty file"),
     (dict(toml=GOOD_TOML.replace("diameter = 59.94507", "diameter = -3")), "[sphere] diameter"),
     (dict(toml=GOOD_TOML.replace("center = [1, 2, 3]", "center = [1, 2]")), "needs a list of 3 numbers"),
-    (dict(toml=GOOD_TOML.replace("center = [1, 2, 3]", "")), "needs center, or base_pose"),
+    (dict(toml=GOOD_TOML.replace("center = [1, 2, 3]", "center_in_plate = [1, 2, 3]")), "needs center, or base_pose"),
     (dict(toml=GOOD_TOML.replace("start_pose = [150, 90, 120, 180, -90, 0]", "start_pose = [1, 2]")), "[sensor] start_pose"),
     (dict(toml=GOOD_TOML + "[camera]\nmodel = 'x'\n"), "unknown section"),
     (dict(toml=GOOD_TOML + "[robot]\nconvention = 'yaskawa'\n"), "column '[robot] convention': unknown convention"),
