@@ -230,6 +230,9 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
         check_output_folder(figures, "--figures")
     if plot is not None:
         check_output_path(plot, "--plot")
+    from handeye.app import slips
+
+    slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
     result = procedure.diagnose(data, alpha=level)
     if figures is not None:
         procedure.figures(result, figures)

@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app import robust
+from handeye.app import robust, slips
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
 from handeye.app.results import Before, CalibrationResult, SampleResidual, Uncertainty
@@ -339,8 +339,9 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
     plain = robust.least_squares(everything, everything.point_from(start_t)).x
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
-    before = Before(len(dataset), float(np.sqrt(np.mean(plain_norms**2))),
-                    _rms(robust.leave_one_out(everything, plain)) if loo else None)
+    plain_rms = float(np.sqrt(np.mean(plain_norms**2)))
+    slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
+    before = Before(len(dataset), plain_rms, _rms(robust.leave_one_out(everything, plain)) if loo else None)
     excluded, mask = [], np.ones(len(dataset), bool)
     if outliers:
         screening = robust.screen(dataset, unknowns, start_t, alpha=alpha)

@@ -332,7 +332,9 @@ def _centre_from_profile(points, radius, side, pfile):
     try:
         return circle.sphere_centre_from_circle(circle.fit_circle(points[:, 0], points[:, 1], PROFILE_FIT), radius, side)
     except circle.CircleFitError as exc:
-        raise DatasetError(pfile, str(exc)) from None
+        hint = (f"; a profile cannot be wider than the sphere: check [sphere] diameter = {2 * radius:g} mm in setup.toml "
+                "(a radius given for the diameter? inches?)" if "exceeds" in str(exc) else "")
+        raise DatasetError(pfile, str(exc) + hint) from None
 
 
 #: Circle fit used to reconstruct a centre from a profile when xs, ys, zs are empty.

@@ -1,0 +1,119 @@
+"""First-setup slips: the laser side, length units, angle units -- caught and named, never "solved".
+
+A new cell's first dataset often carries one of a few slips that no single value betrays:
+``[profile] side`` with the wrong sign (every reconstructed centre on the wrong side of the
+laser plane), robot positions in metres (as UR's RTDE and URScript give them) where the
+dataset wants millimetres, or angles in radians where KUKA and FANUC want degrees. Each makes
+an official-looking calibration with a large residual.
+
+The test is the alternative hypothesis itself: when the plain least-squares fit of every
+sample is poor (RMS above :data:`SUSPECT_RMS_MM`), the same fit is made with each slip undone
+(side flipped, positions times 1000, the sphere centre too, angles from radians to degrees),
+each from its own closed-form start. A slip is named when undoing it explains the data far
+better: RMS lower by at least :data:`FACTOR` and below :data:`EXPLAINED_RMS_MM` after. The
+calibration then stops with exit 2 and a message that names the setting, both RMS values and
+the fix; nothing is changed silently.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.app.errors import CalibrationInputError
+from handeye.model.calibration import CalibrationModel
+from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+
+#: A plain fit with a larger RMS (mm) is checked for slips.
+SUSPECT_RMS_MM = 1.0
+#: Undoing a slip must lower the RMS by at least this factor ...
+FACTOR = 5.0
+#: ... and leave at most this RMS (mm).
+EXPLAINED_RMS_MM = 2.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Slip:
+    """A slip undone: the dataset it gives and what to tell the user."""
+
+    name: str
+    dataset: object
+    fix: str
+
+
+def _candidates(dataset):
+    d, setup = dataset, dataset.path / "setup.toml"
+    out = []
+    if d.profiles is not None and any(p is not None for p in d.profiles):
+        rows = np.array([p is not None for p in d.profiles])
+        xs = d.centre_in_sensor.copy()
+        xs[rows, 1] = -xs[rows, 1]
+        out.append(Slip("[profile] side", dataclasses.replace(d, centre_in_sensor=xs, side=-d.side),
+                        f"set side = {-d.side} in {setup} (the side of the laser plane the sphere's centre lies on, "
+                        "in the sensor's y)"))
+    poses = d.flange_poses.copy()
+    poses[:, :3] *= 1000.0
+    out.append(Slip("robot positions in metres", dataclasses.replace(d, flange_poses=poses),
+                    f"write the flange positions x, y, z of {d.path / 'measurements.csv'} in millimetres (x 1000)"))
+    if d.sphere_centre is not None:
+        out.append(Slip("robot positions and sphere centre in metres",
+                        dataclasses.replace(d, flange_poses=poses, sphere_centre=d.sphere_centre * 1000.0),
+                        f"write the flange positions and the [sphere] center of {setup} in millimetres (x 1000)"))
+    if d.convention in ("kuka", "fanuc") and np.all(np.abs(d.flange_poses[:, 3:]) <= 2 * np.pi + 1e-9):
+        from handeye.model import conventions
+
+        degrees = d.flange_poses.copy()
+        if d.convention == "fanuc":  # the file's W, P, R read as radians, then as KUKA again
+            fanuc = conventions.convert(d.flange_poses, "kuka", "fanuc")
+            fanuc[:, 3:] = np.degrees(fanuc[:, 3:])
+            degrees = conventions.convert(fanuc, "fanuc", "kuka")
+        else:
+            degrees[:, 3:] = np.degrees(degrees[:, 3:])
+        out.append(Slip("robot angles in radians", dataclasses.replace(d, flange_poses=degrees),
+                        f"write the flange angles of {d.path / 'measurements.csv'} in degrees"))
+    return out
+
+
+def plain_rms(dataset, unknowns):
+    """RMS (mm) of the plain least-squares fit of every sample from the closed-form start, or
+    None when the closed form is not determined."""
+    from handeye.app import robust
+
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    try:
+        start, c0 = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, centre)
+    except ClosedFormError:
+        return None
+    model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=c0)
+    with np.errstate(all="ignore"):
+        x = robust.least_squares(model, model.point_from(start, c0), max_iter=100).x
+        norms = np.linalg.norm(model.residuals(x), axis=1)
+    rms = float(np.sqrt(np.mean(norms**2)))
+    return rms if np.isfinite(rms) else None
+
+
+def check(dataset, unknowns, rms_given):
+    """Raise :class:`CalibrationInputError` naming a slip that explains a poor fit (module docstring).
+
+    Parameters
+    ----------
+    dataset : handeye.model.dataset.Dataset
+    unknowns : {'sensor', 'sensor+sphere'}
+    rms_given : float
+        RMS (mm) of the plain fit of every sample as the dataset is.
+    """
+    if not rms_given > SUSPECT_RMS_MM:
+        return
+    best = None
+    for slip in _candidates(dataset):
+        if slip.dataset.sphere_centre is None and unknowns == "sensor":
+            continue
+        rms = plain_rms(slip.dataset, unknowns)
+        if rms is not None and rms * FACTOR <= rms_given and rms <= EXPLAINED_RMS_MM and (best is None or rms < best[1]):
+            best = (slip, rms)
+    if best is not None:
+        slip, rms = best
+        raise CalibrationInputError(
+            f"{dataset.path}: the data look like a setup slip, {slip.name}: as given, the plain fit of every sample has "
+            f"RMS {rms_given:.3g} mm; with that slip undone, {rms:.3g} mm. {slip.fix[0].upper() + slip.fix[1:]}, "
+            "and calibrate again")

@@ -1,0 +1,62 @@
+"""First-setup slips are named (exit 2), never calibrated: wrong laser side, positions in metres,
+angles in radians; clean data of any convention and the thesis's data are never flagged."""
+import math
+
+import pytest
+
+import handeye
+from handeye.app import cli
+
+
+def _rewrite(path, column_fn):
+    lines = (path / "measurements.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        out.append(",".join(column_fn(header, cells)))
+    (path / "measurements.csv").write_text("\n".join(out) + "\n")
+
+
+def test_wrong_side_is_named(tmp_path, capsys):
+    s = handeye.simulate(tmp_path / "side", seed=5, profiles=True, diameter=50.8, n_poses=24)
+    # centres reconstructed from the profiles (xs, ys, zs empty), so that side matters
+    _rewrite(s.path, lambda h, c: c[:7] + ["", "", ""] + c[10:])
+    assert handeye.calibrate(s.path, no_loo=True).converged
+    setup = s.path / "setup.toml"
+    setup.write_text(setup.read_text().replace("side = -1", "side = 1"))
+    with pytest.raises(handeye.InputError, match=r"\[profile\] side.*Set side = -1"):
+        handeye.calibrate(s.path, no_loo=True)
+    assert cli.main(["calibrate", str(s.path)]) == cli.EXIT_BAD_INPUT
+    assert cli.main(["diagnose", str(s.path)]) == cli.EXIT_BAD_INPUT
+    assert "side" in capsys.readouterr().err
+
+
+def test_positions_in_metres_are_named(tmp_path):
+    s = handeye.simulate(tmp_path / "m", seed=6, convention="ur", n_poses=20)
+    _rewrite(s.path, lambda h, c: [c[0]] + [repr(float(v) / 1000) for v in c[1:4]] + c[4:])
+    with pytest.raises(handeye.InputError, match="metres"):
+        handeye.calibrate(s.path, no_loo=True)
+    with pytest.raises(handeye.InputError, match="metres"):
+        handeye.calibrate(s.path, method="kim-cho")
+
+
+def test_angles_in_radians_are_named(tmp_path):
+    s = handeye.simulate(tmp_path / "r", seed=7, n_poses=20)
+    _rewrite(s.path, lambda h, c: c[:4] + [repr(math.radians(float(v))) for v in c[4:7]] + c[7:])
+    with pytest.raises(handeye.InputError, match="radians"):
+        handeye.calibrate(s.path, no_loo=True)
+
+
+@pytest.mark.parametrize("convention", ["kuka", "ur", "abb", "fanuc"])
+def test_clean_data_is_never_flagged(tmp_path, convention):
+    for seed in range(2):
+        s = handeye.simulate(tmp_path / f"{convention}{seed}", seed=seed, convention=convention, n_poses=16,
+                             profiles=seed == 1, max_tilt=45, no_start=True)
+        assert handeye.calibrate(s.path, no_loo=True, unknowns="sensor+sphere").converged
+
+
+def test_the_thesis_data_are_not_a_slip():
+    """thesis-real's plain fit is poor (RMS 353 mm: a misprint), yet no slip explains it."""
+    r = handeye.calibrate("thesis-real", no_loo=True)
+    assert r.before.rms_mm > 100 and r.converged
