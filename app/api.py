@@ -369,7 +369,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
 
 @dataclasses.dataclass(frozen=True)
 class PlanResult:
-    """Poses chosen by :func:`plan`, with their predicted accuracy.
+    """Poses chosen (or scored) by :func:`plan`, with their predicted accuracy.
 
     Attributes
     ----------
@@ -382,9 +382,15 @@ class PlanResult:
     predicted_sd : ndarray, shape (6,)
         Cramer-Rao bound: translation (mm), rotation (degrees).
     skipped : list of (str, str)
-        Candidates that cannot see the sphere, with the reason.
+        Candidates that cannot see the sphere (or lie outside the workspace), with the reason.
     usable : int
         Candidates that can.
+    convention : str
+        Robot convention of :meth:`pose_list` and of ``poses_as`` in :meth:`to_dict`.
+    scored : bool
+        True when the poses were given (``--score``), not chosen.
+    margin : tuple of float
+        (mm, deg) the nominal sensor pose may be off while every pose still sees the sphere.
     """
 
     n: int
@@ -394,43 +400,87 @@ class PlanResult:
     predicted_sd: np.ndarray
     skipped: list
     usable: int
+    convention: str = "kuka"
+    scored: bool = False
+    margin: tuple = (0.0, 0.0)
+
+    def poses_in_convention(self):
+        from handeye.model import conventions
+
+        return self.poses if self.convention == "kuka" else conventions.convert(self.poses, "kuka", self.convention)
 
     def to_dict(self):
         """The ``handeye plan --json`` object."""
+        from handeye.model import conventions
+
         return {"n": self.n, "ids": list(self.ids), "poses": np.asarray(self.poses).tolist(), "logdet": self.logdet,
                 "predicted_sd": {"sensor_translation_mm": np.asarray(self.predicted_sd[:3]).tolist(),
                                  "sensor_rotation_deg": np.asarray(self.predicted_sd[3:6]).tolist()},
                 "skipped": [{"id": i, "reason": r} for i, r in self.skipped],
-                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)"}
+                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
+                "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
+                             "poses": np.asarray(self.poses_in_convention()).tolist()},
+                "scored": self.scored, "margin": list(self.margin)}
 
     def pose_list(self):
-        """The chosen poses as a pose-list CSV (``id,x,y,z,a,b,c``), ready for the robot."""
-        lines = ["id,x,y,z,a,b,c"] + [",".join([i] + [f"{v:.4f}" for v in p]) for i, p in zip(self.ids, self.poses)]
-        return "\n".join(lines) + "\n"
+        """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
+        from handeye.model.dataset import pose_list_text
+
+        return pose_list_text(self.ids, self.poses, self.convention)
 
     def summary(self):
-        lines = [f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})",
+        from handeye.model import conventions
+
+        if self.scored:
+            head = f"scored {self.n} given poses (log det {self.logdet:.2f})"
+        else:
+            head = f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})"
+        if any(self.margin):
+            head += f"; each still sees the sphere with the sensor off by {self.margin[0]:g} mm / {self.margin[1]:g} deg"
+        lines = [head,
                  "predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in self.predicted_sd[:3])
-                 + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6])]
-        lines += [f"  {i:>14} " + " ".join(f"{v:10.3f}" for v in p) for i, p in zip(self.ids, self.poses)]
+                 + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6]),
+                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention))}):"]
+        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in p) for i, p in zip(self.ids, self.poses_in_convention())]
         lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
         return "\n".join(lines)
 
 
-def plan(*, n=12, candidates=None, dataset=None, out=None):
-    """Choose the ``n`` most informative poses, D-optimal (``handeye plan``).
+def _floats(text, option, count):
+    values = _pose_text(text, option).split(",")
+    try:
+        out = [float(v) for v in values]
+    except ValueError:
+        raise RequestError(f"{option}: not a number in {text!r}") from None
+    if len(out) != count or not np.all(np.isfinite(out)):
+        raise RequestError(f"{option} needs {count} finite numbers, got {text!r}")
+    return out
+
+
+def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None):
+    """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
     Parameters
     ----------
     n : int
         Number of poses to choose.
     candidates : str or pathlib.Path, optional
-        Candidate flange poses (pose list, header ``id,x,y,z,a,b,c``); default the thesis
-        strategy's 36 orientations with cuts at 5, 15 and 25 mm (108 poses).
+        Candidate flange poses (a pose list in any convention, told by its header); default
+        the thesis strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
     dataset : str, pathlib.Path or Dataset, optional
-        Take the nominal sensor pose (``start_pose``), sphere centre and diameter from it.
+        Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
+        robot convention from it; default the thesis's cell.
     out : str or pathlib.Path, optional
-        Write the chosen poses as a pose list.
+        Write the chosen poses as a pose list in the dataset's convention.
+    max_tilt : float
+        Largest tilt of the sensor from straight down of the default candidates, degrees.
+    margin : str or sequence of two floats, optional
+        ``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps
+        the sphere inside the laser line and the measuring range even then.
+    workspace : str or sequence of six floats, optional
+        ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
+    score : str or pathlib.Path, optional
+        A pose list to score (predicted accuracy) instead of choosing.
 
     Returns
     -------
@@ -444,22 +494,37 @@ def plan(*, n=12, candidates=None, dataset=None, out=None):
     n = _integer(n, "--n", 1)
     if out is not None:
         check_output_path(out, "--out")
-    setup = sim.Setup(linearity=0.0)
-    centre = np.asarray(setup.sphere_centre)
+    margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
+    if min(margin) < 0:
+        raise RequestError(f"--margin must not be negative, got {margin}")
+    setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    centre, convention = np.asarray(setup.sphere_centre), "kuka"
     if dataset is not None:
         d = load_dataset(dataset)
         if d.start_pose is None or d.sphere_centre is None:
             raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
                                "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
-        centre = d.sphere_centre
+        centre, convention = d.sphere_centre, d.convention
+    if score is not None:
+        ids, poses = read_pose_list(score)
+        sd, value = planning.score(poses, setup, centre)
+        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin)
     if candidates is not None:
         ids, poses = read_pose_list(candidates)
     else:
-        ids, poses = planning.thesis_candidates(setup, centre)
-    chosen = planning.plan(ids, poses, int(n), setup, centre)
-    result = PlanResult(int(n), list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
-                        np.asarray(chosen.predicted_sd), list(chosen.skipped), len(ids) - len(chosen.skipped))
+        ids, poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
+    skipped = []
+    if workspace is not None:
+        inside = planning.in_workspace(poses, _floats(workspace, "--workspace", 6))
+        skipped = [(i, "flange position outside --workspace") for i, k in zip(ids, inside) if not k]
+        ids, poses = [i for i, k in zip(ids, inside) if k], np.asarray(poses)[inside]
+    if not ids:
+        raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
+    chosen = planning.plan(ids, poses, n, setup, centre)
+    result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
+                        np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
+                        len(ids) - len(chosen.skipped), convention, False, margin)
     if out is not None:
         write_text_atomically(out, result.pose_list(), option="--out")
     return result

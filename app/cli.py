@@ -32,11 +32,21 @@ def _plan_args(sub):
     plan = sub.add_parser("plan", help="choose the N most informative poses (D-optimal) from candidates")
     plan.add_argument("--n", type=int, default=12, help="number of poses to choose (default 12)")
     plan.add_argument("--candidates", default=None, metavar="CSV",
-                      help="candidate flange poses (header id,x,y,z,a,b,c); default: the thesis strategy's 36 "
-                           "orientations with cuts at 5, 15 and 25 mm (108 poses)")
+                      help="candidate flange poses (a pose list in any convention, told by its header); default: the "
+                           "thesis strategy's 36 orientations x 3 cuts scaled to the sphere (108 poses)")
     plan.add_argument("--dataset", default=None,
-                      help="take the nominal sensor pose (start_pose), sphere centre and diameter from this dataset")
-    plan.add_argument("--out", default=None, metavar="CSV", help="write the chosen poses (id,x,y,z,a,b,c)")
+                      help="take the nominal sensor pose (start_pose), sphere centre and diameter, laser side and "
+                           "robot convention from this dataset")
+    plan.add_argument("--out", default=None, metavar="CSV",
+                      help="write the chosen poses as a pose list in the dataset's convention (KUKA without --dataset)")
+    plan.add_argument("--max-tilt", type=float, default=90.0, metavar="DEG",
+                      help="largest sensor tilt from straight down of the candidates (default 90, the thesis's)")
+    plan.add_argument("--margin", default=None, metavar="MM,DEG",
+                      help="the nominal sensor pose may be off by this much: every planned pose still sees the sphere")
+    plan.add_argument("--workspace", default=None, metavar="XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX",
+                      help="flange positions allowed (robot base, mm); candidates outside are skipped")
+    plan.add_argument("--score", default=None, metavar="CSV",
+                      help="predict the accuracy of this pose list instead of choosing poses")
     plan.add_argument("--json", action="store_true")
 
 
@@ -131,7 +141,8 @@ def build_parser():
 def _plan(args):
     from handeye.app import api
 
-    result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out)
+    result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
+                      margin=args.margin, workspace=args.workspace, score=args.score)
     print(json.dumps(result.to_dict(), indent=1) if args.json else result.summary())
     return EXIT_OK
 

@@ -74,21 +74,78 @@ def predicted_sd(info):
     return sd
 
 
-def thesis_candidates(setup, sphere_centre, cut_distances=(5.0, 15.0, 25.0), seed=0):
-    """Candidate flange poses: the thesis strategy's 36 orientations x sphere placements whose
-    laser plane cuts the sphere at each of ``cut_distances`` mm from its centre."""
+#: Cut distances of the candidates (|y| of the sphere centre in the laser plane) as fractions of
+#: the sphere radius: the thesis's 5, 15 and 25 mm of a 30 mm radius.
+CUT_FRACTIONS = (1 / 6, 1 / 2, 5 / 6)
+
+
+def view_window(setup, margin_mm=0.0, margin_deg=0.0):
+    """Where the sphere centre may be put in the sensor frame so that it is still seen when the
+    nominal sensor pose is off by up to ``margin_mm`` and ``margin_deg``.
+
+    Such an error moves the centre, in the sensor frame, by at most
+    ``shift = margin_mm + radians(margin_deg) * z_max`` (mm). The window keeps the laser plane
+    cutting the sphere between 0.1 R and 0.9 R from its centre, the sphere within the laser
+    line, and the near surface within the measuring range, each with ``shift`` to spare.
+
+    Returns
+    -------
+    dict
+        ``cuts`` (|y| values, mm, the :data:`CUT_FRACTIONS` of R clipped into the window), ``x``
+        and ``z`` (ranges, mm), ``shift`` (mm).
+
+    Raises
+    ------
+    PlanningError
+        When the margin leaves no room on this sphere.
+    """
+    radius = setup.diameter / 2
+    z_lo, z_hi = setup.z_range
+    shift = float(margin_mm + np.radians(margin_deg) * z_hi)
+    y_lo, y_hi = 0.1 * radius + shift, 0.9 * radius - shift
+    x_half = min(10.0, setup.line_length / 2 - radius - shift)
+    z_window = (max(z_lo + 25.0, z_lo + 0.8 * radius) + shift, z_hi - 25.0 - shift)
+    if y_lo > y_hi or x_half < 0 or z_window[0] > z_window[1]:
+        raise PlanningError(
+            f"a margin of {margin_mm:g} mm and {margin_deg:g} deg moves the sphere by up to {shift:.1f} mm in the sensor "
+            f"frame: more than a {setup.diameter:g} mm sphere and the {z_lo:g}-{z_hi:g} mm range leave room for")
+    cuts = np.clip(np.array(CUT_FRACTIONS) * radius, y_lo, y_hi)
+    return {"cuts": np.unique(np.round(cuts, 9)), "x": (-x_half, x_half), "z": z_window, "shift": shift}
+
+
+def thesis_candidates(setup, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.0, cuts=None):
+    """Candidate flange poses: the thesis strategy's 36 orientations (tilted up to
+    ``setup.max_tilt_deg``) x sphere placements whose laser plane cuts the sphere at the cut
+    distances of :func:`view_window` (scaled to the sphere, kept inside the margin), or at
+    ``cuts`` (mm) when given."""
     rng = np.random.default_rng(seed)
+    window = view_window(setup, margin_mm, margin_deg)
+    if cuts is not None:
+        window["cuts"] = np.asarray(cuts, float)
     t_x = transform_from_pose(setup.sensor_pose)
     ids, poses = [], []
-    for ident, rot in simulate.thesis_orientations(36):
-        for cut in cut_distances:
-            seen_at = np.array([rng.uniform(-10, 10), setup.side * cut, rng.uniform(215, 265)])
+    for ident, rot in simulate.thesis_orientations(36, setup.max_tilt_deg):
+        for cut in window["cuts"]:
+            seen_at = np.array([rng.uniform(*window["x"]), setup.side * cut, rng.uniform(*window["z"])])
             sensor = np.eye(4)
             sensor[:3, :3] = rot
             sensor[:3, 3] = np.asarray(sphere_centre, float) - rot @ seen_at
-            ids.append(f"{ident}@{cut:g}")
+            ids.append(f"{ident}@{cut:.3g}")
             poses.append(pose_from_transform(sensor @ np.linalg.inv(t_x)))
     return ids, np.array(poses)
+
+
+def in_workspace(flange_poses, workspace):
+    """Which flange positions lie in ``workspace`` = (xmin, xmax, ymin, ymax, zmin, zmax), mm, base."""
+    w = np.asarray(workspace, float).reshape(3, 2)
+    pos = np.asarray(flange_poses, float)[:, :3]
+    return np.all((pos >= w[:, 0]) & (pos <= w[:, 1]), axis=1)
+
+
+def score(flange_poses, setup, sphere_centre):
+    """Predicted 1-sd bounds (Cramer-Rao; mm, deg) of a given pose list, and its log det."""
+    info = bounds.information(flange_poses, setup, sphere_centre).sum(axis=0)
+    return predicted_sd(info), float(logdet(info))
 
 
 @dataclasses.dataclass

@@ -62,7 +62,7 @@ def run(out, quick=False):
     cuts = np.arange(2.0, 29.0, 2.0)
     cut_sd = []
     for cut in cuts:
-        c_ids, c_poses = planning.thesis_candidates(setup, centre, cut_distances=(float(cut),))
+        c_ids, c_poses = planning.thesis_candidates(setup, centre, cuts=(float(cut),))
         cut_sd.append(planning.predicted_sd(bounds.information(c_poses, setup, centre).sum(axis=0)))
     cut_sd = np.array(cut_sd)
     write_table(out, "cut_distance", ["cut_mm", "max_sd_mm", "max_sd_deg"],
