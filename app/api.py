@@ -112,7 +112,7 @@ def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
 
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
-              out=None):
+              out=None, sigma=None, robot_sigma=None, effects=None):
     """Calibrate the sensor pose on the flange (``handeye calibrate``).
 
     Parameters
@@ -146,6 +146,16 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     out : str or pathlib.Path, optional
         Also write the JSON result, with the dataset's hash, the tool's version and the
         options (``provenance``), atomically.
+    sigma : float, optional
+        Stated noise of a sphere centre through the chain, mm per component, that the fit is
+        tested against; default the setup's ``[noise] centre_mm`` (0.05).
+    robot_sigma : float, optional
+        Robot repeatability, mm per axis (weights of the profile models); default the setup's
+        ``[noise] robot_mm`` (0.025).
+    effects : str or sequence of str, optional
+        Catalogue effects to calibrate with the sensor pose: ``sensor_scale``,
+        ``sphere_radius``, ``sphere_center`` (``'a,b'`` or a list); as ``handeye diagnose``
+        names them.
 
     Returns
     -------
@@ -169,7 +179,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
                "unknowns": unknowns, "method": method, "rotation": rotation,
                "start": start if start is None or isinstance(start, str) else np.ravel(start).tolist(),
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
-               "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot)}
+               "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
+               "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects}
     if method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
     if unknowns not in UNKNOWNS:
@@ -180,8 +191,13 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     data = load_dataset(dataset)
     convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
+    for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
+        if value is not None:
+            _number(value, option, 0.0, 1e3, low_open=True)
     if method in CLOSED_FORM:
         _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
+        if effects:
+            raise RequestError(f"--method {method} is closed form; --effects does not apply to it")
         result = calibrate_classic(data, method, unknowns, outliers=not keep_all, alpha=level, convention=convention)
     else:
         solver_options = {}
@@ -190,7 +206,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
         start_kuka = start_pose_from(start, convention) if start is not None else None
         result = run(data, unknowns=unknowns, method=method, rotation=rotation, start=start_kuka,
                      options=solver_options, outliers=not keep_all, alpha=level, loo=not no_loo, model=model,
-                     convention=convention)
+                     convention=convention, sigma=sigma, robot_sigma=robot_sigma, effects=effects or ())
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
@@ -201,7 +217,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     return result
 
 
-def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
+def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
     Parameters
@@ -213,15 +229,24 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
         Folder to write ``residuals.png`` and ``gap.png`` into.
     plot : str or pathlib.Path, optional
         Write the gap-shrinking figure to this PNG.
+    sigma : float, optional
+        Nominal noise per residual component (mm) that chi2/dof is stated against; default the
+        setup's ``[noise] centre_mm`` (0.05).
+    out : str or pathlib.Path, optional
+        Also write the JSON result with provenance, atomically.
 
     Returns
     -------
     handeye.app.results.DiagnosisResult
     """
     from handeye.app import diagnose as procedure
-    from handeye.app.files import check_output_folder, check_output_path
+    from handeye.app.files import check_output_folder, check_output_path, provenance
 
     level = _alpha(alpha)
+    if sigma is not None:
+        _number(sigma, "--sigma", 0.0, 1e3, low_open=True)
+    if out is not None:
+        check_output_path(out, "--out")
     data = load_dataset(dataset)
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
@@ -233,7 +258,13 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None):
     from handeye.app import slips
 
     slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
-    result = procedure.diagnose(data, alpha=level)
+    result = procedure.diagnose(data, alpha=level, sigma=sigma)
+    if out is not None:
+        options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
+                   "sigma": sigma, "figures": None if figures is None else str(figures),
+                   "plot": None if plot is None else str(plot)}
+        result = dataclasses.replace(result, provenance=provenance(data, options))
+        result.save(out)
     if figures is not None:
         procedure.figures(result, figures)
     if plot is not None:

@@ -284,8 +284,8 @@ def _solver_options(options):
 
 
 def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None,
-              outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=observations.ROBOT_SIGMA,
-              convention=None):
+              outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=None, convention=None, sigma=None,
+              effects=()):
     """Calibrate the sensor pose on the flange from a dataset.
 
     The engine of :func:`handeye.calibrate` (which takes the CLI's option names); this
@@ -314,10 +314,17 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         Residual of the final fit (:mod:`handeye.model.observations`); None: ``measurement``
         when every sample has a profile, else ``centre``. Screening and leave-one-out always
         use the reconstructed centres.
-    robot_sigma : float
-        Assumed robot repeatability (mm, 1 sd per axis) for the weights of profile models.
+    robot_sigma : float, optional
+        Robot repeatability (mm, 1 sd per axis) for the weights of profile models; default the
+        dataset's ``[noise] robot_mm`` (0.025).
     convention : str, optional
         Robot convention of the reported ``sensor_pose``; default the dataset's.
+    sigma : float, optional
+        Stated noise of a sphere centre through the chain (mm, per component) that the fit is
+        tested against (``noise_test``); default the dataset's ``[noise] centre_mm`` (0.05).
+    effects : sequence of str
+        Catalogue effects (:data:`EFFECTS`) to calibrate with the sensor pose, on the
+        ``centre`` residual; their parameters and 1-sd are reported in ``effects``.
 
     Returns
     -------
@@ -327,7 +334,10 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         and the poses NaN.
     """
     rotation = check_request(dataset, unknowns, method, rotation)
+    effects, unknowns, model = _check_effects(effects, unknowns, model)
     dataset, centre_note = with_sphere_centre(dataset, unknowns)
+    sigma = dataset.noise_centre_mm if sigma is None else float(sigma)
+    robot_sigma = dataset.noise_robot_mm if robot_sigma is None else float(robot_sigma)
     options = _solver_options(options)
     convention = conventions.check(convention or dataset.convention)
     kind = model or observations.default_kind(dataset)
@@ -407,7 +417,11 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
                      for i, r, u in zip(dataset.ids, dataset.rows, mask)]
         return CalibrationResult(residuals=residuals, warnings=warnings, n_used=int(mask.sum()), **common)
-    return CalibrationResult(warnings=warnings, **common, **_describe_fit(dataset, mask, fit, loo, outliers, warnings))
+    common["effect_tests"] = _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings)
+    if effects:
+        return CalibrationResult(warnings=warnings, **_with_effects(dataset, mask, fit, effects, sigma, warnings, common))
+    return CalibrationResult(warnings=warnings, **common,
+                             **_describe_fit(dataset, mask, fit, loo, outliers, warnings, sigma))
 
 
 def _rms(values):
@@ -431,7 +445,118 @@ def _noise_model_text(local):
             "(rotation about the sensor's axes)")
 
 
-def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings):
+#: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
+EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
+#: Level of the test of the fit against the stated noise (a warning; strict, so that clean data
+#: of a slightly miscalibrated noise model are not flagged: 2 of 120 clean runs at 0.01).
+NOISE_ALPHA = 0.001
+
+
+def _check_effects(effects, unknowns, model):
+    """Validated effect names; ``sphere_center`` is the free centre (``unknowns='sensor+sphere'``)."""
+    names = [effects] if isinstance(effects, str) else list(effects or ())
+    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
+    for name in names:
+        if name not in EFFECTS:
+            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
+                                        "(handeye diagnose names the effect a dataset needs)")
+    if not names:
+        return (), unknowns, model
+    if model not in (None, "centre"):
+        raise CalibrationInputError(f"--effects works on the centre residual, not --model {model}")
+    if "sphere_center" in names:
+        unknowns = "sensor+sphere"
+    return tuple(dict.fromkeys(n for n in names if n != "sphere_center")), unknowns, "centre"
+
+
+def _noise_test(ssr, dof, sigma, whitened, warnings, dataset):
+    """The fit against the stated noise (chi-square); a warning naming diagnose when it fails."""
+    from handeye.app.results import NoiseTest
+    from handeye.model.statistics import chi2_survival
+
+    if dof <= 0:
+        return None
+    statistic = float(ssr if whitened else ssr / sigma**2)
+    ratio = float(np.sqrt(statistic / dof))
+    p_value = float(chi2_survival(statistic, dof))
+    nominal = ("each row whitened by its stated covariance (sd 1)" if whitened
+               else f"{sigma:g} mm per component of a sphere centre")
+    passed = not (p_value < NOISE_ALPHA and ratio > 1)
+    if not passed:
+        warnings.append(
+            f"the residuals are larger than the stated noise: sd {ratio:.1f} x the stated {nominal} (chi2 = "
+            f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
+            f"than [noise] in setup.toml says); run `handeye diagnose {dataset.path}` to find and name it, then "
+            "`handeye calibrate --effects NAME`")
+    return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
+
+
+def _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
+    """Score tests of the catalogue's effects at the fit; a warning naming diagnose for a
+    significant one (the test uses the fit's own scale, not the stated noise)."""
+    from handeye.app import diagnose
+
+    tests = diagnose.score_effects(dataset, mask, fit.sensor, fit.centre, unknowns, skip=effects)
+    significant = [t for t in tests if t.p_bonferroni < alpha]
+    if significant:
+        names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
+        warnings.append(f"the residuals show structure the model lacks: {names}; run `handeye diagnose "
+                        f"{dataset.path}` to confirm and name it, then `handeye calibrate --effects "
+                        f"{significant[0].name}`")
+    return tests
+
+
+def _with_effects(dataset, mask, fit, names, sigma, warnings, common):
+    """The final fit with catalogue effects (:mod:`handeye.app.diagnose`'s extended model):
+    fields of :class:`CalibrationResult`."""
+    from handeye.app import diagnose
+    from handeye.app.results import NamedEffect
+
+    prob = diagnose.Samples(dataset)
+    structure = diagnose.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
+    extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
+    jac = extended.jac[mask].reshape(-1, extended.p)
+    cov = extended.sigma2 * np.linalg.pinv(jac.T @ jac)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    corr = cov / np.outer(np.where(std > 0, std, 1), np.where(std > 0, std, 1))
+    index = {n: k for k, n in enumerate(extended.names)}
+    named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
+                         {p: float(std[index[f"{n}.{p}"]]) for p in _effect_params(n)}) for n in names]
+    if structure.centre:
+        delta = extended.x[12:15] - dataset.sphere_centre
+        named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
+                                    dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
+    sensor, centre = prob.transform(extended.x), np.asarray(prob.centre(structure, extended.x), float)
+    norms = np.linalg.norm(extended.e, axis=1)
+    ident = identifiability.analyse(jac, extended.names)
+    pose = pose_from_transform(sensor)
+    convention = common["convention"]
+    warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; no "
+                    "leave-one-out error (the effects are fitted to every sample used)")
+    out = dict(common, sensor2flange=sensor, sphere_centre=centre, sensor_pose_kuka=pose,
+               sensor_pose=conventions.pose_from(convention, sensor), model="centre", unknowns=(
+                   "sensor+sphere" if structure.centre else "sensor"))
+    out.update(
+        n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
+        max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
+        residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
+                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, extended.e, norms, mask)],
+        sigma_mm=float(np.sqrt(extended.sigma2)),
+        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
+        parameter_names=tuple(extended.names), correlation=corr, identifiability=ident, effects=named,
+        noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
+                     "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
+        noise_test=_noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
+    return out
+
+
+def _effect_params(name):
+    from handeye.model import effects as catalogue
+
+    return catalogue.get(name).PARAMS
+
+
+def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     """Residuals, uncertainty, identifiability and leave-one-out error of the final fit
     (fields of :class:`CalibrationResult`); appends to ``warnings``."""
     local, sensor, centre = fit.local, fit.sensor, fit.centre
@@ -470,4 +595,6 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings):
         identifiability=ident,
         hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
+        noise_test=None if local.kind == "points" else _noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
+                                                                   local.whiten is not None, warnings, dataset),
     )

@@ -90,6 +90,14 @@ def build_parser():
     cal.add_argument("--alpha", type=float, default=None,
                      help=f"family-wise level of the outlier tests (default {ALPHA:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
+    cal.add_argument("--sigma", type=float, default=None, metavar="MM",
+                     help="stated noise of a sphere centre (mm per component) the fit is tested against "
+                          "(default: setup.toml [noise] centre_mm, else 0.05)")
+    cal.add_argument("--robot-sigma", type=float, default=None, metavar="MM",
+                     help="robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)")
+    cal.add_argument("--effects", default=None, metavar="NAME[,NAME]",
+                     help="calibrate with catalogue effects: sensor_scale, sphere_radius, sphere_center "
+                          "(as handeye diagnose names them)")
     cal.add_argument("--json", action="store_true", help="print the result as JSON")
     cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
     cal.add_argument("--out", default=None, metavar="FILE",
@@ -114,6 +122,9 @@ def build_parser():
     diag.add_argument("--json", action="store_true")
     diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
     diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
+    diag.add_argument("--sigma", type=float, default=None, metavar="MM",
+                      help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
+    diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
     _plan_args(sub)
     _study_args(sub)
     bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
@@ -150,7 +161,8 @@ def _plan(args):
 def _diagnose(args):
     from handeye.app import api
 
-    result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot)
+    result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot, sigma=args.sigma,
+                          out=args.out)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK
 
@@ -202,7 +214,7 @@ def _calibrate(args):
     result = api.calibrate(args.dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation,
                            start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
                            keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
-                           out=args.out)
+                           out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 

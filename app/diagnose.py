@@ -44,8 +44,8 @@ from handeye.model.statistics import chi2_survival, deletion_statistics, f_survi
 ALPHA = robust.ALPHA
 #: Fraction of an effect's columns that must lie outside the current model's span.
 GATE = 1e-3
-#: Nominal noise per residual component (mm) for chi2/dof: robot repeatability and centre
-#: reconstruction of this cell (a stated assumption; the tests use the estimated sigma).
+#: Nominal noise per residual component (mm) for chi2/dof when the dataset states none
+#: (``[noise] centre_mm``; ``--sigma``): the tests themselves use the estimated sigma.
 NOMINAL_SIGMA = 0.05
 FOLDS = 5
 
@@ -78,8 +78,9 @@ class Fit:
 class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
 
-    def __init__(self, dataset):
+    def __init__(self, dataset, sigma=None):
         self.d = dataset
+        self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
         self.f2b = dataset.flange2base()
         self.radius = dataset.sphere_diameter / 2
         self.n = len(dataset)
@@ -229,17 +230,58 @@ def _score(fit, mask, cand):
     return stat, chi2_survival(stat, cand.shape[1])
 
 
+def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=()):
+    """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
+
+    Parameters
+    ----------
+    dataset : handeye.model.dataset.Dataset
+    mask : ndarray of bool, shape (N,)
+        The samples the calibration used.
+    sensor2flange : ndarray, shape (4, 4)
+    centre : ndarray, shape (3,)
+        Sphere centre in the base, mm.
+    unknowns : {'sensor', 'sensor+sphere'}
+    skip : sequence of str
+        Data effects already in the model: fitted with it, and the others tested given them.
+
+    Returns
+    -------
+    list of handeye.app.results.ScoreTest
+        Every identifiable candidate, Bonferroni-adjusted over them, most significant first.
+    """
+    prob = Samples(dataset)
+    structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
+    fit = prob.fit(structure, np.asarray(mask, bool), prob.point(structure, sensor2flange, centre))
+    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    found = []
+    for effect in effects.catalogue():
+        name = effect.NAME
+        if effect.KIND not in ("data", "centre") or name in skip or (name == "sphere_center" and structure.centre):
+            continue
+        cols = _candidate_columns(prob, structure, fit, mask, name)
+        if not np.all(np.isfinite(cols)):
+            continue
+        frac, _ = _gate(jac_cur, cols, fit.names)
+        if frac < GATE:
+            continue
+        stat, p = _score(fit, mask, cols)
+        found.append((p, name, stat, frac))
+    found.sort()
+    return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]
+
+
 def _summaries(prob, structure, fit, mask):
     e = fit.e[mask]
     return {
         "rms_mm": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
-        "chi2_dof": float(fit.sigma2 / NOMINAL_SIGMA**2),
+        "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
         "heldout_rms_mm": prob.heldout_rms(structure, mask, fit),
     }
 
 
-def diagnose(dataset, alpha=ALPHA, start=None):
+def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     """Run the procedure (module docstring) on a dataset.
 
     Parameters
@@ -249,12 +291,15 @@ def diagnose(dataset, alpha=ALPHA, start=None):
         Family-wise level of the effect and outlier tests.
     start : array_like, shape (6,), optional
         Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.calibrate.resolve_start`.
+    sigma : float, optional
+        Nominal noise per residual component (mm) for chi2/dof; default the dataset's
+        ``[noise] centre_mm``.
 
     Returns
     -------
     handeye.app.results.DiagnosisResult
     """
-    prob = Samples(dataset)
+    prob = Samples(dataset, sigma)
     start_pose, _ = resolve_start(dataset, "sensor", start)
     screening = robust.screen(dataset, "sensor", transform_from_pose(start_pose), alpha=alpha)
     mask = screening.inliers.copy()
@@ -270,8 +315,8 @@ def diagnose(dataset, alpha=ALPHA, start=None):
         previous = (mask.copy(), structure.flips)
         structure, fit, mask, flips, outliers = _final_outliers(prob, structure, fit, mask, alpha)
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
-            label = "final outlier test" + (" (+ sign_flip)" if structure.flips != previous[1] else "")
-            steps.append({"step": label, **_summaries(prob, structure, fit, mask)})
+            steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
+                          **_summaries(prob, structure, fit, mask)})
         structure, fit = _backward(prob, structure, fit, mask, alpha)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
@@ -332,6 +377,24 @@ def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps):
     return structure, fit
 
 
+def _outlier_step_label(dataset, previous, mask, flips):
+    """What the final outlier test changed, said: a step that raises the RMS says that it
+    reinstates samples (more data, not a worse model)."""
+    before_mask, before_flips = previous
+    ids = dataset.ids
+    parts = []
+    new_flips = sorted(set(flips) - set(before_flips))
+    if new_flips:
+        parts.append("sign_flip " + ",".join(ids[i] for i in new_flips))
+    back = [i for i in np.where(mask & ~before_mask)[0] if i not in new_flips]
+    if back:
+        parts.append("reinstated " + ",".join(ids[i] for i in back))
+    out = np.where(~mask & before_mask)[0]
+    if len(out):
+        parts.append("excluded " + ",".join(ids[i] for i in out))
+    return "outliers: " + "; ".join(parts)
+
+
 def _extend(structure, name):
     if name == "sphere_center":
         return dataclasses.replace(structure, centre=True)
@@ -375,12 +438,14 @@ def _final_outliers(prob, structure, fit, mask, alpha):
     """Sign flips and outliers among the excluded samples, on the structured model."""
     flips = set(structure.flips)
     for _ in range(prob.n):
-        sigma = np.sqrt(fit.sigma2)
         changed = False
         for i in np.where(~mask)[0]:
             flipped = dataclasses.replace(structure, flips=frozenset(flips | {i}))
-            e_flip, _, _ = prob.evaluate(flipped, fit.x, fit.params)
-            if np.all(np.abs(e_flip[i]) <= 3 * sigma):
+            e_flip, j_flip, _ = prob.evaluate(flipped, fit.x, fit.params)
+            # the flipped sample must be consistent with the fit of the others: its externally
+            # studentised prediction statistic, Bonferroni over the samples, not significant
+            _, pval = deletion_statistics(e_flip, j_flip, mask)
+            if min(pval[i] * prob.n, 1.0) >= alpha:
                 flips.add(i)
                 structure = flipped
                 mask[i] = True
@@ -426,7 +491,14 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     after_norms = np.linalg.norm(fit.e, axis=1)
+    from handeye.app.results import Uncertainty
+    from handeye.model import conventions
+
     return DiagnosisResult(
+        convention=d.convention,
+        columns=conventions.columns(d.convention),
+        sensor_pose_as=conventions.pose_from(d.convention, sensor),
+        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
         dataset=d.name,
         effects=named,
         outliers=[d.ids[i] for i in outliers],
@@ -437,7 +509,7 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         heldout_rms_after_mm=after["heldout_rms_mm"],
         chi2_dof_before=before["chi2_dof"],
         chi2_dof_after=after["chi2_dof"],
-        nominal_sigma_mm=NOMINAL_SIGMA,
+        nominal_sigma_mm=prob.sigma,
         sigma_after_mm=after["sigma_mm"],
         sensor_pose=pose_from_transform(sensor),
         sensor2flange=sensor,
@@ -449,15 +521,15 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
                    for i, b, a, u in zip(d.ids, before_norms, after_norms, mask)],
         screened_out_first=[e.id for e in screening.excluded],
-        unexplained=_unexplained(after),
+        unexplained=_unexplained(after, prob.sigma),
     )
 
 
-def _unexplained(after):
+def _unexplained(after, sigma):
     ratio = after["chi2_dof"]
     if ratio < 2.0:
-        return f"nothing beyond the nominal noise: chi2/dof {ratio:.2f} at sigma = {NOMINAL_SIGMA} mm"
-    return (f"residual scatter sigma = {after['sigma_mm']:.3f} mm is {np.sqrt(ratio):.1f} x the nominal {NOMINAL_SIGMA} mm: "
+        return f"nothing beyond the nominal noise: chi2/dof {ratio:.2f} at sigma = {sigma:g} mm"
+    return (f"residual scatter sigma = {after['sigma_mm']:.3f} mm is {np.sqrt(ratio):.1f} x the nominal {sigma:g} mm: "
             "an effect outside the catalogue (or a larger noise than assumed) remains")
 
 
@@ -475,13 +547,16 @@ def text(res):
     else:
         lines.append("effects named: none")
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
-    lines.append("not identifiable (absorbed): " + "; ".join(
-        f"{k} by {', '.join(v)}" for k, v in res.absorbed_by.items()) if res.absorbed_by else "none")
+    lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
+    lines += [f"  {sentence}" for sentence in res.absorbed_explained]
     lines += ["", f"{'step':<34} {'RMS mm':>9} {'held-out':>9} {'chi2/dof':>9}"]
     for step in res.steps:
         lines.append(f"{step.step:<34} {step.rms_mm:9.4f} {step.heldout_rms_mm:9.4f} {step.chi2_dof:9.2f}")
     lines += ["", f"chi2/dof against a nominal sigma of {res.nominal_sigma_mm} mm per component",
-              "sensor pose (x y z mm, A B C deg): " + " ".join(f"{v:.4f}" for v in res.sensor_pose),
+              f"sensor pose ({res.convention}: {','.join(res.columns)}): "
+              + " ".join(f"{v:.4f}" for v in (res.sensor_pose_as if res.sensor_pose_as is not None else res.sensor_pose)),
+              "  1 sd: translation mm " + " ".join(f"{v:.4f}" for v in res.std.sensor_translation_mm)
+              + "; rotation deg (about the sensor's axes) " + " ".join(f"{v:.4f}" for v in res.std.sensor_rotation_deg),
               "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res.sphere_centre),
               f"unexplained: {res.unexplained}"]
     return "\n".join(lines)

@@ -131,6 +131,37 @@ class Uncertainty:
 
 
 @dataclasses.dataclass(frozen=True)
+class NoiseTest:
+    """The fit tested against the stated noise model (``[noise]`` in setup.toml, ``--sigma``).
+
+    Attributes
+    ----------
+    statistic : float
+        ``SSR / sigma_nominal^2`` (whitened residuals: ``SSR``), chi-square with ``dof``
+        degrees of freedom when the noise is as stated.
+    dof : int
+    p_value : float
+        Probability of a statistic this large or larger under the stated noise.
+    ratio : float
+        Estimated over stated noise (sd ratio).
+    nominal : str
+        The stated noise, in words.
+    passed : bool
+        False when the residuals are larger than the noise at the 0.1 % level.
+    """
+
+    statistic: float
+    dof: int
+    p_value: float
+    ratio: float
+    nominal: str
+    passed: bool
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
 class ClosedFormDetails:
     """What only a closed-form method (``kim-cho``, ``li-two-step``) reports.
 
@@ -195,6 +226,13 @@ class CalibrationResult:
         The plain fit of every sample.
     closed_form : ClosedFormDetails or None
         Set for the closed-form methods only.
+    noise_test : NoiseTest or None
+        The fit against the stated noise model (None for the ``points`` model and closed form).
+    effect_tests : list of ScoreTest or None
+        Score tests of the catalogue's effects at the fit (:func:`handeye.app.diagnose.score_effects`):
+        a significant one is named in a warning that points to ``handeye diagnose``.
+    effects : list of NamedEffect or None
+        Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
 
@@ -249,6 +287,9 @@ class CalibrationResult:
     hessian_eigenvalues: np.ndarray | None = None
     noise_model: str | None = None
     closed_form: ClosedFormDetails | None = None
+    noise_test: NoiseTest | None = None
+    effect_tests: list | None = None
+    effects: list | None = None
     provenance: dict | None = None
 
     @property
@@ -303,6 +344,9 @@ class CalibrationResult:
             "hessian_eigenvalues": _list(self.hessian_eigenvalues),
             "noise_model": self.noise_model,
             "closed_form": None if self.closed_form is None else self.closed_form.to_dict(),
+            "noise_test": None if self.noise_test is None else self.noise_test.to_dict(),
+            "effect_tests": None if self.effect_tests is None else [t.to_dict() for t in self.effect_tests],
+            "effects": None if self.effects is None else [e.to_dict() for e in self.effects],
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance
@@ -418,6 +462,19 @@ class DiagnosisResidual:
         return dataclasses.asdict(self)
 
 
+def absorbed_sentence(name, by):
+    """Why an effect is "absorbed": the poses cannot tell it from parameters already fitted."""
+    from handeye.model import effects
+
+    groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
+    what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
+    structural = effects.get(name).KIND == "structural"
+    return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
+            f"{' and '.join(what)} ({', '.join(by)}), which the calibration fits anyway, so those fitted values "
+            "already contain it; " + ("no choice of poses can separate it (it is part of what they describe)"
+                                      if structural else "poses with other rotations could separate it"))
+
+
 @dataclasses.dataclass(frozen=True)
 class DiagnosisResult:
     """The outcome of :func:`handeye.diagnose`; :meth:`to_dict` is ``handeye diagnose --json``.
@@ -436,7 +493,12 @@ class DiagnosisResult:
     sensor2flange : ndarray, shape (4, 4)
         Sensor in flange (mm) of the final model. JSON key ``sensor_matrix``.
     sensor_pose : ndarray, shape (6,)
-        KUKA x, y, z, A, B, C (mm, deg).
+        KUKA x, y, z, A, B, C (mm, deg) of the model with the named effects.
+    sensor_pose_as, convention, columns
+        The same pose in the dataset's robot convention (JSON ``sensor_pose_as``).
+    std : Uncertainty
+        Its 1-sd (translation mm; rotation deg about the sensor's axes), and the sphere
+        centre's when ``sphere_center`` is named.
     sphere_centre : ndarray, shape (3,)
         Robot base, mm. JSON key ``sphere_center``.
     steps : list of Step
@@ -468,6 +530,16 @@ class DiagnosisResult:
     residuals: list
     screened_out_first: list
     unexplained: str
+    convention: str = "kuka"
+    columns: tuple = ("x", "y", "z", "a", "b", "c")
+    sensor_pose_as: np.ndarray | None = None
+    std: Uncertainty | None = None
+    provenance: dict | None = None
+
+    @property
+    def absorbed_explained(self):
+        """Each absorbed effect in a sentence a user understands."""
+        return [absorbed_sentence(name, by) for name, by in self.absorbed_by.items()]
 
     @property
     def not_identifiable(self):
@@ -499,6 +571,12 @@ class DiagnosisResult:
             "residuals": [r.to_dict() for r in self.residuals],
             "screened_out_first": list(self.screened_out_first),
             "unexplained": self.unexplained,
+            "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
+                               "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
+                                             else self.sensor_pose)},
+            "std": None if self.std is None else self.std.to_dict(),
+            "absorbed_explained": self.absorbed_explained,
+            **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 
     def to_json(self, indent=1):
@@ -509,6 +587,12 @@ class DiagnosisResult:
         from handeye.app import diagnose
 
         return diagnose.text(self)
+
+    def save(self, path):
+        """Write :meth:`to_json` atomically to ``path`` (with ``provenance`` when set)."""
+        from handeye.app.files import write_text_atomically
+
+        write_text_atomically(path, self.to_json(), option="--out")
 
     def figures(self, folder):
         """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""

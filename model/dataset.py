@@ -18,7 +18,10 @@
     the closed-form estimate); ``[sphere] diameter`` (mm) and either
     ``center`` (three numbers, robot base) or ``base_pose`` (p3) with ``center_in_plate``
     (x_p'), or neither when the centre is to be estimated (``--unknowns sensor+sphere``);
-    ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[truth]`` with
+    ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[noise] centre_mm``
+    (per-component sd of a sphere centre through the chain, default 0.05) and ``robot_mm``
+    (robot repeatability per axis, default 0.025), the noise model a calibration tests its
+    fit against; optional ``[truth]`` with
     ``sensor_pose`` (in the dataset's convention) and optionally ``sphere_center`` -- for
     simulated data, never read by a calibration.
 
@@ -101,6 +104,10 @@ class Dataset:
     convention : str
         The robot-brand convention of the files (:mod:`handeye.model.conventions`); poses here are
         always KUKA.
+    noise_centre_mm, noise_robot_mm : float
+        The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
+        :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
+        robot's repeatability per axis, mm.
     """
 
     name: str
@@ -118,6 +125,8 @@ class Dataset:
     truth: dict | None = None
     profiles: tuple | None = None
     convention: str = "kuka"
+    noise_centre_mm: float = 0.05
+    noise_robot_mm: float = 0.025
 
     def flange2base(self):
         """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
@@ -230,7 +239,14 @@ _ALLOWED = {
     "sphere": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
     "truth": {"sensor_pose", "sphere_center"},
+    "noise": {"centre_mm", "robot_mm"},
 }
+
+#: Default noise model: per-component sd of a sphere centre through the chain (robot
+#: repeatability and the sensor's centre reconstruction together), and robot repeatability
+#: per axis (mm). ``[noise] centre_mm`` and ``robot_mm`` in setup.toml override them.
+NOISE_CENTRE_MM = 0.05
+NOISE_ROBOT_MM = 0.025
 
 
 def _read_setup(path):
@@ -292,7 +308,15 @@ def _read_setup(path):
         truth = {"sensor_pose": truth_pose}
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
-    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention
+    noise = {}
+    for key in ("centre_mm", "robot_mm"):
+        value = doc.get("noise", {}).get(key)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            raise DatasetError(file, f"needs a positive number (mm), got {value!r}", column=f"[noise] {key}")
+        noise[key] = float(value)
+    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention, noise
 
 
 def _to_kuka(pose, convention, file, row, column):
@@ -401,7 +425,7 @@ def pose_list_text(ids, poses, convention="kuka"):
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    start, diam, centre, plate_pose, centre_in_plate, side, truth, convention = _read_setup(folder)
+    start, diam, centre, plate_pose, centre_in_plate, side, truth, convention, noise = _read_setup(folder)
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs")
     file = folder / "measurements.csv"
@@ -470,4 +494,6 @@ def load(name_or_path):
         truth=truth,
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
         convention=convention,
+        noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
+        noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),
     )

@@ -20,10 +20,10 @@ import numpy as np
 
 from handeye.model import circle
 from handeye.model.calibration import KINDS, CalibrationModel
+from handeye.model.dataset import NOISE_ROBOT_MM as ROBOT_SIGMA  # the default of [noise] robot_mm
 from handeye.model.errors import InputError
 
 MODEL_KINDS = tuple(KINDS)  # the residual kinds, defined once in handeye.model.calibration
-ROBOT_SIGMA = 0.025
 CIRCLE_FIT = "geometric"
 
 

@@ -5,8 +5,6 @@ times too large, while y is reconstructed from r as ``sqrt(R^2 - r^2)``. The cor
 ``x = xm / (1 + s)``, ``z = zm / (1 + s)``, ``r = rm / (1 + s)`` with ``rm^2 = R^2 - ym^2``, and
 ``y = sign(ym) sqrt(R^2 - r^2)``.
 """
-import sympy as sp
-
 KIND = "data"
 NAME = "sensor_scale"
 PARAMS = ("s",)
@@ -14,6 +12,8 @@ DOC = "scale error of the sensor's coordinates (dimensionless; 0.001 = 0.1 %)"
 
 
 def correction(xm, ym, zm, radius, params):
+    import sympy as sp  # only when the correction is derived (a cache miss), never on a warm start
+
     (s,) = params
     r2 = (radius**2 - ym**2) / (1 + s) ** 2
     return [xm / (1 + s), sp.sign(ym) * sp.sqrt(radius**2 - r2), zm / (1 + s)]

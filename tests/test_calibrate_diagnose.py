@@ -1,0 +1,92 @@
+"""calibrate and diagnose talk: calibrate tests its fit against the stated noise and the catalogue,
+points to diagnose, and calibrates with the effects diagnose names; diagnose decides sign flips by
+a proper test and reports the pose in the dataset's convention with its uncertainty."""
+import json
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app import cli
+from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import rotvec_from_matrix
+
+
+def _errors_in_sd(r, truth):
+    e = np.concatenate([r.sensor2flange[:3, 3] - truth[:3, 3],
+                        np.degrees(rotvec_from_matrix(truth[:3, :3].T @ r.sensor2flange[:3, :3]))])
+    return np.abs(e) / np.concatenate([r.std.sensor_translation_mm, r.std.sensor_rotation_deg])
+
+
+def test_a_hidden_scale_error_warns_is_named_and_is_calibrated(tmp_path):
+    s = handeye.simulate(tmp_path / "scale", seed=11, effect="sensor_scale=0.002")
+    truth = transform_from_pose(s.dataset.truth["sensor_pose"])
+    plain = handeye.calibrate(s.path, no_loo=True)
+    assert plain.converged and _errors_in_sd(plain, truth).max() > 10  # wrong by many of its own sd ...
+    assert any("sensor_scale" in w and "handeye diagnose" in w for w in plain.warnings)  # ... and it says so
+    d = handeye.diagnose(s.path)
+    assert [e.name for e in d.effects] == ["sensor_scale"]
+    r = handeye.calibrate(s.path, no_loo=True, effects="sensor_scale")
+    (scale,) = r.effects
+    assert scale.name == "sensor_scale" and abs(scale.parameters["s"] - 0.002) < 4 * scale.std["s"]
+    assert _errors_in_sd(r, truth).max() < 4 and r.noise_test.passed
+    assert not any("structure" in w for w in r.warnings)
+    assert r.to_dict()["effects"][0]["name"] == "sensor_scale"
+
+
+def test_the_noise_test_against_the_stated_noise(tmp_path):
+    clean = handeye.calibrate("thesis-sim", no_loo=True)
+    assert clean.noise_test is None or clean.noise_test.passed
+    real = handeye.calibrate("thesis-real", no_loo=True)
+    assert not real.noise_test.passed and real.noise_test.ratio > 5
+    assert any("stated noise" in w and "handeye diagnose" in w for w in real.warnings)
+    loose = handeye.calibrate("thesis-real", no_loo=True, sigma=5.0)  # a user who states 5 mm
+    assert loose.noise_test.passed and loose.noise_test.nominal.startswith("5 mm")
+    s = handeye.simulate(tmp_path / "n", seed=3, n_poses=20)
+    setup = s.path / "setup.toml"
+    setup.write_text(setup.read_text() + "\n[noise]\ncentre_mm = 0.001\n")
+    tight = handeye.calibrate(s.path, no_loo=True)
+    assert not tight.noise_test.passed and "0.001 mm" in tight.noise_test.nominal
+
+
+def test_effects_are_checked():
+    with pytest.raises(handeye.InputError, match="--effects"):
+        handeye.calibrate("thesis-sim", effects="base_frame")
+    with pytest.raises(handeye.InputError, match="centre residual"):
+        handeye.calibrate("thesis-sim", effects="sensor_scale", model="measurement")
+
+
+@pytest.mark.parametrize("component_sd", [2.5, 3.0])
+def test_a_sign_flip_with_an_ordinary_large_component_is_named(tmp_path, component_sd):
+    s = handeye.simulate(tmp_path / "f", seed=21)
+    ref = handeye.calibrate(s.path, no_loo=True, keep_all=True)
+    sigma = ref.sigma_mm
+    csv = s.path / "measurements.csv"
+    lines = csv.read_text().splitlines()
+    k = 7  # the eighth sample: a large but ordinary noise component along the base x axis, then its y flipped
+    cells = lines[k + 1].split(",")
+    f2b = transform_from_pose([float(v) for v in cells[1:7]])
+    r12 = f2b[:3, :3] @ ref.sensor2flange[:3, :3]
+    residual = np.array(ref.residuals[k].vector)
+    wanted = np.array([component_sd * sigma, residual[1], residual[2]])
+    xs = np.array([float(v) for v in cells[7:10]]) + r12.T @ (wanted - residual)
+    xs[1] = -xs[1]
+    cells[7:10] = [repr(float(v)) for v in xs]
+    lines[k + 1] = ",".join(cells)
+    csv.write_text("\n".join(lines) + "\n")
+    d = handeye.diagnose(s.path)
+    flips = [e for e in d.effects if e.name == "sign_flip"]
+    assert flips and flips[0].parameters["ids"] == [cells[0]], d.summary()
+    assert cells[0] not in d.outliers
+
+
+def test_diagnose_reports_the_pose_in_the_datasets_convention_and_saves(tmp_path, capsys):
+    s = handeye.simulate(tmp_path / "ur", seed=2, convention="ur", n_poses=20)
+    out = tmp_path / "d.json"
+    assert cli.main(["diagnose", str(s.path), "--sigma", "0.03", "--out", str(out), "--json"]) == cli.EXIT_OK
+    saved = json.loads(out.read_text())
+    assert saved["sensor_pose_as"]["convention"] == "ur" and len(saved["sensor_pose_as"]["pose"]) == 6
+    assert saved["nominal_sigma_mm"] == 0.03 and saved["provenance"]["options"]["sigma"] == 0.03
+    assert all(v > 0 for v in saved["std"]["sensor_translation_mm"])
+    text = handeye.diagnose("thesis-real").summary()
+    assert "base_frame: not measurable here" in text and "1 sd: translation mm" in text
