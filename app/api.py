@@ -56,6 +56,14 @@ def load_dataset(name_or_folder):
     return load(name_or_folder)
 
 
+def _path_argument(value):
+    import os
+
+    if not isinstance(value, (str, os.PathLike)):
+        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {value!r}")
+    return value
+
+
 def _alpha(alpha):
     alpha = ALPHA if alpha is None else alpha
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
@@ -500,7 +508,8 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         the thesis strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
     dataset : str, pathlib.Path or Dataset, optional
         Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
-        robot convention from it; default the thesis's cell.
+        robot convention from it (only its ``setup.toml`` is read: a cell can be planned before
+        it is measured); default the thesis's cell.
     out : str or pathlib.Path, optional
         Write the chosen poses as a pose list in the dataset's convention.
     max_tilt : float
@@ -531,7 +540,9 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
     setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
     centre, convention = np.asarray(setup.sphere_centre), "kuka"
     if dataset is not None:
-        d = load_dataset(dataset)
+        from handeye.model.dataset import Dataset, load_setup
+
+        d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
         if d.start_pose is None or d.sphere_centre is None:
             raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
                                "a sphere center to plan around")

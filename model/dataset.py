@@ -422,6 +422,37 @@ def pose_list_text(ids, poses, convention="kuka"):
     return "\n".join(lines) + "\n"
 
 
+@dataclasses.dataclass(frozen=True)
+class CellSetup:
+    """What ``setup.toml`` says of a cell, without measurements (for planning before measuring).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+    start_pose : ndarray, shape (6,), or None
+        Nominal sensor pose on the flange, KUKA (mm, deg).
+    sphere_diameter : float
+    sphere_centre : ndarray, shape (3,), or None
+    side : int
+    convention : str
+    """
+
+    path: pathlib.Path
+    start_pose: np.ndarray | None
+    sphere_diameter: float
+    sphere_centre: np.ndarray | None
+    side: int
+    convention: str
+
+
+def load_setup(name_or_path):
+    """Read and check only ``setup.toml`` of a dataset folder (``measurements.csv`` may not exist
+    yet: a cell being planned); raises :class:`DatasetError`."""
+    folder = resolve(name_or_path)
+    start, diam, centre, _, _, side, _, convention, _ = _read_setup(folder)
+    return CellSetup(folder, start, diam, centre, side, convention)
+
+
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)

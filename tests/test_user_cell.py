@@ -49,3 +49,13 @@ def test_plan_scores_a_given_list_and_respects_the_workspace(tmp_path):
     assert all(pose[2] >= 1100 for pose in w.poses) and any("workspace" in r for _, r in w.skipped)
     with pytest.raises(handeye.InputError, match="margin"):
         handeye.plan(n=6, margin="40,5")  # no room on a 60 mm sphere
+
+
+def test_a_cell_is_planned_from_its_setup_alone(tmp_path):
+    cell = tmp_path / "mycell"
+    cell.mkdir()
+    (cell / "setup.toml").write_text('[robot]\nconvention = "ur"\n[sensor]\nstart_pose = [40, -60, 150, 0.3, 0.2, 1.0]\n'
+                                     "[sphere]\ndiameter = 50.8\ncenter = [500.0, -350.0, 200.0]\n")
+    p = handeye.plan(n=8, dataset=cell, max_tilt=45, margin="5,1", out=cell / "poses.csv")
+    assert p.convention == "ur" and len(p.ids) == 8
+    assert (cell / "poses.csv").read_text().startswith("id,x,y,z,rx,ry,rz\n")
