@@ -442,6 +442,7 @@ class PlanResult:
     convention: str = "kuka"
     scored: bool = False
     margin: tuple = (0.0, 0.0)
+    warnings: tuple = ()
 
     def poses_in_convention(self):
         from handeye.model import conventions
@@ -459,7 +460,7 @@ class PlanResult:
                 "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
                 "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
                              "poses": np.asarray(self.poses_in_convention()).tolist()},
-                "scored": self.scored, "margin": list(self.margin)}
+                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)}
 
     def pose_list(self):
         """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
@@ -482,6 +483,7 @@ class PlanResult:
                  f"poses ({self.convention}: {','.join(conventions.columns(self.convention))}):"]
         lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in p) for i, p in zip(self.ids, self.poses_in_convention())]
         lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
+        lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
 
@@ -552,10 +554,17 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         ids, poses = read_pose_list(score)
         sd, value = planning.score(poses, setup, centre)
         return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin)
+    warnings = []
     if candidates is not None:
         ids, poses = read_pose_list(candidates)
     else:
         ids, poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
+        cuts, radius = planning.view_window(setup, *margin)["cuts"], setup.diameter / 2
+        if np.ptp(cuts) < 0.2 * radius:
+            warnings.append(
+                f"the margin leaves the laser plane cutting the sphere only {cuts.min():.1f}-{cuts.max():.1f} mm from its "
+                f"centre (R = {radius:g} mm): with one cut depth a wrong [profile] side and a sensor offset along y are "
+                "hard to tell apart, and a scale error of the sensor hard to see; a smaller --margin spreads the cuts")
     skipped = []
     if workspace is not None:
         inside = planning.in_workspace(poses, _floats(workspace, "--workspace", 6))
@@ -566,7 +575,7 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
     chosen = planning.plan(ids, poses, n, setup, centre)
     result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
                         np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
-                        len(ids) - len(chosen.skipped), convention, False, margin)
+                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings))
     if out is not None:
         write_text_atomically(out, result.pose_list(), option="--out")
     return result

@@ -527,6 +527,12 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common):
         named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
                                     dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
     sensor, centre = prob.transform(extended.x), np.asarray(prob.centre(structure, extended.x), float)
+    from handeye.model import effects as catalogue
+
+    implausible = [why for n in names if (why := catalogue.implausible(n, extended.params[n], prob.radius))]
+    if implausible:  # an official-looking calibration it is not
+        common = dict(common, converged=False, message="; ".join(implausible))
+        warnings.extend(implausible)
     norms = np.linalg.norm(extended.e, axis=1)
     ident = identifiability.analyse(jac, extended.names)
     pose = pose_from_transform(sensor)

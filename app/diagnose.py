@@ -308,10 +308,10 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     before = _summaries(prob, structure, fit, mask)
     before_norms = np.linalg.norm(fit.e, axis=1)
     steps = [{"step": "base model", **before}]
-    absorbed, tested = {}, []
+    absorbed, tested, implausible = {}, [], []
     flips, outliers = [], []
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
-        structure, fit = _search(prob, structure, fit, mask, alpha, absorbed, tested, steps)
+        structure, fit = _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible)
         previous = (mask.copy(), structure.flips)
         structure, fit, mask, flips, outliers = _final_outliers(prob, structure, fit, mask, alpha)
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
@@ -330,11 +330,15 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         if frac < GATE:
             absorbed[effect.NAME] = who
     after = _summaries(prob, structure, fit, mask)
-    return _report(prob, structure, fit, mask, before, after, before_norms, steps, absorbed, tested, flips,
-                   outliers, screening)
+    result = _report(prob, structure, fit, mask, before, after, before_norms, steps, absorbed, tested, flips,
+                     outliers, screening)
+    if implausible:
+        unexplained = "; ".join(dict.fromkeys(implausible)) + ". " + result.unexplained
+        result = dataclasses.replace(result, unexplained=unexplained)
+    return result
 
 
-def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps):
+def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible):
     """Steps 3-5: test every continuous candidate, confirm the best, repeat."""
     continuous = [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")]
     for _ in range(len(continuous)):
@@ -366,6 +370,10 @@ def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps):
             trial = _extend(structure, name)
             x0 = fit.x if name != "sphere_center" else np.concatenate([fit.x, prob.d.sphere_centre])
             new = prob.fit(trial, mask, x0, fit.params)
+            why = effects.implausible(name, new.params.get(name, []), prob.radius)
+            if why is not None:
+                implausible.append(why)
+                continue
             if _confirmed(prob, structure, fit, trial, new, mask, alpha):
                 accepted = (name, trial, new)
                 break

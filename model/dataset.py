@@ -104,6 +104,9 @@ class Dataset:
     convention : str
         The robot-brand convention of the files (:mod:`handeye.model.conventions`); poses here are
         always KUKA.
+    reconstructed : tuple of bool or None
+        Per measurement: True when its centre was reconstructed from its profile (so
+        ``side`` decided the sign of its y).
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -127,6 +130,7 @@ class Dataset:
     convention: str = "kuka"
     noise_centre_mm: float = 0.05
     noise_robot_mm: float = 0.025
+    reconstructed: tuple | None = None
 
     def flange2base(self):
         """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
@@ -152,6 +156,7 @@ class Dataset:
             flange_poses=self.flange_poses[mask],
             centre_in_sensor=self.centre_in_sensor[mask],
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
+            reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
         )
 
     def content_hash(self):
@@ -480,7 +485,7 @@ def load(name_or_path):
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
-    ids, rows, poses, centres, profiles = [], [], [], [], []
+    ids, rows, poses, centres, profiles, reconstructed = [], [], [], [], [], []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -502,6 +507,7 @@ def load(name_or_path):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:
             xs = _centre_from_profile(points, diam / 2, side, folder / profile)
+        reconstructed.append(bool(profile) and not all(cells))
         profiles.append(points)
         ids.append(ident)
         rows.append(line)
@@ -524,6 +530,7 @@ def load(name_or_path):
         side=side,
         truth=truth,
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
+        reconstructed=tuple(reconstructed),
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
         noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),

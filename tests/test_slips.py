@@ -60,3 +60,29 @@ def test_the_thesis_data_are_not_a_slip():
     """thesis-real's plain fit is poor (RMS 353 mm: a misprint), yet no slip explains it."""
     r = handeye.calibrate("thesis-real", no_loo=True)
     assert r.before.rms_mm > 100 and r.converged
+
+
+def test_wrong_side_with_one_cut_depth_is_still_named(tmp_path):
+    """With --margin 5,1 on a 2-inch sphere every planned pose cuts the sphere 12.6-12.8 mm from
+    its centre: a wrong side then looks almost like a sensor offset along y (plain RMS 0.157 mm
+    against 0.039 mm), yet the F test of the two fits names it; plan warns of the single depth."""
+    common = dict(convention="ur", diameter=50.8, center="650,-150,120", truth="80,10,60,0.1,0.5,0.3")
+    cell = handeye.simulate(tmp_path / "cell", seed=1, max_tilt=45, **common)
+    p = handeye.plan(n=12, dataset=cell.path, max_tilt=45, margin="5,1", out=tmp_path / "poses.csv")
+    assert any("cut depth" in w for w in p.warnings)
+    rec = handeye.simulate(tmp_path / "rec", seed=2, poses=tmp_path / "poses.csv", profiles=True, **common)
+    _rewrite(rec.path, lambda h, c: c[:7] + ["", "", ""] + c[10:])
+    assert handeye.calibrate(rec.path, no_loo=True).converged
+    setup = rec.path / "setup.toml"
+    setup.write_text(setup.read_text().replace("side = -1", "side = 1"))
+    with pytest.raises(handeye.InputError, match=r"\[profile\] side"):
+        handeye.calibrate(rec.path, no_loo=True)
+
+
+def test_effects_beyond_physics_are_not_named():
+    from handeye.model import effects
+
+    assert effects.implausible("sphere_radius", [1.4e5], 25.4) is not None
+    assert effects.implausible("sphere_radius", [0.5], 25.4) is None
+    assert effects.implausible("sensor_scale", [0.3], 25.4) is not None
+    assert effects.implausible("sphere_center", [100.0, 0, 0], 25.4) is None

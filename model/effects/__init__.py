@@ -37,6 +37,26 @@ def get(name):
     return importlib.import_module(f"handeye.model.effects.{name}")
 
 
+#: Physical limits of the data effects' parameters: beyond them a fitted value does not describe
+#: the effect but absorbs something else (a wrong side, diameter or unit).
+LIMITS = {
+    "sensor_scale": ("a scale error of at most 5 %", lambda params, radius: abs(params[0]) <= 0.05),
+    "sphere_radius": ("a radius error of at most 20 % of the radius", lambda params, radius: abs(params[0]) <= 0.2 * radius),
+}
+
+
+def implausible(name, params, radius):
+    """Why fitted ``params`` of effect ``name`` are not physical (text), or None when they are."""
+    if name not in LIMITS:
+        return None
+    what, ok = LIMITS[name]
+    if ok(np.asarray(params, float), radius):
+        return None
+    values = ", ".join(f"{p} = {v:.4g}" for p, v in zip(get(name).PARAMS, np.ravel(params)))
+    return (f"{name} would need {values}, beyond {what}: it absorbs something else (a wrong [profile] side, "
+            "[sphere] diameter or unit?), it is not named")
+
+
 def catalogue(kind=None):
     """Effect modules, optionally of one kind."""
     return [get(n) for n in MODULES if kind is None or get(n).KIND == kind]
