@@ -155,8 +155,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
         Also write the JSON result, with the dataset's hash, the tool's version and the
         options (``provenance``), atomically.
     sigma : float, optional
-        Stated noise of a sphere centre through the chain, mm per component, that the fit is
-        tested against; default the setup's ``[noise] centre_mm`` (0.05).
+        Stated noise of a sphere centre through the chain, mm per component, that the
+        ``centre`` residual is tested against; default the setup's ``[noise] centre_mm``
+        (0.05). The ``measurement`` residual is tested against each circle fit's covariance
+        (from its own points) plus ``robot_sigma`` instead.
     robot_sigma : float, optional
         Robot repeatability, mm per axis (weights of the profile models); default the setup's
         ``[noise] robot_mm`` (0.025).
@@ -388,10 +390,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     if diameter is not None:
         setup = dataclasses.replace(setup, diameter=_number(diameter, "--diameter", 0.0, 10_000.0, low_open=True))
     if center is not None:
-        values = [float(v) for v in _pose_text(center, "--center").split(",")]
-        if len(values) != 3 or not np.all(np.isfinite(values)):
-            raise RequestError(f"--center needs three finite numbers X,Y,Z (mm), got {center!r}")
-        setup = dataclasses.replace(setup, sphere_centre=tuple(values))
+        setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
     ids, flange_poses = None, None
     if poses is not None:

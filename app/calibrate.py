@@ -41,8 +41,12 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 
 #: A converged point must be stationary on the local chart too: |grad| <= LOCAL_GTOL max(1, f).
 LOCAL_GTOL = 1e-4
-#: Iterations of the trust-region Newton polish of a solver that stopped early.
+#: Iterations of the trust-region Newton polish of a solver that stopped early, and how far
+#: (mm, deg) the polish may move its point: farther, the solver did not stop next to a minimum,
+#: and the closed-form restart decides instead.
 POLISH_ITER = 50
+POLISH_MAX_MM = 1.0
+POLISH_MAX_DEG = 1.0
 
 #: Within this many degrees of B = +-90 the Euler angles A and C are nearly one rotation.
 GIMBAL_WARN_DEG = 1.0
@@ -251,8 +255,8 @@ def _judge(model, result, polish=True):
     final = local.point_from(sensor, centre)
     if not converged and polish:
         polished = _polish(local, final)
-        if polished is not None:
-            dt, dr = transform_distance(local.sensor2flange(polished.x), sensor)
+        dt, dr = (np.inf, np.inf) if polished is None else transform_distance(local.sensor2flange(polished.x), sensor)
+        if dt <= POLISH_MAX_MM and dr <= POLISH_MAX_DEG:
             notes.append(f"{result.method} stopped before its convergence test ({result.message}) {dt:.2g} mm and "
                          f"{dr:.2g} deg from the minimum; polished by trust-region Newton on the local chart "
                          f"({polished.iterations} iterations), where the first-order conditions hold")
@@ -271,6 +275,11 @@ def _judge(model, result, polish=True):
         message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
                    "point, not a minimum (local Newton converges to any stationary point)")
     return _Verdict(model, result, sensor, centre, converged, message, notes, local, hess_eig)
+
+
+def _limits_iterations(options):
+    """True when the options set an iteration limit anywhere (``max_iter``, nested dicts too)."""
+    return any(k == "max_iter" or (isinstance(v, dict) and _limits_iterations(v)) for k, v in options.items())
 
 
 def _solver_options(options):
@@ -359,7 +368,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         if screening.note:
             warnings.append(screening.note)
     used = dataset.subset(mask)
-    polish = "max_iter" not in options  # a limit the user set is respected, not polished past
+    polish = not _limits_iterations(options)  # a limit the user set is respected, not polished past
     fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma), polish=polish)
     if not fit.converged and not start_used.startswith("closed-form"):
         try:
@@ -419,7 +428,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         return CalibrationResult(residuals=residuals, warnings=warnings, n_used=int(mask.sum()), **common)
     common["effect_tests"] = _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings)
     if effects:
-        return CalibrationResult(warnings=warnings, **_with_effects(dataset, mask, fit, effects, sigma, warnings, common))
+        return CalibrationResult(warnings=warnings, **_with_effects(dataset, mask, fit, effects, sigma, warnings, common,
+                                                                    centre_given=centre_note is None))
     return CalibrationResult(warnings=warnings, **common,
                              **_describe_fit(dataset, mask, fit, loo, outliers, warnings, sigma))
 
@@ -506,7 +516,7 @@ def _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
     return tests
 
 
-def _with_effects(dataset, mask, fit, names, sigma, warnings, common):
+def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_given=True):
     """The final fit with catalogue effects (:mod:`handeye.app.diagnose`'s extended model):
     fields of :class:`CalibrationResult`."""
     from handeye.app import diagnose
@@ -522,7 +532,7 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common):
     index = {n: k for k, n in enumerate(extended.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
                          {p: float(std[index[f"{n}.{p}"]]) for p in _effect_params(n)}) for n in names]
-    if structure.centre:
+    if structure.centre and centre_given:
         delta = extended.x[12:15] - dataset.sphere_centre
         named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
                                     dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
@@ -533,6 +543,9 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common):
     if implausible:  # an official-looking calibration it is not
         common = dict(common, converged=False, message="; ".join(implausible))
         warnings.extend(implausible)
+    elif not extended.converged:
+        common = dict(common, converged=False,
+                      message=f"the fit with the effects did not converge: {extended.message}")
     norms = np.linalg.norm(extended.e, axis=1)
     ident = identifiability.analyse(jac, extended.names)
     pose = pose_from_transform(sensor)

@@ -91,8 +91,9 @@ def build_parser():
                      help=f"family-wise level of the outlier tests (default {ALPHA:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
     cal.add_argument("--sigma", type=float, default=None, metavar="MM",
-                     help="stated noise of a sphere centre (mm per component) the fit is tested against "
-                          "(default: setup.toml [noise] centre_mm, else 0.05)")
+                     help="stated noise of a sphere centre (mm per component) the centre residual is tested "
+                          "against (default: setup.toml [noise] centre_mm, else 0.05); the profile models are "
+                          "tested against each circle fit's covariance and --robot-sigma instead")
     cal.add_argument("--robot-sigma", type=float, default=None, metavar="MM",
                      help="robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)")
     cal.add_argument("--effects", default=None, metavar="NAME[,NAME]",

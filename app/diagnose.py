@@ -69,6 +69,8 @@ class Fit:
     ssr: float
     m: int
     p: int
+    converged: bool = True
+    message: str = ""
 
     @property
     def sigma2(self):
@@ -142,11 +144,12 @@ class Samples:
 
         z0 = np.concatenate([x0] + [params0[k] for k in keys])
         problem = solvers.Problem(n=n_theta + sum(sizes), residual=residual, jacobian=jacobian, retract=retract)
-        z = solvers.solve(problem, z0, "lm", {"max_iter": 200}).x
-        x, params = split(z)
+        solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
+        x, params = split(solved.x)
         e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
-        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), jac.shape[2])
+        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), jac.shape[2],
+                   bool(solved.converged), solved.message)
 
     def _chart(self, centre_free):
         """A one-row local-chart model: the point layout and retraction of a structure."""
@@ -230,6 +233,22 @@ def _score(fit, mask, cand):
     return stat, chi2_survival(stat, cand.shape[1])
 
 
+def _score_robust(fit, mask, cand):
+    """The score test with a variance robust to unequal noise between samples (a reconstructed
+    centre's y is noisier where the laser plane passes near the sphere's centre): the score's
+    variance is summed over the samples (cluster-robust), with the small-sample factor m / (m - p)."""
+    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    r = fit.e[mask].ravel()
+    q = _projection(jac_cur)
+    a = cand - q @ (q.T @ cand)
+    g = a.T @ r
+    per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
+    m = len(r)
+    v = per_sample.T @ per_sample * m / max(m - fit.p, 1)
+    stat = float(g @ np.linalg.lstsq(v, g, rcond=None)[0])
+    return stat, chi2_survival(stat, cand.shape[1])
+
+
 def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=()):
     """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
 
@@ -248,7 +267,8 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
     Returns
     -------
     list of handeye.app.results.ScoreTest
-        Every identifiable candidate, Bonferroni-adjusted over them, most significant first.
+        Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
+        the score's variance is robust to unequal noise between samples (:func:`_score_robust`).
     """
     prob = Samples(dataset)
     structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
@@ -265,7 +285,7 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
         frac, _ = _gate(jac_cur, cols, fit.names)
         if frac < GATE:
             continue
-        stat, p = _score(fit, mask, cols)
+        stat, p = _score_robust(fit, mask, cols)
         found.append((p, name, stat, frac))
     found.sort()
     return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]
@@ -458,6 +478,7 @@ def _final_outliers(prob, structure, fit, mask, alpha):
                 structure = flipped
                 mask[i] = True
                 changed = True
+                fit = prob.fit(structure, mask, fit.x, fit.params)  # the next candidate against this fit
         _, pval = deletion_statistics(fit.e, fit.jac, mask)
         adj = np.minimum(pval * prob.n, 1.0)
         back = np.where(~mask & (adj >= alpha))[0]
@@ -503,6 +524,7 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
     from handeye.model import conventions
 
     return DiagnosisResult(
+        centre_fitted=bool(structure.centre),
         convention=d.convention,
         columns=conventions.columns(d.convention),
         sensor_pose_as=conventions.pose_from(d.convention, sensor),

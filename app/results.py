@@ -462,17 +462,23 @@ class DiagnosisResidual:
         return dataclasses.asdict(self)
 
 
-def absorbed_sentence(name, by):
-    """Why an effect is "absorbed": the poses cannot tell it from parameters already fitted."""
+def absorbed_sentence(name, by, centre_fitted=True):
+    """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre."""
     from handeye.model import effects
 
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
     structural = effects.get(name).KIND == "structural"
+    by_centre = any(p.startswith("c") for p in by)
+    if by_centre and not centre_fitted:
+        held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
+                "offset (which diagnose would name)")
+    else:
+        held = "which the calibration fits anyway, so those fitted values already contain it"
     return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
-            f"{' and '.join(what)} ({', '.join(by)}), which the calibration fits anyway, so those fitted values "
-            "already contain it; " + ("no choice of poses can separate it (it is part of what they describe)"
-                                      if structural else "poses with other rotations could separate it"))
+            f"{' and '.join(what)} ({', '.join(by)}); {held}; "
+            + ("no choice of poses can separate it (it is part of what they describe)"
+               if structural else "poses with other rotations could separate it"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -535,11 +541,12 @@ class DiagnosisResult:
     sensor_pose_as: np.ndarray | None = None
     std: Uncertainty | None = None
     provenance: dict | None = None
+    centre_fitted: bool = True
 
     @property
     def absorbed_explained(self):
         """Each absorbed effect in a sentence a user understands."""
-        return [absorbed_sentence(name, by) for name, by in self.absorbed_by.items()]
+        return [absorbed_sentence(name, by, self.centre_fitted) for name, by in self.absorbed_by.items()]
 
     @property
     def not_identifiable(self):

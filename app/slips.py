@@ -61,6 +61,13 @@ def _candidates(dataset):
         out.append(Slip("[profile] side", dataclasses.replace(d, centre_in_sensor=xs, side=-d.side),
                         f"set side = {-d.side} in {setup} (the side of the laser plane the sphere's centre lies on, "
                         "in the sensor's y)"))
+    given = np.ones(len(d), bool) if d.reconstructed is None else ~np.array(d.reconstructed)
+    if given.any():  # centres the file gives: their y sign is the sensor's (a y axis the other way?)
+        xs = d.centre_in_sensor.copy()
+        xs[given, 1] = -xs[given, 1]
+        out.append(Slip("the sign of ys", dataclasses.replace(d, centre_in_sensor=xs),
+                        f"negate the ys column of {d.path / 'measurements.csv'} (handeye's sensor y is z x x, with x "
+                        "along the laser line and z the measuring direction; the sensor's may point the other way)"))
     poses = d.flange_poses.copy()
     poses[:, :3] *= 1000.0
     out.append(Slip("robot positions in metres", dataclasses.replace(d, flange_poses=poses),

@@ -298,8 +298,11 @@ def _read_setup(path):
     else:
         if "base_pose" not in sphere:
             raise DatasetError(file, "needs center, or base_pose with center_in_plate", column="[sphere]")
-        plate_pose = _vector(sphere, "base_pose", 6, file, "sphere")
-        _check_angles(plate_pose, file, column_prefix="[sphere] base_pose ")
+        plate_pose = _vector(sphere, "base_pose", len(conventions.columns(convention)), file, "sphere")
+        if convention == "kuka":
+            _check_angles(plate_pose, file, column_prefix="[sphere] base_pose ")
+        else:  # in the dataset's convention, as every pose of the dataset
+            plate_pose = _to_kuka(plate_pose, convention, file, None, "[sphere] base_pose")
         centre_in_plate = _vector(sphere, "center_in_plate", 3, file, "sphere")
         centre = (transform_from_pose(plate_pose) @ np.append(centre_in_plate, 1.0))[:3]
     side = doc.get("profile", {}).get("side", -1)

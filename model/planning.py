@@ -86,7 +86,8 @@ def view_window(setup, margin_mm=0.0, margin_deg=0.0):
     Such an error moves the centre, in the sensor frame, by at most
     ``shift = margin_mm + radians(margin_deg) * z_max`` (mm). The window keeps the laser plane
     cutting the sphere between 0.1 R and 0.9 R from its centre, the sphere within the laser
-    line, and the near surface within the measuring range, each with ``shift`` to spare.
+    line, and its centre at least max(25 mm, 0.8 R) inside the measuring range (so that most of
+    the profile is measured), each with ``shift`` to spare.
 
     Returns
     -------
@@ -130,7 +131,8 @@ def thesis_candidates(setup, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.
             sensor = np.eye(4)
             sensor[:3, :3] = rot
             sensor[:3, 3] = np.asarray(sphere_centre, float) - rot @ seen_at
-            ids.append(f"{ident}@{cut:.3g}")
+            name = f"{ident}@{cut:.3g}"
+            ids.append(name if name not in ids else f"{name}#{sum(i.startswith(name) for i in ids) + 1}")
             poses.append(pose_from_transform(sensor @ np.linalg.inv(t_x)))
     return ids, np.array(poses)
 
