@@ -181,7 +181,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     from handeye.app.calibrate import calibrate as run
     from handeye.app.classic import METHODS as CLOSED_FORM
     from handeye.app.classic import calibrate_classic
-    from handeye.app.files import check_output_path, provenance
+    from handeye.app.files import check_output_path, input_files, provenance
     from handeye.model import conventions
     from handeye.model.calibration import UNKNOWNS
 
@@ -195,10 +195,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
     if unknowns not in UNKNOWNS:
         raise RequestError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
-    for path, option in ((out, "--out"), (plot, "--plot")):
-        if path is not None:
-            check_output_path(path, option)  # before the work: never half a result
     data = load_dataset(dataset)
+    for path, option in ((out, "--out"), (plot, "--plot")):
+        if path is not None:  # before the work (never half a result), and never over an input
+            check_output_path(path, option, inputs=input_files(data))
     convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
     for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
@@ -250,23 +250,25 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     handeye.app.results.DiagnosisResult
     """
     from handeye.app import diagnose as procedure
-    from handeye.app.files import check_output_folder, check_output_path, provenance
+    from handeye.app.files import check_output_folder, check_output_path, input_files, provenance
 
     level = _alpha(alpha)
     if sigma is not None:
         _number(sigma, "--sigma", 0.0, 1e3, low_open=True)
-    if out is not None:
-        check_output_path(out, "--out")
     data = load_dataset(dataset)
+    if out is not None:
+        check_output_path(out, "--out", inputs=input_files(data))
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
                            "known sphere centre; give it (or calibrate with unknowns='sensor+sphere')")
     if figures is not None:
         check_output_folder(figures, "--figures")
     if plot is not None:
-        check_output_path(plot, "--plot")
+        check_output_path(plot, "--plot", inputs=input_files(data))
     from handeye.app import slips
+    from handeye.app.calibrate import gate
 
+    gate(data, "sensor")  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
     result = procedure.diagnose(data, alpha=level, sigma=sigma)
     if out is not None:
@@ -375,9 +377,9 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     from handeye.model.pose import pose_from_transform
 
     conventions.check(convention)
-    folder = pathlib.Path(out)
-    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
-        raise RequestError(f"--out {folder}: exists and is not an empty folder; choose a new one")
+    from handeye.app.files import check_output_folder
+
+    folder = check_output_folder(out, "--out", empty=True)
     if isinstance(linearity, bool) or not isinstance(linearity, (int, float)) or not 0 <= linearity < 0.1:
         raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
     seed = _integer(seed, "--seed", 0)
@@ -533,8 +535,7 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
     from handeye.model.dataset import read_pose_list
 
     n = _integer(n, "--n", 1)
-    if out is not None:
-        check_output_path(out, "--out")
+
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
@@ -549,6 +550,11 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
                                "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
         centre, convention = d.sphere_centre, d.convention
+    if out is not None:  # before the work, and never over a file this command reads
+        inputs = [p for p in (candidates, score) if p is not None]
+        if dataset is not None:
+            inputs.append(pathlib.Path(d.path) / "setup.toml")
+        check_output_path(out, "--out", inputs=inputs)
     if score is not None:
         ids, poses = read_pose_list(score)
         sd, value = planning.score(poses, setup, centre)

@@ -20,7 +20,7 @@ from handeye.app.robust import ALPHA
 from handeye.model import conventions, identifiability, observations
 from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
-from handeye.model.dataset import GUESS_LIMITS
+from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import nearest_transform, transform_distance
 from handeye.model.statistics import covariance
@@ -55,6 +55,14 @@ GIMBAL_WARN_DEG = 1.0
 def parse_pose(text, what="--start", convention="kuka"):
     """Parse a pose written in a robot convention (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees)
     into a KUKA pose; raises CalibrationInputError."""
+    pose = _parse_pose(text, what, convention)
+    if np.any(np.abs(pose[:3]) > LIMIT_POSITION_MM):
+        raise CalibrationInputError(f"{what}: a position beyond +-{LIMIT_POSITION_MM:g} mm in {text!r}: a unit or a "
+                                    "misprint?")
+    return pose
+
+
+def _parse_pose(text, what, convention):
     cols = conventions.columns(convention)
     parts = [p.strip() for p in str(text).split(",")]
     if convention != "kuka":
@@ -112,6 +120,22 @@ def check_request(dataset, unknowns, method, rotation):
             f"need at least {need} (3 equations each for {3 * need - 3} unknowns, plus redundancy)"
         )
     return rotation
+
+
+def gate(dataset, unknowns, start=None):
+    """The checks every command that fits the data runs first (calibrate, diagnose): enough
+    measurements for the unknowns, and poses that determine every unknown at the start.
+
+    Returns the start pose (KUKA) and where it came from; raises CalibrationInputError.
+    """
+    need = min_measurements(unknowns)
+    if len(dataset) < need:
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: {len(dataset)} measurement(s); unknowns {unknowns!r} "
+            f"need at least {need} (3 equations each for {3 * need - 3} unknowns, plus redundancy)")
+    start_pose, start_used = resolve_start(dataset, unknowns, start)
+    check_identifiable(dataset, unknowns, transform_from_pose(start_pose))
+    return start_pose, start_used
 
 
 def with_sphere_centre(dataset, unknowns):

@@ -39,10 +39,24 @@ def provenance(dataset, options):
     }
 
 
-def check_output_path(path, option):
-    """Refuse, before any work, an output file whose folder does not exist or that is a folder.
+def input_files(dataset):
+    """The files a dataset is read from (resolved, symlinks followed): never to be written over."""
+    return {f.resolve() for f in pathlib.Path(dataset.path).rglob("*") if f.is_file() and f.suffix in (".csv", ".toml")}
 
-    Raises :class:`RequestError` naming ``option``.
+
+def _writable(folder, option, path):
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".handeye-probe.", delete=True):
+            pass
+    except OSError as exc:
+        raise RequestError(f"{option} {path}: cannot write in {folder}: {exc.strerror or exc}") from None
+
+
+def check_output_path(path, option, inputs=()):
+    """Refuse, before any work, an output file that cannot be written or that is an input.
+
+    The folder must exist and take a new file; the path must not be a folder, nor resolve
+    (symlinks followed) to one of ``inputs``. Raises :class:`RequestError` naming ``option``.
     """
     target = pathlib.Path(path)
     folder = target.parent if str(target.parent) else pathlib.Path(".")
@@ -50,16 +64,28 @@ def check_output_path(path, option):
         raise RequestError(f"{option} {path}: folder {folder} does not exist")
     if target.is_dir():
         raise RequestError(f"{option} {path}: is a folder; give a file name")
+    resolved = target.resolve()
+    if resolved in {pathlib.Path(i).resolve() for i in inputs}:
+        raise RequestError(f"{option} {path}: is a file this command reads; it would be overwritten -- choose another")
+    _writable(folder, option, path)
     return target
 
 
-def check_output_folder(path, option):
-    """Refuse, before any work, an output folder that exists as a file or whose parent is missing."""
+def check_output_folder(path, option, empty=False):
+    """Refuse, before any work, an output folder that exists as a file, whose parent is missing,
+    that cannot be written, or (``empty``) that holds files."""
     target = pathlib.Path(path)
     if target.exists() and not target.is_dir():
         raise RequestError(f"{option} {path}: exists and is not a folder")
-    if not target.exists() and not (target.parent if str(target.parent) else pathlib.Path(".")).is_dir():
-        raise RequestError(f"{option} {path}: folder {target.parent} does not exist")
+    if target.is_dir():
+        if empty and any(target.iterdir()):
+            raise RequestError(f"{option} {path}: exists and is not an empty folder; choose a new one")
+        _writable(target, option, path)
+        return target
+    parent = target.parent if str(target.parent) else pathlib.Path(".")
+    if not parent.is_dir():
+        raise RequestError(f"{option} {path}: folder {parent} does not exist")
+    _writable(parent, option, path)
     return target
 
 
@@ -72,11 +98,18 @@ def write_text_atomically(path, text, option="--out"):
     folder = target.parent if str(target.parent) else pathlib.Path(".")
     if not folder.is_dir():
         raise RequestError(f"{option} {path}: folder {folder} does not exist")
-    with tempfile.NamedTemporaryFile("w", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(fh.name, target)
+    name = None
+    try:
+        with tempfile.NamedTemporaryFile("w", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
+            name = fh.name
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(name, target)
+    except OSError as exc:
+        if name is not None and os.path.exists(name):
+            os.unlink(name)  # never leave the temporary file behind
+        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
 
 
 def write_json_atomically(path, data, option="--out"):

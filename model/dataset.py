@@ -245,7 +245,14 @@ _ALLOWED = {
     "profile": {"side"},
     "truth": {"sensor_pose", "sphere_center"},
     "noise": {"centre_mm", "robot_mm"},
+    "limits": {"position_mm", "sensor_mm"},
 }
+
+#: Plausible magnitudes (mm): a robot position (flange, sphere centre, start pose offset) and a
+#: coordinate the sensor reports. Beyond them a value is a slip (a unit, a misprint, 1e300), named
+#: with its row and column; ``[limits] position_mm`` and ``sensor_mm`` in setup.toml change them.
+LIMIT_POSITION_MM = 20_000.0
+LIMIT_SENSOR_MM = 5_000.0  # loose: thesis-real misprints one zs as 2237 mm, which screening names
 
 #: Default noise model: per-component sd of a sphere centre through the chain (robot
 #: repeatability and the sensor's centre reconstruction together), and robot repeatability
@@ -324,6 +331,22 @@ def _read_setup(path):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
             raise DatasetError(file, f"needs a positive number (mm), got {value!r}", column=f"[noise] {key}")
         noise[key] = float(value)
+    limits = {"position_mm": LIMIT_POSITION_MM, "sensor_mm": LIMIT_SENSOR_MM}
+    for key in limits:
+        value = doc.get("limits", {}).get(key)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            raise DatasetError(file, f"needs a positive number (mm), got {value!r}", column=f"[limits] {key}")
+        limits[key] = float(value)
+    noise["limits"] = limits
+    bound = limits["position_mm"]
+    for what, vector in (("[sensor] start_pose", start), ("[sphere] center", centre), ("[sphere] base_pose", plate_pose)):
+        if vector is not None and np.any(np.abs(vector[:3]) > bound):
+            raise DatasetError(file, f"a position beyond +-{bound:g} mm ({', '.join(f'{v:g}' for v in vector[:3])}): "
+                                     "a unit or a misprint? ([limits] position_mm sets the bound)", column=what)
+    if not 0 < diam <= 2 * limits["sensor_mm"]:
+        raise DatasetError(file, f"{diam:g} mm is not a sphere a laser-line sensor measures", column="[sphere] diameter")
     return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention, noise
 
 
@@ -409,6 +432,10 @@ def read_pose_list(path, with_convention=False):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
         ident = _row_id(fields, 0, seen, file, line)
         pose = np.array([_number(fields[k], file, line, header[k]) for k in range(1, len(header))])
+        for v, c in zip(pose[:3], header[1:4]):
+            if abs(v) > LIMIT_POSITION_MM:
+                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{LIMIT_POSITION_MM:g} mm",
+                                   line, c)
         if convention in READING_RANGES:
             _check_angles(pose, file, line, limits=READING_RANGES[convention], names=header[4:])
         if convention != "kuka":
@@ -465,6 +492,7 @@ def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
     start, diam, centre, plate_pose, centre_in_plate, side, truth, convention, noise = _read_setup(folder)
+    limits = noise.pop("limits")
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs")
     file = folder / "measurements.csv"
@@ -499,6 +527,10 @@ def load(name_or_path):
         pose = np.array([_number(fields[idx[c]], file, line, c) for c in pose_columns])
         if convention in READING_RANGES:
             _check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
+        for v, c in zip(pose[:3], pose_columns[:3]):
+            if abs(v) > limits["position_mm"]:
+                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{limits['position_mm']:g} mm "
+                                         "([limits] position_mm in setup.toml sets it)", line, c)
         if convention != "kuka":
             pose = _to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
@@ -506,6 +538,10 @@ def load(name_or_path):
         points = _read_profile(folder, profile, file, line) if profile else None
         if all(cells) or not profile:
             xs = [_number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
+            for v, c in zip(xs, ("xs", "ys", "zs")):
+                if abs(v) > limits["sensor_mm"]:
+                    raise DatasetError(file, f"{v:g} mm is beyond the sensor's plausible range +-{limits['sensor_mm']:g} mm "
+                                             "([limits] sensor_mm in setup.toml sets it)", line, c)
         elif any(cells):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:

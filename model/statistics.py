@@ -23,23 +23,31 @@ import numpy as np
 
 
 def f_survival(x, d1, d2):
-    """P(F > x) for an F(d1, d2) variable."""
+    """P(F > x) for an F(d1, d2) variable; NaN for a NaN statistic (never a hang), 0 at infinity."""
     import mpmath
 
+    if x != x or d1 != d1 or d2 != d2:  # NaN: mpmath's series would never converge
+        return float("nan")
     if x <= 0:
         return 1.0
-    if d2 <= 0:
+    if d2 <= 0 or d1 <= 0:
         return float("nan")
+    if x == float("inf"):
+        return 0.0
     z = d1 * x / (d1 * x + d2)
     return min(max(float(mpmath.betainc(d1 / 2.0, d2 / 2.0, z, 1, regularized=True)), 0.0), 1.0)
 
 
 def chi2_survival(x, k):
-    """P(chi^2_k > x)."""
+    """P(chi^2_k > x); NaN for a NaN statistic (never a hang), 0 at infinity."""
     import mpmath
 
+    if x != x or k != k or k <= 0:
+        return float("nan")
     if x <= 0:
         return 1.0
+    if x == float("inf"):
+        return 0.0
     return min(max(float(mpmath.gammainc(k / 2.0, x / 2.0, mpmath.inf, regularized=True)), 0.0), 1.0)
 
 
