@@ -104,9 +104,15 @@ def _number(value, option, low, high, low_open=False):
     return float(value)
 
 
-def _integer(value, option, low):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise RequestError(f"{option} must be an integer of at least {low}, got {value!r}")
+#: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).
+MAX_ITER = 1_000_000
+
+
+def _integer(value, option, low, high=None):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
+            high is not None and value > high):
+        bound = f"at least {low}" if high is None else f"in {low}..{high}"
+        raise RequestError(f"{option} must be an integer {bound}, got {value!r}")
     return int(value)
 
 
@@ -212,7 +218,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
     else:
         solver_options = {}
         if max_iter is not None:
-            solver_options["max_iter"] = _integer(max_iter, "--max-iter", 1)
+            solver_options["max_iter"] = _integer(max_iter, "--max-iter", 1, MAX_ITER)
         start_kuka = start_pose_from(start, convention) if start is not None else None
         result = run(data, unknowns=unknowns, method=method, rotation=rotation, start=start_kuka,
                      options=solver_options, outliers=not keep_all, alpha=level, loo=not no_loo, model=model,

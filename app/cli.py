@@ -8,17 +8,19 @@ Exit codes
    one line on stderr naming file, row and column where there is one
 3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
 4  a study's data did not support its claim (``handeye study``)
+130 interrupted (Ctrl-C)
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 
 from handeye.app.errors import RequestError
+from handeye.app.results import dumps
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
+EXIT_INTERRUPTED = 130
 
 
 class _Parser(argparse.ArgumentParser):
@@ -155,7 +157,7 @@ def _plan(args):
 
     result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
                       margin=args.margin, workspace=args.workspace, score=args.score)
-    print(json.dumps(result.to_dict(), indent=1) if args.json else result.summary())
+    print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_OK
 
 
@@ -180,7 +182,7 @@ def _bench(args):
     res = bench.run(quick=args.quick, with_startup=not args.no_startup)
     if args.plot:
         bench.plot(res, args.plot)
-    print(json.dumps(res, indent=1) if args.json else bench.text(res))
+    print(dumps(res) if args.json else bench.text(res))
     return EXIT_OK
 
 
@@ -246,6 +248,9 @@ def main(argv=None):
     except InputError as exc:  # exactly the bad-input hierarchy: anything else is a bug (exit 3)
         print(f"handeye: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's code for SIGINT
+        print("handeye: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing left to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK

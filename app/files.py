@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import datetime
-import json
 import os
 import pathlib
 import tempfile
@@ -114,4 +113,6 @@ def write_text_atomically(path, text, option="--out"):
 
 def write_json_atomically(path, data, option="--out"):
     """JSON through :func:`write_text_atomically`."""
-    write_text_atomically(path, json.dumps(data, indent=1), option=option)
+    from handeye.app.results import dumps
+
+    write_text_atomically(path, dumps(data), option=option)

@@ -25,6 +25,27 @@ def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
 
 
+def finite_json(value):
+    """``value`` with every non-finite float replaced by None: what JSON can hold (RFC 8259 has
+    no NaN or infinity; a NaN in a report means "not available")."""
+    if isinstance(value, dict):
+        return {k: finite_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_json(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def dumps(value, indent=1):
+    """Strict JSON text of ``value`` (non-finite numbers as null, never ``NaN``/``Infinity``)."""
+    return json.dumps(finite_json(value), indent=indent, allow_nan=False)
+
+
 @dataclasses.dataclass(frozen=True)
 class SampleResidual:
     """Residual of one measurement at the calibration.
@@ -353,8 +374,8 @@ class CalibrationResult:
         return out
 
     def to_json(self, indent=1):
-        """:meth:`to_dict` as JSON text."""
-        return json.dumps(self.to_dict(), indent=indent)
+        """:meth:`to_dict` as strict JSON text (non-finite numbers as null)."""
+        return dumps(self.to_dict(), indent)
 
     def summary(self):
         """The CLI's text report."""
@@ -587,7 +608,8 @@ class DiagnosisResult:
         }
 
     def to_json(self, indent=1):
-        return json.dumps(self.to_dict(), indent=indent)
+        """:meth:`to_dict` as strict JSON text (non-finite numbers as null)."""
+        return dumps(self.to_dict(), indent)
 
     def summary(self):
         """The CLI's text report."""

@@ -77,19 +77,42 @@ def generated_source(name, build):
         flat list of output expressions. Called only on a cache miss.
     """
     path = cache_dir() / f"{name}-{_source_fingerprint(build.__code__.co_filename)}.py"
-    try:
-        return path.read_text()
-    except OSError:
-        pass
+    cached = _read_checked(path)
+    if cached is not None:
+        return cached
     inputs, outputs = build()
     text = _print_function(inputs, outputs)
+    name_tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as fh:
-            fh.write(text)
-        os.replace(fh.name, path)
+            name_tmp = fh.name
+            fh.write(f"{_CHECK}{hashlib.sha256(text.encode()).hexdigest()}\n{text}")
+        os.replace(name_tmp, path)
     except OSError:
-        pass
+        if name_tmp is not None and os.path.exists(name_tmp):
+            os.unlink(name_tmp)
+    return text
+
+
+#: First line of a cache file: the SHA-256 of the rest, so that a truncated, emptied or edited
+#: file is derived again instead of failing every later run.
+_CHECK = "# sha256: "
+
+
+def _read_checked(path):
+    """The cached source text when it is whole (its checksum matches and it compiles), else None."""
+    try:
+        raw = path.read_text()
+    except (OSError, UnicodeDecodeError):
+        return None
+    head, sep, text = raw.partition("\n")
+    if not (sep and head.startswith(_CHECK) and head[len(_CHECK):] == hashlib.sha256(text.encode()).hexdigest()):
+        return None
+    try:
+        compile(text, "<handeye-generated>", "exec")
+    except (SyntaxError, ValueError):
+        return None
     return text
 
 

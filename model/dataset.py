@@ -264,7 +264,11 @@ NOISE_ROBOT_MM = 0.025
 def _read_setup(path):
     file = path / "setup.toml"
     try:
-        text = file.read_text(encoding="utf-8")
+        if file.exists() and not file.is_file():
+            raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
+        if file.exists() and file.stat().st_size > MAX_LINE_BYTES:
+            raise DatasetError(file, "more than 1 MB: not a setup file")
+        text = file.read_text(encoding="utf-8-sig")  # a byte-order mark is accepted, as in the CSV files
     except FileNotFoundError:
         raise DatasetError(file, "missing file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -360,13 +364,15 @@ def _to_kuka(pose, convention, file, row, column):
 
 
 def _read_profile(folder, rel, file, row):
-    """Points (K, 2) of a profile CSV with header ``x,z``; errors name the profile file."""
+    """Points (K, 2) of a profile CSV with header ``x,z``; errors name the profile file.
+
+    The path must lie inside the dataset folder: what the dataset's hash covers is what it reads.
+    """
     pfile = folder / rel
-    try:
-        with open(pfile, newline="", encoding="utf-8-sig") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DatasetError(file, f"profile file {rel!r} cannot be read: {exc}", row, "profile") from None
+    if pathlib.Path(rel).is_absolute() or not pfile.resolve().is_relative_to(folder.resolve()):
+        raise DatasetError(file, f"profile path {rel!r} leaves the dataset folder; keep profiles inside it (the "
+                                 "dataset's hash covers only its folder)", row, "profile")
+    rows = _read_table(pfile, file_row=(file, row))
     if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
         raise DatasetError(pfile, "header must be 'x,z'", 1)
     pts = []
@@ -404,6 +410,50 @@ def pose_list_convention(header):
     return None
 
 
+#: Largest file the readers accept, and longest line (bytes): a dataset of 10^6 rows is ~150 MB.
+MAX_FILE_BYTES = 2 * 1024**3
+MAX_LINE_BYTES = 1024**2
+
+
+def _read_table(file, file_row=None):
+    """Rows of a CSV file; size, line length, encoding and separator checked with a clear message.
+
+    ``file_row``: (measurements.csv, row) when ``file`` is a profile named there.
+    """
+    where = dict(zip(("row", "column"), (file_row[1], "profile"))) if file_row else {}
+    owner = file_row[0] if file_row else file
+    try:
+        if not file.exists():
+            raise DatasetError(owner, f"{file.name if file_row else ''} missing file".strip(), **where)
+        if not file.is_file():
+            raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
+        size = file.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise DatasetError(file, f"{size / 1e9:.1f} GB is more than a dataset file may be "
+                                     f"({MAX_FILE_BYTES / 1e9:.1f} GB)")
+        with open(file, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise DatasetError(owner, f"cannot be read: {exc.strerror or exc}", **where) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise DatasetError(file, f"more than {MAX_FILE_BYTES / 1e9:.1f} GB: not a dataset file")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(file, f"not UTF-8 text (byte {exc.start})") from None
+    lines = text.splitlines()
+    for k, line in enumerate(lines, start=1):
+        if len(line) > MAX_LINE_BYTES:
+            raise DatasetError(file, f"a line of {len(line)} characters: not a CSV dataset file", k)
+    if lines and "," not in lines[0] and (";" in lines[0] or "\t" in lines[0]):
+        sep = "';'" if ";" in lines[0] else "a tab"
+        raise DatasetError(file, f"the separator is {sep}; handeye reads comma-separated files (',')", 1)
+    try:
+        return list(csv.reader(lines))
+    except csv.Error as exc:
+        raise DatasetError(file, f"cannot be read: {exc}") from None
+
+
 def read_pose_list(path, with_convention=False):
     """Flange poses from a pose list, in any robot convention, told by its header.
 
@@ -414,11 +464,7 @@ def read_pose_list(path, with_convention=False):
     ``with_convention``; raises :class:`DatasetError` naming file, row and column.
     """
     file = pathlib.Path(path)
-    try:
-        with open(file, newline="", encoding="utf-8-sig") as fh:
-            table = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DatasetError(file, f"cannot be read: {exc}") from None
+    table = _read_table(file)
     header = [h.strip() for h in table[0]] if table else []
     convention = pose_list_convention(header)
     if convention is None:
@@ -496,13 +542,7 @@ def load(name_or_path):
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs")
     file = folder / "measurements.csv"
-    try:
-        with open(file, newline="", encoding="utf-8-sig") as fh:
-            table = list(csv.reader(fh))
-    except FileNotFoundError:
-        raise DatasetError(file, "missing file") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DatasetError(file, f"cannot be read: {exc}") from None
+    table = _read_table(file)
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]

@@ -122,6 +122,52 @@ def normal_equations(n):
     return ca.Function("normal_all", [x, c, data], [ca.vertcat(ca.sum2(h), ca.sum2(g), ca.sum2(f))])
 
 
+#: A build folder older than this (s) was left by a killed compile: removed.
+STALE_BUILD_S = 3600.0
+
+
+def _load(path):
+    """The library at ``path`` when it loads and has the driver's symbols, else None."""
+    try:
+        dll = ctypes.CDLL(str(path))
+        dll.he_lm, dll.he_lm_batch  # noqa: B018 - both symbols must be there
+    except (OSError, AttributeError):
+        return None
+    return dll
+
+
+def _remove_stale_builds(folder):
+    import time
+
+    try:
+        for entry in folder.glob("tmp*"):
+            if entry.is_dir() and time.time() - entry.stat().st_mtime > STALE_BUILD_S:
+                shutil.rmtree(entry, ignore_errors=True)
+    except OSError:
+        pass
+
+
+def _build(lib, generated, driver, flags):
+    """Compile the driver into ``lib``; a library that does not load is never cached (None)."""
+    compiler = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+    if compiler is None:
+        return None
+    try:
+        lib.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
+            (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
+            (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
+            out = pathlib.Path(tmp) / "lib.so"
+            subprocess.run([compiler, *flags, "fast_lm.c", "normal_one.c", "-o", str(out), "-lm"], cwd=tmp,
+                           check=True, capture_output=True, timeout=300)
+            if _load(out) is None:  # a compiler that exits 0 but writes a broken library
+                return None
+            os.replace(out, lib)  # atomic: parallel workers never load a half-written library
+    except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired):
+        return None
+    return _load(lib)
+
+
 @functools.lru_cache(maxsize=None)
 def library():
     """The compiled driver (ctypes), or None when no C compiler is available."""
@@ -136,22 +182,12 @@ def library():
     key = hashlib.sha256("\0".join([generated, driver, *flags]).encode()).hexdigest()[:16]
     folder = codegen.cache_dir() / "c"
     lib = folder / f"fast_lm_{key}.so"
-    if not lib.is_file():
-        compiler = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
-        if compiler is None:
-            return None
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as tmp:
-                (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
-                (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
-                out = pathlib.Path(tmp) / "lib.so"
-                subprocess.run([compiler, *flags, "fast_lm.c", "normal_one.c", "-o", str(out), "-lm"], cwd=tmp,
-                               check=True, capture_output=True)
-                os.replace(out, lib)  # atomic: parallel workers never load a half-written library
-        except (OSError, subprocess.CalledProcessError):
-            return None
-    dll = ctypes.CDLL(str(lib))
+    _remove_stale_builds(folder)
+    dll = _load(lib) if lib.is_file() else None
+    if dll is None:  # missing, or damaged (truncated, emptied): build it again
+        dll = _build(lib, generated, driver, flags)
+    if dll is None:
+        return None
     pointer = ctypes.c_void_p  # addresses (ndarray.ctypes.data) of C-contiguous float64 arrays
     dll.he_lm.argtypes = [ctypes.c_int, pointer, pointer, pointer, pointer, ctypes.c_int, pointer]
     dll.he_lm_batch.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, pointer, pointer, ctypes.c_int, pointer]

@@ -51,11 +51,12 @@ def circles(dataset, fit=CIRCLE_FIT):
     """Circles fitted to every profile and their covariances: (N, 3) and (N, 3, 3)."""
     _require_profiles(dataset, "measurement")
     out, covs = [], []
-    for ident, pts in zip(dataset.ids, dataset.profiles):
+    for ident, row, pts in zip(dataset.ids, dataset.rows, dataset.profiles):
         try:
             c = circle.fit_circle(pts[:, 0], pts[:, 1], fit)
         except circle.CircleFitError as exc:
-            raise ObservationError(f"profile of sample {ident!r}: {exc}") from None
+            raise ObservationError(f"{dataset.path / 'measurements.csv'}, row {row}, column 'profile': the profile of "
+                                   f"sample {ident!r}: {exc}") from None
         out.append([c.x, c.z, c.r])
         covs.append(circle.circle_covariance(pts[:, 0], pts[:, 1], c))
     return np.array(out), np.array(covs)
