@@ -111,7 +111,7 @@ MAX_ITER = 1_000_000
 def _integer(value, option, low, high=None):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
             high is not None and value > high):
-        bound = f"at least {low}" if high is None else f"in {low}..{high}"
+        bound = f"at least {low}" if high is None else f"at least {low} and at most {high}"
         raise RequestError(f"{option} must be an integer {bound}, got {value!r}")
     return int(value)
 
@@ -124,7 +124,7 @@ def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
         raise RequestError(f"--method {method} is closed form; these options do not apply to it: {', '.join(ignored)}")
 
 
-def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotation=None, start=None,
+def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None):
     """Calibrate the sensor pose on the flange (``handeye calibrate``).
@@ -135,8 +135,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
         Embedded name or folder (:func:`load_dataset`); default ``'thesis-real'``.
     unknowns : {'sensor', 'sensor+sphere'}
         The sensor pose (6 unknowns), or the sensor pose and the sphere centre in the base (9).
-    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}
-        A least-squares solver, or a closed-form baseline (the last two).
+    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
+        A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
+        and ``lm`` above :data:`handeye.app.calibrate.LARGE` measurements (time and memory
+        linear in the data; the result says so).
     rotation : {'matrix', 'local', 'euler'}, optional
         Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
     start : str or array_like, optional
@@ -197,7 +199,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method="ipopt", rotat
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
                "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects}
-    if method not in METHODS + CLOSED_FORM:
+    if method is not None and method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
     if unknowns not in UNKNOWNS:
         raise RequestError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")

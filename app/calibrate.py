@@ -316,7 +316,13 @@ def _solver_options(options):
     return options
 
 
-def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=None, options=None,
+#: Above this many measurements the default method is Levenberg-Marquardt on the local chart
+#: (numpy, time and memory linear in the data) instead of IPOPT (whose problem graph costs far
+#: more per measurement), and leave-one-out uses the deletion formula (robust.LOO_EXACT_UP_TO).
+LARGE = 5000
+
+
+def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None, options=None,
               outliers=True, alpha=ALPHA, loo=True, model=None, robot_sigma=None, convention=None, sigma=None,
               effects=()):
     """Calibrate the sensor pose on the flange from a dataset.
@@ -328,7 +334,8 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     ----------
     dataset : handeye.model.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
-    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton'}
+    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton'} or None
+        None: ``ipopt``, or ``lm`` above :data:`LARGE` measurements (said in the warnings).
     rotation : {'matrix', 'local', 'euler'} or None
         None: ``matrix`` for IPOPT, ``local`` otherwise.
     start : array_like, shape (6,), optional
@@ -366,6 +373,12 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
         solution (residual statistics, covariance, identifiability, leave-one-out) are None
         and the poses NaN.
     """
+    default_note = None
+    if method is None:
+        method = "ipopt" if len(dataset) <= LARGE or rotation in ("matrix", "euler") else "lm"
+        if method != "ipopt":
+            default_note = (f"{len(dataset)} measurements: the default method is lm (Levenberg-Marquardt on the local "
+                            f"chart, linear in the data) above {LARGE}; ask for --method ipopt to use IPOPT")
     rotation = check_request(dataset, unknowns, method, rotation)
     effects, unknowns, model = _check_effects(effects, unknowns, model)
     dataset, centre_note = with_sphere_centre(dataset, unknowns)
@@ -378,7 +391,7 @@ def calibrate(dataset, unknowns="sensor", method="ipopt", rotation=None, start=N
     start_pose, start_used = resolve_start(dataset, unknowns, start)
     start_t = transform_from_pose(start_pose)
     check_identifiable(dataset, unknowns, start_t)
-    warnings = [] if centre_note is None else [centre_note]
+    warnings = [note for note in (default_note, centre_note) if note is not None]
     everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
     plain = robust.least_squares(everything, everything.point_from(start_t)).x
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)

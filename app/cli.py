@@ -74,9 +74,10 @@ def build_parser():
     cal = sub.add_parser("calibrate", help="calibrate the sensor pose on the flange from a dataset")
     cal.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder (default thesis-real)")
     cal.add_argument("--unknowns", default="sensor", choices=list(UNKNOWNS))
-    cal.add_argument("--method", default="ipopt", choices=list(METHODS) + list(CLASSIC_METHODS),
-                     help="solver of the least squares, or a closed-form baseline: kim-cho (AX = XB, linear) or "
-                          "li-two-step (pure translations, then rotations; see model/classics.py)")
+    cal.add_argument("--method", default=None, choices=list(METHODS) + list(CLASSIC_METHODS),
+                     help="solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form "
+                          "baseline: kim-cho (AX = XB, linear) or li-two-step (pure translations, then rotations; see "
+                          "model/classics.py)")
     cal.add_argument("--rotation", default=None, choices=list(ROTATIONS),
                      help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",

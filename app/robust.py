@@ -24,7 +24,7 @@ import numpy as np
 from handeye import solvers
 from handeye.app.results import ExcludedSample
 from handeye.model.calibration import CalibrationModel
-from handeye.model.statistics import chi2_survival, chi_median, deletion_statistics
+from handeye.model.statistics import chi2_survival_array, chi_median, deletion_statistics
 
 #: Family-wise significance level of the outlier tests.
 ALPHA = 0.01
@@ -132,7 +132,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     min_keep = min(min_keep or max(n // 2 + 1, 4), n)
     x_rob, sigma, _ = robust_fit(full, full.point_from(start))
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
-    p_chi = np.array([chi2_survival((v / sigma) ** 2, 3) for v in norms])
+    p_chi = chi2_survival_array((norms / sigma) ** 2, 3)
     inliers = np.minimum(p_chi * n, 1.0) >= alpha
     note = ""
     if inliers.sum() < min_keep:
@@ -161,9 +161,16 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
             if inliers.sum() <= min_keep:
                 note = note or f"more samples test as outliers, but at least {min_keep} must be kept"
                 break
-            inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
+            if n > LOO_EXACT_UP_TO:  # many samples: all significant ones at once (linear, not quadratic)
+                room = max(int(inliers.sum()) - min_keep, 0)
+                inliers[fitted_bad[np.argsort(-stat[fitted_bad])][:room]] = False
+            else:  # one at a time: a gross error can mask another
+                inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
         elif len(excluded_ok):
-            inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
+            if n > LOO_EXACT_UP_TO:
+                inliers[excluded_ok] = True
+            else:
+                inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
         else:
             break
     e, j = full.residual_and_jacobian(x)
@@ -191,12 +198,29 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     )
 
 
+#: Up to this many samples leave-one-out refits every sample exactly; above, the deletion formula
+#: (the exact update of the linearised problem) gives every sample at once, and only samples of
+#: high leverage (largest eigenvalue of the hat block above LOO_LEVERAGE) are refitted.
+LOO_EXACT_UP_TO = 2000
+LOO_LEVERAGE = 0.5
+
+
+def _refit_error(model, x, keep, i):
+    xi = least_squares(_subset(model, keep), x).x
+    t2 = model.sensor2flange(xi)
+    pred = model.flange2base[i] @ t2 @ np.append(model.centre_in_sensor[i], 1.0)
+    return float(np.linalg.norm(pred[:3] - model.sphere_centre(xi)))
+
+
 def leave_one_out(model, x, mask=None):
     """Leave-one-out prediction errors of the sphere centre, mm.
 
     For each sample i in ``mask`` the calibration is refitted without it and i's centre is
     predicted: ``|T1_i T2_(-i) xs_i - c_(-i)|``. An accuracy figure that the fit's own
-    residual cannot flatter.
+    residual cannot flatter. Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact; above,
+    the deletion formula ``e_(i) = (I - H_ii)^-1 e_i`` (H_ii = J_i (J^T J)^-1 J_i^T, the 3x3 hat
+    block) gives all of them in time linear in the samples, and the samples whose leverage
+    makes the linearisation doubtful are refitted exactly.
 
     Parameters
     ----------
@@ -214,11 +238,22 @@ def leave_one_out(model, x, mask=None):
     """
     mask = np.ones(model.n_meas, bool) if mask is None else np.asarray(mask, bool)
     out = np.full(model.n_meas, np.nan)
-    for i in np.where(mask)[0]:
+    used = np.where(mask)[0]
+    if len(used) <= LOO_EXACT_UP_TO:
+        for i in used:
+            keep = mask.copy()
+            keep[i] = False
+            out[i] = _refit_error(model, x, keep, i)
+        return out
+    e, j = model.residual_and_jacobian(x)
+    e, j = e.reshape(model.n_meas, 3), j.reshape(model.n_meas, 3, -1)
+    info_inv = np.linalg.inv(np.einsum("nip,niq->pq", j[mask], j[mask]))
+    h = np.einsum("nip,pq,njq->nij", j[mask], info_inv, j[mask])
+    deleted = np.linalg.solve(np.eye(3) - h, e[mask][..., None])[..., 0]
+    out[mask] = np.linalg.norm(deleted, axis=1)
+    for k in np.where(np.linalg.eigvalsh(h)[:, -1] > LOO_LEVERAGE)[0]:
+        i = used[k]
         keep = mask.copy()
         keep[i] = False
-        xi = least_squares(_subset(model, keep), x).x
-        t2 = model.sensor2flange(xi)
-        pred = model.flange2base[i] @ t2 @ np.append(model.centre_in_sensor[i], 1.0)
-        out[i] = float(np.linalg.norm(pred[:3] - model.sphere_centre(xi)))
+        out[i] = _refit_error(model, x, keep, i)
     return out

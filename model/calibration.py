@@ -45,6 +45,10 @@ from handeye.model import codegen, rotation
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
+#: Above this many rows the IPOPT problem is a CasADi MX graph calling the one-row residual
+#: function ``map``-ped over the rows (memory O(1) per row); below, the same expressions expanded
+#: to SX (faster per evaluation, as before). The two agree to rounding (tested).
+NLP_MX_ABOVE = 1000
 #: Names of the rotation parametrisations of the unknown sensor rotation (handeye.model.symbolic uses these).
 ROTATIONS = ("euler", "matrix", "local")
 
@@ -331,7 +335,8 @@ class CalibrationModel:
         nr = _N_ROT[self.rotation]
         m = self.m
         n_data = len(self._data)
-        x = ca.SX.sym("x", self.n)
+        sym = ca.MX if self.n_meas > NLP_MX_ABOVE else ca.SX  # a graph of calls: memory O(1) per row, not O(ops)
+        x = sym.sym("x", self.n)
         d = ca.SX.sym("d", n_data + m * m)
         theta = ca.SX.sym("theta", 3 + nr + 3)
         extra = [self.radius] if self.kind != "centre" else []
@@ -340,21 +345,21 @@ class CalibrationModel:
         one = ca.Function("e", [theta, d], [ca.mtimes(w, e)])
         whiten = self.whiten if self.whiten is not None else np.broadcast_to(np.eye(m), (self.n_meas, m, m))
         table = np.concatenate([np.stack(self._data), whiten.reshape(self.n_meas, m * m).T])
-        data = ca.SX.sym("data", table.shape[0], self.n_meas)
+        data = sym.sym("data", table.shape[0], self.n_meas)
         p_value = table.ravel(order="F")  # ca.vec is column-major
         if self.unknowns == "sensor+sphere":
             p, full = ca.vec(data), x
         else:
-            cfix = ca.SX.sym("c", 3)
+            cfix = sym.sym("c", 3)
             p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
             p_value = np.concatenate([p_value, self.fixed_centre])
         e_all = one.map(self.n_meas)(full, data)
         f = 0.5 * ca.sumsqr(e_all)
         if self.rotation == "matrix":
             rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
-            m = ca.mtimes(rt.T, rt) - ca.SX.eye(3)
+            m = ca.mtimes(rt.T, rt) - sym.eye(3)
             g = ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
         else:
-            g = ca.SX(0, 1)
+            g = sym(0, 1)
         ng = g.shape[0]
         return {"x": x, "f": f, "g": g, "p": p, "lbg": np.zeros(ng), "ubg": np.zeros(ng), "p_value": p_value}

@@ -13,42 +13,146 @@ Deletion (externally studentised) statistics for a measurement ``i`` with residu
 * if ``i`` was left out: its prediction error has covariance ``sigma^2 (I + H_ii)``, and
   ``T_i = e_i^T (I + H_ii)^-1 e_i / (3 sigma^2) ~ F(3, m - p)``.
 
-Tail probabilities use mpmath's regularised incomplete beta (mpmath comes with sympy).
+Tail probabilities are the regularised incomplete beta and gamma functions, vectorised in numpy
+(continued fractions; checked against mpmath in the tests, which also showed mpmath's upper-tail
+form underflowing to 0 far in the tail and failing to converge for 60,000 degrees of freedom).
 """
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 
 def f_survival(x, d1, d2):
     """P(F > x) for an F(d1, d2) variable; NaN for a NaN statistic (never a hang), 0 at infinity."""
-    import mpmath
-
-    if x != x or d1 != d1 or d2 != d2:  # NaN: mpmath's series would never converge
-        return float("nan")
-    if x <= 0:
-        return 1.0
-    if d2 <= 0 or d1 <= 0:
-        return float("nan")
-    if x == float("inf"):
-        return 0.0
-    z = d1 * x / (d1 * x + d2)
-    return min(max(float(mpmath.betainc(d1 / 2.0, d2 / 2.0, z, 1, regularized=True)), 0.0), 1.0)
+    return float(f_survival_array(x, d1, d2))
 
 
 def chi2_survival(x, k):
     """P(chi^2_k > x); NaN for a NaN statistic (never a hang), 0 at infinity."""
-    import mpmath
+    return float(chi2_survival_array(x, k))
 
-    if x != x or k != k or k <= 0:
-        return float("nan")
-    if x <= 0:
-        return 1.0
-    if x == float("inf"):
-        return 0.0
-    return min(max(float(mpmath.gammainc(k / 2.0, x / 2.0, mpmath.inf, regularized=True)), 0.0), 1.0)
+
+#: log Gamma, vectorised; NaN outside its domain (a degenerate number of degrees of freedom).
+_LGAMMA = np.vectorize(lambda v: math.lgamma(v) if v > 0 else math.nan, otypes=[float])
+
+
+def _gammainc_upper(a, x, iterations=500):
+    """Regularised upper incomplete gamma Q(a, x), vectorised (series below a + 1, Lentz's
+    continued fraction above; Numerical Recipes 6.2), accurate to ~1e-14 relative."""
+    a, x = np.broadcast_arrays(np.asarray(a, float), np.asarray(x, float))
+    out = np.full(a.shape, np.nan)
+    lg = _LGAMMA(a)
+    with np.errstate(all="ignore"):
+        log_front = -x + a * np.log(x) - lg
+        low = x < a + 1.0
+        # series: P = exp(front) sum x^n / (a (a+1) ... (a+n))
+        ap, term = a.copy(), 1.0 / a
+        total = term.copy()
+        for _ in range(iterations):
+            ap = ap + 1.0
+            term = term * x / ap
+            total = total + term
+            if np.all(np.abs(term[low]) <= np.abs(total[low]) * 1e-16):
+                break
+        p_low = np.exp(log_front) * total
+        # continued fraction for Q (modified Lentz)
+        tiny = 1e-300
+        b = x + 1.0 - a
+        c = np.full(a.shape, 1.0 / tiny)
+        d = 1.0 / np.where(b == 0, tiny, b)
+        h = d.copy()
+        for i in range(1, iterations):
+            an = -i * (i - a)
+            b = b + 2.0
+            d = an * d + b
+            d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
+            c = b + an / c
+            c = np.where(np.abs(c) < tiny, tiny, c)
+            delta = d * c
+            h = h * delta
+            if np.all(np.abs(delta[~low] - 1.0) <= 1e-16):
+                break
+        q_high = np.exp(log_front) * h
+    out = np.where(low, 1.0 - p_low, q_high)
+    out = np.where(x <= 0, 1.0, out)
+    out = np.where(np.isposinf(x), 0.0, out)
+    return np.clip(np.where(np.isnan(x) | np.isnan(a), np.nan, out), 0.0, 1.0)
+
+
+def _betacf(a, b, x, iterations=500):
+    tiny = 1e-300
+    qab, qap, qam = a + b, a + 1.0, a - 1.0
+    c = np.ones_like(x)
+    d = 1.0 - qab * x / qap
+    d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
+    h = d.copy()
+    for m in range(1, iterations):
+        m2 = 2 * m
+        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
+        c = 1.0 + aa / c
+        c = np.where(np.abs(c) < tiny, tiny, c)
+        h = h * d * c
+        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
+        c = 1.0 + aa / c
+        c = np.where(np.abs(c) < tiny, tiny, c)
+        delta = d * c
+        h = h * delta
+        if np.all(np.abs(delta - 1.0) <= 1e-16):
+            break
+    return h
+
+
+def _betainc(a, b, x):
+    """Regularised incomplete beta I_x(a, b), vectorised (continued fraction, Numerical Recipes
+    6.4, with the symmetry I_x(a, b) = 1 - I_(1-x)(b, a) where it converges faster)."""
+    a, b, x = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float), np.asarray(x, float))
+    with np.errstate(all="ignore"):
+        lbeta = (_LGAMMA(a + b) - _LGAMMA(a)
+                 - _LGAMMA(b))
+        front = np.exp(lbeta + a * np.log(x) + b * np.log1p(-x))
+        direct = x < (a + 1.0) / (a + b + 2.0)
+        out = np.where(direct, front * _betacf(a, b, x) / a, 1.0 - front * _betacf(b, a, 1.0 - x) / b)
+    out = np.where(x <= 0, 0.0, np.where(x >= 1, 1.0, out))
+    return np.clip(out, 0.0, 1.0)
+
+
+#: Above this many denominator degrees of freedom P(F > x) is taken as P(chi^2_d1 > d1 x): the
+#: relative error is O(1/d2) (< 1e-4), far below what a test at a level alpha can see.
+F_AS_CHI2_ABOVE = 10_000
+
+
+def f_survival_array(x, d1, d2):
+    """P(F > x) for F(d1, d2), vectorised over x (and the degrees of freedom); NaN in, NaN out.
+
+    ``P(F > x) = I_{d2 / (d2 + d1 x)}(d2 / 2, d1 / 2)``; agrees with :func:`f_survival`
+    (mpmath) to ~1e-12 (tested), at a fraction of the cost for many samples.
+    """
+    x, d1, d2 = np.broadcast_arrays(np.asarray(x, float), np.asarray(d1, float), np.asarray(d2, float))
+    large = d2 > F_AS_CHI2_ABOVE  # the continued fraction needs ~sqrt(d2) terms; d1 F -> chi^2_d1 there
+    out = np.empty(x.shape)
+    with np.errstate(all="ignore"):
+        z = np.where(np.isposinf(x), 0.0, d2 / (d2 + d1 * x))
+        if np.any(~large):
+            out[~large] = _betainc(d2[~large] / 2.0, d1[~large] / 2.0, z[~large])
+        if np.any(large):
+            out[large] = _gammainc_upper(d1[large] / 2.0, d1[large] * x[large] / 2.0)
+    out = np.where(x <= 0, 1.0, out)
+    bad = np.isnan(x) | np.isnan(d1) | np.isnan(d2) | (d1 <= 0) | (d2 <= 0)
+    return np.where(bad, np.nan, out)
+
+
+def chi2_survival_array(x, k):
+    """P(chi^2_k > x), vectorised; NaN in, NaN out; agrees with :func:`chi2_survival` (tested)."""
+    x, k = np.broadcast_arrays(np.asarray(x, float), np.asarray(k, float))
+    out = _gammainc_upper(k / 2.0, x / 2.0)
+    return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, out)
 
 
 def chi_median(k):
@@ -137,18 +241,15 @@ def deletion_statistics(e_all, j_all, fitted):
     m, p = jf.shape
     info_inv = np.linalg.pinv(jf.T @ jf)
     ssr = float(ef @ ef)
-    stat = np.empty(len(e_all))
-    pval = np.empty(len(e_all))
     eye = np.eye(3)
-    for i, (e, j) in enumerate(zip(e_all, j_all)):
-        h = j @ info_inv @ j.T
-        if fitted[i]:
-            q = float(e @ np.linalg.solve(eye - h + 1e-12 * eye, e))
-            d2 = m - p - 3
-            s2 = max(ssr - q, 1e-300) / d2 if d2 > 0 else float("nan")
-            stat[i] = q / (3.0 * s2)
-        else:
-            d2 = m - p
-            stat[i] = float(e @ np.linalg.solve(eye + h, e)) / (3.0 * ssr / d2)
-        pval[i] = f_survival(stat[i], 3, d2)
-    return stat, pval
+    e_all, j_all = np.asarray(e_all, float), np.asarray(j_all, float)
+    h = np.einsum("nip,pq,njq->nij", j_all, info_inv, j_all)  # hat blocks, all samples at once
+    sign = np.where(fitted, -1.0, 1.0)[:, None, None]
+    metric = eye + sign * h + np.where(fitted, 1e-12, 0.0)[:, None, None] * eye
+    q = np.einsum("ni,ni->n", e_all, np.linalg.solve(metric, e_all[..., None])[..., 0])
+    d2 = np.where(fitted, m - p - 3, m - p).astype(float)
+    with np.errstate(all="ignore"):
+        s2 = np.where(fitted, np.maximum(ssr - q, 1e-300) / d2, ssr / d2)
+        s2 = np.where(d2 > 0, s2, np.nan)
+        stat = q / (3.0 * s2)
+    return stat, f_survival_array(stat, 3, d2)
