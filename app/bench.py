@@ -267,7 +267,58 @@ def startup():
     return out
 
 
-def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None):
+#: Sizes (measurements) of the default pipeline's scaling: ``handeye calibrate DATASET`` as a user runs it.
+PIPELINE = (1_000, 10_000, 100_000, 1_000_000)
+
+
+def write_dataset(folder, n, seed=0):
+    """A simulated dataset of ``n`` measurements (thesis orientations, 0.02 mm noise) in ``folder``."""
+    import pathlib
+
+    flanges, xs, centre, start, _ = simulated_batch(1, n, seed)
+    poses = pose_from_transform(flanges[0])
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    table = np.column_stack([poses, xs[0]])
+    body = "\n".join(f"m{k}," + ",".join(f"{v:.8f}" for v in row) for k, row in enumerate(table))
+    (folder / "measurements.csv").write_text("id,x,y,z,a,b,c,xs,ys,zs\n" + body + "\n")
+    s = ", ".join(repr(float(v)) for v in pose_from_transform(start))
+    c = ", ".join(repr(float(v)) for v in centre)
+    (folder / "setup.toml").write_text(f"[sensor]\nstart_pose = [{s}]\n[sphere]\ndiameter = 59.94507\ncenter = [{c}]\n")
+    return folder
+
+
+def pipeline(sizes=PIPELINE):
+    """Wall time and peak memory of ``handeye calibrate`` with default options (screening, fit,
+    covariance, leave-one-out) against the number of measurements, each in a fresh process."""
+    rows = []
+    probe = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
+             "code = main(['calibrate', sys.argv[1], '--json']); "
+             "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
+             "file=sys.stderr)")
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            folder = write_dataset(f"{tmp}/n{n}", n)
+            out = subprocess.run([sys.executable, "-c", probe, str(folder)], capture_output=True, text=True)
+            line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
+            if not line:
+                rows.append({"n": n, "seconds": None, "peak_mb": None, "exit": out.returncode})
+                continue
+            _, kb, seconds, code = line[-1].split()
+            rows.append({"n": n, "seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code)})
+    # slopes over the sizes where the pipeline is the same one: above 5,000 measurements the default is
+    # lm with the deletion-formula leave-one-out (below, IPOPT with exact refits: a different algorithm)
+    from handeye.app.calibrate import LARGE
+
+    ok = [r for r in rows if r["seconds"] and r["n"] > LARGE]
+    logn = np.log([r["n"] for r in ok])
+    slope = float(np.polyfit(logn, np.log([r["seconds"] for r in ok]), 1)[0]) if len(ok) >= 2 else None
+    mem_slope = float(np.polyfit(logn, np.log([r["peak_mb"] for r in ok]), 1)[0]) if len(ok) >= 2 else None
+    return {"rows": rows, "time_slope": slope, "memory_slope": mem_slope, "slope_above": LARGE}
+
+
+def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None,
+        pipeline_sizes=None):
     """Run the benchmark; returns the JSON-ready result."""
     reps = reps or (5 if quick else 20)
     cases = {"thesis-real": real_case()}
@@ -285,6 +336,10 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     result["throughput_per_s"] = tp["all_cores_per_s"]
     if with_startup:
         result["startup"] = startup()
+    if pipeline_sizes is None:
+        pipeline_sizes = (10_000, 30_000) if quick else PIPELINE
+    if pipeline_sizes:
+        result["pipeline"] = pipeline(pipeline_sizes)
     return result
 
 
@@ -326,6 +381,19 @@ def text(res):
         s = res["startup"]
         lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "
                      f"{s['warm again_s']:.2f} s (exit {s['cold_exit']}/{s['warm_exit']})")
+    if "pipeline" in res:
+        pl = res["pipeline"]
+        lines += ["", "handeye calibrate, default options (screening, fit, covariance, leave-one-out), by size:"]
+        for r in pl["rows"]:
+            if r["seconds"] is None:
+                lines.append(f"  {r['n']:>9} measurements: failed (exit {r['exit']})")
+            else:
+                lines.append(f"  {r['n']:>9} measurements: {r['seconds']:8.2f} s, peak {r['peak_mb']:8.0f} MB, "
+                             f"exit {r['exit']}")
+        if pl["time_slope"] is not None:
+            lines.append(f"  log-log slope above {pl['slope_above']} measurements (lm, deletion-formula leave-one-out): "
+                         f"time {pl['time_slope']:.2f}, peak memory {pl['memory_slope']:.2f} (1 = linear; below, "
+                         "the default is IPOPT with exact refits)")
     return "\n".join(lines)
 
 

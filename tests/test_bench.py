@@ -68,7 +68,8 @@ def test_degenerate_data_are_not_a_calibration(compiled):
 
 
 def test_bench_reports_every_method():
-    res = bench.run(reps=1, sizes=(30,), throughput_n=8, with_startup=False, scaling_sizes=(30, 60, 120, 240))
+    res = bench.run(reps=1, sizes=(30,), throughput_n=8, with_startup=False, scaling_sizes=(30, 60, 120, 240),
+                    pipeline_sizes=(6_000, 12_000))
     table = res["cases"]["thesis-real"]
     assert set(table) == {"fast", "fast-vm", "thesis", "scipy-2point", "scipy-exact", "ipopt-matrix"}
     for row in table.values():
@@ -78,10 +79,13 @@ def test_bench_reports_every_method():
     assert len(res["scaling"]["rows"]) >= 4 and np.isfinite(res["scaling"]["slope"])
     text = bench.text(res)
     assert "fast path vs scipy" in text and "log-log slope" in text and "Monte Carlo" in text
+    pipe = res["pipeline"]
+    assert [r["exit"] for r in pipe["rows"]] == [0, 0] and 0 < pipe["time_slope"] < 2 and "by size" in text
 
 
 def test_bench_plot(tmp_path):
-    res = bench.run(reps=1, sizes=(30, 100), throughput_n=4, with_startup=False, scaling_sizes=(30, 100))
+    res = bench.run(reps=1, sizes=(30, 100), throughput_n=4, with_startup=False, scaling_sizes=(30, 100),
+                    pipeline_sizes=())
     bench.plot(res, tmp_path / "bench.png")
     assert (tmp_path / "bench.png").stat().st_size > 10_000
 
