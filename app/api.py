@@ -206,12 +206,15 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     data = load_dataset(dataset)
     for path, option in ((out, "--out"), (plot, "--plot")):
         if path is not None:  # before the work (never half a result), and never over an input
-            check_output_path(path, option, inputs=input_files(data))
+            check_output_path(path, option, inputs=input_files(data), plot=option == "--plot")
     convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
     for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
         if value is not None:
-            _number(value, option, 0.0, 1e3, low_open=True)
+            _number(value, option, 1e-6, 1e3)
+    if effects is not None and not [n for n in str(effects if isinstance(effects, str) else ",".join(effects)).split(",")
+                                    if n.strip()]:
+        raise RequestError("--effects: give one or more effect names (sensor_scale, sphere_radius, sphere_center)")
     if method in CLOSED_FORM:
         _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
         if effects:
@@ -262,7 +265,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 
     level = _alpha(alpha)
     if sigma is not None:
-        _number(sigma, "--sigma", 0.0, 1e3, low_open=True)
+        _number(sigma, "--sigma", 1e-6, 1e3)
     data = load_dataset(dataset)
     if out is not None:
         check_output_path(out, "--out", inputs=input_files(data))
@@ -271,8 +274,11 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
                            "known sphere centre; give it (or calibrate with unknowns='sensor+sphere')")
     if figures is not None:
         check_output_folder(figures, "--figures")
+        if pathlib.Path(figures).is_dir():  # the two files it will write: never over an input
+            for name in ("residuals.png", "gap.png"):
+                check_output_path(pathlib.Path(figures) / name, "--figures", inputs=input_files(data))
     if plot is not None:
-        check_output_path(plot, "--plot", inputs=input_files(data))
+        check_output_path(plot, "--plot", inputs=input_files(data), plot=True)
     from handeye.app import slips
     from handeye.app.calibrate import gate
 
@@ -288,11 +294,12 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if figures is not None:
         procedure.figures(result, figures)
     if plot is not None:
-        import shutil
         import tempfile
 
+        from handeye.app.files import write_bytes_atomically
+
         with tempfile.TemporaryDirectory() as tmp:
-            shutil.copyfile(procedure.figures(result, tmp)[1], pathlib.Path(plot))
+            write_bytes_atomically(plot, procedure.figures(result, tmp)[1].read_bytes(), option="--plot")
     return result
 
 
@@ -558,10 +565,10 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
                                "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
         centre, convention = d.sphere_centre, d.convention
-    if out is not None:  # before the work, and never over a file this command reads
+    if out is not None:  # before the work, and never over a file this command reads or of the dataset
         inputs = [p for p in (candidates, score) if p is not None]
         if dataset is not None:
-            inputs.append(pathlib.Path(d.path) / "setup.toml")
+            inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
         check_output_path(out, "--out", inputs=inputs)
     if score is not None:
         ids, poses = read_pose_list(score)

@@ -561,8 +561,13 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
 
     prob = diagnose.Samples(dataset)
     structure = diagnose.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
-    extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
+    with np.errstate(all="ignore"):
+        extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
     jac = extended.jac[mask].reshape(-1, extended.p)
+    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(extended.x))):
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
+            "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
     cov = extended.sigma2 * np.linalg.pinv(jac.T @ jac)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(np.where(std > 0, std, 1), np.where(std > 0, std, 1))

@@ -223,11 +223,29 @@ def _calibrate(args):
     return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 
 
+def _interrupted(signum, frame):
+    """Ctrl-C: one line and exit 130 at once, even inside a solver or a worker pool that would
+    otherwise swallow the KeyboardInterrupt (IPOPT turns it into a warning and goes on)."""
+    try:
+        sys.stderr.write("handeye: interrupted\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(EXIT_INTERRUPTED)
+
+
 def main(argv=None):
     """Entry point of the ``handeye`` console script; returns the exit code."""
     from handeye.app.registry import StudyClaimFailed
     from handeye.model.errors import InputError
 
+    if argv is None:  # the console script, not a caller's Python process: Ctrl-C ends it at once
+        import signal
+
+        signal.signal(signal.SIGINT, _interrupted)
+    if not os.environ.get("HANDEYE_DEBUG"):  # one line on stderr: numpy's overflow chatter is not it
+        import warnings
+
+        warnings.simplefilter("ignore", RuntimeWarning)
     args = build_parser().parse_args(argv)
     try:
         if args.command == "datasets":
@@ -255,6 +273,15 @@ def main(argv=None):
     except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing left to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
+    except OSError as exc:  # the output itself cannot be written (a full disk, /dev/full as stdout)
+        if exc.filename is not None or exc.errno not in (28, 5, 9):  # ENOSPC, EIO, EBADF only
+            if os.environ.get("HANDEYE_DEBUG"):
+                raise
+            print(f"handeye: internal error: {type(exc).__name__}: {exc} (set HANDEYE_DEBUG=1 for details)",
+                  file=sys.stderr)
+            return EXIT_INTERNAL
+        print(f"handeye: error: cannot write the output: {exc.strerror}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except StudyClaimFailed as exc:
         print(f"handeye: {exc}", file=sys.stderr)
         return EXIT_CLAIM_FAILED

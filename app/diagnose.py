@@ -38,7 +38,7 @@ from handeye.app.results import DiagnosisResidual, DiagnosisResult, NamedEffect,
 from handeye.model import effects
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.statistics import chi2_survival, deletion_statistics, f_survival
+from handeye.model.statistics import chi2_survival, deletion_statistics, f_survival, prediction_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA
@@ -93,18 +93,22 @@ class Samples:
             xs[i, 1] = -xs[i, 1]
         return xs
 
-    def evaluate(self, structure, x, params):
-        """Residuals (N, 3) and Jacobian (N, 3, p) at point x with effect parameters."""
+    def evaluate(self, structure, x, params, rows=None):
+        """Residuals (N, 3) and Jacobian (N, 3, p) at point x with effect parameters (of the
+        samples ``rows`` only, when given)."""
         xs = self.measured(structure)
+        f2b = self.f2b
+        if rows is not None:
+            xs, f2b = xs[rows], f2b[rows]
         cols = []
         for name in structure.data_effects:
             with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
                 xs, dxs = effects.correct(name, xs, self.radius, params[name])
             cols.append(dxs)
         unknowns = "sensor+sphere" if structure.centre else "sensor"
-        model = CalibrationModel(self.f2b, xs, self.d.sphere_centre, "local", unknowns)
+        model = CalibrationModel(f2b, xs, self.d.sphere_centre, "local", unknowns)
         e, j = model.residual_and_jacobian(x)
-        r12 = self.f2b[:, :3, :3] @ model.sensor_rotation(x)
+        r12 = f2b[:, :3, :3] @ model.sensor_rotation(x)
         extra = [np.einsum("nij,njk->nik", r12, c) for c in cols]
         return e, np.concatenate([j] + extra, axis=2) if extra else j, model
 
@@ -272,8 +276,11 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
     """
     prob = Samples(dataset)
     structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
-    fit = prob.fit(structure, np.asarray(mask, bool), prob.point(structure, sensor2flange, centre))
+    with np.errstate(all="ignore"):
+        fit = prob.fit(structure, np.asarray(mask, bool), prob.point(structure, sensor2flange, centre))
     jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
+        return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
     found = []
     for effect in effects.catalogue():
         name = effect.NAME
@@ -467,27 +474,31 @@ def _final_outliers(prob, structure, fit, mask, alpha):
     flips = set(structure.flips)
     for _ in range(prob.n):
         changed = False
+        predict = prediction_test(fit.e, fit.jac, mask)
         for i in np.where(~mask)[0]:
             flipped = dataclasses.replace(structure, flips=frozenset(flips | {i}))
-            e_flip, j_flip, _ = prob.evaluate(flipped, fit.x, fit.params)
+            e_flip, j_flip, _ = prob.evaluate(flipped, fit.x, fit.params, rows=[i])
             # the flipped sample must be consistent with the fit of the others: its externally
             # studentised prediction statistic, Bonferroni over the samples, not significant
-            _, pval = deletion_statistics(e_flip, j_flip, mask)
-            if min(pval[i] * prob.n, 1.0) >= alpha:
+            _, pval = predict(e_flip[0], j_flip[0])
+            if min(pval * prob.n, 1.0) >= alpha:
                 flips.add(i)
                 structure = flipped
                 mask[i] = True
                 changed = True
                 fit = prob.fit(structure, mask, fit.x, fit.params)  # the next candidate against this fit
+                predict = prediction_test(fit.e, fit.jac, mask)
         _, pval = deletion_statistics(fit.e, fit.jac, mask)
         adj = np.minimum(pval * prob.n, 1.0)
         back = np.where(~mask & (adj >= alpha))[0]
         bad = np.where(mask & (adj < alpha))[0]
+        together = prob.n > robust.LOO_EXACT_UP_TO  # many samples: all at once (linear, not quadratic)
         if len(back):
-            mask[back[np.argmax(adj[back])]] = True
+            mask[back if together else back[np.argmax(adj[back])]] = True
             changed = True
         elif len(bad) and mask.sum() > max(prob.n // 2 + 1, 4):
-            mask[bad[np.argmin(adj[bad])]] = False
+            room = int(mask.sum()) - max(prob.n // 2 + 1, 4)
+            mask[bad[np.argsort(adj[bad])][:room] if together else bad[np.argmin(adj[bad])]] = False
             changed = True
         fit = prob.fit(structure, mask, fit.x, fit.params)
         if not changed:
@@ -596,6 +607,7 @@ def figures(res, out):
     """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
     import pathlib
 
+    from handeye.app.files import save_figure_atomically
     from handeye.app.plotting import figure
 
     out = pathlib.Path(out)
@@ -613,7 +625,7 @@ def figures(res, out):
     ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res.dataset}: residuals per measurement")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "residuals.png", dpi=120)
+    save_figure_atomically(fig, out / "residuals.png", option="--figures")
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(6, 4))
     labels = [s.step for s in res.steps]
@@ -623,6 +635,6 @@ def figures(res, out):
     ax.tick_params(axis="x", rotation=20)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "gap.png", dpi=120)
+    save_figure_atomically(fig, out / "gap.png", option="--figures")
     plt.close(fig)
     return [out / "residuals.png", out / "gap.png"]

@@ -39,8 +39,23 @@ def provenance(dataset, options):
 
 
 def input_files(dataset):
-    """The files a dataset is read from (resolved, symlinks followed): never to be written over."""
-    return {f.resolve() for f in pathlib.Path(dataset.path).rglob("*") if f.is_file() and f.suffix in (".csv", ".toml")}
+    """The files a dataset is read from (resolved, symlinks followed): never to be written over.
+
+    Every CSV and TOML file of its folder and every profile it read, whatever its name.
+    """
+    files = {f.resolve() for f in pathlib.Path(dataset.path).rglob("*") if f.is_file() and f.suffix in (".csv", ".toml")}
+    return files | {pathlib.Path(p).resolve() for p in getattr(dataset, "profile_files", ())}
+
+
+#: Figure formats --plot writes (by the file's extension).
+PLOT_FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
+
+
+def _same_file(a, b):
+    try:
+        return os.path.samefile(a, b)  # hard links and symlinks included
+    except OSError:
+        return False
 
 
 def _writable(folder, option, path):
@@ -51,7 +66,7 @@ def _writable(folder, option, path):
         raise RequestError(f"{option} {path}: cannot write in {folder}: {exc.strerror or exc}") from None
 
 
-def check_output_path(path, option, inputs=()):
+def check_output_path(path, option, inputs=(), plot=False):
     """Refuse, before any work, an output file that cannot be written or that is an input.
 
     The folder must exist and take a new file; the path must not be a folder, nor resolve
@@ -63,9 +78,13 @@ def check_output_path(path, option, inputs=()):
         raise RequestError(f"{option} {path}: folder {folder} does not exist")
     if target.is_dir():
         raise RequestError(f"{option} {path}: is a folder; give a file name")
+    if target.exists() and not target.is_file():
+        raise RequestError(f"{option} {path}: is not a regular file (a device or a pipe); give a file name")
     resolved = target.resolve()
-    if resolved in {pathlib.Path(i).resolve() for i in inputs}:
+    if resolved in {pathlib.Path(i).resolve() for i in inputs} or any(_same_file(target, i) for i in inputs):
         raise RequestError(f"{option} {path}: is a file this command reads; it would be overwritten -- choose another")
+    if plot and target.suffix.lower().lstrip(".") not in PLOT_FORMATS:
+        raise RequestError(f"{option} {path}: a figure needs one of the extensions {', '.join(PLOT_FORMATS)}")
     _writable(folder, option, path)
     return target
 
@@ -108,6 +127,40 @@ def write_text_atomically(path, text, option="--out"):
     except OSError as exc:
         if name is not None and os.path.exists(name):
             os.unlink(name)  # never leave the temporary file behind
+        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+
+
+def save_figure_atomically(fig, path, option="--plot", dpi=120):
+    """``fig.savefig`` through a temporary file and a rename, as every output: a hard link or an
+    existing file is replaced, never written into."""
+    target = pathlib.Path(path)
+    folder = target.parent if str(target.parent) else pathlib.Path(".")
+    name = None
+    try:
+        with tempfile.NamedTemporaryFile("wb", dir=folder, prefix=f".{target.name}.", suffix=".tmp",
+                                         delete=False) as fh:
+            name = fh.name
+            fig.savefig(fh, format=target.suffix.lower().lstrip(".") or "png", dpi=dpi)
+        os.replace(name, target)
+    except OSError as exc:
+        if name is not None and os.path.exists(name):
+            os.unlink(name)
+        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+
+
+def write_bytes_atomically(path, data, option="--out"):
+    """Bytes through a temporary file and a rename (as :func:`write_text_atomically`)."""
+    target = pathlib.Path(path)
+    folder = target.parent if str(target.parent) else pathlib.Path(".")
+    name = None
+    try:
+        with tempfile.NamedTemporaryFile("wb", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
+            name = fh.name
+            fh.write(data)
+        os.replace(name, target)
+    except OSError as exc:
+        if name is not None and os.path.exists(name):
+            os.unlink(name)
         raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
 
 

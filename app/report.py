@@ -92,6 +92,7 @@ def calibration_plot(res, dataset, path):
         The dataset ``res`` was calibrated on.
     path : str or pathlib.Path
     """
+    from handeye.app.files import save_figure_atomically
     from handeye.app.plotting import figure
 
     plt = figure()
@@ -99,7 +100,7 @@ def calibration_plot(res, dataset, path):
         fig, ax = plt.subplots(figsize=(6, 2))
         ax.axis("off")
         ax.text(0.5, 0.5, f"{res.dataset}: no finite solution ({res.message})", ha="center", va="center", wrap=True)
-        fig.savefig(path, dpi=120)
+        save_figure_atomically(fig, path)
         plt.close(fig)
         return
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
@@ -123,5 +124,5 @@ def calibration_plot(res, dataset, path):
                 title="sphere centres through the chain", aspect="equal")
     axes[1].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure_atomically(fig, path)
     plt.close(fig)

@@ -131,6 +131,7 @@ class Dataset:
     noise_centre_mm: float = 0.05
     noise_robot_mm: float = 0.025
     reconstructed: tuple | None = None
+    profile_files: tuple = ()
 
     def flange2base(self):
         """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
@@ -164,9 +165,14 @@ class Dataset:
         import hashlib
 
         h = hashlib.sha256()
-        for path in sorted(p for p in self.path.rglob("*") if p.is_file() and p.suffix in (".csv", ".toml")):
-            h.update(str(path.relative_to(self.path)).encode())
-            h.update(path.read_bytes())
+        files = {str(p.relative_to(self.path)): p for p in self.path.rglob("*")
+                 if p.is_file() and p.suffix in (".csv", ".toml")}
+        base = self.path.resolve()
+        for p in self.profile_files:  # whatever their names: what was read (inside the folder, checked)
+            files.setdefault(str(pathlib.Path(p).relative_to(base)), pathlib.Path(p))
+        for name in sorted(files):
+            h.update(name.encode())
+            h.update(files[name].read_bytes())
         return h.hexdigest()
 
 
@@ -188,6 +194,8 @@ def resolve(name_or_path):
 
 
 def _number(text, file, row, column):
+    if "_" in str(text):  # Python reads 1_000 as 1000; a CSV of measurements should not
+        raise DatasetError(file, f"not a number: {text!r}", row, column)
     try:
         v = float(text)
     except (TypeError, ValueError):
@@ -206,10 +214,30 @@ def _vector(table, key, n, file, section):
         raise DatasetError(file, f"needs a list of {n} numbers, got {value!r}", column=col)
     out = []
     for v in value:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise DatasetError(file, f"needs finite numbers, got {v!r}", column=col)
-        out.append(float(v))
+        number = _toml_number(v)
+        if number is None:
+            raise DatasetError(file, f"needs finite numbers, got {str(v)[:40]!r}", column=col)
+        out.append(number)
     return np.array(out)
+
+
+def _bounded(value, bounds, file, column):
+    number = _toml_number(value)
+    if number is None or not bounds[0] <= number <= bounds[1]:
+        raise DatasetError(file, f"needs a number of mm in [{bounds[0]:g}, {bounds[1]:g}], got {str(value)[:40]!r}",
+                           column=column)
+    return number
+
+
+def _toml_number(v):
+    """A TOML value as a finite float, or None (a bool, text, NaN, or an integer too big for a float)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    try:
+        number = float(v)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
 
 
 #: Principal ranges of controller readings per angle convention (degrees): flange and plate
@@ -252,6 +280,9 @@ _ALLOWED = {
 #: coordinate the sensor reports. Beyond them a value is a slip (a unit, a misprint, 1e300), named
 #: with its row and column; ``[limits] position_mm`` and ``sensor_mm`` in setup.toml change them.
 LIMIT_POSITION_MM = 20_000.0
+#: What [noise] and [limits] values may be (mm): beyond these no arithmetic on them is meaningful.
+NOISE_RANGE_MM = (1e-6, 1e3)
+LIMIT_RANGE_MM = (1.0, 1e7)
 LIMIT_SENSOR_MM = 5_000.0  # loose: thesis-real misprints one zs as 2237 mm, which screening names
 
 #: Default noise model: per-component sd of a sphere centre through the chain (robot
@@ -296,9 +327,10 @@ def _read_setup(path):
         else:
             start = _to_kuka(start, convention, file, None, "[sensor] start_pose")
     sphere = doc.get("sphere", {})
-    diam = sphere.get("diameter")
-    if isinstance(diam, bool) or not isinstance(diam, (int, float)) or not math.isfinite(diam) or diam <= 0:
-        raise DatasetError(file, f"needs a positive number (mm), got {diam!r}", column="[sphere] diameter")
+    diam = _toml_number(sphere.get("diameter"))
+    if diam is None or diam <= 0:
+        raise DatasetError(file, f"needs a positive number (mm), got {str(sphere.get('diameter'))[:40]!r}",
+                           column="[sphere] diameter")
     plate_pose = centre_in_plate = None
     if "center" in sphere:
         if "base_pose" in sphere or "center_in_plate" in sphere:
@@ -329,20 +361,14 @@ def _read_setup(path):
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
     noise = {}
     for key in ("centre_mm", "robot_mm"):
-        value = doc.get("noise", {}).get(key)
-        if value is None:
+        if doc.get("noise", {}).get(key) is None:
             continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-            raise DatasetError(file, f"needs a positive number (mm), got {value!r}", column=f"[noise] {key}")
-        noise[key] = float(value)
+        noise[key] = _bounded(doc["noise"][key], NOISE_RANGE_MM, file, f"[noise] {key}")
     limits = {"position_mm": LIMIT_POSITION_MM, "sensor_mm": LIMIT_SENSOR_MM}
     for key in limits:
-        value = doc.get("limits", {}).get(key)
-        if value is None:
+        if doc.get("limits", {}).get(key) is None:
             continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-            raise DatasetError(file, f"needs a positive number (mm), got {value!r}", column=f"[limits] {key}")
-        limits[key] = float(value)
+        limits[key] = _bounded(doc["limits"][key], LIMIT_RANGE_MM, file, f"[limits] {key}")
     noise["limits"] = limits
     bound = limits["position_mm"]
     for what, vector in (("[sensor] start_pose", start), ("[sphere] center", centre), ("[sphere] base_pose", plate_pose)):
@@ -363,15 +389,20 @@ def _to_kuka(pose, convention, file, row, column):
         raise DatasetError(file, str(exc), row, column or names) from None
 
 
-def _read_profile(folder, rel, file, row):
+def _read_profile(folder, rel, file, row, limit=None):
     """Points (K, 2) of a profile CSV with header ``x,z``; errors name the profile file.
 
     The path must lie inside the dataset folder: what the dataset's hash covers is what it reads.
     """
     pfile = folder / rel
-    if pathlib.Path(rel).is_absolute() or not pfile.resolve().is_relative_to(folder.resolve()):
+    try:
+        inside = not pathlib.Path(rel).is_absolute() and pfile.resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError, ValueError) as exc:  # a symlink loop, a NUL byte in the name
+        raise DatasetError(file, f"profile path {rel!r} cannot be used: {exc}", row, "profile") from None
+    if not inside:
         raise DatasetError(file, f"profile path {rel!r} leaves the dataset folder; keep profiles inside it (the "
                                  "dataset's hash covers only its folder)", row, "profile")
+    limit = LIMIT_SENSOR_MM if limit is None else limit
     rows = _read_table(pfile, file_row=(file, row))
     if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
         raise DatasetError(pfile, "header must be 'x,z'", 1)
@@ -381,7 +412,12 @@ def _read_profile(folder, rel, file, row):
             continue
         if len(r) != 2:
             raise DatasetError(pfile, f"expected 2 fields, got {len(r)}", k)
-        pts.append([_number(r[0], pfile, k, "x"), _number(r[1], pfile, k, "z")])
+        point = [_number(r[0], pfile, k, "x"), _number(r[1], pfile, k, "z")]
+        for v, c in zip(point, "xz"):
+            if abs(v) > limit:
+                raise DatasetError(pfile, f"{v:g} mm is beyond the sensor's plausible range +-{limit:g} mm "
+                                          "([limits] sensor_mm in setup.toml sets it)", k, c)
+        pts.append(point)
     if len(pts) < 3:
         raise DatasetError(pfile, f"a circle needs at least 3 points, got {len(pts)}")
     return np.array(pts)
@@ -556,7 +592,7 @@ def load(name_or_path):
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
-    ids, rows, poses, centres, profiles, reconstructed = [], [], [], [], [], []
+    ids, rows, poses, centres, profiles, reconstructed, profile_files = [], [], [], [], [], [], []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -575,7 +611,9 @@ def load(name_or_path):
             pose = _to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
-        points = _read_profile(folder, profile, file, line) if profile else None
+        points = _read_profile(folder, profile, file, line, limits["sensor_mm"]) if profile else None
+        if profile:
+            profile_files.append((folder / profile).resolve())
         if all(cells) or not profile:
             xs = [_number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
             for v, c in zip(xs, ("xs", "ys", "zs")):
@@ -610,6 +648,7 @@ def load(name_or_path):
         truth=truth,
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
         reconstructed=tuple(reconstructed),
+        profile_files=tuple(sorted(set(profile_files))),
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
         noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),

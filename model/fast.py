@@ -136,6 +136,18 @@ def _load(path):
     return dll
 
 
+def _digest(path):
+    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+
+
+def _intact(lib):
+    """True when ``lib`` is the file its build recorded (the SHA-256 written beside it)."""
+    try:
+        return lib.is_file() and lib.with_name(lib.name + ".sha256").read_text().strip() == _digest(lib)
+    except OSError:
+        return False
+
+
 def _remove_stale_builds(folder):
     import time
 
@@ -162,7 +174,10 @@ def _build(lib, generated, driver, flags):
                            check=True, capture_output=True, timeout=300)
             if _load(out) is None:  # a compiler that exits 0 but writes a broken library
                 return None
+            digest = pathlib.Path(tmp) / "lib.sha256"
+            digest.write_text(_digest(out))
             os.replace(out, lib)  # atomic: parallel workers never load a half-written library
+            os.replace(digest, lib.with_name(lib.name + ".sha256"))
     except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired):
         return None
     return _load(lib)
@@ -183,7 +198,7 @@ def library():
     folder = codegen.cache_dir() / "c"
     lib = folder / f"fast_lm_{key}.so"
     _remove_stale_builds(folder)
-    dll = _load(lib) if lib.is_file() else None
+    dll = _load(lib) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
     if dll is None:  # missing, or damaged (truncated, emptied): build it again
         dll = _build(lib, generated, driver, flags)
     if dll is None:

@@ -147,7 +147,11 @@ def in_workspace(flange_poses, workspace):
 def score(flange_poses, setup, sphere_centre):
     """Predicted 1-sd bounds (Cramer-Rao; mm, deg) of a given pose list, and its log det."""
     info = bounds.information(flange_poses, setup, sphere_centre).sum(axis=0)
-    return predicted_sd(info), float(logdet(info))
+    try:
+        return predicted_sd(info), float(logdet(info))
+    except np.linalg.LinAlgError:
+        raise PlanningError("these poses do not determine the sensor pose (identical or only translated poses?)") \
+            from None
 
 
 @dataclasses.dataclass
@@ -174,6 +178,10 @@ def plan(candidate_ids, candidate_poses, n, setup, sphere_centre):
         raise PlanningError(f"only {len(keep)} candidate poses see the sphere; cannot choose {n}")
     info = np.array(infos)
     chosen, value = select(info, n)
+    try:
+        sd = predicted_sd(info[chosen].sum(axis=0))
+    except np.linalg.LinAlgError:
+        raise PlanningError(f"the {n} poses chosen do not determine the sensor pose (the candidates are too alike: "
+                            "identical or only translated poses?)") from None
     idx = [keep[c] for c in chosen]
-    return Plan([candidate_ids[i] for i in idx], np.asarray(candidate_poses)[idx], value,
-                predicted_sd(info[chosen].sum(axis=0)), skipped)
+    return Plan([candidate_ids[i] for i in idx], np.asarray(candidate_poses)[idx], value, sd, skipped)

@@ -82,31 +82,40 @@ def _gammainc_upper(a, x, iterations=500):
     return np.clip(np.where(np.isnan(x) | np.isnan(a), np.nan, out), 0.0, 1.0)
 
 
-def _betacf(a, b, x, iterations=500):
+def _betacf(a, b, x, iterations=500, tol=3e-16):
+    """Continued fraction of the incomplete beta (modified Lentz), iterating only on the elements
+    that have not converged yet (``tol`` relative, about the rounding of one step)."""
     tiny = 1e-300
+    a, b, x = (np.ravel(np.asarray(v, float)).copy() for v in np.broadcast_arrays(a, b, x))
+    shape = np.broadcast(*np.broadcast_arrays(a, b, x)).shape
     qab, qap, qam = a + b, a + 1.0, a - 1.0
     c = np.ones_like(x)
     d = 1.0 - qab * x / qap
     d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
     h = d.copy()
+    active = np.arange(len(x))
     for m in range(1, iterations):
-        m2 = 2 * m
-        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
-        d = 1.0 + aa * d
-        d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
-        c = 1.0 + aa / c
-        c = np.where(np.abs(c) < tiny, tiny, c)
-        h = h * d * c
-        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
-        d = 1.0 + aa * d
-        d = 1.0 / np.where(np.abs(d) < tiny, tiny, d)
-        c = 1.0 + aa / c
-        c = np.where(np.abs(c) < tiny, tiny, c)
-        delta = d * c
-        h = h * delta
-        if np.all(np.abs(delta - 1.0) <= 1e-16):
+        if not len(active):
             break
-    return h
+        aa_, bb, xx, qa, qp, qm = a[active], b[active], x[active], qab[active], qap[active], qam[active]
+        cc, dd = c[active], d[active]
+        m2 = 2 * m
+        aa = m * (bb - m) * xx / ((qm + m2) * (aa_ + m2))
+        dd = 1.0 + aa * dd
+        dd = 1.0 / np.where(np.abs(dd) < tiny, tiny, dd)
+        cc = 1.0 + aa / cc
+        cc = np.where(np.abs(cc) < tiny, tiny, cc)
+        factor = dd * cc
+        aa = -(aa_ + m) * (qa + m) * xx / ((aa_ + m2) * (qp + m2))
+        dd = 1.0 + aa * dd
+        dd = 1.0 / np.where(np.abs(dd) < tiny, tiny, dd)
+        cc = 1.0 + aa / cc
+        cc = np.where(np.abs(cc) < tiny, tiny, cc)
+        delta = dd * cc
+        h[active] *= factor * delta
+        c[active], d[active] = cc, dd
+        active = active[~(np.abs(delta - 1.0) <= tol) & np.isfinite(delta)]
+    return h.reshape(shape)
 
 
 def _betainc(a, b, x):
@@ -215,6 +224,25 @@ def covariance(residual, jacobian, groups=None):
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = cov / np.outer(np.where(std > 0, std, 1.0), np.where(std > 0, std, 1.0))
     return Covariance(float(np.sqrt(sigma2)), dof, cov, std, corr)
+
+
+def prediction_test(e_all, j_all, fitted):
+    """A function ``(e_i (3,), J_i (3, p)) -> (T_i, p-value)``: the statistic of a sample left out
+    of the fit on ``fitted`` (module docstring), for one sample at a time without re-deriving the
+    fit's information each time (as :func:`deletion_statistics` does for all of them)."""
+    fitted = np.asarray(fitted, bool)
+    jf = np.asarray(j_all, float)[fitted].reshape(-1, np.shape(j_all)[2])
+    ef = np.asarray(e_all, float)[fitted].ravel()
+    m, p = jf.shape
+    info_inv = np.linalg.pinv(jf.T @ jf)
+    scale = 3.0 * float(ef @ ef) / (m - p) if m > p else float("nan")
+
+    def test(e, j):
+        h = j @ info_inv @ j.T
+        stat = float(e @ np.linalg.solve(np.eye(3) + h, e)) / scale
+        return stat, f_survival(stat, 3, m - p)
+
+    return test
 
 
 def deletion_statistics(e_all, j_all, fitted):

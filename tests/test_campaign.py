@@ -247,3 +247,110 @@ def test_ctrl_c_exits_130_with_one_line(capsys, monkeypatch):
     monkeypatch.setattr(api, "calibrate", interrupted)
     code, out, err = _run(capsys, "calibrate", "thesis-sim")
     assert code == 130 and err.strip() == "handeye: interrupted"
+
+
+# -- a second campaign (an independent tester's 335 cases) ------------------------------------------
+
+def test_outputs_never_replace_inputs_by_any_name_link_or_kind(tmp_path, capsys):
+    s = handeye.simulate(tmp_path / "p", seed=1, n_poses=8, profiles=True)
+    lines = (s.path / "measurements.csv").read_text().splitlines()
+    cells = lines[1].split(",")
+    (s.path / "profiles" / cells[-1].split("/")[-1]).rename(s.path / "profiles" / "p.txt")
+    cells[-1] = "profiles/p.txt"
+    lines[1] = ",".join(cells)
+    (s.path / "measurements.csv").write_text("\n".join(lines) + "\n")
+    before = (s.path / "profiles" / "p.txt").read_bytes()
+    code, _, err = _run(capsys, "calibrate", s.path, "--out", s.path / "profiles" / "p.txt")
+    assert code == cli.EXIT_BAD_INPUT and (s.path / "profiles" / "p.txt").read_bytes() == before
+    os.link(s.path / "measurements.csv", tmp_path / "hl.png")  # a hard link to an input
+    code, _, err = _run(capsys, "calibrate", s.path, "--plot", tmp_path / "hl.png")
+    assert code == cli.EXIT_BAD_INPUT and "reads" in err
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / "residuals.png").symlink_to(s.path / "measurements.csv")
+    code, _, err = _run(capsys, "diagnose", s.path, "--figures", figs)
+    assert code == cli.EXIT_BAD_INPUT and (s.path / "measurements.csv").read_text().startswith("id,")
+    os.mkfifo(tmp_path / "fifo")
+    code, _, err = _run(capsys, "calibrate", "thesis-sim", "--out", tmp_path / "fifo")
+    assert code == cli.EXIT_BAD_INPUT and "regular file" in err and (tmp_path / "fifo").is_fifo()
+    code, _, err = _run(capsys, "calibrate", "thesis-sim", "--plot", tmp_path / "r.txt")
+    assert code == cli.EXIT_BAD_INPUT and "extensions" in err
+
+
+def test_huge_profile_values_and_odd_paths_are_named_fast(tmp_path, capsys):
+    import time
+
+    s = handeye.simulate(tmp_path / "p", seed=2, n_poses=8, profiles=True)
+    profile = next((s.path / "profiles").glob("*.csv"))
+    rows = profile.read_text().splitlines()
+    rows[4] = "1e160,200"
+    profile.write_text("\n".join(rows) + "\n")
+    t0 = time.perf_counter()
+    code, _, err = _run(capsys, "calibrate", s.path)
+    assert code == cli.EXIT_BAD_INPUT and "[limits] sensor_mm" in err and time.perf_counter() - t0 < 30
+    profile.unlink()
+    profile.symlink_to(profile.name)  # a symlink to itself
+    code, _, err = _run(capsys, "calibrate", s.path)
+    assert code == cli.EXIT_BAD_INPUT and "profile" in err
+
+
+@pytest.mark.parametrize("toml", ["diameter = 1" + "0" * 400, "centre_mm = 1e-300", "centre_mm = 1e300",
+                                  "sensor_mm = 1e308"])
+def test_absurd_setup_numbers_are_bad_input(tmp_path, capsys, toml):
+    d = _copy(tmp_path)
+    setup = (d / "setup.toml").read_text()
+    if toml.startswith("diameter"):
+        setup = "\n".join(toml if line.startswith("diameter") else line for line in setup.splitlines())
+    else:
+        setup += f"\n[{'noise' if 'centre' in toml else 'limits'}]\n{toml}\n"
+    (d / "setup.toml").write_text(setup)
+    code, _, err = _run(capsys, "calibrate", d)
+    assert code == cli.EXIT_BAD_INPUT and "setup.toml" in err
+
+
+def test_more_bad_options_and_cells(tmp_path, capsys):
+    for argv in (("calibrate", "thesis-sim", "--sigma", "1e-200"), ("diagnose", "thesis-sim", "--sigma", "1e-200"),
+                 ("calibrate", "thesis-sim", "--effects", ""), ("calibrate", "thesis-sim", "--effects", ","),
+                 ("calibrate", "thesis-sim", "--effects", "sensor_scale")):
+        code, _, err = _run(capsys, *argv)
+        assert code == cli.EXIT_BAD_INPUT and err.count("\n") == 1, (argv, err)
+    d = _copy(tmp_path)
+    _edit_cell(d, 3, "x", "1_000")
+    code, _, err = _run(capsys, "calibrate", d)
+    assert code == cli.EXIT_BAD_INPUT and "row 3, column 'x'" in err
+    same = tmp_path / "c.csv"
+    same.write_text("id,x,y,z,a,b,c\n" + "".join(f"p{k},1400,-600,1300,0,0,180\n" for k in range(20)))
+    code, _, err = _run(capsys, "plan", "--candidates", same, "--n", "6")
+    assert code == cli.EXIT_BAD_INPUT
+
+
+def test_a_truncated_library_is_never_loaded(tmp_path):
+    cache = tmp_path / "cache"
+    assert "OK True True" in _calibrate_in_subprocess(cache).stdout
+    (so,) = list((cache / "c").glob("*.so"))
+    data = so.read_bytes()
+    so.write_bytes(data[: len(data) // 2])  # dlopen of this can crash the process (SIGBUS)
+    healed = _calibrate_in_subprocess(cache)
+    assert healed.returncode == 0 and "OK True True" in healed.stdout, healed.stderr
+    assert so.read_bytes() == data
+
+
+def test_output_that_cannot_be_written_is_one_line(tmp_path):
+    with open("/dev/full", "w") as full:
+        out = subprocess.run([sys.executable, "-m", "handeye.app.cli", "calibrate", "thesis-sim", "--no-loo"],
+                             stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert out.returncode == cli.EXIT_BAD_INPUT and "cannot write the output" in out.stderr
+
+
+def test_ctrl_c_ends_a_running_study_at_once(tmp_path):
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from handeye.app.cli import main; sys.exit(main())",
+                             "study", "random-starts", "--out", str(tmp_path / "x"), "--jobs", "1"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    time.sleep(3.0)
+    proc.send_signal(signal.SIGINT)
+    t0 = time.perf_counter()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "handeye: interrupted" in err and time.perf_counter() - t0 < 10
