@@ -204,9 +204,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     if unknowns not in UNKNOWNS:
         raise RequestError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
     data = load_dataset(dataset)
+    inputs = input_files(data) if out is not None or plot is not None else ()
     for path, option in ((out, "--out"), (plot, "--plot")):
         if path is not None:  # before the work (never half a result), and never over an input
-            check_output_path(path, option, inputs=input_files(data), plot=option == "--plot")
+            check_output_path(path, option, inputs=inputs, plot=option == "--plot")
     convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
     for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
@@ -267,8 +268,9 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if sigma is not None:
         _number(sigma, "--sigma", 1e-6, 1e3)
     data = load_dataset(dataset)
+    inputs = input_files(data) if (out, figures, plot) != (None, None, None) else ()
     if out is not None:
-        check_output_path(out, "--out", inputs=input_files(data))
+        check_output_path(out, "--out", inputs=inputs)
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
                            "known sphere centre; give it (or calibrate with unknowns='sensor+sphere')")
@@ -276,9 +278,9 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         check_output_folder(figures, "--figures")
         if pathlib.Path(figures).is_dir():  # the two files it will write: never over an input
             for name in ("residuals.png", "gap.png"):
-                check_output_path(pathlib.Path(figures) / name, "--figures", inputs=input_files(data))
+                check_output_path(pathlib.Path(figures) / name, "--figures", inputs=inputs)
     if plot is not None:
-        check_output_path(plot, "--plot", inputs=input_files(data), plot=True)
+        check_output_path(plot, "--plot", inputs=inputs, plot=True)
     from handeye.app import slips
     from handeye.app.calibrate import gate
 

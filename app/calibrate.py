@@ -568,9 +568,7 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
             "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
-    cov = extended.sigma2 * np.linalg.pinv(jac.T @ jac)
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    corr = cov / np.outer(np.where(std > 0, std, 1), np.where(std > 0, std, 1))
+    std, corr = extended.uncertainty(mask)
     index = {n: k for k, n in enumerate(extended.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
                          {p: float(std[index[f"{n}.{p}"]]) for p in _effect_params(n)}) for n in names]

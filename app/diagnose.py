@@ -76,6 +76,15 @@ class Fit:
     def sigma2(self):
         return self.ssr / max(self.m - self.p, 1)
 
+    def uncertainty(self, mask):
+        """1-sd (step units: mm, rad, effect units) and correlation of every parameter, from
+        ``sigma^2 (J^T J)^+`` over the samples in ``mask``."""
+        jac = self.jac[mask].reshape(-1, self.p)
+        cov = self.sigma2 * np.linalg.pinv(jac.T @ jac)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        scale = np.where(std > 0, std, 1.0)
+        return std, cov / np.outer(scale, scale)
+
 
 class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
@@ -510,9 +519,7 @@ def _final_outliers(prob, structure, fit, mask, alpha):
 def _report(prob, structure, fit, mask, before, after, before_norms, steps, absorbed, tested, flips, outliers,
             screening):
     d = prob.d
-    cov = fit.sigma2 * np.linalg.pinv(fit.jac[mask].reshape(-1, fit.p).T @ fit.jac[mask].reshape(-1, fit.p))
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
-    corr = cov / np.outer(np.where(std > 0, std, 1), np.where(std > 0, std, 1))
+    std, corr = fit.uncertainty(mask)
     index = {name: k for k, name in enumerate(fit.names)}
     named, all_cols = [], []
     if structure.centre:

@@ -107,20 +107,19 @@ def check_output_folder(path, option, empty=False):
     return target
 
 
-def write_text_atomically(path, text, option="--out"):
-    """Write ``text`` to ``path`` through a temporary file and a rename: never a half-written file.
-
-    Raises :class:`RequestError` naming ``option`` when the folder does not exist.
-    """
+def _atomically(path, option, mode, write):
+    """Call ``write(file)`` on a temporary file beside ``path``, then rename it over ``path``: never a
+    half-written file, a hard link or an existing file replaced rather than written into, and the
+    temporary file removed when anything fails. Raises :class:`RequestError` naming ``option``."""
     target = pathlib.Path(path)
     folder = target.parent if str(target.parent) else pathlib.Path(".")
     if not folder.is_dir():
         raise RequestError(f"{option} {path}: folder {folder} does not exist")
     name = None
     try:
-        with tempfile.NamedTemporaryFile("w", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
+        with tempfile.NamedTemporaryFile(mode, dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
             name = fh.name
-            fh.write(text)
+            write(fh)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(name, target)
@@ -130,38 +129,20 @@ def write_text_atomically(path, text, option="--out"):
         raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
 
 
+def write_text_atomically(path, text, option="--out"):
+    """Write ``text`` to ``path`` through a temporary file and a rename (:func:`_atomically`)."""
+    _atomically(path, option, "w", lambda fh: fh.write(text))
+
+
 def save_figure_atomically(fig, path, option="--plot", dpi=120):
-    """``fig.savefig`` through a temporary file and a rename, as every output: a hard link or an
-    existing file is replaced, never written into."""
-    target = pathlib.Path(path)
-    folder = target.parent if str(target.parent) else pathlib.Path(".")
-    name = None
-    try:
-        with tempfile.NamedTemporaryFile("wb", dir=folder, prefix=f".{target.name}.", suffix=".tmp",
-                                         delete=False) as fh:
-            name = fh.name
-            fig.savefig(fh, format=target.suffix.lower().lstrip(".") or "png", dpi=dpi)
-        os.replace(name, target)
-    except OSError as exc:
-        if name is not None and os.path.exists(name):
-            os.unlink(name)
-        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+    """``fig.savefig`` through a temporary file and a rename, as every output (:func:`_atomically`)."""
+    fmt = pathlib.Path(path).suffix.lower().lstrip(".") or "png"
+    _atomically(path, option, "wb", lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))
 
 
 def write_bytes_atomically(path, data, option="--out"):
-    """Bytes through a temporary file and a rename (as :func:`write_text_atomically`)."""
-    target = pathlib.Path(path)
-    folder = target.parent if str(target.parent) else pathlib.Path(".")
-    name = None
-    try:
-        with tempfile.NamedTemporaryFile("wb", dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
-            name = fh.name
-            fh.write(data)
-        os.replace(name, target)
-    except OSError as exc:
-        if name is not None and os.path.exists(name):
-            os.unlink(name)
-        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+    """Bytes through a temporary file and a rename (:func:`_atomically`)."""
+    _atomically(path, option, "wb", lambda fh: fh.write(data))
 
 
 def write_json_atomically(path, data, option="--out"):

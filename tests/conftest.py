@@ -80,3 +80,20 @@ def _private_cache(tmp_path_factory):
         os.environ.pop("HANDEYE_CACHE", None)
     else:
         os.environ["HANDEYE_CACHE"] = old
+
+
+@pytest.fixture
+def break_solver(monkeypatch):
+    """Call to make every solve of a calibration end at a non-finite point (a numerical failure)."""
+    import dataclasses
+
+    from handeye.app import calibrate as engine
+
+    real_solve = engine.solvers.solve
+
+    def broken(problem, x0, method, options=None):
+        res = real_solve(problem, x0, method=method, options=options)
+        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1,
+                                   message="numerical failure (injected)")
+
+    return lambda: monkeypatch.setattr(engine.solvers, "solve", broken)

@@ -1,6 +1,5 @@
 """The public Python API: `import handeye`, the CLI's options as keywords, typed results whose
 `to_dict()` is the CLI's JSON, every exit a complete result, one bad-input error class."""
-import dataclasses
 import inspect
 import json
 
@@ -115,17 +114,10 @@ def test_cli_maps_exactly_input_errors_to_exit_2(capsys, monkeypatch):
     assert "internal error" in capsys.readouterr().err
 
 
-def test_a_non_finite_solve_builds_the_complete_result_and_exits_1(capsys, monkeypatch):
+def test_a_non_finite_solve_builds_the_complete_result_and_exits_1(capsys, break_solver):
     """The early exit of a numerical failure: same type, same keys, a report, exit 1 (not 3)."""
-    real_solve = engine.solvers.solve
-
-    def broken(problem, x0, method, options=None):
-        res = real_solve(problem, x0, method=method, options=options)
-        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1,
-                                   message="numerical failure (injected)")
-
     complete = set(handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True).to_dict())
-    monkeypatch.setattr(engine.solvers, "solve", broken)
+    break_solver()
     r = handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True)
     assert not r.converged and r.std is None and r.identifiability is None and r.rms_mm is None
     assert set(r.to_dict()) == complete
@@ -211,14 +203,8 @@ def test_more_bad_arguments_are_input_errors(tmp_path, capsys):
         handeye.load_dataset(folder)
 
 
-def test_a_non_finite_solve_in_another_convention_and_its_plot(tmp_path, monkeypatch):
-    real_solve = engine.solvers.solve
-
-    def broken(problem, x0, method, options=None):
-        res = real_solve(problem, x0, method=method, options=options)
-        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1)
-
-    monkeypatch.setattr(engine.solvers, "solve", broken)
+def test_a_non_finite_solve_in_another_convention_and_its_plot(tmp_path, break_solver):
+    break_solver()
     r = handeye.calibrate("thesis-sim", method="lm", no_loo=True, keep_all=True, convention="abb",
                           plot=tmp_path / "p.png")
     assert len(r.sensor_pose) == len(r.columns) == 7 and r.n_used == len(r.residuals)

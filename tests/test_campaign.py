@@ -8,7 +8,6 @@ import shutil
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 import handeye
@@ -90,20 +89,11 @@ def test_absurd_values_are_named_by_row_and_column(tmp_path, capsys, rows):
     assert code == cli.EXIT_BAD_INPUT and "--start" in err
 
 
-def test_json_is_strict(capsys, monkeypatch):
+def test_json_is_strict(capsys, break_solver):
     """A NaN in a result is written as null, never as NaN (invalid JSON)."""
-    import dataclasses
     import json
 
-    from handeye.app import calibrate as engine
-
-    real_solve = engine.solvers.solve
-
-    def broken(problem, x0, method, options=None):
-        res = real_solve(problem, x0, method=method, options=options)
-        return dataclasses.replace(res, x=np.full_like(res.x, np.nan), converged=False, status=-1)
-
-    monkeypatch.setattr(engine.solvers, "solve", broken)
+    break_solver()
     code, out, _ = _run(capsys, "calibrate", "thesis-sim", "--method", "lm", "--keep-all", "--no-loo", "--json")
     assert code == cli.EXIT_NOT_CONVERGED
     res = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-finite {c} in the JSON"))
