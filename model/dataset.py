@@ -29,7 +29,6 @@ Every problem found raises :class:`DatasetError`, whose text names file, row and
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import functools
 import math
@@ -39,34 +38,27 @@ import tomllib
 import numpy as np
 
 from handeye.model import conventions
-from handeye.model.errors import InputError
 from handeye.model.pose import transform_from_pose
+from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_text: public here too)
+    GUESS_LIMITS,
+    LIMIT_POSITION_MM,
+    MAX_LINE_BYTES,
+    READING_LIMITS,
+    READING_RANGES,
+    DatasetError,
+    check_angles,
+    number,
+    pose_list_convention,
+    pose_list_text,
+    read_pose_list,
+    read_table,
+    row_id,
+    to_kuka,
+)
 
 REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
 OPTIONAL_COLUMNS = ("profile",)
 DATA_DIR = pathlib.Path(__file__).parent / "data"
-
-
-class DatasetError(InputError):
-    """A dataset is missing, malformed or inconsistent.
-
-    Attributes
-    ----------
-    file : str
-    row : int or None
-        1-based line number in the file (the header is line 1).
-    column : str or None
-    problem : str
-    """
-
-    def __init__(self, file, problem, row=None, column=None):
-        self.file, self.row, self.column, self.problem = str(file), row, column, problem
-        where = self.file
-        if row is not None:
-            where += f", row {row}"
-        if column is not None:
-            where += f", column {column!r}"
-        super().__init__(f"{where}: {problem}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -193,18 +185,6 @@ def resolve(name_or_path):
     )
 
 
-def _number(text, file, row, column):
-    if "_" in str(text):  # Python reads 1_000 as 1000; a CSV of measurements should not
-        raise DatasetError(file, f"not a number: {text!r}", row, column)
-    try:
-        v = float(text)
-    except (TypeError, ValueError):
-        raise DatasetError(file, f"not a number: {text!r}", row, column) from None
-    if not math.isfinite(v):
-        raise DatasetError(file, f"not a finite number: {text!r}", row, column)
-    return v
-
-
 def _vector(table, key, n, file, section):
     value = table.get(key)
     col = f"[{section}] {key}"
@@ -214,7 +194,7 @@ def _vector(table, key, n, file, section):
         raise DatasetError(file, f"needs a list of {n} numbers, got {value!r}", column=col)
     out = []
     for v in value:
-        number = _toml_number(v)
+        number = toml_number(v)
         if number is None:
             raise DatasetError(file, f"needs finite numbers, got {str(v)[:40]!r}", column=col)
         out.append(number)
@@ -222,14 +202,14 @@ def _vector(table, key, n, file, section):
 
 
 def _bounded(value, bounds, file, column):
-    number = _toml_number(value)
+    number = toml_number(value)
     if number is None or not bounds[0] <= number <= bounds[1]:
         raise DatasetError(file, f"needs a number of mm in [{bounds[0]:g}, {bounds[1]:g}], got {str(value)[:40]!r}",
                            column=column)
     return number
 
 
-def _toml_number(v):
+def toml_number(v):
     """A TOML value as a finite float, or None (a bool, text, NaN, or an integer too big for a float)."""
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         return None
@@ -240,36 +220,11 @@ def _toml_number(v):
     return number if math.isfinite(number) else None
 
 
-#: Principal ranges of controller readings per angle convention (degrees): flange and plate
-#: poses must lie in them.
-READING_RANGES = {"kuka": (180.0, 90.0, 180.0), "fanuc": (180.0, 90.0, 180.0)}
-#: KUKA readings (flange and plate poses, pose lists).
-READING_LIMITS = READING_RANGES["kuka"]
-#: A start guess may be any rotation (Table 7-2 starts at B = -90.1), but not beyond a turn.
-GUESS_LIMITS = (conventions.ANGLE_LIMIT_DEG,) * 3
-
-
-def _check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS, names=("a", "b", "c")):
-    for name, v, lim in zip(names, pose[3:], limits):
-        if abs(v) > lim:
-            raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", row, column_prefix + name)
-
-
-def _row_id(fields, column, seen, file, line):
-    """The id of a data row: non-empty and unique (``seen``: id -> first row, updated)."""
-    ident = fields[column].strip()
-    if not ident:
-        raise DatasetError(file, "empty id", line, "id")
-    if ident in seen:
-        raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
-    seen[ident] = line
-    return ident
-
-
 _ALLOWED = {
     "robot": {"convention"},
     "sensor": {"start_pose"},
     "sphere": {"diameter", "center", "base_pose", "center_in_plate"},
+    "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
     "truth": {"sensor_pose", "sphere_center"},
     "noise": {"centre_mm", "robot_mm"},
@@ -279,7 +234,6 @@ _ALLOWED = {
 #: Plausible magnitudes (mm): a robot position (flange, sphere centre, start pose offset) and a
 #: coordinate the sensor reports. Beyond them a value is a slip (a unit, a misprint, 1e300), named
 #: with its row and column; ``[limits] position_mm`` and ``sensor_mm`` in setup.toml change them.
-LIMIT_POSITION_MM = 20_000.0
 #: What [noise] and [limits] values may be (mm): beyond these no arithmetic on them is meaningful.
 NOISE_RANGE_MM = (1e-6, 1e3)
 LIMIT_RANGE_MM = (1.0, 1e7)
@@ -292,7 +246,7 @@ NOISE_CENTRE_MM = 0.05
 NOISE_ROBOT_MM = 0.025
 
 
-def _read_setup(path):
+def _read_setup(path, require_sphere=True):
     file = path / "setup.toml"
     try:
         if file.exists() and not file.is_file():
@@ -323,31 +277,11 @@ def _read_setup(path):
     if "start_pose" in doc.get("sensor", {}):
         start = _vector(doc["sensor"], "start_pose", len(conventions.columns(convention)), file, "sensor")
         if convention == "kuka":
-            _check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
+            check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
         else:
-            start = _to_kuka(start, convention, file, None, "[sensor] start_pose")
-    sphere = doc.get("sphere", {})
-    diam = _toml_number(sphere.get("diameter"))
-    if diam is None or diam <= 0:
-        raise DatasetError(file, f"needs a positive number (mm), got {str(sphere.get('diameter'))[:40]!r}",
-                           column="[sphere] diameter")
-    plate_pose = centre_in_plate = None
-    if "center" in sphere:
-        if "base_pose" in sphere or "center_in_plate" in sphere:
-            raise DatasetError(file, "give either center or base_pose with center_in_plate, not both", column="[sphere]")
-        centre = _vector(sphere, "center", 3, file, "sphere")
-    elif "base_pose" not in sphere and "center_in_plate" not in sphere:
-        centre = None  # unknown: estimated with the sensor pose (--unknowns sensor+sphere)
-    else:
-        if "base_pose" not in sphere:
-            raise DatasetError(file, "needs center, or base_pose with center_in_plate", column="[sphere]")
-        plate_pose = _vector(sphere, "base_pose", len(conventions.columns(convention)), file, "sphere")
-        if convention == "kuka":
-            _check_angles(plate_pose, file, column_prefix="[sphere] base_pose ")
-        else:  # in the dataset's convention, as every pose of the dataset
-            plate_pose = _to_kuka(plate_pose, convention, file, None, "[sphere] base_pose")
-        centre_in_plate = _vector(sphere, "center_in_plate", 3, file, "sphere")
-        centre = (transform_from_pose(plate_pose) @ np.append(centre_in_plate, 1.0))[:3]
+            start = to_kuka(start, convention, file, None, "[sensor] start_pose")
+    diam, centre, plate_pose, centre_in_plate = _read_sphere(doc, "sphere", file, convention, require_sphere)
+    sphere2 = _read_sphere(doc, "sphere2", file, convention, False) if "sphere2" in doc else None
     side = doc.get("profile", {}).get("side", -1)
     if side not in (1, -1) or isinstance(side, bool):
         raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
@@ -355,7 +289,7 @@ def _read_setup(path):
     if "truth" in doc:
         truth_pose = _vector(doc["truth"], "sensor_pose", len(conventions.columns(convention)), file, "truth")
         if convention != "kuka":  # in the dataset's convention, as every pose of the dataset
-            truth_pose = _to_kuka(truth_pose, convention, file, None, "[truth] sensor_pose")
+            truth_pose = to_kuka(truth_pose, convention, file, None, "[truth] sensor_pose")
         truth = {"sensor_pose": truth_pose}
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
@@ -371,22 +305,63 @@ def _read_setup(path):
         limits[key] = _bounded(doc["limits"][key], LIMIT_RANGE_MM, file, f"[limits] {key}")
     noise["limits"] = limits
     bound = limits["position_mm"]
-    for what, vector in (("[sensor] start_pose", start), ("[sphere] center", centre), ("[sphere] base_pose", plate_pose)):
+    vectors = [("[sensor] start_pose", start), ("[sphere] center", centre), ("[sphere] base_pose", plate_pose)]
+    if sphere2 is not None:
+        vectors += [("[sphere2] center", sphere2[1]), ("[sphere2] base_pose", sphere2[2])]
+    for what, vector in vectors:
         if vector is not None and np.any(np.abs(vector[:3]) > bound):
             raise DatasetError(file, f"a position beyond +-{bound:g} mm ({', '.join(f'{v:g}' for v in vector[:3])}): "
                                      "a unit or a misprint? ([limits] position_mm sets the bound)", column=what)
-    if not 0 < diam <= 2 * limits["sensor_mm"]:
-        raise DatasetError(file, f"{diam:g} mm is not a sphere a laser-line sensor measures", column="[sphere] diameter")
-    return start, float(diam), centre, plate_pose, centre_in_plate, int(side), truth, convention, noise
+    for name, d in (("sphere", diam), ("sphere2", sphere2[0] if sphere2 else None)):
+        if d is not None and not d <= 2 * limits["sensor_mm"]:
+            raise DatasetError(file, f"{d:g} mm is not a sphere a laser-line sensor measures", column=f"[{name}] diameter")
+    return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), truth, convention, noise, sphere2)
 
 
-def _to_kuka(pose, convention, file, row, column):
-    """A pose in ``convention`` as KUKA (mm, deg); errors name file, row and column."""
-    try:
-        return conventions.convert(pose, convention, "kuka")
-    except conventions.ConventionError as exc:
-        names = ",".join(conventions.CONVENTIONS[convention])
-        raise DatasetError(file, str(exc), row, column or names) from None
+@dataclasses.dataclass(frozen=True)
+class _SetupFile:
+    """What setup.toml holds, checked; poses KUKA, mm (see the module docstring)."""
+
+    start: np.ndarray | None
+    diameter: float | None
+    centre: np.ndarray | None
+    plate_pose: np.ndarray | None
+    centre_in_plate: np.ndarray | None
+    side: int
+    truth: dict | None
+    convention: str
+    noise: dict
+    sphere2: tuple | None  # (diameter, centre, plate_pose, centre_in_plate) of a second sphere
+
+
+def _read_sphere(doc, section, file, convention, required):
+    """``(diameter, centre, plate_pose, centre_in_plate)`` of a ``[sphere]``-like section; the
+    diameter is None only when the section is absent and not ``required``."""
+    sphere = doc.get(section, {})
+    if not sphere and not required:
+        return None, None, None, None
+    diam = toml_number(sphere.get("diameter"))
+    if diam is None or diam <= 0:
+        raise DatasetError(file, f"needs a positive number (mm), got {str(sphere.get('diameter'))[:40]!r}",
+                           column=f"[{section}] diameter")
+    plate_pose = centre_in_plate = None
+    if "center" in sphere:
+        if "base_pose" in sphere or "center_in_plate" in sphere:
+            raise DatasetError(file, "give either center or base_pose with center_in_plate, not both", column=f"[{section}]")
+        centre = _vector(sphere, "center", 3, file, section)
+    elif "base_pose" not in sphere and "center_in_plate" not in sphere:
+        centre = None  # unknown: estimated with the sensor pose (--unknowns sensor+sphere)
+    else:
+        if "base_pose" not in sphere:
+            raise DatasetError(file, "needs center, or base_pose with center_in_plate", column=f"[{section}]")
+        plate_pose = _vector(sphere, "base_pose", len(conventions.columns(convention)), file, section)
+        if convention == "kuka":
+            check_angles(plate_pose, file, column_prefix=f"[{section}] base_pose ")
+        else:  # in the dataset's convention, as every pose of the dataset
+            plate_pose = to_kuka(plate_pose, convention, file, None, f"[{section}] base_pose")
+        centre_in_plate = _vector(sphere, "center_in_plate", 3, file, section)
+        centre = (transform_from_pose(plate_pose) @ np.append(centre_in_plate, 1.0))[:3]
+    return float(diam), centre, plate_pose, centre_in_plate
 
 
 def _read_profile(folder, rel, file, row, limit=None):
@@ -403,7 +378,7 @@ def _read_profile(folder, rel, file, row, limit=None):
         raise DatasetError(file, f"profile path {rel!r} leaves the dataset folder; keep profiles inside it (the "
                                  "dataset's hash covers only its folder)", row, "profile")
     limit = LIMIT_SENSOR_MM if limit is None else limit
-    rows = _read_table(pfile, file_row=(file, row))
+    rows = read_table(pfile, file_row=(file, row))
     if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
         raise DatasetError(pfile, "header must be 'x,z'", 1)
     pts = []
@@ -412,7 +387,7 @@ def _read_profile(folder, rel, file, row, limit=None):
             continue
         if len(r) != 2:
             raise DatasetError(pfile, f"expected 2 fields, got {len(r)}", k)
-        point = [_number(r[0], pfile, k, "x"), _number(r[1], pfile, k, "z")]
+        point = [number(r[0], pfile, k, "x"), number(r[1], pfile, k, "z")]
         for v, c in zip(point, "xz"):
             if abs(v) > limit:
                 raise DatasetError(pfile, f"{v:g} mm is beyond the sensor's plausible range +-{limit:g} mm "
@@ -436,107 +411,6 @@ def _centre_from_profile(points, radius, side, pfile):
 
 #: Circle fit used to reconstruct a centre from a profile when xs, ys, zs are empty.
 PROFILE_FIT = "hyper"
-
-
-def pose_list_convention(header):
-    """The robot convention a pose list's header names (``id,x,y,z,`` + the convention's columns)."""
-    for name in conventions.CONVENTIONS:
-        if list(header) == ["id", *conventions.columns(name)]:
-            return name
-    return None
-
-
-#: Largest file the readers accept, and longest line (bytes): a dataset of 10^6 rows is ~150 MB.
-MAX_FILE_BYTES = 2 * 1024**3
-MAX_LINE_BYTES = 1024**2
-
-
-def _read_table(file, file_row=None):
-    """Rows of a CSV file; size, line length, encoding and separator checked with a clear message.
-
-    ``file_row``: (measurements.csv, row) when ``file`` is a profile named there.
-    """
-    where = dict(zip(("row", "column"), (file_row[1], "profile"))) if file_row else {}
-    owner = file_row[0] if file_row else file
-    try:
-        if not file.exists():
-            raise DatasetError(owner, f"{file.name if file_row else ''} missing file".strip(), **where)
-        if not file.is_file():
-            raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
-        size = file.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise DatasetError(file, f"{size / 1e9:.1f} GB is more than a dataset file may be "
-                                     f"({MAX_FILE_BYTES / 1e9:.1f} GB)")
-        with open(file, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise DatasetError(owner, f"cannot be read: {exc.strerror or exc}", **where) from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise DatasetError(file, f"more than {MAX_FILE_BYTES / 1e9:.1f} GB: not a dataset file")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise DatasetError(file, f"not UTF-8 text (byte {exc.start})") from None
-    lines = text.splitlines()
-    for k, line in enumerate(lines, start=1):
-        if len(line) > MAX_LINE_BYTES:
-            raise DatasetError(file, f"a line of {len(line)} characters: not a CSV dataset file", k)
-    if lines and "," not in lines[0] and (";" in lines[0] or "\t" in lines[0]):
-        sep = "';'" if ";" in lines[0] else "a tab"
-        raise DatasetError(file, f"the separator is {sep}; handeye reads comma-separated files (',')", 1)
-    try:
-        return list(csv.reader(lines))
-    except csv.Error as exc:
-        raise DatasetError(file, f"cannot be read: {exc}") from None
-
-
-def read_pose_list(path, with_convention=False):
-    """Flange poses from a pose list, in any robot convention, told by its header.
-
-    ``id,x,y,z,a,b,c`` is KUKA (mm, degrees), ``id,x,y,z,w,p,r`` FANUC, ``id,x,y,z,q1,q2,q3,q4``
-    ABB, ``id,x,y,z,rx,ry,rz`` UR (:mod:`handeye.model.conventions`).
-
-    Returns ``(ids, poses (N, 6))`` with the poses as KUKA, and the convention when
-    ``with_convention``; raises :class:`DatasetError` naming file, row and column.
-    """
-    file = pathlib.Path(path)
-    table = _read_table(file)
-    header = [h.strip() for h in table[0]] if table else []
-    convention = pose_list_convention(header)
-    if convention is None:
-        known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
-        raise DatasetError(file, f"header must name a convention's pose columns: {known}", 1)
-    ids, poses, seen = [], [], {}
-    for line, fields in enumerate(table[1:], start=2):
-        if not any(f.strip() for f in fields):
-            continue
-        if len(fields) != len(header):
-            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
-        ident = _row_id(fields, 0, seen, file, line)
-        pose = np.array([_number(fields[k], file, line, header[k]) for k in range(1, len(header))])
-        for v, c in zip(pose[:3], header[1:4]):
-            if abs(v) > LIMIT_POSITION_MM:
-                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{LIMIT_POSITION_MM:g} mm",
-                                   line, c)
-        if convention in READING_RANGES:
-            _check_angles(pose, file, line, limits=READING_RANGES[convention], names=header[4:])
-        if convention != "kuka":
-            pose = _to_kuka(pose, convention, file, line, None)
-        ids.append(ident)
-        poses.append(pose)
-    if not poses:
-        raise DatasetError(file, "no poses", 2)
-    return (ids, np.array(poses), convention) if with_convention else (ids, np.array(poses))
-
-
-def pose_list_text(ids, poses, convention="kuka"):
-    """A pose list (CSV text) of KUKA poses (N, 6), written in ``convention``."""
-    lines = [",".join(["id", *conventions.columns(convention)])]
-    for ident, pose in zip(ids, poses):
-        values = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
-        fmt = "{:.4f}" if convention == "kuka" else "{:.10g}"
-        lines.append(",".join([str(ident)] + [fmt.format(v) for v in values]))
-    return "\n".join(lines) + "\n"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -566,19 +440,24 @@ def load_setup(name_or_path):
     """Read and check only ``setup.toml`` of a dataset folder (``measurements.csv`` may not exist
     yet: a cell being planned); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    start, diam, centre, _, _, side, _, convention, _ = _read_setup(folder)
-    return CellSetup(folder, start, diam, centre, side, convention)
+    st = _read_setup(folder)
+    return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention)
 
 
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    start, diam, centre, plate_pose, centre_in_plate, side, truth, convention, noise = _read_setup(folder)
+    st = _read_setup(folder)
+    if st.sphere2 is not None:
+        raise DatasetError(folder / "setup.toml", "two spheres: a calibration uses one; [sphere2] is for handeye "
+                                                  "validate and cloud (remove it to calibrate)", column="[sphere2]")
+    start, diam, centre, side, truth, convention = st.start, st.diameter, st.centre, st.side, st.truth, st.convention
+    plate_pose, centre_in_plate, noise = st.plate_pose, st.centre_in_plate, dict(st.noise)
     limits = noise.pop("limits")
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs")
     file = folder / "measurements.csv"
-    table = _read_table(file)
+    table = read_table(file)
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
@@ -599,23 +478,23 @@ def load(name_or_path):
             continue
         if len(fields) != len(header):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
-        ident = _row_id(fields, idx["id"], seen, file, line)
-        pose = np.array([_number(fields[idx[c]], file, line, c) for c in pose_columns])
+        ident = row_id(fields, idx["id"], seen, file, line)
+        pose = np.array([number(fields[idx[c]], file, line, c) for c in pose_columns])
         if convention in READING_RANGES:
-            _check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
+            check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
         for v, c in zip(pose[:3], pose_columns[:3]):
             if abs(v) > limits["position_mm"]:
                 raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{limits['position_mm']:g} mm "
                                          "([limits] position_mm in setup.toml sets it)", line, c)
         if convention != "kuka":
-            pose = _to_kuka(pose, convention, file, line, None)
+            pose = to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
         points = _read_profile(folder, profile, file, line, limits["sensor_mm"]) if profile else None
         if profile:
             profile_files.append((folder / profile).resolve())
         if all(cells) or not profile:
-            xs = [_number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
+            xs = [number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
             for v, c in zip(xs, ("xs", "ys", "zs")):
                 if abs(v) > limits["sensor_mm"]:
                     raise DatasetError(file, f"{v:g} mm is beyond the sensor's plausible range +-{limits['sensor_mm']:g} mm "

@@ -10,7 +10,8 @@ keeps working.
 
 The classes, and where each is raised:
 
-- ``DatasetError`` (:mod:`handeye.model.dataset`): a file, row or column of a dataset;
+- ``DatasetError`` (:mod:`handeye.model.tables`, raised by the dataset and scan readers): a file,
+  row or column of a dataset;
 - ``ConventionError`` (:mod:`handeye.model.conventions`): a pose invalid in its robot convention;
 - ``ObservationError`` (:mod:`handeye.model.observations`): a residual model needs what the
   data lack (profiles);

@@ -1,0 +1,192 @@
+"""Reading the tables of a dataset: CSV files, numbers, ids, poses in any robot convention.
+
+Shared by :mod:`handeye.model.dataset` (calibration datasets) and :mod:`handeye.model.scan`
+(scans: poses and profiles only). Every problem raises :class:`DatasetError`, whose text names
+file, row and column.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+
+import numpy as np
+
+from handeye.model import conventions
+from handeye.model.errors import InputError
+
+#: Plausible magnitude of a robot position (mm); ``[limits] position_mm`` in setup.toml changes it.
+LIMIT_POSITION_MM = 20_000.0
+
+
+class DatasetError(InputError):
+    """A dataset is missing, malformed or inconsistent.
+
+    Attributes
+    ----------
+    file : str
+    row : int or None
+        1-based line number in the file (the header is line 1).
+    column : str or None
+    problem : str
+    """
+
+    def __init__(self, file, problem, row=None, column=None):
+        self.file, self.row, self.column, self.problem = str(file), row, column, problem
+        where = self.file
+        if row is not None:
+            where += f", row {row}"
+        if column is not None:
+            where += f", column {column!r}"
+        super().__init__(f"{where}: {problem}")
+
+
+def number(text, file, row, column):
+    if "_" in str(text):  # Python reads 1_000 as 1000; a CSV of measurements should not
+        raise DatasetError(file, f"not a number: {text!r}", row, column)
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise DatasetError(file, f"not a number: {text!r}", row, column) from None
+    if not math.isfinite(v):
+        raise DatasetError(file, f"not a finite number: {text!r}", row, column)
+    return v
+
+
+#: Principal ranges of controller readings per angle convention (degrees): flange and plate
+#: poses must lie in them.
+READING_RANGES = {"kuka": (180.0, 90.0, 180.0), "fanuc": (180.0, 90.0, 180.0)}
+#: KUKA readings (flange and plate poses, pose lists).
+READING_LIMITS = READING_RANGES["kuka"]
+#: A start guess may be any rotation (Table 7-2 starts at B = -90.1), but not beyond a turn.
+GUESS_LIMITS = (conventions.ANGLE_LIMIT_DEG,) * 3
+
+
+def check_angles(pose, file, row=None, column_prefix="", limits=READING_LIMITS, names=("a", "b", "c")):
+    for name, v, lim in zip(names, pose[3:], limits):
+        if abs(v) > lim:
+            raise DatasetError(file, f"rotation angle {v} out of range [-{lim:g}, {lim:g}] degrees", row, column_prefix + name)
+
+
+def row_id(fields, column, seen, file, line):
+    """The id of a data row: non-empty and unique (``seen``: id -> first row, updated)."""
+    ident = fields[column].strip()
+    if not ident:
+        raise DatasetError(file, "empty id", line, "id")
+    if ident in seen:
+        raise DatasetError(file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
+    seen[ident] = line
+    return ident
+
+
+def to_kuka(pose, convention, file, row, column):
+    """A pose in ``convention`` as KUKA (mm, deg); errors name file, row and column."""
+    try:
+        return conventions.convert(pose, convention, "kuka")
+    except conventions.ConventionError as exc:
+        names = ",".join(conventions.CONVENTIONS[convention])
+        raise DatasetError(file, str(exc), row, column or names) from None
+
+
+
+def pose_list_convention(header):
+    """The robot convention a pose list's header names (``id,x,y,z,`` + the convention's columns)."""
+    for name in conventions.CONVENTIONS:
+        if list(header) == ["id", *conventions.columns(name)]:
+            return name
+    return None
+
+
+#: Largest file the readers accept, and longest line (bytes): a dataset of 10^6 rows is ~150 MB.
+MAX_FILE_BYTES = 2 * 1024**3
+MAX_LINE_BYTES = 1024**2
+
+
+def read_table(file, file_row=None):
+    """Rows of a CSV file; size, line length, encoding and separator checked with a clear message.
+
+    ``file_row``: (measurements.csv, row) when ``file`` is a profile named there.
+    """
+    where = dict(zip(("row", "column"), (file_row[1], "profile"))) if file_row else {}
+    owner = file_row[0] if file_row else file
+    try:
+        if not file.exists():
+            raise DatasetError(owner, f"{file.name if file_row else ''} missing file".strip(), **where)
+        if not file.is_file():
+            raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
+        size = file.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise DatasetError(file, f"{size / 1e9:.1f} GB is more than a dataset file may be "
+                                     f"({MAX_FILE_BYTES / 1e9:.1f} GB)")
+        with open(file, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise DatasetError(owner, f"cannot be read: {exc.strerror or exc}", **where) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise DatasetError(file, f"more than {MAX_FILE_BYTES / 1e9:.1f} GB: not a dataset file")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(file, f"not UTF-8 text (byte {exc.start})") from None
+    lines = text.splitlines()
+    for k, line in enumerate(lines, start=1):
+        if len(line) > MAX_LINE_BYTES:
+            raise DatasetError(file, f"a line of {len(line)} characters: not a CSV dataset file", k)
+    if lines and "," not in lines[0] and (";" in lines[0] or "\t" in lines[0]):
+        sep = "';'" if ";" in lines[0] else "a tab"
+        raise DatasetError(file, f"the separator is {sep}; handeye reads comma-separated files (',')", 1)
+    try:
+        return list(csv.reader(lines))
+    except csv.Error as exc:
+        raise DatasetError(file, f"cannot be read: {exc}") from None
+
+
+def read_pose_list(path, with_convention=False):
+    """Flange poses from a pose list, in any robot convention, told by its header.
+
+    ``id,x,y,z,a,b,c`` is KUKA (mm, degrees), ``id,x,y,z,w,p,r`` FANUC, ``id,x,y,z,q1,q2,q3,q4``
+    ABB, ``id,x,y,z,rx,ry,rz`` UR (:mod:`handeye.model.conventions`).
+
+    Returns ``(ids, poses (N, 6))`` with the poses as KUKA, and the convention when
+    ``with_convention``; raises :class:`DatasetError` naming file, row and column.
+    """
+    file = pathlib.Path(path)
+    table = read_table(file)
+    header = [h.strip() for h in table[0]] if table else []
+    convention = pose_list_convention(header)
+    if convention is None:
+        known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
+        raise DatasetError(file, f"header must name a convention's pose columns: {known}", 1)
+    ids, poses, seen = [], [], {}
+    for line, fields in enumerate(table[1:], start=2):
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(header):
+            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
+        ident = row_id(fields, 0, seen, file, line)
+        pose = np.array([number(fields[k], file, line, header[k]) for k in range(1, len(header))])
+        for v, c in zip(pose[:3], header[1:4]):
+            if abs(v) > LIMIT_POSITION_MM:
+                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{LIMIT_POSITION_MM:g} mm",
+                                   line, c)
+        if convention in READING_RANGES:
+            check_angles(pose, file, line, limits=READING_RANGES[convention], names=header[4:])
+        if convention != "kuka":
+            pose = to_kuka(pose, convention, file, line, None)
+        ids.append(ident)
+        poses.append(pose)
+    if not poses:
+        raise DatasetError(file, "no poses", 2)
+    return (ids, np.array(poses), convention) if with_convention else (ids, np.array(poses))
+
+
+def pose_list_text(ids, poses, convention="kuka"):
+    """A pose list (CSV text) of KUKA poses (N, 6), written in ``convention``."""
+    lines = [",".join(["id", *conventions.columns(convention)])]
+    for ident, pose in zip(ids, poses):
+        values = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
+        fmt = "{:.4f}" if convention == "kuka" else "{:.10g}"
+        lines.append(",".join([str(ident)] + [fmt.format(v) for v in values]))
+    return "\n".join(lines) + "\n"
+
+
