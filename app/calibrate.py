@@ -602,7 +602,8 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
                    for i, r, v, n, u in zip(dataset.ids, dataset.rows, extended.e, norms, mask)],
         sigma_mm=float(np.sqrt(extended.sigma2)),
         std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        parameter_names=tuple(extended.names), correlation=corr, identifiability=ident, effects=named,
+        parameter_names=tuple(extended.names), correlation=corr, covariance=corr * np.outer(std, std),
+        identifiability=ident, effects=named,
         noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
                      "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
         noise_test=_noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
@@ -650,6 +651,7 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
                         cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
         parameter_names=tuple(local.names),
         correlation=np.asarray(cov.correlation),
+        covariance=np.asarray(cov.matrix),
         loo_error_mm=_rms(loo_errors) if loo else None,
         identifiability=ident,
         hessian_eigenvalues=fit.hess_eig,

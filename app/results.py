@@ -25,6 +25,11 @@ def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
 
 
+def _unit(name):
+    """Unit of a covariance parameter: mm for translations and centres, rad for the local rotation."""
+    return "rad" if name in ("wx", "wy", "wz") else "mm" if name in ("tx", "ty", "tz", "cx", "cy", "cz") else "effect"
+
+
 def finite_json(value):
     """``value`` with every non-finite float replaced by None: what JSON can hold (RFC 8259 has
     no NaN or infinity; a NaN in a report means "not available")."""
@@ -261,7 +266,8 @@ class CalibrationResult:
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
     ``evaluations``, ``history`` (KUKA
     poses of the iterates), ``solver_point``, ``sigma_mm``, ``sigma_scale``, ``correlation``
-    with ``parameter_names``, ``loo_error_mm``, ``hessian_eigenvalues``, ``noise_model``)
+    and ``covariance`` (full precision, local chart: ``tx, ty, tz`` mm, ``wx, wy, wz`` rad about
+    the sensor's axes, then sphere centre and effects) with ``parameter_names``, ``loo_error_mm``, ``hessian_eigenvalues``, ``noise_model``)
     carry the JSON keys of the same name.
     """
 
@@ -303,6 +309,7 @@ class CalibrationResult:
     std: Uncertainty | None = None
     parameter_names: tuple | None = None
     correlation: np.ndarray | None = None
+    covariance: np.ndarray | None = None
     loo_error_mm: float | None = None
     identifiability: object | None = None
     hessian_eigenvalues: np.ndarray | None = None
@@ -360,6 +367,9 @@ class CalibrationResult:
             "std": None if self.std is None else self.std.to_dict(),
             "correlation": None if self.correlation is None else {
                 "names": list(self.parameter_names), "matrix": np.round(self.correlation, 6).tolist()},
+            "covariance": None if self.covariance is None else {
+                "names": list(self.parameter_names), "units": [_unit(n) for n in self.parameter_names],
+                "matrix": _list(self.covariance)},
             "loo_error_mm": self.loo_error_mm,
             "identifiability": None if self.identifiability is None else self.identifiability.to_dict(),
             "hessian_eigenvalues": _list(self.hessian_eigenvalues),
