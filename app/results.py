@@ -267,7 +267,8 @@ class CalibrationResult:
     ``evaluations``, ``history`` (KUKA
     poses of the iterates), ``solver_point``, ``sigma_mm``, ``sigma_scale``, ``correlation``
     and ``covariance`` (full precision, local chart: ``tx, ty, tz`` mm, ``wx, wy, wz`` rad about
-    the sensor's axes, then sphere centre and effects) with ``parameter_names``, ``loo_error_mm``, ``hessian_eigenvalues``, ``noise_model``)
+    the sensor's axes, then sphere centre and effects) with ``parameter_names``, ``loo_error_mm``,
+    ``hessian_eigenvalues``, ``noise_model``)
     carry the JSON keys of the same name.
     """
 

@@ -50,6 +50,7 @@ from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_tex
     number,
     pose_list_convention,
     pose_list_text,
+    read_points,
     read_pose_list,
     read_table,
     row_id,
@@ -364,40 +365,6 @@ def _read_sphere(doc, section, file, convention, required):
     return float(diam), centre, plate_pose, centre_in_plate
 
 
-def _read_profile(folder, rel, file, row, limit=None):
-    """Points (K, 2) of a profile CSV with header ``x,z``; errors name the profile file.
-
-    The path must lie inside the dataset folder: what the dataset's hash covers is what it reads.
-    """
-    pfile = folder / rel
-    try:
-        inside = not pathlib.Path(rel).is_absolute() and pfile.resolve().is_relative_to(folder.resolve())
-    except (OSError, RuntimeError, ValueError) as exc:  # a symlink loop, a NUL byte in the name
-        raise DatasetError(file, f"profile path {rel!r} cannot be used: {exc}", row, "profile") from None
-    if not inside:
-        raise DatasetError(file, f"profile path {rel!r} leaves the dataset folder; keep profiles inside it (the "
-                                 "dataset's hash covers only its folder)", row, "profile")
-    limit = LIMIT_SENSOR_MM if limit is None else limit
-    rows = read_table(pfile, file_row=(file, row))
-    if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
-        raise DatasetError(pfile, "header must be 'x,z'", 1)
-    pts = []
-    for k, r in enumerate(rows[1:], start=2):
-        if not any(c.strip() for c in r):
-            continue
-        if len(r) != 2:
-            raise DatasetError(pfile, f"expected 2 fields, got {len(r)}", k)
-        point = [number(r[0], pfile, k, "x"), number(r[1], pfile, k, "z")]
-        for v, c in zip(point, "xz"):
-            if abs(v) > limit:
-                raise DatasetError(pfile, f"{v:g} mm is beyond the sensor's plausible range +-{limit:g} mm "
-                                          "([limits] sensor_mm in setup.toml sets it)", k, c)
-        pts.append(point)
-    if len(pts) < 3:
-        raise DatasetError(pfile, f"a circle needs at least 3 points, got {len(pts)}")
-    return np.array(pts)
-
-
 def _centre_from_profile(points, radius, side, pfile):
     from handeye.model import circle
 
@@ -490,7 +457,7 @@ def load(name_or_path):
             pose = to_kuka(pose, convention, file, line, None)
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
-        points = _read_profile(folder, profile, file, line, limits["sensor_mm"]) if profile else None
+        points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None
         if profile:
             profile_files.append((folder / profile).resolve())
         if all(cells) or not profile:

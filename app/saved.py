@@ -1,0 +1,163 @@
+"""A saved calibration read back: the sensor pose on the flange and its covariance.
+
+``handeye calibrate --out RESULT.json`` writes the whole :class:`handeye.CalibrationResult`;
+what the uses of a calibration need from it (``handeye export``, ``cloud``, ``validate``) is
+:class:`Calibration`: the 4x4 ``sensor2flange`` (mm) and the 6x6 covariance of its local chart
+``t + dt, R exp([dw]x)`` (``dt`` mm in the flange frame, ``dw`` rad about the sensor's own axes).
+A pose typed in by hand (``--sensor-pose``, e.g. a TCP already in the controller) is a
+calibration without a covariance.
+
+Every problem with the file raises :class:`CalibrationFileError` (an ``InputError``: exit 2),
+naming the file and the key.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+from handeye.model import conventions
+
+#: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
+ORTHONORMAL_TOLERANCE = 1e-6
+#: A saved result larger than this is not a calibration result.
+MAX_RESULT_BYTES = 256 * 1024**2
+
+
+class CalibrationFileError(RequestError):
+    """A saved calibration that cannot be used: missing, not JSON, or without a valid pose."""
+
+    def __init__(self, file, problem, key=None):
+        self.file, self.key, self.problem = str(file), key, problem
+        super().__init__(f"{file}{f', key {key!r}' if key else ''}: {problem}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """The sensor pose on the flange, with its uncertainty.
+
+    Attributes
+    ----------
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor frame in the flange frame, mm.
+    covariance : ndarray, shape (6, 6), or None
+        Of the local chart ``(tx, ty, tz, wx, wy, wz)``: mm and rad, translation in the flange
+        frame, rotation about the sensor's axes; None when unknown.
+    source : str
+        Where it came from (a file, or ``--sensor-pose``).
+    dataset, dataset_sha256 : str or None
+        The calibration's dataset, when the file says.
+    converged : bool
+    """
+
+    sensor2flange: np.ndarray
+    covariance: np.ndarray | None
+    source: str
+    dataset: str | None = None
+    dataset_sha256: str | None = None
+    converged: bool = True
+
+    def sd(self):
+        """1-sd ``(translation (3,) mm, rotation (3,) deg)``, or None without a covariance."""
+        if self.covariance is None:
+            return None
+        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return sd[:3], np.degrees(sd[3:6])
+
+    def to_dict(self):
+        sd = self.sd()
+        return {"source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
+                "sensor_matrix": self.sensor2flange.tolist(),
+                "sd_translation_mm": None if sd is None else sd[0].tolist(),
+                "sd_rotation_deg": None if sd is None else sd[1].tolist(),
+                "covariance": None if self.covariance is None else self.covariance.tolist()}
+
+
+def _matrix(value, shape, file, key):
+    try:
+        m = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise CalibrationFileError(file, f"needs a {shape[0]}x{shape[1]} array of numbers", key) from None
+    if m.shape != shape or not np.all(np.isfinite(m)):
+        raise CalibrationFileError(file, f"needs a {shape[0]}x{shape[1]} array of finite numbers", key)
+    return m
+
+
+def check_transform(m, file, key="sensor_matrix"):
+    """A 4x4 rigid transform, or :class:`CalibrationFileError`."""
+    rot = m[:3, :3]
+    err = float(np.max(np.abs(rot.T @ rot - np.eye(3))))
+    if err > ORTHONORMAL_TOLERANCE or np.linalg.det(rot) < 0 or np.any(m[3] != (0, 0, 0, 1)):
+        raise CalibrationFileError(file, f"not a rigid transform (|R^T R - I| = {err:.2g}, det R = "
+                                         f"{np.linalg.det(rot):.6g}, last row {m[3].tolist()})", key)
+    return m
+
+
+def _covariance(doc, file):
+    cov = doc.get("covariance")
+    if isinstance(cov, dict) and cov.get("matrix") is not None:
+        names = cov.get("names")
+        if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
+            raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "covariance")
+        m = _matrix(cov["matrix"], (len(names), len(names)), file, "covariance")[:6, :6]
+    elif isinstance(doc.get("std"), dict) and isinstance(doc.get("correlation"), dict):
+        std = doc["std"]  # an older result: rebuild it from sd and (rounded) correlations
+        try:
+            sd = np.r_[np.array(std["sensor_translation_mm"], float), np.radians(np.array(std["sensor_rotation_deg"], float))]
+        except (KeyError, TypeError, ValueError):
+            raise CalibrationFileError(file, "needs sensor_translation_mm and sensor_rotation_deg", "std") from None
+        names = doc["correlation"].get("names") or []
+        corr = _matrix(doc["correlation"].get("matrix"), (len(names), len(names)), file, "correlation")[:6, :6]
+        m = corr * np.outer(sd, sd)
+    else:
+        return None
+    m = 0.5 * (m + m.T)
+    if np.min(np.linalg.eigvalsh(m)) < -1e-9 * max(float(np.max(np.abs(m))), 1e-300):
+        raise CalibrationFileError(file, "not a covariance (a negative eigenvalue)", "covariance")
+    return m
+
+
+def load(path):
+    """The :class:`Calibration` of a ``calibrate --out`` file (or of ``--json`` output saved)."""
+    file = pathlib.Path(path)
+    try:
+        if file.is_dir():
+            raise CalibrationFileError(file, "is a folder; give the JSON file `handeye calibrate --out` wrote")
+        if file.stat().st_size > MAX_RESULT_BYTES:
+            raise CalibrationFileError(file, "too large to be a calibration result")
+        text = file.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise CalibrationFileError(file, "missing file (write one with handeye calibrate DATASET --out FILE)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationFileError(file, f"cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        doc = json.loads(text, parse_constant=lambda c: None)
+    except json.JSONDecodeError as exc:
+        raise CalibrationFileError(file, f"not JSON (line {exc.lineno}: {exc.msg})") from None
+    if not isinstance(doc, dict) or "sensor_matrix" not in doc:
+        raise CalibrationFileError(file, "not a calibration result: no sensor_matrix (write one with handeye "
+                                         "calibrate DATASET --out FILE)")
+    if doc["sensor_matrix"] is None:
+        raise CalibrationFileError(file, "the calibration has no result (it failed); see its message: "
+                                         f"{str(doc.get('message'))[:200]}", "sensor_matrix")
+    m = check_transform(_matrix(doc["sensor_matrix"], (4, 4), file, "sensor_matrix"), file)
+    return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), doc.get("dataset_sha256"),
+                       bool(doc.get("converged", True)))
+
+
+def from_pose(pose, convention="kuka"):
+    """A :class:`Calibration` without covariance from a pose typed in (``x, y, z`` mm and the
+    convention's orientation columns)."""
+    cols = conventions.columns(convention)
+    values = np.asarray(pose, dtype=float)
+    if values.shape != (len(cols),) or not all(math.isfinite(v) for v in values):
+        raise RequestError(f"--sensor-pose needs {len(cols)} finite numbers ({','.join(cols)}, {convention})")
+    try:
+        m = conventions.transform_from(convention, values)
+    except conventions.ConventionError as exc:
+        raise RequestError(f"--sensor-pose: {exc}") from None
+    return Calibration(m, None, f"--sensor-pose {','.join(f'{v:g}' for v in values)} ({convention})")

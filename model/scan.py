@@ -1,0 +1,167 @@
+"""Scans: flange poses and laser profiles, with or without a sphere.
+
+A scan is what ``handeye cloud`` and ``handeye validate`` read: a folder with
+``measurements.csv`` and, optionally, ``setup.toml``.
+
+``measurements.csv``
+    ``id``, the flange pose in the robot's convention (``x,y,z,a,b,c`` KUKA, ``x,y,z,w,p,r``
+    FANUC, ``x,y,z,q1,q2,q3,q4`` ABB, ``x,y,z,rx,ry,rz`` UR; :mod:`handeye.model.conventions`)
+    and ``profile``: the path, inside the folder, of a CSV with header ``x,z`` (laser-line points
+    in the sensor's y = 0 plane, mm). Columns ``xs, ys, zs`` may be present (a calibration
+    dataset is a scan too) and are not read. A row with an empty ``profile`` is skipped (and
+    counted).
+``setup.toml`` (optional)
+    As for a dataset (:mod:`handeye.model.dataset`): ``[robot] convention`` (without the file,
+    the header tells the convention), ``[limits]``, ``[noise] robot_mm``, and for validation
+    ``[sphere]`` and an optional second sphere ``[sphere2]`` (diameter, centre).
+
+Profiles are read by :func:`handeye.model.tables.read_points`: a C parser for clean files, the
+row-by-row reader (which names the bad row) otherwise.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import pathlib
+
+import numpy as np
+
+from handeye.model import conventions, dataset, tables
+from handeye.model.pose import transform_from_pose
+from handeye.model.tables import DatasetError
+
+
+@dataclasses.dataclass(frozen=True)
+class Sphere:
+    """A sphere of the setup: diameter (mm) and centre in the robot base (mm) or None."""
+
+    diameter: float
+    centre: np.ndarray | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Scan:
+    """Poses and profiles read by :func:`load`.
+
+    Attributes
+    ----------
+    name : str
+    path : pathlib.Path
+    ids : tuple of str
+    rows : tuple of int
+        Line of each pose in ``measurements.csv``.
+    flange_poses : ndarray, shape (N, 6)
+        Flange in robot base, KUKA (mm, deg).
+    profiles : tuple of ndarray
+        Per pose the profile points (K_i, 2): sensor x, z, mm.
+    spheres : tuple of Sphere
+        ``[sphere]`` and ``[sphere2]`` of setup.toml, those given.
+    convention : str
+    robot_sigma_mm : float
+        Robot repeatability per axis (``[noise] robot_mm``), mm.
+    skipped : tuple of str
+        Ids of rows without a profile.
+    profile_files : tuple of pathlib.Path
+    """
+
+    name: str
+    path: pathlib.Path
+    ids: tuple
+    rows: tuple
+    flange_poses: np.ndarray
+    profiles: tuple
+    spheres: tuple = ()
+    convention: str = "kuka"
+    robot_sigma_mm: float = dataset.NOISE_ROBOT_MM
+    skipped: tuple = ()
+    profile_files: tuple = ()
+
+    def __len__(self):
+        return len(self.ids)
+
+    @property
+    def n_points(self):
+        return int(sum(len(p) for p in self.profiles))
+
+    def flange2base(self):
+        """Flange poses as transforms (N, 4, 4), mm; read-only."""
+        return self._flange2base
+
+    @functools.cached_property
+    def _flange2base(self):
+        out = transform_from_pose(self.flange_poses)
+        out.setflags(write=False)
+        return out
+
+
+def _convention_from_header(header, file):
+    cols = [c for c in header if c not in ("profile", "xs", "ys", "zs")]
+    found = tables.pose_list_convention(cols)
+    if found is None:
+        known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
+        raise DatasetError(file, f"header must hold id, a convention's pose columns and profile: {known}", 1)
+    return found
+
+
+def load(name_or_path):
+    """Read and check a scan (module docstring); raises :class:`DatasetError` naming file, row
+    and column."""
+    folder = dataset.resolve(name_or_path)
+    file = folder / "measurements.csv"
+    table = tables.read_table(file)
+    if not table:
+        raise DatasetError(file, "empty file; needs a header such as id,x,y,z,a,b,c,profile", 1)
+    header = [h.strip() for h in table[0]]
+    for col in header:
+        if header.count(col) > 1:
+            raise DatasetError(file, "duplicate column", 1, col)
+    if (folder / "setup.toml").exists():
+        st = dataset._read_setup(folder, require_sphere=False)
+        convention, limits, noise = st.convention, st.noise["limits"], st.noise
+        spheres = [Sphere(st.diameter, st.centre)] if st.diameter is not None else []
+        if st.sphere2 is not None:
+            spheres.append(Sphere(st.sphere2[0], st.sphere2[1]))
+    else:
+        convention = _convention_from_header(header, file)
+        limits = {"position_mm": tables.LIMIT_POSITION_MM, "sensor_mm": dataset.LIMIT_SENSOR_MM}
+        noise, spheres = {}, []
+    pose_columns = conventions.columns(convention)
+    for col in ("id",) + pose_columns + ("profile",):
+        if col not in header:
+            raise DatasetError(file, f"missing column (a scan needs id,{','.join(pose_columns)},profile for the "
+                                     f"{convention} convention)", 1, col)
+    for col in header:
+        if col not in ("id",) + pose_columns + ("profile", "xs", "ys", "zs"):
+            raise DatasetError(file, f"unknown column (expected id,{','.join(pose_columns)},profile)", 1, col)
+    idx = {c: header.index(c) for c in header}
+    ids, rows, poses, profiles, skipped, files, seen = [], [], [], [], [], [], {}
+    for line, fields in enumerate(table[1:], start=2):
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(header):
+            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
+        ident = tables.row_id(fields, idx["id"], seen, file, line)
+        rel = fields[idx["profile"]].strip()
+        if not rel:
+            skipped.append(ident)
+            continue
+        pose = np.array([tables.number(fields[idx[c]], file, line, c) for c in pose_columns])
+        if convention in tables.READING_RANGES:
+            tables.check_angles(pose, file, line, limits=tables.READING_RANGES[convention], names=pose_columns[3:])
+        for v, c in zip(pose[:3], pose_columns[:3]):
+            if abs(v) > limits["position_mm"]:
+                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{limits['position_mm']:g} mm "
+                                         "([limits] position_mm in setup.toml sets it)", line, c)
+        if convention != "kuka":
+            pose = tables.to_kuka(pose, convention, file, line, None)
+        points = tables.read_points(folder, rel, file, line, limits["sensor_mm"], minimum=1)
+        files.append((folder / rel).resolve())
+        ids.append(ident)
+        rows.append(line)
+        poses.append(pose)
+        profiles.append(points)
+    if not ids:
+        raise DatasetError(file, "no pose with a profile (the profile column names each pose's x,z file)", 2)
+    return Scan(folder.name, folder, tuple(ids), tuple(rows), np.array(poses), tuple(profiles), tuple(spheres),
+                convention, float(noise.get("robot_mm", dataset.NOISE_ROBOT_MM)), tuple(skipped),
+                tuple(sorted(set(files))))
