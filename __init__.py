@@ -11,6 +11,9 @@ The public API (the ``handeye`` command's functions, with its options as keyword
     d = handeye.diagnose(data)                     # a DiagnosisResult
     handeye.simulate("my-sim", seed=1, effect=["sensor_scale=0.001"])
     handeye.plan(n=12)
+    handeye.export("result.json", format="ur")     # after calibrate --out result.json
+    handeye.cloud("my-scan", "result.json", out="scan.ply")
+    handeye.validate("sphere-scan", "result.json")  # VDI/VDE 2634-2 PF, PS, SD
 
 Bad input raises :class:`InputError` (a ``ValueError``), naming file, row and column or the
 option. The layers: :mod:`handeye.solvers` (knows nothing of robots) <- :mod:`handeye.model`
@@ -27,6 +30,12 @@ _PUBLIC = {
     "diagnose": "handeye.app.api",
     "simulate": "handeye.app.api",
     "plan": "handeye.app.api",
+    "export": "handeye.app.use",
+    "cloud": "handeye.app.use",
+    "validate": "handeye.app.use",
+    "ExportResult": "handeye.app.use",
+    "CloudResult": "handeye.app.use",
+    "ValidationResult": "handeye.app.validate",
     "PlanResult": "handeye.app.api",
     "SimulationResult": "handeye.app.api",
     "CalibrationResult": "handeye.app.results",

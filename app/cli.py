@@ -62,6 +62,56 @@ def _study_args(sub):
     st.add_argument("--jobs", type=int, default=None, help="worker processes for sweeps (default: all cores)")
 
 
+def _use_args(sub, conventions):
+    """``export``, ``cloud`` and ``validate``: what comes after a calibration."""
+    from handeye.app.export import FORMATS
+    from handeye.app.use import CLOUD_FORMATS
+
+    def calibration(p):
+        p.add_argument("--calibration", default=None, metavar="RESULT.json",
+                       help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
+        p.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
+                       help="instead: a sensor pose on the flange typed in (e.g. the controller's TCP), in "
+                            "--convention's columns; no uncertainty then")
+        p.add_argument("--convention", choices=conventions, default=None,
+                       help="convention of --sensor-pose (default: the dataset's, else kuka)")
+        p.add_argument("--force", action="store_true", help="use a calibration that did not converge")
+
+    ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
+                                       "JSON (handeye.app.export)")
+    ex.add_argument("result", nargs="?", default=None, metavar="RESULT.json",
+                    help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
+    ex.add_argument("--format", choices=FORMATS, default="json")
+    ex.add_argument("--parent", default="flange", help="parent frame name (ros2, urdf; default flange)")
+    ex.add_argument("--child", default="sensor", help="sensor frame name (ros2, urdf, tool names; default sensor)")
+    ex.add_argument("--tool", type=int, default=1, help="tool number (KUKA TOOL_DATA, FANUC UTOOL; default 1)")
+    ex.add_argument("--register", type=int, default=99,
+                    help="FANUC position register the TP program overwrites (default 99)")
+    ex.add_argument("--out", default=None, metavar="FILE", help="write to FILE (atomically) instead of stdout")
+    ex.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
+                    help="instead of RESULT.json: a pose typed in, in --convention's columns (no uncertainty)")
+    ex.add_argument("--convention", choices=conventions, default=None, help="convention of --sensor-pose (default kuka)")
+    ex.add_argument("--force", action="store_true", help="export a calibration that did not converge")
+    cl = sub.add_parser("cloud", help="every profile point of a scan in the robot base, through a calibration "
+                                      "(PLY or CSV)")
+    cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed)")
+    calibration(cl)
+    cl.add_argument("--out", required=True, metavar="FILE", help="the point cloud to write")
+    cl.add_argument("--format", choices=CLOUD_FORMATS, default="ply",
+                    help="ply: binary little-endian, x y z double, pose int, sd float (default); csv")
+    cl.add_argument("--json", action="store_true", help="print the summary as JSON")
+    va = sub.add_parser("validate", help="measure the setup's sphere through a calibration: VDI/VDE 2634-2 PF, PS, "
+                                         "SD and the centre, with their 1 sd")
+    va.add_argument("dataset", help="a scan or dataset folder (profiles: sphere fit; without: sphere centres)")
+    calibration(va)
+    va.add_argument("--exclude", type=float, default=0.0, metavar="FRACTION",
+                    help="leave out this fraction of points with the largest deviations (VDI/VDE 2634-2 allows "
+                         "0.003; default 0)")
+    va.add_argument("--json", action="store_true", help="print the result as JSON")
+    va.add_argument("--plot", default=None, metavar="FILE",
+                    help="radial deviations on the sphere (3-D) and their histogram")
+
+
 def build_parser():
     from handeye.app.calibrate import METHODS
     from handeye.app.classic import METHODS as CLASSIC_METHODS
@@ -130,6 +180,7 @@ def build_parser():
                       help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
     diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
     _plan_args(sub)
+    _use_args(sub, list(CONVENTIONS))
     _study_args(sub)
     bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
     bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
@@ -212,6 +263,36 @@ def _simulate(args):
     return EXIT_OK
 
 
+def _export(args):
+    from handeye.app import use
+
+    if args.result is None and args.sensor_pose is None:
+        raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
+    result = use.export(args.result, format=args.format, parent=args.parent, child=args.child, tool=args.tool,
+                        register=args.register, out=args.out, sensor_pose=args.sensor_pose,
+                        convention=args.convention, force=args.force)
+    print(f"written: {args.out} ({args.format})" if args.out else result.text, end="\n" if args.out else "")
+    return EXIT_OK
+
+
+def _cloud(args):
+    from handeye.app import use
+
+    result = use.cloud(args.dataset, args.calibration, out=args.out, format=args.format, sensor_pose=args.sensor_pose,
+                       convention=args.convention, force=args.force)
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_OK
+
+
+def _validate(args):
+    from handeye.app import use
+
+    result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
+                          sensor_pose=args.sensor_pose, convention=args.convention, force=args.force)
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_OK
+
+
 def _calibrate(args):
     from handeye.app import api
 
@@ -259,6 +340,8 @@ def main(argv=None):
             return _diagnose(args)
         if args.command == "bench":
             return _bench(args)
+        if args.command in ("export", "cloud", "validate"):
+            return {"export": _export, "cloud": _cloud, "validate": _validate}[args.command](args)
         if args.command == "plan":
             return _plan(args)
         if args.command == "study":

@@ -75,10 +75,10 @@ def _sd_lines(calibration, unit="mm"):
     if sd is None:
         return ["1 sd: unknown (no covariance in the calibration)"]
     tr, rot = sd
-    scale, fmt = (1e-3, "{:.6f}") if unit == "m" else (1.0, "{:.4f}")
-    trans = ", ".join(fmt.format(v * scale) for v in tr)
+    scale = 1e-3 if unit == "m" else 1.0
+    trans = ", ".join(f"{v * scale:.3g}" for v in tr)
     return [f"1 sd: translation +-({trans}) {unit} along the flange's x, y, z;",
-            f"      rotation +-({', '.join(f'{v:.4f}' for v in rot)}) deg about the sensor's x, y, z"]
+            f"      rotation +-({', '.join(f'{v:.3g}' for v in rot)}) deg about the sensor's x, y, z"]
 
 
 def _header(calibration, what, unit="mm"):
@@ -92,7 +92,7 @@ def _comment(prefix, lines, suffix=""):
 
 
 def _f(values, digits):
-    return [f"{v:.{digits}f}" for v in values]
+    return [f"{v + 0.0:.{digits}f}".replace("-0." + "0" * digits, "0." + "0" * digits) for v in values]
 
 
 def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99):

@@ -126,3 +126,93 @@ def calibration_plot(res, dataset, path):
     fig.tight_layout()
     save_figure_atomically(fig, path)
     plt.close(fig)
+
+
+def _pm(value, sd, prec=4):
+    return f"{value:+.{prec}f}" + ("" if sd is None else f" +- {sd:.{prec}f}")
+
+
+def validation_text(res):
+    """The text report of ``handeye validate`` (:class:`handeye.app.validate.ValidationResult`)."""
+    lines = [f"validation of {res.scan} through {res.calibration}"]
+    for s in res.spheres:
+        lines += [f"[{s.label}] {s.n_points:,} points from {s.n_poses} poses"
+                  + (f" ({s.excluded_points} largest deviations left out)" if s.excluded_points else ""),
+                  f"  fitted radius      {s.radius_mm:.4f} +- {s.radius_sd_mm:.4f} mm (setup {s.setup_diameter_mm / 2:.4f})",
+                  f"  PS size error      {_pm(s.size_error_mm, s.size_error_sd_mm)} mm (fitted - setup diameter)",
+                  f"  PF form error      {s.form_error_mm:.4f} mm (max - min radial deviation; RMS {s.rms_mm:.4f}, "
+                  f"max |dev| {s.max_abs_deviation_mm:.4f})",
+                  "  centre (base)     " + _fmt(s.centre) + " mm, 1 sd" + _fmt(s.centre_sd_mm)]
+        if s.centre_offset_mm is not None:
+            lines.append("  centre - setup    " + _fmt(s.centre_offset_mm) + f" mm (|d| = "
+                         f"{np.linalg.norm(s.centre_offset_mm):.4f})")
+        parts = [f"{k} {v['radius_mm']:.4f}/{v['centre_mm']:.4f}" for k, v in s.sd_sources.items() if v is not None]
+        lines.append("  1 sd radius/centre by source (mm): " + ", ".join(parts))
+    if res.spacing is not None:
+        g = res.spacing
+        lines.append(f"SD sphere spacing   {_pm(g.error_mm, g.error_sd_mm)} mm (measured {g.distance_mm:.4f}, setup "
+                     f"{g.setup_distance_mm:.4f})")
+    if res.centres is not None:
+        c = res.centres.to_dict()
+        lines += [f"{len(c['poses'])} sphere centres through the calibration against the setup's centre "
+                  f"{_fmt(c['setup_centre']).strip()}:",
+                  f"  mean offset {_fmt(c['mean_offset_mm']).strip()} mm, RMS |eps| {c['rms_mm']:.4f} mm, "
+                  f"max {c['max_mm']:.4f} mm",
+                  "  id            eps_x      eps_y      eps_z      |eps|   1 sd (calibration)"]
+        for p in c["poses"]:
+            sd = "" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}"
+            lines.append(f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}{sd}")
+    for s in res.skipped:
+        lines.append(f"skipped {s}")
+    lines += [f"note: {n}" for n in res.notes]
+    return "\n".join(lines)
+
+
+def validation_figure(res, path, max_points=20_000):
+    """Radial deviation of every point on the sphere (3-D scatter, diverging colours, mm) and
+    their histogram; for centre validation the |epsilon| of each pose. Written to ``path``."""
+    from handeye.app.files import save_figure_atomically
+    from handeye.app.plotting import figure
+
+    plt = figure()
+    if not res.spheres:
+        c = res.centres
+        fig, ax = plt.subplots(figsize=(10, 4))
+        norms = np.linalg.norm(c.epsilon, axis=1)
+        k = np.arange(len(norms))
+        ax.bar(k, norms, color="C0", label="|epsilon|")
+        if c.predicted_sd_mm is not None:
+            ax.plot(k, c.predicted_sd_mm, "k_", ms=12, label="1 sd (calibration)")
+        ax.set_xticks(k, c.ids, rotation=90, fontsize=6)
+        ax.set(ylabel="mm", yscale="log", title=f"{res.scan}: sphere centres through the calibration")
+        ax.legend()
+        fig.tight_layout()
+        save_figure_atomically(fig, path)
+        plt.close(fig)
+        return
+    n = len(res.spheres)
+    fig = plt.figure(figsize=(11, 4.8 * n))
+    rng = np.random.default_rng(0)  # which points are drawn, when there are too many to draw
+    for k, s in enumerate(res.spheres):
+        ax = fig.add_subplot(n, 2, 2 * k + 1, projection="3d")
+        idx = np.arange(len(s.points))
+        if len(idx) > max_points:
+            idx = np.sort(rng.choice(idx, max_points, replace=False))
+        lim = float(np.max(np.abs(s.deviations))) or 1e-6
+        p = s.points[idx] - s.centre
+        sc = ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=s.deviations[idx], cmap="RdBu_r", vmin=-lim, vmax=lim, s=2)
+        fig.colorbar(sc, ax=ax, shrink=0.7, pad=0.15, label="radial deviation (mm)")
+        shown = f", {len(idx):,} of {len(s.points):,} drawn" if len(idx) < len(s.points) else ""
+        ax.set(xlabel="x - cx (mm)", ylabel="y - cy (mm)", zlabel="z - cz (mm)",
+               title=f"[{s.label}] PF {s.form_error_mm:.3f} mm, PS {s.size_error_mm:+.3f} mm{shown}")
+        ax.title.set_fontsize(9)
+        ah = fig.add_subplot(n, 2, 2 * k + 2)
+        ah.hist(s.deviations, bins=80, color="C0")
+        ah.axvline(0, color="k", lw=0.8)
+        ah.set(xlabel="radial deviation (mm)", ylabel="points",
+               title=f"RMS {s.rms_mm:.4f} mm over {s.n_points:,} points, {s.n_poses} poses")
+    fig.suptitle(f"{res.scan}: radial deviations from the least-squares sphere (robot base, calibration "
+                 f"{res.calibration})", fontsize=10)
+    fig.tight_layout()
+    save_figure_atomically(fig, path)
+    plt.close(fig)

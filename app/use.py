@@ -1,0 +1,255 @@
+"""Using a calibration: ``handeye export``, ``cloud`` and ``validate`` as Python functions.
+
+Each takes the calibration as a saved result (``calibrate --out`` file), a
+:class:`handeye.CalibrationResult`, or ``sensor_pose=`` (a pose typed in, e.g. a TCP already in
+the controller; then no uncertainty is known), and the CLI's options as keyword arguments::
+
+    import handeye
+    text = handeye.export("result.json", format="ur").text
+    c = handeye.cloud("my-scan", "result.json", out="scan.ply")     # c.points (M, 3), c.sd (M,)
+    v = handeye.validate("sphere-scan", "result.json")              # v.spheres[0].form_error_mm
+"""
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import numpy as np
+
+from handeye.app import export as exports
+from handeye.app import files, saved
+from handeye.app.errors import RequestError
+
+CLOUD_FORMATS = ("ply", "csv")
+
+
+def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka"):
+    if sensor_pose is not None:
+        if calibration is not None:
+            raise RequestError("give --calibration or --sensor-pose, not both")
+        values = sensor_pose
+        if isinstance(values, str):
+            try:
+                values = [float(v) for v in values.split(",")]
+            except ValueError:
+                raise RequestError(f"--sensor-pose {sensor_pose!r}: numbers separated by commas") from None
+        return saved.from_pose(values, convention or dataset_convention)
+    if calibration is None:
+        raise RequestError("a calibration is needed: --calibration RESULT.json (from handeye calibrate --out) or "
+                           "--sensor-pose X,Y,Z,...")
+    if isinstance(calibration, saved.Calibration):
+        cal = calibration
+    elif hasattr(calibration, "sensor2flange") and hasattr(calibration, "covariance"):  # a CalibrationResult
+        if calibration.sensor2flange is None:
+            raise RequestError(f"the calibration failed ({calibration.message}); nothing to use")
+        cov = None if calibration.covariance is None else np.asarray(calibration.covariance)[:6, :6]
+        cal = saved.Calibration(np.asarray(calibration.sensor2flange, float), cov,
+                                f"calibration of {calibration.dataset}", calibration.dataset,
+                                calibration.dataset_sha256, bool(calibration.converged))
+    else:
+        cal = saved.load(calibration)
+    if not cal.converged and not force:
+        raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
+                           "calibrate, or pass --force to use it anyway)")
+    return cal
+
+
+@dataclasses.dataclass(frozen=True)
+class ExportResult:
+    """The text of ``handeye export`` and where it was written (None: not written)."""
+
+    format: str
+    text: str
+    out: str | None
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+def export(calibration=None, format="json", parent="flange", child="sensor", tool=1, register=99, out=None,
+           sensor_pose=None, convention=None, force=False):
+    """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.export`).
+
+    Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
+    """
+    if out is not None:
+        inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
+        files.check_output_path(out, "--out", inputs)
+    cal = _calibration(calibration, sensor_pose, convention, force)
+    text = exports.text(cal, format, parent, child, tool, register)
+    if out is not None:
+        files.write_text_atomically(out, text)
+    return ExportResult(format, text, None if out is None else str(out))
+
+
+@dataclasses.dataclass(frozen=True)
+class CloudResult:
+    """The point cloud of ``handeye cloud``.
+
+    Attributes
+    ----------
+    points : ndarray, shape (M, 3)
+        Robot base, mm.
+    pose_index : ndarray, shape (M,)
+        Index into ``ids`` of each point's pose.
+    sd : ndarray, shape (M,), or None
+        3-D 1-sd of each point from the calibration's covariance, mm (:mod:`handeye.model.cloud`).
+    ids : tuple of str
+    skipped : tuple of str
+        Poses without a profile.
+    out, format : str or None
+    calibration : str
+    """
+
+    points: np.ndarray
+    pose_index: np.ndarray
+    sd: np.ndarray | None
+    ids: tuple
+    skipped: tuple
+    out: str | None
+    format: str
+    calibration: str
+
+    def to_dict(self):
+        lo, hi = (self.points.min(axis=0), self.points.max(axis=0)) if len(self.points) else (None, None)
+        return {"n_points": int(len(self.points)), "n_poses": len(self.ids), "skipped": list(self.skipped),
+                "out": self.out, "format": self.format, "calibration": self.calibration,
+                "bounds_mm": None if lo is None else {"min": lo.tolist(), "max": hi.tolist()},
+                "sd_mm": None if self.sd is None or not len(self.sd) else {
+                    "median": float(np.median(self.sd)), "max": float(self.sd.max())}}
+
+    def summary(self):
+        d = self.to_dict()
+        lines = [f"{d['n_points']:,} points from {d['n_poses']} poses (robot base, mm; calibration {self.calibration})"]
+        if d["skipped"]:
+            lines.append(f"skipped {len(d['skipped'])} rows without a profile: {', '.join(d['skipped'][:10])}")
+        if d["bounds_mm"]:
+            lo, hi = d["bounds_mm"]["min"], d["bounds_mm"]["max"]
+            lines.append("bounds: " + ", ".join(f"{a} {x:.2f}..{y:.2f}" for a, x, y in zip("xyz", lo, hi)))
+        if d["sd_mm"]:
+            lines.append(f"1 sd from the calibration: median {d['sd_mm']['median']:.3f} mm, max {d['sd_mm']['max']:.3f} mm")
+        else:
+            lines.append("1 sd: unknown (the calibration has no covariance)")
+        if self.out:
+            lines.append(f"written: {self.out} ({self.format})")
+        return "\n".join(lines)
+
+
+def ply_bytes(result):
+    """Binary little-endian PLY: ``x y z`` double (mm, robot base), ``pose`` int, ``sd`` float."""
+    with_sd = result.sd is not None
+    fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("pose", "<i4")] + ([("sd", "<f4")] if with_sd else [])
+    arr = np.empty(len(result.points), dtype=fields)
+    arr["x"], arr["y"], arr["z"] = result.points.T
+    arr["pose"] = result.pose_index
+    if with_sd:
+        arr["sd"] = result.sd
+    header = ["ply", "format binary_little_endian 1.0", "comment handeye point cloud: robot base frame, mm",
+              f"comment calibration {result.calibration}",
+              "comment sd: 3-D 1-sd of each point from the calibration's covariance, mm" if with_sd
+              else "comment no sd: the calibration has no covariance"]
+    header += [f"comment pose {k} {ident}" for k, ident in enumerate(result.ids)]
+    header += [f"element vertex {len(arr)}", "property double x", "property double y", "property double z",
+               "property int pose"] + (["property float sd"] if with_sd else []) + ["end_header"]
+    return ("\n".join(header) + "\n").encode("ascii", "replace"), arr
+
+
+def _write_cloud(result, out, fmt):
+    if fmt == "ply":
+        head, arr = ply_bytes(result)
+
+        def write(fh):
+            fh.write(head)
+            arr.tofile(fh)
+
+        files._atomically(out, "--out", "wb", write)
+        return
+    ids = np.asarray(result.ids, dtype=object)[result.pose_index]
+    lines = ["x,y,z,pose,id" + (",sd" if result.sd is not None else "")]
+    sd = result.sd if result.sd is not None else [None] * len(ids)
+    for p, k, ident, s in zip(result.points, result.pose_index, ids, sd):
+        row = f"{p[0]:.6f},{p[1]:.6f},{p[2]:.6f},{k},{ident}"
+        lines.append(row if s is None else f"{row},{s:.6f}")
+    files.write_text_atomically(out, "\n".join(lines) + "\n")
+
+
+def _scan_inputs(path):
+    from handeye.model import dataset
+
+    folder = dataset.resolve(path)
+    return [folder / "measurements.csv", folder / "setup.toml"]
+
+
+def cloud(dataset, calibration=None, out=None, format="ply", sensor_pose=None, convention=None, force=False):
+    """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
+
+    Parameters
+    ----------
+    dataset : str or path
+        A scan or dataset folder with profiles (:mod:`handeye.model.scan`); no sphere needed.
+    calibration : path, CalibrationResult or Calibration
+    out : path, optional
+        Where to write the cloud (``format`` ``ply``: binary little-endian; ``csv``).
+
+    Returns
+    -------
+    CloudResult
+    """
+    from handeye.model import cloud as clouds
+    from handeye.model import scan as scans
+
+    if format not in CLOUD_FORMATS:
+        raise RequestError(f"--format {format!r}: choose one of {', '.join(CLOUD_FORMATS)}")
+    if out is not None:
+        inputs = _scan_inputs(dataset) + ([calibration] if isinstance(calibration, (str, pathlib.Path)) else [])
+        files.check_output_path(out, "--out", inputs)
+    data = scans.load(dataset)
+    if out is not None:
+        files.check_output_path(out, "--out", list(data.profile_files))
+    cal = _calibration(calibration, sensor_pose, convention, force, data.convention)
+    points, index = clouds.points_in_base(data.flange2base(), cal.sensor2flange, data.profiles)
+    sd = None
+    if cal.covariance is not None:
+        sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)
+    result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), format,
+                         cal.source)
+    if out is not None:
+        _write_cloud(result, out, format)
+    return result
+
+
+def validate(dataset, calibration=None, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False):
+    """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.validate`).
+
+    With profiles: the cloud, a geometric sphere fit, PF, PS, the centre's offset and (two
+    spheres) SD, each with its 1-sd; without: each pose's centre against the setup's.
+    ``exclude``: fraction of points with the largest deviations left out (VDI/VDE 2634-2
+    allows up to 0.003). Returns :class:`handeye.app.validate.ValidationResult`.
+    """
+    from handeye.app import validate as validation
+    from handeye.model import dataset as datasets
+    from handeye.model import scan as scans
+    from handeye.model import tables
+
+    if not 0.0 <= float(exclude) <= 0.05:
+        raise RequestError(f"--exclude {exclude}: a fraction of points in [0, 0.05] (VDI/VDE 2634-2 allows 0.003)")
+    if plot is not None:
+        files.check_output_path(plot, "--plot", _scan_inputs(dataset), plot=True)
+    folder = datasets.resolve(dataset)
+    table = tables.read_table(folder / "measurements.csv")
+    header = [h.strip() for h in table[0]] if table else []
+    with_profiles = "profile" in header and any(
+        len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
+    if with_profiles:
+        data = scans.load(folder)
+        result = validation.validate_scan(data, _calibration(calibration, sensor_pose, convention, force,
+                                                             data.convention), float(exclude))
+    else:
+        data = datasets.load(folder)
+        result = validation.validate_centres(data, _calibration(calibration, sensor_pose, convention, force,
+                                                                data.convention))
+    if plot is not None:
+        from handeye.app import report
+
+        report.validation_figure(result, plot)
+    return result

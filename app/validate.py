@@ -1,0 +1,340 @@
+"""Validation by scanning: a sphere measured through the calibration (``handeye validate``).
+
+The acceptance test of optical 3-D measuring systems, VDI/VDE 2634 part 2, measures a
+calibrated sphere and reports, on the least-squares (geometric) sphere of the points:
+
+- probing error form ``PF``: the range (max - min) of the radial deviations;
+- probing error size ``PS``: fitted minus calibrated diameter;
+- sphere-spacing error ``SD``: measured minus calibrated distance of two sphere centres.
+
+Here the points are the scan's profiles put into the robot base through the flange poses and
+the calibration (:mod:`handeye.model.cloud`), the fit is :func:`handeye.model.sphere.fit`, and
+the centre is also compared with the setup's centre.
+
+Uncertainty (1 sd) of the fitted centre and radius, from three independent sources, each
+propagated through the fit's sensitivity ``-(J^T J)^-1 J^T`` (:mod:`handeye.model.sphere`):
+
+1. the calibration's covariance (every point moves with the one sensor pose);
+2. the robot's repeatability ``[noise] robot_mm`` (each pose's points move together);
+3. the points' own scatter, ``s^2 (J^T J)^-1``.
+
+PF is a range statistic and has no standard error; it grows with the number of points.
+
+Without profiles (a dataset of sphere centres only, such as the thesis's) the validation is
+of the centres: each pose's measured centre through the chain against the setup's centre
+(``epsilon``, the thesis's Table 7-5), with the 1-sd the calibration's covariance predicts for it.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+from handeye.model import cloud, sphere
+
+#: A pose's points whose mean lies farther than this many radii from every setup centre are of
+#: no sphere of the setup (with two spheres: the pose cannot be assigned).
+ASSIGN_RADII = 1.5
+
+
+def _list(a):
+    return None if a is None else np.asarray(a, float).tolist()
+
+
+@dataclasses.dataclass(frozen=True)
+class SphereCheck:
+    """One sphere measured through the calibration (module docstring).
+
+    Attributes
+    ----------
+    label : str
+        ``sphere`` or ``sphere2`` (the setup's section).
+    setup_diameter_mm : float
+    setup_centre : ndarray, shape (3,), or None
+        Robot base, mm.
+    n_points, n_poses : int
+    radius_mm, radius_sd_mm : float
+    centre, centre_sd_mm : ndarray, shape (3,)
+        Fitted centre (robot base, mm) and its 1-sd per axis.
+    centre_offset_mm : ndarray, shape (3,), or None
+        Fitted minus setup centre.
+    form_error_mm : float
+        PF.
+    size_error_mm, size_error_sd_mm : float
+        PS = 2 R - setup diameter, and its 1-sd.
+    rms_mm, max_abs_deviation_mm : float
+    sd_sources : dict
+        1-sd of the radius and of the centre (norm of the per-axis sd) from each source:
+        ``calibration``, ``robot``, ``points`` (mm).
+    excluded_points : int
+        Points left out as the largest deviations (``exclude``).
+    deviations, points : ndarray
+        Radial deviation (M,) and point (M, 3) of every point used (not in the JSON).
+    """
+
+    label: str
+    setup_diameter_mm: float
+    setup_centre: np.ndarray | None
+    n_points: int
+    n_poses: int
+    radius_mm: float
+    radius_sd_mm: float
+    centre: np.ndarray
+    centre_sd_mm: np.ndarray
+    centre_offset_mm: np.ndarray | None
+    form_error_mm: float
+    size_error_mm: float
+    size_error_sd_mm: float
+    rms_mm: float
+    max_abs_deviation_mm: float
+    sd_sources: dict
+    excluded_points: int
+    deviations: np.ndarray = dataclasses.field(repr=False, default=None)
+    points: np.ndarray = dataclasses.field(repr=False, default=None)
+
+    def to_dict(self):
+        return {"label": self.label, "radius_mm": self.radius_mm, "radius_sd_mm": self.radius_sd_mm,
+                "centre": _list(self.centre), "centre_sd_mm": _list(self.centre_sd_mm),
+                "centre_offset_mm": _list(self.centre_offset_mm), "setup_centre": _list(self.setup_centre),
+                "setup_diameter_mm": self.setup_diameter_mm, "form_error_mm": self.form_error_mm,
+                "size_error_mm": self.size_error_mm, "size_error_sd_mm": self.size_error_sd_mm,
+                "rms_mm": self.rms_mm, "max_abs_deviation_mm": self.max_abs_deviation_mm,
+                "n_points": self.n_points, "n_poses": self.n_poses, "excluded_points": self.excluded_points,
+                "sd_sources": self.sd_sources}
+
+
+@dataclasses.dataclass(frozen=True)
+class SpacingCheck:
+    """Sphere-spacing error SD: measured minus setup distance of the two centres, mm."""
+
+    distance_mm: float
+    setup_distance_mm: float
+    error_mm: float
+    error_sd_mm: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class CentreCheck:
+    """Validation of centres (no profiles): per pose ``epsilon = F X x_s - c`` (mm)."""
+
+    ids: tuple
+    epsilon: np.ndarray
+    predicted_sd_mm: np.ndarray | None
+    setup_centre: np.ndarray
+
+    def to_dict(self):
+        norms = np.linalg.norm(self.epsilon, axis=1)
+        return {"mean_offset_mm": _list(self.epsilon.mean(axis=0)), "rms_mm": float(np.sqrt(np.mean(norms ** 2))),
+                "max_mm": float(norms.max()), "setup_centre": _list(self.setup_centre),
+                "poses": [{"id": i, "epsilon_mm": _list(e), "norm_mm": float(n),
+                           "predicted_sd_mm": None if self.predicted_sd_mm is None else float(s)}
+                          for i, e, n, s in zip(self.ids, self.epsilon, norms,
+                                                self.predicted_sd_mm if self.predicted_sd_mm is not None
+                                                else [None] * len(self.ids))]}
+
+
+@dataclasses.dataclass(frozen=True)
+class ValidationResult:
+    """The outcome of :func:`handeye.validate` (module docstring).
+
+    Attributes
+    ----------
+    scan : str
+        The scanned dataset's name.
+    calibration : str
+        Where the calibration came from.
+    n_points, n_poses : int
+        Points and poses used (sphere mode; poses only in centre mode).
+    spheres : list of SphereCheck
+        Empty in centre mode.
+    spacing : SpacingCheck or None
+        With two spheres whose setup centres are known.
+    centres : CentreCheck or None
+        Centre mode (a dataset without profiles).
+    skipped : list of str
+        Poses not used, with the reason.
+    notes : list of str
+        What this validation can and cannot show.
+    """
+
+    scan: str
+    calibration: str
+    n_points: int
+    n_poses: int
+    spheres: list
+    spacing: SpacingCheck | None
+    centres: CentreCheck | None
+    skipped: list
+    notes: list
+
+    def to_dict(self):
+        return {"scan": self.scan, "calibration": self.calibration, "n_points": self.n_points,
+                "n_poses": self.n_poses,
+                "sphere": self.spheres[0].to_dict() if self.spheres else None,
+                "spheres": [s.to_dict() for s in self.spheres],
+                "spacing": None if self.spacing is None else self.spacing.to_dict(),
+                "centres": None if self.centres is None else self.centres.to_dict(),
+                "skipped": list(self.skipped), "notes": list(self.notes)}
+
+    def summary(self):
+        from handeye.app import report
+
+        return report.validation_text(self)
+
+
+def _sources(fit, a_cal, cov_cal, g_robot, robot_sigma):
+    """Covariance (4x4) of (centre, radius) from each source (module docstring)."""
+    inv = np.linalg.inv(fit.information)
+    out = {"points": fit.noise_covariance()}
+    out["robot"] = robot_sigma ** 2 * inv @ np.einsum("nij,nkj->ik", g_robot, g_robot) @ inv
+    out["calibration"] = None if cov_cal is None else inv @ a_cal @ cov_cal @ a_cal.T @ inv
+    return out
+
+
+def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclude=0.0):
+    """Fit and assess one sphere; returns ``(SphereCheck, a_cal (4, 6) for the spacing's
+    cross-covariance, information inverse)``."""
+    fit = sphere.fit(points)
+    dropped = 0
+    if exclude > 0:
+        dropped = int(np.floor(exclude * len(points)))
+        if dropped:
+            keep = np.argsort(np.abs(fit.deviations))[: len(points) - dropped]
+            keep.sort()
+            points, xz, index = points[keep], xz[keep], index[keep]
+            fit = sphere.fit(points)
+    jac = np.hstack([-fit.normals, -np.ones((len(points), 1))])  # (M, 4)
+    a_cal = jac.T @ cloud.radial_jacobian(fit.normals, xz, f2b, index, calib.sensor2flange)  # (4, 6)
+    starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])  # points are grouped by pose
+    g_robot = np.add.reduceat(jac[:, :, None] * fit.normals[:, None, :], starts, axis=0)  # (poses, 4, 3)
+    covs = _sources(fit, a_cal, calib.covariance, g_robot, robot_sigma)
+    total = sum(c for c in covs.values() if c is not None)
+    sd = np.sqrt(np.clip(np.diag(total), 0.0, None))
+    sd_sources = {k: None if c is None else {"radius_mm": float(np.sqrt(max(c[3, 3], 0.0))),
+                                             "centre_mm": float(np.sqrt(max(np.trace(c[:3, :3]), 0.0)))}
+                  for k, c in covs.items()}
+    check = SphereCheck(
+        label=label, setup_diameter_mm=setup.diameter, setup_centre=setup.centre, n_points=len(points),
+        n_poses=len(starts), radius_mm=fit.radius, radius_sd_mm=float(sd[3]), centre=fit.centre,
+        centre_sd_mm=sd[:3], centre_offset_mm=None if setup.centre is None else fit.centre - setup.centre,
+        form_error_mm=fit.form_error, size_error_mm=2 * fit.radius - setup.diameter, size_error_sd_mm=float(2 * sd[3]),
+        rms_mm=fit.rms, max_abs_deviation_mm=float(np.max(np.abs(fit.deviations))), sd_sources=sd_sources,
+        excluded_points=dropped, deviations=fit.deviations, points=points)
+    return check, a_cal, np.linalg.inv(fit.information), total
+
+
+def assign(points, index, spheres, ids):
+    """Per pose the setup sphere it saw (index into ``spheres``), or -1 with a reason."""
+    n_poses = int(index.max()) + 1 if len(index) else 0
+    counts = np.bincount(index, minlength=n_poses)
+    means = np.stack([np.bincount(index, weights=points[:, k], minlength=n_poses) for k in range(3)], 1)
+    means /= np.maximum(counts, 1)[:, None]
+    if len(spheres) == 1 and spheres[0].centre is None:
+        return np.zeros(n_poses, int), []
+    if any(s.centre is None for s in spheres):
+        raise RequestError("two spheres in setup.toml: each needs its center, so that every pose can be "
+                           "assigned to the sphere it saw")
+    dist = np.stack([np.linalg.norm(means - s.centre, axis=1) / (s.diameter / 2) for s in spheres], 1)
+    which = np.argmin(dist, axis=1)
+    far = dist[np.arange(n_poses), which] > ASSIGN_RADII
+    reasons = [f"{ids[i]}: its points lie {dist[i, which[i]]:.1f} radii from the nearest setup sphere "
+               "(not a sphere profile, or a wrong calibration or centre)" for i in np.flatnonzero(far)]
+    which[far] = -1
+    return which, reasons
+
+
+def spacing(checks, a_cals, infos, totals, covariance):
+    """SD of two spheres (module docstring): ``u^T (S11 + S22 - S12 - S21) u`` with the
+    calibration's cross-covariance ``S12`` (both centres move with the one sensor pose)."""
+    c1, c2 = checks
+    d = c1.centre - c2.centre
+    dist = float(np.linalg.norm(d))
+    u = d / dist
+    ref = float(np.linalg.norm(c1.setup_centre - c2.setup_centre))
+    var = float(u @ (totals[0][:3, :3] + totals[1][:3, :3]) @ u)
+    if covariance is not None:
+        s1 = (infos[0] @ a_cals[0])[:3]
+        s2 = (infos[1] @ a_cals[1])[:3]
+        var -= 2.0 * float(u @ s1 @ covariance @ s2.T @ u)
+    return SpacingCheck(dist, ref, dist - ref, float(np.sqrt(max(var, 0.0))))
+
+
+NOTES_SPHERE = [
+    "validated on the calibration's own poses, PS and the centre offset show little: the calibration fits the "
+    "sphere's diameter and centre into the sensor pose (a wrong setup diameter is absorbed and shows only in PF); "
+    "scan with held-out poses or at a second sphere position for an independent check",
+    "PF is a range (max - min) and grows with the number of points; PS, the centre and SD carry a 1-sd from the "
+    "calibration, the robot's repeatability and the points' scatter",
+]
+NOTES_CENTRE = [
+    "no profiles: the sphere's centre from each pose (xs, ys, zs) through the calibration against the setup's "
+    "centre; PF and PS need the profiles",
+    "on the calibration's own poses epsilon is the fit's residual; on held-out poses, compare |epsilon| with the "
+    "1 sd the calibration predicts (plus the sensor's and the robot's noise)",
+]
+
+
+def validate_scan(scan, calib, exclude=0.0):
+    """Sphere mode: the scan's profiles as a cloud, one fit per setup sphere (module docstring)."""
+    if not scan.spheres:
+        raise RequestError(f"{scan.path / 'setup.toml'}: validate needs the sphere: [sphere] diameter (and center to "
+                           "compare the centre)")
+    f2b = scan.flange2base()
+    points, index = cloud.points_in_base(f2b, calib.sensor2flange, scan.profiles)
+    xz = np.concatenate(scan.profiles, axis=0)
+    which, reasons = assign(points, index, scan.spheres, scan.ids)
+    per_point = which[index]
+    checks, a_cals, infos, totals = [], [], [], []
+    for k, setup in enumerate(scan.spheres):
+        mask = per_point == k
+        if not mask.any():
+            raise RequestError(f"no pose of {scan.name} saw [{'sphere' if k == 0 else 'sphere2'}] (centre "
+                               f"{_list(setup.centre)}): check the setup's centres and the calibration")
+        try:
+            check, a_cal, info, total = check_sphere("sphere" if k == 0 else "sphere2", points[mask], xz[mask], f2b,
+                                                     index[mask], calib, setup, scan.robot_sigma_mm, exclude)
+        except sphere.SphereFitError as exc:
+            raise RequestError(f"{scan.path}: {exc}") from None
+        checks.append(check)
+        a_cals.append(a_cal)
+        infos.append(info)
+        totals.append(total)
+    gap = None
+    if len(checks) == 2:
+        gap = spacing(checks, a_cals, infos, totals, calib.covariance)
+    used = int(sum(c.n_points for c in checks))
+    skipped = [f"{i}: no profile" for i in scan.skipped] + reasons
+    return ValidationResult(scan.name, calib.source, used, int(sum(c.n_poses for c in checks)), checks, gap, None,
+                            skipped, list(NOTES_SPHERE))
+
+
+def validate_centres(data, calib):
+    """Centre mode: each pose's measured centre through the chain (module docstring)."""
+    if data.sphere_centre is None:
+        raise RequestError(f"{data.path / 'setup.toml'}: validation without profiles compares sphere centres: "
+                           "[sphere] needs its center (or base_pose and center_in_plate)")
+    f2b = data.flange2base()
+    x = calib.sensor2flange
+    centre_h = np.c_[data.centre_in_sensor, np.ones(len(data))]
+    q = np.einsum("nij,nj->ni", f2b @ x, centre_h)[:, :3]
+    eps = q - data.sphere_centre
+    predicted = None if calib.covariance is None else _centre_sd(data.centre_in_sensor, x, calib.covariance)
+    return ValidationResult(data.name, calib.source, 0, len(data), [], None,
+                            CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], list(NOTES_CENTRE))
+
+
+def _centre_sd(centre_in_sensor, sensor2flange, covariance):
+    """3-D 1-sd (mm) of ``F X x_s`` from the calibration: ``sqrt tr(C J'^T J')`` with
+    ``J' = [I, -R_X [x_s]x]`` (the flange's rotation drops out of the trace)."""
+    from handeye.model.rotation import skew
+
+    r_x = sensor2flange[:3, :3]
+    out = []
+    for xs in centre_in_sensor:
+        j = np.hstack([np.eye(3), -r_x @ skew(xs)])
+        out.append(np.sqrt(max(np.trace(j @ covariance @ j.T), 0.0)))
+    return np.array(out)

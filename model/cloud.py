@@ -1,0 +1,104 @@
+"""Profiles into the robot base: the point cloud of a scan, and each point's uncertainty.
+
+A profile point ``p = (x, 0, z)`` (sensor frame, mm) of pose ``i`` lies in the robot base at
+
+    q = F_i X p,        F_i = flange2base (pose i),  X = sensor2flange (the calibration).
+
+Uncertainty. The calibration's covariance ``C`` (6x6) is of its local chart
+``X(d) = (R exp([dw]x), t + dt)`` (``dt`` mm in the flange frame, ``dw`` rad about the sensor's
+axes). To first order ``dq = R_F [I, -R_X [p]x] d``, so ``Cov q = J C J^T`` with
+``J = R_F [I, -R_X [p]x]``. Its trace, ``sd(p)^2 = tr(C J^T J)``, does not depend on ``R_F``
+(orthogonal): it is a quadratic form in ``(1, x, z)`` with six coefficients computed once, so
+the 3-D 1-sd of every point costs a few multiplications. ``sd`` is the root of the trace: the
+RMS length of the position error a calibration error causes at that point (the robot's own
+repeatability is not in it).
+
+For a validation the derivative of a point's radial distance to a sphere with respect to
+the calibration is needed: with ``n`` the unit normal at the point (robot base),
+``n^T J = [u, p x v]`` where ``u = R_F^T n`` and ``v = R_X^T u`` (:func:`radial_jacobian`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from handeye.model.rotation import skew
+
+
+def points_in_base(flange2base, sensor2flange, profiles):
+    """Every profile point in the robot base.
+
+    Parameters
+    ----------
+    flange2base : ndarray, shape (N, 4, 4)
+        Flange poses, mm.
+    sensor2flange : ndarray, shape (4, 4)
+        The calibration, mm.
+    profiles : sequence of N ndarrays, shape (K_i, 2)
+        Sensor x, z of each pose's points, mm.
+
+    Returns
+    -------
+    points : ndarray, shape (M, 3)
+        Robot base, mm (M = sum K_i).
+    pose_index : ndarray, shape (M,), int
+        The pose each point belongs to.
+    """
+    m = np.asarray(flange2base, float) @ np.asarray(sensor2flange, float)  # sensor2base per pose
+    counts = np.array([len(p) for p in profiles], dtype=np.int64)
+    index = np.repeat(np.arange(len(counts)), counts)
+    xz = np.concatenate(profiles, axis=0) if len(profiles) else np.zeros((0, 2))
+    # q = R[:, 0] x + R[:, 2] z + t, per point through its pose's sensor2base
+    points = m[index, :3, 0] * xz[:, :1] + m[index, :3, 2] * xz[:, 1:2] + m[index, :3, 3]
+    return points, index
+
+
+def _generators(sensor2flange):
+    """``J = R_F (G0 + x Gx + z Gz)``: the three 3x6 pieces of the point Jacobian."""
+    r_x = np.asarray(sensor2flange, float)[:3, :3]
+    g0 = np.hstack([np.eye(3), np.zeros((3, 3))])
+    gx = np.hstack([np.zeros((3, 3)), -r_x @ skew(np.array([1.0, 0.0, 0.0]))])
+    gz = np.hstack([np.zeros((3, 3)), -r_x @ skew(np.array([0.0, 0.0, 1.0]))])
+    return g0, gx, gz
+
+
+def point_sd(xz, sensor2flange, covariance):
+    """3-D 1-sd (mm) of each point's position in the base from the calibration's covariance.
+
+    Parameters
+    ----------
+    xz : ndarray, shape (M, 2)
+        Sensor x, z of the points, mm.
+    sensor2flange : ndarray, shape (4, 4)
+    covariance : ndarray, shape (6, 6)
+        Of the local chart (mm, rad), module docstring.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        ``sqrt(tr Cov q)``, mm.
+    """
+    c = np.asarray(covariance, float)[:6, :6]
+    g = _generators(sensor2flange)
+    k = [[np.trace(a @ c @ b.T) for b in g] for a in g]  # tr(Ga C Gb^T) = coefficient of (a, b)
+    x, z = np.asarray(xz, float)[:, 0], np.asarray(xz, float)[:, 1]
+    var = k[0][0] + 2 * x * k[0][1] + 2 * z * k[0][2] + x * x * k[1][1] + 2 * x * z * k[1][2] + z * z * k[2][2]
+    return np.sqrt(np.clip(var, 0.0, None))
+
+
+def point_jacobian(xz, flange2base, pose_index, sensor2flange):
+    """``dq/dd`` (M, 3, 6) of every point (module docstring); for tests and small clouds."""
+    g0, gx, gz = _generators(sensor2flange)
+    xz = np.asarray(xz, float)
+    j = g0 + xz[:, 0, None, None] * gx + xz[:, 1, None, None] * gz
+    return np.asarray(flange2base, float)[pose_index, :3, :3] @ j
+
+
+def radial_jacobian(normals, xz, flange2base, pose_index, sensor2flange):
+    """``n^T dq/dd`` (M, 6): how each point's distance along ``normals`` (M, 3, base frame)
+    moves with the calibration's chart (module docstring)."""
+    r_f = np.asarray(flange2base, float)[pose_index, :3, :3]
+    u = np.einsum("mji,mj->mi", r_f, normals)  # R_F^T n
+    v = u @ np.asarray(sensor2flange, float)[:3, :3]  # R_X^T u, row-wise
+    p = np.zeros((len(u), 3))
+    p[:, 0], p[:, 2] = np.asarray(xz, float)[:, 0], np.asarray(xz, float)[:, 1]
+    return np.hstack([u, np.cross(p, v)])
