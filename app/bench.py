@@ -317,8 +317,81 @@ def pipeline(sizes=PIPELINE):
     return {"rows": rows, "time_slope": slope, "memory_slope": mem_slope, "slope_above": LARGE}
 
 
+#: Points of the ``handeye cloud`` / ``validate`` scaling (1,280-point profiles, as the sensor's).
+CLOUD = (10_240, 102_400, 1_024_000, 3_072_000)
+
+
+def write_scan(folder, n_points, per_profile=1280, seed=0):
+    """A scan of a 30 mm-radius sphere at (1500, -600, 1100) with ``n_points`` points in
+    1,280-point profiles (0.01 mm noise), and a calibration file with a covariance beside it."""
+    import json
+    import pathlib
+
+    rng = np.random.default_rng(seed)
+    folder = pathlib.Path(folder)
+    (folder / "p").mkdir(parents=True, exist_ok=True)
+    x = transform_from_pose(np.array([190.0, 100.0, 125.0, 180.0, -88.0, 0.0]))
+    centre, radius = np.array([1500.0, -600.0, 1100.0]), 30.0
+    rows = ["id,x,y,z,a,b,c,profile"]
+    for k in range(int(np.ceil(n_points / per_profile))):
+        angles = np.array([rng.uniform(-180, 180), rng.uniform(-30, 30), 180 + rng.uniform(-30, 30)])
+        s2b = transform_from_pose(np.r_[0.0, 0.0, 0.0, angles])
+        ys = rng.uniform(-0.7, 0.7) * radius
+        in_sensor = np.array([rng.uniform(-10, 10), ys, rng.uniform(220, 260)])
+        s2b[:3, 3] = centre - s2b[:3, :3] @ in_sensor
+        r = np.sqrt(radius ** 2 - ys ** 2)
+        phi = np.linspace(np.pi + 0.2, 2 * np.pi - 0.2, per_profile)
+        xz = np.c_[in_sensor[0] + r * np.cos(phi), in_sensor[2] + r * np.sin(phi) + rng.normal(0, 0.01, per_profile)]
+        (folder / "p" / f"{k}.csv").write_text("x,z\n" + "\n".join(f"{a:.5f},{b:.5f}" for a, b in xz) + "\n")
+        pose = pose_from_transform(s2b @ np.linalg.inv(x))
+        rows.append(f"s{k}," + ",".join(f"{v:.9f}" for v in pose) + f",p/{k}.csv")
+    (folder / "measurements.csv").write_text("\n".join(rows) + "\n")
+    (folder / "setup.toml").write_text(f"[sphere]\ndiameter = {2 * radius}\ncenter = {centre.tolist()}\n")
+    cov = np.diag(np.square([0.05, 0.05, 0.05, 5e-4, 5e-4, 5e-4]))
+    names = ["tx", "ty", "tz", "wx", "wy", "wz"]
+    (folder.parent / f"{folder.name}.json").write_text(json.dumps(
+        {"sensor_matrix": x.tolist(), "converged": True, "covariance": {"names": names, "matrix": cov.tolist()}}))
+    return folder
+
+
+def use_scaling(sizes=CLOUD):
+    """Wall time and peak memory of ``handeye cloud`` (binary PLY with per-point sd) and
+    ``handeye validate`` against the number of points, each in a fresh process."""
+    import pathlib
+
+    probe = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
+             "code = main(sys.argv[1:]); "
+             "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
+             "file=sys.stderr)")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            folder = write_scan(f"{tmp}/n{n}", n)
+            cal = str(pathlib.Path(tmp) / f"n{n}.json")
+            row = {"points": n}
+            for what, args in (("cloud", ["cloud", str(folder), "--calibration", cal, "--out", f"{tmp}/c.ply"]),
+                               ("validate", ["validate", str(folder), "--calibration", cal, "--json"])):
+                out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
+                line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
+                if not line:
+                    row[what] = {"seconds": None, "peak_mb": None, "exit": out.returncode}
+                    continue
+                _, kb, seconds, code = line[-1].split()
+                row[what] = {"seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code),
+                             "points_per_s": n / float(seconds)}
+            rows.append(row)
+    out = {"rows": rows}
+    for what in ("cloud", "validate"):
+        ok = [r for r in rows if r[what]["seconds"]]
+        if len(ok) >= 2:
+            logn = np.log([r["points"] for r in ok])
+            out[f"{what}_time_slope"] = float(np.polyfit(logn, np.log([r[what]["seconds"] for r in ok]), 1)[0])
+            out[f"{what}_memory_slope"] = float(np.polyfit(logn, np.log([r[what]["peak_mb"] for r in ok]), 1)[0])
+    return out
+
+
 def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None,
-        pipeline_sizes=None):
+        pipeline_sizes=None, cloud_sizes=None):
     """Run the benchmark; returns the JSON-ready result."""
     reps = reps or (5 if quick else 20)
     cases = {"thesis-real": real_case()}
@@ -340,6 +413,10 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
         pipeline_sizes = (10_000, 30_000) if quick else PIPELINE
     if pipeline_sizes:
         result["pipeline"] = pipeline(pipeline_sizes)
+    if cloud_sizes is None:
+        cloud_sizes = CLOUD[:2] if quick else CLOUD
+    if cloud_sizes:
+        result["use"] = use_scaling(cloud_sizes)
     return result
 
 
@@ -394,6 +471,21 @@ def text(res):
             lines.append(f"  log-log slope above {pl['slope_above']} measurements (lm, deletion-formula leave-one-out): "
                          f"time {pl['time_slope']:.2f}, peak memory {pl['memory_slope']:.2f} (1 = linear; below, "
                          "the default is IPOPT with exact refits)")
+    if "use" in res:
+        u = res["use"]
+        lines += ["", "handeye cloud (binary PLY, per-point sd) and validate (sphere fit, PF/PS, 1-sd), by points:"]
+        for r in u["rows"]:
+            cells = []
+            for what in ("cloud", "validate"):
+                c = r[what]
+                cells.append(f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
+                             f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, "
+                             f"peak {c['peak_mb']:6.0f} MB")
+            lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
+        if "cloud_time_slope" in u:
+            lines.append(f"  log-log slopes: cloud time {u['cloud_time_slope']:.2f}, memory {u['cloud_memory_slope']:.2f}; "
+                         f"validate time {u['validate_time_slope']:.2f}, memory {u['validate_memory_slope']:.2f} "
+                         "(1 = linear)")
     return "\n".join(lines)
 
 

@@ -156,8 +156,8 @@ def validation_text(res):
         c = res.centres.to_dict()
         lines += [f"{len(c['poses'])} sphere centres through the calibration against the setup's centre "
                   f"{_fmt(c['setup_centre']).strip()}:",
-                  f"  mean offset {_fmt(c['mean_offset_mm']).strip()} mm, RMS |eps| {c['rms_mm']:.4f} mm, "
-                  f"max {c['max_mm']:.4f} mm",
+                  f"  mean offset {_fmt(c['mean_offset_mm']).strip()} mm; |eps|: RMS {c['rms_mm']:.4f} mm, median "
+                  f"{c['median_mm']:.4f} mm, max {c['max_mm']:.4f} mm",
                   "  id            eps_x      eps_y      eps_z      |eps|   1 sd (calibration)"]
         for p in c["poses"]:
             sd = "" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}"

@@ -129,7 +129,7 @@ class CentreCheck:
     def to_dict(self):
         norms = np.linalg.norm(self.epsilon, axis=1)
         return {"mean_offset_mm": _list(self.epsilon.mean(axis=0)), "rms_mm": float(np.sqrt(np.mean(norms ** 2))),
-                "max_mm": float(norms.max()), "setup_centre": _list(self.setup_centre),
+                "median_mm": float(np.median(norms)), "max_mm": float(norms.max()), "setup_centre": _list(self.setup_centre),
                 "poses": [{"id": i, "epsilon_mm": _list(e), "norm_mm": float(n),
                            "predicted_sd_mm": None if self.predicted_sd_mm is None else float(s)}
                           for i, e, n, s in zip(self.ids, self.epsilon, norms,
