@@ -354,6 +354,10 @@ def write_scan(folder, n_points, per_profile=1280, seed=0):
     return folder
 
 
+#: The slopes of the cloud and validate scaling are fitted from this many points on.
+SLOPE_FROM = 100_000
+
+
 def use_scaling(sizes=CLOUD):
     """Wall time and peak memory of ``handeye cloud`` (binary PLY with per-point sd) and
     ``handeye validate`` against the number of points, each in a fresh process."""
@@ -380,9 +384,9 @@ def use_scaling(sizes=CLOUD):
                 row[what] = {"seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code),
                              "points_per_s": n / float(seconds)}
             rows.append(row)
-    out = {"rows": rows}
-    for what in ("cloud", "validate"):
-        ok = [r for r in rows if r[what]["seconds"]]
+    out = {"rows": rows, "slope_from": SLOPE_FROM}
+    for what in ("cloud", "validate"):  # above the fixed cost of a process's imports and set-up
+        ok = [r for r in rows if r[what]["seconds"] and r["points"] >= SLOPE_FROM]
         if len(ok) >= 2:
             logn = np.log([r["points"] for r in ok])
             out[f"{what}_time_slope"] = float(np.polyfit(logn, np.log([r[what]["seconds"] for r in ok]), 1)[0])
@@ -483,7 +487,8 @@ def text(res):
                              f"peak {c['peak_mb']:6.0f} MB")
             lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
         if "cloud_time_slope" in u:
-            lines.append(f"  log-log slopes: cloud time {u['cloud_time_slope']:.2f}, memory {u['cloud_memory_slope']:.2f}; "
+            lines.append(f"  log-log slopes from {u['slope_from']:,} points: cloud time {u['cloud_time_slope']:.2f}, "
+                         f"memory {u['cloud_memory_slope']:.2f}; "
                          f"validate time {u['validate_time_slope']:.2f}, memory {u['validate_memory_slope']:.2f} "
                          "(1 = linear)")
     return "\n".join(lines)
