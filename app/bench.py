@@ -386,7 +386,7 @@ def use_scaling(sizes=CLOUD):
             rows.append(row)
     out = {"rows": rows, "slope_from": SLOPE_FROM}
     for what in ("cloud", "validate"):  # above the fixed cost of a process's imports and set-up
-        ok = [r for r in rows if r[what]["seconds"] and r["points"] >= SLOPE_FROM]
+        ok = [r for r in rows if r[what]["seconds"] and r[what]["exit"] == 0 and r["points"] >= SLOPE_FROM]
         if len(ok) >= 2:
             logn = np.log([r["points"] for r in ok])
             out[f"{what}_time_slope"] = float(np.polyfit(logn, np.log([r[what]["seconds"] for r in ok]), 1)[0])

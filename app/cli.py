@@ -3,7 +3,8 @@
 Exit codes
 ----------
 0  calibration converged
-1  calibration did not converge (the result is still printed, and flagged)
+1  calibration did not converge (the result is still printed, and flagged); validate: a
+   maximum permissible error (--mpe) exceeded
 2  bad input: unreadable or malformed dataset, bad option, too few or degenerate poses;
    one line on stderr naming file, row and column where there is one
 3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
@@ -81,7 +82,8 @@ def _use_args(sub, conventions):
                                        "JSON (handeye.app.export)")
     ex.add_argument("result", nargs="?", default=None, metavar="RESULT.json",
                     help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
-    ex.add_argument("--format", choices=FORMATS, default="json")
+    ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
+                                                                      "numbers)")
     ex.add_argument("--parent", default="flange", help="parent frame name (ros2, urdf; default flange)")
     ex.add_argument("--child", default="sensor", help="sensor frame name (ros2, urdf, tool names; default sensor)")
     ex.add_argument("--tool", type=int, default=1, help="tool number (KUKA TOOL_DATA, FANUC UTOOL; default 1)")
@@ -90,15 +92,17 @@ def _use_args(sub, conventions):
     ex.add_argument("--out", default=None, metavar="FILE", help="write to FILE (atomically) instead of stdout")
     ex.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
                     help="instead of RESULT.json: a pose typed in, in --convention's columns (no uncertainty)")
-    ex.add_argument("--convention", choices=conventions, default=None, help="convention of --sensor-pose (default kuka)")
+    ex.add_argument("--convention", choices=conventions, default=None, help="convention of --sensor-pose (required "
+                                                                            "with it)")
     ex.add_argument("--force", action="store_true", help="export a calibration that did not converge")
     cl = sub.add_parser("cloud", help="every profile point of a scan in the robot base, through a calibration "
                                       "(PLY or CSV)")
     cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed)")
     calibration(cl)
     cl.add_argument("--out", required=True, metavar="FILE", help="the point cloud to write")
-    cl.add_argument("--format", choices=CLOUD_FORMATS, default="ply",
-                    help="ply: binary little-endian, x y z double, pose int, sd float (default); csv")
+    cl.add_argument("--format", choices=CLOUD_FORMATS, default=None,
+                    help="ply: binary little-endian, x y z double, pose int, sd float; csv (default: from --out's "
+                         "extension, .csv is CSV, else PLY)")
     cl.add_argument("--json", action="store_true", help="print the summary as JSON")
     va = sub.add_parser("validate", help="measure the setup's sphere through a calibration: VDI/VDE 2634-2 PF, PS, "
                                          "SD and the centre, with their 1 sd")
@@ -107,6 +111,8 @@ def _use_args(sub, conventions):
     va.add_argument("--exclude", type=float, default=0.0, metavar="FRACTION",
                     help="leave out this fraction of points with the largest deviations (VDI/VDE 2634-2 allows "
                          "0.003; default 0)")
+    va.add_argument("--mpe", default=None, metavar="PF,PS[,SD]",
+                    help="maximum permissible errors (mm): exit 1 when PF, |PS| or |SD| exceeds its limit")
     va.add_argument("--json", action="store_true", help="print the result as JSON")
     va.add_argument("--plot", default=None, metavar="FILE",
                     help="radial deviations on the sphere (3-D) and their histogram")
@@ -288,9 +294,9 @@ def _validate(args):
     from handeye.app import use
 
     result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
-                          sensor_pose=args.sensor_pose, convention=args.convention, force=args.force)
+                          sensor_pose=args.sensor_pose, convention=args.convention, force=args.force, mpe=args.mpe)
     print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK
+    return EXIT_NOT_CONVERGED if result.passed is False else EXIT_OK
 
 
 def _calibrate(args):

@@ -81,10 +81,16 @@ def _sd_lines(calibration, unit="mm"):
             f"      rotation +-({', '.join(f'{v:.3g}' for v in rot)}) deg about the sensor's x, y, z"]
 
 
+def _one_line(text):
+    """Text safe inside a one-line comment of any format: no control characters (a newline in a
+    file name or a hand-edited dataset name would end the comment and start robot code)."""
+    return re.sub(r"[\x00-\x1f\x7f]", " ", str(text))[:200]
+
+
 def _header(calibration, what, unit="mm"):
-    lines = [f"handeye: the sensor frame on the robot flange ({what})",
-             f"from {calibration.source}" + (f" (dataset {calibration.dataset})" if calibration.dataset else "")]
-    return lines + _sd_lines(calibration, unit)
+    source = _one_line(calibration.source) + (f" (dataset {_one_line(calibration.dataset)})" if calibration.dataset
+                                              else "")
+    return [f"handeye: the sensor frame on the robot flange ({what})", f"from {source}"] + _sd_lines(calibration, unit)
 
 
 def _comment(prefix, lines, suffix=""):
@@ -140,6 +146,8 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
     if fmt == "kuka":
         if not 1 <= tool <= 16:
             raise RequestError(f"--tool {tool}: a KUKA tool number is 1..16")
+        if len(child) > 24 or '"' in child:
+            raise RequestError(f"--child {child!r}: KUKA's TOOL_NAME holds at most 24 characters")
         x, y, z = _f(mm, 6)
         a, b, c = _f(rep["kuka_abc_deg"], 8)
         head = _header(calibration, f"KRL FRAME for $config.dat, TOOL_DATA[{tool}]: X, Y, Z mm, A, B, C deg "
@@ -147,7 +155,10 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
         return (_comment("; ", head) + f'\nTOOL_DATA[{tool}]={{X {x},Y {y},Z {z},A {a},B {b},C {c}}}\n'
                 f'TOOL_NAME[{tool},]="{child[:24]}"\n')
     if fmt == "abb":
-        name = "t" + _RAPID_NAME.sub("_", child)[:31]
+        name = "t" + child
+        if _RAPID_NAME.search(child) or len(name) > 32:
+            raise RequestError(f"--child {child!r}: the ABB tooldata is named t{child}, a RAPID identifier: letters, "
+                               "digits and _, at most 32 characters")
         pos = ", ".join(_f(mm, 6))
         quat = ", ".join(_f(rep["quaternion_wxyz"], 12))
         head = _header(calibration, "RAPID tooldata, tframe: [x, y, z] mm, [q1, q2, q3, q4] = quaternion w, x, y, z")
@@ -161,18 +172,19 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
             raise RequestError(f"--register {register}: a FANUC position register is 1..100")
         values = _f(mm, 6) + _f(rep["fanuc_wpr_deg"], 8)
         sd = calibration.sd()
-        notes = [f"handeye {child[:18]} on flange", "UTOOL: X Y Z mm, W P R deg",
+        notes = ["handeye: sensor on flange", f"frame {child}"[:29], "UTOOL: X Y Z mm, W P R deg",
                  "Direct Entry: the PR values"]
-        if sd is not None:  # TP comment lines hold 32 characters
-            notes += ["1sd XYZ mm " + " ".join(f"{v:.3g}" for v in sd[0]),
-                      "1sd rot deg " + " ".join(f"{v:.3g}" for v in sd[1])]
+        if sd is not None:  # a TP comment holds 32 characters: one number per line, rounded
+            notes += [f"1sd {a} {v:.3g} mm" for a, v in zip("XYZ", sd[0])]
+            notes += [f"1sd rot {a} {v:.3g} deg" for a, v in zip("xyz", sd[1])]
         prog = [f"! {n[:29]} ;" for n in notes]
-        prog += [f"PR[{register}]=LPOS-LPOS ;"] + [f"PR[{register},{k}]={v} ;" for k, v in enumerate(values, 1)]
+        constants = [f"({v})" if v.startswith("-") else v for v in values]  # TP writes a negative constant (-1)
+        prog += [f"PR[{register}]=LPOS-LPOS ;"] + [f"PR[{register},{k}]={v} ;" for k, v in enumerate(constants, 1)]
         prog += [f"UTOOL[{tool}]=PR[{register}] ;"]
         body = "\n".join(f"{k:4d}:  {line}" for k, line in enumerate(prog, 1))
         return (f"/PROG HANDEYE_UTOOL{tool}\n/ATTR\nCOMMENT = \"handeye sensor tool\";\n"
                 f"/MN\n{body}\n/POS\n/END\n")
-    rows = "\n".join(" ".join(f"{v:.10f}" for v in row) for row in calibration.sensor2flange)
+    rows = "\n".join(" ".join(_f(row, 10)) for row in calibration.sensor2flange)
     return _comment("# ", _header(calibration, "4x4 homogeneous transform, sensor -> flange, mm")) + "\n" + rows + "\n"
 
 

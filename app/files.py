@@ -140,6 +140,12 @@ def save_figure_atomically(fig, path, option="--plot", dpi=120):
     _atomically(path, option, "wb", lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))
 
 
+def write_stream_atomically(path, write, option="--out"):
+    """``write(binary file)`` through a temporary file and a rename (:func:`_atomically`): large
+    outputs stream without a copy in memory."""
+    _atomically(path, option, "wb", write)
+
+
 def write_bytes_atomically(path, data, option="--out"):
     """Bytes through a temporary file and a rename (:func:`_atomically`)."""
     _atomically(path, option, "wb", lambda fh: fh.write(data))

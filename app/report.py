@@ -129,7 +129,8 @@ def calibration_plot(res, dataset, path):
 
 
 def _pm(value, sd, prec=4):
-    return f"{value:+.{prec}f}" + ("" if sd is None else f" +- {sd:.{prec}f}")
+    text = f"{value:+.{prec}f}".replace("-0." + "0" * prec, "+0." + "0" * prec)  # no -0.0000
+    return text + ("" if sd is None else f" +- {sd:.{prec}f}")
 
 
 def validation_text(res):
@@ -162,6 +163,11 @@ def validation_text(res):
         for p in c["poses"]:
             sd = "" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}"
             lines.append(f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}{sd}")
+    if res.acceptance is not None:
+        a = res.acceptance
+        lim = ", ".join(f"{k} {v:g}" for k, v in a.limits.items())
+        lines.append(f"acceptance (MPE {lim} mm): " + ("PASSED" if a.passed else "FAILED: " + ", ".join(
+            f"{k} = {a.measured[k]:+.4f}" for k in a.failed)))
     for s in res.skipped:
         lines.append(f"skipped {s}")
     lines += [f"note: {n}" for n in res.notes]

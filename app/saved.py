@@ -106,11 +106,12 @@ def _covariance(doc, file):
         m = _matrix(cov["matrix"], (len(names), len(names)), file, "covariance")[:6, :6]
     elif isinstance(doc.get("std"), dict) and isinstance(doc.get("correlation"), dict):
         std = doc["std"]  # an older result: rebuild it from sd and (rounded) correlations
-        try:
-            sd = np.r_[np.array(std["sensor_translation_mm"], float), np.radians(np.array(std["sensor_rotation_deg"], float))]
-        except (KeyError, TypeError, ValueError):
-            raise CalibrationFileError(file, "needs sensor_translation_mm and sensor_rotation_deg", "std") from None
-        names = doc["correlation"].get("names") or []
+        trans = _matrix([std.get("sensor_translation_mm")], (1, 3), file, "std")[0]
+        rot = _matrix([std.get("sensor_rotation_deg")], (1, 3), file, "std")[0]
+        sd = np.r_[trans, np.radians(rot)]
+        names = doc["correlation"].get("names")
+        if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
+            raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "correlation")
         corr = _matrix(doc["correlation"].get("matrix"), (len(names), len(names)), file, "correlation")[:6, :6]
         m = corr * np.outer(sd, sd)
     else:
@@ -138,6 +139,8 @@ def load(path):
         doc = json.loads(text, parse_constant=lambda c: None)
     except json.JSONDecodeError as exc:
         raise CalibrationFileError(file, f"not JSON (line {exc.lineno}: {exc.msg})") from None
+    except RecursionError:
+        raise CalibrationFileError(file, "nested too deeply to be a calibration result") from None
     if not isinstance(doc, dict) or "sensor_matrix" not in doc:
         raise CalibrationFileError(file, "not a calibration result: no sensor_matrix (write one with handeye "
                                          "calibrate DATASET --out FILE)")
@@ -145,8 +148,27 @@ def load(path):
         raise CalibrationFileError(file, "the calibration has no result (it failed); see its message: "
                                          f"{str(doc.get('message'))[:200]}", "sensor_matrix")
     m = check_transform(_matrix(doc["sensor_matrix"], (4, 4), file, "sensor_matrix"), file)
-    return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), doc.get("dataset_sha256"),
-                       bool(doc.get("converged", True)))
+    converged = doc.get("converged", True)  # a hand-made file with only the matrix: a calibration taken as given
+    if not isinstance(converged, bool):
+        raise CalibrationFileError(file, f"needs true or false, got {str(converged)[:40]!r}", "converged")
+    sha = doc.get("dataset_sha256")
+    return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), sha if isinstance(sha, str) else None,
+                       converged)
+
+
+#: A sensor origin nearer the flange's than this (mm) is a pose typed in metres (UR's units).
+MIN_OFFSET_MM = 1.0
+
+
+def from_matrix(matrix, source="a 4x4 matrix"):
+    """A :class:`Calibration` without covariance from a 4x4 sensor2flange (mm), checked rigid."""
+    try:
+        m = np.array(matrix, dtype=float)
+    except (TypeError, ValueError):
+        raise RequestError(f"{source}: needs a 4x4 array of numbers") from None
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise RequestError(f"{source}: needs a 4x4 array of finite numbers, got shape {m.shape}")
+    return Calibration(check_transform(m, source), None, source)
 
 
 def from_pose(pose, convention="kuka"):
@@ -160,4 +182,8 @@ def from_pose(pose, convention="kuka"):
         m = conventions.transform_from(convention, values)
     except conventions.ConventionError as exc:
         raise RequestError(f"--sensor-pose: {exc}") from None
+    offset = float(np.linalg.norm(values[:3]))
+    if 0 < offset < MIN_OFFSET_MM:
+        raise RequestError(f"--sensor-pose: the sensor origin {offset:.3g} mm from the flange's: metres? handeye "
+                           "positions are mm (UR: multiply x, y, z by 1000)")
     return Calibration(m, None, f"--sensor-pose {','.join(f'{v:g}' for v in values)} ({convention})")

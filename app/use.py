@@ -23,10 +23,14 @@ from handeye.app.errors import RequestError
 CLOUD_FORMATS = ("ply", "csv")
 
 
-def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka"):
+def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
+                 name="--calibration"):
     if sensor_pose is not None:
         if calibration is not None:
-            raise RequestError("give --calibration or --sensor-pose, not both")
+            raise RequestError(f"give {name} or --sensor-pose, not both")
+        if convention is None and dataset_convention is None:
+            raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
+                               "it from")
         values = sensor_pose
         if isinstance(values, str):
             try:
@@ -39,6 +43,8 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
                            "--sensor-pose X,Y,Z,...")
     if isinstance(calibration, saved.Calibration):
         cal = calibration
+    elif isinstance(calibration, np.ndarray) or isinstance(calibration, (list, tuple)):
+        cal = saved.from_matrix(calibration)
     elif hasattr(calibration, "sensor2flange") and hasattr(calibration, "covariance"):  # a CalibrationResult
         if calibration.sensor2flange is None:
             raise RequestError(f"the calibration failed ({calibration.message}); nothing to use")
@@ -75,7 +81,7 @@ def export(calibration=None, format="json", parent="flange", child="sensor", too
     if out is not None:
         inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
         files.check_output_path(out, "--out", inputs)
-    cal = _calibration(calibration, sensor_pose, convention, force)
+    cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration")
     text = exports.text(cal, format, parent, child, tool, register)
     if out is not None:
         files.write_text_atomically(out, text)
@@ -162,15 +168,20 @@ def _write_cloud(result, out, fmt):
             fh.write(head)
             arr.tofile(fh)
 
-        files._atomically(out, "--out", "wb", write)
+        files.write_stream_atomically(out, write)
         return
+    import csv
+    import io
+
     ids = np.asarray(result.ids, dtype=object)[result.pose_index]
-    lines = ["x,y,z,pose,id" + (",sd" if result.sd is not None else "")]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")  # an id with a comma or a quote is quoted, not split
+    writer.writerow(["x", "y", "z", "pose", "id"] + (["sd"] if result.sd is not None else []))
     sd = result.sd if result.sd is not None else [None] * len(ids)
     for p, k, ident, s in zip(result.points, result.pose_index, ids, sd):
-        row = f"{p[0]:.6f},{p[1]:.6f},{p[2]:.6f},{k},{ident}"
-        lines.append(row if s is None else f"{row},{s:.6f}")
-    files.write_text_atomically(out, "\n".join(lines) + "\n")
+        row = [f"{p[0]:.6f}", f"{p[1]:.6f}", f"{p[2]:.6f}", int(k), ident]
+        writer.writerow(row if s is None else row + [f"{s:.6f}"])
+    files.write_text_atomically(out, buf.getvalue())
 
 
 def _scan_inputs(path):
@@ -180,7 +191,7 @@ def _scan_inputs(path):
     return [folder / "measurements.csv", folder / "setup.toml"]
 
 
-def cloud(dataset, calibration=None, out=None, format="ply", sensor_pose=None, convention=None, force=False):
+def cloud(dataset, calibration=None, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
 
     Parameters
@@ -189,7 +200,10 @@ def cloud(dataset, calibration=None, out=None, format="ply", sensor_pose=None, c
         A scan or dataset folder with profiles (:mod:`handeye.model.scan`); no sphere needed.
     calibration : path, CalibrationResult or Calibration
     out : path, optional
-        Where to write the cloud (``format`` ``ply``: binary little-endian; ``csv``).
+        Where to write the cloud.
+    format : {'ply', 'csv'}, optional
+        ``ply`` binary little-endian, or ``csv``; default: from the extension of ``out``
+        (``.csv`` is CSV, anything else PLY).
 
     Returns
     -------
@@ -198,8 +212,13 @@ def cloud(dataset, calibration=None, out=None, format="ply", sensor_pose=None, c
     from handeye.model import cloud as clouds
     from handeye.model import scan as scans
 
+    suffix = "" if out is None else pathlib.Path(out).suffix.lower().lstrip(".")
+    if format is None:
+        format = "csv" if suffix == "csv" else "ply"
     if format not in CLOUD_FORMATS:
         raise RequestError(f"--format {format!r}: choose one of {', '.join(CLOUD_FORMATS)}")
+    if suffix in CLOUD_FORMATS and suffix != format:
+        raise RequestError(f"--out {out}: a .{suffix} file, but --format {format}; name it .{format} or drop --format")
     if out is not None:
         inputs = _scan_inputs(dataset) + ([calibration] if isinstance(calibration, (str, pathlib.Path)) else [])
         files.check_output_path(out, "--out", inputs)
@@ -218,20 +237,28 @@ def cloud(dataset, calibration=None, out=None, format="ply", sensor_pose=None, c
     return result
 
 
-def validate(dataset, calibration=None, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False):
+def validate(dataset, calibration=None, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
+             mpe=None):
     """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.validate`).
 
     With profiles: the cloud, a geometric sphere fit, PF, PS, the centre's offset and (two
     spheres) SD, each with its 1-sd; without: each pose's centre against the setup's.
     ``exclude``: fraction of points with the largest deviations left out (VDI/VDE 2634-2
-    allows up to 0.003). Returns :class:`handeye.app.validate.ValidationResult`.
+    allows up to 0.003). ``mpe``: maximum permissible errors ``"PF,PS[,SD]"`` (mm) for a
+    verdict (``result.passed``; the CLI exits 1 when one is exceeded). Returns
+    :class:`handeye.app.validate.ValidationResult`.
     """
     from handeye.app import validate as validation
     from handeye.model import dataset as datasets
     from handeye.model import scan as scans
     from handeye.model import tables
 
-    if not 0.0 <= float(exclude) <= 0.05:
+    limits = _mpe(mpe)
+    try:
+        exclude = float(exclude)
+    except (TypeError, ValueError):
+        raise RequestError(f"--exclude {exclude!r}: a fraction of points in [0, 0.05]") from None
+    if not 0.0 <= exclude <= 0.05:
         raise RequestError(f"--exclude {exclude}: a fraction of points in [0, 0.05] (VDI/VDE 2634-2 allows 0.003)")
     if plot is not None:
         files.check_output_path(plot, "--plot", _scan_inputs(dataset), plot=True)
@@ -240,16 +267,33 @@ def validate(dataset, calibration=None, plot=None, exclude=0.0, sensor_pose=None
     header = [h.strip() for h in table[0]] if table else []
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
+    data = scans.load(folder) if with_profiles else datasets.load(folder)
+    cal = _calibration(calibration, sensor_pose, convention, force, data.convention)
+    own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     if with_profiles:
-        data = scans.load(folder)
-        result = validation.validate_scan(data, _calibration(calibration, sensor_pose, convention, force,
-                                                             data.convention), float(exclude))
+        result = validation.validate_scan(data, cal, float(exclude), own)
     else:
-        data = datasets.load(folder)
-        result = validation.validate_centres(data, _calibration(calibration, sensor_pose, convention, force,
-                                                                data.convention))
+        result = validation.validate_centres(data, cal, own)
+    if limits is not None:
+        result = dataclasses.replace(result, acceptance=validation.accept(result, limits))
     if plot is not None:
         from handeye.app import report
 
         report.validation_figure(result, plot)
     return result
+
+
+def _mpe(mpe):
+    """``"PF,PS[,SD]"`` (mm) or a sequence, checked; None stays None."""
+    if mpe is None:
+        return None
+    values = mpe
+    if isinstance(mpe, str):
+        try:
+            values = [float(v) for v in mpe.split(",")]
+        except ValueError:
+            raise RequestError(f"--mpe {mpe!r}: PF,PS[,SD] in mm, e.g. 0.05,0.03") from None
+    values = list(values)
+    if len(values) not in (2, 3) or not all(np.isfinite(v) and v > 0 for v in values):
+        raise RequestError(f"--mpe {mpe!r}: two or three positive numbers (PF, PS[, SD] in mm)")
+    return values

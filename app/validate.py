@@ -138,6 +138,45 @@ class CentreCheck:
 
 
 @dataclasses.dataclass(frozen=True)
+class Acceptance:
+    """Measured errors against maximum permissible errors (mm): PF <= MPE_PF, |PS| <= MPE_PS and,
+    with two spheres, |SD| <= MPE_SD. ``failed`` names what exceeds its limit."""
+
+    limits: dict
+    measured: dict
+    failed: list
+
+    @property
+    def passed(self):
+        return not self.failed
+
+    def to_dict(self):
+        return {"limits": self.limits, "measured": self.measured, "failed": list(self.failed), "passed": self.passed}
+
+
+def accept(result, mpe):
+    """:class:`Acceptance` of a sphere validation against ``mpe`` = (PF, PS[, SD]) in mm."""
+    if not result.spheres:
+        raise RequestError("--mpe judges PF, PS and SD of a sphere scan; a validation of centres has none")
+    names = ("PF", "PS", "SD")[: len(mpe)]
+    limits = dict(zip(names, map(float, mpe)))
+    measured, failed = {}, []
+    for s in result.spheres:
+        for name, value in (("PF", s.form_error_mm), ("PS", s.size_error_mm)):
+            key = f"{name} [{s.label}]"
+            measured[key] = value
+            if abs(value) > limits[name]:
+                failed.append(key)
+    if "SD" in limits:
+        if result.spacing is None:
+            raise RequestError("--mpe gives an SD limit, but the setup has one sphere ([sphere2] gives the second)")
+        measured["SD"] = result.spacing.error_mm
+        if abs(result.spacing.error_mm) > limits["SD"]:
+            failed.append("SD")
+    return Acceptance(limits, measured, failed)
+
+
+@dataclasses.dataclass(frozen=True)
 class ValidationResult:
     """The outcome of :func:`handeye.validate` (module docstring).
 
@@ -159,6 +198,11 @@ class ValidationResult:
         Poses not used, with the reason.
     notes : list of str
         What this validation can and cannot show.
+    own_data : bool or None
+        True when the scan is the calibration's own dataset (same SHA-256), False when it is
+        not, None when the calibration does not say (a pose typed in, an older file).
+    acceptance : Acceptance or None
+        The verdict against stated maximum permissible errors (``mpe``).
     """
 
     scan: str
@@ -170,6 +214,13 @@ class ValidationResult:
     centres: CentreCheck | None
     skipped: list
     notes: list
+    own_data: bool | None = None
+    acceptance: Acceptance | None = None
+
+    @property
+    def passed(self):
+        """The acceptance verdict, or None when no limits were stated."""
+        return None if self.acceptance is None else self.acceptance.passed
 
     def to_dict(self):
         return {"scan": self.scan, "calibration": self.calibration, "n_points": self.n_points,
@@ -178,7 +229,8 @@ class ValidationResult:
                 "spheres": [s.to_dict() for s in self.spheres],
                 "spacing": None if self.spacing is None else self.spacing.to_dict(),
                 "centres": None if self.centres is None else self.centres.to_dict(),
-                "skipped": list(self.skipped), "notes": list(self.notes)}
+                "skipped": list(self.skipped), "notes": list(self.notes), "own_data": self.own_data,
+                "acceptance": None if self.acceptance is None else self.acceptance.to_dict()}
 
     def summary(self):
         from handeye.app import report
@@ -196,8 +248,38 @@ def _sources(fit, a_cal, cov_cal, g_robot, robot_sigma):
 
 
 def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclude=0.0):
-    """Fit and assess one sphere; returns ``(SphereCheck, a_cal (4, 6) for the spacing's
-    cross-covariance, information inverse)``."""
+    """Fit and assess one sphere (module docstring).
+
+    Parameters
+    ----------
+    label : str
+    points : ndarray, shape (M, 3)
+        Robot base, mm; grouped by pose (``index`` non-decreasing).
+    xz : ndarray, shape (M, 2)
+        The same points in the sensor frame, mm.
+    f2b : ndarray, shape (N, 4, 4)
+        Flange poses, mm.
+    index : ndarray, shape (M,)
+        Pose of each point.
+    calib : handeye.app.saved.Calibration
+    setup : handeye.model.scan.Sphere
+    robot_sigma : float
+        Robot repeatability per axis, mm.
+    exclude : float
+        Fraction of points with the largest deviations left out.
+
+    Returns
+    -------
+    check : SphereCheck
+    a_cal : ndarray, shape (4, 6)
+        ``J^T (dd/dcalibration)``, for the spacing's cross-covariance.
+    info_inv : ndarray, shape (4, 4)
+        ``(J^T J)^-1``.
+    total : ndarray, shape (4, 4)
+        Covariance of (centre, radius), all sources.
+    """
+    if np.any(np.diff(index) < 0):
+        raise ValueError("points must be grouped by pose (index non-decreasing)")
     fit = sphere.fit(points)
     dropped = 0
     if exclude > 0:
@@ -228,7 +310,25 @@ def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclu
 
 
 def assign(points, index, spheres, ids):
-    """Per pose the setup sphere it saw (index into ``spheres``), or -1 with a reason."""
+    """The setup sphere each pose saw.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 3)
+        Robot base, mm.
+    index : ndarray, shape (M,)
+        Pose of each point.
+    spheres : sequence of handeye.model.scan.Sphere
+    ids : sequence of str
+
+    Returns
+    -------
+    which : ndarray, shape (N,)
+        Index into ``spheres`` per pose; -1 when its points' mean lies more than
+        :data:`ASSIGN_RADII` radii from every setup centre.
+    reasons : list of str
+        Why each pose with -1 was left out.
+    """
     n_poses = int(index.max()) + 1 if len(index) else 0
     counts = np.bincount(index, minlength=n_poses)
     means = np.stack([np.bincount(index, weights=points[:, k], minlength=n_poses) for k in range(3)], 1)
@@ -249,7 +349,10 @@ def assign(points, index, spheres, ids):
 
 def spacing(checks, a_cals, infos, totals, covariance):
     """SD of two spheres (module docstring): ``u^T (S11 + S22 - S12 - S21) u`` with the
-    calibration's cross-covariance ``S12`` (both centres move with the one sensor pose)."""
+    calibration's cross-covariance ``S12`` (both centres move with the one sensor pose).
+
+    ``checks``, ``a_cals``, ``infos``, ``totals``: per sphere, as :func:`check_sphere` returns
+    them; ``covariance`` (6, 6) of the calibration or None. Returns :class:`SpacingCheck`."""
     c1, c2 = checks
     d = c1.centre - c2.centre
     dist = float(np.linalg.norm(d))
@@ -263,22 +366,24 @@ def spacing(checks, a_cals, infos, totals, covariance):
     return SpacingCheck(dist, ref, dist - ref, float(np.sqrt(max(var, 0.0))))
 
 
-NOTES_SPHERE = [
-    "validated on the calibration's own poses, PS and the centre offset show little: the calibration fits the "
-    "sphere's diameter and centre into the sensor pose (a wrong setup diameter is absorbed and shows only in PF); "
-    "scan with held-out poses or at a second sphere position for an independent check",
-    "PF is a range (max - min) and grows with the number of points; PS, the centre and SD carry a 1-sd from the "
-    "calibration, the robot's repeatability and the points' scatter",
-]
-NOTES_CENTRE = [
-    "no profiles: the sphere's centre from each pose (xs, ys, zs) through the calibration against the setup's "
-    "centre; PF and PS need the profiles",
-    "on the calibration's own poses epsilon is the fit's residual; on held-out poses, compare |epsilon| with the "
-    "1 sd the calibration predicts (plus the sensor's and the robot's noise)",
-]
+NOTES_OWN = {
+    True: "these are the calibration's own data: it has already fitted the sensor pose to them, so the centre offset "
+          "and PS are near zero by construction (a wrong setup diameter is absorbed and shows only in PF); for an "
+          "independent check scan held-out poses or a second sphere position",
+    False: "these are not the calibration's data (another SHA-256): PS, the centre offset and SD are an independent "
+           "check of the calibration",
+    None: "if these are the data the calibration was fitted to, the centre offset and PS are near zero by "
+          "construction (a wrong setup diameter shows only in PF); held-out poses or a second sphere position give "
+          "an independent check",
+}
+NOTE_SPHERE = ("PF is a range (max - min) and grows with the number of points; PS, the centre and SD carry a 1-sd "
+               "from the calibration, the robot's repeatability and the points' scatter")
+NOTE_CENTRE = ("no profiles: the sphere's centre from each pose (xs, ys, zs) through the calibration against the "
+               "setup's centre, with the 1 sd the calibration predicts (the sensor's and the robot's noise come on "
+               "top); PF and PS need the profiles")
 
 
-def validate_scan(scan, calib, exclude=0.0):
+def validate_scan(scan, calib, exclude=0.0, own=None):
     """Sphere mode: the scan's profiles as a cloud, one fit per setup sphere (module docstring)."""
     if not scan.spheres:
         raise RequestError(f"{scan.path / 'setup.toml'}: validate needs the sphere: [sphere] diameter (and center to "
@@ -309,10 +414,10 @@ def validate_scan(scan, calib, exclude=0.0):
     used = int(sum(c.n_points for c in checks))
     skipped = [f"{i}: no profile" for i in scan.skipped] + reasons
     return ValidationResult(scan.name, calib.source, used, int(sum(c.n_poses for c in checks)), checks, gap, None,
-                            skipped, list(NOTES_SPHERE))
+                            skipped, [NOTES_OWN[own], NOTE_SPHERE], own)
 
 
-def validate_centres(data, calib):
+def validate_centres(data, calib, own=None):
     """Centre mode: each pose's measured centre through the chain (module docstring)."""
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}: validation without profiles compares sphere centres: "
@@ -324,7 +429,8 @@ def validate_centres(data, calib):
     eps = q - data.sphere_centre
     predicted = None if calib.covariance is None else _centre_sd(data.centre_in_sensor, x, calib.covariance)
     return ValidationResult(data.name, calib.source, 0, len(data), [], None,
-                            CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], list(NOTES_CENTRE))
+                            CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], [NOTE_CENTRE, NOTES_OWN[own]],
+                            own)
 
 
 def _centre_sd(centre_in_sensor, sensor2flange, covariance):

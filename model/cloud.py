@@ -86,7 +86,21 @@ def point_sd(xz, sensor2flange, covariance):
 
 
 def point_jacobian(xz, flange2base, pose_index, sensor2flange):
-    """``dq/dd`` (M, 3, 6) of every point (module docstring); for tests and small clouds."""
+    """``dq/dd`` of every point (module docstring); (M, 3, 6) floats, so for small clouds.
+
+    Parameters
+    ----------
+    xz : ndarray, shape (M, 2)
+        Sensor x, z, mm.
+    flange2base : ndarray, shape (N, 4, 4)
+    pose_index : ndarray, shape (M,)
+    sensor2flange : ndarray, shape (4, 4)
+
+    Returns
+    -------
+    ndarray, shape (M, 3, 6)
+        mm per (mm, rad) of the chart.
+    """
     g0, gx, gz = _generators(sensor2flange)
     xz = np.asarray(xz, float)
     j = g0 + xz[:, 0, None, None] * gx + xz[:, 1, None, None] * gz
@@ -94,8 +108,20 @@ def point_jacobian(xz, flange2base, pose_index, sensor2flange):
 
 
 def radial_jacobian(normals, xz, flange2base, pose_index, sensor2flange):
-    """``n^T dq/dd`` (M, 6): how each point's distance along ``normals`` (M, 3, base frame)
-    moves with the calibration's chart (module docstring)."""
+    """``n^T dq/dd``: how each point moves along its normal with the calibration's chart.
+
+    Parameters
+    ----------
+    normals : ndarray, shape (M, 3)
+        Unit vectors, robot base.
+    xz, flange2base, pose_index, sensor2flange
+        As :func:`point_jacobian`.
+
+    Returns
+    -------
+    ndarray, shape (M, 6)
+        ``[u, p x v]`` with ``u = R_F^T n``, ``v = R_X^T u`` (module docstring).
+    """
     r_f = np.asarray(flange2base, float)[pose_index, :3, :3]
     u = np.einsum("mji,mj->mi", r_f, normals)  # R_F^T n
     v = u @ np.asarray(sensor2flange, float)[:3, :3]  # R_X^T u, row-wise

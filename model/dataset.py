@@ -43,12 +43,10 @@ from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_tex
     GUESS_LIMITS,
     LIMIT_POSITION_MM,
     MAX_LINE_BYTES,
-    READING_LIMITS,
     READING_RANGES,
     DatasetError,
     check_angles,
     number,
-    pose_list_convention,
     pose_list_text,
     read_points,
     read_pose_list,
@@ -155,18 +153,24 @@ class Dataset:
 
     def content_hash(self):
         """SHA-256 of the files that make the dataset (setup, measurements, profiles)."""
-        import hashlib
+        return folder_hash(self.path, self.profile_files)
 
-        h = hashlib.sha256()
-        files = {str(p.relative_to(self.path)): p for p in self.path.rglob("*")
-                 if p.is_file() and p.suffix in (".csv", ".toml")}
-        base = self.path.resolve()
-        for p in self.profile_files:  # whatever their names: what was read (inside the folder, checked)
-            files.setdefault(str(pathlib.Path(p).relative_to(base)), pathlib.Path(p))
-        for name in sorted(files):
-            h.update(name.encode())
-            h.update(files[name].read_bytes())
-        return h.hexdigest()
+
+def folder_hash(path, profile_files=()):
+    """SHA-256 of a dataset folder's ``.csv`` and ``.toml`` files and of the profile files read
+    (whatever their names), by relative path: equal for the same data wherever it lies."""
+    import hashlib
+
+    path = pathlib.Path(path)
+    h = hashlib.sha256()
+    files = {str(p.relative_to(path)): p for p in path.rglob("*") if p.is_file() and p.suffix in (".csv", ".toml")}
+    base = path.resolve()
+    for p in profile_files:  # whatever their names: what was read (inside the folder, checked)
+        files.setdefault(str(pathlib.Path(p).relative_to(base)), pathlib.Path(p))
+    for name in sorted(files):
+        h.update(name.encode())
+        h.update(files[name].read_bytes())
+    return h.hexdigest()
 
 
 def embedded_names():
@@ -247,7 +251,9 @@ NOISE_CENTRE_MM = 0.05
 NOISE_ROBOT_MM = 0.025
 
 
-def _read_setup(path, require_sphere=True):
+def read_setup(path, require_sphere=True):
+    """Read and check ``setup.toml`` of a dataset folder (module docstring): a ``_SetupFile``.
+    ``require_sphere=False`` (a scan) accepts a setup without ``[sphere]``."""
     file = path / "setup.toml"
     try:
         if file.exists() and not file.is_file():
@@ -282,7 +288,7 @@ def _read_setup(path, require_sphere=True):
         else:
             start = to_kuka(start, convention, file, None, "[sensor] start_pose")
     diam, centre, plate_pose, centre_in_plate = _read_sphere(doc, "sphere", file, convention, require_sphere)
-    sphere2 = _read_sphere(doc, "sphere2", file, convention, False) if "sphere2" in doc else None
+    sphere2 = _read_sphere(doc, "sphere2", file, convention, True) if "sphere2" in doc else None
     side = doc.get("profile", {}).get("side", -1)
     if side not in (1, -1) or isinstance(side, bool):
         raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
@@ -407,14 +413,14 @@ def load_setup(name_or_path):
     """Read and check only ``setup.toml`` of a dataset folder (``measurements.csv`` may not exist
     yet: a cell being planned); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    st = _read_setup(folder)
+    st = read_setup(folder)
     return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention)
 
 
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
-    st = _read_setup(folder)
+    st = read_setup(folder)
     if st.sphere2 is not None:
         raise DatasetError(folder / "setup.toml", "two spheres: a calibration uses one; [sphere2] is for handeye "
                                                   "validate and cloud (remove it to calibrate)", column="[sphere2]")

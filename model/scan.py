@@ -83,6 +83,11 @@ class Scan:
     def n_points(self):
         return int(sum(len(p) for p in self.profiles))
 
+    def content_hash(self):
+        """SHA-256 of the scan's files, as :meth:`handeye.model.dataset.Dataset.content_hash`
+        (equal when the scan is a calibration's own dataset)."""
+        return dataset.folder_hash(self.path, self.profile_files)
+
     def flange2base(self):
         """Flange poses as transforms (N, 4, 4), mm; read-only."""
         return self._flange2base
@@ -116,8 +121,11 @@ def load(name_or_path):
         if header.count(col) > 1:
             raise DatasetError(file, "duplicate column", 1, col)
     if (folder / "setup.toml").exists():
-        st = dataset._read_setup(folder, require_sphere=False)
+        st = dataset.read_setup(folder, require_sphere=False)
         convention, limits, noise = st.convention, st.noise["limits"], st.noise
+        if st.sphere2 is not None and st.diameter is None:
+            raise DatasetError(folder / "setup.toml", "[sphere2] without [sphere]: name the first sphere [sphere]",
+                               column="[sphere2]")
         spheres = [Sphere(st.diameter, st.centre)] if st.diameter is not None else []
         if st.sphere2 is not None:
             spheres.append(Sphere(st.sphere2[0], st.sphere2[1]))

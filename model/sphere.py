@@ -16,7 +16,9 @@ sphere through one circle is any sphere containing it.
 Sensitivities. At the fit, ``J^T d = 0``; a perturbation ``dd`` of the deviations (a
 calibration or robot error moving the points) moves the fit by
 ``d beta = -(J^T J)^-1 J^T dd`` (the implicit function theorem), which is how
-:mod:`handeye.app.validate` propagates the calibration's covariance into the fitted sphere.
+:mod:`handeye.app.validate` propagates the calibration's covariance and the robot's
+repeatability into the fitted sphere. The points' own scatter gives
+``s^2 (J^T J)^-1`` (:meth:`SphereFit.noise_covariance`), which assumes independent points.
 """
 from __future__ import annotations
 
@@ -69,15 +71,10 @@ class SphereFit:
         """Range of the radial deviations (VDI/VDE 2634-2 probing error form PF), mm."""
         return float(np.ptp(self.deviations))
 
-    def sensitivity(self):
-        """``-(J^T J)^-1 J^T`` as a function: deviations' perturbation (M, k) -> fit's (4, k)."""
-        inv = np.linalg.inv(self.information)
-        jac = np.hstack([-self.normals, -np.ones((len(self.normals), 1))])
-        return lambda dd: -inv @ (jac.T @ dd)
-
     def noise_covariance(self):
         """``s^2 (J^T J)^-1`` with ``s^2 = SSR / (M - 4)``: the fit's covariance were the points'
-        deviations independent (they are not, across one profile: see the module docstring)."""
+        deviations independent. They are not across one profile (one robot error moves all its
+        points): :mod:`handeye.app.validate` adds that source separately."""
         m = len(self.deviations)
         return float(self.deviations @ self.deviations) / max(m - 4, 1) * np.linalg.inv(self.information)
 
@@ -128,14 +125,10 @@ def fit(points, max_iter=100, tol=1e-12):
     d, n, jac = _system(q0, c, r)
     info = jac.T @ jac
     lam = 1e-9 * np.trace(info)
-    iterations = 0
+    iterations, converged = 0, False
     for iterations in range(1, max_iter + 1):
         info = jac.T @ jac
-        w = np.linalg.eigvalsh(info)
-        if w[0] <= CONDITION_LIMIT * w[-1]:
-            raise SphereFitError(
-                f"the points do not determine a sphere (information matrix condition {w[-1] / max(w[0], 1e-300):.2g}): "
-                "all on one circle? Scan the sphere with profiles from several directions")
+        _check_information(info)
         grad = jac.T @ d
         step = np.linalg.solve(info + lam * np.diag(np.diag(info)), -grad)
         c_new, r_new = c + step[:3], r + step[3]
@@ -144,10 +137,24 @@ def fit(points, max_iter=100, tol=1e-12):
             c, r, d, n, jac = c_new, r_new, d_new, n_new, jac_new
             lam = max(lam / 10, 1e-15 * np.trace(info))
             if np.linalg.norm(step) <= tol * (1 + abs(r)):
+                converged = True
                 break
         else:
             lam *= 10
-            if lam > 1e10 * np.trace(info):
+            if lam > 1e10 * np.trace(info):  # no step lowers the cost: stationary to rounding
+                converged = np.linalg.norm(grad) <= 1e-8 * (1 + np.linalg.norm(d)) * np.sqrt(np.trace(info))
                 break
+    if not converged:
+        raise SphereFitError(f"the sphere fit did not converge in {iterations} iterations (points far from any "
+                             "sphere: a profile of something else in the scan?)")
     info = jac.T @ jac
+    _check_information(info)
     return SphereFit(c + mean, float(abs(r)), d, n, info, iterations)
+
+
+def _check_information(info):
+    w = np.linalg.eigvalsh(info)
+    if w[0] <= CONDITION_LIMIT * w[-1]:
+        raise SphereFitError(
+            f"the points do not determine a sphere (information matrix condition {w[-1] / max(w[0], 1e-300):.2g}): "
+            "all on one circle? Scan the sphere with profiles from several directions")

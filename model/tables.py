@@ -10,6 +10,7 @@ import csv
 import io
 import math
 import pathlib
+import warnings
 
 import numpy as np
 
@@ -87,7 +88,6 @@ def to_kuka(pose, convention, file, row, column):
     except conventions.ConventionError as exc:
         names = ",".join(conventions.CONVENTIONS[convention])
         raise DatasetError(file, str(exc), row, column or names) from None
-
 
 
 def pose_list_convention(header):
@@ -191,8 +191,6 @@ def pose_list_text(ids, poses, convention="kuka"):
     return "\n".join(lines) + "\n"
 
 
-
-
 def _inside(folder, rel, file, row):
     pfile = folder / rel
     try:
@@ -220,7 +218,9 @@ def _points_fast(pfile, limit):
     if head.strip() != b"x,z" or any(c in body for c in (b"_", b'"', b"'", b";", b"\t", b"#")):
         return None
     try:
-        pts = np.loadtxt(io.BytesIO(body), delimiter=",", dtype=float, ndmin=2, comments=None, encoding=None)
+        with warnings.catch_warnings():  # an empty file: the careful reader says so, in one line
+            warnings.simplefilter("ignore")
+            pts = np.loadtxt(io.BytesIO(body), delimiter=",", dtype=float, ndmin=2, comments=None, encoding=None)
     except (ValueError, UnicodeDecodeError):
         return None
     if pts.shape[1:] != (2,) or not np.all(np.isfinite(pts)) or (pts.size and np.max(np.abs(pts)) > limit):

@@ -55,7 +55,7 @@ def parse(fmt, text):
         pos, q = _numbers(inner.group(1)), _numbers(inner.group(2))
         return _transform(Rotation.from_quat([q[1], q[2], q[3], q[0]]), pos)
     if fmt == "fanuc":
-        v = {int(k): float(x) for k, x in re.findall(r"PR\[\d+,(\d)\]=([-+\d.eE]+)", text)}
+        v = {int(k): float(x) for k, x in re.findall(r"PR\[\d+,(\d)\]=\(?([-+\d.eE]+)\)?", text)}
         return _transform(Rotation.from_euler("xyz", [v[4], v[5], v[6]], degrees=True), [v[1], v[2], v[3]])
     if fmt == "matrix":
         return np.array([_numbers(line) for line in body.strip().splitlines()])
@@ -363,3 +363,96 @@ def test_table_7_5_epsilon_is_sample_x0_at_table_7_4s_pose():
     # one pose chosen to show it hides the rest: other samples miss the centre by millimetres
     norms = np.linalg.norm(v.centres.epsilon, axis=1)
     assert np.median(norms) > 3.0
+
+
+# ---------------------------------------------------------------- what the first users and the review found
+def test_comments_cannot_inject_robot_code(tmp_path):
+    doc = {"sensor_matrix": np.eye(4).tolist(), "dataset": "x\nmovej([0,0,0,0,0,0])\r--><joint name='evil'/>"}
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps(doc))
+    for fmt in ("ur", "ros2", "kuka", "abb", "fanuc", "matrix"):
+        text = handeye.export(path, format=fmt).text
+        live = [line for line in text.splitlines() if "movej" in line]
+        assert all(line.lstrip().startswith(("#", ";", "!")) or line.lstrip()[:4].strip().rstrip(":").isdigit()
+                   for line in live), (fmt, live)
+    urdf = handeye.export(path, format="urdf").text
+    assert len(ET.fromstring("<r>" + urdf + "</r>").findall("joint")) == 1
+
+
+def test_fanuc_comments_show_the_sd_rounded_and_negatives_in_parentheses():
+    cal = _calibration([10, 20, 30, 0, -88, 0], sd=(0.0277, 0.0696, 0.0678, 5.7e-4, 5.7e-4, 5.74e-4))
+    text = export.text(cal, "fanuc")
+    assert "1sd X 0.0277 mm" in text and "1sd rot z 0.0329 deg" in text
+    assert "PR[99,5]=(-88.00000000) ;" in text
+    assert all(len(line.split("! ", 1)[1]) <= 32 for line in text.splitlines() if "! " in line)
+
+
+def test_cloud_csv_quotes_ids_and_format_follows_the_extension(tmp_path, capsys):
+    scan = _scan(tmp_path / "s", X_TRUE, [(C1, 25.0)], n_poses=3)
+    table = (scan / "measurements.csv").read_text().replace("s1,", '"a,""b",')
+    (scan / "measurements.csv").write_text(table)
+    cal = saved.Calibration(X_TRUE, None, "truth")
+    c = handeye.cloud(scan, cal, out=tmp_path / "c.csv")  # no format: the extension says CSV
+    import csv
+
+    rows = list(csv.reader((tmp_path / "c.csv").open()))
+    assert all(len(r) == 5 for r in rows) and {r[4] for r in rows[1:]} == set(c.ids)
+    assert cli.main(["cloud", str(scan), "--sensor-pose", "190,100,125,180,-88,0", "--out",
+                     str(tmp_path / "c.csv"), "--format", "ply"]) == 2
+    assert "--format ply" in capsys.readouterr().err
+
+
+def test_old_and_hand_made_result_files(tmp_path, capsys):
+    doc = handeye.calibrate("thesis-sim").to_dict()
+    old = {k: v for k, v in doc.items() if k != "covariance"}
+    cases = {"old.json": (old, 0), "short.json": (dict(old, correlation={"names": ["tx"], "matrix": [[1.0]]}), 2),
+             "nullstd.json": (dict(old, std={"sensor_translation_mm": None, "sensor_rotation_deg": [1, 1, 1]}), 2),
+             "conv.json": (dict(doc, converged="false"), 2), "bare.json": ({"sensor_matrix": doc["sensor_matrix"]}, 0)}
+    for name, (content, code) in cases.items():
+        (tmp_path / name).write_text(json.dumps(content))
+        assert cli.main(["export", str(tmp_path / name), "--format", "ur"]) == code, (name, capsys.readouterr().err)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    assert cli.main(["export", str(deep)]) == 2
+    assert np.array_equal(parse("matrix", handeye.export(np.eye(4), format="matrix").text), np.eye(4))  # an array
+    assert cli.main(["export", "--sensor-pose", "40,-60,150,0.3,0.2,1.0", "--format", "ur"]) == 2
+    assert "--convention" in capsys.readouterr().err
+    assert cli.main(["export", "--sensor-pose", "0.04,-0.06,0.15,0.3,0.2,1.0", "--convention", "ur"]) == 2
+    assert "metres" in capsys.readouterr().err
+
+
+def test_validate_says_whose_data_and_judges_against_stated_limits(ur_cell, tmp_path, capsys):
+    root, result = ur_cell
+    own = handeye.validate(root / "cell", root / "result.json")
+    assert own.own_data is True and "own data" in own.notes[0]
+    truth = json.loads((root / "cell" / "simulation.json").read_text())["setup"]
+    handeye.simulate(tmp_path / "held", seed=6, profiles=True, convention="ur", diameter=50.8, no_start=True,
+                     truth="60,-40,90,0.3,-1.2,2.0", center=",".join(map(str, truth["sphere_centre"])))
+    held = handeye.validate(tmp_path / "held", root / "result.json", mpe="0.5,0.05")
+    assert held.own_data is False and "independent" in held.notes[0]
+    assert held.passed and abs(held.spheres[0].size_error_mm) < 3 * held.spheres[0].size_error_sd_mm + 0.01
+    args = ["validate", str(tmp_path / "held"), "--calibration", str(root / "result.json")]
+    assert cli.main(args + ["--mpe", "0.5,0.05"]) == 0
+    assert cli.main(args + ["--mpe", "0.001,0.001"]) == 1  # limits exceeded: exit 1, said
+    assert "FAILED" in capsys.readouterr().out
+    assert cli.main(args + ["--mpe", "0.1,0.1,0.1"]) == 2  # SD without a second sphere
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(args + ["--exclude", "abc"])
+    assert exit_.value.code == 2
+    with pytest.raises(handeye.InputError, match="exclude"):
+        handeye.validate(tmp_path / "held", root / "result.json", exclude=None)
+
+
+def test_scan_setups_that_cannot_be_read(tmp_path, capsys):
+    scan = _scan(tmp_path / "s", X_TRUE, [(C1, 25.0)], n_poses=3)
+    (scan / "setup.toml").write_text("[sphere2]\ndiameter = 50.0\ncenter = [0, 0, 0]\n")
+    assert cli.main(["validate", str(scan), "--sensor-pose", "190,100,125,180,-88,0"]) == 2
+    assert "[sphere2] without [sphere]" in capsys.readouterr().err
+    (scan / "setup.toml").write_text("[sphere]\ndiameter = 50.0\n[sphere2]\n")
+    assert cli.main(["validate", str(scan), "--sensor-pose", "190,100,125,180,-88,0"]) == 2
+    assert "[sphere2] diameter" in capsys.readouterr().err
+    (scan / "p" / "0.csv").write_text("x,z\n")
+    (scan / "setup.toml").write_text("[sphere]\ndiameter = 50.0\n")
+    assert cli.main(["cloud", str(scan), "--sensor-pose", "190,100,125,180,-88,0", "--out", str(tmp_path / "a.ply")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "at least 1 point" in err
