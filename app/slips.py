@@ -120,6 +120,47 @@ def _suspect(dataset, unknowns, rms_given):
     return bool(rms_given > SUSPECT_RMS_MM or chi2_survival(chi2, dof) < P_SUSPECT), dof
 
 
+#: Profiles and the sensor's own centres must agree on the sphere's radius within this fraction
+#: (or DIAMETER_AGREE_MM, whichever is larger) and six standard errors of their median.
+DIAMETER_AGREE = 0.005
+DIAMETER_AGREE_MM = 0.1
+
+
+def check_diameter(dataset):
+    """Raise :class:`CalibrationInputError` when the sensor's own centres (``xs, ys, zs`` given
+    beside a profile) and the profiles disagree on the sphere: each pair implies a radius
+    ``sqrt(r^2 + ys^2)`` (r the profile circle's); their median against ``[sphere] diameter``.
+
+    Without this the centre residual (screening, leave-one-out) would use the sensor's centres
+    and the profile models the setup's diameter: two calibrations reported as one.
+    """
+    from handeye.model import circle
+
+    if dataset.profiles is None or dataset.reconstructed is None:
+        return
+    radii = []
+    for pts, rebuilt, xs in zip(dataset.profiles, dataset.reconstructed, dataset.centre_in_sensor):
+        if pts is None or rebuilt:
+            continue
+        try:
+            r = circle.fit_circle(pts[:, 0], pts[:, 1], "hyper").r
+        except circle.CircleFitError:
+            continue  # named by the model that needs the circle
+        radii.append(float(np.hypot(r, xs[1])))
+    if len(radii) < 3:
+        return
+    radii = np.array(radii)
+    med = float(np.median(radii))
+    se = 1.4826 * float(np.median(np.abs(radii - med))) / np.sqrt(len(radii))
+    setup = dataset.sphere_diameter / 2
+    if abs(med - setup) > max(DIAMETER_AGREE * setup, DIAMETER_AGREE_MM, 6 * se):
+        raise CalibrationInputError(
+            f"{dataset.path}: the sensor's centres (xs, ys, zs) and the profiles disagree on the sphere: together "
+            f"they imply a diameter of {2 * med:.4g} mm (median of {len(radii)}), setup.toml says "
+            f"{dataset.sphere_diameter:g} mm. Check [sphere] diameter, or leave xs, ys, zs empty to reconstruct the "
+            "centres from the profiles")
+
+
 def check(dataset, unknowns, rms_given):
     """Raise :class:`CalibrationInputError` naming a slip that explains a poor fit (module docstring).
 
@@ -131,6 +172,8 @@ def check(dataset, unknowns, rms_given):
         RMS (mm, of |e_i|) of the plain fit of every sample as the dataset is.
     """
     from handeye.model.statistics import f_survival
+
+    check_diameter(dataset)
 
     suspect, dof = _suspect(dataset, unknowns, rms_given)
     if not suspect:

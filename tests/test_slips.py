@@ -86,3 +86,20 @@ def test_effects_beyond_physics_are_not_named():
     assert effects.implausible("sphere_radius", [0.5], 25.4) is None
     assert effects.implausible("sensor_scale", [0.3], 25.4) is not None
     assert effects.implausible("sphere_center", [100.0, 0, 0], 25.4) is None
+
+
+def test_sensor_centres_and_profiles_that_disagree_on_the_diameter_are_named(tmp_path, capsys):
+    """A new user's trial: the sensor's own centres beside the profiles, setup.toml's diameter
+    wrong (50 for 50.8). Before, calibrate fitted the profiles with 50 mm but screened and
+    reported leave-one-out on the sensor's centres (0.046 mm, against an RMS of 1.9 mm)."""
+    import handeye
+    from handeye.app import cli
+
+    handeye.simulate(tmp_path / "cell", seed=1, profiles=True, convention="ur", diameter=50.8, no_start=True)
+    assert cli.main(["calibrate", str(tmp_path / "cell")]) == 0
+    capsys.readouterr()
+    setup = tmp_path / "cell" / "setup.toml"
+    setup.write_text(setup.read_text().replace("diameter = 50.8", "diameter = 50.0"))
+    assert cli.main(["calibrate", str(tmp_path / "cell")]) == 2
+    err = capsys.readouterr().err
+    assert "disagree on the sphere" in err and "50.8" in err and "[sphere] diameter" in err
