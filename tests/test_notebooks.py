@@ -1,32 +1,80 @@
-"""Every notebook's code cells run, in order, so that the notebooks never rot.
+"""Every notebook runs under a real Jupyter kernel (nbclient + ipykernel), draws inline, and is
+committed with the outputs it produces now.
 
-Executed without a Jupyter kernel (the cells are plain Python run in one namespace, with
-matplotlib on its non-interactive backend); the notebooks end with assertions of what they
-claim, so a passing run checks them.
+Each notebook is executed in a fresh kernel as a reader would run it; the notebooks end with
+assertions of what they claim, so a passing run checks them. Then the committed outputs are
+compared with the fresh ones: the text outputs (numbers to 4 significant digits, so that the
+last bits of a floating-point sum on another machine do not count) and the number of figures.
+A stale notebook fails with the command that refreshes it: ``python notebooks/execute.py``.
 """
+import importlib.util
 import json
 import pathlib
+import re
 
 import pytest
 
-NOTEBOOKS = sorted((pathlib.Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+
+def _executor():
+    spec = importlib.util.spec_from_file_location("notebook_execute", ROOT / "notebooks" / "execute.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _round(match):
+    text = match.group(0)
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    return f"{value:.4g}" if value != 0 else "0"
+
+
+def _outputs(cells):
+    """Per code cell: the normalised text outputs and the number of figures."""
+    out = []
+    for cell in cells:
+        if cell["cell_type"] != "code":
+            continue
+        texts, figures = [], 0
+        for o in cell.get("outputs", []):
+            data = o.get("data", {})
+            figures += "image/png" in data
+            text = o.get("text") or data.get("text/plain") or ""
+            text = "".join(text) if isinstance(text, list) else text
+            if "image/png" in data or o.get("name") == "stderr":
+                continue  # a figure's repr (<Figure size ...>) and warnings are not results
+            text = re.sub(r" at 0x[0-9a-fA-F]+", " at 0x...", text)  # an object's address is not a result
+            texts.append(NUMBER.sub(_round, text).strip())
+        out.append((texts, figures))
+    return out
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_runs(path, monkeypatch, tmp_path):
-    import matplotlib
+def test_notebook_runs_in_a_kernel_and_is_committed_with_its_outputs(path, tmp_path):
+    pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    committed = json.loads(path.read_text())
+    fresh = _executor().execute(path, cwd=tmp_path)
+    fresh_cells = [dict(c) for c in fresh.cells]
+    now, then = _outputs(fresh_cells), _outputs(committed["cells"])
+    assert sum(f for _, f in now) >= 1, f"{path.name} draws no inline figure"
+    stale = f"{path.name}: committed outputs are stale; run `python notebooks/execute.py {path.name}` and commit"
+    assert [f for _, f in now] == [f for _, f in then], stale + " (figures differ)"
+    assert [t for t, _ in now] == [t for t, _ in then], stale
 
-    matplotlib.use("Agg")
-    monkeypatch.chdir(tmp_path)
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebooks_do_not_switch_backends_and_stay_small(path):
     nb = json.loads(path.read_text())
-    namespace = {"__name__": "__notebook__"}
-    cells = [c for c in nb["cells"] if c["cell_type"] == "code"]
-    assert cells
-    for cell in cells:
-        exec(compile("".join(cell["source"]), f"{path.name}", "exec"), namespace)  # noqa: S102
-    import matplotlib.pyplot as plt
-
-    plt.close("all")
+    source = "".join("".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code")
+    assert "matplotlib.use" not in source  # the kernel's inline backend draws; Agg would hide every figure
+    assert path.stat().st_size < 600_000, f"{path.name} is {path.stat().st_size / 1e3:.0f} kB"
 
 
 def test_there_are_notebooks():
