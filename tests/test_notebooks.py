@@ -41,7 +41,7 @@ def _outputs(cells):
     for cell in cells:
         if cell["cell_type"] != "code":
             continue
-        texts, figures = [], 0
+        texts, figures, stdout = [], 0, ""
         for o in cell.get("outputs", []):
             data = o.get("data", {})
             figures += "image/png" in data
@@ -49,8 +49,12 @@ def _outputs(cells):
             text = "".join(text) if isinstance(text, list) else text
             if "image/png" in data or o.get("name") == "stderr":
                 continue  # a figure's repr (<Figure size ...>) and warnings are not results
-            text = re.sub(r" at 0x[0-9a-fA-F]+", " at 0x...", text)  # an object's address is not a result
-            texts.append(NUMBER.sub(_round, text).strip())
+            if o.get("name") == "stdout":
+                stdout += text  # the kernel may split one cell's printing into several messages
+                continue
+            texts.append(text)
+        texts = [stdout] + texts
+        texts = [NUMBER.sub(_round, re.sub(r" at 0x[0-9a-fA-F]+", " at 0x...", t)).strip() for t in texts]
         out.append((texts, figures))
     return out
 
