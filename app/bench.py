@@ -288,24 +288,33 @@ def write_dataset(folder, n, seed=0):
     return folder
 
 
+#: Runs ``handeye ARGS`` in a fresh Python and reports its time (after the interpreter's start),
+#: peak memory and exit code on stderr.
+_PROBE = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
+          "code = main(sys.argv[1:]); "
+          "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
+          "file=sys.stderr)")
+
+
+def measure_cli(args):
+    """``{'seconds', 'peak_mb', 'exit'}`` of ``handeye ARGS`` in a fresh process (seconds and
+    peak None when it died before reporting)."""
+    out = subprocess.run([sys.executable, "-c", _PROBE, *args], capture_output=True, text=True)
+    line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
+    if not line:
+        return {"seconds": None, "peak_mb": None, "exit": out.returncode}
+    _, kb, seconds, code = line[-1].split()
+    return {"seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code)}
+
+
 def pipeline(sizes=PIPELINE):
     """Wall time and peak memory of ``handeye calibrate`` with default options (screening, fit,
     covariance, leave-one-out) against the number of measurements, each in a fresh process."""
     rows = []
-    probe = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
-             "code = main(['calibrate', sys.argv[1], '--json']); "
-             "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
-             "file=sys.stderr)")
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
             folder = write_dataset(f"{tmp}/n{n}", n)
-            out = subprocess.run([sys.executable, "-c", probe, str(folder)], capture_output=True, text=True)
-            line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
-            if not line:
-                rows.append({"n": n, "seconds": None, "peak_mb": None, "exit": out.returncode})
-                continue
-            _, kb, seconds, code = line[-1].split()
-            rows.append({"n": n, "seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code)})
+            rows.append(dict(n=n, **measure_cli(["calibrate", str(folder), "--json"])))
     # slopes over the sizes where the pipeline is the same one: above 5,000 measurements the default is
     # lm with the deletion-formula leave-one-out (below, IPOPT with exact refits: a different algorithm)
     from handeye.app.calibrate import LARGE
@@ -363,10 +372,6 @@ def use_scaling(sizes=CLOUD):
     ``handeye validate`` against the number of points, each in a fresh process."""
     import pathlib
 
-    probe = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
-             "code = main(sys.argv[1:]); "
-             "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
-             "file=sys.stderr)")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
@@ -375,14 +380,9 @@ def use_scaling(sizes=CLOUD):
             row = {"points": n}
             for what, args in (("cloud", ["cloud", str(folder), "--calibration", cal, "--out", f"{tmp}/c.ply"]),
                                ("validate", ["validate", str(folder), "--calibration", cal, "--json"])):
-                out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
-                line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
-                if not line:
-                    row[what] = {"seconds": None, "peak_mb": None, "exit": out.returncode}
-                    continue
-                _, kb, seconds, code = line[-1].split()
-                row[what] = {"seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code),
-                             "points_per_s": n / float(seconds)}
+                row[what] = measure_cli(args)
+                if row[what]["seconds"] is not None:
+                    row[what]["points_per_s"] = n / row[what]["seconds"]
             rows.append(row)
     out = {"rows": rows, "slope_from": SLOPE_FROM}
     for what in ("cloud", "validate"):  # above the fixed cost of a process's imports and set-up

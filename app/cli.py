@@ -68,20 +68,24 @@ def _use_args(sub, conventions):
     from handeye.app.export import FORMATS
     from handeye.app.use import CLOUD_FORMATS
 
-    def calibration(p):
-        p.add_argument("--calibration", default=None, metavar="RESULT.json",
-                       help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
+    def calibration(p, option=True):
+        """--calibration (or, for export, a positional RESULT.json), --sensor-pose, --convention, --force."""
+        if option:
+            p.add_argument("--calibration", default=None, metavar="RESULT.json",
+                           help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
+        else:
+            p.add_argument("result", nargs="?", default=None, metavar="RESULT.json",
+                           help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
         p.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
                        help="instead: a sensor pose on the flange typed in (e.g. the controller's TCP), in "
                             "--convention's columns; no uncertainty then")
         p.add_argument("--convention", choices=conventions, default=None,
-                       help="convention of --sensor-pose (default: the dataset's, else kuka)")
+                       help="convention of --sensor-pose (default: the dataset's; export has none: required)")
         p.add_argument("--force", action="store_true", help="use a calibration that did not converge")
 
     ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
                                        "JSON (handeye.app.export)")
-    ex.add_argument("result", nargs="?", default=None, metavar="RESULT.json",
-                    help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
+    calibration(ex, option=False)
     ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
                                                                       "numbers)")
     ex.add_argument("--parent", default="flange", help="parent frame name (ros2, urdf; default flange)")
@@ -90,11 +94,6 @@ def _use_args(sub, conventions):
     ex.add_argument("--register", type=int, default=99,
                     help="FANUC position register the TP program overwrites (default 99)")
     ex.add_argument("--out", default=None, metavar="FILE", help="write to FILE (atomically) instead of stdout")
-    ex.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
-                    help="instead of RESULT.json: a pose typed in, in --convention's columns (no uncertainty)")
-    ex.add_argument("--convention", choices=conventions, default=None, help="convention of --sensor-pose (required "
-                                                                            "with it)")
-    ex.add_argument("--force", action="store_true", help="export a calibration that did not converge")
     cl = sub.add_parser("cloud", help="every profile point of a scan in the robot base, through a calibration "
                                       "(PLY or CSV)")
     cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed)")

@@ -162,13 +162,7 @@ MIN_OFFSET_MM = 1.0
 
 def from_matrix(matrix, source="a 4x4 matrix"):
     """A :class:`Calibration` without covariance from a 4x4 sensor2flange (mm), checked rigid."""
-    try:
-        m = np.array(matrix, dtype=float)
-    except (TypeError, ValueError):
-        raise RequestError(f"{source}: needs a 4x4 array of numbers") from None
-    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-        raise RequestError(f"{source}: needs a 4x4 array of finite numbers, got shape {m.shape}")
-    return Calibration(check_transform(m, source), None, source)
+    return Calibration(check_transform(_matrix(matrix, (4, 4), source, None), source), None, source)
 
 
 def from_pose(pose, convention="kuka"):

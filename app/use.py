@@ -31,12 +31,7 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
         if convention is None and dataset_convention is None:
             raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
                                "it from")
-        values = sensor_pose
-        if isinstance(values, str):
-            try:
-                values = [float(v) for v in values.split(",")]
-            except ValueError:
-                raise RequestError(f"--sensor-pose {sensor_pose!r}: numbers separated by commas") from None
+        values = _numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         return saved.from_pose(values, convention or dataset_convention)
     if calibration is None:
         raise RequestError("a calibration is needed: --calibration RESULT.json (from handeye calibrate --out) or "
@@ -287,13 +282,18 @@ def _mpe(mpe):
     """``"PF,PS[,SD]"`` (mm) or a sequence, checked; None stays None."""
     if mpe is None:
         return None
-    values = mpe
-    if isinstance(mpe, str):
-        try:
-            values = [float(v) for v in mpe.split(",")]
-        except ValueError:
-            raise RequestError(f"--mpe {mpe!r}: PF,PS[,SD] in mm, e.g. 0.05,0.03") from None
-    values = list(values)
+    values = list(_numbers(mpe, "--mpe", "PF,PS[,SD] in mm, e.g. 0.05,0.03"))
     if len(values) not in (2, 3) or not all(np.isfinite(v) and v > 0 for v in values):
         raise RequestError(f"--mpe {mpe!r}: two or three positive numbers (PF, PS[, SD] in mm)")
     return values
+
+
+def _numbers(value, option, form):
+    """Comma-separated numbers of an option (a sequence passes as it is); RequestError naming
+    ``option`` and the expected ``form`` otherwise."""
+    if not isinstance(value, str):
+        return value
+    try:
+        return [float(v) for v in value.split(",")]
+    except ValueError:
+        raise RequestError(f"{option} {value!r}: {form}") from None

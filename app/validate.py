@@ -427,20 +427,8 @@ def validate_centres(data, calib, own=None):
     centre_h = np.c_[data.centre_in_sensor, np.ones(len(data))]
     q = np.einsum("nij,nj->ni", f2b @ x, centre_h)[:, :3]
     eps = q - data.sphere_centre
-    predicted = None if calib.covariance is None else _centre_sd(data.centre_in_sensor, x, calib.covariance)
+    predicted = None if calib.covariance is None else cloud.point_sd(data.centre_in_sensor, x, calib.covariance)
     return ValidationResult(data.name, calib.source, 0, len(data), [], None,
                             CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], [NOTE_CENTRE, NOTES_OWN[own]],
                             own)
 
-
-def _centre_sd(centre_in_sensor, sensor2flange, covariance):
-    """3-D 1-sd (mm) of ``F X x_s`` from the calibration: ``sqrt tr(C J'^T J')`` with
-    ``J' = [I, -R_X [x_s]x]`` (the flange's rotation drops out of the trace)."""
-    from handeye.model.rotation import skew
-
-    r_x = sensor2flange[:3, :3]
-    out = []
-    for xs in centre_in_sensor:
-        j = np.hstack([np.eye(3), -r_x @ skew(xs)])
-        out.append(np.sqrt(max(np.trace(j @ covariance @ j.T), 0.0)))
-    return np.array(out)

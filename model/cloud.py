@@ -8,7 +8,7 @@ Uncertainty. The calibration's covariance ``C`` (6x6) is of its local chart
 ``X(d) = (R exp([dw]x), t + dt)`` (``dt`` mm in the flange frame, ``dw`` rad about the sensor's
 axes). To first order ``dq = R_F [I, -R_X [p]x] d``, so ``Cov q = J C J^T`` with
 ``J = R_F [I, -R_X [p]x]``. Its trace, ``sd(p)^2 = tr(C J^T J)``, does not depend on ``R_F``
-(orthogonal): it is a quadratic form in ``(1, x, z)`` with six coefficients computed once, so
+(orthogonal): it is a quadratic form in ``(1, x, y, z)`` with coefficients computed once, so
 the 3-D 1-sd of every point costs a few multiplications. ``sd`` is the root of the trace: the
 RMS length of the position error a calibration error causes at that point (the robot's own
 repeatability is not in it).
@@ -53,21 +53,19 @@ def points_in_base(flange2base, sensor2flange, profiles):
 
 
 def _generators(sensor2flange):
-    """``J = R_F (G0 + x Gx + z Gz)``: the three 3x6 pieces of the point Jacobian."""
+    """``J = R_F (G0 + x Gx + y Gy + z Gz)``: the four 3x6 pieces of the point Jacobian."""
     r_x = np.asarray(sensor2flange, float)[:3, :3]
     g0 = np.hstack([np.eye(3), np.zeros((3, 3))])
-    gx = np.hstack([np.zeros((3, 3)), -r_x @ skew(np.array([1.0, 0.0, 0.0]))])
-    gz = np.hstack([np.zeros((3, 3)), -r_x @ skew(np.array([0.0, 0.0, 1.0]))])
-    return g0, gx, gz
+    return [g0] + [np.hstack([np.zeros((3, 3)), -r_x @ skew(axis)]) for axis in np.eye(3)]
 
 
-def point_sd(xz, sensor2flange, covariance):
+def point_sd(points_in_sensor, sensor2flange, covariance):
     """3-D 1-sd (mm) of each point's position in the base from the calibration's covariance.
 
     Parameters
     ----------
-    xz : ndarray, shape (M, 2)
-        Sensor x, z of the points, mm.
+    points_in_sensor : ndarray, shape (M, 2) or (M, 3)
+        Sensor x, z of profile points (y = 0), or full x, y, z (a sphere centre), mm.
     sensor2flange : ndarray, shape (4, 4)
     covariance : ndarray, shape (6, 6)
         Of the local chart (mm, rad), module docstring.
@@ -79,10 +77,21 @@ def point_sd(xz, sensor2flange, covariance):
     """
     c = np.asarray(covariance, float)[:6, :6]
     g = _generators(sensor2flange)
-    k = [[np.trace(a @ c @ b.T) for b in g] for a in g]  # tr(Ga C Gb^T) = coefficient of (a, b)
-    x, z = np.asarray(xz, float)[:, 0], np.asarray(xz, float)[:, 1]
-    var = k[0][0] + 2 * x * k[0][1] + 2 * z * k[0][2] + x * x * k[1][1] + 2 * x * z * k[1][2] + z * z * k[2][2]
+    k = np.array([[np.trace(a @ c @ b.T) for b in g] for a in g])  # tr(Ga C Gb^T): coefficient of (a, b)
+    p = _in_sensor(points_in_sensor)
+    w = np.hstack([np.ones((len(p), 1)), p])  # (1, x, y, z)
+    var = np.einsum("ma,ab,mb->m", w, k, w)
     return np.sqrt(np.clip(var, 0.0, None))
+
+
+def _in_sensor(points):
+    """(M, 3) sensor-frame points from (M, 2) x, z (y = 0) or (M, 3)."""
+    p = np.asarray(points, float)
+    if p.shape[1] == 3:
+        return p
+    out = np.zeros((len(p), 3))
+    out[:, 0], out[:, 2] = p[:, 0], p[:, 1]
+    return out
 
 
 def point_jacobian(xz, flange2base, pose_index, sensor2flange):
@@ -101,7 +110,7 @@ def point_jacobian(xz, flange2base, pose_index, sensor2flange):
     ndarray, shape (M, 3, 6)
         mm per (mm, rad) of the chart.
     """
-    g0, gx, gz = _generators(sensor2flange)
+    g0, gx, _, gz = _generators(sensor2flange)
     xz = np.asarray(xz, float)
     j = g0 + xz[:, 0, None, None] * gx + xz[:, 1, None, None] * gz
     return np.asarray(flange2base, float)[pose_index, :3, :3] @ j
@@ -125,6 +134,4 @@ def radial_jacobian(normals, xz, flange2base, pose_index, sensor2flange):
     r_f = np.asarray(flange2base, float)[pose_index, :3, :3]
     u = np.einsum("mji,mj->mi", r_f, normals)  # R_F^T n
     v = u @ np.asarray(sensor2flange, float)[:3, :3]  # R_X^T u, row-wise
-    p = np.zeros((len(u), 3))
-    p[:, 0], p[:, 2] = np.asarray(xz, float)[:, 0], np.asarray(xz, float)[:, 1]
-    return np.hstack([u, np.cross(p, v)])
+    return np.hstack([u, np.cross(_in_sensor(xz), v)])

@@ -43,12 +43,12 @@ from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_tex
     GUESS_LIMITS,
     LIMIT_POSITION_MM,
     MAX_LINE_BYTES,
-    READING_RANGES,
     DatasetError,
     check_angles,
     number,
     pose_list_text,
     read_points,
+    read_pose,
     read_pose_list,
     read_table,
     row_id,
@@ -60,8 +60,26 @@ OPTIONAL_COLUMNS = ("profile",)
 DATA_DIR = pathlib.Path(__file__).parent / "data"
 
 
+class FlangePoses:
+    """What a dataset and a scan share: ``ids`` and ``flange_poses`` (N, 6, KUKA)."""
+
+    def flange2base(self):
+        """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
+        dataset and read-only (copy it to change it)."""
+        return self._flange2base
+
+    @functools.cached_property
+    def _flange2base(self):
+        out = transform_from_pose(self.flange_poses)
+        out.setflags(write=False)
+        return out
+
+    def __len__(self):
+        return len(self.ids)
+
+
 @dataclasses.dataclass(frozen=True)
-class Dataset:
+class Dataset(FlangePoses):
     """A dataset read and checked by :func:`load`.
 
     Attributes
@@ -123,20 +141,6 @@ class Dataset:
     noise_robot_mm: float = 0.025
     reconstructed: tuple | None = None
     profile_files: tuple = ()
-
-    def flange2base(self):
-        """Flange poses as homogeneous transforms, shape (N, 4, 4), mm; computed once per
-        dataset and read-only (copy it to change it)."""
-        return self._flange2base
-
-    @functools.cached_property
-    def _flange2base(self):
-        out = transform_from_pose(self.flange_poses)
-        out.setflags(write=False)
-        return out
-
-    def __len__(self):
-        return len(self.ids)
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -452,15 +456,7 @@ def load(name_or_path):
         if len(fields) != len(header):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
         ident = row_id(fields, idx["id"], seen, file, line)
-        pose = np.array([number(fields[idx[c]], file, line, c) for c in pose_columns])
-        if convention in READING_RANGES:
-            check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
-        for v, c in zip(pose[:3], pose_columns[:3]):
-            if abs(v) > limits["position_mm"]:
-                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{limits['position_mm']:g} mm "
-                                         "([limits] position_mm in setup.toml sets it)", line, c)
-        if convention != "kuka":
-            pose = to_kuka(pose, convention, file, line, None)
+        pose = read_pose(fields, idx, convention, file, line, limits["position_mm"])
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
         points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None

@@ -21,13 +21,11 @@ row-by-row reader (which names the bad row) otherwise.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import pathlib
 
 import numpy as np
 
 from handeye.model import conventions, dataset, tables
-from handeye.model.pose import transform_from_pose
 from handeye.model.tables import DatasetError
 
 
@@ -40,7 +38,7 @@ class Sphere:
 
 
 @dataclasses.dataclass(frozen=True)
-class Scan:
+class Scan(dataset.FlangePoses):
     """Poses and profiles read by :func:`load`.
 
     Attributes
@@ -76,9 +74,6 @@ class Scan:
     skipped: tuple = ()
     profile_files: tuple = ()
 
-    def __len__(self):
-        return len(self.ids)
-
     @property
     def n_points(self):
         return int(sum(len(p) for p in self.profiles))
@@ -87,16 +82,6 @@ class Scan:
         """SHA-256 of the scan's files, as :meth:`handeye.model.dataset.Dataset.content_hash`
         (equal when the scan is a calibration's own dataset)."""
         return dataset.folder_hash(self.path, self.profile_files)
-
-    def flange2base(self):
-        """Flange poses as transforms (N, 4, 4), mm; read-only."""
-        return self._flange2base
-
-    @functools.cached_property
-    def _flange2base(self):
-        out = transform_from_pose(self.flange_poses)
-        out.setflags(write=False)
-        return out
 
 
 def _convention_from_header(header, file):
@@ -153,15 +138,7 @@ def load(name_or_path):
         if not rel:
             skipped.append(ident)
             continue
-        pose = np.array([tables.number(fields[idx[c]], file, line, c) for c in pose_columns])
-        if convention in tables.READING_RANGES:
-            tables.check_angles(pose, file, line, limits=tables.READING_RANGES[convention], names=pose_columns[3:])
-        for v, c in zip(pose[:3], pose_columns[:3]):
-            if abs(v) > limits["position_mm"]:
-                raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{limits['position_mm']:g} mm "
-                                         "([limits] position_mm in setup.toml sets it)", line, c)
-        if convention != "kuka":
-            pose = tables.to_kuka(pose, convention, file, line, None)
+        pose = tables.read_pose(fields, idx, convention, file, line, limits["position_mm"])
         points = tables.read_points(folder, rel, file, line, limits["sensor_mm"], minimum=1)
         files.append((folder / rel).resolve())
         ids.append(ident)

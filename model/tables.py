@@ -90,6 +90,21 @@ def to_kuka(pose, convention, file, row, column):
         raise DatasetError(file, str(exc), row, column or names) from None
 
 
+def read_pose(fields, idx, convention, file, line, position_mm):
+    """The flange pose of one row of ``measurements.csv`` as KUKA (mm, deg): numbers checked,
+    angles in the controller's ranges, positions within ``position_mm`` (``[limits]``), then
+    converted from ``convention``. ``idx`` maps column names to field positions."""
+    pose_columns = conventions.columns(convention)
+    pose = np.array([number(fields[idx[c]], file, line, c) for c in pose_columns])
+    if convention in READING_RANGES:
+        check_angles(pose, file, line, limits=READING_RANGES[convention], names=pose_columns[3:])
+    for v, c in zip(pose[:3], pose_columns[:3]):
+        if abs(v) > position_mm:
+            raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{position_mm:g} mm "
+                                     "([limits] position_mm in setup.toml sets it)", line, c)
+    return pose if convention == "kuka" else to_kuka(pose, convention, file, line, None)
+
+
 def pose_list_convention(header):
     """The robot convention a pose list's header names (``id,x,y,z,`` + the convention's columns)."""
     for name in conventions.CONVENTIONS:

@@ -199,6 +199,10 @@ def test_point_jacobian_and_sd_against_central_differences():
     cov = a @ a.T * 1e-3
     direct = np.sqrt(np.einsum("mij,jk,mik->m", jac, cov, jac))
     assert np.allclose(cloud.point_sd(xz, x, cov), direct, rtol=1e-12)
+    p3 = rng.normal(size=(6, 3)) * 50  # full sensor points (a sphere centre has y != 0)
+    j3 = np.concatenate([np.eye(3)[None].repeat(6, 0), -x[:3, :3] @ np.stack(
+        [[[0, -q[2], q[1]], [q[2], 0, -q[0]], [-q[1], q[0], 0]] for q in p3])], axis=2)
+    assert np.allclose(cloud.point_sd(p3, x, cov), np.sqrt(np.einsum("mij,jk,mik->m", j3, cov, j3)), rtol=1e-12)
     normals = rng.normal(size=(len(xz), 3))
     assert np.allclose(cloud.radial_jacobian(normals, xz, f2b, idx, x), np.einsum("mi,mik->mk", normals, jac))
 
