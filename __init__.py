@@ -15,6 +15,11 @@ The public API (the ``handeye`` command's functions, with its options as keyword
     handeye.cloud("my-scan", "result.json", out="scan.ply")
     handeye.validate("sphere-scan", "result.json")  # VDI/VDE 2634-2 PF, PS, SD
 
+For solver studies and teaching: ``handeye.testfunction_problem()`` and
+``handeye.calibration_problem(model)`` are :class:`handeye.solvers.Problem` objects that
+``handeye.solvers.solve(problem, x0, method)`` minimises (``model``: a
+:class:`handeye.model.calibration.CalibrationModel`).
+
 Bad input raises :class:`InputError` (a ``ValueError``), naming file, row and column or the
 option. The layers: :mod:`handeye.solvers` (knows nothing of robots) <- :mod:`handeye.model`
 (the mathematics, derived once) <- :mod:`handeye.app` (calibrate, diagnose, reports, CLI) <-
@@ -41,6 +46,8 @@ _PUBLIC = {
     "CalibrationResult": "handeye.app.results",
     "DiagnosisResult": "handeye.app.results",
     "InputError": "handeye.model.errors",
+    "testfunction_problem": "handeye.app.problems",
+    "calibration_problem": "handeye.app.problems",
 }
 __all__ = sorted(_PUBLIC)
 
