@@ -83,3 +83,50 @@ def test_notebooks_do_not_switch_backends_and_stay_small(path):
 
 def test_there_are_notebooks():
     assert NOTEBOOKS
+
+
+def _cells(path):
+    return json.loads(path.read_text())["cells"]
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_every_notebook_ends_with_three_to_five_exercises_and_their_solutions(path):
+    cells = _cells(path)
+    text = ["".join(c["source"]) for c in cells]
+    start = next(i for i, t in enumerate(text) if re.search(r"^## Exercises$", t, flags=re.M))
+    exercises = re.findall(r"^\d+\. \*\*", text[start].split("## Exercises")[1], flags=re.M)
+    assert 3 <= len(exercises) <= 5, f"{path.name}: {len(exercises)} exercises"
+    solutions = [i for i, c in enumerate(cells) if "solution" in c.get("metadata", {}).get("tags", [])]
+    assert len(solutions) == len(exercises), f"{path.name}: {len(solutions)} solution cells for {len(exercises)} exercises"
+    for i in solutions:  # collapsed in Jupyter, explained in a collapsed block just above
+        assert i > start and cells[i]["metadata"]["jupyter"]["source_hidden"] is True
+        assert cells[i - 1]["cell_type"] == "markdown" and "<details>" in "".join(cells[i - 1]["source"])
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_notebooks_state_what_they_teach_and_use_the_public_api(path):
+    cells = _cells(path)
+    head = "".join(cells[0]["source"])
+    for part in ("**What it teaches.**", "**Know first.**", "**Time.**"):
+        assert part in head
+    source = "".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+    assert "import handeye" in source
+    for internal in ("handeye.app.problems", "handeye.model.dataset", "handeye.app.api"):
+        assert internal not in source, f"{path.name} reaches into {internal}; use the public handeye API"
+
+
+def test_two_notebooks_have_interactive_panels_that_carry_a_static_figure():
+    with_panels = []
+    for path in NOTEBOOKS:
+        for cell in _cells(path):
+            for o in cell.get("outputs", []):
+                data = o.get("data", {})
+                if "application/vnd.jupyter.widget-view+json" in data:
+                    assert "image/png" in data, f"{path.name}: a widget without its static figure"
+                    with_panels.append(path.name)
+    assert len(set(with_panels)) >= 2, with_panels
+
+
+def test_the_constrained_notebook_checks_ipopts_multipliers_to_1e_6():
+    source = "".join("".join(c["source"]) for c in _cells(ROOT / "notebooks" / "constrained_optimality.ipynb"))
+    assert "assert np.abs(lam_hand - lam_ipopt).max() < 1e-6" in source  # executed by the kernel test above
