@@ -61,6 +61,9 @@ def _study_args(sub):
     st.add_argument("--out", default="out", metavar="DIR", help="output folder (default ./out)")
     st.add_argument("--quick", action="store_true", help="small, honest version (CI)")
     st.add_argument("--jobs", type=int, default=None, help="worker processes for sweeps (default: all cores)")
+    st.add_argument("--dask", default=None, metavar="ADDRESS|local",
+                    help="run the sweeps on a Dask cluster: a scheduler address, or 'local' for a LocalCluster with "
+                         "one worker process per core (--jobs of them when given); needs handeye[dask]")
 
 
 def _use_args(sub, conventions):
@@ -249,8 +252,8 @@ def _study(args):
 
     if args.jobs is not None and args.jobs < 1:
         raise RequestError("--jobs must be at least 1")
-    sweep.JOBS["n"] = args.jobs
-    results = study.run(args.name, args.out, quick=args.quick)
+    with sweep.using(jobs=args.jobs, dask=args.dask):
+        results = study.run(args.name, args.out, quick=args.quick)
     for name in results:
         print(f"study {name}: claims hold; figures, tables and summary.json in {args.out}/{name}")
     return EXIT_OK

@@ -1,41 +1,139 @@
-"""Parallel sweeps for the studies: joblib over the machine's cores, with a progress line.
+"""Parallel sweeps for the studies: joblib over this machine's cores, or a Dask cluster.
 
-``handeye study NAME --jobs N`` sets the number of worker processes (default: all cores).
-To take a sweep onto a cluster, register joblib's Dask backend before running a study::
+A study hands :func:`run` a function and its argument tuples; the backend comes from the
+innermost :func:`using` block (default: joblib over all cores)::
 
-    import handeye.studies.study
-    from dask.distributed import Client
-    from joblib import parallel_config
-    client = Client("scheduler-address:8786")
-    with parallel_config(backend="dask"):
-        handeye.studies.study.run("testfunction", "out")
+    from handeye.app import sweep
+    from handeye.studies import study
 
-(``dask[distributed]`` is not a dependency of handeye; install it where the cluster is.)
+    with sweep.using(jobs=2):                       # handeye study NAME --jobs 2
+        study.run("random-starts", "out", quick=True)
+    with sweep.using(dask="local"):                 # handeye study NAME --dask local
+        study.run("random-starts", "out", quick=True)
+    with sweep.using(dask="tcp://scheduler:8786"):  # handeye study NAME --dask tcp://scheduler:8786
+        study.run("testfunction", "out")
+
+``dask="local"`` starts a ``distributed.LocalCluster`` with one single-threaded worker process
+per core (``jobs`` of them when given); an address connects to a running scheduler (``dask
+scheduler`` and ``dask worker ADDRESS`` on the machines, or a SLURM / Kubernetes deployment
+through dask-jobqueue / dask-kubernetes). The cluster is started once per ``using`` block.
+Results come back in task order whatever the backend, and the studies draw every random
+number in the calling process, so a sweep's results do not depend on where it ran.
+Tasks and results travel pickled: study functions take data, not paths, so that workers on
+other machines need nothing but handeye installed (``pip install 'handeye[dask]'``).
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import os
 import sys
+from typing import Optional
 
-#: Worker processes for sweeps; set by ``--jobs``.
-JOBS = {"n": None}
+
+@dataclasses.dataclass(frozen=True)
+class Backend:
+    """Where sweeps run.
+
+    Attributes
+    ----------
+    jobs : int or None
+        joblib worker processes (None: all cores); with ``dask="local"``, the workers.
+    dask : str or None
+        ``"local"`` or a scheduler address; None: joblib.
+    """
+
+    jobs: Optional[int] = None
+    dask: Optional[str] = None
+
+
+_STACK = [Backend()]
+_CLIENTS = {}
+
+
+def backend():
+    """The :class:`Backend` in force."""
+    return _STACK[-1]
 
 
 def n_jobs():
-    return JOBS["n"] or os.cpu_count() or 1
+    """Parallel workers of the backend in force (joblib processes, or Dask worker threads)."""
+    b = backend()
+    if b.dask is not None and id(b) in _CLIENTS:
+        return max(1, sum(_CLIENTS[id(b)].nthreads().values()))
+    return b.jobs or os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def using(jobs=None, dask=None):
+    """Run the sweeps inside the block on ``jobs`` processes or on a Dask cluster."""
+    b = Backend(jobs, dask)
+    _STACK.append(b)
+    try:
+        if dask is not None:
+            with _dask_client(b) as client:
+                _CLIENTS[id(b)] = client
+                try:
+                    yield b
+                finally:
+                    del _CLIENTS[id(b)]
+        else:
+            yield b
+    finally:
+        _STACK.pop()
+
+
+@contextlib.contextmanager
+def _dask_client(b):
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        from handeye.app.errors import RequestError
+
+        raise RequestError("--dask needs Dask's distributed scheduler: pip install 'handeye[dask]'") from None
+    if b.dask == "local":
+        workers = b.jobs or os.cpu_count() or 1
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            with Client(cluster) as client:
+                yield client
+    else:
+        try:
+            client = Client(b.dask, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            from handeye.app.errors import RequestError
+
+            raise RequestError(f"--dask {b.dask}: no Dask scheduler answered ({exc})") from None
+        with client:
+            yield client
+
+
+def _progress(label, k, total):
+    if sys.stderr.isatty() or k == total:  # a live bar on a terminal, one line in a log
+        bar = "#" * int(30 * k / total)
+        print(f"\r{label}: [{bar:<30}] {k}/{total}", end="\n" if k == total else "", file=sys.stderr)
 
 
 def run(function, tasks, label="sweep"):
-    """``[function(*task) for task in tasks]`` in parallel, printing progress to stderr."""
+    """``[function(*task) for task in tasks]`` on the backend in force, in task order, printing
+    progress to stderr."""
+    tasks = list(tasks)
+    total = len(tasks)
+    b = backend()
+    if not tasks:
+        return []
+    if b.dask is not None:
+        from distributed import as_completed
+
+        client = _CLIENTS[id(b)]
+        futures = [client.submit(function, *t, pure=False) for t in tasks]
+        for k, _ in enumerate(as_completed(futures), start=1):
+            _progress(label, k, total)
+        return client.gather(futures)
     from joblib import Parallel, delayed
 
-    tasks = list(tasks)
     results = []
-    total = len(tasks)
     with Parallel(n_jobs=n_jobs(), return_as="generator") as parallel:
         for k, result in enumerate(parallel(delayed(function)(*t) for t in tasks), start=1):
             results.append(result)
-            if sys.stderr.isatty() or k == total:  # a live bar on a terminal, one line in a log
-                bar = "#" * int(30 * k / total)
-                print(f"\r{label}: [{bar:<30}] {k}/{total}", end="\n" if k == total else "", file=sys.stderr)
+            _progress(label, k, total)
     return results

@@ -17,6 +17,7 @@ import numpy as np
 
 import handeye
 from handeye import solvers
+from handeye.app import sweep
 from handeye.app.calibrate import SUPPORTED
 from handeye.app.problems import calibration_problem
 from handeye.model import observations, simulate
@@ -40,6 +41,26 @@ def random_start(truth, rng):
     return start
 
 
+def _one_start(d, reference, k, start, methods):
+    """The rows of start ``k``: every method and parametrisation, plain and as calibrate runs it."""
+    truth = transform_from_pose(d.truth["sensor_pose"])
+    rot_err = float(rotation_angle_deg(start[:3, :3], truth[:3, :3]))
+    trans_err = float(np.linalg.norm(start[:3, 3] - truth[:3, 3]))
+    rows = []
+    for method in methods:
+        for rotation in SUPPORTED[method]:
+            model = observations.build(d, "centre", rotation)
+            plain = solvers.solve(calibration_problem(model), model.point_from(start), method)
+            dt, dr = transform_distance(nearest_transform(model.sensor2flange(plain.x)), reference)
+            ok_plain = bool(plain.converged and dt < 1e-4 and dr < 1e-4)
+            res = handeye.calibrate(d, method=method, rotation=rotation, start=pose_from_transform(start),
+                                    no_loo=True, keep_all=True)
+            dt, dr = transform_distance(res.sensor2flange, reference)
+            ok_full = bool(res.converged and dt < 1e-4 and dr < 1e-4)
+            rows.append((k, f"{method}/{rotation}", rot_err, trans_err, ok_plain, ok_full))
+    return rows
+
+
 def run(out, quick=False):
     n_starts = 40 if quick else 1000
     methods = METHODS if not quick else ("lm", "gn", "newton", "ipopt")
@@ -48,22 +69,10 @@ def run(out, quick=False):
         d = load(simulate.write(simulate.simulate(simulate.Setup(), seed=3), tmp + "/sim"))
         reference = handeye.calibrate(d, method="lm", no_loo=True, keep_all=True).sensor2flange
         truth = transform_from_pose(d.truth["sensor_pose"])
-        rows = []
-        for k in range(n_starts):
-            start = random_start(truth, rng)
-            rot_err = float(rotation_angle_deg(start[:3, :3], truth[:3, :3]))
-            trans_err = float(np.linalg.norm(start[:3, 3] - truth[:3, 3]))
-            for method in methods:
-                for rotation in SUPPORTED[method]:
-                    model = observations.build(d, "centre", rotation)
-                    plain = solvers.solve(calibration_problem(model), model.point_from(start), method)
-                    dt, dr = transform_distance(nearest_transform(model.sensor2flange(plain.x)), reference)
-                    ok_plain = bool(plain.converged and dt < 1e-4 and dr < 1e-4)
-                    res = handeye.calibrate(d, method=method, rotation=rotation, start=pose_from_transform(start),
-                                            no_loo=True, keep_all=True)
-                    dt, dr = transform_distance(res.sensor2flange, reference)
-                    ok_full = bool(res.converged and dt < 1e-4 and dr < 1e-4)
-                    rows.append((k, f"{method}/{rotation}", rot_err, trans_err, ok_plain, ok_full))
+        starts = [random_start(truth, rng) for _ in range(n_starts)]  # drawn here: the same wherever the sweep runs
+        # the dataset travels with each task (pickled), so that workers need no shared folder
+        parts = sweep.run(_one_start, [(d, reference, k, s, methods) for k, s in enumerate(starts)], label="random starts")
+    rows = [r for part in parts for r in part]
     write_table(out, "random_starts", ["start", "method", "rotation_error_deg", "translation_error_mm",
                                        "plain_success", "with_closed_form_success"], rows)
     methods = sorted({r[1] for r in rows})

@@ -1,0 +1,56 @@
+"""Sweeps give the same results wherever they run: joblib processes or a Dask cluster.
+
+The Dask tests use a real ``distributed.LocalCluster`` (worker processes, not threads).
+"""
+import time
+
+import pytest
+
+from handeye.app import cli, sweep
+
+
+def _slow_square(x, delay):
+    time.sleep(delay)
+    return x * x
+
+
+def test_joblib_sweeps_return_results_in_task_order():
+    with sweep.using(jobs=2):
+        assert sweep.run(_slow_square, [(k, 0.02 * (5 - k)) for k in range(6)]) == [k * k for k in range(6)]
+    assert sweep.backend() == sweep.Backend()  # the block restores the default
+
+
+def test_dask_local_cluster_sweeps_return_results_in_task_order():
+    pytest.importorskip("distributed")
+    with sweep.using(jobs=2, dask="local") as b:
+        assert sweep.n_jobs() == 2 and b.dask == "local"
+        # later tasks finish first: the results must still come back in task order
+        assert sweep.run(_slow_square, [(k, 0.05 * (5 - k)) for k in range(6)]) == [k * k for k in range(6)]
+
+
+def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path):
+    pytest.importorskip("distributed")
+    assert cli.main(["study", "random-starts", "--quick", "--jobs", "2", "--out", str(tmp_path / "jobs")]) == cli.EXIT_OK
+    assert cli.main(["study", "random-starts", "--quick", "--dask", "local", "--out", str(tmp_path / "dask")]) == cli.EXIT_OK
+    for name in ("summary.json", "random_starts.csv"):
+        jobs = (tmp_path / "jobs" / "random-starts" / name).read_text()
+        dask = (tmp_path / "dask" / "random-starts" / name).read_text()
+        assert jobs == dask, name
+
+
+def test_dask_without_distributed_installed_is_a_clear_request_error(monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_distributed(name, *args, **kwargs):
+        if name.split(".")[0] == "distributed":
+            raise ImportError("not here")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_distributed)
+    from handeye.app.errors import RequestError
+
+    with pytest.raises(RequestError, match=r"handeye\[dask\]"):
+        with sweep.using(dask="local"):
+            pass
