@@ -97,11 +97,15 @@ def _dask_client(b):
             with Client(cluster) as client:
                 yield client
     else:
+        from handeye.app.errors import RequestError
+
+        if b.jobs is not None:
+            raise RequestError("--jobs applies to --dask local only; a cluster has the workers it was started with")
         try:
             client = Client(b.dask, timeout="20s")
+        except ValueError as exc:
+            raise RequestError(f"--dask {b.dask!r} is not a scheduler address (tcp://HOST:PORT) or 'local': {exc}") from None
         except (OSError, TimeoutError) as exc:
-            from handeye.app.errors import RequestError
-
             raise RequestError(f"--dask {b.dask}: no Dask scheduler answered ({exc})") from None
         with client:
             yield client
@@ -111,6 +115,18 @@ def _progress(label, k, total):
     if sys.stderr.isatty() or k == total:  # a live bar on a terminal, one line in a log
         bar = "#" * int(30 * k / total)
         print(f"\r{label}: [{bar:<30}] {k}/{total}", end="\n" if k == total else "", file=sys.stderr)
+
+
+def _scatter_shared(client, tasks):
+    """Arguments that are the same object in every task (a dataset, a model) are sent to the
+    workers once, not pickled into each task."""
+    shared = [j for j in range(len(tasks[0]))
+              if len(tasks) > 1 and all(len(t) == len(tasks[0]) and t[j] is tasks[0][j] for t in tasks)
+              and not isinstance(tasks[0][j], (int, float, str, bool, type(None)))]
+    if not shared:
+        return tasks
+    futures = {j: client.scatter(tasks[0][j], broadcast=True, hash=False) for j in shared}
+    return [tuple(futures.get(j, a) for j, a in enumerate(t)) for t in tasks]
 
 
 def run(function, tasks, label="sweep"):
@@ -125,6 +141,7 @@ def run(function, tasks, label="sweep"):
         from distributed import as_completed
 
         client = _CLIENTS[id(b)]
+        tasks = _scatter_shared(client, tasks)
         futures = [client.submit(function, *t, pure=False) for t in tasks]
         for k, _ in enumerate(as_completed(futures), start=1):
             _progress(label, k, total)

@@ -5,8 +5,9 @@
 
 Needs the ``notebooks`` extra (``pip install '.[notebooks]'``). Figures are inline PNGs at
 80 dpi; cell timings are not recorded, so a re-run changes a notebook only where its results
-change. ``tests/test_notebooks.py`` re-executes each notebook and fails when the committed
-outputs are stale.
+change -- and in the saved widget state (new model ids each run), which lets JupyterLab show
+the interactive panels' last figure before a kernel runs. ``tests/test_notebooks.py``
+re-executes each notebook and fails when the committed outputs are stale.
 """
 import pathlib
 import sys

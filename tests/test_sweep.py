@@ -14,10 +14,11 @@ def _slow_square(x, delay):
     return x * x
 
 
-def test_joblib_sweeps_return_results_in_task_order():
-    with sweep.using(jobs=2):
-        assert sweep.run(_slow_square, [(k, 0.02 * (5 - k)) for k in range(6)]) == [k * k for k in range(6)]
-    assert sweep.backend() == sweep.Backend()  # the block restores the default
+def test_using_sets_the_backend_for_its_block_only():
+    with sweep.using(jobs=2) as b:
+        assert sweep.backend() is b and sweep.n_jobs() == 2
+        assert sweep.run(_slow_square, [(k, 0.0) for k in range(4)]) == [0, 1, 4, 9]
+    assert sweep.backend() == sweep.Backend()
 
 
 def test_dask_local_cluster_sweeps_return_results_in_task_order():
@@ -28,14 +29,35 @@ def test_dask_local_cluster_sweeps_return_results_in_task_order():
         assert sweep.run(_slow_square, [(k, 0.05 * (5 - k)) for k in range(6)]) == [k * k for k in range(6)]
 
 
-def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path):
+def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
+    ran_on = []
+    real_run = sweep.run
+
+    def spy(function, tasks, label="sweep"):
+        ran_on.append(sweep.backend().dask)
+        return real_run(function, tasks, label)
+
+    monkeypatch.setattr(sweep, "run", spy)
     assert cli.main(["study", "random-starts", "--quick", "--jobs", "2", "--out", str(tmp_path / "jobs")]) == cli.EXIT_OK
     assert cli.main(["study", "random-starts", "--quick", "--dask", "local", "--out", str(tmp_path / "dask")]) == cli.EXIT_OK
+    assert ran_on == [None, "local"]  # the second sweep did run on the cluster
     for name in ("summary.json", "random_starts.csv"):
         jobs = (tmp_path / "jobs" / "random-starts" / name).read_text()
         dask = (tmp_path / "dask" / "random-starts" / name).read_text()
         assert jobs == dask, name
+
+
+def test_bad_dask_requests_are_request_errors():
+    pytest.importorskip("distributed")
+    from handeye.app.errors import RequestError
+
+    with pytest.raises(RequestError, match="--jobs"):
+        with sweep.using(jobs=2, dask="tcp://127.0.0.1:1"):
+            pass
+    with pytest.raises(RequestError, match="not a scheduler address"):
+        with sweep.using(dask="no such thing://"):
+            pass
 
 
 def test_dask_without_distributed_installed_is_a_clear_request_error(monkeypatch):
