@@ -1,6 +1,8 @@
-"""Shared fixtures: a small seeded generator of simulated datasets, and a private code cache."""
+"""Shared fixtures: a small seeded generator of simulated datasets, a private code cache, and
+an import blocker for optional dependencies."""
 from __future__ import annotations
 
+import builtins
 import pathlib
 
 import numpy as np
@@ -97,3 +99,20 @@ def break_solver(monkeypatch):
                                    message="numerical failure (injected)")
 
     return lambda: monkeypatch.setattr(engine.solvers, "solve", broken)
+
+
+@pytest.fixture
+def without_package(monkeypatch):
+    """``without_package("name")`` makes ``import name`` (and its submodules) fail for the test,
+    as on a machine where the optional dependency is not installed."""
+    real_import = builtins.__import__
+
+    def block(package):
+        def importer(name, *args, **kwargs):
+            if name.split(".")[0] == package:
+                raise ImportError(f"{package} is not installed here")
+            return real_import(name, *args, **kwargs)
+
+        monkeypatch.setattr(builtins, "__import__", importer)
+
+    return block

@@ -1,6 +1,5 @@
 """The notebooks' interactive panels: a widget that redraws, and a PNG for frontends without one."""
 import base64
-import builtins
 
 import numpy as np
 import pytest
@@ -49,15 +48,8 @@ def test_integer_controls_give_integer_sliders():
     assert isinstance(p.widgets["n"], ipywidgets.IntSlider)
 
 
-def test_without_ipywidgets_the_panel_is_a_static_figure(monkeypatch):
-    real_import = builtins.__import__
-
-    def no_widgets(name, *args, **kwargs):
-        if name.startswith("ipywidgets"):
-            raise ImportError("no ipywidgets here")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_widgets)
+def test_without_ipywidgets_the_panel_is_a_static_figure(without_package):
+    without_package("ipywidgets")
     p = interactive.panel(_draw, CONTROLS)
     bundle = p._repr_mimebundle_()
     assert p.widgets is None and set(bundle) == {"image/png", "text/plain"}

@@ -60,17 +60,8 @@ def test_bad_dask_requests_are_request_errors():
             pass
 
 
-def test_dask_without_distributed_installed_is_a_clear_request_error(monkeypatch):
-    import builtins
-
-    real_import = builtins.__import__
-
-    def no_distributed(name, *args, **kwargs):
-        if name.split(".")[0] == "distributed":
-            raise ImportError("not here")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_distributed)
+def test_dask_without_distributed_installed_is_a_clear_request_error(without_package):
+    without_package("distributed")
     from handeye.app.errors import RequestError
 
     with pytest.raises(RequestError, match=r"handeye\[dask\]"):
