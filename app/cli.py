@@ -195,6 +195,10 @@ def build_parser():
     bench.add_argument("--json", action="store_true")
     bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
     bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
+    bench.add_argument("--solvers", action="store_true",
+                       help="instead: the solver-comparison bench (batched against single-start solvers, and the "
+                            "wall time of the full `handeye study testfunction`)")
+    bench.add_argument("--no-study", action="store_true", help="with --solvers: skip running the study")
     sim.add_argument("--motions", default="thesis", choices=["thesis", "about-sphere"],
                      help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same "
                           "orientations rotating about the sphere (seen at one sensor point)")
@@ -231,6 +235,14 @@ def _diagnose(args):
 
 
 def _bench(args):
+    if args.solvers:
+        from handeye.app import bench_solvers
+
+        if args.plot:
+            raise RequestError("--plot draws the calibration bench; the solver bench (--solvers) prints tables")
+        res = bench_solvers.run(quick=args.quick, with_study=not args.no_study)
+        print(dumps(res) if args.json else bench_solvers.text(res))
+        return EXIT_OK
     from handeye.app import bench
 
     try:

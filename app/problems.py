@@ -44,7 +44,8 @@ def testfunction_problem():
     """The test function with every form: f, gradient, Hessian (Newton, trust region),
     the residual with ``1/2 |r|^2 = (f + 300) / 2`` (Gauss-Newton, LM, dogleg) and the NLP.
 
-    Note that ``objective`` is f itself, so costs reported by Newton-type and least-squares
+    The callables take stacks of points (``vectorised``), so :func:`handeye.solvers.solve_many`
+    evaluates all running starts at once. Note that ``objective`` is f itself, so costs reported by Newton-type and least-squares
     methods differ by the constant and the factor: compare points, not costs.
     """
     return Problem(
@@ -55,4 +56,29 @@ def testfunction_problem():
         residual=testfunction.residual,
         jacobian=testfunction.residual_jacobian,
         nlp=testfunction_nlp(),
+        vectorised=True,
     )
+
+
+#: The solver-comparison studies' options: steepest descent needs more iterations
+TESTFUNCTION_OPTIONS = {"sd": {"max_iter": 2000}}
+
+
+def testfunction_options(method):
+    """The solver options the test-function studies and bench use for ``method`` (a fresh dict)."""
+    return dict(TESTFUNCTION_OPTIONS.get(method, {"max_iter": 200}))
+
+
+def testfunction_starts(n, seed):
+    """``n`` seeded random starts, half uniform over [-50, 50]^2 and half over [-4, 4]^2.
+
+    The two windows of the basin study (``handeye study testfunction``).
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+    """
+    rng = np.random.default_rng(seed)
+    wide = rng.uniform(-50.0, 50.0, size=(n - n // 2, 2))
+    zoom = rng.uniform(-4.0, 4.0, size=(n // 2, 2))
+    return np.concatenate([wide, zoom])

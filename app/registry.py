@@ -17,6 +17,7 @@ STUDIES = {
     "discrepancy-power": "handeye.studies.study_power",
     "classics": "handeye.studies.study_classics",
     "honest-default": "handeye.studies.study_default",
+    "batch-equivalence": "handeye.studies.study_batch",
 }
 
 

@@ -22,56 +22,61 @@ A_POINT = np.array([1.0, 1.0])
 B_POINT = np.array([-1.0, -2.0])
 
 
+#: the generated functions, one per output group, so that a cost evaluation (a line search's
+#: trial point) does not pay for the Hessian: name -> (symbolic key, shape of one output)
+_PARTS = {"f": ("f", ()), "grad": ("grad", (2,)), "hess": ("hess", (2, 2)), "r": ("r", (4,)), "rjac": ("rjac", (4, 2))}
+
+
 @functools.lru_cache(maxsize=None)
-def _source():
+def _source(part):
     def build():
         from handeye.model import symbolic  # sympy only on a cache miss
 
         s = symbolic.test_function()
-        outs = [s["f"], *s["grad"], *s["hess"], *s["r"], *s["rjac"]]
-        return s["x"], outs
+        out = s[_PARTS[part][0]]
+        return s["x"], [out] if part == "f" else list(out)
 
-    return codegen.generated_source("testfunction", build)
+    return codegen.generated_source(f"testfunction_{part}", build)
 
 
 @functools.lru_cache(maxsize=None)
-def _functions():
-    return codegen.numpy_function(_source()), codegen.math_function(_source())
+def _functions(part):
+    return codegen.numpy_function(_source(part)), codegen.math_function(_source(part))
 
 
-def _eval(x):
+def _eval(part, x):
     x = np.asarray(x, dtype=float)
-    vectorised, scalar = _functions()
+    vectorised, scalar = _functions(part)
+    shape = _PARTS[part][1]
     if x.shape == (2,):  # one point: plain floats are faster than arrays
-        return np.array(scalar(float(x[0]), float(x[1])))
-    return codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1])
+        return np.array(scalar(float(x[0]), float(x[1]))).reshape(shape)
+    out = codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1])
+    return out.reshape(x.shape[:-1] + shape)
 
 
 def value(x):
     """f(x), shape (..., 2) -> (...)."""
-    return _eval(x)[..., 0]
+    return _eval("f", x)
 
 
 def gradient(x):
     """grad f(x), shape (..., 2) -> (..., 2)."""
-    return _eval(x)[..., 1:3]
+    return _eval("grad", x)
 
 
 def hessian(x):
     """Hessian of f, shape (..., 2) -> (..., 2, 2)."""
-    v = _eval(x)
-    return v[..., 3:7].reshape(v.shape[:-1] + (2, 2))
+    return _eval("hess", x)
 
 
 def residual(x):
     """Least-squares residual r(x), shape (..., 2) -> (..., 4); ``|r|^2 = f + 300``."""
-    return _eval(x)[..., 7:11]
+    return _eval("r", x)
 
 
 def residual_jacobian(x):
     """dr/dx, shape (..., 2) -> (..., 4, 2)."""
-    v = _eval(x)
-    return v[..., 11:19].reshape(v.shape[:-1] + (4, 2))
+    return _eval("rjac", x)
 
 
 @dataclasses.dataclass(frozen=True)

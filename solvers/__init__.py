@@ -4,11 +4,13 @@ definitions (Nocedal & Wright), plus IPOPT through CasADi. Knows nothing of robo
 >>> from handeye.solvers import Problem, solve
 >>> res = solve(Problem(n=1, residual=lambda x: x - 3, jacobian=lambda x: [[1.0]]), [0.0], "gn")
 """
-from handeye.solvers.api import METHODS, solve, supports
+from handeye.solvers.api import METHODS, solve, solve_many, supports
+from handeye.solvers.batch import BatchResult
 from handeye.solvers.problem import Options, Problem, UnsupportedProblem, forward_difference_jacobian
 from handeye.solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult
 
 __all__ = [
+    "BatchResult",
     "CONVERGED",
     "METHODS",
     "STATUS_MESSAGES",
@@ -18,5 +20,6 @@ __all__ = [
     "UnsupportedProblem",
     "forward_difference_jacobian",
     "solve",
+    "solve_many",
     "supports",
 ]

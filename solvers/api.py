@@ -1,7 +1,12 @@
-"""The one front end: ``solve(problem, x0, method=..., options=...)``."""
+"""The front end: ``solve(problem, x0, method=..., options=...)`` for one start and
+``solve_many(problem, starts, ...)`` for a stack of them, both through the same code
+(:mod:`handeye.solvers.batch`: one start is the N = 1 case)."""
 from __future__ import annotations
 
+import numpy as np
+
 from handeye.solvers import gauss_newton, ipopt, levenberg_marquardt, line_search, newton, trust_region
+from handeye.solvers.batch import BatchResult, Stacked
 from handeye.solvers.problem import Options, Problem, UnsupportedProblem
 
 #: method -> (what the problem must provide, description)
@@ -19,16 +24,16 @@ METHODS = {
 
 
 def _runner(method):
+    """The iterative method on stacks: ``(stacked, x0 (N, d), options, trace) -> Runs``."""
     return {
-        "newton": newton.minimize,
+        "newton": newton.run,
         "newton-ls": line_search.damped_newton,
         "sd": line_search.steepest_descent,
         "bfgs": line_search.bfgs,
-        "gn": gauss_newton.minimize,
-        "lm": levenberg_marquardt.minimize,
-        "tr": lambda p, x0, o: trust_region.minimize(p, x0, o, model="newton"),
-        "dogleg": lambda p, x0, o: trust_region.minimize(p, x0, o, model="gauss-newton"),
-        "ipopt": ipopt.minimize,
+        "gn": gauss_newton.run,
+        "lm": levenberg_marquardt.run,
+        "tr": lambda s, x0, o, trace: trust_region.run(s, x0, o, trace, model="newton"),
+        "dogleg": lambda s, x0, o, trace: trust_region.run(s, x0, o, trace, model="gauss-newton"),
     }[method]
 
 
@@ -39,6 +44,19 @@ def supports(problem, method):
             problem.has("objective", "gradient") or problem.has("residual", "jacobian")):
         return False
     return problem.has(*needs)
+
+
+def _checked(problem, method, options):
+    if method not in METHODS:
+        raise UnsupportedProblem(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
+    if not supports(problem, method):
+        raise UnsupportedProblem(f"method {method!r} needs {', '.join(METHODS[method][0])}; the problem does not provide it")
+    opts = options if isinstance(options, Options) else Options.from_mapping(options)
+    if opts.jacobian not in ("exact", "forward"):
+        raise UnsupportedProblem(f"jacobian must be 'exact' or 'forward', got {opts.jacobian!r}")
+    if opts.subproblem not in ("exact", "cg"):
+        raise UnsupportedProblem(f"subproblem must be 'exact' or 'cg', got {opts.subproblem!r}")
+    return opts
 
 
 def solve(problem: Problem, x0, method="lm", options=None):
@@ -63,13 +81,39 @@ def solve(problem: Problem, x0, method="lm", options=None):
     UnsupportedProblem
         Unknown method or option, or a problem lacking what the method needs.
     """
-    if method not in METHODS:
-        raise UnsupportedProblem(f"unknown method {method!r}; choose one of {sorted(METHODS)}")
-    if not supports(problem, method):
-        raise UnsupportedProblem(f"method {method!r} needs {', '.join(METHODS[method][0])}; the problem does not provide it")
-    opts = options if isinstance(options, Options) else Options.from_mapping(options)
-    if opts.jacobian not in ("exact", "forward"):
-        raise UnsupportedProblem(f"jacobian must be 'exact' or 'forward', got {opts.jacobian!r}")
-    if opts.subproblem not in ("exact", "cg"):
-        raise UnsupportedProblem(f"subproblem must be 'exact' or 'cg', got {opts.subproblem!r}")
-    return _runner(method)(problem, x0, opts)
+    opts = _checked(problem, method, options)
+    if method == "ipopt":
+        return ipopt.minimize(problem, x0, opts)
+    x0 = np.asarray(x0, dtype=float)
+    return _runner(method)(Stacked(problem), x0[None], opts, True).single()
+
+
+def solve_many(problem: Problem, starts, method="lm", options=None):
+    """Minimise ``problem`` from every row of ``starts`` at once; row i ends where
+    ``solve(problem, starts[i], method, options)`` ends.
+
+    Every running start is evaluated in one call per iteration when the problem is
+    ``vectorised`` (else row by row). IPOPT has no batch form: its starts run one after
+    another through one solver object built once.
+
+    Parameters
+    ----------
+    problem : Problem
+    starts : array_like, shape (N, d)
+        Start points, one per row.
+    method, options
+        As :func:`solve`.
+
+    Returns
+    -------
+    BatchResult
+    """
+    opts = _checked(problem, method, options)
+    starts = np.asarray(starts, dtype=float)
+    if starts.ndim != 2:
+        raise UnsupportedProblem(f"starts must be a stack of points (N, d), got shape {starts.shape}")
+    if not len(starts):
+        return BatchResult.empty(starts.shape[1], method)
+    if method == "ipopt":
+        return ipopt.minimize_many(problem, starts, opts)
+    return _runner(method)(Stacked(problem), starts, opts, False).result()

@@ -16,44 +16,61 @@ trust region are its globalised relatives.
 """
 from __future__ import annotations
 
-import numpy as np
+from handeye.solvers.batch import Runs
+from handeye.solvers.result import gradient_small, reduction_small, step_small
+from handeye.solvers.stacks import finite_rows, half_squares, lstsq_rows, transpose_times
 
-from handeye.solvers.problem import forward_difference_jacobian
-from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
 
+def run(stacked, x0, opts, trace=False):
+    """Gauss-Newton from each row of ``x0`` (N, d); returns the :class:`~handeye.solvers.batch.Runs`."""
+    runs = Runs(stacked, x0, "gn" if opts.jacobian == "exact" else "gn-fd", trace)
 
-def minimize(problem, x0, opts):
-    t = Tracker(problem, x0, "gn" if opts.jacobian == "exact" else "gn-fd")
-
-    def jac(x):
+    def jac(x, rows):
         if opts.jacobian == "forward":
-            t.nfev += problem.n + 1
-            return forward_difference_jacobian(problem, x, opts.fd_step)
-        return t.jacobian(x)
+            runs.nfev[rows] += stacked.n + 1
+            return stacked.forward_jacobian(x, opts.fd_step)
+        return runs.jacobian(x, rows)
 
-    x = np.array(x0, dtype=float)
-    r = t.residual(x)
-    f = 0.5 * float(r @ r)
+    def settle(rows):  # the gradient reported at a stop after a step (not counted)
+        runs.g[rows] = stacked.grad(runs.x[rows])
+
+    rows = runs.active()
+    r = runs.residual(runs.x, rows)
+    runs.f[rows] = half_squares(r)
     for k in range(opts.max_iter):
-        j = jac(x)
-        g = j.T @ r
-        if not (np.isfinite(f) and np.all(np.isfinite(j))):
-            return t.finish(x, f, g, -1, k)
-        if gradient_small(g, f, opts):
-            return t.finish(x, f, g, 1, k)
-        p, _, rank, _ = np.linalg.lstsq(j, -r, rcond=None)
-        if rank < problem.n:
-            # J^T J singular: take the minimum-norm Gauss-Newton step and say so
-            t.extra["rank_deficient_steps"] = t.extra.get("rank_deficient_steps", 0) + 1
-        if not np.all(np.isfinite(p)):
-            return t.finish(x, f, g, -1, k)
-        x_old, f_old = x, f
-        x = problem.move(x, p)
-        r = t.residual(x)
-        f = 0.5 * float(r @ r)
-        t.record(x)
-        if step_small(p, x_old, opts):
-            return t.finish(x, f, problem.grad(x), 3, k + 1)
-        if f <= f_old and reduction_small(f_old, f, opts):
-            return t.finish(x, f, problem.grad(x), 2, k + 1)
-    return t.finish(x, f, problem.grad(x), 0, opts.max_iter)
+        rows = runs.active()
+        if not rows.size:
+            break
+        j = jac(runs.x[rows], rows)
+        runs.g[rows] = g = transpose_times(j, r[rows])
+        bad = ~finite_rows(runs.f[rows], j)
+        small = ~bad & gradient_small(g, runs.f[rows], opts)
+        runs.stop(rows, bad, -1, k)
+        runs.stop(rows, small, 1, k)
+        go = ~bad & ~small
+        rows, j = rows[go], j[go]
+        if not rows.size:
+            break
+        p, rank = lstsq_rows(j, -r[rows])
+        # J^T J singular: the minimum-norm Gauss-Newton step is taken and counted
+        runs.count("rank_deficient_steps", rows[rank < stacked.n])
+        ok = finite_rows(p)
+        rows = runs.stop(rows, ~ok, -1, k)
+        p = p[ok]
+        if not rows.size:
+            continue
+        x_old, f_old = runs.x[rows], runs.f[rows]
+        runs.x[rows] = x_new = stacked.move(x_old, p)
+        r[rows] = runs.residual(x_new, rows)
+        runs.f[rows] = f_new = half_squares(r[rows])
+        runs.record(rows, x_new)
+        small_step = step_small(p, x_old, opts)
+        reduced = ~small_step & (f_new <= f_old) & reduction_small(f_old, f_new, opts)
+        settle(rows[small_step | reduced])
+        runs.stop(rows, small_step, 3, k + 1)
+        runs.stop(rows, reduced, 2, k + 1)
+    rows = runs.active()
+    if rows.size:
+        settle(rows)
+    runs.stop(rows, True, 0, opts.max_iter)
+    return runs

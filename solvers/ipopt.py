@@ -57,56 +57,88 @@ def _recorder(nlp_sizes, store):
     return Recorder()
 
 
-def minimize(problem, x0, opts):
-    import casadi as ca
+class _Solver:
+    """IPOPT built once for a problem; called for one start at a time."""
 
-    nlp = problem.nlp
-    x_sym, g_sym, p_sym = nlp["x"], nlp["g"], nlp.get("p")
-    sizes = (x_sym.shape[0], g_sym.shape[0], 0 if p_sym is None else p_sym.shape[0])
-    history = []
-    recorder = _recorder(sizes, history)
-    options = dict(_DEFAULTS)
-    options["ipopt.max_iter"] = opts.max_iter
-    options.update(opts.ipopt)
-    options["iteration_callback"] = recorder
-    prob = {"x": x_sym, "f": nlp["f"], "g": g_sym}
-    if p_sym is not None:
-        prob["p"] = p_sym
-    solver = ca.nlpsol("handeye_ipopt", "ipopt", prob, options)
-    args = {"x0": np.asarray(x0, dtype=float), "lbg": nlp.get("lbg", []), "ubg": nlp.get("ubg", [])}
-    if p_sym is not None:
-        args["p"] = nlp["p_value"]
-    sol = solver(**args)
-    stats = solver.stats()
-    x = np.array(sol["x"]).ravel()
-    grad_f = ca.Function("grad_f", [x_sym] + ([p_sym] if p_sym is not None else []), [ca.gradient(nlp["f"], x_sym)])
-    grad = np.array(grad_f(x, *([args["p"]] if p_sym is not None else []))).ravel()
-    lam_g = np.array(sol["lam_g"]).ravel()
-    if g_sym.shape[0]:
-        jac_g = ca.Function("jac_g", [x_sym] + ([p_sym] if p_sym is not None else []), [ca.jacobian(g_sym, x_sym)])
-        lagr_grad = grad + np.array(jac_g(x, *([args["p"]] if p_sym is not None else []))).T @ lam_g
-    else:
-        lagr_grad = grad
-    ret = stats.get("return_status", "")
-    status = 5 if ret == "Solve_Succeeded" else 6 if ret == "Solved_To_Acceptable_Level" else 7
-    if status == 7 and ret == "Maximum_Iterations_Exceeded":
-        status = 0
-    msg = STATUS_MESSAGES[status] + (f" ({ret})" if status in (0, 7) else "")
-    if not history or not np.array_equal(history[0], np.asarray(x0, float)):
-        history.insert(0, np.array(x0, dtype=float))
-    counts = {k[len("n_call_"):]: v for k, v in stats.items() if k.startswith("n_call_")}
-    return OptimizeResult(
-        x=x,
-        cost=float(sol["f"]),
-        grad_norm=float(np.max(np.abs(lagr_grad))) if lagr_grad.size else float("nan"),
-        iterations=int(stats.get("iter_count", len(history) - 1)),
-        nfev=int(counts.get("nlp_f", 0)),
-        njev=int(counts.get("nlp_grad_f", 0)),
-        nhev=int(counts.get("nlp_hess_l", 0)),
-        status=status,
-        message=msg,
-        converged=status in (5, 6),
-        method="ipopt",
-        history=history,
-        extra={"lam_g": lam_g, "g": np.array(sol["g"]).ravel(), "return_status": ret},
-    )
+    def __init__(self, problem, opts, history=None):
+        import casadi as ca
+
+        nlp = problem.nlp
+        self.x_sym, self.g_sym, self.p_sym = nlp["x"], nlp["g"], nlp.get("p")
+        p_syms = [] if self.p_sym is None else [self.p_sym]
+        sizes = (self.x_sym.shape[0], self.g_sym.shape[0], 0 if self.p_sym is None else self.p_sym.shape[0])
+        options = dict(_DEFAULTS)
+        options["ipopt.max_iter"] = opts.max_iter
+        options.update(opts.ipopt)
+        self.history = history
+        if history is not None:
+            self._recorder = _recorder(sizes, history)  # kept alive while the solver lives
+            options["iteration_callback"] = self._recorder
+        prob = {"x": self.x_sym, "f": nlp["f"], "g": self.g_sym}
+        if self.p_sym is not None:
+            prob["p"] = self.p_sym
+        self.solver = ca.nlpsol("handeye_ipopt", "ipopt", prob, options)
+        self.args = {"lbg": nlp.get("lbg", []), "ubg": nlp.get("ubg", [])}
+        if self.p_sym is not None:
+            self.args["p"] = nlp["p_value"]
+        self.p_args = [] if self.p_sym is None else [self.args["p"]]
+        self.grad_f = ca.Function("grad_f", [self.x_sym] + p_syms, [ca.gradient(nlp["f"], self.x_sym)])
+        self.jac_g = (ca.Function("jac_g", [self.x_sym] + p_syms, [ca.jacobian(self.g_sym, self.x_sym)])
+                      if self.g_sym.shape[0] else None)
+
+    def __call__(self, x0):
+        x0 = np.asarray(x0, dtype=float)
+        if self.history is not None:
+            self.history.clear()
+        sol = self.solver(x0=x0, **self.args)
+        stats = self.solver.stats()
+        x = np.array(sol["x"]).ravel()
+        grad = np.array(self.grad_f(x, *self.p_args)).ravel()
+        lam_g = np.array(sol["lam_g"]).ravel()
+        lagr_grad = grad if self.jac_g is None else grad + np.array(self.jac_g(x, *self.p_args)).T @ lam_g
+        ret = stats.get("return_status", "")
+        status = 5 if ret == "Solve_Succeeded" else 6 if ret == "Solved_To_Acceptable_Level" else 7
+        if status == 7 and ret == "Maximum_Iterations_Exceeded":
+            status = 0
+        msg = STATUS_MESSAGES[status] + (f" ({ret})" if status in (0, 7) else "")
+        history = list(self.history or [])
+        if not history or not np.array_equal(history[0], x0):
+            history.insert(0, x0.copy())
+        counts = {k[len("n_call_"):]: v for k, v in stats.items() if k.startswith("n_call_")}
+        return OptimizeResult(
+            x=x,
+            cost=float(sol["f"]),
+            grad_norm=float(np.max(np.abs(lagr_grad))) if lagr_grad.size else float("nan"),
+            iterations=int(stats.get("iter_count", len(history) - 1)),
+            nfev=int(counts.get("nlp_f", 0)),
+            njev=int(counts.get("nlp_grad_f", 0)),
+            nhev=int(counts.get("nlp_hess_l", 0)),
+            status=status,
+            message=msg,
+            converged=status in (5, 6),
+            method="ipopt",
+            history=history,
+            extra={"lam_g": lam_g, "g": np.array(sol["g"]).ravel(), "return_status": ret},
+        )
+
+
+def minimize(problem, x0, opts):
+    """IPOPT from one start, with its iterates recorded."""
+    return _Solver(problem, opts, history=[])(x0)
+
+
+def minimize_many(problem, starts, opts):
+    """IPOPT from each row of ``starts`` (N, d), one after another through one solver object."""
+    from handeye.solvers.batch import BatchResult
+
+    solver = _Solver(problem, opts)
+    results = [solver(x0) for x0 in starts]
+    messages = {i: r.message for i, r in enumerate(results) if r.status in (0, 7)}
+
+    def column(name, dtype=float):
+        return np.array([getattr(r, name) for r in results], dtype=dtype).reshape(len(results), *(() if name != "x" else (-1,)))
+
+    return BatchResult(x=column("x") if results else np.zeros((0, np.shape(starts)[-1])), cost=column("cost"),
+                       grad_norm=column("grad_norm"), iterations=column("iterations", int), nfev=column("nfev", int),
+                       njev=column("njev", int), nhev=column("nhev", int), status=column("status", int),
+                       method="ipopt", messages=messages)

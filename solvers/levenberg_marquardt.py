@@ -16,53 +16,70 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.batch import RUNNING, Runs
+from handeye.solvers.result import gradient_small, reduction_small, step_small
+from handeye.solvers.stacks import dot_rows, finite_rows, gram, half_squares, quad_rows, solve_rows, transpose_times
 
 
-def minimize(problem, x0, opts):
-    t = Tracker(problem, x0, "lm")
-    x = np.array(x0, dtype=float)
-    r = t.residual(x)
-    f = 0.5 * float(r @ r)
-    j = t.jacobian(x)
-    a = j.T @ j
-    g = j.T @ r
-    d = np.maximum(np.diag(a), 1e-12 * max(1.0, np.max(np.diag(a))))
-    mu = opts.lm_tau * float(np.max(np.diag(a))) / float(np.max(d)) if np.max(d) > 0 else opts.lm_tau
-    nu = 2.0
-    t.extra["damping"] = [mu]
+def _diag(a):
+    return np.diagonal(a, axis1=1, axis2=2)
+
+
+def run(stacked, x0, opts, trace=False):
+    """Levenberg-Marquardt from each row of ``x0`` (N, d); returns the :class:`~handeye.solvers.batch.Runs`."""
+    runs = Runs(stacked, x0, "lm", trace)
+    rows = runs.active()
+    r = runs.residual(runs.x, rows)
+    runs.f[rows] = half_squares(r)
+    j = runs.jacobian(runs.x, rows)
+    a = gram(j)
+    runs.g[rows] = transpose_times(j, r)
+    biggest = np.max(_diag(a), axis=1)
+    d = np.maximum(_diag(a), 1e-12 * np.maximum(1.0, biggest)[:, None])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu = np.where(np.max(d, axis=1) > 0, opts.lm_tau * biggest / np.max(d, axis=1), opts.lm_tau)
+    nu = np.full(len(rows), 2.0)
+    runs.note("damping", rows, mu)
     for k in range(opts.max_iter):
-        if not (np.isfinite(f) and np.all(np.isfinite(j))):
-            return t.finish(x, f, g, -1, k)
-        if gradient_small(g, f, opts):
-            return t.finish(x, f, g, 1, k)
-        try:
-            p = np.linalg.solve(a + mu * np.diag(d), -g)
-        except np.linalg.LinAlgError:
-            return t.finish(x, f, g, -1, k)
-        if step_small(p, x, opts):
-            return t.finish(x, f, g, 3, k)
-        x_new = problem.move(x, p)
-        r_new = t.residual(x_new)
-        f_new = 0.5 * float(r_new @ r_new)
-        predicted = -(g @ p) - 0.5 * float(p @ a @ p)
-        rho = (f - f_new) / predicted if predicted > 0 else -1.0
-        if np.isfinite(f_new) and rho > 0:
-            f_old = f
-            x, r, f = x_new, r_new, f_new
-            t.record(x)
-            j = t.jacobian(x)
-            a = j.T @ j
-            g = j.T @ r
-            d = np.maximum(d, np.diag(a))
-            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            if reduction_small(f_old, f, opts):
-                return t.finish(x, f, g, 2, k + 1)
-        else:
-            mu *= nu
-            nu *= 2.0
-            if mu > 1e30:
-                return t.finish(x, f, g, -1, k + 1)
-        t.extra["damping"].append(mu)
-    return t.finish(x, f, g, 0, opts.max_iter)
+        rows = runs.active()
+        rows = runs.stop(rows, ~finite_rows(runs.f[rows], j[rows]), -1, k)
+        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        if not rows.size:
+            break
+        g = runs.g[rows]
+        p, ok = solve_rows(a[rows] + mu[rows, None, None] * (d[rows, :, None] * np.eye(stacked.n)), -g)
+        rows = runs.stop(rows, ~ok, -1, k)
+        p, g = p[ok], g[ok]
+        small = step_small(p, runs.x[rows], opts)
+        rows = runs.stop(rows, small, 3, k)
+        p, g = p[~small], g[~small]
+        if not rows.size:
+            continue
+        x_new = stacked.move(runs.x[rows], p)
+        r_new = runs.residual(x_new, rows)
+        f, f_new = runs.f[rows], half_squares(r_new)
+        predicted = -dot_rows(g, p) - 0.5 * quad_rows(p, a[rows])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho = np.where(predicted > 0, (f - f_new) / predicted, -1.0)
+        accept = np.isfinite(f_new) & (rho > 0)
+        # accepted: move, new model, less damping (Nielsen)
+        acc = rows[accept]
+        runs.x[acc], r[acc], runs.f[acc] = x_new[accept], r_new[accept], f_new[accept]
+        runs.record(acc, x_new[accept])
+        if acc.size:
+            j[acc] = runs.jacobian(runs.x[acc], acc)
+            a[acc] = gram(j[acc])
+            runs.g[acc] = transpose_times(j[acc], r[acc])
+            d[acc] = np.maximum(d[acc], _diag(a[acc]))
+        mu[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho[accept] - 1.0) ** 3)
+        nu[acc] = 2.0
+        runs.stop(acc, reduction_small(f[accept], f_new[accept], opts), 2, k + 1)
+        # rejected: more damping
+        rej = rows[~accept]
+        mu[rej] *= nu[rej]
+        nu[rej] *= 2.0
+        runs.stop(rej, mu[rej] > 1e30, -1, k + 1)
+        left = rows[runs.status[rows] == RUNNING]
+        runs.note("damping", left, mu[left])
+    runs.stop(runs.active(), True, 0, opts.max_iter)
+    return runs

@@ -12,140 +12,218 @@ step is acceptable because the possible decrease ``|g^T p|`` is below ``100 eps 
 point is as converged as f's precision allows (status 2), not a failure.
 
 Damped Newton, steepest descent and BFGS (N&W 3.3, 6.1) are written here on top of them.
+Everything works on stacks of starts (:mod:`handeye.solvers.batch`): each row runs its own
+backtracking or its own bracketing and zooming, and stops on its own tests.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from handeye.solvers.result import Tracker, gradient_small, reduction_small, step_small
+from handeye.solvers.batch import Runs
+from handeye.solvers.result import gradient_small, reduction_small, step_small
+from handeye.solvers.stacks import dot_rows, finite_rows, matvec, norm_rows, solve_rows
 
 C1, C2, RHO = 1e-4, 0.9, 0.5
+#: messages of the two line-search stops that the status table does not word
+AT_PRECISION = "converged to the precision of f: the possible decrease along the direction is below rounding"
+NO_STEP = "line search failed: no acceptable step along the direction"
 
 
-def armijo(phi, f0, slope, alpha=1.0, max_steps=60):
-    """Backtracking: largest ``alpha * RHO^k`` with sufficient decrease; None if none found."""
+def armijo(phi, f0, slope, max_steps=60):
+    """Backtracking on each row: the largest ``RHO^k`` with sufficient decrease.
+
+    ``phi(alpha, rows)`` returns f along the rows' directions at steps ``alpha`` (k,).
+    Returns ``alpha``, the value there and ``found`` (False: no acceptable step), each (N,).
+    """
+    alpha = np.ones(len(f0))
+    value = np.full(len(f0), np.nan)
+    found = np.zeros(len(f0), dtype=bool)
     for _ in range(max_steps):
-        value = phi(alpha)
-        if np.isfinite(value) and value <= f0 + C1 * alpha * slope:
-            return alpha, value
-        alpha *= RHO
-    return None, None
+        rows = np.flatnonzero(~found)
+        if not rows.size:
+            break
+        v = phi(alpha[rows], rows)
+        ok = np.isfinite(v) & (v <= f0[rows] + C1 * alpha[rows] * slope[rows])
+        found[rows[ok]] = True
+        value[rows[ok]] = v[ok]
+        alpha[rows[~ok]] *= RHO
+    return alpha, value, found
 
 
-def wolfe(phi, dphi, f0, slope, alpha=1.0, alpha_max=1e6, max_steps=60):
-    """Step satisfying the strong Wolfe conditions (N&W Algorithms 3.5, 3.6)."""
-    prev_alpha, prev_value = 0.0, f0
+class _Wolfe:
+    """Per-row state of the strong Wolfe search (N&W Algorithms 3.5 and 3.6)."""
 
-    def zoom(lo, hi, f_lo):
-        for _ in range(max_steps):
-            a = 0.5 * (lo + hi)
-            value = phi(a)
-            if not np.isfinite(value) or value > f0 + C1 * a * slope or value >= f_lo:
-                hi = a
-            else:
-                d = dphi(a)
-                if abs(d) <= -C2 * slope:
-                    return a, value
-                if d * (hi - lo) >= 0:
-                    hi = lo
-                lo, f_lo = a, value
-        return (lo, f_lo) if lo > 0 else (None, None)
+    BRACKET, ZOOM, FOUND, FAILED = range(4)
 
-    for k in range(max_steps):
-        value = phi(alpha)
-        if not np.isfinite(value) or value > f0 + C1 * alpha * slope or (k > 0 and value >= prev_value):
-            return zoom(prev_alpha, alpha, prev_value)
-        d = dphi(alpha)
-        if abs(d) <= -C2 * slope:
-            return alpha, value
-        if d >= 0:
-            return zoom(alpha, prev_alpha, value)
-        prev_alpha, prev_value = alpha, value
-        alpha = min(2.0 * alpha, alpha_max)
-    return None, None
+    def __init__(self, f0, slope, alpha_max):
+        n = len(f0)
+        self.f0, self.slope, self.alpha_max = f0, slope, alpha_max
+        self.phase = np.zeros(n, dtype=int)
+        self.alpha, self.prev_alpha, self.prev_value = np.ones(n), np.zeros(n), f0.copy()
+        self.lo, self.hi, self.f_lo = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.steps = np.zeros(n, dtype=int)  # passes in the current phase
+        self.value = np.full(n, np.nan)
+
+    def zoom(self, rows, lo, hi, f_lo):
+        self.phase[rows] = self.ZOOM
+        self.lo[rows], self.hi[rows], self.f_lo[rows] = lo, hi, f_lo
+        self.steps[rows] = 0
+
+    def settle(self, rows, alpha, value):
+        self.phase[rows] = self.FOUND
+        self.alpha[rows], self.value[rows] = alpha, value
 
 
-def _run(problem, x0, opts, name, direction, search, update=None):
-    """Generic line-search loop: ``direction(x, g, state) -> p``; ``search`` 'armijo' or 'wolfe'."""
-    t = Tracker(problem, x0, name)
-    x = np.array(x0, dtype=float)
-    f = t.cost(x)
-    g = t.grad(x)
-    state = {}
+def wolfe(phi, dphi, f0, slope, alpha_max=1e6, max_steps=60):
+    """Step satisfying the strong Wolfe conditions on each row (N&W Algorithms 3.5, 3.6).
+
+    Bracketing doubles alpha from 1 until the bracket holds a Wolfe point; zooming bisects it.
+    ``phi(alpha, rows)`` and ``dphi(alpha, rows)`` give f and its slope along the rows'
+    directions. Returns ``alpha``, value and ``found``, each (N,).
+    """
+    s = _Wolfe(f0, slope, alpha_max)
+    while True:
+        rows = np.flatnonzero(s.phase <= s.ZOOM)
+        if not rows.size:
+            break
+        zoom = s.phase[rows] == s.ZOOM
+        trial = np.where(zoom, 0.5 * (s.lo[rows] + s.hi[rows]), s.alpha[rows])
+        v = phi(trial, rows)
+        armijo_fails = ~np.isfinite(v) | (v > f0[rows] + C1 * trial * slope[rows])
+        high = armijo_fails | np.where(zoom, v >= s.f_lo[rows], (s.steps[rows] > 0) & (v >= s.prev_value[rows]))
+        need = ~high
+        d = np.full(len(rows), np.nan)
+        if need.any():
+            d[need] = dphi(trial[need], rows[need])
+        curvature = need & (np.abs(d) <= -C2 * slope[rows])
+        s.settle(rows[curvature], trial[curvature], v[curvature])
+        # bracketing: a bracket found (too high, or slope turned up), or double alpha
+        br = ~zoom & ~curvature
+        up = br & high
+        s.zoom(rows[up], s.prev_alpha[rows[up]], trial[up], s.prev_value[rows[up]])
+        turned = br & ~high & (d >= 0)
+        s.zoom(rows[turned], trial[turned], s.prev_alpha[rows[turned]], v[turned])
+        grow = rows[br & ~high & ~(d >= 0)]
+        s.prev_alpha[grow], s.prev_value[grow] = s.alpha[grow], v[br & ~high & ~(d >= 0)]
+        s.alpha[grow] = np.minimum(2.0 * s.alpha[grow], alpha_max)
+        s.steps[grow] += 1
+        s.phase[grow[s.steps[grow] >= max_steps]] = s.FAILED
+        # zooming: shrink the bracket [lo, hi] (its ends in either order)
+        zm = zoom & ~curvature
+        zh = rows[zm & high]
+        s.hi[zh] = trial[zm & high]
+        zl = zm & ~high
+        flip = rows[zl & (d * (s.hi[rows] - s.lo[rows]) >= 0)]
+        s.hi[flip] = s.lo[flip]
+        s.lo[rows[zl]], s.f_lo[rows[zl]] = trial[zl], v[zl]
+        zrows = rows[zm]
+        s.steps[zrows] += 1
+        out = zrows[s.steps[zrows] >= max_steps]
+        some = out[s.lo[out] > 0]
+        s.settle(some, s.lo[some], s.f_lo[some])
+        s.phase[out[s.lo[out] <= 0]] = s.FAILED
+    return s.alpha, s.value, s.phase == s.FOUND
+
+
+def _run(stacked, x0, opts, name, direction, search, update=None, trace=False):
+    """Generic line-search loop on stacks.
+
+    ``direction(runs, rows) -> p`` for the running rows; ``update(rows, s, y)`` after
+    each accepted step (BFGS); ``search`` 'armijo' or 'wolfe'.
+    """
+    runs = Runs(stacked, x0, name, trace)
+    rows = runs.active()
+    runs.f[rows] = runs.cost(runs.x, rows)
+    runs.g[rows] = runs.grad(runs.x, rows)
+    eps = np.finfo(float).eps
     for k in range(opts.max_iter):
-        if not (np.isfinite(f) and np.all(np.isfinite(g))):
-            return t.finish(x, f, g, -1, k)
-        if gradient_small(g, f, opts):
-            return t.finish(x, f, g, 1, k)
-        p = direction(x, g, state)
-        slope = float(g @ p)
-        if not np.all(np.isfinite(p)) or slope >= 0:
-            p, slope = -g, -float(g @ g)  # not a descent direction: steepest descent
-            state.pop("h_inv", None)
-
-        def phi(a):
-            return t.cost(problem.move(x, a * p))
-
-        def dphi(a):
-            return float(t.grad(problem.move(x, a * p)) @ p)
-
-        alpha, f_new = (armijo(phi, f, slope) if search == "armijo" else wolfe(phi, dphi, f, slope))
-        if alpha is None:
-            if abs(slope) <= 100 * np.finfo(float).eps * max(1.0, abs(f)):
-                # the possible decrease is at rounding level: as converged as f's precision allows
-                return t.finish(x, f, g, 2, k, "converged to the precision of f: the possible decrease along the "
-                                               "direction is below rounding")
-            return t.finish(x, f, g, -1, k, "line search failed: no acceptable step along the direction")
-        x_new = problem.move(x, alpha * p)
-        g_new = t.grad(x_new)
+        rows = runs.active()
+        rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows]), -1, k)
+        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        if not rows.size:
+            break
+        x, f, g = runs.x[rows], runs.f[rows], runs.g[rows]
+        p = direction(runs, rows)
+        slope = dot_rows(g, p)
+        steepest = ~finite_rows(p) | (slope >= 0)  # not a descent direction: steepest descent
+        p[steepest] = -g[steepest]
+        slope[steepest] = -dot_rows(g[steepest], g[steepest])
         if update is not None:
-            update(state, alpha * p, g_new - g)
-        t.record(x_new)
-        x_old, f_old = x, f
-        x, f, g = x_new, f_new, g_new
-        if step_small(alpha * p, x_old, opts):
-            return t.finish(x, f, g, 3, k + 1)
-        if reduction_small(f_old, f, opts):
-            return t.finish(x, f, g, 2, k + 1)
-    return t.finish(x, f, g, 0, opts.max_iter)
+            update(rows[steepest], None, None)
+
+        def phi(a, sub):
+            return runs.cost(stacked.move(x[sub], a[:, None] * p[sub]), rows[sub])
+
+        def dphi(a, sub):
+            return dot_rows(runs.grad(stacked.move(x[sub], a[:, None] * p[sub]), rows[sub]), p[sub])
+
+        alpha, f_new, found = armijo(phi, f, slope) if search == "armijo" else wolfe(phi, dphi, f, slope)
+        precision = ~found & (np.abs(slope) <= 100 * eps * np.maximum(1.0, np.abs(f)))
+        runs.stop(rows, precision, 2, k, AT_PRECISION)
+        runs.stop(rows, ~found & ~precision, -1, k, NO_STEP)
+        rows, x, g, p, alpha, f_new, f = (a[found] for a in (rows, x, g, p, alpha, f_new, f))
+        if not rows.size:
+            continue
+        step = alpha[:, None] * p
+        x_new = stacked.move(x, step)
+        g_new = runs.grad(x_new, rows)
+        if update is not None:
+            update(rows, step, g_new - g)
+        runs.record(rows, x_new)
+        runs.x[rows], runs.f[rows], runs.g[rows] = x_new, f_new, g_new
+        small_step = step_small(step, x, opts)
+        runs.stop(rows, small_step, 3, k + 1)
+        runs.stop(rows, ~small_step & reduction_small(f, f_new, opts), 2, k + 1)
+    runs.stop(runs.active(), True, 0, opts.max_iter)
+    return runs
 
 
-def damped_newton(problem, x0, opts):
-    """Newton direction ``H p = -g`` with an Armijo line search (N&W 3.3); where H is not
-    positive definite along p the step falls back to steepest descent."""
-    tracker_hess = problem.hessian
+def damped_newton(stacked, x0, opts, trace=False):
+    """Newton direction ``H p = -g`` with an Armijo line search (N&W 3.3); where H is singular, or
+    not positive definite along p, the step falls back to steepest descent."""
 
-    def direction(x, g, state):
-        try:
-            return np.linalg.solve(np.asarray(tracker_hess(x), float), -g)
-        except np.linalg.LinAlgError:
-            return -g
+    def direction(runs, rows):
+        g = runs.g[rows]
+        p, ok = solve_rows(runs.hessian(runs.x[rows], rows), -g)
+        p[~ok] = -g[~ok]
+        return p
 
-    return _run(problem, x0, opts, "newton-ls", direction, "armijo")
+    return _run(stacked, x0, opts, "newton-ls", direction, "armijo", trace=trace)
 
 
-def steepest_descent(problem, x0, opts):
+def steepest_descent(stacked, x0, opts, trace=False):
     """``p = -g`` with an Armijo line search (N&W 3.1): linear convergence at best."""
-    return _run(problem, x0, opts, "sd", lambda x, g, state: -g, "armijo")
+    return _run(stacked, x0, opts, "sd", lambda runs, rows: -runs.g[rows], "armijo", trace=trace)
 
 
-def bfgs(problem, x0, opts):
+def bfgs(stacked, x0, opts, trace=False):
     """BFGS (N&W Algorithm 6.1) with a strong Wolfe line search: the inverse Hessian
     approximation ``H <- (I - rho s y^T) H (I - rho y s^T) + rho s s^T``, ``rho = 1 / y^T s``,
     scaled at the first step by ``y^T s / y^T y`` (N&W 6.20)."""
+    n = stacked.n
+    h_inv = np.zeros((len(x0), n, n))
+    has = np.zeros(len(x0), dtype=bool)  # whether a row has an approximation yet
 
-    def direction(x, g, state):
-        h = state.get("h_inv")
-        return -(g if h is None else h @ g)
+    def direction(runs, rows):
+        g = runs.g[rows]
+        p = -g
+        some = has[rows]
+        p[some] = -matvec(h_inv[rows[some]], g[some])
+        return p
 
-    def update(state, s, y):
-        sy = float(s @ y)
-        if sy <= 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
-            return  # curvature condition fails (cannot after a Wolfe step, but on manifolds it may)
-        n = len(s)
-        h = state.get("h_inv", sy / float(y @ y) * np.eye(n))
-        rho = 1.0 / sy
-        v = np.eye(n) - rho * np.outer(s, y)
-        state["h_inv"] = v @ h @ v.T + rho * np.outer(s, s)
+    def update(rows, s, y):
+        if s is None:  # a steepest-descent fallback discards the approximation
+            has[rows] = False
+            return
+        sy = dot_rows(s, y)
+        ok = sy > 1e-12 * norm_rows(s) * norm_rows(y)
+        # the curvature condition cannot fail after a Wolfe step, but on manifolds it may: skip
+        rows, s, y, sy = rows[ok], s[ok], y[ok], sy[ok]
+        eye = np.eye(n)
+        h0 = np.where(has[rows][:, None, None], h_inv[rows], (sy / dot_rows(y, y))[:, None, None] * eye)
+        rho = (1.0 / sy)[:, None, None]
+        v = eye - rho * np.einsum("ki,kj->kij", s, y)
+        h_inv[rows] = v @ h0 @ np.swapaxes(v, 1, 2) + rho * np.einsum("ki,kj->kij", s, s)
+        has[rows] = True
 
-    return _run(problem, x0, opts, "bfgs", direction, "wolfe", update)
+    return _run(stacked, x0, opts, "bfgs", direction, "wolfe", update, trace=trace)

@@ -15,33 +15,34 @@ maximum just as happily -- the basin maps of the studies show exactly that.
 """
 from __future__ import annotations
 
-import numpy as np
+from handeye.solvers.batch import Runs
+from handeye.solvers.result import gradient_small, step_small
+from handeye.solvers.stacks import finite_rows, solve_rows
 
-from handeye.solvers.result import Tracker, gradient_small, step_small
 
-
-def minimize(problem, x0, opts):
-    t = Tracker(problem, x0, "newton")
-    x = np.array(x0, dtype=float)
-    f = t.cost(x)
-    g = t.grad(x)
+def run(stacked, x0, opts, trace=False):
+    """Local Newton from each row of ``x0`` (N, d); returns the :class:`~handeye.solvers.batch.Runs`."""
+    runs = Runs(stacked, x0, "newton", trace)
+    rows = runs.active()
+    runs.f[rows] = runs.cost(runs.x, rows)
+    runs.g[rows] = runs.grad(runs.x, rows)
     for k in range(opts.max_iter):
-        if not np.isfinite(f) or not np.all(np.isfinite(g)):
-            return t.finish(x, f, g, -1, k)
-        if gradient_small(g, f, opts):
-            return t.finish(x, f, g, 1, k)
-        h = t.hess(x)
-        try:
-            p = np.linalg.solve(h, -g)
-        except np.linalg.LinAlgError:
-            return t.finish(x, f, g, -1, k)
-        if not np.all(np.isfinite(p)):
-            return t.finish(x, f, g, -1, k)
-        x_new = problem.move(x, p)
-        f_new = t.cost(x_new)
-        t.record(x_new)
-        x_old, x, f = x, x_new, f_new
-        g = t.grad(x)
-        if step_small(p, x_old, opts):
-            return t.finish(x, f, g, 3, k + 1)
-    return t.finish(x, f, g, 0, opts.max_iter)
+        rows = runs.active()
+        rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows]), -1, k)
+        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        if not rows.size:
+            break
+        p, ok = solve_rows(runs.hessian(runs.x[rows], rows), -runs.g[rows])
+        ok &= finite_rows(p)
+        rows = runs.stop(rows, ~ok, -1, k)
+        p = p[ok]
+        if not rows.size:
+            continue
+        x_old = runs.x[rows]
+        runs.x[rows] = x_new = stacked.move(x_old, p)
+        runs.f[rows] = runs.cost(x_new, rows)
+        runs.record(rows, x_new)
+        runs.g[rows] = runs.grad(x_new, rows)
+        runs.stop(rows, step_small(p, x_old, opts), 3, k + 1)
+    runs.stop(runs.active(), True, 0, opts.max_iter)
+    return runs

@@ -10,6 +10,9 @@ problem that lacks it.
 * Manifolds: ``retract(x, delta)`` moves from point ``x`` by a step ``delta`` of dimension
   ``n`` (default ``x + delta``); points may be larger than steps, as for a rotation matrix
   moved by a rotation vector. Derivatives are always with respect to the step at ``delta = 0``.
+* Batches: ``vectorised=True`` says the callables also accept stacks of points, shape
+  (k, d) in and (k, ...) out (``retract`` also a stack of steps (k, n)); then
+  :func:`handeye.solvers.solve_many` evaluates all running starts in one call.
 * IPOPT: ``nlp``, a CasADi problem dict ``{'x', 'f', 'g', 'p'}`` with ``lbg``, ``ubg`` and
   ``p_value``.
 """
@@ -37,6 +40,7 @@ class Problem:
     hessian: Optional[Callable] = None
     retract: Optional[Callable] = None
     nlp: Optional[dict] = None
+    vectorised: bool = False
 
     def cost(self, x):
         if self.objective is not None:

@@ -5,6 +5,8 @@ import dataclasses
 
 import numpy as np
 
+from handeye.solvers.stacks import max_abs_rows, norm_rows
+
 #: status -> message. Statuses 1, 2, 3 and 5, 6 count as converged.
 STATUS_MESSAGES = {
     -1: "numerical failure: singular or non-finite linear system or function value",
@@ -62,65 +64,17 @@ class OptimizeResult:
     extra: dict = dataclasses.field(default_factory=dict)
 
 
-class Tracker:
-    """Counts evaluations and records iterates while a solver runs."""
-
-    def __init__(self, problem, x0, method):
-        self.problem = problem
-        self.method = method
-        self.nfev = self.njev = self.nhev = 0
-        self.history = [np.array(x0, dtype=float)]
-        self.extra = {}
-
-    def residual(self, x):
-        self.nfev += 1
-        return np.asarray(self.problem.residual(x), dtype=float)
-
-    def jacobian(self, x):
-        self.njev += 1
-        return np.asarray(self.problem.jacobian(x), dtype=float)
-
-    def cost(self, x):
-        self.nfev += 1
-        return self.problem.cost(x)
-
-    def grad(self, x):
-        self.njev += 1
-        return self.problem.grad(x)
-
-    def hess(self, x):
-        self.nhev += 1
-        return np.asarray(self.problem.hessian(x), dtype=float)
-
-    def record(self, x):
-        self.history.append(np.array(x, dtype=float))
-
-    def finish(self, x, cost, grad, status, iterations, message=None):
-        gnorm = float(np.max(np.abs(grad))) if grad is not None and np.size(grad) else float("nan")
-        return OptimizeResult(
-            x=np.array(x, dtype=float),
-            cost=float(cost),
-            grad_norm=gnorm,
-            iterations=int(iterations),
-            nfev=self.nfev,
-            njev=self.njev,
-            nhev=self.nhev,
-            status=status,
-            message=message or STATUS_MESSAGES[status],
-            converged=status in CONVERGED,
-            method=self.method,
-            history=self.history,
-            extra=self.extra,
-        )
-
-
+# Stopping tests, on stacks: gradients and steps (k, n), points (k, d), costs (k,).
 def gradient_small(grad, cost, opts):
-    return float(np.max(np.abs(grad))) <= opts.gtol * max(1.0, abs(cost))
+    """``|grad f|_inf <= gtol max(1, |f|)``."""
+    return max_abs_rows(grad) <= opts.gtol * np.maximum(1.0, np.abs(cost))
 
 
 def step_small(delta, x, opts):
-    return float(np.linalg.norm(delta)) <= opts.xtol * (opts.xtol + float(np.linalg.norm(x)))
+    """``|delta| <= xtol (xtol + |x|)``."""
+    return norm_rows(delta) <= opts.xtol * (opts.xtol + norm_rows(x))
 
 
 def reduction_small(f_old, f_new, opts):
-    return abs(f_old - f_new) <= opts.ftol * max(1.0, abs(f_old))
+    """``|f_old - f_new| <= ftol max(1, |f_old|)``."""
+    return np.abs(f_old - f_new) <= opts.ftol * np.maximum(1.0, np.abs(f_old))

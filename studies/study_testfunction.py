@@ -11,8 +11,17 @@ inside a basin's "radius" do not.
 Methods: local Newton, damped Newton (Armijo), steepest descent (Armijo), BFGS (Wolfe),
 Gauss-Newton and Levenberg-Marquardt on the exact sum-of-squares form ``f + 300 = |r|^2``,
 trust-region Newton, IPOPT. Grids: 301 x 301 over [-50, 50]^2 (covering the thesis's x0max up
-to 45) and over [-4, 4]^2; ``--quick`` uses 21 x 21 grids. The full study runs about 1.5
-million solves; measured here: about 7-8 minutes per method and grid on two cores, some two hours in all.
+to 45) and over [-4, 4]^2; ``--quick`` uses 15 x 15 grids.
+
+Solve. Every iterative method runs the whole grid as a few batches
+(:func:`handeye.solvers.solve_many`: one row per start, each row stopping on its own tests,
+ending where :func:`handeye.solvers.solve` ends from that start; the ``batch-equivalence``
+study checks it), spread over the sweep's workers. IPOPT has no batch form (one solver
+object, starts in a loop, about 2.5 ms each, more than all batched methods together on the
+full grid): it runs on every fifth grid line (61 x 61 of the 301 x 301 starts, the same
+points), unless :func:`basin_maps` is given ``ipopt_stride=1``; the summary and the figure say
+which grid each method ran on. Measured here (2 cores, ``handeye bench``): the full study
+in about a minute, where the single-start path took about two hours.
 
 Claims: (1) plain Newton converges to the saddle point from a set of starts of positive area
 (the thesis says no method finds it); (2) for at least one method the basin of the global
@@ -20,33 +29,33 @@ minimum is not star-shaped along the diagonal (a start beyond x0max converges th
 """
 from __future__ import annotations
 
+import json
+import time
+
 import numpy as np
 
 from handeye import solvers
 from handeye.app import sweep
+from handeye.app.problems import testfunction_options as options_for
 from handeye.app.problems import testfunction_problem
 from handeye.model import testfunction
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 KINDS = ("global", "local", "saddle", "none")
-OPTIONS = {"sd": {"max_iter": 2000}}
+#: IPOPT runs on every IPOPT_STRIDE-th grid line (module docstring)
+IPOPT_STRIDE = 5
 
 
 def _ends(method, points):
-    problem = testfunction_problem()
-    out = []
-    for p in points:
-        try:
-            res = solvers.solve(problem, p, method, OPTIONS.get(method, {"max_iter": 200}))
-            out.append((*res.x, res.converged, res.iterations))
-        except Exception:  # noqa: BLE001 - a failed run is a point that does not converge
-            out.append((np.nan, np.nan, False, -1))
-    return out
+    """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations)."""
+    res = solvers.solve_many(testfunction_problem(), np.asarray(points, float).reshape(-1, 2), method,
+                             options_for(method))
+    return np.column_stack([res.x, res.converged, res.iterations]).astype(float)
 
 
 def classify(ends):
-    """Index into KINDS for each end point (N, 4: x1, x2, converged, iterations)."""
+    """Index into KINDS for each end point (N, >= 3: x1, x2, converged, ...)."""
     pts = testfunction.stationary_points()
     targets = {"global": pts[0].x, "local": pts[1].x, "saddle": pts[2].x}
     kind = np.full(len(ends), 3)
@@ -56,13 +65,43 @@ def classify(ends):
     return kind
 
 
-def basin_map(method, lo, hi, n, label):
+def grid_axis(lo, hi, n, method, ipopt_stride=IPOPT_STRIDE):
+    """The grid line coordinates ``method`` runs on: every ``ipopt_stride``-th for IPOPT."""
     axis = np.linspace(lo, hi, n)
-    grid = np.array([(a, b) for b in axis for a in axis])
-    chunks = np.array_split(grid, max(1, min(len(grid) // 100, 256)))
-    parts = sweep.run(_ends, [(method, c) for c in chunks], label=f"{label} {method}")
-    ends = np.array([e for part in parts for e in part], dtype=float)
-    return axis, classify(ends).reshape(n, n), ends[:, 3].reshape(n, n)
+    return axis[::ipopt_stride] if method == "ipopt" else axis
+
+
+def basin_maps(windows, n, ipopt_stride=IPOPT_STRIDE):
+    """Every method over every window: ``{label: {method: (axis, kind, iterations)}}``.
+
+    All (method, window) grids are cut into chunks and run as one sweep, the slowest
+    methods first, so that every worker stays busy.
+    """
+    tasks, where = [], []
+    workers = sweep.n_jobs()
+    for label, (lo, hi) in windows.items():
+        for method in METHODS:
+            axis = grid_axis(lo, hi, n, method, ipopt_stride)
+            grid = np.stack(np.meshgrid(axis, axis), axis=-1).reshape(-1, 2)  # row-major: x1 fastest
+            pieces = max(1, min(len(grid) // 64, 2 * workers if method != "ipopt" else 8 * workers))
+            for k, chunk in enumerate(np.array_split(grid, pieces)):
+                tasks.append((method, chunk))
+                where.append((label, method, k))
+    slow_first = sorted(range(len(tasks)), key=lambda i: tasks[i][0] not in ("sd", "ipopt", "newton-ls"))
+    parts = sweep.run(_ends, [tasks[i] for i in slow_first], label="basins")
+    ends = {}
+    for i, part in zip(slow_first, parts):
+        label, method, k = where[i]
+        ends.setdefault((label, method), {})[k] = part
+    maps = {}
+    for label, (lo, hi) in windows.items():
+        maps[label] = {}
+        for method in METHODS:
+            axis = grid_axis(lo, hi, n, method, ipopt_stride)
+            pieces = ends[(label, method)]
+            e = np.concatenate([pieces[k] for k in sorted(pieces)])
+            maps[label][method] = (axis, classify(e).reshape(len(axis), len(axis)), e[:, 3].reshape(len(axis), len(axis)))
+    return maps
 
 
 def x0max(method, minimum, step=0.05, reach=50.0):
@@ -72,25 +111,39 @@ def x0max(method, minimum, step=0.05, reach=50.0):
     m = testfunction.stationary_points()[target].x
     ks = np.arange(1, int(reach / step) + 1)
     starts = m + np.outer(ks * step, [1.0, 1.0])
-    kind = classify(np.array(_ends(method, starts), dtype=float))
+    kind = classify(_ends(method, starts))
     ok = kind == target
     last = int(np.argmin(ok)) if not ok.all() else len(ok)
     return {"x0max": (m + last * step).tolist(), "distance": float(last * step * np.sqrt(2)),
             "converges_beyond": bool(ok[last:].any())}
 
 
+def _x0max_all(method, step):
+    return {mn: x0max(method, mn, step=step) for mn in ("global", "local")}
+
+
 def run(out, quick=False):
     n = 15 if quick else 301
-    maps = {}
-    for lo, hi, label in ((-50.0, 50.0, "wide"), (-4.0, 4.0, "zoom")):
-        maps[label] = {m: basin_map(m, lo, hi, n, label) for m in METHODS}
-    rows, summary = [], {"grid": n, "methods": {}}
+    stride = 1 if quick else IPOPT_STRIDE
+    windows = {"wide": (-50.0, 50.0), "zoom": (-4.0, 4.0)}
+    t0 = time.perf_counter()
+    maps = basin_maps(windows, n, stride)
+    seconds = {"basins": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    step = 1.0 if quick else 0.05
+    table = dict(zip(METHODS, sweep.run(_x0max_all, [(m, step) for m in METHODS], label="x0max")))
+    seconds["x0max"] = time.perf_counter() - t0
+    grids = {m: f"{len(maps['wide'][m][0])} x {len(maps['wide'][m][0])}" for m in METHODS}
+    solves = {m: len(windows) * len(maps["wide"][m][0]) ** 2 + 2 * int(50.0 / step) for m in METHODS}
+    rows, summary = [], {"grid": n, "grids": grids, "solves": solves, "methods": {},
+                         "ipopt": f"no batch form: a loop over one solver object, on every {stride}-th grid line"
+                         if stride > 1 else "no batch form: a loop over one solver object, on the full grid"}
     for method in METHODS:
         entry = {}
         for label, data in maps.items():
             _, kind, iters = data[method]
             entry[label] = {k: float(np.mean(kind == i)) for i, k in enumerate(KINDS)}
-        entry["table_7_1"] = {mn: x0max(method, mn, step=1.0 if quick else 0.05) for mn in ("global", "local")}
+        entry["table_7_1"] = table[method]
         summary["methods"][method] = entry
         rows.append((method, entry["zoom"]["global"], entry["zoom"]["local"], entry["zoom"]["saddle"],
                      entry["zoom"]["none"], str(np.round(entry["table_7_1"]["local"]["x0max"], 2).tolist()),
@@ -102,8 +155,9 @@ def run(out, quick=False):
               ("tr", "local", (4.5, 4.5), 6), ("tr", "global", (45.0, 45.0), 7)]
     replay = []
     for method, target, start, its in thesis:
-        end = np.array(_ends(method, [np.array(start)]), dtype=float)
-        replay.append((method, target, str(start), its, KINDS[classify(end)[0]], int(end[0, 3])))
+        res = solvers.solve(testfunction_problem(), start, method, options_for(method))  # one start: the single path
+        end = np.array([[*res.x, res.converged, res.iterations]])
+        replay.append((method, target, str(start), its, KINDS[classify(end)[0]], res.iterations))
     write_table(out, "table_7_1_replayed", ["method", "thesis_minimum", "thesis_x0max", "thesis_iterations",
                                              "our_end", "our_iterations"], replay)
     summary["table_7_1_replayed"] = [dict(zip(("method", "minimum", "start", "thesis_iterations", "our_end",
@@ -120,7 +174,7 @@ def run(out, quick=False):
             axis, kind, iters = data[method]
             ext = [axis[0], axis[-1], axis[0], axis[-1]]
             axes[0, col].imshow(kind, origin="lower", extent=ext, cmap=cmap, vmin=0, vmax=3, interpolation="nearest")
-            axes[0, col].set_title(method, fontsize=9)
+            axes[0, col].set_title(f"{method} ({grids[method]})" if len(axis) != n else method, fontsize=9)
             im = axes[1, col].imshow(np.where(kind < 3, iters, np.nan), origin="lower", extent=ext, cmap="viridis",
                                      interpolation="nearest")
             fig.colorbar(im, ax=axes[1, col], fraction=0.046)
@@ -133,6 +187,7 @@ def run(out, quick=False):
         fig.savefig(out / f"basins_{label}.png", dpi=110)
         plt.close(fig)
     write_summary(out, summary)
+    (out / "timing.json").write_text(json.dumps(seconds, indent=1) + "\n")  # not in summary.json: that one is reproducible
     newton_saddle = summary["methods"]["newton"]["zoom"]["saddle"]
     claim(newton_saddle > 0, f"plain Newton converges to the saddle from {100 * newton_saddle:.2f} % of the zoom grid")
     claim(any(e["table_7_1"]["global"]["converges_beyond"] or e["table_7_1"]["local"]["converges_beyond"]

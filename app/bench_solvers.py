@@ -1,0 +1,201 @@
+"""``handeye bench --solvers``: the solver-comparison study, batched against single starts.
+
+Sections, in one process and one run:
+
+* ``study`` -- the wall time of ``handeye study testfunction`` run as a user runs it (the CLI
+  in a subprocess, with the sweep's workers): full, both 301 x 301 windows, every method,
+  Table 7-1's x0max search and replay; ``--quick``: the 15 x 15 version. Its phases come from
+  the study's ``timing.json`` and its solve counts from its ``summary.json``.
+* ``per_start`` -- per method, the time per start of the single-start path
+  (:func:`handeye.solvers.solve`, one start at a time, on a sample) and of the batch
+  (:func:`handeye.solvers.solve_many` over all the starts at once), both here on one core,
+  from the same seeded starts over the study's two windows; the ratio beside them.
+* ``extrapolated`` -- the study's solve counts at the two paths' per-start times: what its
+  solves cost on one core without the batch (an estimate, labelled as one), and with it.
+* ``scaling`` -- the batch's time and peak memory (``tracemalloc``, numpy's buffers included)
+  against the number of starts N, with the log-log slope per method.
+
+Timing is measured here, never in tests.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+
+import numpy as np
+
+from handeye import solvers
+from handeye.app.problems import testfunction_options, testfunction_problem, testfunction_starts
+
+METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
+SCALING = (10, 100, 1000, 10000, 30000)
+SEED = 16
+
+
+def study(quick=False):
+    """Run ``handeye study testfunction`` (``--quick``) as a subprocess; its wall time and phases.
+
+    Returns
+    -------
+    dict
+        ``seconds`` (wall, whole command), ``phases`` (the study's timing.json),
+        ``solves`` (per method, from its summary.json), ``grids``, ``exit_code``.
+    """
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, "-m", "handeye.app.cli", "study", "testfunction", "--out", tmp] + (["--quick"] if quick else [])
+        t0 = time.perf_counter()
+        done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
+        seconds = time.perf_counter() - t0
+        folder = os.path.join(tmp, "testfunction")
+        if done.returncode != 0:
+            return {"seconds": seconds, "exit_code": done.returncode, "error": done.stderr.strip()[-2000:]}
+        with open(os.path.join(folder, "timing.json")) as fh:
+            phases = json.load(fh)
+        with open(os.path.join(folder, "summary.json")) as fh:
+            summary = json.load(fh)
+    return {"seconds": seconds, "exit_code": 0, "phases": phases, "solves": summary["solves"],
+            "grids": summary["grids"], "quick": quick}
+
+
+def _sample(starts, k):
+    """``k`` of ``starts`` spread evenly over both windows."""
+    return starts[np.linspace(0, len(starts) - 1, min(k, len(starts))).astype(int)]
+
+
+def per_start(methods=METHODS, n_batch=20000, n_single=200, seed=SEED):
+    """Per method: seconds per start of the single-start path and of the batch, and their ratio.
+
+    Parameters
+    ----------
+    methods : sequence of str
+    n_batch : int
+        Starts in the batch (IPOPT, which has no batch form, loops over ``n_single``).
+    n_single : int
+        Starts solved one by one with :func:`handeye.solvers.solve` (a sample of the batch's).
+    seed : int
+
+    Returns
+    -------
+    list of dict
+        ``method``, ``single_per_start``, ``batch_per_start`` (s), ``speedup``, the starts
+        behind each, and ``same_ends`` (the sample's single and batch ends agree within 1e-8).
+    """
+    problem = testfunction_problem()
+    rows = []
+    for method in methods:
+        opts = testfunction_options(method)
+        starts = testfunction_starts(n_single if method == "ipopt" else n_batch, seed)
+        sample = _sample(starts, n_single)
+        t0 = time.perf_counter()
+        single = np.array([solvers.solve(problem, x0, method, opts).x for x0 in sample])
+        single_s = (time.perf_counter() - t0) / len(sample)
+        t0 = time.perf_counter()
+        batch = solvers.solve_many(problem, starts, method, opts)
+        batch_s = (time.perf_counter() - t0) / len(starts)
+        rows_of_sample = np.linspace(0, len(starts) - 1, len(sample)).astype(int)
+        same = np.allclose(batch.x[rows_of_sample], single, rtol=0, atol=1e-8)
+        rows.append({"method": method, "single_per_start": single_s, "single_starts": len(sample),
+                     "batch_per_start": batch_s, "batch_starts": len(starts), "speedup": single_s / batch_s,
+                     "same_ends": bool(same)})
+    return rows
+
+
+def extrapolated(rows, solves):
+    """The study's solves (``solves``: method -> count) at each path's per-start time, one core."""
+    by = {r["method"]: r for r in rows}
+    single = sum(by[m]["single_per_start"] * n for m, n in solves.items() if m in by)
+    batch = sum(by[m]["batch_per_start"] * n for m, n in solves.items() if m in by)
+    return {"single_seconds": single, "batch_seconds": batch, "speedup": single / batch,
+            "solves": int(sum(solves.values())), "note": "estimate: the study's solve counts x per-start times, one core"}
+
+
+def _slope(ns, values):
+    """Least-squares slope of log(values) against log(ns)."""
+    return float(np.polyfit(np.log(ns), np.log(values), 1)[0])
+
+
+def scaling(methods=("newton", "bfgs", "lm", "tr"), sizes=SCALING, seed=SEED):
+    """The batch's time (best of 3, 1 for the largest) and peak memory against N, per method.
+
+    Returns
+    -------
+    dict
+        ``sizes``; per method ``seconds``, ``peak_bytes`` (lists over sizes), ``time_slope`` and
+        ``memory_slope`` (log-log, over sizes >= 1000 where the fixed costs no longer dominate).
+    """
+    problem = testfunction_problem()
+    out = {"sizes": list(sizes), "methods": {}}
+    for method in methods:
+        opts = testfunction_options(method)
+        seconds, peaks = [], []
+        for n in sizes:
+            starts = testfunction_starts(n, seed)
+            best = np.inf
+            for _ in range(3 if n < max(sizes) else 1):
+                t0 = time.perf_counter()
+                solvers.solve_many(problem, starts, method, opts)
+                best = min(best, time.perf_counter() - t0)
+            tracemalloc.start()
+            solvers.solve_many(problem, starts, method, opts)
+            peaks.append(tracemalloc.get_traced_memory()[1])
+            tracemalloc.stop()
+            seconds.append(best)
+        big = [i for i, n in enumerate(sizes) if n >= 1000] or list(range(len(sizes)))
+        ns = np.asarray(sizes, float)[big]
+        out["methods"][method] = {"seconds": seconds, "peak_bytes": peaks,
+                                  "time_slope": _slope(ns, np.asarray(seconds)[big]) if len(big) > 1 else None,
+                                  "memory_slope": _slope(ns, np.asarray(peaks, float)[big]) if len(big) > 1 else None}
+    return out
+
+
+def run(quick=False, with_study=True):
+    """Every section. ``quick``: the 15 x 15 study, 2000 batch starts, 40 single, N up to 3000."""
+    res = {"quick": quick}
+    rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
+    res["per_start"] = rows
+    res["scaling"] = scaling(sizes=SCALING[:-1] if quick else SCALING)
+    if with_study:
+        res["study"] = study(quick=quick)
+        if res["study"]["exit_code"] == 0:
+            res["extrapolated"] = extrapolated(rows, res["study"]["solves"])
+    return res
+
+
+def text(res):
+    """The bench as plain-text tables."""
+    lines = ["solver-comparison bench (test function 6-16; one core unless said)", "",
+             f"{'method':10s} {'single ms/start':>16s} {'batch ms/start':>15s} {'speed-up':>9s} {'same ends':>10s}"]
+    for r in res["per_start"]:
+        lines.append(f"{r['method']:10s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
+                     f"{r['speedup']:9.1f} {str(r['same_ends']):>10s}")
+    lines.append(f"(single: {res['per_start'][0]['single_starts']} starts one by one; batch: "
+                 f"{res['per_start'][0]['batch_starts']} starts at once; IPOPT has no batch form: its batch is a loop)")
+    st = res.get("study")
+    if st:
+        lines.append("")
+        if st["exit_code"] != 0:
+            lines.append(f"handeye study testfunction{' --quick' if st.get('quick') else ''}: exit {st['exit_code']}: "
+                         f"{st['error']}")
+        else:
+            phases = ", ".join(f"{k} {v:.1f} s" for k, v in st["phases"].items())
+            lines.append(f"handeye study testfunction{' --quick' if st['quick'] else ''}: {st['seconds']:.1f} s wall "
+                         f"(sweep workers: {os.cpu_count()} cores; {phases})")
+            ex = res["extrapolated"]
+            lines.append(f"its {ex['solves']} solves on one core: single-start path {ex['single_seconds']:.0f} s "
+                         f"(estimate), batch {ex['batch_seconds']:.1f} s; ratio {ex['speedup']:.0f}x")
+    sc = res["scaling"]
+    lines += ["", "batch time and peak memory against starts N (log-log slope over N >= 1000)",
+              f"{'method':10s} " + " ".join(f"{n:>9d}" for n in sc["sizes"]) + f" {'slope':>6s}"]
+    for method, d in sc["methods"].items():
+        t = " ".join(f"{s:8.3f}s" for s in d["seconds"])
+        m = " ".join(f"{b / 2**20:7.2f}MB" for b in d["peak_bytes"])
+        ts = f"{d['time_slope']:6.2f}" if d["time_slope"] is not None else "     -"
+        ms = f"{d['memory_slope']:6.2f}" if d["memory_slope"] is not None else "     -"
+        lines.append(f"{method:10s} {t} {ts}")
+        lines.append(f"{'':10s} {m} {ms}")
+    return "\n".join(lines)
