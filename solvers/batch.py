@@ -41,6 +41,8 @@ class Stacked:
             return np.zeros((0,) + self._shapes.get(name, known[name]))
         if self.problem.vectorised:
             out = np.asarray(fn(*stacks), dtype=float)
+        elif k == 1:
+            out = np.asarray(fn(*(s[0] for s in stacks)), dtype=float)[None]
         else:
             out = np.stack([np.asarray(fn(*rows), dtype=float) for rows in zip(*stacks)])
         self._shapes[name] = out.shape[1:]
@@ -161,8 +163,8 @@ class Runs:
         """Append one value per row to a trace (radius, damping ...); kept with ``trace=True``."""
         if self.trace:
             lists = self.traces.setdefault(name, [[] for _ in range(self.n_rows)])
-            for i, v in zip(rows, np.broadcast_to(values, rows.shape)):
-                lists[i].append(float(v))
+            for i, v in zip(rows.tolist(), np.broadcast_to(values, rows.shape).tolist()):
+                lists[i].append(v)
 
     def count(self, name, rows):
         self.counts.setdefault(name, np.zeros(self.n_rows, dtype=int))[rows] += 1

@@ -39,6 +39,7 @@ def run(stacked, x0, opts, trace=False):
     with np.errstate(divide="ignore", invalid="ignore"):
         mu = np.where(np.max(d, axis=1) > 0, opts.lm_tau * biggest / np.max(d, axis=1), opts.lm_tau)
     nu = np.full(len(rows), 2.0)
+    diag = np.arange(stacked.n)
     runs.note("damping", rows, mu)
     for k in range(opts.max_iter):
         rows = runs.active()
@@ -47,7 +48,9 @@ def run(stacked, x0, opts, trace=False):
         if not rows.size:
             break
         g = runs.g[rows]
-        p, ok = solve_rows(a[rows] + mu[rows, None, None] * (d[rows, :, None] * np.eye(stacked.n)), -g)
+        damped = a[rows]
+        damped[:, diag, diag] += mu[rows, None] * d[rows]  # A + mu D, D = diag(d)
+        p, ok = solve_rows(damped, -g)
         rows = runs.stop(rows, ~ok, -1, k)
         p, g = p[ok], g[ok]
         small = step_small(p, runs.x[rows], opts)

@@ -13,6 +13,8 @@ compute is a row-wise product, norm or solve. Two rules shape this module:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: widths up to this loop over columns (module docstring)
@@ -21,7 +23,7 @@ NARROW = 16
 
 def _flat(a):
     """A stack (k, ...) as (k, width), also when k = 0."""
-    return a.reshape(len(a), int(np.prod(a.shape[1:], dtype=int)))
+    return a.reshape(len(a), math.prod(a.shape[1:]))
 
 
 def row_sum(a):
@@ -31,6 +33,12 @@ def row_sum(a):
         return flat.sum(axis=1)
     if not flat.shape[1]:
         return np.zeros(len(a))
+    if len(flat) == 1:  # one row: the same additions in the same order, on Python floats (no array overhead)
+        values = flat[0].tolist()
+        total = values[0]
+        for v in values[1:]:
+            total += v
+        return np.array([total])
     out = flat[:, 0].copy()
     for col in flat.T[1:]:
         out += col
@@ -41,7 +49,7 @@ def max_abs_rows(a):
     """``max_j |a[i, j]|`` of a stack (k, n); NaN for width 0."""
     if not a.shape[1]:
         return np.full(len(a), np.nan)
-    if a.shape[1] > NARROW:
+    if a.shape[1] > NARROW or len(a) < 64:  # a maximum is exact in any order: choose by speed
         return np.max(np.abs(a), axis=1)
     out = np.abs(a[:, 0])
     for col in a.T[1:]:
@@ -67,7 +75,7 @@ def finite_rows(*arrays):
             ok &= np.isfinite(a)
             continue
         flat = _flat(a)
-        if flat.shape[1] > NARROW:
+        if flat.shape[1] > NARROW or len(flat) < 64:  # exact either way: choose by speed
             ok &= np.isfinite(flat).all(axis=1)
         else:
             for col in flat.T:

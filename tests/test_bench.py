@@ -98,3 +98,43 @@ def test_fast_path_refuses_wrong_shapes_instead_of_reading_past_the_arrays():
         fast.calibrate_fast(f2b, xs, centre[:2], start)
     res = fast.calibrate_fast(f2b, xs, centre, np.asfortranarray(start))  # any memory layout is accepted
     assert res.converged and np.allclose(res.sensor2flange[3], [0, 0, 0, 1])
+
+
+def test_solver_bench_reports_both_paths_and_the_study(monkeypatch):
+    """``handeye bench --solvers`` on a tiny sample: every method has both per-start times,
+    their ends agree, the scaling has a slope per method, and the study section comes from
+    the study's own files (a real quick run of ``handeye study testfunction``)."""
+    from handeye.app import bench_solvers
+
+    rows = bench_solvers.per_start(n_batch=30, n_single=6)
+    assert [r["method"] for r in rows] == list(bench_solvers.METHODS)
+    for r in rows:
+        assert r["single_per_start"] > 0 and r["batch_per_start"] > 0 and r["same_ends"], r
+        assert r["single_starts"] == 6 and r["batch_starts"] == (6 if r["method"] == "ipopt" else 30)
+    sc = bench_solvers.scaling(methods=("newton",), sizes=(1000, 2000))
+    d = sc["methods"]["newton"]
+    assert len(d["seconds"]) == 2 and d["peak_bytes"][1] > d["peak_bytes"][0] > 0
+    assert d["time_slope"] is not None and d["memory_slope"] > 0.5  # the state grows with N
+    st = bench_solvers.study(quick=True)
+    assert st["exit_code"] == 0, st.get("error")
+    assert set(st["solves"]) == set(bench_solvers.METHODS) and st["solves"]["newton"] == 2 * 15 * 15 + 2 * 50
+    ex = bench_solvers.extrapolated(rows, st["solves"])
+    assert ex["solves"] == sum(st["solves"].values()) and ex["speedup"] > 0
+    text = bench_solvers.text({"quick": True, "per_start": rows, "scaling": sc, "study": st, "extrapolated": ex})
+    assert "handeye study testfunction --quick" in text and "estimate" in text
+    for method in bench_solvers.METHODS:
+        assert method in text
+
+
+def test_solver_bench_reports_a_failed_study(monkeypatch):
+    """A study that exits non-zero is reported with its exit code, not parsed."""
+    import subprocess
+
+    from handeye.app import bench_solvers
+
+    class Done:
+        returncode, stderr = 4, "claim failed: xyz"
+
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: Done())
+    st = bench_solvers.study(quick=True)
+    assert st["exit_code"] == 4 and "xyz" in st["error"]
