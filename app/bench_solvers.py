@@ -153,11 +153,86 @@ def scaling(methods=("newton", "bfgs", "lm", "tr"), sizes=SCALING, seed=SEED):
     return out
 
 
+CALIBRATION_METHODS = (("lm", "local"), ("gn", "euler"), ("newton", "local"), ("tr", "local"), ("dogleg", "local"))
+
+
+def _calibration_starts(n, seed):
+    """A simulated calibration (thesis strategy, 36 poses) and ``n`` starts: rotations up to
+    90 deg and translations up to 200 mm off the truth (seeded)."""
+    from handeye.model import simulate
+    from handeye.model.calibration import CalibrationModel
+    from handeye.model.pose import transform_from_pose
+    from handeye.model.rotation import matrix_from_rotvec
+
+    setup = simulate.Setup()
+    sim = simulate.simulate(setup, seed=3)
+    f2b = transform_from_pose(sim.flange_poses)
+    truth = transform_from_pose(setup.sensor_pose)
+    rng = np.random.default_rng(seed)
+    axes = rng.normal(size=(n, 3))
+    axes *= (np.radians(rng.uniform(0, 90, n)) / np.linalg.norm(axes, axis=1))[:, None]
+    shifts = rng.normal(size=(n, 3))
+    shifts *= (rng.uniform(0, 200, n) / np.linalg.norm(shifts, axis=1))[:, None]
+    starts = np.repeat(truth[None], n, axis=0)
+    starts[:, :3, :3] = matrix_from_rotvec(axes) @ truth[:3, :3]
+    starts[:, :3, 3] += shifts
+    model = {rot: CalibrationModel(f2b, sim.centre_in_sensor, setup.sphere_centre, rot) for rot in ("local", "euler")}
+    return model, f2b, sim.centre_in_sensor, np.asarray(setup.sphere_centre, float), starts
+
+
+def calibration(n_batch=400, n_single=40, seed=SEED):
+    """Per start, one calibration problem (36 simulated poses) from many starts: the single-start
+    path against the batch for each of :data:`CALIBRATION_METHODS`, and the compiled fast path's
+    ``calibrate_many`` beside them (one core).
+
+    Returns
+    -------
+    list of dict
+        ``method`` (``name/rotation``), ``single_per_start``, ``batch_per_start`` (s),
+        ``speedup``, ``same_ends`` (sample's single and batch ends within 1e-8), ``converged``
+        (fraction of the batch).
+    """
+    from handeye.app.problems import calibration_problem
+    from handeye.model import fast
+
+    models, f2b, xs, centre, starts = _calibration_starts(n_batch, seed)
+    rows = []
+    for method, rotation in CALIBRATION_METHODS:
+        model = models[rotation]
+        problem = calibration_problem(model)
+        points = np.stack([model.point_from(s) for s in starts])
+        sample = _sample(points, n_single)
+        t0 = time.perf_counter()
+        single = np.array([solvers.solve(problem, x0, method).x for x0 in sample])
+        single_s = (time.perf_counter() - t0) / len(sample)
+        t0 = time.perf_counter()
+        batch = solvers.solve_many(problem, points, method)
+        batch_s = (time.perf_counter() - t0) / len(points)
+        picked = np.linspace(0, len(points) - 1, len(sample)).astype(int)
+        rows.append({"method": f"{method}/{rotation}", "single_per_start": single_s, "batch_per_start": batch_s,
+                     "speedup": single_s / batch_s, "converged": float(np.mean(batch.converged)),
+                     "same_ends": bool(np.allclose(batch.x[picked], single, rtol=0, atol=1e-8))})
+    m = len(starts)
+    t0 = time.perf_counter()
+    for s in _sample(starts, n_single):
+        fast.calibrate_fast(f2b, xs, centre, s)
+    single_s = (time.perf_counter() - t0) / min(n_single, m)
+    t0 = time.perf_counter()
+    _, info = fast.calibrate_many(np.broadcast_to(f2b, (m,) + f2b.shape), np.broadcast_to(xs, (m,) + xs.shape), centre,
+                                  starts)
+    batch_s = (time.perf_counter() - t0) / m
+    rows.append({"method": "lm-fast/local", "single_per_start": single_s, "batch_per_start": batch_s,
+                 "speedup": single_s / batch_s, "converged": float(np.mean(np.isin(info[:, 3], sorted(solvers.CONVERGED)))),
+                 "same_ends": None, "compiled": fast.library() is not None})
+    return rows
+
+
 def run(quick=False, with_study=True):
     """Every section. ``quick``: the 15 x 15 study, 2000 batch starts, 40 single, N up to 3000."""
     res = {"quick": quick}
     rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
     res["per_start"] = rows
+    res["calibration"] = calibration(n_batch=100 if quick else 400, n_single=20 if quick else 40)
     res["scaling"] = scaling(sizes=SCALING[:-1] if quick else SCALING)
     if with_study:
         res["study"] = study(quick=quick)
@@ -175,6 +250,16 @@ def text(res):
                      f"{r['speedup']:9.1f} {str(r['same_ends']):>10s}")
     lines.append(f"(single: {res['per_start'][0]['single_starts']} starts one by one; batch: "
                  f"{res['per_start'][0]['batch_starts']} starts at once; IPOPT has no batch form: its batch is a loop)")
+    if res.get("calibration"):
+        lines += ["", "one calibration (36 simulated poses) from many starts (rotations 0-90 deg, 0-200 mm off)",
+                  f"{'method':14s} {'single ms/start':>16s} {'batch ms/start':>15s} {'speed-up':>9s} "
+                  f"{'same ends':>10s} {'converged':>10s}"]
+        for r in res["calibration"]:
+            lines.append(f"{r['method']:14s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
+                         f"{r['speedup']:9.1f} {str(r['same_ends']) if r['same_ends'] is not None else '-':>10s} "
+                         f"{100 * r['converged']:9.1f}%")
+        lines.append("(lm-fast: the compiled fast path, calibrate_fast one by one against calibrate_many; "
+                     "its own LM, so its ends are not compared)")
     st = res.get("study")
     if st:
         lines.append("")

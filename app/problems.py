@@ -11,7 +11,9 @@ def calibration_problem(model):
     """A :class:`handeye.solvers.Problem` of a :class:`handeye.model.calibration.CalibrationModel`.
 
     Least-squares callables and the exact Hessian for every parametrisation; the CasADi NLP
-    for ``euler`` and ``matrix``; the retraction for ``local``.
+    for ``euler`` and ``matrix``; the retraction for ``local``. The callables take stacks of
+    points (``vectorised``), so :func:`handeye.solvers.solve_many` runs many starts of one
+    calibration at once.
     """
     nlp = model.nlp() if model.rotation in ("euler", "matrix") else None
     smooth = model.rotation != "matrix"  # the matrix entries need the constraints (IPOPT)
@@ -22,6 +24,7 @@ def calibration_problem(model):
         hessian=model.cost_hessian if smooth else None,
         retract=model.retract if model.rotation == "local" else None,
         nlp=nlp,
+        vectorised=True,
     )
 
 

@@ -213,10 +213,14 @@ class CalibrationModel:
         return x
 
     def _split(self, x):
+        """Translation, rotation entries and sphere centre of a point (n,) or a stack (..., n)."""
         x = np.asarray(x, dtype=float)
         nr = _N_POINT_ROT[self.rotation]
-        t2, q = x[:3], x[3 : 3 + nr]
-        c = x[3 + nr : 6 + nr] if self.unknowns == "sensor+sphere" else self.fixed_centre
+        t2, q = x[..., :3], x[..., 3 : 3 + nr]
+        if self.unknowns == "sensor+sphere":
+            c = x[..., 3 + nr : 6 + nr]
+        else:
+            c = np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
         return t2, q, c
 
     def sensor_rotation(self, x):
@@ -237,79 +241,95 @@ class CalibrationModel:
         return self._split(x)[2].copy()
 
     def retract(self, x, delta):
-        """Move from point ``x`` by step ``delta`` (table in the module docstring)."""
+        """Move from point ``x`` by step ``delta`` (table in the module docstring); both may be
+        stacks (..., n) and (..., n_step)."""
         if self.rotation != "local":
             return np.asarray(x, dtype=float) + delta
         t2, q, c = self._split(x)
-        rot = q.reshape(3, 3) @ rotation.matrix_from_rotvec(delta[3:6])
-        parts = [t2 + delta[:3], rot.ravel()]
+        delta = np.asarray(delta, dtype=float)
+        rot = q.reshape(q.shape[:-1] + (3, 3)) @ rotation.matrix_from_rotvec(delta[..., 3:6])
+        parts = [t2 + delta[..., :3], rot.reshape(rot.shape[:-2] + (9,))]
         if self.unknowns == "sensor+sphere":
-            parts.append(c + delta[6:9])
-        return np.concatenate(parts)
+            parts.append(c + delta[..., 6:9])
+        return np.concatenate(parts, axis=-1)
 
     # -- residual and derivatives ---------------------------------------------------------
+    # A point x (n,) or a stack of points (..., n): the batch axes lead every result, so the
+    # batched solvers (handeye.solvers.solve_many) evaluate all running starts in one call.
     def _args(self, x):
         t2, q, c = self._split(x)
+        batch = np.shape(x)[:-1]
+
+        def entries(v):  # each parameter as a column (..., 1) against the rows' data (N,)
+            return [v[..., j, None] if batch else v[..., j] for j in range(v.shape[-1])]
+
         if self.rotation == "local":
-            theta, extra = [*t2, 0.0, 0.0, 0.0, *c], list(q)
+            zero = np.zeros(batch + (1,)) if batch else 0.0
+            theta, extra = [*entries(t2), zero, zero, zero, *entries(c)], entries(q)
         else:
-            theta, extra = [*t2, *q, *c], []
+            theta, extra = [*entries(t2), *entries(q), *entries(c)], []
         if self.kind != "centre":
             extra.append(self.radius)
         return (*theta, *extra, *self._data)
 
     def _raw(self, x):
         resjac, _ = _numpy_functions(self.rotation, self.kind)
-        vals = codegen.stack_outputs(resjac(*self._args(x)), (self.n_meas,))
+        batch = np.shape(x)[:-1]
+        vals = codegen.stack_outputs(resjac(*self._args(x)), batch + (self.n_meas,))
         m = self.m
-        e = vals[:, :m]
-        n_theta = (vals.shape[1] - m) // m
-        jac = vals[:, m:].reshape(self.n_meas, m, n_theta)[:, :, self._cols]
+        e = vals[..., :m]
+        n_theta = (vals.shape[-1] - m) // m
+        jac = vals[..., m:].reshape(batch + (self.n_meas, m, n_theta))[..., self._cols]
         return e, jac
 
     def residual_and_jacobian(self, x):
-        """Whitened residuals (N, m) and Jacobian (N, m, n) with respect to the step."""
+        """Whitened residuals (..., N, m) and Jacobian (..., N, m, n) with respect to the step."""
         e, jac = self._raw(x)
         if self.whiten is not None:
-            e = np.einsum("ikl,il->ik", self.whiten, e)
-            jac = np.einsum("ikl,iln->ikn", self.whiten, jac)
+            e = np.einsum("ikl,...il->...ik", self.whiten, e)
+            jac = np.einsum("ikl,...iln->...ikn", self.whiten, jac)
         return e, jac
 
     def residuals(self, x):
-        """Residual rows (N, m) as the model defines them (mm), not whitened."""
+        """Residual rows (..., N, m) as the model defines them (mm), not whitened."""
         return self._raw(x)[0]
 
     def residual(self, x):
-        """Stacked whitened residual (N m,), what the solvers minimise."""
-        return self.residual_and_jacobian(x)[0].ravel()
+        """Stacked whitened residual (..., N m), what the solvers minimise."""
+        e = self.residual_and_jacobian(x)[0]
+        return e.reshape(e.shape[:-2] + (-1,))
 
     def jacobian(self, x):
-        """Stacked whitened Jacobian (N m, n)."""
-        return self.residual_and_jacobian(x)[1].reshape(-1, self.n)
+        """Stacked whitened Jacobian (..., N m, n)."""
+        jac = self.residual_and_jacobian(x)[1]
+        return jac.reshape(jac.shape[:-3] + (-1, self.n))
 
     def second_derivatives(self, x):
-        """Second derivatives of each (unwhitened) residual component, shape (N, m, n, n)."""
+        """Second derivatives of each (unwhitened) residual component, shape (..., N, m, n, n)."""
         _, hess = _numpy_functions(self.rotation, self.kind)
-        vals = codegen.stack_outputs(hess(*self._args(x)), (self.n_meas,))
-        n_theta = int(round(np.sqrt(vals.shape[1] / self.m)))
-        d2 = vals.reshape(self.n_meas, self.m, n_theta, n_theta)
-        return d2[:, :, self._cols, self._cols]
+        batch = np.shape(x)[:-1]
+        vals = codegen.stack_outputs(hess(*self._args(x)), batch + (self.n_meas,))
+        n_theta = int(round(np.sqrt(vals.shape[-1] / self.m)))
+        d2 = vals.reshape(batch + (self.n_meas, self.m, n_theta, n_theta))
+        return d2[..., self._cols, self._cols]
 
     def cost(self, x):
-        """``1/2 sum |W_i e_i|^2`` (mm^2 without whitening)."""
+        """``1/2 sum |W_i e_i|^2`` (mm^2 without whitening); a float, or (...) for a stack."""
         e = self.residual(x)
-        return 0.5 * float(e @ e)
+        return 0.5 * float(e @ e) if e.ndim == 1 else 0.5 * np.einsum("...i,...i->...", e, e)
 
     def gradient(self, x):
+        """Gradient of :meth:`cost` with respect to the step, (..., n)."""
         e, jac = self.residual_and_jacobian(x)
-        return np.einsum("ik,ikn->n", e, jac)
+        return np.einsum("...ik,...ikn->...n", e, jac)
 
     def cost_hessian(self, x):
-        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``."""
+        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
         e, jac = self.residual_and_jacobian(x)
         d2 = self.second_derivatives(x)
-        weighted = e if self.whiten is None else np.einsum("ilk,il->ik", self.whiten, e)  # W^T (W e)
-        return np.einsum("ikn,ikm->nm", jac, jac) + np.einsum("ik,iknm->nm", weighted, d2)
+        weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
+        flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
+        return np.swapaxes(flat, -1, -2) @ flat + np.einsum("...ik,...iknm->...nm", weighted, d2)
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):

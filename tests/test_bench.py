@@ -111,6 +111,11 @@ def test_solver_bench_reports_both_paths_and_the_study(monkeypatch):
     for r in rows:
         assert r["single_per_start"] > 0 and r["batch_per_start"] > 0 and r["same_ends"], r
         assert r["single_starts"] == 6 and r["batch_starts"] == (6 if r["method"] == "ipopt" else 30)
+    cal = bench_solvers.calibration(n_batch=8, n_single=3)
+    assert [r["method"] for r in cal] == [f"{m}/{r}" for m, r in bench_solvers.CALIBRATION_METHODS] + ["lm-fast/local"]
+    for r in cal[:-1]:
+        assert r["same_ends"] and r["batch_per_start"] > 0, r
+    assert cal[0]["converged"] == 1.0 and cal[-1]["converged"] == 1.0  # LM from within 90 deg, both paths
     sc = bench_solvers.scaling(methods=("newton",), sizes=(1000, 2000))
     d = sc["methods"]["newton"]
     assert len(d["seconds"]) == 2 and d["peak_bytes"][1] > d["peak_bytes"][0] > 0
@@ -120,9 +125,10 @@ def test_solver_bench_reports_both_paths_and_the_study(monkeypatch):
     assert set(st["solves"]) == set(bench_solvers.METHODS) and st["solves"]["newton"] == 2 * 15 * 15 + 2 * 50
     ex = bench_solvers.extrapolated(rows, st["solves"])
     assert ex["solves"] == sum(st["solves"].values()) and ex["speedup"] > 0
-    text = bench_solvers.text({"quick": True, "per_start": rows, "scaling": sc, "study": st, "extrapolated": ex})
+    text = bench_solvers.text({"quick": True, "per_start": rows, "calibration": cal, "scaling": sc, "study": st,
+                               "extrapolated": ex})
     assert "handeye study testfunction --quick" in text and "estimate" in text
-    for method in bench_solvers.METHODS:
+    for method in bench_solvers.METHODS + ("lm-fast/local", "dogleg/local"):
         assert method in text
 
 

@@ -192,3 +192,24 @@ def test_euler_angles_are_singular_at_the_seeds_sensor_orientation():
         CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "euler").jacobian(
             np.array([*d.start_pose])), ["tx", "ty", "tz", "A", "B", "C"]).null_directions
     assert null in ({"A": 1.0, "C": -1.0}, {"A": -1.0, "C": 1.0})
+
+
+@pytest.mark.parametrize("rotation,unknowns,kind", [(r, u, k) for r in ROTATIONS for u in UNKNOWNS
+                                                    for k in ("centre", "measurement", "points")])
+def test_a_stack_of_points_evaluates_row_by_row(rotation, unknowns, kind):
+    """Every evaluation takes a stack of points (..., n) and gives, row by row, what one point
+    gives (whitening, free sphere centre and every residual kind included): what the batched
+    solvers rely on."""
+    m = random_model(rotation, unknowns, seed=3, kind=kind)
+    points = np.stack([start_point(m, seed=s) for s in range(5)])
+    steps = np.random.default_rng(9).normal(0, 0.05, (5, m.n))
+    stacked = points.reshape(5, 1, -1)  # two batch axes
+    for name in ("residual", "jacobian", "cost_hessian", "gradient", "residuals", "cost"):
+        fn = getattr(m, name)
+        many = fn(points)
+        for i, x in enumerate(points):
+            np.testing.assert_allclose(many[i], fn(x), rtol=1e-13, atol=1e-9, err_msg=name)
+        assert np.shape(fn(stacked)) == (5, 1) + np.shape(fn(points[0])), name
+    moved = m.retract(points, steps)
+    for i in range(5):
+        np.testing.assert_allclose(moved[i], m.retract(points[i], steps[i]), rtol=1e-15, atol=1e-15)
