@@ -83,6 +83,21 @@ def _numpy_functions(rot, kind="centre"):
     return codegen.numpy_function(resjac), codegen.numpy_function(hess)
 
 
+@functools.lru_cache(maxsize=None)
+def _numpy_residual(rot, kind="centre"):
+    """The residual alone, generated from the same expressions as ``calib_resjac`` (its first
+    outputs): what a line search or a trial step needs, several times cheaper than with the
+    Jacobian."""
+
+    def build_res():
+        from handeye.model import symbolic
+
+        s = symbolic.calibration_residual(rot, kind)
+        return s["theta"] + s["extra"] + s["data"], list(s["e"])
+
+    return codegen.numpy_function(codegen.generated_source(f"calib_res_{rot}_{kind}", build_res))
+
+
 _N_ROT = {"euler": 3, "matrix": 9, "local": 3}
 _N_POINT_ROT = {"euler": 3, "matrix": 9, "local": 9}
 
@@ -220,7 +235,7 @@ class CalibrationModel:
         if self.unknowns == "sensor+sphere":
             c = x[..., 3 + nr : 6 + nr]
         else:
-            c = np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
+            c = self.fixed_centre if x.ndim == 1 else np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
         return t2, q, c
 
     def sensor_rotation(self, x):
@@ -292,11 +307,14 @@ class CalibrationModel:
 
     def residuals(self, x):
         """Residual rows (..., N, m) as the model defines them (mm), not whitened."""
-        return self._raw(x)[0]
+        batch = np.shape(x)[:-1]
+        return codegen.stack_outputs(_numpy_residual(self.rotation, self.kind)(*self._args(x)), batch + (self.n_meas,))
 
     def residual(self, x):
         """Stacked whitened residual (..., N m), what the solvers minimise."""
-        e = self.residual_and_jacobian(x)[0]
+        e = self.residuals(x)
+        if self.whiten is not None:
+            e = np.einsum("ikl,...il->...ik", self.whiten, e)
         return e.reshape(e.shape[:-2] + (-1,))
 
     def jacobian(self, x):

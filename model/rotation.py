@@ -11,27 +11,27 @@ import numpy as np
 def skew(v):
     """Cross-product matrix ``[v]x``, shape (..., 3) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack(
-        [
-            np.stack([z, -v[..., 2], v[..., 1]], -1),
-            np.stack([v[..., 2], z, -v[..., 0]], -1),
-            np.stack([-v[..., 1], v[..., 0], z], -1),
-        ],
-        -2,
-    )
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
 
 
 def matrix_from_rotvec(rotvec):
-    """Rodrigues' formula ``exp([w]x)``, shape (..., 3) -> (..., 3, 3); w in radians."""
+    """Rodrigues' formula ``exp([w]x)``, shape (..., 3) -> (..., 3, 3); w in radians.
+
+    ``exp([w]x) = I + a [w]x + b [w]x^2`` with ``a = sin(t)/t``, ``b = (1 - cos t)/t^2``,
+    ``t = |w|``, and ``[w]x^2 = w w^T - t^2 I``; below t = 1e-8 the Taylor series of a and b.
+    """
     w = np.asarray(rotvec, dtype=float)
-    theta = np.linalg.norm(w, axis=-1)[..., None, None]
-    k = skew(w)
+    theta2 = np.einsum("...i,...i->...", w, w)[..., None, None]
+    theta = np.sqrt(theta2)
     small = theta < 1e-8
     safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
-    return np.eye(3) + a * k + b * (k @ k)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    return (1.0 - b * theta2) * np.eye(3) + a * skew(w) + b * (w[..., :, None] * w[..., None, :])
 
 
 def rotvec_from_matrix(rot):
