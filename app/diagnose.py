@@ -207,8 +207,11 @@ def _gate(jac_cur, cand, names):
     frac = float(s_perp[-1] / max(s_full[-1], 1e-300))
     coef, *_ = np.linalg.lstsq(jac_cur, scaled, rcond=None)
     weight = np.abs(coef) * np.linalg.norm(jac_cur, axis=0)[:, None]
-    top = np.argsort(-weight.max(axis=1))
-    absorbers = [names[k] for k in top if weight[k].max() > 0.1 * weight.max()][:6]
+    # strongest first; weights equal to 6 digits (a frame shift absorbed by cx, cy, cz alike)
+    # keep the parameters' order, so the list does not follow the last bits of the solve
+    strength = np.round(weight.max(axis=1) / max(weight.max(), 1e-300), 6)
+    top = np.argsort(-strength, kind="stable")
+    absorbers = [names[k] for k in top if strength[k] > 0.1][:6]
     return frac, absorbers
 
 
