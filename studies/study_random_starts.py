@@ -38,6 +38,10 @@ from handeye.studies.study import claim, figure, write_summary, write_table
 METHODS = ("lm", "gn", "dogleg", "tr", "newton", "ipopt")
 
 
+#: line style per parametrisation (the colour is the method's)
+STYLE = {"euler": "o-", "local": "s--", "matrix": "^:"}
+
+
 def random_start(truth, rng):
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
@@ -122,6 +126,9 @@ def run(out, quick=False):
     plt = figure()
     fig, ax = plt.subplots(figsize=(8, 4))
     bins = np.linspace(0, 180, 7)
+    families = sorted({m.split("/")[0] for m in methods})
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = {f: cycle[k % len(cycle)] for k, f in enumerate(families)}  # one colour per method (7 here)
     for method in methods:
         sel = [r for r in rows if r[1] == method]
         plain = np.array([r[4] for r in sel])
@@ -131,7 +138,9 @@ def run(out, quick=False):
         err = np.array([r[2] for r in sel])
         idx = np.clip(np.digitize(err, bins) - 1, 0, len(bins) - 2)
         rate = [plain[idx == b].mean() if np.any(idx == b) else np.nan for b in range(len(bins) - 1)]
-        ax.plot(0.5 * (bins[1:] + bins[:-1]), rate, "o-", label=f"{method} (start alone)")
+        family, rotation = method.split("/")
+        ax.plot(0.5 * (bins[1:] + bins[:-1]), rate, STYLE.get(rotation, "o-"), color=colours[family],
+                label=f"{method} (start alone)")
     ax.axhline(1.0, color="k", lw=1, label="every method with closed-form restart")
     ax.set(xlabel="initial rotation error (deg)", ylabel="success rate", ylim=(-0.05, 1.05),
            title=f"convergence from {n_starts} random starts (translations 0-500 mm off)")
