@@ -213,3 +213,16 @@ def test_a_stack_of_points_evaluates_row_by_row(rotation, unknowns, kind):
     moved = m.retract(points, steps)
     for i in range(5):
         np.testing.assert_allclose(moved[i], m.retract(points[i], steps[i]), rtol=1e-15, atol=1e-15)
+
+
+@pytest.mark.parametrize("kind", ["centre", "measurement", "points"])
+@pytest.mark.parametrize("rotation", ROTATIONS)
+def test_the_residual_alone_is_the_residual_of_the_residual_and_jacobian(rotation, kind):
+    """Costs come from a residual-only generated function, Jacobians from the combined one:
+    both are generated from the same expressions and must agree to rounding."""
+    m = random_model(rotation, "sensor+sphere", seed=5, kind=kind)
+    points = np.stack([start_point(m, seed=s) for s in range(4)])
+    e, _ = m.residual_and_jacobian(points)
+    alone = m.residual(points)
+    np.testing.assert_allclose(alone, e.reshape(alone.shape), rtol=1e-13, atol=1e-10 * np.abs(e).max())
+    np.testing.assert_allclose(m.residuals(points[0]), m._raw(points[0])[0], rtol=1e-13, atol=1e-10 * np.abs(e).max())
