@@ -86,8 +86,8 @@ def _numpy_functions(rot, kind="centre"):
 @functools.lru_cache(maxsize=None)
 def _numpy_residual(rot, kind="centre"):
     """The residual alone, generated from the same expressions as ``calib_resjac`` (its first
-    outputs): what a line search or a trial step needs, several times cheaper than with the
-    Jacobian."""
+    outputs; simplified on its own, so it agrees with them to rounding, not bit for bit): what
+    a line search or a trial step needs, several times cheaper than with the Jacobian."""
 
     def build_res():
         from handeye.model import symbolic
