@@ -235,7 +235,7 @@ class CalibrationModel:
         if self.unknowns == "sensor+sphere":
             c = x[..., 3 + nr : 6 + nr]
         else:
-            c = self.fixed_centre if x.ndim == 1 else np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
+            c = np.broadcast_to(self.fixed_centre, x.shape[:-1] + (3,))
         return t2, q, c
 
     def sensor_rotation(self, x):
@@ -301,9 +301,12 @@ class CalibrationModel:
         """Whitened residuals (..., N, m) and Jacobian (..., N, m, n) with respect to the step."""
         e, jac = self._raw(x)
         if self.whiten is not None:
-            e = np.einsum("ikl,...il->...ik", self.whiten, e)
             jac = np.einsum("ikl,...iln->...ikn", self.whiten, jac)
-        return e, jac
+        return self._whitened(e), jac
+
+    def _whitened(self, e):
+        """``W_i e_i`` row by row, (..., N, m); ``e`` itself without whitening."""
+        return e if self.whiten is None else np.einsum("ikl,...il->...ik", self.whiten, e)
 
     def residuals(self, x):
         """Residual rows (..., N, m) as the model defines them (mm), not whitened."""
@@ -312,9 +315,7 @@ class CalibrationModel:
 
     def residual(self, x):
         """Stacked whitened residual (..., N m), what the solvers minimise."""
-        e = self.residuals(x)
-        if self.whiten is not None:
-            e = np.einsum("ikl,...il->...ik", self.whiten, e)
+        e = self._whitened(self.residuals(x))
         return e.reshape(e.shape[:-2] + (-1,))
 
     def jacobian(self, x):
