@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app import robust, slips
+from handeye.app import guarantee, robust, slips
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
 from handeye.app.results import Before, CalibrationResult, SampleResidual, Uncertainty
@@ -301,6 +301,32 @@ def _judge(model, result, polish=True):
     return _Verdict(model, result, sensor, centre, converged, message, notes, local, hess_eig)
 
 
+def _refit(used, unknowns, method, rotation, options, kind, robot_sigma, polish, sensor2flange, centre, exact=False):
+    """The final fit from a centre-model minimum; with ``exact`` the minimum itself when the
+    solver ends next to it (the SVD solution of the unweighted centre model is exact)."""
+    data = used if unknowns == "sensor" else dataclasses.replace(used, sphere_centre=centre)
+    verdict = _judge(*_solve(data, unknowns, method, rotation, pose_from_transform(sensor2flange), options, kind,
+                             robot_sigma), polish=polish)
+    if exact and verdict.local is not None and verdict.converged:
+        dt, dr = transform_distance(verdict.sensor, sensor2flange)
+        if dt <= guarantee.SAME_MM and dr <= guarantee.SAME_DEG:
+            verdict = dataclasses.replace(verdict, sensor=np.array(sensor2flange, float))
+    return verdict
+
+
+def _global(used, unknowns, fit, kind, sigma, refit):
+    """The lowest final fit over the user's start and the centre model's minima, how it was
+    established, and a refusal (a wrong basin, a fit that explains nothing) or None
+    (:mod:`handeye.app.guarantee`)."""
+    basin = guarantee.centre_basin(used, unknowns)
+    exact = kind == "centre" and unknowns == "sensor" and fit.local is not None and fit.local.whiten is None
+    fit, note, check = guarantee.lowest(fit, basin, refit, exact_centre_model=exact)
+    if note:
+        fit = dataclasses.replace(fit, notes=[*fit.notes, note])
+    refusal = guarantee.explains_nothing(used, basin) or guarantee.cross_check(used, fit, basin, sigma)
+    return fit, check, refusal
+
+
 def _limits_iterations(options):
     """True when the options set an iteration limit anywhere (``max_iter``, nested dicts too)."""
     return any(k == "max_iter" or (isinstance(v, dict) and _limits_iterations(v)) for k, v in options.items())
@@ -393,7 +419,10 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
     check_identifiable(dataset, unknowns, start_t)
     warnings = [note for note in (default_note, centre_note) if note is not None]
     everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
-    plain = robust.least_squares(everything, everything.point_from(start_t)).x
+    basin_all = guarantee.centre_basin(dataset, unknowns)  # the plain fit's global minimum
+    plain_start = (everything.point_from(start_t) if basin_all is None
+                   else everything.point_from(basin_all.best.sensor2flange, basin_all.best.centre))
+    plain = robust.least_squares(everything, plain_start).x
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
     plain_rms = float(np.sqrt(np.mean(plain_norms**2)))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
@@ -420,6 +449,9 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
                                 "closed-form estimate")
                 start_used = "closed-form estimate (after the given start failed)"
                 fit = retry
+    fit, global_check, refusal = _global(used, unknowns, fit, kind, sigma,
+                                         lambda *a, **k: _refit(used, unknowns, method, rotation, options, kind,
+                                                                robot_sigma, polish, *a, **k))
     warnings += fit.notes
     pose = pose_from_transform(fit.sensor)
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:
@@ -449,9 +481,10 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
         sphere_centre=fit.centre,
         iterations=int(result.iterations),
         evaluations={"f": result.nfev, "jacobian": result.njev, "hessian": result.nhev},
-        converged=fit.converged,
+        converged=fit.converged and refusal is None,
         status=int(result.status),
-        message=fit.message,
+        message=fit.message if refusal is None else f"{refusal} (the solver: {fit.message})",
+        global_check=global_check,
         excluded=list(excluded),
         before=before,
         history=np.array([pose_from_transform(nearest_transform(fit.model.sensor2flange(x)))

@@ -320,6 +320,7 @@ class CalibrationResult:
     effect_tests: list | None = None
     effects: list | None = None
     provenance: dict | None = None
+    global_check: object | None = None
 
     @property
     def outliers(self):
@@ -379,6 +380,7 @@ class CalibrationResult:
             "noise_test": None if self.noise_test is None else self.noise_test.to_dict(),
             "effect_tests": None if self.effect_tests is None else [t.to_dict() for t in self.effect_tests],
             "effects": None if self.effects is None else [e.to_dict() for e in self.effects],
+            "global": None if self.global_check is None else self.global_check.to_dict(),
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance

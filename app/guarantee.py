@@ -1,0 +1,205 @@
+"""The global guarantee: the pose calibrate reports is the lowest minimum of its objective.
+
+A local solver ends in the basin it starts in. From a CAD start 5 mm / 1 deg off, the
+measurement model of a planned 12-pose set has a second minimum 16 mm / 35 deg from the
+truth (RMS 11 mm against 0.04 mm) that IPOPT reaches and reports as optimal. The centre
+model's global minimum is known in closed form (:mod:`handeye.model.global_fit`: one SVD
+with the sphere centre known; a quadratic form in vec R, searched over a cover of SO(3),
+with it free), and every residual model's minimum lies next to it on good data (they differ
+by the noise). So:
+
+1. the final fit is solved from the user's start *and* from each centre-model minimum the
+   search found (the global one first), and the lowest cost of the final objective is kept
+   (:func:`lowest`); the count of starts that reached it and the cost of the next distinct
+   minimum are reported (:class:`GlobalCheck`, the JSON's ``global``);
+2. with the centre known and the unweighted centre model, the SVD solution *is* the minimum:
+   the reported pose is it, exactly (the solver's tolerance stops ~1e-7 mm short);
+3. the reported pose is cross-checked against the centre model's global minimum on the same
+   samples: a final fit whose centres scatter far more than at that minimum is a fit in
+   the wrong basin -- reported as not converged, never as a result (:func:`cross_check`);
+4. a fit that explains nothing -- the centre model's global minimum has an RMS above
+   :data:`EXPLAINS_NOTHING` of the robot's own motion (the RMS distance of the flange
+   positions, or of the sensor origins, from their mean) -- is not a calibration
+   (:func:`explains_nothing`): the data or their conventions are wrong, whatever the solver
+   says; nor is one whose RMS exceeds the spread of the centres the sensor measured (the pose
+   then predicts them no better than their mean).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.model import global_fit
+from handeye.model.pose import pose_from_transform
+from handeye.model.rotation import transform_distance
+
+#: Two ends within this distance (mm, deg) or relative cost are the same minimum.
+SAME_MM, SAME_DEG, SAME_COST = 1e-3, 1e-3, 1e-9
+#: Centre-model minima (lowest first) that the final fit is also started from.
+FINAL_STARTS = 2
+#: The final fit's centres may scatter this much more than at the centre model's global
+#: minimum (RMS ratio) plus CROSS_CHECK_SIGMAS stated sd before the fit is refused.
+CROSS_CHECK_RATIO, CROSS_CHECK_SIGMAS = 2.0, 3.0
+#: Above this fraction of the robot's motion (RMS of the flange positions about their mean)
+#: the residual RMS of the centre model's global minimum means the model explains nothing.
+EXPLAINS_NOTHING = 0.1
+#: ... or above this fraction of the spread of the sensor's measured centres about their mean
+#: (at 1, the fitted pose predicts them no better than their mean does).
+EXPLAINS_NOTHING_SENSOR = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class GlobalCheck:
+    """How the reported minimum was established (the JSON's ``global``).
+
+    Attributes
+    ----------
+    method : str
+        How the centre model's global minimum was found, and that the final fit started there.
+    starts : int
+        Starts of the final fit (the user's or the closed-form start, and the centre model's
+        minima).
+    reached : int
+        Starts that ended at the reported minimum.
+    next_best_cost : float or None
+        ``1/2 sum r^2`` of the final objective at the next distinct local minimum a start
+        reached (same units as ``cost_mm2``), or None when every start reached the reported one.
+    centre_minima : int
+        Distinct local minima of the centre model the search found (1 with the centre known:
+        the SVD solution is the unique one).
+    """
+
+    method: str
+    starts: int
+    reached: int
+    next_best_cost: float | None
+    centre_minima: int = 1
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+def centre_basin(dataset, unknowns):
+    """The centre model's local minima on ``dataset`` (known centre unless 'sensor+sphere'),
+    or None when the data do not determine them (the caller's other checks name why)."""
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    try:
+        return global_fit.centre_minima(dataset.flange2base(), dataset.centre_in_sensor, centre)
+    except global_fit.GlobalFitError:
+        return None
+
+
+def _cost(verdict):
+    local = verdict.local
+    return float(local.cost(local.point_from(verdict.sensor, verdict.centre)))
+
+
+def _same(a, b):
+    dt, dr = transform_distance(a.sensor, b.sensor)
+    ca, cb = _cost(a), _cost(b)
+    return (dt <= SAME_MM and dr <= SAME_DEG) or abs(ca - cb) <= SAME_COST * max(1.0, abs(ca))
+
+
+def lowest(fit, basin, solve, exact_centre_model=False):
+    """The lowest of the final fits from the user's start and the centre model's minima.
+
+    Parameters
+    ----------
+    fit : handeye.app.calibrate._Verdict
+        The final fit from the user's (or the closed-form) start.
+    basin : handeye.model.global_fit.CentreMinima or None
+    solve : callable
+        ``solve(sensor2flange, centre) -> _Verdict``: the final fit from a start.
+    exact_centre_model : bool
+        The final objective is the unweighted centre model with the centre known: the SVD
+        solution is its minimum, reported exactly.
+
+    Returns
+    -------
+    (verdict, note, GlobalCheck)
+        The lowest fit, a sentence when it is not the one from the start (else None), and
+        how the minimum was established.
+    """
+    if basin is None:
+        return fit, None, GlobalCheck("none: the centre model's minimum is not determined by these data", 1, 1, None, 0)
+    ends = [fit]
+    for minimum in basin.minima[:FINAL_STARTS]:
+        if exact_centre_model:
+            ends.append(solve(minimum.sensor2flange, minimum.centre, exact=True))
+        else:
+            ends.append(solve(minimum.sensor2flange, minimum.centre))
+    good = [e for e in ends if e.local is not None and e.converged]
+    if not good:
+        return fit, None, GlobalCheck(basin.method, len(ends), 0, None, len(basin.minima))
+    best = min(good, key=_cost)
+    if fit in good and _same(fit, best):
+        best = fit  # the run from the user's start, its iterations and history, reached it
+    if exact_centre_model and ends[1] in good and _same(best, ends[1]):
+        best = dataclasses.replace(best, sensor=ends[1].sensor)  # the SVD minimum itself, exactly
+    reached = [e for e in good if _same(e, best)]
+    others = [_cost(e) for e in good if not _same(e, best)]
+    note = None
+    if fit.local is not None and not _same(fit, best):
+        dt, dr = transform_distance(fit.sensor, best.sensor)
+        note = (f"the fit from the start ended {dt:.3g} mm / {dr:.3g} deg from the reported pose, at cost {_cost(fit):.6g} "
+                f"({'a local minimum' if fit.converged else 'not converged'}); the fit started from the centre model's "
+                f"global minimum reaches cost {_cost(best):.6g} and is reported")
+    return best, note, GlobalCheck(basin.method + "; the final fit started from the user's start and from "
+                             f"{min(FINAL_STARTS, len(basin.minima))} centre-model minim"
+                             f"{'um' if min(FINAL_STARTS, len(basin.minima)) == 1 else 'a'}, lowest cost kept",
+                             len(ends), len(reached), min(others) if others else None, len(basin.minima))
+
+
+def _centre_rms(dataset, sensor2flange, centre):
+    cost = global_fit.centre_cost(dataset.flange2base(), dataset.centre_in_sensor, sensor2flange, centre)
+    return float(np.sqrt(2 * cost / len(dataset)))
+
+
+def cross_check(dataset, verdict, basin, sigma):
+    """A message when the final fit's centres scatter far more than at the centre model's
+    global minimum on the same samples (a wrong basin, never a result), else None."""
+    if basin is None or verdict.local is None:
+        return None
+    rms_fit = _centre_rms(dataset, verdict.sensor, verdict.centre)
+    rms_best = float(np.sqrt(2 * basin.best.cost / len(dataset)))
+    if rms_fit <= CROSS_CHECK_RATIO * rms_best + CROSS_CHECK_SIGMAS * sigma:
+        return None
+    dt, dr = transform_distance(verdict.sensor, basin.best.sensor2flange)
+    return (f"the final fit's sphere centres scatter with RMS {rms_fit:.4g} mm, the centre model's global minimum's "
+            f"with {rms_best:.4g} mm on the same samples ({dt:.3g} mm / {dr:.3g} deg away): the fit ended in a wrong "
+            "basin; not a calibration")
+
+
+def motion_rms(dataset, sensor2flange=None):
+    """The robot's own motion (mm): the RMS distance of the flange positions from their mean,
+    or of the sensor origins' (at ``sensor2flange``) where that is larger (a robot that only
+    turns its flange about one point still moves the sensor)."""
+    f2b = dataset.flange2base()
+    points = [f2b[:, :3, 3]]
+    if sensor2flange is not None:
+        points.append(np.einsum("nab,b->na", f2b[:, :3, :3], np.asarray(sensor2flange, float)[:3, 3]) + f2b[:, :3, 3])
+    return max(float(np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1)))) for t in points)
+
+
+def explains_nothing(dataset, basin):
+    """A message when even the centre model's global minimum leaves residuals above
+    :data:`EXPLAINS_NOTHING` of the robot's motion, else None."""
+    if basin is None:
+        return None
+    rms = float(np.sqrt(2 * basin.best.cost / len(dataset)))
+    motion = motion_rms(dataset, basin.best.sensor2flange)
+    p = dataset.centre_in_sensor
+    spread = float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
+    if rms > EXPLAINS_NOTHING * motion:
+        than = (f"more than {EXPLAINS_NOTHING:g} x the robot's own motion ({motion:.4g} mm RMS of the flange positions or "
+                "sensor origins about their mean)")
+    elif rms > EXPLAINS_NOTHING_SENSOR * spread:
+        than = (f"more than the spread of the centres the sensor measured ({spread:.4g} mm RMS about their mean): the "
+                "pose predicts them no better than their mean does")
+    else:
+        return None
+    pose = pose_from_transform(basin.best.sensor2flange)
+    return (f"the fit explains nothing: even the best sensor pose of the centre model ({', '.join(f'{v:.1f}' for v in pose)}, "
+            f"KUKA) leaves an RMS residual of {rms:.4g} mm, {than}: the poses, their convention, the sensor's centres "
+            "or the sphere centre are wrong; not a calibration")
