@@ -193,3 +193,27 @@ def check(dataset, unknowns, rms_given):
             f"{dataset.path}: the data look like a setup slip, {slip.name}: as given, the plain fit of every sample has "
             f"RMS {rms_given:.3g} mm; with that slip undone, {rms:.3g} mm. {slip.fix[0].upper() + slip.fix[1:]}, "
             "and calibrate again")
+    _check_conventions(dataset, unknowns, rms_given, dof)
+
+
+def _check_conventions(dataset, unknowns, rms_given, dof):
+    """Raise :class:`CalibrationInputError` when the poses read another way (:mod:`handeye.app.detective`)
+    fit clearly and significantly better: at most :data:`EXPLAINED_RMS_MM` or an order of magnitude
+    below the fit as declared."""
+    from handeye.app import detective
+    from handeye.model import conventions
+    from handeye.model.statistics import f_survival
+
+    found = detective.best(dataset, unknowns)
+    if found is None:
+        return
+    candidate, rms = found
+    if not (rms > 0 and rms * FACTOR <= rms_given and (rms <= EXPLAINED_RMS_MM or rms * 10 <= rms_given)):
+        return
+    if f_survival((rms_given / rms) ** 2, dof, dof) >= P_SLIP:
+        return
+    todo = detective.fix(candidate, dataset)
+    raise CalibrationInputError(
+        f"{dataset.path}: the robot poses fit with {candidate.describe()}, not as declared "
+        f"({dataset.convention} {','.join(conventions.columns(dataset.convention)[3:])}): the plain fit has RMS "
+        f"{rms:.3g} mm read so, {rms_given:.3g} mm as declared. {todo[0].upper() + todo[1:]}, and calibrate again")

@@ -113,6 +113,9 @@ class Dataset(FlangePoses):
     convention : str
         The robot-brand convention of the files (:mod:`handeye.model.conventions`); poses here are
         always KUKA.
+    raw_poses : ndarray, shape (N, 3 + k), or None
+        The flange poses as the file wrote them, in ``convention`` (what a convention slip is
+        read back from); None for a dataset not read from a file.
     reconstructed : tuple of bool or None
         Per measurement: True when its centre was reconstructed from its profile (so
         ``side`` decided the sign of its y).
@@ -141,6 +144,7 @@ class Dataset(FlangePoses):
     noise_robot_mm: float = 0.025
     reconstructed: tuple | None = None
     profile_files: tuple = ()
+    raw_poses: np.ndarray | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -153,6 +157,7 @@ class Dataset(FlangePoses):
             centre_in_sensor=self.centre_in_sensor[mask],
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
+            raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
         )
 
     def content_hash(self):
@@ -448,7 +453,7 @@ def load(name_or_path):
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
-    ids, rows, poses, centres, profiles, reconstructed, profile_files = [], [], [], [], [], [], []
+    ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = [], [], [], [], [], [], [], []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -457,6 +462,7 @@ def load(name_or_path):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
         ident = row_id(fields, idx["id"], seen, file, line)
         pose = read_pose(fields, idx, convention, file, line, limits["position_mm"])
+        raw.append([float(fields[idx[c]]) for c in pose_columns])  # read_pose checked them
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
         points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None
@@ -497,6 +503,7 @@ def load(name_or_path):
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
         reconstructed=tuple(reconstructed),
         profile_files=tuple(sorted(set(profile_files))),
+        raw_poses=np.array(raw, dtype=float),
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
         noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),

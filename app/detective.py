@@ -1,0 +1,241 @@
+"""The convention detective: robot poses read the way the user may have meant them.
+
+A flange pose is six or seven numbers, and every controller writes them differently: KUKA's
+A, B, C are Z-Y'-X'' angles, FANUC's W, P, R the same rotation with the angles in the other
+order, ABB's quaternion is w first while ROS writes it w last, UR's rotation vector is in
+radians, and a tf lookup of "base in flange" gives the inverse of the flange in the base. A
+dataset written in one convention and declared as another calibrates to an official-looking
+answer with a residual of hundreds of millimetres.
+
+When the plain fit is far worse than the stated noise (:func:`handeye.app.slips.check`
+decides that), :func:`candidates` re-reads the file's numbers (``Dataset.raw_poses``) in
+every interpretation a user may have meant: the orientation columns as Euler angles of each
+of the 12 axis sequences (intrinsic; the values in the file's order or reversed, which is the
+extrinsic reading of the same sequence), in degrees or radians, or as a rotation vector
+(radians or degrees); four columns as a quaternion w-first or w-last; each with the poses
+as written or inverted, and the positions in mm or m. :func:`closed_form_rms` scores each by
+the exact global minimum of the centre model (with the sphere centre known, one SVD per
+candidate, all candidates at once: :mod:`handeye.model.global_fit`), or by the linear closed
+form with the centre free (the best few then by the reduced-form search). The caller names
+the best when it fits clearly and significantly better than the data as declared.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+
+from handeye.model import conventions, global_fit
+from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+from handeye.model.rotation import matrix_from_rotvec
+
+#: Axis sequences of Euler angles (6 Tait-Bryan, 6 proper Euler).
+SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz")
+#: With the centre free, this many of the best linear closed-form candidates are re-scored by
+#: the global search of the centre model.
+REFINE = 3
+
+_AXES = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
+
+
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    """One way of reading the file's pose numbers.
+
+    Attributes
+    ----------
+    name : str
+        What the numbers are under this reading, e.g. ``"FANUC W,P,R"``.
+    convention : str or None
+        The handeye convention that reads them so (then the fix is to declare it), else None.
+    rotation : callable
+        Orientation columns (N, k) -> rotation matrices (N, 3, 3).
+    """
+
+    name: str
+    convention: str | None
+    rotation: object
+
+
+def _axis(axis, angles):
+    return matrix_from_rotvec(np.asarray(angles, float)[:, None] * _AXES[axis])
+
+
+def _euler(sequence, reverse, radians):
+    def rotation(values):
+        v = values[:, ::-1] if reverse else values
+        v = v if radians else np.radians(v)
+        return _axis(sequence[0], v[:, 0]) @ _axis(sequence[1], v[:, 1]) @ _axis(sequence[2], v[:, 2])
+
+    return rotation
+
+
+def _known(sequence, reverse, radians):
+    if sequence == "zyx" and not radians:
+        return "fanuc" if reverse else "kuka"
+    return None
+
+
+def _euler_name(sequence, reverse, radians, columns):
+    known = {"kuka": "KUKA A,B,C", "fanuc": "FANUC W,P,R"}.get(_known(sequence, reverse, radians))
+    unit = "rad" if radians else "deg"
+    if known and not radians:
+        return known
+    cols = ",".join(columns[::-1] if reverse else columns)
+    return (f"Euler angles {'-'.join(sequence.upper())} (intrinsic, R = R{sequence[0]}({cols.split(',')[0]}) "
+            f"R{sequence[1]}({cols.split(',')[1]}) R{sequence[2]}({cols.split(',')[2]}), {unit})")
+
+
+def readings(k, columns):
+    """Every reading of ``k`` orientation columns named ``columns`` (module docstring)."""
+    if k == 4:
+        return [Reading("a quaternion w,x,y,z (ABB)", "abb", lambda v: global_fit.rotation_from_quaternion(_unit(v))),
+                Reading("a quaternion x,y,z,w (w last, as ROS writes it)", None,
+                        lambda v: global_fit.rotation_from_quaternion(_unit(v[:, [3, 0, 1, 2]])))]
+    out = [Reading("a UR rotation vector (rad)", "ur", lambda v: matrix_from_rotvec(v)),
+           Reading("a rotation vector in degrees", None, lambda v: matrix_from_rotvec(np.radians(v)))]
+    for sequence, reverse, radians in itertools.product(SEQUENCES, (False, True), (False, True)):
+        out.append(Reading(_euler_name(sequence, reverse, radians, columns), _known(sequence, reverse, radians),
+                           _euler(sequence, reverse, radians)))
+    return out
+
+
+def _unit(q):
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class Candidate:
+    """The flange poses under one reading, inverted or not, in mm or m."""
+
+    reading: Reading
+    inverted: bool
+    metres: bool
+    flange2base: np.ndarray
+
+    def describe(self):
+        parts = [f"the orientation columns read as {self.reading.name}"]
+        if self.inverted:
+            parts.append("the poses inverted (the file holds the base in the flange)")
+        if self.metres:
+            parts.append("the positions in metres")
+        return ", ".join(parts)
+
+
+def _transforms(rot, pos, inverted):
+    out = np.zeros((len(rot), 4, 4))
+    out[:, 3, 3] = 1.0
+    if inverted:
+        rt = np.swapaxes(rot, 1, 2)
+        out[:, :3, :3], out[:, :3, 3] = rt, -np.einsum("nab,nb->na", rt, pos)
+    else:
+        out[:, :3, :3], out[:, :3, 3] = rot, pos
+    return out
+
+
+def raw_poses(dataset):
+    """The file's pose numbers (N, 3 + k) in the dataset's convention."""
+    if dataset.raw_poses is not None:
+        return np.asarray(dataset.raw_poses, float)
+    return conventions.pose_from(dataset.convention, dataset.flange2base())
+
+
+def candidates(dataset):
+    """Every other reading of the dataset's flange poses (the declared one left out)."""
+    raw = raw_poses(dataset)
+    columns = conventions.columns(dataset.convention)[3:]
+    out = []
+    for reading in readings(raw.shape[1] - 3, columns):
+        with np.errstate(all="ignore"):
+            rot = reading.rotation(raw[:, 3:])
+        if not np.all(np.isfinite(rot)):
+            continue
+        for inverted, metres in itertools.product((False, True), (False, True)):
+            if reading.convention == dataset.convention and not inverted:
+                continue  # as declared (metres alone is handeye.app.slips' own candidate)
+            pos = raw[:, :3] * (1000.0 if metres else 1.0)
+            out.append(Candidate(reading, inverted, metres, _transforms(rot, pos, inverted)))
+    return out
+
+
+def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
+    """RMS (mm, of |e_i|) of the centre model's closed-form fit of stacks of flange poses.
+
+    Parameters
+    ----------
+    flange2base : ndarray, shape (C, N, 4, 4)
+        C candidate readings of N flange poses (flange in base, mm).
+    centre_in_sensor : ndarray, shape (N, 3)
+        mm, sensor frame.
+    sphere_centre : ndarray, shape (3,), optional
+        Base, mm. Given: the exact global minimum (one SVD per candidate). None: the linear
+        closed form's fit (an upper bound of the minimum; inf where it is undetermined).
+    """
+    f2b = np.asarray(flange2base, float)
+    p = np.asarray(centre_in_sensor, float)
+    n = p.shape[0]
+    if sphere_centre is None:
+        out = []
+        for poses in f2b:
+            try:
+                x, c = closed_form_estimate(poses, p, None)
+            except (ClosedFormError, np.linalg.LinAlgError):
+                out.append(np.inf)
+                continue
+            out.append(np.sqrt(2 * global_fit.centre_cost(poses, p, x, c) / n))
+        return np.array(out)
+    q = np.einsum("cnba,cnb->cna", f2b[..., :3, :3], np.asarray(sphere_centre, float) - f2b[..., :3, 3])
+    pc, qc = p - p.mean(axis=0), q - q.mean(axis=1, keepdims=True)
+    h = np.einsum("cni,nj->cij", qc, pc)
+    u, s, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(u @ vt))
+    trace = s[:, 0] + s[:, 1] + d * s[:, 2]
+    ssr = np.sum(pc * pc) + np.sum(qc * qc, axis=(1, 2)) - 2 * trace
+    return np.sqrt(np.maximum(ssr, 0.0) / n)
+
+
+def best(dataset, unknowns):
+    """The best other reading and its RMS (mm), or None: ``(Candidate, rms)``."""
+    found = candidates(dataset)
+    if not found:
+        return None
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    if centre is None and unknowns == "sensor":
+        return None
+    stack = np.array([c.flange2base for c in found])
+    rms = closed_form_rms(stack, dataset.centre_in_sensor, centre)
+    if centre is None:  # the linear closed form is an upper bound: the best few searched exactly
+        for k in np.argsort(rms)[:REFINE]:
+            if np.isfinite(rms[k]):
+                try:
+                    minima = global_fit.centre_minima(found[k].flange2base, dataset.centre_in_sensor, None)
+                except global_fit.GlobalFitError:
+                    continue
+                rms[k] = min(rms[k], np.sqrt(2 * minima.best.cost / len(dataset)))
+    k = int(np.argmin(rms))
+    ties = [j for j in range(len(found)) if rms[j] <= rms[k] * 1.01 + 1e-12]
+    known = [j for j in ties if found[j].reading.convention is not None]  # a convention before an Euler order
+    k = min(known or ties, key=lambda j: (found[j].inverted + found[j].metres, rms[j]))
+    return found[k], float(rms[k])
+
+
+def fix(candidate, dataset):
+    """What the user should change, in words."""
+    setup, measurements = dataset.path / "setup.toml", dataset.path / "measurements.csv"
+    steps = []
+    conv = candidate.reading.convention
+    if conv is not None and conv != dataset.convention:
+        cols = ",".join(conventions.columns(conv)[3:])
+        steps.append(f'set convention = "{conv}" in {setup} and name the orientation columns of {measurements} '
+                     f"{cols} (their values stay as they are)")
+    elif conv is None:
+        cols = ",".join(conventions.columns(dataset.convention)[3:])
+        steps.append(f"convert the orientation columns of {measurements} from {candidate.reading.name} to "
+                     f"{dataset.convention} {cols} (handeye reads kuka, fanuc, abb and ur; see model/conventions.py)")
+    if candidate.inverted:
+        steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
+                     "flange, as a tf lookup of base in flange gives it)")
+    if candidate.metres:
+        steps.append("write the positions in millimetres (x 1000)")
+    return "; ".join(steps)
