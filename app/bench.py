@@ -411,6 +411,10 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     tp = throughput(quick, throughput_n)
     result["throughput"] = tp
     result["throughput_per_s"] = tp["all_cores_per_s"]
+    from handeye.app import bench_guarantee
+
+    result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=3 if quick else 9, unknowns=u)
+                           for u in ("sensor", "sensor+sphere")]
     if with_startup:
         result["startup"] = startup()
     if pipeline_sizes is None:
@@ -458,6 +462,10 @@ def text(res):
                   f"RMS translation error {tp['rms_translation_error_mm']:.3f} mm): {tp['all_cores_per_s']:.0f}/s on "
                   f"{tp['jobs']} cores including simulation; calibration alone {tp['calibration_only_per_s_one_core']:.0f}/s "
                   "per core"]
+    if "guarantee" in res:
+        from handeye.app import bench_guarantee
+
+        lines += ["", bench_guarantee.text(res["guarantee"])]
     if "startup" in res:
         s = res["startup"]
         lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "

@@ -18,6 +18,7 @@ STUDIES = {
     "classics": "handeye.studies.study_classics",
     "honest-default": "handeye.studies.study_default",
     "batch-equivalence": "handeye.studies.study_batch",
+    "global-guarantee": "handeye.studies.study_guarantee",
 }
 
 
