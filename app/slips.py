@@ -174,6 +174,7 @@ def check(dataset, unknowns, rms_given):
     from handeye.model.statistics import f_survival
 
     check_diameter(dataset)
+    check_equator(dataset)
 
     suspect, dof = _suspect(dataset, unknowns, rms_given)
     if not suspect:
@@ -217,3 +218,39 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
         f"{dataset.path}: the robot poses fit with {candidate.describe()}, not as declared "
         f"({dataset.convention} {','.join(conventions.columns(dataset.convention)[3:])}): the plain fit has RMS "
         f"{rms:.3g} mm read so, {rms_given:.3g} mm as declared. {todo[0].upper() + todo[1:]}, and calibrate again")
+
+
+
+#: A centre within this fraction of the sphere radius of the laser plane is near the equator.
+EQUATOR_BAND = 0.1
+#: From this fraction of the rows near the equator on one side, the data are refused.
+EQUATOR_ROWS = 0.5
+
+
+def check_equator(dataset):
+    """Raise :class:`CalibrationInputError` when most rows cut the sphere near its equator with
+    one assumed side.
+
+    A laser line cuts the sphere in a circle of radius r that gives the centre's distance from
+    the laser plane, ``|y| = sqrt(R^2 - r^2)``, but not its side: every row's sign is the
+    assumption ``[profile] side`` (or the sensor's). Near the equator (``|y|`` below
+    :data:`EQUATOR_BAND` R) the circle says almost nothing about y (``dr/dy = -y/r``) and a
+    sensor pose a few millimetres off its nominal value moves the centre across the plane
+    unseen: the data then fit a wrong pose centimetres off, at an RMS that looks like noise
+    (planned 2-inch cells whose CAD pose was more off than the plan's margin: 8-17 mm, exit 0).
+    When at least :data:`EQUATOR_ROWS` of the rows are that close and all on one side -- the
+    signature of an assumed side; a sensor that measures y itself scatters around the plane --
+    the data cannot determine the pose, and that is said instead of a calibration.
+    """
+    y = dataset.centre_in_sensor[:, 1]
+    radius = dataset.sphere_diameter / 2
+    near = np.abs(y) < EQUATOR_BAND * radius
+    if not (np.all(y <= 0) or np.all(y >= 0)) or near.mean() < EQUATOR_ROWS:
+        return
+    raise CalibrationInputError(
+        f"{dataset.path / 'measurements.csv'}: {int(near.sum())} of {len(y)} rows cut the sphere within "
+        f"{EQUATOR_BAND * radius:.3g} mm of its equator (|ys| up to {np.abs(y[near]).max():.3g} mm, R = {radius:g} mm), "
+        "all on one assumed side: there a circle tells neither the side of the laser plane nor the distance from it, "
+        "so the sensor pose is not determined (a few mm of pose error moves rows across the plane unseen). Measure "
+        "poses that cut the sphere between 0.1 R and 0.9 R from its centre (handeye plan, with a --margin at least "
+        "as large as the nominal pose's error)")
