@@ -152,7 +152,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     model : {'centre', 'measurement', 'points'}, optional
         Residual; default ``measurement`` when every sample has a profile, else ``centre``.
     keep_all : bool
-        Fit every sample: no outlier screening.
+        Fit every sample: no outlier screening (a row whose centre columns contradict its own
+        profile is still excluded, :mod:`handeye.model.consistency`).
     alpha : float, optional
         Family-wise level of the outlier tests (default 0.01).
     no_loo : bool

@@ -433,6 +433,7 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
         mask, excluded = screening.inliers, screening.excluded
         if screening.note:
             warnings.append(screening.note)
+    mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
     used = dataset.subset(mask)
     polish = not _limits_iterations(options)  # a limit the user set is respected, not polished past
     fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma), polish=polish)

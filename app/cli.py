@@ -147,7 +147,8 @@ def build_parser():
     cal.add_argument("--model", default=None, choices=list(KINDS),
                      help="residual: reconstructed centres, measured circles, or profile points "
                           "(default: measurement when every sample has a profile, else centre)")
-    cal.add_argument("--keep-all", action="store_true", help="fit every sample: no outlier detection")
+    cal.add_argument("--keep-all", action="store_true",
+                     help="fit every sample: no outlier detection (rows that contradict themselves are still excluded)")
     cal.add_argument("--alpha", type=float, default=None,
                      help=f"family-wise level of the outlier tests (default {ALPHA:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")

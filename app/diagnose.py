@@ -6,7 +6,8 @@ it *finds* a gap), a catalogue of named candidate effects (like sparse model dis
 *names* terms), and an identifiability gate (like robot-calibration practice it refuses what
 the poses cannot separate):
 
-1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.robust`).
+1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.robust`);
+   rows whose centre columns contradict their own profile excluded for good, as in calibrate.
 2. Least-squares fit of the current model; residuals per sample and component, RMS, chi2/dof
    against a stated noise level, 5-fold held-out prediction error.
 3. For every candidate of the catalogue (:mod:`handeye.model.effects`): its Jacobian columns at the
@@ -341,7 +342,8 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     prob = Samples(dataset, sigma)
     start_pose, _ = resolve_start(dataset, "sensor", start)
     screening = robust.screen(dataset, "sensor", transform_from_pose(start_pose), alpha=alpha)
-    mask = screening.inliers.copy()
+    mask, inconsistent = robust.exclude_inconsistent(dataset, "sensor", screening.inliers.copy(), [])
+    allowed = ~np.isin(dataset.rows, [e.row for e in inconsistent])  # never reinstated
     structure = Structure()
     fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
     before = _summaries(prob, structure, fit, mask)
@@ -352,7 +354,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
         structure, fit = _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible)
         previous = (mask.copy(), structure.flips)
-        structure, fit, mask, flips, outliers = _final_outliers(prob, structure, fit, mask, alpha)
+        structure, fit, mask, flips, outliers = _final_outliers(prob, structure, fit, mask, alpha, allowed)
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
             steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
                           **_summaries(prob, structure, fit, mask)})
@@ -374,7 +376,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     if implausible:
         unexplained = "; ".join(dict.fromkeys(implausible)) + ". " + result.unexplained
         result = dataclasses.replace(result, unexplained=unexplained)
-    return result
+    return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
 
 
 def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible):
@@ -481,13 +483,15 @@ def _backward(prob, structure, fit, mask, alpha):
     return structure, fit
 
 
-def _final_outliers(prob, structure, fit, mask, alpha):
-    """Sign flips and outliers among the excluded samples, on the structured model."""
+def _final_outliers(prob, structure, fit, mask, alpha, allowed=None):
+    """Sign flips and outliers among the excluded samples, on the structured model; a sample
+    not ``allowed`` (a row that contradicts itself) is never flipped or reinstated."""
     flips = set(structure.flips)
+    allowed = np.ones(prob.n, bool) if allowed is None else allowed
     for _ in range(prob.n):
         changed = False
         predict = prediction_test(fit.e, fit.jac, mask)
-        for i in np.where(~mask)[0]:
+        for i in np.where(~mask & allowed)[0]:
             flipped = dataclasses.replace(structure, flips=frozenset(flips | {i}))
             e_flip, j_flip, _ = prob.evaluate(flipped, fit.x, fit.params, rows=[i])
             # the flipped sample must be consistent with the fit of the others: its externally
@@ -502,7 +506,7 @@ def _final_outliers(prob, structure, fit, mask, alpha):
                 predict = prediction_test(fit.e, fit.jac, mask)
         _, pval = deletion_statistics(fit.e, fit.jac, mask)
         adj = np.minimum(pval * prob.n, 1.0)
-        back = np.where(~mask & (adj >= alpha))[0]
+        back = np.where(~mask & allowed & (adj >= alpha))[0]
         bad = np.where(mask & (adj < alpha))[0]
         together = prob.n > robust.LOO_EXACT_UP_TO  # many samples: all at once (linear, not quadratic)
         if len(back):
@@ -598,6 +602,7 @@ def text(res):
     else:
         lines.append("effects named: none")
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
+    lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
     lines += [f"  {sentence}" for sentence in res.absorbed_explained]
     lines += ["", f"{'step':<34} {'RMS mm':>9} {'held-out':>9} {'chi2/dof':>9}"]

@@ -54,7 +54,7 @@ def calibration_text(res):
         flag = "" if r.used else "  EXCLUDED"
         lines.append(f"{r.id:>10} {r.row:>4} " + _fmt(r.vector, 9, 3) + f" {r.norm:9.3f} {loo}{flag}")
     if res.excluded:
-        lines += ["", "excluded samples (gross errors; not used in the fit):"]
+        lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
         lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded]
     lines += [
         "",

@@ -84,18 +84,22 @@ class SampleResidual:
 
 @dataclasses.dataclass(frozen=True)
 class ExcludedSample:
-    """A sample excluded as a gross error, with the evidence (:mod:`handeye.app.robust`).
+    """A sample excluded as a gross error, or as a row that contradicts itself, with the
+    evidence (:mod:`handeye.app.robust`).
 
     Attributes
     ----------
     id : str
     row : int
     residual_mm : float
-        Prediction error from the fit of the other samples, mm.
+        Prediction error from the fit of the other samples, mm (NaN for a row excluded only
+        because it contradicts itself: no fit decides that).
     robust_residual_mm : float
-        Residual of the robust pass, mm.
+        Residual of the robust pass, mm (NaN likewise).
     statistic : float
-        Externally studentised deletion statistic (F).
+        Externally studentised deletion statistic (F); for a row excluded only because it
+        contradicts itself the chi-square (3 dof) of its profile's circle against its centre
+        columns.
     p_bonferroni : float
         Bonferroni-adjusted p-value.
     reason : str
@@ -523,7 +527,10 @@ class DiagnosisResult:
     ----------
     effects : list of NamedEffect
     outliers : list of str
-        Ids excluded as outliers at the end.
+        Ids excluded as outliers at the end (the rows in ``inconsistent`` among them).
+    inconsistent : list of ExcludedSample
+        Rows whose centre columns contradict their own profile, excluded for good, with the
+        reason (the same records as calibrate's ``excluded``; :mod:`handeye.model.consistency`).
     absorbed_by : dict
         Effect name -> the parameters that reproduce it (not identifiable from these poses).
     rms_before_mm, rms_after_mm, heldout_rms_before_mm, heldout_rms_after_mm : float
@@ -576,6 +583,7 @@ class DiagnosisResult:
     std: Uncertainty | None = None
     provenance: dict | None = None
     centre_fitted: bool = True
+    inconsistent: list = dataclasses.field(default_factory=list)
 
     @property
     def absorbed_explained(self):
@@ -593,6 +601,7 @@ class DiagnosisResult:
             "dataset": self.dataset,
             "effects": [e.to_dict() for e in self.effects],
             "outliers": list(self.outliers),
+            "inconsistent": [e.to_dict() for e in self.inconsistent],
             "not_identifiable": self.not_identifiable,
             "absorbed_by": {k: list(v) for k, v in self.absorbed_by.items()},
             "rms_before_mm": self.rms_before_mm,

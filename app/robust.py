@@ -107,6 +107,74 @@ def _subset(model, mask):
                             model.rotation, model.unknowns)
 
 
+def exclude_inconsistent(dataset, unknowns, mask, excluded):
+    """Exclude the rows whose centre columns contradict their own profile
+    (:func:`handeye.model.consistency.check_rows`); calibrate, its closed-form baselines and
+    diagnose call this one function, so that they fit the same observations.
+
+    Such a row is excluded whatever the statistical screening (and ``--keep-all``) says: its
+    two halves cannot both be right, and the profile models and the centre residual would each
+    believe a different one. A row the screening excluded too keeps the screening's record,
+    its reason extended by the contradiction.
+
+    Parameters
+    ----------
+    dataset : handeye.model.dataset.Dataset
+    unknowns : {'sensor', 'sensor+sphere'}
+    mask : ndarray of bool, shape (N,)
+        Samples used so far.
+    excluded : list of ExcludedSample
+        Their records so far.
+
+    Returns
+    -------
+    mask : ndarray of bool, shape (N,)
+    excluded : list of ExcludedSample
+        The inconsistent rows first (``statistic`` the chi-square on 3 dof of the row against
+        itself, ``residual_mm`` and ``robust_residual_mm`` NaN: no fit is involved; the
+        screening's numbers where it excluded the row too), then the others.
+
+    Raises
+    ------
+    CalibrationInputError
+        Naming the rows, when more than half of the rows contradict themselves (a systematic slip:
+        a shifted ``profile`` column, another campaign's files) or too few rows would remain for
+        the unknowns.
+    """
+    from handeye.app.calibrate import min_measurements
+    from handeye.app.errors import CalibrationInputError
+    from handeye.model import consistency
+
+    check = consistency.check_rows(dataset)
+    bad = check.inconsistent
+    if not bad:
+        return mask, excluded
+    n, need = len(dataset), min_measurements(unknowns)
+    keep = np.asarray(mask, bool) & check.consistent
+    if len(bad) > n // 2 or keep.sum() < need:
+        named = "; ".join(f"row {c.row} ({c.id!r}: {c.disagreement_mm:.3g} mm, {c.sd:.3g} sd)" for c in bad[:12])
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: {len(bad)} of the {len(check.checked)} rows that give both xs, ys, "
+            f"zs and a profile contradict themselves (the profile's circle is not the cut the centre columns predict): "
+            f"{named}{' ...' if len(bad) > 12 else ''}; "
+            + ("so many point to a systematic slip, not a bad row. " if len(bad) > n // 2 else "")
+            + (f"Only {int(keep.sum())} usable row(s) would remain; unknowns {unknowns!r} need {need}. "
+               if keep.sum() < need else "")
+            + "Check that each row's profile file is its own (a column shifted by one row?) and that the centres "
+              "come from the same scans; or leave xs, ys, zs empty to reconstruct the centres from the profiles")
+    screened = {e.row: e for e in excluded}
+    records = []
+    for c in bad:
+        also = screened.pop(c.row, None)
+        if also is not None:  # a gross error of the centre too: the screening's evidence, both reasons
+            records.append(dataclasses.replace(also, reason=f"{also.reason}; and {c.reason}"))
+            continue
+        records.append(ExcludedSample(
+            id=c.id, row=c.row, residual_mm=float("nan"), robust_residual_mm=float("nan"), statistic=c.sd**2,
+            p_bonferroni=c.p_bonferroni, reason=c.reason))
+    return keep, records + [e for e in excluded if e.row in screened]
+
+
 def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     """Find gross errors (module docstring).
 
