@@ -133,9 +133,9 @@ def lowest(fit, basin, solve, exact_centre_model=False):
     if not good:
         return fit, None, GlobalCheck(basin.method, len(ends), 0, None, len(basin.minima))
     best = min(good, key=_cost)
-    if fit in good and _same(fit, best):
+    if any(e is fit for e in good) and _same(fit, best):  # identity: verdicts hold arrays
         best = fit  # the run from the user's start, its iterations and history, reached it
-    if exact_centre_model and ends[1] in good and _same(best, ends[1]):
+    if exact_centre_model and any(e is ends[1] for e in good) and _same(best, ends[1]):
         best = dataclasses.replace(best, sensor=ends[1].sensor)  # the SVD minimum itself, exactly
     reached = [e for e in good if _same(e, best)]
     others = [_cost(e) for e in good if not _same(e, best)]

@@ -183,3 +183,14 @@ def test_explains_nothing_uses_the_robots_motion():
     message = guarantee.explains_nothing(shuffled, global_fit.centre_minima(shuffled.flange2base(), p, centre))
     assert message is not None and "explains nothing" in message
     assert pose_from_transform(truth).shape == (6,)
+
+
+def test_a_start_that_does_not_converge_is_replaced_by_the_global_one(tmp_path):
+    """The given start's fit fails (an iteration limit of 1 from far away); the fit from the
+    centre model's global minimum converges and is reported, the note says why."""
+    from conftest import simulate
+
+    folder = simulate(tmp_path / "c", seed=4, n=20, start_offset=[60, -40, 50, 40, 30, -35])
+    res = handeye.calibrate(folder, no_loo=True, method="gn", rotation="local", max_iter=1, model="centre")
+    assert res.converged and res.global_check.reached >= 1
+    assert any("not converged" in w and "global minimum" in w for w in res.warnings)
