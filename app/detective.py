@@ -228,7 +228,8 @@ def fix(candidate, dataset):
     if conv is not None and conv != dataset.convention:
         cols = ",".join(conventions.columns(conv)[3:])
         steps.append(f'set convention = "{conv}" in {setup} and name the orientation columns of {measurements} '
-                     f"{cols} (their values stay as they are)")
+                     f"{cols} (their values stay as they are; the poses in {setup.name} -- start_pose, base_pose, "
+                     f"[truth] -- are then read as {conv} too: write them so)")
     elif conv is None:
         cols = ",".join(conventions.columns(dataset.convention)[3:])
         steps.append(f"convert the orientation columns of {measurements} from {candidate.reading.name} to "

@@ -64,7 +64,9 @@ class GlobalCheck:
         Starts that ended at the reported minimum.
     next_best_cost : float or None
         ``1/2 sum r^2`` of the final objective at the next distinct local minimum a start
-        reached (same units as ``cost_mm2``), or None when every start reached the reported one.
+        reached, or None when every start reached the reported one. In that objective's units:
+        mm^2 for the unweighted centre model, dimensionless where the rows are whitened (the
+        profile models; ``cost_mm2`` is always the centre residual's).
     centre_minima : int
         Distinct local minima of the centre model the search found (1 with the centre known:
         the SVD solution is the unique one).
@@ -131,7 +133,8 @@ def lowest(fit, basin, solve, exact_centre_model=False):
             ends.append(solve(minimum.sensor2flange, minimum.centre))
     good = [e for e in ends if e.local is not None and e.converged]
     if not good:
-        return fit, None, GlobalCheck(basin.method, len(ends), 0, None, len(basin.minima))
+        return fit, None, GlobalCheck(f"{basin.method}; no start of the final fit converged", len(ends), 0, None,
+                                      len(basin.minima))
     best = min(good, key=_cost)
     if any(e is fit for e in good) and _same(fit, best):  # identity: verdicts hold arrays
         best = fit  # the run from the user's start, its iterations and history, reached it
@@ -145,10 +148,10 @@ def lowest(fit, basin, solve, exact_centre_model=False):
         note = (f"the fit from the start ended {dt:.3g} mm / {dr:.3g} deg from the reported pose, at cost {_cost(fit):.6g} "
                 f"({'a local minimum' if fit.converged else 'not converged'}); the fit started from the centre model's "
                 f"global minimum reaches cost {_cost(best):.6g} and is reported")
-    return best, note, GlobalCheck(basin.method + "; the final fit started from the user's start and from "
-                             f"{min(FINAL_STARTS, len(basin.minima))} centre-model minim"
-                             f"{'um' if min(FINAL_STARTS, len(basin.minima)) == 1 else 'a'}, lowest cost kept",
-                             len(ends), len(reached), min(others) if others else None, len(basin.minima))
+    k = min(FINAL_STARTS, len(basin.minima))
+    return best, note, GlobalCheck(f"{basin.method}; the final fit started from the given (or closed-form) start and from "
+                                   f"{k} centre-model minim{'um' if k == 1 else 'a'}, lowest cost kept",
+                                   len(ends), len(reached), min(others) if others else None, len(basin.minima))
 
 
 def _centre_rms(dataset, sensor2flange, centre):

@@ -67,7 +67,10 @@ def _candidates(dataset):
         xs[given, 1] = -xs[given, 1]
         out.append(Slip("the sign of ys", dataclasses.replace(d, centre_in_sensor=xs),
                         f"negate the ys column of {d.path / 'measurements.csv'} (handeye's sensor y is z x x, with x "
-                        "along the laser line and z the measuring direction; the sensor's may point the other way)"))
+                        "along the laser line and z the measuring direction; the sensor's may point the other way); "
+                        "or, if the sensor's y is handeye's, the sensor's true pose was off its nominal one by more "
+                        "than the plan allowed for, and the laser plane cut the sphere on the other side: plan again "
+                        "with a --margin as large as that error"))
     poses = d.flange_poses.copy()
     poses[:, :3] *= 1000.0
     out.append(Slip("robot positions in metres", dataclasses.replace(d, flange_poses=poses),
