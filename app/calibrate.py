@@ -15,7 +15,7 @@ from handeye import solvers
 from handeye.app import robust, slips
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
-from handeye.app.results import Before, CalibrationResult, SampleResidual, Uncertainty
+from handeye.app.results import RMS_PER_CENTRE, Before, CalibrationResult, SampleResidual, Uncertainty
 from handeye.app.robust import ALPHA
 from handeye.model import conventions, identifiability, observations
 from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
@@ -606,6 +606,15 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
         identifiability=ident, effects=named,
         noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
                      "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
+        rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
+                  "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
+                  "unweighted; this is what the fit with the effects minimises"),
+        objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
+                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * extended.ssr),
+                   "rms": float(np.sqrt(np.mean(norms[mask] ** 2))), "unit": "mm",
+                   "rms_unweighted_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
+                   "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
+                   "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
         noise_test=_noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
     return out
 
@@ -635,7 +644,7 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
             f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
     groups = None if local.groups is None else np.repeat(local.groups, local.m)
     cov = covariance(r_used, j_used, groups)
-    loo_errors = robust.leave_one_out(allm, x_all, mask) if loo else np.full(len(mask), np.nan)
+    loo_errors = _final_loo(dataset, mask, local, final, centre) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
         warnings += _gross_error_warnings(dataset.ids, norms)
     return dict(
@@ -653,9 +662,65 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         correlation=np.asarray(cov.correlation),
         covariance=np.asarray(cov.matrix),
         loo_error_mm=_rms(loo_errors) if loo else None,
+        loo=_loo_description(local, int(mask.sum())) if loo else None,
+        rms_what=RMS_PER_CENTRE,
+        objective=_objective(local, final),
         identifiability=ident,
         hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
         noise_test=None if local.kind == "points" else _noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
                                                                    local.whiten is not None, warnings, dataset),
     )
+
+
+def _final_loo(dataset, mask, local, final, centre):
+    """Leave-one-out errors (N,) of the final fit: ``local`` (the final model of the samples in
+    ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
+    ``final``; the error is sample i's sphere centre through the refitted chain
+    (:func:`handeye.app.robust.leave_one_out`). NaN for the samples not used."""
+    predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
+    out = np.full(len(mask), np.nan)
+    out[mask] = robust.leave_one_out(local, final, None, predictor)
+    return out
+
+
+#: The rows of each residual model, in words (one row: m components).
+_ROWS = {"centre": ("sphere centre", "sphere centres through the chain (3 components, mm)"),
+         "measurement": ("circle", "circles (xc, zc, r) measured in the laser plane (3 components, mm)"),
+         "points": ("profile point", "profile points' distances from the sphere surface (1 component, mm)")}
+
+
+def _objective(local, final):
+    """What the final fit minimised and its RMS (:attr:`CalibrationResult.objective`) at the
+    point ``final`` of ``local`` (the final model, local chart)."""
+    per, rows = _ROWS[local.kind]
+    weighted = local.whiten is not None
+    raw = local.residuals(final).reshape(local.n_meas, -1)
+    unweighted = float(np.sqrt(np.mean(np.sum(raw**2, axis=1))))
+    residual = local.residual(final)
+    ssr = float(residual @ residual)
+    if weighted:
+        what = (f"{rows}, each whitened by its covariance (circle fit + robot repeatability): RMS of |W_i e_i| per "
+                f"{per}, in units of its stated sd (about sqrt({local.m}) = {np.sqrt(local.m):.2f} when the noise is as "
+                "stated)")
+        short = f"the weighted RMS per {per} (whitened {rows.split(' (')[0]})"
+    else:
+        what = f"{rows}, unweighted: RMS of |e_i| per {per}, mm"
+        short = f"the unweighted RMS per {per} ({rows.split(' (')[0]})"
+    return {"model": local.kind, "residual": rows, "weighted": weighted, "rows": int(local.n_meas), "cost": 0.5 * ssr,
+            "rms": float(np.sqrt(ssr / local.n_meas)), "unit": "sd" if weighted else "mm",
+            "rms_unweighted_mm": unweighted, "what": what, "short": short}
+
+
+def _loo_description(local, n_used):
+    """How the final fit's leave-one-out error was made (:attr:`CalibrationResult.loo`)."""
+    per = _ROWS[local.kind][0]
+    weights = "weighted as the fit" if local.whiten is not None else "unweighted"
+    method = ("exact refit per sample (Gauss-Newton from the deletion-formula point, started at the full fit)"
+              if n_used <= robust.LOO_EXACT_UP_TO else
+              "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")
+    return {"model": local.kind, "weighted": local.whiten is not None, "unknowns": local.unknowns, "method": method,
+            "what": (f"the final model (--model {local.kind}: {per} rows, {weights}, unknowns {local.unknowns}) refitted "
+                     "without each used sample; the error is that sample's sphere centre carried through the refitted "
+                     "chain against the refitted sphere centre, |T1_i T2_(-i) xs_i - c_(-i)| (mm): comparable across "
+                     "models; loo_error_mm is its RMS over the samples used")}
