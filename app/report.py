@@ -102,6 +102,7 @@ def calibration_text(res):
     ]
     if res.std.sphere_center_mm is not None:
         lines.append("  sphere centre (mm):           " + _fmt(res.std.sphere_center_mm))
+    lines += _effect_lines(res)
     ident = res.identifiability
     lines += [
         "",
@@ -110,6 +111,23 @@ def calibration_text(res):
     ]
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
+
+
+def _effect_lines(res):
+    """The calibrated effects (``--effects``): values, 1 sd and what the sd is."""
+    if not res.effects:
+        return []
+    from handeye.model import effects as catalogue
+
+    lines = ["", "effects calibrated with the sensor pose (value +- 1 sd):"]
+    for e in res.effects:
+        doc = catalogue.get(e.name).DOC if e.name in catalogue.MODULES else ""
+        values = ", ".join(f"{p} = {v:+.4g}" + ("" if e.std is None or e.std.get(p) is None or not np.isfinite(e.std[p])
+                                                 else f" +- {e.std[p]:.2g}") for p, v in e.parameters.items())
+        lines.append(f"  {e.name}: {values}" + (f" ({doc})" if doc else ""))
+        if e.note:
+            lines.append(f"    {e.note}")
+    return lines
 
 
 def calibration_plot(res, dataset, path):

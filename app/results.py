@@ -521,16 +521,20 @@ class NamedEffect:
     parameters : dict
         Parameter name -> value (units of the effect; ``sign_flip``: ``{'ids': [...]}``).
     std : dict or None
-        Parameter name -> 1 sd (None for ``sign_flip``).
+        Parameter name -> 1 sd (None for ``sign_flip``; a None value where the fit is not a
+        minimum and the linearised sd means nothing).
+    note : str or None
+        What the sd is and why it is the size it is (``sphere_radius`` in calibrate).
     """
 
     name: str
     parameters: dict
     std: dict | None
+    note: str | None = None
 
     def to_dict(self):
         return {"name": self.name, "parameters": dict(self.parameters),
-                "std": None if self.std is None else dict(self.std)}
+                "std": None if self.std is None else dict(self.std), "note": self.note}
 
 
 @dataclasses.dataclass(frozen=True)
