@@ -15,7 +15,7 @@ from handeye import solvers
 from handeye.app import guarantee, robust, slips
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
-from handeye.app.results import Before, CalibrationResult, SampleResidual, Uncertainty
+from handeye.app.results import RMS_PER_CENTRE, Before, CalibrationResult, SampleResidual, Uncertainty
 from handeye.app.robust import ALPHA
 from handeye.model import conventions, identifiability, observations
 from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
@@ -598,22 +598,32 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
     with np.errstate(all="ignore"):
         extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
     jac = extended.jac[mask].reshape(-1, extended.p)
-    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(extended.x))):
+    on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
+    if not np.all(np.isfinite(extended.x)) or (on_plane and not np.all(np.isfinite(jac))):
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
             "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
-    std, corr = extended.uncertainty(mask)
+    from handeye.model import effects as catalogue
+
+    stuck = _not_a_minimum(dataset, mask, extended, names, prob.radius)
+    if stuck is None:
+        std, corr = extended.uncertainty(mask)
+    else:  # the fit stopped against a bound, where the linearised sd means nothing
+        std, corr = np.full(extended.p, np.nan), np.full((extended.p, extended.p), np.nan)
+        jac = np.where(np.isfinite(jac), jac, 0.0)
     index = {n: k for k, n in enumerate(extended.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
-                         {p: float(std[index[f"{n}.{p}"]]) for p in _effect_params(n)}) for n in names]
+                         {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n)},
+                         _effect_sd_note(dataset, mask, extended, n, prob.radius, stuck)) for n in names]
     if structure.centre and centre_given:
         delta = extended.x[12:15] - dataset.sphere_centre
         named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
                                     dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
     sensor, centre = prob.transform(extended.x), np.asarray(prob.centre(structure, extended.x), float)
-    from handeye.model import effects as catalogue
-
-    implausible = [why for n in names if (why := catalogue.implausible(n, extended.params[n], prob.radius))]
+    circles = _circles_shown(dataset, mask) if "sphere_radius" in names else None
+    implausible = [why for n in names if (why := catalogue.implausible(n, extended.params[n], prob.radius, circles))]
+    if stuck is not None:
+        implausible.append(stuck)
     if implausible:  # an official-looking calibration it is not
         common = dict(common, converged=False, message="; ".join(implausible))
         warnings.extend(implausible)
@@ -640,8 +650,107 @@ def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_giv
         identifiability=ident, effects=named,
         noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
                      "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
+        rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
+                  "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
+                  "unweighted; this is what the fit with the effects minimises"),
+        objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
+                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * extended.ssr),
+                   "rms": float(np.sqrt(np.mean(norms[mask] ** 2))), "unit": "mm",
+                   "rms_unweighted_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
+                   "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
+                   "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
         noise_test=_noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
     return out
+
+
+#: The fit with effects is a minimum when every column of its Jacobian is orthogonal to the
+#: residual: |J_k^T e| <= EFFECT_COS |J_k| |e| (a regular fit: below 1e-7; one stopped against
+#: the sphere_radius bound: 1e-4 to 1e-2, or an infinite derivative).
+EFFECT_COS = 1e-5
+
+
+def _finite_or_none(value):
+    return float(value) if np.isfinite(value) else None
+
+
+def _circles_shown(dataset, mask):
+    """What the data show of the sphere: per sample its id, the radius of the circle its laser
+    plane cut (a profile's geometric circle fit with its 1 sd; for a used sample given as a
+    centre without a profile ``sqrt(R^2 - ys^2)``, sd 0) -- ``(ids, r, sd)`` for
+    :func:`handeye.model.effects.implausible`. Every profile counts, excluded or not (a gross
+    error of the robot pose leaves its circle a circle of the sphere)."""
+    from handeye.model import circle
+
+    radius = dataset.sphere_diameter / 2
+    ids, r, sd = [], [], []
+    profiles = dataset.profiles or (None,) * len(dataset)
+    for k, (ident, pts) in enumerate(zip(dataset.ids, profiles)):
+        if pts is not None:
+            try:
+                c = circle.fit_circle(pts[:, 0], pts[:, 1], observations.CIRCLE_FIT)
+                cov = circle.circle_covariance(pts[:, 0], pts[:, 1], c)
+            except circle.CircleFitError:
+                continue
+            ids.append(ident), r.append(c.r), sd.append(float(np.sqrt(max(cov[2, 2], 0.0))))
+        elif mask[k]:
+            ids.append(ident), r.append(float(np.sqrt(max(radius**2 - dataset.centre_in_sensor[k, 1] ** 2, 0.0)))),
+            sd.append(0.0)
+    return ids, np.array(r), np.array(sd)
+
+
+def _corrected_y(dataset, mask, extended, radius):
+    """|y| of each used sample's centre corrected by the fitted data effects, and their ids."""
+    from handeye.model import effects as catalogue
+
+    xs = dataset.centre_in_sensor[mask]
+    with np.errstate(all="ignore"):
+        for name, params in extended.params.items():
+            xs, _ = catalogue.correct(name, xs, radius, params)
+    return np.abs(xs[:, 1]), [i for i, u in zip(dataset.ids, mask) if u]
+
+
+def _not_a_minimum(dataset, mask, extended, names, radius):
+    """Why the fit with effects is not a minimum (text), or None: a Jacobian column not
+    orthogonal to the residual (:data:`EFFECT_COS`) or not finite. For ``sphere_radius`` this
+    is the fit stopped against the bound ``R + dr >= r_i`` (a corrected y of 0): the data ask
+    for a sphere smaller than a circle measured on it."""
+    e = extended.e[mask].ravel()
+    jac = extended.jac[mask].reshape(-1, extended.p)
+    with np.errstate(all="ignore"):
+        cos = np.abs(jac.T @ e) / (np.linalg.norm(jac, axis=0) * np.linalg.norm(e))
+    worst = float(np.max(np.where(np.isfinite(cos), cos, np.inf)))
+    if worst <= EFFECT_COS or not np.linalg.norm(e) > 0:
+        return None
+    if "sphere_radius" in names:
+        y, ids = _corrected_y(dataset, mask, extended, radius)
+        k = int(np.nanargmin(y))
+        r = float(np.sqrt(max(radius**2 - dataset.centre_in_sensor[mask][k, 1] ** 2, 0.0)))
+        dr = float(extended.params["sphere_radius"][0])
+        return (f"sphere_radius: the fit stops at dr = {dr:.4g} mm, a sphere radius of {radius + dr:.4f} mm, against "
+                f"the {r:.4f} mm circle of sample {ids[k]!r} (its corrected y is {y[k]:.2g} mm): the data ask for a "
+                "sphere smaller than a circle measured on it, which cannot be; not a minimum (the gradient does not "
+                f"vanish: cosine {worst:.2g}), so no sd either: the radius absorbs something else (a sphere centre "
+                "offset, a wrong [profile] side or a gross error?); it is not named")
+    return (f"the fit with the effects {', '.join(names)} is not a minimum (a Jacobian column is not orthogonal to "
+            f"the residual: cosine {worst:.2g} > {EFFECT_COS:g}); its sd would mean nothing")
+
+
+def _effect_sd_note(dataset, mask, extended, name, radius, stuck):
+    """What the 1 sd of effect ``name`` is and why it is the size it is (text), or None."""
+    if name != "sphere_radius":
+        return None
+    if stuck is not None:
+        return "no sd: the fit is not a minimum (see the message)"
+    y, ids = _corrected_y(dataset, mask, extended, radius)
+    k = int(np.nanargmin(y))
+    dr = float(extended.params["sphere_radius"][0])
+    gain = (radius + dr) / y[k]
+    return (f"1 sd of the linearised fit, sigma (J^T J)^-1 with sigma = {np.sqrt(extended.sigma2):.4g} mm per "
+            f"component: small against the residual because a radius change dr moves each reconstructed centre's y by "
+            f"(R + dr)/|y| dr, up to {gain:.3g} x for sample {ids[k]!r} (|y| = {y[k]:.3g} mm, its laser plane "
+            "near the sphere's equator); within about 10 % of a Monte Carlo on simulated data while the planes stay "
+            "about 1 mm or more from the equator (tests/test_effect_sd.py); nearer, y's own noise grows like r/|y| "
+            "and the sd is optimistic (the Monte Carlo's is 1.4 x at 0.5 mm on a 25.4 mm sphere)")
 
 
 def _effect_params(name):
@@ -669,7 +778,7 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
             f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
     groups = None if local.groups is None else np.repeat(local.groups, local.m)
     cov = covariance(r_used, j_used, groups)
-    loo_errors = robust.leave_one_out(allm, x_all, mask) if loo else np.full(len(mask), np.nan)
+    loo_errors = _final_loo(dataset, mask, local, final, centre) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
         warnings += _gross_error_warnings(dataset.ids, norms)
     return dict(
@@ -687,9 +796,65 @@ def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         correlation=np.asarray(cov.correlation),
         covariance=np.asarray(cov.matrix),
         loo_error_mm=_rms(loo_errors) if loo else None,
+        loo=_loo_description(local, int(mask.sum())) if loo else None,
+        rms_what=RMS_PER_CENTRE,
+        objective=_objective(local, final),
         identifiability=ident,
         hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
         noise_test=None if local.kind == "points" else _noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
                                                                    local.whiten is not None, warnings, dataset),
     )
+
+
+def _final_loo(dataset, mask, local, final, centre):
+    """Leave-one-out errors (N,) of the final fit: ``local`` (the final model of the samples in
+    ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
+    ``final``; the error is sample i's sphere centre through the refitted chain
+    (:func:`handeye.app.robust.leave_one_out`). NaN for the samples not used."""
+    predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
+    out = np.full(len(mask), np.nan)
+    out[mask] = robust.leave_one_out(local, final, None, predictor)
+    return out
+
+
+#: The rows of each residual model, in words (one row: m components).
+_ROWS = {"centre": ("sphere centre", "sphere centres through the chain (3 components, mm)"),
+         "measurement": ("circle", "circles (xc, zc, r) measured in the laser plane (3 components, mm)"),
+         "points": ("profile point", "profile points' distances from the sphere surface (1 component, mm)")}
+
+
+def _objective(local, final):
+    """What the final fit minimised and its RMS (:attr:`CalibrationResult.objective`) at the
+    point ``final`` of ``local`` (the final model, local chart)."""
+    per, rows = _ROWS[local.kind]
+    weighted = local.whiten is not None
+    raw = local.residuals(final).reshape(local.n_meas, -1)
+    unweighted = float(np.sqrt(np.mean(np.sum(raw**2, axis=1))))
+    residual = local.residual(final)
+    ssr = float(residual @ residual)
+    if weighted:
+        what = (f"{rows}, each whitened by its covariance (circle fit + robot repeatability): RMS of |W_i e_i| per "
+                f"{per}, in units of its stated sd (about sqrt({local.m}) = {np.sqrt(local.m):.2f} when the noise is as "
+                "stated)")
+        short = f"the weighted RMS per {per} (whitened {rows.split(' (')[0]})"
+    else:
+        what = f"{rows}, unweighted: RMS of |e_i| per {per}, mm"
+        short = f"the unweighted RMS per {per} ({rows.split(' (')[0]})"
+    return {"model": local.kind, "residual": rows, "weighted": weighted, "rows": int(local.n_meas), "cost": 0.5 * ssr,
+            "rms": float(np.sqrt(ssr / local.n_meas)), "unit": "sd" if weighted else "mm",
+            "rms_unweighted_mm": unweighted, "what": what, "short": short}
+
+
+def _loo_description(local, n_used):
+    """How the final fit's leave-one-out error was made (:attr:`CalibrationResult.loo`)."""
+    per = _ROWS[local.kind][0]
+    weights = "weighted as the fit" if local.whiten is not None else "unweighted"
+    method = ("exact refit per sample (Gauss-Newton from the deletion-formula point, started at the full fit)"
+              if n_used <= robust.LOO_EXACT_UP_TO else
+              "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")
+    return {"model": local.kind, "weighted": local.whiten is not None, "unknowns": local.unknowns, "method": method,
+            "what": (f"the final model (--model {local.kind}: {per} rows, {weights}, unknowns {local.unknowns}) refitted "
+                     "without each used sample; the error is that sample's sphere centre carried through the refitted "
+                     "chain against the refitted sphere centre, |T1_i T2_(-i) xs_i - c_(-i)| (mm): comparable across "
+                     "models; loo_error_mm is its RMS over the samples used")}

@@ -12,11 +12,47 @@ def _fmt(values, width=10, prec=4):
     return " ".join(f"{v:{width}.{prec}f}" for v in values)
 
 
+#: One row of each residual model, in words.
+_PER = {"centre": "sphere centre", "measurement": "circle", "points": "profile point"}
+
+
 def _loo_line(res):
     if res.loo_error_mm is None:
+        if res.effects:
+            return "leave-one-out error: not computed (the effects are fitted to every sample used)"
         return "leave-one-out error: not computed (--no-loo)"
-    return (f"leave-one-out error {res.loo_error_mm:.4f} mm (RMS distance of each used sample's predicted sphere "
-            "centre from the centre fitted without it)")
+    model = (res.loo or {}).get("model", res.model)
+    weights = ", weighted as the fit," if (res.loo or {}).get("weighted") else ""
+    return (f"leave-one-out error {res.loo_error_mm:.4f} mm per sphere centre (the {model} model{weights} refitted "
+            "without each used sample; RMS of the distance of that sample's sphere centre through the refitted chain "
+            "from the refitted sphere centre: comparable across --model)")
+
+
+def _rms_lines(res):
+    """The RMS figures, each saying what it measures, and why two of them differ."""
+    lines = [f"RMS residual {res.rms_mm:.4f} mm per sphere centre over {res.n_used} samples used (root mean square "
+             "of |e_i|, sample i's sphere centre through the calibrated chain against the sphere centre; unweighted), "
+             f"max {res.max_residual_mm:.4f} mm"]
+    obj = res.objective
+    if obj is not None and (obj["model"] != "centre" or obj["weighted"]):
+        per = _PER.get(obj["model"], "row")
+        if obj["weighted"]:
+            lines.append(f"the fit minimised (--model {obj['model']}): weighted RMS {obj['rms']:.4f} sd per {per} over "
+                         f"{obj['rows']:,} {per}s (|W_i e_i|, each {per} whitened by its stated covariance: about "
+                         f"{np.sqrt(3 if obj['model'] != 'points' else 1):.2f} when the noise is as stated); unweighted "
+                         f"{obj['rms_unweighted_mm']:.4f} mm per {per}")
+        else:
+            lines.append(f"the fit minimised (--model {obj['model']}): RMS {obj['rms']:.4f} mm per {per} over "
+                         f"{obj['rows']:,} {per}s (unweighted {obj['residual']})")
+    lines.append(_loo_line(res))
+    if res.before is not None:
+        lines.append("before exclusion (every sample, plain least squares of the centre model, unweighted): RMS "
+                     f"{res.before.rms_mm:.4f} mm per sphere centre"
+                     + (f", leave-one-out {res.before.loo_error_mm:.4f} mm (the centre model refitted)"
+                        if res.before.loo_error_mm is not None else ""))
+        if res.rms_note is not None:
+            lines.append(f"why they differ: {res.rms_note}")
+    return lines
 
 
 def calibration_text(res):
@@ -56,21 +92,17 @@ def calibration_text(res):
     if res.excluded:
         lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
         lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded]
-    lines += [
+    per = "profile point" if res.model == "points" else "component of a sphere centre"
+    lines += [""] + _rms_lines(res) + [
         "",
-        f"RMS residual {res.rms_mm:.4f} mm over {res.n_used} samples used (root mean square of |e_i|), "
-        f"max {res.max_residual_mm:.4f} mm",
-        _loo_line(res),
-        f"before exclusion (every sample, plain least squares): RMS {res.before.rms_mm:.4f} mm"
-        + (f", leave-one-out {res.before.loo_error_mm:.4f} mm" if res.before.loo_error_mm is not None else ""),
-        "",
-        "uncertainty (1 sd; " + (f"sigma = {res.sigma_mm:.4f} mm per residual component" if res.sigma_mm is not None
+        "uncertainty (1 sd; " + (f"sigma = {res.sigma_mm:.4f} mm per {per}" if res.sigma_mm is not None
                                  else f"weighted residual, scale {res.sigma_scale:.3f}") + ", estimated from the fit):",
         "  sensor translation (mm):      " + _fmt(res.std.sensor_translation_mm),
         "  sensor rotation (deg, about sensor x y z): " + _fmt(res.std.sensor_rotation_deg),
     ]
     if res.std.sphere_center_mm is not None:
         lines.append("  sphere centre (mm):           " + _fmt(res.std.sphere_center_mm))
+    lines += _effect_lines(res)
     ident = res.identifiability
     lines += [
         "",
@@ -79,6 +111,23 @@ def calibration_text(res):
     ]
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
+
+
+def _effect_lines(res):
+    """The calibrated effects (``--effects``): values, 1 sd and what the sd is."""
+    if not res.effects:
+        return []
+    from handeye.model import effects as catalogue
+
+    lines = ["", "effects calibrated with the sensor pose (value +- 1 sd):"]
+    for e in res.effects:
+        doc = catalogue.get(e.name).DOC if e.name in catalogue.MODULES else ""
+        values = ", ".join(f"{p} = {v:+.4g}" + ("" if e.std is None or e.std.get(p) is None or not np.isfinite(e.std[p])
+                                                 else f" +- {e.std[p]:.2g}") for p, v in e.parameters.items())
+        lines.append(f"  {e.name}: {values}" + (f" ({doc})" if doc else ""))
+        if e.note:
+            lines.append(f"    {e.note}")
+    return lines
 
 
 def calibration_plot(res, dataset, path):

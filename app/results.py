@@ -117,20 +117,41 @@ class ExcludedSample:
         return dataclasses.asdict(self)
 
 
+#: What :attr:`CalibrationResult.rms_mm` measures, for every residual model (the figure that
+#: compares across ``--model``).
+RMS_PER_CENTRE = ("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre carried through "
+                  "the calibrated chain (T1_i T2 xs_i) from the sphere centre c: per sphere centre, unweighted, the same "
+                  "figure for every --model (what --model centre minimises when no sample has a profile)")
+
+
 @dataclasses.dataclass(frozen=True)
 class Before:
     """The plain least-squares fit of every sample, before any exclusion.
+
+    Always the unweighted ``centre`` model (whatever ``--model`` the final fit uses): its
+    ``rms_mm`` is the minimum of the per-centre RMS over all the samples (when the plain fit
+    reaches its global minimum), so a final fit of the same samples with another objective
+    (weights, circles, profile points) has a larger one (:attr:`CalibrationResult.rms_note`
+    says why two figures differ).
 
     Attributes
     ----------
     n : int
     rms_mm : float
+        Per sphere centre, unweighted (as :attr:`CalibrationResult.rms_mm`).
     loo_error_mm : float or None
+        Leave-one-out error of this fit: the centre model refitted without each sample.
+    model, weighted, what : str, bool, str
+        The residual model and weighting of this fit, and what ``rms_mm`` measures (JSON only).
     """
 
     n: int
     rms_mm: float
     loo_error_mm: float | None
+    model: str = "centre"
+    weighted: bool = False
+    what: str = ("plain least squares of the centre model on every sample (unweighted, nothing excluded); rms_mm per "
+                 "sphere centre as the final fit's; loo_error_mm refits this centre model without each sample")
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -243,7 +264,25 @@ class CalibrationResult:
         Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
     message : str
     rms_mm, max_residual_mm, cost_mm2 : float or None
-        Over the samples used; None after a numerical failure.
+        Over the samples used, per sphere centre, unweighted (``rms_what``: sample i's centre
+        through the calibrated chain against the sphere centre, for every ``--model``); None
+        after a numerical failure. ``cost_mm2`` is ``1/2 sum |e_i|^2`` of these, not the
+        objective the fit minimised (that is ``objective``).
+    rms_what : str or None
+        What ``rms_mm`` measures, in words.
+    objective : dict or None
+        What the final fit minimised and its RMS: ``model``, ``residual`` (rows), ``weighted``,
+        ``rows`` (how many), ``cost`` (``1/2 sum |W_i e_i|^2``, mm^2 unweighted, else
+        dimensionless), ``rms`` (``sqrt(sum |W_i e_i|^2 / rows)``: per profile point, per
+        circle or per centre), ``unit`` (``mm``, or ``sd`` for whitened rows, where about
+        sqrt(m) is expected when the noise is as stated), ``rms_unweighted_mm`` (the same rows
+        unweighted) and ``what`` (in words).
+    loo : dict or None
+        How ``loo_error_mm`` was made: ``model``, ``weighted``, ``unknowns`` (the refitted
+        model: the final one), ``method`` and ``what``.
+    rms_note : str or None
+        Why ``rms_mm`` and ``before.rms_mm`` differ (other samples, another objective); None
+        when they are the same fit's. A property; a key of the JSON.
     residuals : list of SampleResidual
         Every sample, used or excluded.
     excluded : list of ExcludedSample
@@ -325,11 +364,47 @@ class CalibrationResult:
     effects: list | None = None
     provenance: dict | None = None
     global_check: object | None = None
+    rms_what: str | None = None
+    objective: dict | None = None
+    loo: dict | None = None
 
     @property
     def outliers(self):
         """Ids of the excluded samples."""
         return [e.id for e in self.excluded]
+
+    @property
+    def rms_note(self):
+        """Why ``rms_mm`` differs from ``before.rms_mm`` (text), or None when they are one fit's.
+
+        Two causes, both named when both apply: other samples (the before fit keeps the excluded
+        ones) and another objective (the before fit minimises the unweighted per-centre RMS
+        itself; a weighted centre, circle or profile-point fit, or one with effects, minimises
+        something else, so on the same samples its per-centre RMS is larger).
+        """
+        if self.before is None or self.rms_mm is None or self.objective is None:
+            return None
+        same_samples = self.n_used == self.before.n
+        same_objective = (self.objective.get("model") == "centre" and not self.objective.get("weighted")
+                          and not self.effects)
+        if same_samples and same_objective:
+            return None
+        diff = self.rms_mm - self.before.rms_mm
+        parts = []
+        if not same_samples:
+            n_out = self.before.n - (self.n_used or 0)
+            parts.append(f"the before fit also fits the {n_out} excluded sample(s) ({', '.join(self.outliers[:6])}"
+                         f"{' ...' if len(self.outliers) > 6 else ''}), which pull it")
+        if self.effects:
+            parts.append("the before fit has no effects; this fit corrects every centre by the effects "
+                         f"({', '.join(e.name for e in self.effects)}: more parameters), so its per-centre RMS is of "
+                         "other, corrected centres and is smaller when the effects explain something")
+        elif not same_objective:
+            parts.append(f"the before fit minimises this per-centre RMS itself (unweighted centre model), this fit "
+                         f"minimises {self.objective.get('short', 'another objective')}, so on the same samples its "
+                         "per-centre RMS cannot be smaller")
+        return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
+                f"({diff:+.2g} mm): " + "; and ".join(parts))
 
     def to_dict(self):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None)."""
@@ -385,6 +460,10 @@ class CalibrationResult:
             "effect_tests": None if self.effect_tests is None else [t.to_dict() for t in self.effect_tests],
             "effects": None if self.effects is None else [e.to_dict() for e in self.effects],
             "global": None if self.global_check is None else self.global_check.to_dict(),
+            "rms_what": self.rms_what,
+            "objective": self.objective,
+            "loo": self.loo,
+            "rms_note": self.rms_note,
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance
@@ -448,16 +527,20 @@ class NamedEffect:
     parameters : dict
         Parameter name -> value (units of the effect; ``sign_flip``: ``{'ids': [...]}``).
     std : dict or None
-        Parameter name -> 1 sd (None for ``sign_flip``).
+        Parameter name -> 1 sd (None for ``sign_flip``; a None value where the fit is not a
+        minimum and the linearised sd means nothing).
+    note : str or None
+        What the sd is and why it is the size it is (``sphere_radius`` in calibrate).
     """
 
     name: str
     parameters: dict
     std: dict | None
+    note: str | None = None
 
     def to_dict(self):
         return {"name": self.name, "parameters": dict(self.parameters),
-                "std": None if self.std is None else dict(self.std)}
+                "std": None if self.std is None else dict(self.std), "note": self.note}
 
 
 @dataclasses.dataclass(frozen=True)

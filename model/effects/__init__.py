@@ -45,16 +45,25 @@ LIMITS = {
 }
 
 
-def implausible(name, params, radius):
-    """Why fitted ``params`` of effect ``name`` are not physical (text), or None when they are."""
-    if name not in LIMITS:
-        return None
-    what, ok = LIMITS[name]
-    if ok(np.asarray(params, float), radius):
-        return None
-    values = ", ".join(f"{p} = {v:.4g}" for p, v in zip(get(name).PARAMS, np.ravel(params)))
-    return (f"{name} would need {values}, beyond {what}: it absorbs something else (a wrong [profile] side, "
-            "[sphere] diameter or unit?), it is not named")
+def implausible(name, params, radius, circles=None):
+    """Why fitted ``params`` of effect ``name`` are not physical (text), or None when they are.
+
+    Two tests: the effect's limit (:data:`LIMITS`), and, for an effect whose module defines
+    ``contradicted_by(params, radius, circles)`` (``sphere_radius``: a sphere cannot be smaller
+    than a circle measured on it), what the data show: ``circles`` is ``(ids, r, sd)``, the
+    radius of each sample's measured circle and its 1 sd (mm); without it only the limit is
+    tested.
+    """
+    if name in LIMITS:
+        what, ok = LIMITS[name]
+        if not ok(np.asarray(params, float), radius):
+            values = ", ".join(f"{p} = {v:.4g}" for p, v in zip(get(name).PARAMS, np.ravel(params)))
+            return (f"{name} would need {values}, beyond {what}: it absorbs something else (a wrong [profile] side, "
+                    "[sphere] diameter or unit?), it is not named")
+    check = getattr(get(name), "contradicted_by", None) if name in MODULES else None
+    if check is not None and circles is not None:
+        return check(np.asarray(params, float), radius, circles)
+    return None
 
 
 def catalogue(kind=None):
