@@ -44,7 +44,7 @@ _PUBLIC = {
     "PlanResult": "handeye.app.api",
     "SimulationResult": "handeye.app.api",
     "CalibrationResult": "handeye.app.results",
-    "DiagnosisResult": "handeye.app.results",
+    "DiagnosisResult": "handeye.app.diagnosis_results",
     "InputError": "handeye.model.errors",
     "testfunction_problem": "handeye.app.problems",
     "calibration_problem": "handeye.app.problems",

@@ -260,7 +260,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 
     Returns
     -------
-    handeye.app.results.DiagnosisResult
+    handeye.app.diagnosis_results.DiagnosisResult
     """
     from handeye.app import diagnose as procedure
     from handeye.app.files import check_output_folder, check_output_path, input_files, provenance

@@ -1,9 +1,13 @@
-"""One calibration run: dataset in, checked, solved, reported as plain data.
+"""One calibration run: dataset in, checked, solved, reported as plain data (described by
+:mod:`handeye.app.describe`).
 
 The pipeline is: check the request (method and parametrisation fit together, enough
 measurements), check that the robot poses determine every unknown (structural
-identifiability, :func:`handeye.model.identifiability.structural`), solve with the chosen method,
-and return a :class:`handeye.app.results.CalibrationResult`. Nothing here prints.
+identifiability, :func:`handeye.model.identifiability.structural`), name setup and convention
+slips (:mod:`handeye.app.slips`, :mod:`handeye.app.detective`), screen gross errors, solve with
+the chosen method from the start and from the centre model's global minimum and keep the
+lowest (:mod:`handeye.app.guarantee`), and return a
+:class:`handeye.app.results.CalibrationResult`. Nothing here prints.
 """
 from __future__ import annotations
 
@@ -12,10 +16,10 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app import guarantee, robust, slips
+from handeye.app import describe, guarantee, robust, slips
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
-from handeye.app.results import RMS_PER_CENTRE, Before, CalibrationResult, SampleResidual, Uncertainty
+from handeye.app.results import Before, CalibrationResult, SampleResidual
 from handeye.app.robust import ALPHA
 from handeye.model import conventions, identifiability, observations
 from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
@@ -23,7 +27,6 @@ from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import nearest_transform, transform_distance
-from handeye.model.statistics import covariance
 
 METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
 
@@ -182,26 +185,6 @@ def check_identifiable(dataset, unknowns, start_transform):
     return ident
 
 
-#: A residual this many robust standard deviations above the median is flagged.
-GROSS_ERROR_Z = 10.0
-
-
-def _gross_error_warnings(ids, norms):
-    """Flag residuals far above the rest (median + GROSS_ERROR_Z * 1.4826 MAD); never excludes."""
-    med = float(np.median(norms))
-    spread = 1.4826 * float(np.median(np.abs(norms - med)))
-    limit = med + GROSS_ERROR_Z * max(spread, 1e-9)
-    out = []
-    for i, n in zip(ids, norms):
-        if n > limit:
-            out.append(
-                f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
-                f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
-                "the whole calibration is pulled by it -- check or remove that sample"
-            )
-    return out
-
-
 def _orthogonality(rot):
     return float(np.linalg.norm(rot.T @ rot - np.eye(3))), float(np.linalg.det(rot))
 
@@ -323,7 +306,8 @@ def _global(used, unknowns, fit, kind, sigma, refit):
     fit, note, check = guarantee.lowest(fit, basin, refit, exact_centre_model=exact)
     if note:
         fit = dataclasses.replace(fit, notes=[*fit.notes, note])
-    refusal = guarantee.explains_nothing(used, basin) or guarantee.cross_check(used, fit, basin, sigma)
+    refusal = guarantee.explains_nothing(used, basin) or (  # a fit that did not converge says so itself
+        guarantee.cross_check(used, fit, basin, sigma) if fit.converged else None)
     return fit, check, refusal
 
 
@@ -378,8 +362,9 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
         Compute the leave-one-out prediction error (one refit per sample).
     model : {'centre', 'measurement', 'points'} or None
         Residual of the final fit (:mod:`handeye.model.observations`); None: ``measurement``
-        when every sample has a profile, else ``centre``. Screening and leave-one-out always
-        use the reconstructed centres.
+        when every sample has a profile, else ``centre``. Screening, the plain fit and the
+        centre model's global minimum (:mod:`handeye.app.guarantee`) use the reconstructed
+        centres; leave-one-out refits this model.
     robot_sigma : float, optional
         Robot repeatability (mm, 1 sd per axis) for the weights of profile models; default the
         dataset's ``[noise] robot_mm`` (0.025).
@@ -406,7 +391,7 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
             default_note = (f"{len(dataset)} measurements: the default method is lm (Levenberg-Marquardt on the local "
                             f"chart, linear in the data) above {LARGE}; ask for --method ipopt to use IPOPT")
     rotation = check_request(dataset, unknowns, method, rotation)
-    effects, unknowns, model = _check_effects(effects, unknowns, model)
+    effects, unknowns, model = describe.check_effects(effects, unknowns, model)
     dataset, centre_note = with_sphere_centre(dataset, unknowns)
     sigma = dataset.noise_centre_mm if sigma is None else float(sigma)
     robot_sigma = dataset.noise_robot_mm if robot_sigma is None else float(robot_sigma)
@@ -426,7 +411,7 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
     plain_rms = float(np.sqrt(np.mean(plain_norms**2)))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
-    before = Before(len(dataset), plain_rms, _rms(robust.leave_one_out(everything, plain)) if loo else None)
+    before = Before(len(dataset), plain_rms, describe.rms(robust.leave_one_out(everything, plain)) if loo else None)
     excluded, mask = [], np.ones(len(dataset), bool)
     if outliers:
         screening = robust.screen(dataset, unknowns, start_t, alpha=alpha)
@@ -497,364 +482,9 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
                      for i, r, u in zip(dataset.ids, dataset.rows, mask)]
         return CalibrationResult(residuals=residuals, warnings=warnings, n_used=int(mask.sum()), **common)
-    common["effect_tests"] = _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings)
+    common["effect_tests"] = describe.effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings)
     if effects:
-        return CalibrationResult(warnings=warnings, **_with_effects(dataset, mask, fit, effects, sigma, warnings, common,
+        return CalibrationResult(warnings=warnings, **describe.with_effects(dataset, mask, fit, effects, sigma, warnings, common,
                                                                     centre_given=centre_note is None))
     return CalibrationResult(warnings=warnings, **common,
-                             **_describe_fit(dataset, mask, fit, loo, outliers, warnings, sigma))
-
-
-def _rms(values):
-    values = np.asarray(values, float)
-    values = values[np.isfinite(values)]
-    return float(np.sqrt(np.mean(values**2))) if values.size else None
-
-
-def _noise_model_text(local):
-    rows = {"centre": "reconstructed centres", "measurement": "measured circles", "points": "profile points"}[local.kind]
-    if local.kind == "points":
-        weights = ("equal weights; covariance cluster-robust over the profiles (a robot pose error moves a whole "
-                   "profile), sigma = sqrt(SSR/(m - p)) is the point scatter")
-        return f"residual: {rows}; {weights}"
-    if local.whiten is None:
-        weights = "independent components with one common variance sigma^2, estimated as SSR/(m - p)"
-    else:
-        weights = ("each row whitened by its covariance (circle fit + robot repeatability); sigma_scale, estimated as "
-                   "sqrt(SSR/(m - p)), should be near 1 and scales the covariance")
-    return (f"residual: {rows}; {weights}; covariance sigma^2 (J^T J)^-1 on the local chart "
-            "(rotation about the sensor's axes)")
-
-
-#: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
-EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
-#: Level of the test of the fit against the stated noise (a warning; strict, so that clean data
-#: of a slightly miscalibrated noise model are not flagged: 2 of 120 clean runs at 0.01).
-NOISE_ALPHA = 0.001
-
-
-def _check_effects(effects, unknowns, model):
-    """Validated effect names; ``sphere_center`` is the free centre (``unknowns='sensor+sphere'``)."""
-    names = [effects] if isinstance(effects, str) else list(effects or ())
-    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
-    for name in names:
-        if name not in EFFECTS:
-            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
-                                        "(handeye diagnose names the effect a dataset needs)")
-    if not names:
-        return (), unknowns, model
-    if model not in (None, "centre"):
-        raise CalibrationInputError(f"--effects works on the centre residual, not --model {model}")
-    if "sphere_center" in names:
-        unknowns = "sensor+sphere"
-    return tuple(dict.fromkeys(n for n in names if n != "sphere_center")), unknowns, "centre"
-
-
-def _noise_test(ssr, dof, sigma, whitened, warnings, dataset):
-    """The fit against the stated noise (chi-square); a warning naming diagnose when it fails."""
-    from handeye.app.results import NoiseTest
-    from handeye.model.statistics import chi2_survival
-
-    if dof <= 0:
-        return None
-    statistic = float(ssr if whitened else ssr / sigma**2)
-    ratio = float(np.sqrt(statistic / dof))
-    p_value = float(chi2_survival(statistic, dof))
-    nominal = ("each row whitened by its stated covariance (sd 1)" if whitened
-               else f"{sigma:g} mm per component of a sphere centre")
-    passed = not (p_value < NOISE_ALPHA and ratio > 1)
-    if not passed:
-        warnings.append(
-            f"the residuals are larger than the stated noise: sd {ratio:.1f} x the stated {nominal} (chi2 = "
-            f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
-            f"than [noise] in setup.toml says); run `handeye diagnose {dataset.path}` to find and name it, then "
-            "`handeye calibrate --effects NAME`")
-    return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
-
-
-def _effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
-    """Score tests of the catalogue's effects at the fit; a warning naming diagnose for a
-    significant one (the test uses the fit's own scale, not the stated noise)."""
-    from handeye.app import diagnose
-
-    tests = diagnose.score_effects(dataset, mask, fit.sensor, fit.centre, unknowns, skip=effects)
-    significant = [t for t in tests if t.p_bonferroni < alpha]
-    if significant:
-        names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
-        warnings.append(f"the residuals show structure the model lacks: {names}; run `handeye diagnose "
-                        f"{dataset.path}` to confirm and name it, then `handeye calibrate --effects "
-                        f"{significant[0].name}`")
-    return tests
-
-
-def _with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_given=True):
-    """The final fit with catalogue effects (:mod:`handeye.app.diagnose`'s extended model):
-    fields of :class:`CalibrationResult`."""
-    from handeye.app import diagnose
-    from handeye.app.results import NamedEffect
-
-    prob = diagnose.Samples(dataset)
-    structure = diagnose.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
-    with np.errstate(all="ignore"):
-        extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
-    jac = extended.jac[mask].reshape(-1, extended.p)
-    on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
-    if not np.all(np.isfinite(extended.x)) or (on_plane and not np.all(np.isfinite(jac))):
-        raise CalibrationInputError(
-            f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
-            "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
-    from handeye.model import effects as catalogue
-
-    stuck = _not_a_minimum(dataset, mask, extended, names, prob.radius)
-    if stuck is None:
-        std, corr = extended.uncertainty(mask)
-    else:  # the fit stopped against a bound, where the linearised sd means nothing
-        std, corr = np.full(extended.p, np.nan), np.full((extended.p, extended.p), np.nan)
-        jac = np.where(np.isfinite(jac), jac, 0.0)
-    index = {n: k for k, n in enumerate(extended.names)}
-    named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
-                         {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n)},
-                         _effect_sd_note(dataset, mask, extended, n, prob.radius, stuck)) for n in names]
-    if structure.centre and centre_given:
-        delta = extended.x[12:15] - dataset.sphere_centre
-        named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
-                                    dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
-    sensor, centre = prob.transform(extended.x), np.asarray(prob.centre(structure, extended.x), float)
-    circles = _circles_shown(dataset, mask) if "sphere_radius" in names else None
-    implausible = [why for n in names if (why := catalogue.implausible(n, extended.params[n], prob.radius, circles))]
-    if stuck is not None:
-        implausible.append(stuck)
-    if implausible:  # an official-looking calibration it is not
-        common = dict(common, converged=False, message="; ".join(implausible))
-        warnings.extend(implausible)
-    elif not extended.converged:
-        common = dict(common, converged=False,
-                      message=f"the fit with the effects did not converge: {extended.message}")
-    norms = np.linalg.norm(extended.e, axis=1)
-    ident = identifiability.analyse(jac, extended.names)
-    pose = pose_from_transform(sensor)
-    convention = common["convention"]
-    warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; no "
-                    "leave-one-out error (the effects are fitted to every sample used)")
-    out = dict(common, sensor2flange=sensor, sphere_centre=centre, sensor_pose_kuka=pose,
-               sensor_pose=conventions.pose_from(convention, sensor), model="centre", unknowns=(
-                   "sensor+sphere" if structure.centre else "sensor"))
-    out.update(
-        n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
-        max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
-                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, extended.e, norms, mask)],
-        sigma_mm=float(np.sqrt(extended.sigma2)),
-        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        parameter_names=tuple(extended.names), correlation=corr, covariance=corr * np.outer(std, std),
-        identifiability=ident, effects=named,
-        noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
-                     "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
-        rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
-                  "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
-                  "unweighted; this is what the fit with the effects minimises"),
-        objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
-                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * extended.ssr),
-                   "rms": float(np.sqrt(np.mean(norms[mask] ** 2))), "unit": "mm",
-                   "rms_unweighted_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
-                   "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
-                   "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
-        noise_test=_noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
-    return out
-
-
-#: The fit with effects is a minimum when every column of its Jacobian is orthogonal to the
-#: residual: |J_k^T e| <= EFFECT_COS |J_k| |e| (a regular fit: below 1e-7; one stopped against
-#: the sphere_radius bound: 1e-4 to 1e-2, or an infinite derivative).
-EFFECT_COS = 1e-5
-
-
-def _finite_or_none(value):
-    return float(value) if np.isfinite(value) else None
-
-
-def _circles_shown(dataset, mask):
-    """What the data show of the sphere: per sample its id, the radius of the circle its laser
-    plane cut (a profile's geometric circle fit with its 1 sd; for a used sample given as a
-    centre without a profile ``sqrt(R^2 - ys^2)``, sd 0) -- ``(ids, r, sd)`` for
-    :func:`handeye.model.effects.implausible`. Every profile counts, excluded or not (a gross
-    error of the robot pose leaves its circle a circle of the sphere)."""
-    from handeye.model import circle
-
-    radius = dataset.sphere_diameter / 2
-    ids, r, sd = [], [], []
-    profiles = dataset.profiles or (None,) * len(dataset)
-    for k, (ident, pts) in enumerate(zip(dataset.ids, profiles)):
-        if pts is not None:
-            try:
-                c = circle.fit_circle(pts[:, 0], pts[:, 1], observations.CIRCLE_FIT)
-                cov = circle.circle_covariance(pts[:, 0], pts[:, 1], c)
-            except circle.CircleFitError:
-                continue
-            ids.append(ident), r.append(c.r), sd.append(float(np.sqrt(max(cov[2, 2], 0.0))))
-        elif mask[k]:
-            ids.append(ident), r.append(float(np.sqrt(max(radius**2 - dataset.centre_in_sensor[k, 1] ** 2, 0.0)))),
-            sd.append(0.0)
-    return ids, np.array(r), np.array(sd)
-
-
-def _corrected_y(dataset, mask, extended, radius):
-    """|y| of each used sample's centre corrected by the fitted data effects, and their ids."""
-    from handeye.model import effects as catalogue
-
-    xs = dataset.centre_in_sensor[mask]
-    with np.errstate(all="ignore"):
-        for name, params in extended.params.items():
-            xs, _ = catalogue.correct(name, xs, radius, params)
-    return np.abs(xs[:, 1]), [i for i, u in zip(dataset.ids, mask) if u]
-
-
-def _not_a_minimum(dataset, mask, extended, names, radius):
-    """Why the fit with effects is not a minimum (text), or None: a Jacobian column not
-    orthogonal to the residual (:data:`EFFECT_COS`) or not finite. For ``sphere_radius`` this
-    is the fit stopped against the bound ``R + dr >= r_i`` (a corrected y of 0): the data ask
-    for a sphere smaller than a circle measured on it."""
-    e = extended.e[mask].ravel()
-    jac = extended.jac[mask].reshape(-1, extended.p)
-    with np.errstate(all="ignore"):
-        cos = np.abs(jac.T @ e) / (np.linalg.norm(jac, axis=0) * np.linalg.norm(e))
-    worst = float(np.max(np.where(np.isfinite(cos), cos, np.inf)))
-    if worst <= EFFECT_COS or not np.linalg.norm(e) > 0:
-        return None
-    if "sphere_radius" in names:
-        y, ids = _corrected_y(dataset, mask, extended, radius)
-        k = int(np.nanargmin(y))
-        r = float(np.sqrt(max(radius**2 - dataset.centre_in_sensor[mask][k, 1] ** 2, 0.0)))
-        dr = float(extended.params["sphere_radius"][0])
-        return (f"sphere_radius: the fit stops at dr = {dr:.4g} mm, a sphere radius of {radius + dr:.4f} mm, against "
-                f"the {r:.4f} mm circle of sample {ids[k]!r} (its corrected y is {y[k]:.2g} mm): the data ask for a "
-                "sphere smaller than a circle measured on it, which cannot be; not a minimum (the gradient does not "
-                f"vanish: cosine {worst:.2g}), so no sd either: the radius absorbs something else (a sphere centre "
-                "offset, a wrong [profile] side or a gross error?); it is not named")
-    return (f"the fit with the effects {', '.join(names)} is not a minimum (a Jacobian column is not orthogonal to "
-            f"the residual: cosine {worst:.2g} > {EFFECT_COS:g}); its sd would mean nothing")
-
-
-def _effect_sd_note(dataset, mask, extended, name, radius, stuck):
-    """What the 1 sd of effect ``name`` is and why it is the size it is (text), or None."""
-    if name != "sphere_radius":
-        return None
-    if stuck is not None:
-        return "no sd: the fit is not a minimum (see the message)"
-    y, ids = _corrected_y(dataset, mask, extended, radius)
-    k = int(np.nanargmin(y))
-    dr = float(extended.params["sphere_radius"][0])
-    gain = (radius + dr) / y[k]
-    return (f"1 sd of the linearised fit, sigma (J^T J)^-1 with sigma = {np.sqrt(extended.sigma2):.4g} mm per "
-            f"component: small against the residual because a radius change dr moves each reconstructed centre's y by "
-            f"(R + dr)/|y| dr, up to {gain:.3g} x for sample {ids[k]!r} (|y| = {y[k]:.3g} mm, its laser plane "
-            "near the sphere's equator); within about 10 % of a Monte Carlo on simulated data while the planes stay "
-            "about 1 mm or more from the equator (tests/test_effect_sd.py); nearer, y's own noise grows like r/|y| "
-            "and the sd is optimistic (the Monte Carlo's is 1.4 x at 0.5 mm on a 25.4 mm sphere)")
-
-
-def _effect_params(name):
-    from handeye.model import effects as catalogue
-
-    return catalogue.get(name).PARAMS
-
-
-def _describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
-    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit
-    (fields of :class:`CalibrationResult`); appends to ``warnings``."""
-    local, sensor, centre = fit.local, fit.sensor, fit.centre
-    allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
-    x_all = allm.point_from(sensor, centre)
-    e = allm.residuals(x_all)
-    norms = np.linalg.norm(e, axis=1)
-    final = local.point_from(sensor, centre)
-    r_used, j_used = local.residual(final), local.jacobian(final)
-    ident = identifiability.analyse(j_used, local.names)
-    if not ident.full_rank:
-        warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")
-    elif ident.observability["O2"] < identifiability.WEAK:
-        warnings.append(
-            f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
-            f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
-    groups = None if local.groups is None else np.repeat(local.groups, local.m)
-    cov = covariance(r_used, j_used, groups)
-    loo_errors = _final_loo(dataset, mask, local, final, centre) if loo else np.full(len(mask), np.nan)
-    if not outliers_on:
-        warnings += _gross_error_warnings(dataset.ids, norms)
-    return dict(
-        n_used=int(mask.sum()),
-        rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
-        max_residual_mm=float(norms[mask].max()),
-        cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u), None if not np.isfinite(lo) else float(lo))
-                   for i, r, v, n, u, lo in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)],
-        sigma_mm=cov.sigma if local.whiten is None else None,
-        sigma_scale=cov.sigma if local.whiten is not None else None,
-        std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]),
-                        cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
-        parameter_names=tuple(local.names),
-        correlation=np.asarray(cov.correlation),
-        covariance=np.asarray(cov.matrix),
-        loo_error_mm=_rms(loo_errors) if loo else None,
-        loo=_loo_description(local, int(mask.sum())) if loo else None,
-        rms_what=RMS_PER_CENTRE,
-        objective=_objective(local, final),
-        identifiability=ident,
-        hessian_eigenvalues=fit.hess_eig,
-        noise_model=_noise_model_text(local),
-        noise_test=None if local.kind == "points" else _noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
-                                                                   local.whiten is not None, warnings, dataset),
-    )
-
-
-def _final_loo(dataset, mask, local, final, centre):
-    """Leave-one-out errors (N,) of the final fit: ``local`` (the final model of the samples in
-    ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
-    ``final``; the error is sample i's sphere centre through the refitted chain
-    (:func:`handeye.app.robust.leave_one_out`). NaN for the samples not used."""
-    predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
-    out = np.full(len(mask), np.nan)
-    out[mask] = robust.leave_one_out(local, final, None, predictor)
-    return out
-
-
-#: The rows of each residual model, in words (one row: m components).
-_ROWS = {"centre": ("sphere centre", "sphere centres through the chain (3 components, mm)"),
-         "measurement": ("circle", "circles (xc, zc, r) measured in the laser plane (3 components, mm)"),
-         "points": ("profile point", "profile points' distances from the sphere surface (1 component, mm)")}
-
-
-def _objective(local, final):
-    """What the final fit minimised and its RMS (:attr:`CalibrationResult.objective`) at the
-    point ``final`` of ``local`` (the final model, local chart)."""
-    per, rows = _ROWS[local.kind]
-    weighted = local.whiten is not None
-    raw = local.residuals(final).reshape(local.n_meas, -1)
-    unweighted = float(np.sqrt(np.mean(np.sum(raw**2, axis=1))))
-    residual = local.residual(final)
-    ssr = float(residual @ residual)
-    if weighted:
-        what = (f"{rows}, each whitened by its covariance (circle fit + robot repeatability): RMS of |W_i e_i| per "
-                f"{per}, in units of its stated sd (about sqrt({local.m}) = {np.sqrt(local.m):.2f} when the noise is as "
-                "stated)")
-        short = f"the weighted RMS per {per} (whitened {rows.split(' (')[0]})"
-    else:
-        what = f"{rows}, unweighted: RMS of |e_i| per {per}, mm"
-        short = f"the unweighted RMS per {per} ({rows.split(' (')[0]})"
-    return {"model": local.kind, "residual": rows, "weighted": weighted, "rows": int(local.n_meas), "cost": 0.5 * ssr,
-            "rms": float(np.sqrt(ssr / local.n_meas)), "unit": "sd" if weighted else "mm",
-            "rms_unweighted_mm": unweighted, "what": what, "short": short}
-
-
-def _loo_description(local, n_used):
-    """How the final fit's leave-one-out error was made (:attr:`CalibrationResult.loo`)."""
-    per = _ROWS[local.kind][0]
-    weights = "weighted as the fit" if local.whiten is not None else "unweighted"
-    method = ("exact refit per sample (Gauss-Newton from the deletion-formula point, started at the full fit)"
-              if n_used <= robust.LOO_EXACT_UP_TO else
-              "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")
-    return {"model": local.kind, "weighted": local.whiten is not None, "unknowns": local.unknowns, "method": method,
-            "what": (f"the final model (--model {local.kind}: {per} rows, {weights}, unknowns {local.unknowns}) refitted "
-                     "without each used sample; the error is that sample's sphere centre carried through the refitted "
-                     "chain against the refitted sphere centre, |T1_i T2_(-i) xs_i - c_(-i)| (mm): comparable across "
-                     "models; loo_error_mm is its RMS over the samples used")}
+                             **describe.describe_fit(dataset, mask, fit, loo, outliers, warnings, sigma))

@@ -35,7 +35,8 @@ import numpy as np
 from handeye import solvers
 from handeye.app import robust
 from handeye.app.calibrate import resolve_start
-from handeye.app.results import DiagnosisResidual, DiagnosisResult, NamedEffect, ScoreTest, Step
+from handeye.app.diagnosis_results import DiagnosisResidual, DiagnosisResult, ScoreTest, Step
+from handeye.app.results import NamedEffect
 from handeye.model import effects
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -283,7 +284,7 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
 
     Returns
     -------
-    list of handeye.app.results.ScoreTest
+    list of handeye.app.diagnosis_results.ScoreTest
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
         the score's variance is robust to unequal noise between samples (:func:`_score_robust`).
     """
@@ -337,7 +338,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
 
     Returns
     -------
-    handeye.app.results.DiagnosisResult
+    handeye.app.diagnosis_results.DiagnosisResult
     """
     prob = Samples(dataset, sigma)
     start_pose, _ = resolve_start(dataset, "sensor", start)
@@ -589,7 +590,7 @@ def _unexplained(after, sigma):
 
 
 def text(res):
-    """A readable report of a :class:`handeye.app.results.DiagnosisResult`."""
+    """A readable report of a :class:`handeye.app.diagnosis_results.DiagnosisResult`."""
     lines = [f"handeye diagnose: dataset {res.dataset}", ""]
     if res.effects:
         lines.append("effects named:")

@@ -9,7 +9,8 @@ import pytest
 import handeye
 from handeye.app import api, cli
 from handeye.app import calibrate as engine
-from handeye.app.results import CalibrationResult, DiagnosisResult
+from handeye.app.diagnosis_results import DiagnosisResult
+from handeye.app.results import CalibrationResult
 from handeye.model import circle, classics, closed_form, conventions, dataset, observations, planning, simulate
 
 

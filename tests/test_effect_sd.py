@@ -104,15 +104,15 @@ def test_a_radius_below_a_profiles_circle_is_implausible():
 def test_calibrate_checks_the_radius_against_every_profile(tmp_path, monkeypatch):
     """calibrate hands every profile's circle (used or excluded) to the check: a sample whose
     profile shows a circle larger than the fitted sphere makes the result not converged."""
-    from handeye.app import calibrate as engine
+    from handeye.app import describe
 
     s = handeye.simulate(tmp_path / "p", seed=2, n_poses=10, diameter=DIAMETER, profiles=True)
     ok = handeye.calibrate(s.path, effects="sphere_radius", no_loo=True)
     assert ok.converged
-    ids, r, sd = engine._circles_shown(handeye.load_dataset(s.path), np.ones(10, bool))
+    ids, r, sd = describe.circles_shown(handeye.load_dataset(s.path), np.ones(10, bool))
     assert len(ids) == 10 and np.all(r < DIAMETER / 2) and np.all(sd > 0)
     big = r.copy()
     big[3] = DIAMETER / 2 + 0.5  # as if sample 3's profile showed a circle larger than the sphere
-    monkeypatch.setattr(engine, "_circles_shown", lambda dataset, mask: (ids, big, sd))
+    monkeypatch.setattr(describe, "circles_shown", lambda dataset, mask: (ids, big, sd))
     r = handeye.calibrate(s.path, effects="sphere_radius", no_loo=True)
     assert not r.converged and repr(ids[3]) in r.message and "circle" in r.message

@@ -1,0 +1,221 @@
+"""Typed results of a diagnosis: what :func:`handeye.diagnose` returns (the discrepancy
+workflow's steps, score tests, per-sample residuals before and after the named effects).
+
+:meth:`DiagnosisResult.to_dict` is exactly the ``handeye diagnose --json`` object.
+"""
+from __future__ import annotations
+
+import dataclasses
+import html
+
+import numpy as np
+
+from handeye.app.results import Uncertainty, _list, dumps  # noqa: F401  (shared JSON helpers)
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One step of the diagnosis: the fit after it (mm; chi2/dof against the nominal sigma)."""
+
+    step: str
+    rms_mm: float
+    chi2_dof: float
+    sigma_mm: float
+    heldout_rms_mm: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class ScoreTest:
+    """A candidate effect's score test in one round (Bonferroni over the round's candidates)."""
+
+    name: str
+    score: float
+    p_bonferroni: float
+    gate: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnosisResidual:
+    """|residual| of one sample before (base model) and after (with the named effects), mm."""
+
+    id: str
+    before_mm: float
+    after_mm: float
+    used: bool
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+def absorbed_sentence(name, by, centre_fitted=True):
+    """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre."""
+    from handeye.model import effects
+
+    groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
+    what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
+    structural = effects.get(name).KIND == "structural"
+    by_centre = any(p.startswith("c") for p in by)
+    if by_centre and not centre_fitted:
+        held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
+                "offset (which diagnose would name)")
+    else:
+        held = "which the calibration fits anyway, so those fitted values already contain it"
+    return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
+            f"{' and '.join(what)} ({', '.join(by)}); {held}; "
+            + ("no choice of poses can separate it (it is part of what they describe)"
+               if structural else "poses with other rotations could separate it"))
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnosisResult:
+    """The outcome of :func:`handeye.diagnose`; :meth:`to_dict` is ``handeye diagnose --json``.
+
+    Attributes
+    ----------
+    effects : list of NamedEffect
+    outliers : list of str
+        Ids excluded as outliers at the end (the rows in ``inconsistent`` among them).
+    inconsistent : list of ExcludedSample
+        Rows whose centre columns contradict their own profile, excluded for good, with the
+        reason (the same records as calibrate's ``excluded``; :mod:`handeye.model.consistency`).
+    absorbed_by : dict
+        Effect name -> the parameters that reproduce it (not identifiable from these poses).
+    rms_before_mm, rms_after_mm, heldout_rms_before_mm, heldout_rms_after_mm : float
+        Fitted and 5-fold held-out RMS, base model and with the named effects, mm.
+    chi2_dof_before, chi2_dof_after : float
+        Against ``nominal_sigma_mm`` per residual component.
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor in flange (mm) of the final model. JSON key ``sensor_matrix``.
+    sensor_pose : ndarray, shape (6,)
+        KUKA x, y, z, A, B, C (mm, deg) of the model with the named effects.
+    sensor_pose_as, convention, columns
+        The same pose in the dataset's robot convention (JSON ``sensor_pose_as``).
+    std : Uncertainty
+        Its 1-sd (translation mm; rotation deg about the sensor's axes), and the sphere
+        centre's when ``sphere_center`` is named.
+    sphere_centre : ndarray, shape (3,)
+        Robot base, mm. JSON key ``sphere_center``.
+    steps : list of Step
+    tests : list of list of ScoreTest
+        The score tests of each round.
+    residuals : list of DiagnosisResidual
+    unexplained : str
+        What remains after the named effects.
+    """
+
+    dataset: str
+    effects: list
+    outliers: list
+    absorbed_by: dict
+    rms_before_mm: float
+    rms_after_mm: float
+    heldout_rms_before_mm: float
+    heldout_rms_after_mm: float
+    chi2_dof_before: float
+    chi2_dof_after: float
+    nominal_sigma_mm: float
+    sigma_after_mm: float
+    sensor_pose: np.ndarray
+    sensor2flange: np.ndarray
+    sphere_centre: np.ndarray
+    effect_correlations: dict
+    steps: list
+    tests: list
+    residuals: list
+    screened_out_first: list
+    unexplained: str
+    convention: str = "kuka"
+    columns: tuple = ("x", "y", "z", "a", "b", "c")
+    sensor_pose_as: np.ndarray | None = None
+    std: Uncertainty | None = None
+    provenance: dict | None = None
+    centre_fitted: bool = True
+    inconsistent: list = dataclasses.field(default_factory=list)
+
+    @property
+    def absorbed_explained(self):
+        """Each absorbed effect in a sentence a user understands."""
+        return [absorbed_sentence(name, by, self.centre_fitted) for name, by in self.absorbed_by.items()]
+
+    @property
+    def not_identifiable(self):
+        """Names of the catalogue effects these poses cannot separate from the model."""
+        return sorted(self.absorbed_by)
+
+    def to_dict(self):
+        """The ``handeye diagnose --json`` object."""
+        return {
+            "dataset": self.dataset,
+            "effects": [e.to_dict() for e in self.effects],
+            "outliers": list(self.outliers),
+            "inconsistent": [e.to_dict() for e in self.inconsistent],
+            "not_identifiable": self.not_identifiable,
+            "absorbed_by": {k: list(v) for k, v in self.absorbed_by.items()},
+            "rms_before_mm": self.rms_before_mm,
+            "rms_after_mm": self.rms_after_mm,
+            "heldout_rms_before_mm": self.heldout_rms_before_mm,
+            "heldout_rms_after_mm": self.heldout_rms_after_mm,
+            "chi2_dof_before": self.chi2_dof_before,
+            "chi2_dof_after": self.chi2_dof_after,
+            "nominal_sigma_mm": self.nominal_sigma_mm,
+            "sigma_after_mm": self.sigma_after_mm,
+            "sensor_pose": _list(self.sensor_pose),
+            "sensor_matrix": _list(self.sensor2flange),
+            "sphere_center": _list(self.sphere_centre),
+            "effect_correlations": self.effect_correlations,
+            "steps": [s.to_dict() for s in self.steps],
+            "tests": [[t.to_dict() for t in round_] for round_ in self.tests],
+            "residuals": [r.to_dict() for r in self.residuals],
+            "screened_out_first": list(self.screened_out_first),
+            "unexplained": self.unexplained,
+            "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
+                               "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
+                                             else self.sensor_pose)},
+            "std": None if self.std is None else self.std.to_dict(),
+            "absorbed_explained": self.absorbed_explained,
+            **({"provenance": self.provenance} if self.provenance is not None else {}),
+        }
+
+    def to_json(self, indent=1):
+        """:meth:`to_dict` as strict JSON text (non-finite numbers as null)."""
+        return dumps(self.to_dict(), indent)
+
+    def summary(self):
+        """The CLI's text report."""
+        from handeye.app import diagnose
+
+        return diagnose.text(self)
+
+    def save(self, path):
+        """Write :meth:`to_json` atomically to ``path`` (with ``provenance`` when set)."""
+        from handeye.app.files import write_text_atomically
+
+        write_text_atomically(path, self.to_json(), option="--out")
+
+    def figures(self, folder):
+        """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""
+        from handeye.app import diagnose
+
+        return diagnose.figures(self, folder)
+
+    def _repr_html_(self):
+        named = "; ".join(
+            e.name + (": " + ", ".join(e.parameters["ids"]) if e.std is None else
+                      ": " + ", ".join(f"{k} = {v:.4g} ± {e.std[k]:.2g}" for k, v in e.parameters.items()))
+            for e in self.effects) or "none"
+        rows = [("dataset", self.dataset), ("effects named", named),
+                ("outliers", ", ".join(self.outliers) or "none"),
+                ("absorbed (not identifiable)", ", ".join(self.not_identifiable) or "none"),
+                ("RMS before → after (mm)", f"{self.rms_before_mm:.4f} → {self.rms_after_mm:.4f}"),
+                ("held-out RMS before → after (mm)",
+                 f"{self.heldout_rms_before_mm:.4f} → {self.heldout_rms_after_mm:.4f}"),
+                ("unexplained", self.unexplained)]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
+                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
+        return f"<table><caption>handeye diagnosis</caption>{body}</table>"
