@@ -284,12 +284,29 @@ def _judge(model, result, polish=True):
     return _Verdict(model, result, sensor, centre, converged, message, notes, local, hess_eig)
 
 
-def _refit(used, unknowns, method, rotation, options, kind, robot_sigma, polish, sensor2flange, centre, exact=False):
-    """The final fit from a centre-model minimum; with ``exact`` the minimum itself when the
-    solver ends next to it (the SVD solution of the unweighted centre model is exact)."""
-    data = used if unknowns == "sensor" else dataclasses.replace(used, sphere_centre=centre)
-    verdict = _judge(*_solve(data, unknowns, method, rotation, pose_from_transform(sensor2flange), options, kind,
-                             robot_sigma), polish=polish)
+@dataclasses.dataclass(frozen=True)
+class _FinalFit:
+    """How the final fit is solved: what :func:`_solve` needs besides the data and the start."""
+
+    unknowns: str
+    method: str
+    rotation: str
+    options: dict
+    kind: str
+    robot_sigma: float
+    polish: bool
+
+    def solve(self, dataset, start_pose):
+        return _judge(*_solve(dataset, self.unknowns, self.method, self.rotation, start_pose, self.options, self.kind,
+                              self.robot_sigma), polish=self.polish)
+
+
+def _refit(final, used, sensor2flange, centre, exact=False):
+    """The final fit (:class:`_FinalFit`) from a centre-model minimum; with ``exact`` the
+    minimum itself when the solver ends next to it (the SVD solution of the unweighted centre
+    model is exact)."""
+    data = used if final.unknowns == "sensor" else dataclasses.replace(used, sphere_centre=centre)
+    verdict = final.solve(data, pose_from_transform(sensor2flange))
     if exact and verdict.local is not None and verdict.converged:
         dt, dr = transform_distance(verdict.sensor, sensor2flange)
         if dt <= guarantee.SAME_MM and dr <= guarantee.SAME_DEG:
@@ -306,7 +323,7 @@ def _global(used, unknowns, fit, kind, sigma, refit):
     fit, note, check = guarantee.lowest(fit, basin, refit, exact_centre_model=exact)
     if note:
         fit = dataclasses.replace(fit, notes=[*fit.notes, note])
-    refusal = guarantee.explains_nothing(used, basin) or (  # a fit that did not converge says so itself
+    refusal = guarantee.explains_nothing(used, basin, sigma) or (  # a fit that did not converge says so itself
         guarantee.cross_check(used, fit, basin, sigma) if fit.converged else None)
     return fit, check, refusal
 
@@ -435,9 +452,10 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
                                 "closed-form estimate")
                 start_used = "closed-form estimate (after the given start failed)"
                 fit = retry
+    final = _FinalFit(unknowns, method, rotation, options, kind, robot_sigma, polish)
     fit, global_check, refusal = _global(used, unknowns, fit, kind, sigma,
-                                         lambda *a, **k: _refit(used, unknowns, method, rotation, options, kind,
-                                                                robot_sigma, polish, *a, **k))
+                                         lambda *a, **k: _refit(final, used, *a, **k))
+    refusal = refusal or guarantee.two_groups(dataset, mask, fit, sigma)
     warnings += fit.notes
     pose = pose_from_transform(fit.sensor)
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:

@@ -30,6 +30,8 @@ from handeye.model import conventions, global_fit
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.rotation import matrix_from_rotvec
 
+#: Position scales tried (mm per unit) and what they look like.
+UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
 #: Axis sequences of Euler angles (6 Tait-Bryan, 6 proper Euler).
 SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz")
 #: With the centre free, this many of the best linear closed-form candidates are re-scored by
@@ -111,15 +113,21 @@ class Candidate:
 
     reading: Reading
     inverted: bool
-    metres: bool
+    scale: float
     flange2base: np.ndarray
+    centre_scaled: bool = False
+
+    @property
+    def unit(self):
+        """The length unit the positions look written in (None: mm)."""
+        return UNITS.get(self.scale)
 
     def describe(self):
         parts = [f"the orientation columns read as {self.reading.name}"]
         if self.inverted:
             parts.append("the poses inverted (the file holds the base in the flange)")
-        if self.metres:
-            parts.append("the positions in metres")
+        if self.unit:
+            parts.append(f"the positions in {self.unit}" + (" (the sphere centre too)" if self.centre_scaled else ""))
         return ", ".join(parts)
 
 
@@ -151,11 +159,13 @@ def candidates(dataset):
             rot = reading.rotation(raw[:, 3:])
         if not np.all(np.isfinite(rot)):
             continue
-        for inverted, metres in itertools.product((False, True), (False, True)):
-            if reading.convention == dataset.convention and not inverted:
+        for inverted, scale in itertools.product((False, True), (1.0, *UNITS)):
+            if reading.convention == dataset.convention and not inverted and scale in (1.0, 1000.0):
                 continue  # as declared (metres alone is handeye.app.slips' own candidate)
-            pos = raw[:, :3] * (1000.0 if metres else 1.0)
-            out.append(Candidate(reading, inverted, metres, _transforms(rot, pos, inverted)))
+            poses = _transforms(rot, raw[:, :3] * scale, inverted)
+            out.append(Candidate(reading, inverted, scale, poses))
+            if scale != 1.0 and dataset.sphere_centre is not None:
+                out.append(Candidate(reading, inverted, scale, poses, centre_scaled=True))
     return out
 
 
@@ -168,8 +178,9 @@ def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
         C candidate readings of N flange poses (flange in base, mm).
     centre_in_sensor : ndarray, shape (N, 3)
         mm, sensor frame.
-    sphere_centre : ndarray, shape (3,), optional
-        Base, mm. Given: the exact global minimum (one SVD per candidate). None: the linear
+    sphere_centre : ndarray, shape (3,) or (C, 3), optional
+        Base, mm (one for all candidates or one each). Given: the exact global minimum (one
+        SVD per candidate). None: the linear
         closed form's fit (an upper bound of the minimum; inf where it is undetermined).
     """
     f2b = np.asarray(flange2base, float)
@@ -185,7 +196,8 @@ def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
                 continue
             out.append(np.sqrt(2 * global_fit.centre_cost(poses, p, x, c) / n))
         return np.array(out)
-    q = np.einsum("cnba,cnb->cna", f2b[..., :3, :3], np.asarray(sphere_centre, float) - f2b[..., :3, 3])
+    c = np.asarray(sphere_centre, float).reshape(-1, 1, 3)  # one centre, or one per candidate
+    q = np.einsum("cnba,cnb->cna", f2b[..., :3, :3], c - f2b[..., :3, 3])
     pc, qc = p - p.mean(axis=0), q - q.mean(axis=1, keepdims=True)
     h = np.einsum("cni,nj->cij", qc, pc)
     u, s, vt = np.linalg.svd(h)
@@ -204,6 +216,8 @@ def best(dataset, unknowns):
     if centre is None and unknowns == "sensor":
         return None
     stack = np.array([c.flange2base for c in found])
+    if centre is not None:
+        centre = np.array([centre * (c.scale if c.centre_scaled else 1.0) for c in found])
     rms = closed_form_rms(stack, dataset.centre_in_sensor, centre)
     if centre is None:  # the linear closed form is an upper bound: the best few searched exactly
         for k in np.argsort(rms)[:REFINE]:
@@ -216,7 +230,7 @@ def best(dataset, unknowns):
     k = int(np.argmin(rms))
     ties = [j for j in range(len(found)) if rms[j] <= rms[k] * 1.01 + 1e-12]
     known = [j for j in ties if found[j].reading.convention is not None]  # a convention before an Euler order
-    k = min(known or ties, key=lambda j: (found[j].inverted + found[j].metres, rms[j]))
+    k = min(known or ties, key=lambda j: (found[j].inverted + (found[j].scale != 1.0), rms[j]))
     return found[k], float(rms[k])
 
 
@@ -237,6 +251,7 @@ def fix(candidate, dataset):
     if candidate.inverted:
         steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
                      "flange, as a tf lookup of base in flange gives it)")
-    if candidate.metres:
-        steps.append("write the positions in millimetres (x 1000)")
+    if candidate.unit:
+        steps.append(f"write the positions{' and the [sphere] center' if candidate.centre_scaled else ''} in "
+                     f"millimetres (x {candidate.scale:g}: they look like {candidate.unit})")
     return "; ".join(steps)

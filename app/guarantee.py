@@ -19,10 +19,12 @@ by the noise). So:
    the wrong basin -- reported as not converged, never as a result (:func:`cross_check`);
 4. a fit that explains nothing -- the centre model's global minimum has an RMS above
    :data:`EXPLAINS_NOTHING` of the robot's own motion (the RMS distance of the flange
-   positions, or of the sensor origins, from their mean) -- is not a calibration
-   (:func:`explains_nothing`): the data or their conventions are wrong, whatever the solver
-   says; nor is one whose RMS exceeds the spread of the centres the sensor measured (the pose
-   then predicts them no better than their mean).
+   positions from their mean, or of the sensor origins where the flange only turns) -- is
+   not a calibration (:func:`explains_nothing`): the data or their conventions are wrong,
+   whatever the solver says; nor is one whose RMS exceeds the spread of the centres the
+   sensor measured (the pose then predicts them no better than their mean). Both only when
+   the residuals are also above the stated noise: a cell whose large noise is stated in
+   ``[noise] centre_mm`` is noisy, not wrong.
 """
 from __future__ import annotations
 
@@ -47,6 +49,10 @@ EXPLAINS_NOTHING = 0.1
 #: ... or above this fraction of the spread of the sensor's measured centres about their mean
 #: (at 1, the fitted pose predicts them no better than their mean does).
 EXPLAINS_NOTHING_SENSOR = 1.0
+#: A flange that moves less than this (mm RMS) only turns: the sensor's motion is the robot's.
+STILL_MM = 1.0
+#: ... and only when the residuals are also above the stated noise at this level.
+NOISE_P = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,28 +181,37 @@ def cross_check(dataset, verdict, basin, sigma):
 
 
 def motion_rms(dataset, sensor2flange=None):
-    """The robot's own motion (mm): the RMS distance of the flange positions from their mean,
-    or of the sensor origins' (at ``sensor2flange``) where that is larger (a robot that only
-    turns its flange about one point still moves the sensor)."""
+    """The robot's own motion (mm): the RMS distance of the flange positions from their mean;
+    where the flange stays put (below :data:`STILL_MM`: it only turns about one point), the
+    sensor origins' at ``sensor2flange`` instead."""
     f2b = dataset.flange2base()
-    points = [f2b[:, :3, 3]]
-    if sensor2flange is not None:
-        points.append(np.einsum("nab,b->na", f2b[:, :3, :3], np.asarray(sensor2flange, float)[:3, 3]) + f2b[:, :3, 3])
-    return max(float(np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1)))) for t in points)
+    flange = f2b[:, :3, 3]
+    motion = float(np.sqrt(np.mean(np.sum((flange - flange.mean(axis=0)) ** 2, axis=1))))
+    if motion >= STILL_MM or sensor2flange is None:
+        return motion
+    origins = np.einsum("nab,b->na", f2b[:, :3, :3], np.asarray(sensor2flange, float)[:3, 3]) + flange
+    return float(np.sqrt(np.mean(np.sum((origins - origins.mean(axis=0)) ** 2, axis=1))))
 
 
-def explains_nothing(dataset, basin):
+def explains_nothing(dataset, basin, sigma):
     """A message when even the centre model's global minimum leaves residuals above
-    :data:`EXPLAINS_NOTHING` of the robot's motion, else None."""
+    :data:`EXPLAINS_NOTHING` of the robot's motion (or above the spread of the sensor's
+    centres) *and* above the stated noise ``sigma`` (mm per component; chi-square at
+    :data:`NOISE_P`: a cell whose large noise is stated is not refused), else None."""
+    from handeye.model.statistics import chi2_survival
+
     if basin is None:
         return None
     rms = float(np.sqrt(2 * basin.best.cost / len(dataset)))
+    dof = 3 * len(dataset) - 6
+    if dof <= 0 or chi2_survival(2 * basin.best.cost / sigma**2, dof) >= NOISE_P:
+        return None
     motion = motion_rms(dataset, basin.best.sensor2flange)
     p = dataset.centre_in_sensor
     spread = float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
     if rms > EXPLAINS_NOTHING * motion:
-        than = (f"more than {EXPLAINS_NOTHING:g} x the robot's own motion ({motion:.4g} mm RMS of the flange positions or "
-                "sensor origins about their mean)")
+        than = (f"more than {EXPLAINS_NOTHING:g} x the robot's own motion ({motion:.4g} mm RMS of the flange positions "
+                "about their mean)")
     elif rms > EXPLAINS_NOTHING_SENSOR * spread:
         than = (f"more than the spread of the centres the sensor measured ({spread:.4g} mm RMS about their mean): the "
                 "pose predicts them no better than their mean does")
@@ -206,3 +221,44 @@ def explains_nothing(dataset, basin):
     return (f"the fit explains nothing: even the best sensor pose of the centre model ({', '.join(f'{v:.1f}' for v in pose)}, "
             f"KUKA) leaves an RMS residual of {rms:.4g} mm, {than}: the poses, their convention, the sensor's centres "
             "or the sphere centre are wrong; not a calibration")
+
+
+#: Rows the screening excluded that fit each other this well (RMS ratio to the used rows' or
+#: the stated noise's, whichever is larger) ...
+GROUP_AGREE = 2.0
+#: ... at a pose this far from the reported one (mm, deg) are a second group, not gross errors.
+GROUP_APART_MM, GROUP_APART_DEG = 2.0, 1.0
+
+
+def two_groups(dataset, mask, verdict, sigma):
+    """A message when the rows the screening excluded (at least four) agree with each other on
+    a sensor pose far from the reported one, else None.
+
+    Gross errors scatter; rows that share a slip the others do not (a convention or sign slip
+    in some rows, another setup's rows) agree with each other. When such rows are many enough,
+    the robust screening may keep the wrong group -- a negated C angle, for instance, leaves
+    the rows with C = 0 as they were and turns the others by 180 deg, and the screening kept
+    the turned ones, 320 mm off, with exit 0. The excluded rows are fitted alone (centre model,
+    the reported sphere centre, its exact global minimum): if they fit as well as the used rows
+    (or the stated noise) at a pose far from the reported one, the data hold two calibrations
+    and neither is reported.
+    """
+    excluded = ~np.asarray(mask, bool)
+    if verdict.local is None or excluded.sum() < 4:
+        return None
+    f2b, p = dataset.flange2base(), dataset.centre_in_sensor
+    try:
+        other = global_fit.centre_minima(f2b[excluded], p[excluded], verdict.centre).best
+    except global_fit.GlobalFitError:
+        return None
+    used = np.asarray(mask, bool)
+    rms_used = float(np.sqrt(2 * global_fit.centre_cost(f2b[used], p[used], verdict.sensor, verdict.centre) / used.sum()))
+    rms_other = float(np.sqrt(2 * other.cost / excluded.sum()))
+    dt, dr = transform_distance(other.sensor2flange, verdict.sensor)
+    if rms_other > GROUP_AGREE * max(rms_used, np.sqrt(3) * sigma) or (dt <= GROUP_APART_MM and dr <= GROUP_APART_DEG):
+        return None
+    rows = [r for r, e in zip(dataset.rows, excluded) if e]
+    return (f"the {len(rows)} rows the screening excluded (rows {', '.join(map(str, rows[:12]))}"
+            f"{' ...' if len(rows) > 12 else ''}) are no gross errors: alone they fit each other with RMS {rms_other:.3g} mm "
+            f"(the used rows {rms_used:.3g} mm) at a sensor pose {dt:.3g} mm / {dr:.3g} deg from the reported one. The data "
+            "hold two calibrations -- a slip in some rows (a sign, a convention, another setup's rows?); not a calibration")

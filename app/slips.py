@@ -174,14 +174,19 @@ def check(dataset, unknowns, rms_given):
     rms_given : float
         RMS (mm, of |e_i|) of the plain fit of every sample as the dataset is.
     """
+    check_diameter(dataset)
+    suspect, dof = _suspect(dataset, unknowns, rms_given)
+    if suspect:
+        _check_slips(dataset, unknowns, rms_given, dof)
+        _check_conventions(dataset, unknowns, rms_given, dof)
+    check_equator(dataset, unknowns)  # on data no slip explains better
+
+
+def _check_slips(dataset, unknowns, rms_given, dof):
+    """Raise :class:`CalibrationInputError` naming the first-setup slip (:func:`_candidates`)
+    whose undoing explains the data clearly and significantly better (module docstring)."""
     from handeye.model.statistics import f_survival
 
-    check_diameter(dataset)
-    check_equator(dataset)
-
-    suspect, dof = _suspect(dataset, unknowns, rms_given)
-    if not suspect:
-        return
     best = None
     for slip in _candidates(dataset):
         if slip.dataset.sphere_centre is None and unknowns == "sensor":
@@ -197,22 +202,24 @@ def check(dataset, unknowns, rms_given):
             f"{dataset.path}: the data look like a setup slip, {slip.name}: as given, the plain fit of every sample has "
             f"RMS {rms_given:.3g} mm; with that slip undone, {rms:.3g} mm. {slip.fix[0].upper() + slip.fix[1:]}, "
             "and calibrate again")
-    _check_conventions(dataset, unknowns, rms_given, dof)
 
 
 def _check_conventions(dataset, unknowns, rms_given, dof):
     """Raise :class:`CalibrationInputError` when the poses read another way (:mod:`handeye.app.detective`)
-    fit clearly and significantly better: at most :data:`EXPLAINED_RMS_MM` or an order of magnitude
-    below the fit as declared."""
+    fit clearly and significantly better, and fit: at most :data:`EXPLAINED_RMS_MM`, or within
+    the stated noise (a reading that still leaves centimetres is not named: following it would
+    not help)."""
     from handeye.app import detective
     from handeye.model import conventions
-    from handeye.model.statistics import f_survival
+    from handeye.model.statistics import chi2_survival, f_survival
 
     found = detective.best(dataset, unknowns)
     if found is None:
         return
     candidate, rms = found
-    if not (rms > 0 and rms * FACTOR <= rms_given and (rms <= EXPLAINED_RMS_MM or rms * 10 <= rms_given)):
+    n = len(dataset)
+    at_noise = chi2_survival(n * rms**2 / dataset.noise_centre_mm**2, dof) >= P_SUSPECT  # fits the stated noise
+    if not (rms > 0 and rms * FACTOR <= rms_given and (rms <= EXPLAINED_RMS_MM or at_noise)):
         return
     if f_survival((rms_given / rms) ** 2, dof, dof) >= P_SLIP:
         return
@@ -226,34 +233,79 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
 
 #: A centre within this fraction of the sphere radius of the laser plane is near the equator.
 EQUATOR_BAND = 0.1
-#: From this fraction of the rows near the equator on one side, the data are refused.
-EQUATOR_ROWS = 0.5
+#: The rows near the equator decide the side unless flipping them changes the fit less than
+#: an F test at this level can see ...
+P_SIDE = 1e-3
+#: ... while moving the pose by more than this (mm, deg) and more than SIDE_MOVE_SD of its
+#: standard deviations.
+SIDE_MOVE_MM, SIDE_MOVE_DEG, SIDE_MOVE_SD = 1.0, 0.5, 3.0
 
 
-def check_equator(dataset):
-    """Raise :class:`CalibrationInputError` when most rows cut the sphere near its equator with
-    one assumed side.
+def _pose_sd(dataset, unknowns, minimum):
+    """1 sd (mm, deg; norms over the axes) of the centre model's pose at ``minimum``."""
+    from handeye.model.calibration import CalibrationModel
+    from handeye.model.statistics import covariance
+
+    model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=minimum.centre)
+    x = model.point_from(minimum.sensor2flange, minimum.centre)
+    std = covariance(model.residual(x), model.jacobian(x)).std
+    return float(np.linalg.norm(std[:3])), float(np.degrees(np.linalg.norm(std[3:6])))
+
+
+def check_equator(dataset, unknowns="sensor"):
+    """Raise :class:`CalibrationInputError` when the rows cut near the sphere's equator leave the
+    side of the laser plane, and with it the pose, undetermined.
 
     A laser line cuts the sphere in a circle of radius r that gives the centre's distance from
     the laser plane, ``|y| = sqrt(R^2 - r^2)``, but not its side: every row's sign is the
     assumption ``[profile] side`` (or the sensor's). Near the equator (``|y|`` below
-    :data:`EQUATOR_BAND` R) the circle says almost nothing about y (``dr/dy = -y/r``) and a
-    sensor pose a few millimetres off its nominal value moves the centre across the plane
-    unseen: the data then fit a wrong pose centimetres off, at an RMS that looks like noise
-    (planned 2-inch cells whose CAD pose was more off than the plan's margin: 8-17 mm, exit 0).
-    When at least :data:`EQUATOR_ROWS` of the rows are that close and all on one side -- the
-    signature of an assumed side; a sensor that measures y itself scatters around the plane --
-    the data cannot determine the pose, and that is said instead of a calibration.
+    :data:`EQUATOR_BAND` R) a sensor pose a few millimetres off its nominal value moves the
+    centre across the plane unseen, and the data then fit a wrong pose centimetres off at an
+    RMS that looks like noise (planned 2-inch cells whose CAD pose was more off than the plan's
+    margin: 8-17 mm, exit 0). The test is the alternative itself: the centre model's global
+    minimum with those rows as given and with them on the other side. Unless the rows as given
+    fit significantly better (F test p below :data:`P_SIDE`), while the two put the sensor in
+    different places (more than :data:`SIDE_MOVE_MM` or :data:`SIDE_MOVE_DEG`, and more than
+    :data:`SIDE_MOVE_SD` standard deviations of the pose), the data do not
+    settle the side (they fit alike, or better the other way), and that is said instead of a
+    calibration. Rows on both sides (a sensor that measures y itself) and
+    rows whose side the rest of the data settle pass.
     """
-    y = dataset.centre_in_sensor[:, 1]
+    from handeye.model import global_fit
+    from handeye.model.rotation import transform_distance
+    from handeye.model.statistics import f_survival
+
+    p = dataset.centre_in_sensor
+    y = p[:, 1]
     radius = dataset.sphere_diameter / 2
     near = np.abs(y) < EQUATOR_BAND * radius
-    if not (np.all(y <= 0) or np.all(y >= 0)) or near.mean() < EQUATOR_ROWS:
+    if not near.any() or not (np.all(y <= 0) or np.all(y >= 0)):
         return
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    flipped = p.copy()
+    flipped[near, 1] = -flipped[near, 1]
+    try:
+        given = global_fit.centre_minima(dataset.flange2base(), p, centre).best
+        other = global_fit.centre_minima(dataset.flange2base(), flipped, centre).best
+    except global_fit.GlobalFitError:
+        return
+    dof = 3 * len(p) - (6 if centre is not None else 9)
+    settled = given.cost < other.cost and f_survival(other.cost / max(given.cost, 1e-300), dof, dof) < P_SIDE
+    dt, dr = transform_distance(given.sensor2flange, other.sensor2flange)
+    if dof <= 0 or settled or (dt <= SIDE_MOVE_MM and dr <= SIDE_MOVE_DEG):
+        return
+    sd_mm, sd_deg = _pose_sd(dataset, unknowns, given)
+    if dt <= SIDE_MOVE_SD * sd_mm and dr <= SIDE_MOVE_SD * sd_deg:
+        return  # the side moves the pose less than its own uncertainty does
+    rms = [float(np.sqrt(2 * m.cost / len(p))) for m in (given, other)]
+    verdict = ("and they fit better on the other side" if other.cost < given.cost
+               and f_survival(given.cost / max(other.cost, 1e-300), dof, dof) < P_SIDE
+               else "and the data cannot tell which side")
     raise CalibrationInputError(
         f"{dataset.path / 'measurements.csv'}: {int(near.sum())} of {len(y)} rows cut the sphere within "
         f"{EQUATOR_BAND * radius:.3g} mm of its equator (|ys| up to {np.abs(y[near]).max():.3g} mm, R = {radius:g} mm), "
-        "all on one assumed side: there a circle tells neither the side of the laser plane nor the distance from it, "
-        "so the sensor pose is not determined (a few mm of pose error moves rows across the plane unseen). Measure "
-        "poses that cut the sphere between 0.1 R and 0.9 R from its centre (handeye plan, with a --margin at least "
-        "as large as the nominal pose's error)")
+        f"all on one assumed side, {verdict}: with those rows as given the centre model fits with RMS {rms[0]:.3g} mm, "
+        f"on the other side {rms[1]:.3g} mm, at sensor poses {dt:.3g} mm / {dr:.3g} deg apart. There a circle tells "
+        "neither the side of the laser plane nor the distance from it, and a few mm of pose error moves rows across the "
+        "plane unseen. Measure poses that cut the sphere between 0.1 R and 0.9 R from "
+        "its centre (handeye plan, with a --margin at least as large as the nominal pose's error)")

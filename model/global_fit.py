@@ -34,12 +34,14 @@ of any size is then independent of N). Minimising a quadratic form over SO(3) ha
 minima in general; it is done here by covering SO(3) with :data:`COVER` rotations (a
 super-Fibonacci spiral, Alexa 2022: deterministic and nearly uniform), evaluating the form at
 each (one matrix product), and polishing the lowest :data:`SEEDS` points that lie at least
-:data:`SEED_SEPARATION_DEG` apart by Newton's method on SO(3) with the exact Riemannian
-Hessian. Distinct ends are the local minima found, lowest first. Every basin wider than the
-cover's spacing (about 6 degrees at 4096 rotations; the calibration's basins span tens of
-degrees) holds at least one cover point, and the lowest cover point of every basin wider
-than the separation is polished -- the argument is a dense search, stated as such, not a
-certificate.
+:data:`SEED_SEPARATION_DEG` apart by damped Newton on SO(3) with the exact Riemannian Hessian
+(shifted to positive definite where it is not). Distinct ends are the local minima found,
+lowest first. The cover's points lie about 11 degrees from their nearest neighbour (every
+rotation within about 13 degrees of one), while the calibration's basins span tens of
+degrees: every such basin holds cover points, and the lowest points of up to :data:`SEEDS`
+basins more than the separation apart are polished. The argument is a dense search, stated
+as such, not a certificate (against a brute force of 2,000 random starts it found the global
+minimum in 160 of 160 cells).
 """
 from __future__ import annotations
 
@@ -281,10 +283,12 @@ def _newton(form, rot, iterations=60):
     mu = np.full(len(rot), 1e-3)
     for _ in range(iterations):
         value, grad, hess = _derivatives(form, rot)
-        scale = np.maximum(np.abs(np.linalg.eigvalsh(hess)).max(axis=1), 1e-12)
+        eig = np.linalg.eigvalsh(hess)
+        scale = np.maximum(np.abs(eig).max(axis=1), 1e-12)
         if np.all(np.abs(grad).max(axis=1) <= 1e-10 * scale):
             break
-        step = -np.linalg.solve(hess + (mu * scale)[:, None, None] * np.eye(3), grad[..., None])[..., 0]
+        shift = 1.01 * np.maximum(0.0, -eig[:, 0]) + mu * scale  # positive definite: a descent direction
+        step = -np.linalg.solve(hess + shift[:, None, None] * np.eye(3), grad[..., None])[..., 0]
         trial = rot @ matrix_from_rotvec(step)
         better = form.value(trial) <= value
         rot[better] = trial[better]

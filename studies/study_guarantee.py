@@ -185,7 +185,7 @@ HEADER = ["seed", "slip", "plan", "convention", "diameter_mm", "poses", "profile
 
 
 def run(out, quick=False):
-    n_cells = 8 if quick else 200
+    n_cells = 8 if quick else 232
     rows = sweep.run(one, _tasks(n_cells, quick), label="global guarantee")
     write_table(out, "guarantee", HEADER, rows)
     recs = [dict(zip(HEADER, r)) for r in rows]

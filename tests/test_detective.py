@@ -116,3 +116,43 @@ def test_the_thesis_data_are_not_a_convention_slip():
     for name in ("thesis-real", "thesis-sim"):
         data = handeye.load_dataset(name)
         assert handeye.calibrate(data, no_loo=True).converged
+
+
+def centimetres(c):
+    return [c[0]] + _numbers(np.array([float(v) for v in c[1:4]]) / 10) + c[4:]
+
+
+def inches(c):
+    return [c[0]] + _numbers(np.array([float(v) for v in c[1:4]]) / 25.4) + c[4:]
+
+
+@pytest.mark.parametrize("rewrite,unit", [(centimetres, "centimetres"), (inches, "inches")])
+def test_positions_in_other_units_are_named(tmp_path, rewrite, unit):
+    """Positions in cm or inches (not only metres): a fit of RMS ~17 mm at a pose 400 mm off
+    exited 0 before; now the unit is named, with the sphere centre in the same unit or not."""
+    sim = handeye.simulate(tmp_path / "d", seed=5, n_poses=20)
+    _rewrite(sim.path, rewrite)
+    for unknowns in ("sensor", "sensor+sphere"):
+        with pytest.raises(handeye.InputError, match=f"positions in {unit}"):
+            handeye.calibrate(sim.path, no_loo=True, unknowns=unknowns)
+
+
+def test_a_negated_angle_column_hidden_by_the_screening_is_refused(tmp_path, capsys):
+    """C negated: rows with C = 0 keep their rotation, the others turn by ~180 deg; the robust
+    screening kept the turned majority (320 mm off, exit 0 before). The excluded rows fit each
+    other at the noise level far from the reported pose: two calibrations, exit 1."""
+    sim = handeye.simulate(tmp_path / "d", seed=5, n_poses=20)
+    _rewrite(sim.path, lambda c: c[:6] + [repr(-float(c[6]))] + c[7:])
+    assert cli.main(["calibrate", str(sim.path)]) == cli.EXIT_NOT_CONVERGED
+    assert "two calibrations" in capsys.readouterr().out
+
+
+def test_large_noise_that_is_stated_is_not_refused(tmp_path):
+    """A 3-D camera cell with 4 mm noise per component, stated in [noise]: noisy, not wrong."""
+    from conftest import simulate
+
+    folder = simulate(tmp_path / "cam", seed=9, n=30, noise_mm=4.0)
+    setup = folder / "setup.toml"
+    setup.write_text(setup.read_text() + "[noise]\ncentre_mm = 4.0\n")
+    res = handeye.calibrate(folder, no_loo=True)
+    assert res.converged and res.noise_test.passed

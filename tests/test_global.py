@@ -178,9 +178,9 @@ def test_explains_nothing_uses_the_robots_motion():
             return len(self.centre_in_sensor)
 
     good = Data(f2b, p)
-    assert guarantee.explains_nothing(good, global_fit.centre_minima(f2b, p, centre)) is None
+    assert guarantee.explains_nothing(good, global_fit.centre_minima(f2b, p, centre), 0.05) is None
     shuffled = Data(f2b[np.random.default_rng(0).permutation(len(f2b))], p)
-    message = guarantee.explains_nothing(shuffled, global_fit.centre_minima(shuffled.flange2base(), p, centre))
+    message = guarantee.explains_nothing(shuffled, global_fit.centre_minima(shuffled.flange2base(), p, centre), 0.05)
     assert message is not None and "explains nothing" in message
     assert pose_from_transform(truth).shape == (6,)
 
