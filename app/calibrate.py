@@ -437,6 +437,8 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
             warnings.append(screening.note)
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
     used = dataset.subset(mask)
+    if unknowns == "sensor":
+        slips.check_centre(used)  # a taught centre the pose would absorb: named (exit 2)
     polish = not _limits_iterations(options)  # a limit the user set is respected, not polished past
     fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma), polish=polish)
     if not fit.converged and not start_used.startswith("closed-form"):

@@ -194,3 +194,17 @@ def test_a_start_that_does_not_converge_is_replaced_by_the_global_one(tmp_path):
     res = handeye.calibrate(folder, no_loo=True, method="gn", rotation="local", max_iter=1, model="centre")
     assert res.converged and res.global_check.reached >= 1
     assert any("not converged" in w and "global minimum" in w for w in res.warnings)
+
+
+def test_a_taught_centre_the_pose_would_absorb_is_named(tmp_path):
+    """The README's planned UR cell with [sphere] center 1 mm off in z: the pose absorbed it
+    (8 mm, 17 sd off, exit 0); now the centre is named with its shift (exit 2), while the correct
+    centre and the thesis's (6 mm off, but within the pose's own 11.5 mm sd) still calibrate."""
+    sim = _recipe(tmp_path, 4)
+    assert handeye.calibrate(sim.path, no_loo=True).converged
+    setup = sim.path / "setup.toml"
+    setup.write_text(setup.read_text().replace("center = [700.0, -300.0, 200.0]", "center = [700.0, -300.0, 201.0]"))
+    with pytest.raises(handeye.InputError, match=r"\[sphere\] center.*-1\.0\d\) mm from the given one"):
+        handeye.calibrate(sim.path, no_loo=True)
+    assert handeye.calibrate(sim.path, no_loo=True, unknowns="sensor+sphere").converged
+    assert handeye.calibrate("thesis-real", no_loo=True).converged
