@@ -17,7 +17,8 @@ only that no run exits 0 away from the truth.
 
 Then the slips a user makes with robot poses, applied to the same cells: another brand's
 angles under the declared columns, Euler angles of another order, a quaternion w last,
-poses inverted, angles in radians, positions in metres. Each run is classified by its exit:
+poses inverted, angles in radians, positions in metres or centimetres, and a taught sphere
+centre 1 mm off (which the pose may absorb). Each run is classified by its exit:
 0 at the truth, 0 away from it (a false success: the worst outcome), 1 (not a calibration,
 with evidence), 2 (a slip named).
 
@@ -48,7 +49,8 @@ PLANNED_MIN_DIAMETER = 50.8
 DIAMETERS = (25.4, 38.1, 50.8, 59.94507, 76.2, 101.6)
 #: slip name -> the conventions it applies to
 SLIPS = {"other brand's angles": ("kuka", "fanuc"), "Euler X-Y-Z": ("kuka", "fanuc"), "quaternion w last": ("abb",),
-         "inverted": CONVENTIONS, "radians": ("kuka", "fanuc"), "metres": CONVENTIONS}
+         "inverted": CONVENTIONS, "radians": ("kuka", "fanuc"), "metres": CONVENTIONS, "centimetres": CONVENTIONS,
+         "sphere centre 1 mm off": CONVENTIONS}
 
 
 def cell(seed):
@@ -125,8 +127,8 @@ def slip_values(name, convention, pose):
     t = conventions.transform_from(convention, pose)
     if name == "inverted":
         return conventions.pose_from(convention, np.linalg.inv(t))
-    if name == "metres":
-        return np.concatenate([np.asarray(pose[:3]) / 1000.0, pose[3:]])
+    if name in ("metres", "centimetres"):
+        return np.concatenate([np.asarray(pose[:3]) / (1000.0 if name == "metres" else 10.0), pose[3:]])
     if name == "quaternion w last":
         return np.concatenate([pose[:3], np.asarray(pose[3:])[[1, 2, 3, 0]]])
     if name == "radians":
@@ -141,6 +143,15 @@ def slip_values(name, convention, pose):
 
 
 def _apply(folder, name, convention):
+    if name == "sphere centre 1 mm off":  # a taught centre: z one millimetre high
+        setup = folder / "setup.toml"
+        lines = setup.read_text().splitlines()
+        for k, line in enumerate(lines):
+            if line.startswith("center = ["):
+                xyz = [float(v) for v in line.split("[")[1].split("]")[0].split(",")]
+                lines[k] = f"center = [{xyz[0]!r}, {xyz[1]!r}, {xyz[2] + 1.0!r}]"
+        setup.write_text("\n".join(lines) + "\n")
+        return
     path = folder / "measurements.csv"
     lines = path.read_text().splitlines()
     k = len(conventions.columns(convention))
