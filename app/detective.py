@@ -27,7 +27,6 @@ import itertools
 import numpy as np
 
 from handeye.model import conventions, global_fit
-from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.rotation import matrix_from_rotvec
 
 #: Position scales tried (mm per unit) and what they look like.
@@ -36,7 +35,7 @@ UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
 SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz")
 #: With the centre free, this many of the best linear closed-form candidates are re-scored by
 #: the global search of the centre model.
-REFINE = 3
+REFINE = 2
 
 _AXES = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
 
@@ -187,15 +186,7 @@ def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
     p = np.asarray(centre_in_sensor, float)
     n = p.shape[0]
     if sphere_centre is None:
-        out = []
-        for poses in f2b:
-            try:
-                x, c = closed_form_estimate(poses, p, None)
-            except (ClosedFormError, np.linalg.LinAlgError):
-                out.append(np.inf)
-                continue
-            out.append(np.sqrt(2 * global_fit.centre_cost(poses, p, x, c) / n))
-        return np.array(out)
+        return _linear_rms(f2b, p)
     c = np.asarray(sphere_centre, float).reshape(-1, 1, 3)  # one centre, or one per candidate
     q = np.einsum("cnba,cnb->cna", f2b[..., :3, :3], c - f2b[..., :3, 3])
     pc, qc = p - p.mean(axis=0), q - q.mean(axis=1, keepdims=True)
@@ -205,6 +196,34 @@ def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
     trace = s[:, 0] + s[:, 1] + d * s[:, 2]
     ssr = np.sum(pc * pc) + np.sum(qc * qc, axis=(1, 2)) - 2 * trace
     return np.sqrt(np.maximum(ssr, 0.0) / n)
+
+
+def _linear_rms(f2b, p):
+    """RMS (mm) of the linear closed form (:mod:`handeye.model.closed_form`) with the centre
+    free, for every candidate at once: normal equations of ``(vec R, t, c)``, the rotation
+    block projected onto SO(3), ``(t, c)`` re-solved; inf where the system is singular."""
+    c_n, n = f2b.shape[0], p.shape[0]
+    rot, t = f2b[..., :3, :3], f2b[..., :3, 3]
+    eye = np.broadcast_to(-np.eye(3), (c_n, n, 3, 3))
+    a = np.concatenate([(rot[..., None] * p[None, :, None, None, :]).reshape(c_n, n, 3, 9), rot, eye], axis=3)
+    a = a.reshape(c_n, 3 * n, 15)
+    at = np.swapaxes(a, 1, 2)
+    ata = at @ a
+    atb = (at @ -t.reshape(c_n, 3 * n, 1))[..., 0]
+    sv = np.linalg.svd(ata, compute_uv=False)
+    ok = sv[:, -1] > 1e-12 * sv[:, 0]
+    sol = np.linalg.solve(np.where(ok[:, None, None], ata, np.eye(15)), atb[..., None])[..., 0]
+    u, _, vt = np.linalg.svd(sol[:, :9].reshape(c_n, 3, 3))
+    d = np.sign(np.linalg.det(u @ vt))
+    r_x = u @ (np.eye(3) * np.stack([np.ones(c_n), np.ones(c_n), d], 1)[:, None, :]) @ vt
+    lhs = np.concatenate([rot, eye], axis=3).reshape(c_n, 3 * n, 6)
+    in_flange = p @ np.swapaxes(r_x, 1, 2)  # (C, N, 3): R_X p_i
+    rhs = (-t - (rot @ in_flange[..., None])[..., 0]).reshape(c_n, 3 * n, 1)
+    lt = np.swapaxes(lhs, 1, 2)
+    tc = np.linalg.solve(lt @ lhs, lt @ rhs)
+    e = lhs @ tc - rhs
+    rms = np.sqrt(np.sum(e[..., 0] ** 2, axis=1) / n)
+    return np.where(ok, rms, np.inf)
 
 
 def best(dataset, unknowns):

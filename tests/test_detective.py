@@ -156,3 +156,22 @@ def test_large_noise_that_is_stated_is_not_refused(tmp_path):
     setup.write_text(setup.read_text() + "[noise]\ncentre_mm = 4.0\n")
     res = handeye.calibrate(folder, no_loo=True)
     assert res.converged and res.noise_test.passed
+
+
+def test_the_batched_linear_closed_form_equals_the_closed_form_module():
+    """The detective scores every reading at once (normal equations); each equals
+    handeye.model.closed_form's estimate of that reading, or is inf where it is singular."""
+    from handeye.model import global_fit
+    from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+
+    data = handeye.load_dataset("thesis-real")
+    stack = np.array([c.flange2base for c in detective.candidates(data)])
+    batched = detective.closed_form_rms(stack, data.centre_in_sensor, None)
+    for poses, rms in zip(stack[::7], batched[::7]):
+        try:
+            x, c = closed_form_estimate(poses, data.centre_in_sensor, None)
+        except ClosedFormError:
+            assert not np.isfinite(rms)
+            continue
+        assert rms == pytest.approx(np.sqrt(2 * global_fit.centre_cost(poses, data.centre_in_sensor, x, c) / len(data)),
+                                    rel=1e-9)
