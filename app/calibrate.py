@@ -428,6 +428,8 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
     plain_norms = np.linalg.norm(everything.residuals(plain), axis=1)
     plain_rms = float(np.sqrt(np.mean(plain_norms**2)))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
+    if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
+        slips.check_centre(dataset)
     before = Before(len(dataset), plain_rms, describe.rms(robust.leave_one_out(everything, plain)) if loo else None)
     excluded, mask = [], np.ones(len(dataset), bool)
     if outliers:

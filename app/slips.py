@@ -180,8 +180,6 @@ def check(dataset, unknowns, rms_given):
         _check_slips(dataset, unknowns, rms_given, dof)
         _check_conventions(dataset, unknowns, rms_given, dof)
     check_equator(dataset, unknowns)  # on data no slip explains better
-    if unknowns == "sensor":
-        check_centre(dataset)
 
 
 def _check_slips(dataset, unknowns, rms_given, dof):
