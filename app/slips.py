@@ -19,6 +19,11 @@ pose cuts the sphere at the same depth; the F test still tells them apart where 
 differ (12 poses at one depth: RMS 0.139 mm as given against 0.044 mm flipped). The
 calibration then stops with exit 2 and a message that names the setting, both RMS values
 and the fix; nothing is changed silently.
+
+The same test names a convention slip (the poses read in another robot's convention, inverted,
+in other units: :mod:`handeye.app.detective`), rows whose side of the laser plane the data do
+not settle (:func:`check_equator`), and, for calibrate, a taught sphere centre the sensor pose
+would absorb (:func:`check_centre`).
 """
 from __future__ import annotations
 
@@ -228,7 +233,6 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
         f"{dataset.path}: the robot poses fit with {candidate.describe()}, not as declared "
         f"({dataset.convention} {','.join(conventions.columns(dataset.convention)[3:])}): the plain fit has RMS "
         f"{rms:.3g} mm read so, {rms_given:.3g} mm as declared. {todo[0].upper() + todo[1:]}, and calibrate again")
-
 
 
 #: A centre within this fraction of the sphere radius of the laser plane is near the equator.
