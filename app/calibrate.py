@@ -429,7 +429,7 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
     plain_rms = float(np.sqrt(np.mean(plain_norms**2)))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
     if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
-        slips.check_centre(dataset)
+        slips.check_centre(dataset, sigma)
     before = Before(len(dataset), plain_rms, describe.rms(robust.leave_one_out(everything, plain)) if loo else None)
     excluded, mask = [], np.ones(len(dataset), bool)
     if outliers:
@@ -440,7 +440,7 @@ def calibrate(dataset, unknowns="sensor", method=None, rotation=None, start=None
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
     used = dataset.subset(mask)
     if unknowns == "sensor":
-        slips.check_centre(used)  # a taught centre the pose would absorb: named (exit 2)
+        slips.check_centre(used, sigma)  # a taught centre the pose would absorb: named (exit 2)
     polish = not _limits_iterations(options)  # a limit the user set is respected, not polished past
     fit = _judge(*_solve(used, unknowns, method, rotation, start_pose, options, kind, robot_sigma), polish=polish)
     if not fit.converged and not start_used.startswith("closed-form"):

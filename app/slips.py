@@ -330,7 +330,7 @@ def check_equator(dataset, unknowns="sensor"):
         "its centre (handeye plan, with a --margin at least as large as the nominal pose's error)")
 
 
-def check_centre(dataset):
+def check_centre(dataset, sigma=None):
     """Raise :class:`CalibrationInputError` when the given ``[sphere] center`` contradicts the
     data beyond the pose's own uncertainty.
 
@@ -351,12 +351,13 @@ def check_centre(dataset):
     from handeye.model.statistics import chi2_survival, f_survival
 
     n = len(dataset)
+    sigma = dataset.noise_centre_mm if sigma is None else float(sigma)  # the stated noise (--sigma)
     if dataset.sphere_centre is None or 3 * n - 9 <= 3:
         return
     f2b, p = dataset.flange2base(), dataset.centre_in_sensor
     try:
         given = global_fit.centre_minima(f2b, p, dataset.sphere_centre).best
-        if chi2_survival(2 * given.cost / dataset.noise_centre_mm**2, 3 * n - 6) >= P_SUSPECT:
+        if chi2_survival(2 * given.cost / sigma**2, 3 * n - 6) >= P_SUSPECT:
             return
         free = global_fit.centre_minima(f2b, p, None).best
     except global_fit.GlobalFitError:
@@ -365,7 +366,7 @@ def check_centre(dataset):
     f = (given.cost - free.cost) / 3 / max(free.cost / dof, 1e-300)
     if f <= 0 or f_survival(f, 3, dof) >= P_SLIP:
         return
-    if chi2_survival(2 * free.cost / dataset.noise_centre_mm**2, dof) < P_SUSPECT:
+    if chi2_survival(2 * free.cost / sigma**2, dof) < P_SUSPECT:
         return  # the centre does not explain the misfit alone: other effects, for diagnose to name
     moved = _mahalanobis(dataset, given, free)
     if moved <= SIDE_MOVE_SD:
