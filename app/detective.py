@@ -27,7 +27,7 @@ import itertools
 import numpy as np
 
 from handeye.model import conventions, global_fit
-from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.rotation import matrix_from_rotvec, nearest_rotation
 
 #: Position scales tried (mm per unit) and what they look like.
 UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
@@ -91,19 +91,15 @@ def _euler_name(sequence, reverse, radians, columns):
 def readings(k, columns):
     """Every reading of ``k`` orientation columns named ``columns`` (module docstring)."""
     if k == 4:
-        return [Reading("a quaternion w,x,y,z (ABB)", "abb", lambda v: global_fit.rotation_from_quaternion(_unit(v))),
+        return [Reading("a quaternion w,x,y,z (ABB)", "abb", lambda v: conventions.matrix_from("abb", v)),
                 Reading("a quaternion x,y,z,w (w last, as ROS writes it)", None,
-                        lambda v: global_fit.rotation_from_quaternion(_unit(v[:, [3, 0, 1, 2]])))]
+                        lambda v: conventions.matrix_from("abb", v[:, [3, 0, 1, 2]]))]
     out = [Reading("a UR rotation vector (rad)", "ur", lambda v: matrix_from_rotvec(v)),
            Reading("a rotation vector in degrees", None, lambda v: matrix_from_rotvec(np.radians(v)))]
     for sequence, reverse, radians in itertools.product(SEQUENCES, (False, True), (False, True)):
         out.append(Reading(_euler_name(sequence, reverse, radians, columns), _known(sequence, reverse, radians),
                            _euler(sequence, reverse, radians)))
     return out
-
-
-def _unit(q):
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,9 +209,7 @@ def _linear_rms(f2b, p):
     sv = np.linalg.svd(ata, compute_uv=False)
     ok = sv[:, -1] > 1e-12 * sv[:, 0]
     sol = np.linalg.solve(np.where(ok[:, None, None], ata, np.eye(15)), atb[..., None])[..., 0]
-    u, _, vt = np.linalg.svd(sol[:, :9].reshape(c_n, 3, 3))
-    d = np.sign(np.linalg.det(u @ vt))
-    r_x = u @ (np.eye(3) * np.stack([np.ones(c_n), np.ones(c_n), d], 1)[:, None, :]) @ vt
+    r_x = nearest_rotation(sol[:, :9].reshape(c_n, 3, 3))
     lhs = np.concatenate([rot, eye], axis=3).reshape(c_n, 3 * n, 6)
     in_flange = p @ np.swapaxes(r_x, 1, 2)  # (C, N, 3): R_X p_i
     rhs = (-t - (rot @ in_flange[..., None])[..., 0]).reshape(c_n, 3 * n, 1)

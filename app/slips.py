@@ -245,29 +245,30 @@ P_SIDE = 1e-3
 SIDE_MOVE_MM, SIDE_MOVE_DEG, SIDE_MOVE_SD = 1.0, 0.5, 3.0
 
 
-def _mahalanobis(dataset, given, other):
-    """Distance of the pose of ``other`` from that of ``given`` (centre-model minima) in the
-    standard deviations of ``given``'s pose (its 6 x 6 covariance on the local chart)."""
-    from handeye.model.calibration import CalibrationModel
-    from handeye.model.rotation import rotvec_from_matrix
-    from handeye.model.statistics import covariance
-
-    model = CalibrationModel.from_dataset(dataset, "local", "sensor", sphere_centre=given.centre)
-    x = model.point_from(given.sensor2flange, given.centre)
-    cov = np.asarray(covariance(model.residual(x), model.jacobian(x)).matrix)[:6, :6]
-    a, b = given.sensor2flange, other.sensor2flange
-    delta = np.concatenate([b[:3, 3] - a[:3, 3], rotvec_from_matrix(a[:3, :3].T @ b[:3, :3])])  # chart: t, w
-    return float(np.sqrt(delta @ np.linalg.solve(cov, delta)))
-
-
-def _pose_sd(dataset, unknowns, minimum):
-    """1 sd (mm, deg; norms over the axes) of the centre model's pose at ``minimum``."""
+def _pose_covariance(dataset, unknowns, minimum):
+    """Covariance (6 x 6: t mm in the flange, w rad about the sensor's axes) of the centre
+    model's pose at a minimum, sigma estimated from its residuals."""
     from handeye.model.calibration import CalibrationModel
     from handeye.model.statistics import covariance
 
     model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=minimum.centre)
     x = model.point_from(minimum.sensor2flange, minimum.centre)
-    std = covariance(model.residual(x), model.jacobian(x)).std
+    return np.asarray(covariance(model.residual(x), model.jacobian(x)).matrix)[:6, :6]
+
+
+def _mahalanobis(dataset, given, other):
+    """Distance of the pose of ``other`` from that of ``given`` (centre-model minima) in the
+    standard deviations of ``given``'s pose (:func:`_pose_covariance`)."""
+    from handeye.model.rotation import rotvec_from_matrix
+
+    a, b = given.sensor2flange, other.sensor2flange
+    delta = np.concatenate([b[:3, 3] - a[:3, 3], rotvec_from_matrix(a[:3, :3].T @ b[:3, :3])])  # chart: t, w
+    return float(np.sqrt(delta @ np.linalg.solve(_pose_covariance(dataset, "sensor", given), delta)))
+
+
+def _pose_sd(dataset, unknowns, minimum):
+    """1 sd (mm, deg; norms over the axes) of the centre model's pose at ``minimum``."""
+    std = np.sqrt(np.clip(np.diag(_pose_covariance(dataset, unknowns, minimum)), 0.0, None))
     return float(np.linalg.norm(std[:3])), float(np.degrees(np.linalg.norm(std[3:6])))
 
 

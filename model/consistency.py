@@ -47,8 +47,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import circle
-from handeye.model.errors import InputError
+from handeye.model import observations
 from handeye.model.statistics import chi2_survival_array
 
 #: Family-wise level of the per-row test (Bonferroni over the rows checked): strict, because a
@@ -59,8 +58,8 @@ ALPHA = 1e-3
 #: laser-line sensor's accuracy (tens of microns) and far below what a neighbour's profile
 #: gives (millimetres).
 MIN_DISAGREEMENT_MM = 0.5
-#: The circle fit of the profile models (:mod:`handeye.model.observations` uses the same one).
-CIRCLE_FIT = "geometric"
+#: The circle fit of the profile models (one definition, :mod:`handeye.model.observations`).
+CIRCLE_FIT = observations.CIRCLE_FIT
 
 
 @dataclasses.dataclass(frozen=True)
@@ -246,18 +245,10 @@ def check_rows(dataset, alpha=ALPHA, min_mm=MIN_DISAGREEMENT_MM, sigma_centre=No
     if not both:
         return Consistency((), n, alpha, min_mm)
     sigma = dataset.noise_centre_mm if sigma_centre is None else float(sigma_centre)
-    fitted, covs = [], []
-    for k in both:
-        pts = dataset.profiles[k]
-        try:
-            c = circle.fit_circle(pts[:, 0], pts[:, 1], fit)
-        except circle.CircleFitError as exc:
-            raise InputError(f"{dataset.path / 'measurements.csv'}, row {dataset.rows[k]}, column 'profile': the "
-                             f"profile of sample {dataset.ids[k]!r}: {exc}") from None
-        fitted.append([c.x, c.z, c.r])
-        covs.append(circle.circle_covariance(pts[:, 0], pts[:, 1], c))
-    fitted = np.array(fitted)
-    difference, predicted, d2 = compare(fitted, np.array(covs), dataset.centre_in_sensor[both],
+    mask = np.zeros(n, bool)
+    mask[both] = True
+    fitted, covs = observations.circles(dataset.subset(mask), fit)  # names a row whose profile cannot be fitted
+    difference, predicted, d2 = compare(fitted, covs, dataset.centre_in_sensor[both],
                                         dataset.sphere_diameter / 2, sigma)
     p_adj = np.minimum(chi2_survival_array(d2, 3) * len(both), 1.0)
     size = np.linalg.norm(difference, axis=1)

@@ -49,8 +49,9 @@ import dataclasses
 
 import numpy as np
 
+from handeye.model import conventions
 from handeye.model.errors import InputError
-from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.rotation import matrix_from_rotvec, nearest_rotation
 
 #: Rotations covering SO(3) for the centre-free search.
 COVER = 4096
@@ -123,9 +124,8 @@ def absolute_orientation(p, q):
     p, q = np.asarray(p, float), np.asarray(q, float)
     pc, qc = p.mean(axis=0), q.mean(axis=0)
     h = (q - qc).T @ (p - pc)
-    u, s, vt = np.linalg.svd(h)
-    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
-    rot = u @ d @ vt
+    rot = nearest_rotation(h)  # U diag(1, 1, det(U V^T)) V^T: Kabsch's solution
+    s = np.linalg.svd(h, compute_uv=False)
     out = np.eye(4)
     out[:3, :3], out[:3, 3] = rot, qc - rot @ pc
     return out, s
@@ -225,16 +225,6 @@ def super_fibonacci(n):
     return np.column_stack([r * np.sin(alpha), r * np.cos(alpha), big * np.sin(beta), big * np.cos(beta)])
 
 
-def rotation_from_quaternion(q):
-    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4), (w, x, y, z)."""
-    w, x, y, z = np.moveaxis(np.asarray(q, float), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
-
-
 def _angle_deg(a, b):
     """Angles (deg) between rotations a (..., 3, 3) and b (3, 3)."""
     cos = (np.einsum("...ij,ij->...", a, b) - 1.0) / 2.0
@@ -242,7 +232,7 @@ def _angle_deg(a, b):
 
 
 def _seeds(form):
-    cover = rotation_from_quaternion(super_fibonacci(COVER))
+    cover = conventions.matrix_from("abb", super_fibonacci(COVER))  # unit quaternions w, x, y, z
     values = form.value(cover)
     picked = []
     for k in np.argsort(values):
