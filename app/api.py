@@ -22,6 +22,7 @@ import pathlib
 import numpy as np
 
 from handeye.app.errors import RequestError
+from handeye.app.protocol import ResultProtocol
 from handeye.app.robust import ALPHA
 
 
@@ -82,7 +83,7 @@ def start_pose_from(start, convention):
         (UR).
     convention : str
     """
-    from handeye.app.calibrate import parse_pose
+    from handeye.app.request import parse_pose
 
     return parse_pose(_pose_text(start, "--start"), "--start", convention=convention)
 
@@ -137,7 +138,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         The sensor pose (6 unknowns), or the sensor pose and the sphere centre in the base (9).
     method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
         A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
-        and ``lm`` above :data:`handeye.app.calibrate.LARGE` measurements (time and memory
+        and ``lm`` above :data:`handeye.app.request.LARGE` measurements (time and memory
         linear in the data; the result says so).
     rotation : {'matrix', 'local', 'euler'}, optional
         Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
@@ -186,13 +187,12 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     handeye.InputError
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
-    from handeye.app.calibrate import METHODS
-    from handeye.app.calibrate import calibrate as run
+    from handeye.app.calibrate import run
     from handeye.app.classic import METHODS as CLOSED_FORM
     from handeye.app.classic import calibrate_classic
     from handeye.app.files import check_output_path, input_files, provenance
+    from handeye.app.request import METHODS, UNKNOWNS, CalibrationRequest
     from handeye.model import conventions
-    from handeye.model.calibration import UNKNOWNS
 
     options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
                "unknowns": unknowns, "method": method, "rotation": rotation,
@@ -223,13 +223,13 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
             raise RequestError(f"--method {method} is closed form; --effects does not apply to it")
         result = calibrate_classic(data, method, unknowns, outliers=not keep_all, alpha=level, convention=convention)
     else:
-        solver_options = {}
-        if max_iter is not None:
-            solver_options["max_iter"] = _integer(max_iter, "--max-iter", 1, MAX_ITER)
+        solver_options = {} if max_iter is None else {"max_iter": _integer(max_iter, "--max-iter", 1, MAX_ITER)}
         start_kuka = start_pose_from(start, convention) if start is not None else None
-        result = run(data, unknowns=unknowns, method=method, rotation=rotation, start=start_kuka,
-                     options=solver_options, outliers=not keep_all, alpha=level, loo=not no_loo, model=model,
-                     convention=convention, sigma=sigma, robot_sigma=robot_sigma, effects=effects or ())
+        request = CalibrationRequest(
+            unknowns=unknowns, method=method, rotation=rotation, start=start_kuka, options=solver_options,
+            outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
+            robot_sigma=robot_sigma, effects=effects or ()).checked(data)
+        result = run(request, data)
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
@@ -264,6 +264,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     """
     from handeye.app import diagnose as procedure
     from handeye.app.files import check_output_folder, check_output_path, input_files, provenance
+    from handeye.app.report import diagnosis_figures
 
     level = _alpha(alpha)
     if sigma is not None:
@@ -283,7 +284,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if plot is not None:
         check_output_path(plot, "--plot", inputs=inputs, plot=True)
     from handeye.app import slips
-    from handeye.app.calibrate import gate
+    from handeye.app.prepare import gate
 
     gate(data, "sensor")  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
@@ -295,19 +296,19 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
     if figures is not None:
-        procedure.figures(result, figures)
+        diagnosis_figures(result, figures)
     if plot is not None:
         import tempfile
 
         from handeye.app.files import write_bytes_atomically
 
         with tempfile.TemporaryDirectory() as tmp:
-            write_bytes_atomically(plot, procedure.figures(result, tmp)[1].read_bytes(), option="--plot")
+            write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
     return result
 
 
 @dataclasses.dataclass(frozen=True)
-class SimulationResult:
+class SimulationResult(ResultProtocol):
     """A simulated dataset written by :func:`simulate`.
 
     Attributes
@@ -322,6 +323,8 @@ class SimulationResult:
     effects : dict
         Hidden effects (name -> value).
     """
+
+    caption = 'handeye simulate'
 
     path: pathlib.Path
     ids: list
@@ -387,7 +390,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     -------
     SimulationResult
     """
-    from handeye.app.calibrate import parse_pose
+    from handeye.app.request import parse_pose
     from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim
@@ -426,7 +429,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
 
 
 @dataclasses.dataclass(frozen=True)
-class PlanResult:
+class PlanResult(ResultProtocol):
     """Poses chosen (or scored) by :func:`plan`, with their predicted accuracy.
 
     Attributes
@@ -450,6 +453,8 @@ class PlanResult:
     margin : tuple of float
         (mm, deg) the nominal sensor pose may be off while every pose still sees the sphere.
     """
+
+    caption = 'handeye plan'
 
     n: int
     ids: list

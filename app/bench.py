@@ -317,7 +317,7 @@ def pipeline(sizes=PIPELINE):
             rows.append(dict(n=n, **measure_cli(["calibrate", str(folder), "--json"])))
     # slopes over the sizes where the pipeline is the same one: above 5,000 measurements the default is
     # lm with the deletion-formula leave-one-out (below, IPOPT with exact refits: a different algorithm)
-    from handeye.app.calibrate import LARGE
+    from handeye.app.request import LARGE
 
     ok = [r for r in rows if r["seconds"] and r["n"] > LARGE]
     logn = np.log([r["n"] for r in ok])

@@ -14,8 +14,9 @@ import time
 import numpy as np
 
 from handeye.app import robust, slips
-from handeye.app.calibrate import resolve_start, with_sphere_centre
 from handeye.app.errors import CalibrationInputError
+from handeye.app.prepare import resolve_start, with_sphere_centre
+from handeye.app.result_parts import FitRecord, ScreeningRecord
 from handeye.app.results import CalibrationResult, ClosedFormDetails, SampleResidual
 from handeye.app.robust import ALPHA
 from handeye.model import classics, conventions
@@ -84,47 +85,21 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
         warnings.append(f"the linear solution's rotation block was {est.details['orthogonality_error']:.3g} from "
                         "orthogonal (|R^T R - I|) before projection onto SO(3)")
     pose = pose_from_transform(est.sensor2flange)
-    return CalibrationResult(
-        dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
-        method=method, unknowns=unknowns, converged=True, status=None,
-        message="closed-form estimate (no iterations)",
+    fit = FitRecord(
         sensor2flange=est.sensor2flange, sensor_pose_kuka=pose,
-        sensor_pose=conventions.pose_from(convention, est.sensor2flange), convention=convention,
-        columns=conventions.columns(convention), sphere_centre=np.asarray(centre, float),
+        sensor_pose=conventions.pose_from(convention, est.sensor2flange), sphere_centre=np.asarray(centre, float),
+        converged=True, status=None, message="closed-form estimate (no iterations)",
         n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
         max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
         residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
-                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, e, norms, mask)],
-        excluded=list(excluded), warnings=warnings,
+                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, e, norms, mask)])
+    return CalibrationResult(
+        dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
+        method=method, unknowns=unknowns, convention=convention, columns=conventions.columns(convention),
+        fit=fit, screening=ScreeningRecord(list(excluded)), warnings=warnings,
         closed_form=ClosedFormDetails(
             linear_matrix=est.linear, details=est.details, time_ms=elapsed * 1e3,
             least_squares_from_here={"distance_mm": float(dt), "distance_deg": float(dr),
                                      "iterations": int(refined.iterations), "converged": bool(refined.converged),
                                      "rms_mm": float(np.sqrt(2 * refined.cost / len(xs)))}),
     )
-
-
-def classic_text(res):
-    """Readable report of :func:`calibrate_classic` (a CalibrationResult with ``closed_form``)."""
-    d, ls = res.closed_form.details, res.closed_form.least_squares_from_here
-    used = (f"{d['pairs']} motion pairs, condition number {d['condition']:.3g} (column-scaled D)" if "pairs" in d
-            else f"{len(d['translation_pairs'])} pure-translation pairs spanning {d['directions']} directions")
-    lines = [
-        f"handeye calibrate: dataset {res.dataset}, method {res.method} (closed form), unknowns {res.unknowns}",
-        f"used: {used}; {res.closed_form.time_ms:.2f} ms",
-        "sensor pose  (x y z mm, A B C deg): " + " ".join(f"{v:10.4f}" for v in res.sensor_pose_kuka),
-    ]
-    if res.convention != "kuka":
-        lines.append(f"sensor pose ({res.convention}: {','.join(res.columns)}): "
-                     + " ".join(f"{v:10.6f}" for v in res.sensor_pose))
-    lines += [
-        "sphere centre in base (mm): " + " ".join(f"{v:12.4f}" for v in res.sphere_centre),
-        f"RMS residual {res.rms_mm:.4f} mm over {res.n_used} samples used, max {res.max_residual_mm:.4f} mm",
-        f"least squares started here: {'converged' if ls['converged'] else 'NOT converged'} in {ls['iterations']} "
-        f"iterations, {ls['distance_mm']:.4f} mm and {ls['distance_deg']:.4f} deg away, RMS {ls['rms_mm']:.4f} mm",
-    ]
-    if res.excluded:
-        lines.append("excluded samples (gross errors, screened as calibrate does):")
-        lines += [f"  {x.id} (row {x.row}): {x.reason}" for x in res.excluded]
-    lines += [f"warning: {w}" for w in res.warnings]
-    return "\n".join(lines)

@@ -18,7 +18,7 @@ import os
 import sys
 
 from handeye.app.errors import RequestError
-from handeye.app.results import dumps
+from handeye.app.jsonio import dumps
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
 EXIT_INTERRUPTED = 130
@@ -121,8 +121,8 @@ def _use_args(sub, conventions):
 
 
 def build_parser():
-    from handeye.app.calibrate import METHODS
     from handeye.app.classic import METHODS as CLASSIC_METHODS
+    from handeye.app.request import METHODS
     from handeye.app.robust import ALPHA
     from handeye.model.calibration import KINDS, ROTATIONS, UNKNOWNS
     from handeye.model.conventions import CONVENTIONS

@@ -6,14 +6,18 @@ used and on every sample. Nothing here prints.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from handeye.app import robust
 from handeye.app.errors import CalibrationInputError
+from handeye.app.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 from handeye.app.results import RMS_PER_CENTRE, SampleResidual, Uncertainty
-from handeye.model import conventions, identifiability, observations
+from handeye.model import conventions, extended, identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
+from handeye.model.rotation import nearest_transform
 from handeye.model.statistics import covariance
 
 #: A residual this many robust standard deviations above the median is flagged.
@@ -57,28 +61,9 @@ def _noise_model_text(local):
             "(rotation about the sensor's axes)")
 
 
-#: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
-EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
 #: Level of the test of the fit against the stated noise (a warning; strict, so that clean data
 #: of a slightly miscalibrated noise model are not flagged: 2 of 120 clean runs at 0.01).
 NOISE_ALPHA = 0.001
-
-
-def check_effects(effects, unknowns, model):
-    """Validated effect names; ``sphere_center`` is the free centre (``unknowns='sensor+sphere'``)."""
-    names = [effects] if isinstance(effects, str) else list(effects or ())
-    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
-    for name in names:
-        if name not in EFFECTS:
-            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
-                                        "(handeye diagnose names the effect a dataset needs)")
-    if not names:
-        return (), unknowns, model
-    if model not in (None, "centre"):
-        raise CalibrationInputError(f"--effects works on the centre residual, not --model {model}")
-    if "sphere_center" in names:
-        unknowns = "sensor+sphere"
-    return tuple(dict.fromkeys(n for n in names if n != "sphere_center")), unknowns, "centre"
 
 
 def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
@@ -106,9 +91,7 @@ def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
 def effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
     """Score tests of the catalogue's effects at the fit; a warning naming diagnose for a
     significant one (the test uses the fit's own scale, not the stated noise)."""
-    from handeye.app import diagnose
-
-    tests = diagnose.score_effects(dataset, mask, fit.sensor, fit.centre, unknowns, skip=effects)
+    tests = extended.score_effects(dataset, mask, fit.sensor, fit.centre, unknowns, skip=effects)
     significant = [t for t in tests if t.p_bonferroni < alpha]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
@@ -118,80 +101,81 @@ def effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
     return tests
 
 
-def with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_given=True):
-    """The final fit with catalogue effects (:mod:`handeye.app.diagnose`'s extended model):
-    fields of :class:`CalibrationResult`."""
-    from handeye.app import diagnose
+def with_effects(dataset, mask, fit, request, warnings, base, centre_given=True):
+    """The final fit with catalogue effects (the extended model, :mod:`handeye.model.extended`).
+
+    ``request`` (checked) names the effects, the stated noise and the convention; ``base`` is
+    the :class:`~handeye.app.result_parts.FitRecord` of the fit without them.
+    Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of NamedEffect,
+    unknowns)`` of the fit with them; appends to ``warnings``."""
     from handeye.app.results import NamedEffect
 
-    prob = diagnose.Samples(dataset)
-    structure = diagnose.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
+    names, sigma = request.effects, request.sigma
+    prob = extended.Samples(dataset)
+    structure = extended.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
     with np.errstate(all="ignore"):
-        extended = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
-    jac = extended.jac[mask].reshape(-1, extended.p)
+        efit = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
+    jac = efit.jac[mask].reshape(-1, efit.p)
     on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
-    if not np.all(np.isfinite(extended.x)) or (on_plane and not np.all(np.isfinite(jac))):
+    if not np.all(np.isfinite(efit.x)) or (on_plane and not np.all(np.isfinite(jac))):
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
             "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
     from handeye.model import effects as catalogue
 
-    stuck = _not_a_minimum(dataset, mask, extended, names, prob.radius)
+    stuck = _not_a_minimum(dataset, mask, efit, names, prob.radius)
     if stuck is None:
-        std, corr = extended.uncertainty(mask)
+        std, corr = efit.uncertainty(mask)
     else:  # the fit stopped against a bound, where the linearised sd means nothing
-        std, corr = np.full(extended.p, np.nan), np.full((extended.p, extended.p), np.nan)
+        std, corr = np.full(efit.p, np.nan), np.full((efit.p, efit.p), np.nan)
         jac = np.where(np.isfinite(jac), jac, 0.0)
-    index = {n: k for k, n in enumerate(extended.names)}
-    named = [NamedEffect(n, dict(zip(_effect_params(n), extended.params[n].tolist())),
+    index = {n: k for k, n in enumerate(efit.names)}
+    named = [NamedEffect(n, dict(zip(_effect_params(n), efit.params[n].tolist())),
                          {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n)},
-                         _effect_sd_note(dataset, mask, extended, n, prob.radius, stuck)) for n in names]
+                         _effect_sd_note(dataset, mask, efit, n, prob.radius, stuck)) for n in names]
     if structure.centre and centre_given:
-        delta = extended.x[12:15] - dataset.sphere_centre
+        delta = efit.x[12:15] - dataset.sphere_centre
         named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
                                     dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
-    sensor, centre = prob.transform(extended.x), np.asarray(prob.centre(structure, extended.x), float)
+    sensor, centre = prob.transform(efit.x), np.asarray(prob.centre(structure, efit.x), float)
     circles = circles_shown(dataset, mask) if "sphere_radius" in names else None
-    implausible = [why for n in names if (why := catalogue.implausible(n, extended.params[n], prob.radius, circles))]
+    implausible = [why for n in names if (why := catalogue.implausible(n, efit.params[n], prob.radius, circles))]
     if stuck is not None:
         implausible.append(stuck)
+    converged, message = base.converged, base.message
     if implausible:  # an official-looking calibration it is not
-        common = dict(common, converged=False, message="; ".join(implausible))
+        converged, message = False, "; ".join(implausible)
         warnings.extend(implausible)
-    elif not extended.converged:
-        common = dict(common, converged=False,
-                      message=f"the fit with the effects did not converge: {extended.message}")
-    norms = np.linalg.norm(extended.e, axis=1)
-    ident = identifiability.analyse(jac, extended.names)
-    pose = pose_from_transform(sensor)
-    convention = common["convention"]
+    elif not efit.converged:
+        converged, message = False, f"the fit with the effects did not converge: {efit.message}"
+    norms = np.linalg.norm(efit.e, axis=1)
+    ident = identifiability.analyse(jac, efit.names)
     warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; no "
                     "leave-one-out error (the effects are fitted to every sample used)")
-    out = dict(common, sensor2flange=sensor, sphere_centre=centre, sensor_pose_kuka=pose,
-               sensor_pose=conventions.pose_from(convention, sensor), model="centre", unknowns=(
-                   "sensor+sphere" if structure.centre else "sensor"))
-    out.update(
-        n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
-        max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
+    rms = float(np.sqrt(np.mean(norms[mask] ** 2)))
+    fitted = dataclasses.replace(
+        base, sensor2flange=sensor, sphere_centre=centre, sensor_pose_kuka=pose_from_transform(sensor),
+        sensor_pose=conventions.pose_from(request.convention, sensor), converged=converged, message=message,
+        n_used=int(mask.sum()), rms_mm=rms, max_residual_mm=float(norms[mask].max()),
+        cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
         residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
-                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, extended.e, norms, mask)],
-        sigma_mm=float(np.sqrt(extended.sigma2)),
-        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        parameter_names=tuple(extended.names), correlation=corr, covariance=corr * np.outer(std, std),
-        identifiability=ident, effects=named,
+                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, efit.e, norms, mask)],
         noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
                      "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
         rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
                   "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
                   "unweighted; this is what the fit with the effects minimises"),
         objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
-                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * extended.ssr),
-                   "rms": float(np.sqrt(np.mean(norms[mask] ** 2))), "unit": "mm",
-                   "rms_unweighted_mm": float(np.sqrt(np.mean(norms[mask] ** 2))),
+                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * efit.ssr),
+                   "rms": rms, "unit": "mm", "rms_unweighted_mm": rms,
                    "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
                    "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
-        noise_test=noise_test(extended.ssr, extended.m - extended.p, sigma, False, warnings, dataset))
-    return out
+        noise_test=noise_test(efit.ssr, efit.m - efit.p, sigma, False, warnings, dataset))
+    uncertainty = UncertaintyRecord(
+        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
+        sigma_mm=float(np.sqrt(efit.sigma2)), parameter_names=tuple(efit.names), correlation=corr,
+        covariance=corr * np.outer(std, std))
+    return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
 
 
 #: The fit with effects is a minimum when every column of its Jacobian is orthogonal to the
@@ -291,12 +275,12 @@ def _effect_params(name):
 
 
 def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
-    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit
-    (fields of :class:`CalibrationResult`); appends to ``warnings``."""
+    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit ``fit``
+    (a :class:`handeye.app.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
+    Identifiability)``; appends to ``warnings``."""
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
-    x_all = allm.point_from(sensor, centre)
-    e = allm.residuals(x_all)
+    e = allm.residuals(allm.point_from(sensor, centre))
     norms = np.linalg.norm(e, axis=1)
     final = local.point_from(sensor, centre)
     r_used, j_used = local.residual(final), local.jacobian(final)
@@ -307,35 +291,25 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         warnings.append(
             f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
             f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
-    groups = None if local.groups is None else np.repeat(local.groups, local.m)
-    cov = covariance(r_used, j_used, groups)
+    cov = covariance(r_used, j_used, None if local.groups is None else np.repeat(local.groups, local.m))
     loo_errors = _final_loo(dataset, mask, local, final, centre) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
         warnings += gross_error_warnings(dataset.ids, norms)
-    return dict(
-        n_used=int(mask.sum()),
-        rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
-        max_residual_mm=float(norms[mask].max()),
+    stats = dict(
+        n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))), max_residual_mm=float(norms[mask].max()),
         cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
         residuals=[SampleResidual(i, int(r), v, float(n), bool(u), None if not np.isfinite(lo) else float(lo))
                    for i, r, v, n, u, lo in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)],
-        sigma_mm=cov.sigma if local.whiten is None else None,
-        sigma_scale=cov.sigma if local.whiten is not None else None,
-        std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]),
-                        cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
-        parameter_names=tuple(local.names),
-        correlation=np.asarray(cov.correlation),
-        covariance=np.asarray(cov.matrix),
-        loo_error_mm=rms(loo_errors) if loo else None,
-        loo=_loo_description(local, int(mask.sum())) if loo else None,
-        rms_what=RMS_PER_CENTRE,
-        objective=_objective(local, final),
-        identifiability=ident,
-        hessian_eigenvalues=fit.hess_eig,
+        loo_error_mm=rms(loo_errors) if loo else None, loo=_loo_description(local, int(mask.sum())) if loo else None,
+        rms_what=RMS_PER_CENTRE, objective=_objective(local, final), hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
         noise_test=None if local.kind == "points" else noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
-                                                                   local.whiten is not None, warnings, dataset),
-    )
+                                                                   local.whiten is not None, warnings, dataset))
+    uncertainty = UncertaintyRecord(
+        std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]), cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
+        sigma_mm=cov.sigma if local.whiten is None else None, sigma_scale=cov.sigma if local.whiten is not None else None,
+        parameter_names=tuple(local.names), correlation=np.asarray(cov.correlation), covariance=np.asarray(cov.matrix))
+    return stats, uncertainty, ident
 
 
 def _final_loo(dataset, mask, local, final, centre):
@@ -389,3 +363,58 @@ def _loo_description(local, n_used):
                      "without each used sample; the error is that sample's sphere centre carried through the refitted "
                      "chain against the refitted sphere centre, |T1_i T2_(-i) xs_i - c_(-i)| (mm): comparable across "
                      "models; loo_error_mm is its RMS over the samples used")}
+
+
+def kuka_pose(sensor2flange):
+    """KUKA pose (mm, deg) of a 4x4; NaN when it is not finite (a numerical failure)."""
+    t = np.asarray(sensor2flange, float)
+    return pose_from_transform(t) if np.all(np.isfinite(t)) else np.full(6, np.nan)
+
+
+def _fit_record(prep, verified):
+    """The :class:`FitRecord` of the verified fit, before its residuals are described."""
+    fit, request = verified.fit, prep.request
+    result, convention = fit.result, request.convention
+    finite = np.all(np.isfinite(fit.sensor))
+    return FitRecord(
+        sensor2flange=fit.sensor, sensor_pose_kuka=kuka_pose(fit.sensor),
+        sensor_pose=(conventions.pose_from(convention, fit.sensor) if finite
+                     else np.full(len(conventions.columns(convention)), np.nan)),
+        sphere_centre=fit.centre, converged=fit.converged and verified.refusal is None, status=int(result.status),
+        message=fit.message if verified.refusal is None else f"{verified.refusal} (the solver: {fit.message})",
+        iterations=int(result.iterations), evaluations={"f": result.nfev, "jacobian": result.njev, "hessian": result.nhev},
+        history=np.array([kuka_pose(nearest_transform(fit.model.sensor2flange(x))) for x in result.history]).reshape(-1, 6),
+        solver_point=np.asarray(result.x, float),
+        solver_extra={k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")})
+
+
+def result(prep, screened, verified, warnings):
+    """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.calibrate`)."""
+    from handeye.app.results import CalibrationResult
+
+    request, dataset, mask = prep.request, prep.dataset, screened.mask
+    warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
+    base = _fit_record(prep, verified)
+    start = prep.start_pose
+    header = dict(
+        dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
+        method=request.method, rotation=request.rotation, unknowns=request.unknowns, model=prep.kind,
+        robot_sigma_mm=request.robot_sigma if prep.kind != "centre" or dataset.profiles is not None else None,
+        start_pose=conventions.convert(start, "kuka", request.convention) if request.convention != "kuka" else start,
+        start_pose_kuka=start, start_used=verified.start_used, convention=request.convention,
+        columns=conventions.columns(request.convention), global_check=verified.global_check,
+        screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings)
+    fit = verified.fit
+    if fit.local is None:  # numerical failure: nothing to describe, but the same complete type
+        residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
+                     for i, r, u in zip(dataset.ids, dataset.rows, mask)]
+        return CalibrationResult(fit=dataclasses.replace(base, residuals=residuals, n_used=int(mask.sum())), **header)
+    tests = effect_tests(dataset, mask, fit, request.effects, request.unknowns, request.alpha, warnings)
+    if request.effects:
+        fitted, uncertainty, ident, named, unknowns = with_effects(dataset, mask, fit, request, warnings, base,
+                                                                   centre_given=prep.centre_given)
+        return CalibrationResult(**dict(header, model="centre", unknowns=unknowns), fit=fitted, uncertainty=uncertainty,
+                                 identifiability=ident, catalogue=EffectsRecord(tests, named))
+    stats, uncertainty, ident = describe_fit(dataset, mask, fit, request.loo, request.outliers, warnings, request.sigma)
+    return CalibrationResult(**header, fit=dataclasses.replace(base, **stats), uncertainty=uncertainty,
+                             identifiability=ident, catalogue=EffectsRecord(tests, None))

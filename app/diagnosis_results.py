@@ -10,7 +10,10 @@ import html
 
 import numpy as np
 
-from handeye.app.results import Uncertainty, _list, dumps  # noqa: F401  (shared JSON helpers)
+from handeye.app.jsonio import dumps  # noqa: F401  (shared JSON helpers)
+from handeye.app.protocol import ResultProtocol
+from handeye.app.results import Uncertainty, _list  # noqa: F401  (shared JSON helpers)
+from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -22,19 +25,6 @@ class Step:
     chi2_dof: float
     sigma_mm: float
     heldout_rms_mm: float
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
-
-@dataclasses.dataclass(frozen=True)
-class ScoreTest:
-    """A candidate effect's score test in one round (Bonferroni over the round's candidates)."""
-
-    name: str
-    score: float
-    p_bonferroni: float
-    gate: float
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -73,7 +63,7 @@ def absorbed_sentence(name, by, centre_fitted=True):
 
 
 @dataclasses.dataclass(frozen=True)
-class DiagnosisResult:
+class DiagnosisResult(ResultProtocol):
     """The outcome of :func:`handeye.diagnose`; :meth:`to_dict` is ``handeye diagnose --json``.
 
     Attributes
@@ -182,27 +172,17 @@ class DiagnosisResult:
             **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 
-    def to_json(self, indent=1):
-        """:meth:`to_dict` as strict JSON text (non-finite numbers as null)."""
-        return dumps(self.to_dict(), indent)
-
     def summary(self):
         """The CLI's text report."""
-        from handeye.app import diagnose
+        from handeye.app import report
 
-        return diagnose.text(self)
-
-    def save(self, path):
-        """Write :meth:`to_json` atomically to ``path`` (with ``provenance`` when set)."""
-        from handeye.app.files import write_text_atomically
-
-        write_text_atomically(path, self.to_json(), option="--out")
+        return report.diagnosis_text(self)
 
     def figures(self, folder):
         """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""
-        from handeye.app import diagnose
+        from handeye.app import report
 
-        return diagnose.figures(self, folder)
+        return report.diagnosis_figures(self, folder)
 
     def _repr_html_(self):
         named = "; ".join(

@@ -121,7 +121,7 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
     _check_name("--parent", parent)
     _check_name("--child", child)
     if fmt == "json":
-        from handeye.app.results import dumps
+        from handeye.app.jsonio import dumps
 
         return dumps(data(calibration, parent, child)) + "\n"
     rep = representations(calibration.sensor2flange)

@@ -114,11 +114,11 @@ def lowest(fit, basin, solve, exact_centre_model=False):
 
     Parameters
     ----------
-    fit : handeye.app.calibrate._Verdict
+    fit : handeye.app.fitting.Verdict
         The final fit from the user's (or the closed-form) start.
     basin : handeye.model.global_fit.CentreMinima or None
     solve : callable
-        ``solve(sensor2flange, centre) -> _Verdict``: the final fit from a start.
+        ``solve(sensor2flange, centre) -> Verdict``: the final fit from a start.
     exact_centre_model : bool
         The final objective is the unweighted centre model with the centre known: the SVD
         solution is its minimum, reported exactly.

@@ -58,8 +58,6 @@ def _rms_lines(res):
 def calibration_text(res):
     """A readable report of a :class:`handeye.app.results.CalibrationResult`."""
     if res.closed_form is not None:
-        from handeye.app.classic import classic_text
-
         return classic_text(res)
     lines = [
         f"handeye calibrate: dataset {res.dataset}, method {res.method}, rotation {res.rotation}, "
@@ -271,3 +269,96 @@ def validation_figure(res, path, max_points=20_000):
     fig.tight_layout()
     save_figure_atomically(fig, path)
     plt.close(fig)
+
+
+def classic_text(res):
+    """Readable report of :func:`calibrate_classic` (a CalibrationResult with ``closed_form``)."""
+    d, ls = res.closed_form.details, res.closed_form.least_squares_from_here
+    used = (f"{d['pairs']} motion pairs, condition number {d['condition']:.3g} (column-scaled D)" if "pairs" in d
+            else f"{len(d['translation_pairs'])} pure-translation pairs spanning {d['directions']} directions")
+    lines = [
+        f"handeye calibrate: dataset {res.dataset}, method {res.method} (closed form), unknowns {res.unknowns}",
+        f"used: {used}; {res.closed_form.time_ms:.2f} ms",
+        "sensor pose  (x y z mm, A B C deg): " + " ".join(f"{v:10.4f}" for v in res.sensor_pose_kuka),
+    ]
+    if res.convention != "kuka":
+        lines.append(f"sensor pose ({res.convention}: {','.join(res.columns)}): "
+                     + " ".join(f"{v:10.6f}" for v in res.sensor_pose))
+    lines += [
+        "sphere centre in base (mm): " + " ".join(f"{v:12.4f}" for v in res.sphere_centre),
+        f"RMS residual {res.rms_mm:.4f} mm over {res.n_used} samples used, max {res.max_residual_mm:.4f} mm",
+        f"least squares started here: {'converged' if ls['converged'] else 'NOT converged'} in {ls['iterations']} "
+        f"iterations, {ls['distance_mm']:.4f} mm and {ls['distance_deg']:.4f} deg away, RMS {ls['rms_mm']:.4f} mm",
+    ]
+    if res.excluded:
+        lines.append("excluded samples (gross errors, screened as calibrate does):")
+        lines += [f"  {x.id} (row {x.row}): {x.reason}" for x in res.excluded]
+    lines += [f"warning: {w}" for w in res.warnings]
+    return "\n".join(lines)
+
+
+def diagnosis_text(res):
+    """A readable report of a :class:`handeye.app.diagnosis_results.DiagnosisResult`."""
+    lines = [f"handeye diagnose: dataset {res.dataset}", ""]
+    if res.effects:
+        lines.append("effects named:")
+        for eff in res.effects:
+            if eff.std is None:
+                lines.append(f"  {eff.name}: {', '.join(eff.parameters['ids'])}")
+            else:
+                lines.append(f"  {eff.name}: " + ", ".join(
+                    f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items()))
+    else:
+        lines.append("effects named: none")
+    lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
+    lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
+    lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
+    lines += [f"  {sentence}" for sentence in res.absorbed_explained]
+    lines += ["", f"{'step':<34} {'RMS mm':>9} {'held-out':>9} {'chi2/dof':>9}"]
+    for step in res.steps:
+        lines.append(f"{step.step:<34} {step.rms_mm:9.4f} {step.heldout_rms_mm:9.4f} {step.chi2_dof:9.2f}")
+    lines += ["", f"chi2/dof against a nominal sigma of {res.nominal_sigma_mm} mm per component",
+              f"sensor pose ({res.convention}: {','.join(res.columns)}): "
+              + " ".join(f"{v:.4f}" for v in (res.sensor_pose_as if res.sensor_pose_as is not None else res.sensor_pose)),
+              "  1 sd: translation mm " + " ".join(f"{v:.4f}" for v in res.std.sensor_translation_mm)
+              + "; rotation deg (about the sensor's axes) " + " ".join(f"{v:.4f}" for v in res.std.sensor_rotation_deg),
+              "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res.sphere_centre),
+              f"unexplained: {res.unexplained}"]
+    return "\n".join(lines)
+
+
+def diagnosis_figures(res, out):
+    """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
+    import pathlib
+
+    from handeye.app.files import save_figure_atomically
+    from handeye.app.plotting import figure
+
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plt = figure()
+    fig, ax = plt.subplots(figsize=(10, 4))
+    ids = [r.id for r in res.residuals]
+    k = np.arange(len(ids))
+    ax.bar(k - 0.2, [r.before_mm for r in res.residuals], 0.4, label="base model")
+    ax.bar(k + 0.2, [r.after_mm for r in res.residuals], 0.4, label="with named effects")
+    for i, r in enumerate(res.residuals):
+        if not r.used:
+            ax.annotate("excluded", (i, r.after_mm), rotation=90, fontsize=6, ha="center", va="bottom")
+    ax.set_xticks(k, ids, rotation=90, fontsize=6)
+    ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res.dataset}: residuals per measurement")
+    ax.legend()
+    fig.tight_layout()
+    save_figure_atomically(fig, out / "residuals.png", option="--figures")
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    labels = [s.step for s in res.steps]
+    ax.plot(labels, [s.rms_mm for s in res.steps], "o-", label="fitted")
+    ax.plot(labels, [s.heldout_rms_mm for s in res.steps], "s--", label="held out (5-fold)")
+    ax.set(ylabel="RMS (mm)", yscale="log", title="the gap, step by step")
+    ax.tick_params(axis="x", rotation=20)
+    ax.legend()
+    fig.tight_layout()
+    save_figure_atomically(fig, out / "gap.png", option="--figures")
+    plt.close(fig)
+    return [out / "residuals.png", out / "gap.png"]

@@ -16,9 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 import html
-import json
 
 import numpy as np
+
+from handeye.app.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
+from handeye.app.protocol import ResultProtocol
+from handeye.app.result_parts import FLAT, EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 
 
 def _list(value):
@@ -28,27 +31,6 @@ def _list(value):
 def _unit(name):
     """Unit of a covariance parameter: mm for translations and centres, rad for the local rotation."""
     return "rad" if name in ("wx", "wy", "wz") else "mm" if name in ("tx", "ty", "tz", "cx", "cy", "cz") else "effect"
-
-
-def finite_json(value):
-    """``value`` with every non-finite float replaced by None: what JSON can hold (RFC 8259 has
-    no NaN or infinity; a NaN in a report means "not available")."""
-    if isinstance(value, dict):
-        return {k: finite_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [finite_json(v) for v in value]
-    if isinstance(value, (float, np.floating)):
-        return float(value) if np.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
-
-
-def dumps(value, indent=1):
-    """Strict JSON text of ``value`` (non-finite numbers as null, never ``NaN``/``Infinity``)."""
-    return json.dumps(finite_json(value), indent=indent, allow_nan=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,8 +222,14 @@ class ClosedFormDetails:
 
 
 @dataclasses.dataclass(frozen=True)
-class CalibrationResult:
+class CalibrationResult(ResultProtocol):
     """The outcome of :func:`handeye.calibrate` (module docstring).
+
+    Made of typed parts (:mod:`handeye.app.result_parts`): ``fit`` (pose, solver, residuals),
+    ``uncertainty``, ``screening`` (``before``, ``excluded``), ``global_check``,
+    ``identifiability`` and ``catalogue`` (``effect_tests``, ``effects``). Every attribute of a
+    part is an attribute of the result too, under the names below (``result.rms_mm`` is
+    ``result.fit.rms_mm``), and :meth:`to_dict` keeps the flat JSON keys.
 
     Attributes
     ----------
@@ -298,7 +286,7 @@ class CalibrationResult:
     noise_test : NoiseTest or None
         The fit against the stated noise model (None for the ``points`` model and closed form).
     effect_tests : list of ScoreTest or None
-        Score tests of the catalogue's effects at the fit (:func:`handeye.app.diagnose.score_effects`):
+        Score tests of the catalogue's effects at the fit (:func:`handeye.model.extended.score_effects`):
         a significant one is named in a warning that points to ``handeye diagnose``.
     effects : list of NamedEffect or None
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
@@ -320,53 +308,30 @@ class CalibrationResult:
     dataset_sha256: str
     method: str
     unknowns: str
-    sensor2flange: np.ndarray
-    sensor_pose: np.ndarray
-    sensor_pose_kuka: np.ndarray
     convention: str
     columns: tuple
-    sphere_centre: np.ndarray
-    converged: bool
-    status: int | None
-    message: str
-    residuals: list
-    excluded: list
+    fit: FitRecord
+    screening: ScreeningRecord
     warnings: list
+    uncertainty: UncertaintyRecord = UncertaintyRecord()
+    global_check: object | None = None
+    identifiability: object | None = None
+    catalogue: EffectsRecord = EffectsRecord()
     rotation: str | None = None
     model: str | None = None
     robot_sigma_mm: float | None = None
     start_pose: np.ndarray | None = None
     start_pose_kuka: np.ndarray | None = None
     start_used: str | None = None
-    iterations: int | None = None
-    evaluations: dict | None = None
-    before: Before | None = None
-    history: np.ndarray | None = None
-    solver_point: np.ndarray | None = None
-    solver_extra: dict | None = None
-    n_used: int | None = None
-    rms_mm: float | None = None
-    max_residual_mm: float | None = None
-    cost_mm2: float | None = None
-    sigma_mm: float | None = None
-    sigma_scale: float | None = None
-    std: Uncertainty | None = None
-    parameter_names: tuple | None = None
-    correlation: np.ndarray | None = None
-    covariance: np.ndarray | None = None
-    loo_error_mm: float | None = None
-    identifiability: object | None = None
-    hessian_eigenvalues: np.ndarray | None = None
-    noise_model: str | None = None
     closed_form: ClosedFormDetails | None = None
-    noise_test: NoiseTest | None = None
-    effect_tests: list | None = None
-    effects: list | None = None
     provenance: dict | None = None
-    global_check: object | None = None
-    rms_what: str | None = None
-    objective: dict | None = None
-    loo: dict | None = None
+
+    def __getattr__(self, name):
+        """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
+        where = FLAT.get(name) if not name.startswith("__") else None
+        if where is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return getattr(object.__getattribute__(self, where[0]), where[1])
 
     @property
     def outliers(self):
@@ -469,21 +434,11 @@ class CalibrationResult:
             out["provenance"] = self.provenance
         return out
 
-    def to_json(self, indent=1):
-        """:meth:`to_dict` as strict JSON text (non-finite numbers as null)."""
-        return dumps(self.to_dict(), indent)
-
     def summary(self):
         """The CLI's text report."""
         from handeye.app import report
 
         return report.calibration_text(self)
-
-    def save(self, path):
-        """Write :meth:`to_json` atomically to ``path`` (with ``provenance`` when set)."""
-        from handeye.app.files import write_text_atomically
-
-        write_text_atomically(path, self.to_json(), option="--out")
 
     def _repr_html_(self):
         verdict = "converged" if self.converged else "NOT CONVERGED"

@@ -162,8 +162,8 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
         a shifted ``profile`` column, another campaign's files) or too few rows would remain for
         the unknowns.
     """
-    from handeye.app.calibrate import min_measurements
     from handeye.app.errors import CalibrationInputError
+    from handeye.app.request import min_measurements
     from handeye.model import consistency
 
     check = consistency.check_rows(dataset)

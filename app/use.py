@@ -19,6 +19,7 @@ import numpy as np
 from handeye.app import export as exports
 from handeye.app import files, saved
 from handeye.app.errors import RequestError
+from handeye.app.protocol import ResultProtocol
 
 CLOUD_FORMATS = ("ply", "csv")
 
@@ -56,8 +57,10 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
 
 
 @dataclasses.dataclass(frozen=True)
-class ExportResult:
+class ExportResult(ResultProtocol):
     """The text of ``handeye export`` and where it was written (None: not written)."""
+
+    caption = 'handeye export'
 
     format: str
     text: str
@@ -84,7 +87,7 @@ def export(calibration=None, format="json", parent="flange", child="sensor", too
 
 
 @dataclasses.dataclass(frozen=True)
-class CloudResult:
+class CloudResult(ResultProtocol):
     """The point cloud of ``handeye cloud``.
 
     Attributes
@@ -101,6 +104,8 @@ class CloudResult:
     out, format : str or None
     calibration : str
     """
+
+    caption = 'handeye cloud'
 
     points: np.ndarray
     pose_index: np.ndarray

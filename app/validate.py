@@ -31,6 +31,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.errors import RequestError
+from handeye.app.protocol import ResultProtocol
 from handeye.model import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
@@ -177,7 +178,7 @@ def accept(result, mpe):
 
 
 @dataclasses.dataclass(frozen=True)
-class ValidationResult:
+class ValidationResult(ResultProtocol):
     """The outcome of :func:`handeye.validate` (module docstring).
 
     Attributes
@@ -204,6 +205,8 @@ class ValidationResult:
     acceptance : Acceptance or None
         The verdict against stated maximum permissible errors (``mpe``).
     """
+
+    caption = 'handeye validate'
 
     scan: str
     calibration: str

@@ -42,6 +42,7 @@ import functools
 import numpy as np
 
 from handeye.model import codegen, rotation
+from handeye.model.names import KINDS, ROTATIONS  # noqa: F401  (re-exported: the public names)
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
@@ -49,12 +50,6 @@ UNKNOWNS = ("sensor", "sensor+sphere")
 #: function ``map``-ped over the rows (memory O(1) per row); below, the same expressions expanded
 #: to SX (faster per evaluation, as before). The two agree to rounding (tested).
 NLP_MX_ABOVE = 1000
-#: Names of the rotation parametrisations of the unknown sensor rotation (handeye.model.symbolic uses these).
-ROTATIONS = ("euler", "matrix", "local")
-
-
-#: Residual kinds and the rows of one residual (handeye.model.symbolic uses these).
-KINDS = {"centre": 3, "measurement": 3, "points": 1}
 
 
 @functools.lru_cache(maxsize=None)
@@ -199,6 +194,17 @@ class CalibrationModel:
         model = cls(rows, np.concatenate(profiles), sphere_centre, rotation, unknowns, "points", radius)
         model.groups = np.concatenate([np.full(len(p), k) for k, p in enumerate(profiles)])
         return model
+
+    def samples(self, keep):
+        """The model of the samples ``keep`` (bool per sample: per row, or per profile for
+        ``points``): the same kind, whitening, parametrisation and centre, samples renumbered."""
+        keep = np.asarray(keep, bool)
+        rows = keep if self.groups is None else keep[self.groups]
+        sub = CalibrationModel(self.flange2base[rows], self.centre_in_sensor[rows], self.fixed_centre, self.rotation,
+                               self.unknowns, self.kind, self.radius, None if self.whiten is None else self.whiten[rows])
+        if self.groups is not None:
+            sub.groups = np.unique(self.groups[rows], return_inverse=True)[1].reshape(-1)
+        return sub
 
     def with_rotation(self, rotation, sphere_centre=None):
         """The same rows, kind and whitening in another parametrisation (and fixed centre)."""

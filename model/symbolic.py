@@ -29,9 +29,8 @@ import functools
 
 import sympy as sp
 
-# the names of rotations and residual kinds are defined once, where no sympy is imported
-from handeye.model.calibration import KINDS, ROTATIONS
-from handeye.model.conventions import CONVENTIONS
+# the names of rotations, residual kinds and conventions are defined once, in a leaf module
+from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
 
 
 def rot_x(angle):

@@ -27,8 +27,8 @@ import numpy as np
 import handeye
 from handeye import solvers
 from handeye.app import sweep
-from handeye.app.calibrate import SUPPORTED
 from handeye.app.problems import calibration_problem
+from handeye.app.request import SUPPORTED
 from handeye.model import fast, observations, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose

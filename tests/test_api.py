@@ -10,6 +10,7 @@ import handeye
 from handeye.app import api, cli
 from handeye.app import calibrate as engine
 from handeye.app.diagnosis_results import DiagnosisResult
+from handeye.app.errors import CalibrationInputError
 from handeye.app.results import CalibrationResult
 from handeye.model import circle, classics, closed_form, conventions, dataset, observations, planning, simulate
 
@@ -87,7 +88,7 @@ def test_start_in_the_datasets_convention_as_text_or_numbers():
 def test_every_bad_input_is_an_input_error_and_nothing_else_is():
     for cls in (dataset.DatasetError, conventions.ConventionError, observations.ObservationError,
                 simulate.SimulationError, circle.CircleFitError, closed_form.ClosedFormError,
-                classics.MissingMotions, planning.PlanningError, engine.CalibrationInputError):
+                classics.MissingMotions, planning.PlanningError, CalibrationInputError):
         assert issubclass(cls, handeye.InputError) and issubclass(cls, ValueError), cls
     with pytest.raises(handeye.InputError, match="--alpha"):
         handeye.calibrate("thesis-sim", alpha=2)

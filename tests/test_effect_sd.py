@@ -7,13 +7,12 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import diagnose
-from handeye.model import effects
+from handeye.model import effects, extended
 from handeye.model import simulate as sim
 from handeye.model.pose import pose_from_transform, transform_from_pose
 
 DIAMETER = 25.4
-RADIUS_STRUCTURE = diagnose.Structure(centre=False, data_effects=("sphere_radius",))
+RADIUS_STRUCTURE = extended.Structure(centre=False, data_effects=("sphere_radius",))
 
 
 def _views(n=10, nearest=None, seed=0):
@@ -58,7 +57,7 @@ def test_the_sphere_radius_sd_agrees_with_a_monte_carlo(tmp_path, dr_true, neare
     estimates, sds = [], []
     for seed in range(1, 201):
         made = sim.simulate(setup, seed=seed, effects=truth, flange_poses=flanges, ids=ids)
-        prob = diagnose.Samples(_replicate(template, made))
+        prob = extended.Samples(_replicate(template, made))
         mask = np.ones(len(ids), bool)
         fit = prob.fit(RADIUS_STRUCTURE, mask, prob.point(RADIUS_STRUCTURE, start))
         estimates.append(fit.params["sphere_radius"][0])

@@ -106,3 +106,74 @@ def test_importing_a_lower_layer_loads_nothing_above_it():
     for module, allowed in (("handeye.solvers", {"solvers"}), ("handeye.model.calibration", {"solvers", "model"})):
         out = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True, cwd="/")
         assert set(filter(None, out.stdout.strip().split(","))) <= allowed, (module, out.stdout)
+
+
+def _module_name(path):
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = ("handeye", *rel.parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph():
+    """handeye module -> the handeye modules it imports (module level and inside functions).
+
+    ``from handeye.x import y`` is an import of the module ``handeye.x.y`` when that is a module
+    (a submodule), else of ``handeye.x``; a package's ``__init__`` is not implied by importing
+    one of its modules (the usual convention of import linters)."""
+    modules = {_module_name(p): p for p in _modules()}
+    graph = {}
+    for name, path in modules.items():
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                subs = {f"{node.module}.{a.name}" for a in node.names} & set(modules)
+                deps |= subs or {node.module}
+        graph[name] = {d for d in deps if d in modules and d != name}
+    return graph
+
+
+def _cycles(graph):
+    """Strongly connected components with more than one module (Tarjan), each sorted."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circles():
+    """No module imports itself through others, not even lazily inside a function (a circle
+    ties modules that should be separable: the engine to its reports, the symbolic source to
+    the numeric modules generated from it)."""
+    assert _cycles(_import_graph()) == []
+
+
+def test_the_circle_finder_sees_a_circle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
+    assert _cycles(graph) == [["a", "b", "c"]]
+    assert "handeye.app.calibrate" in _import_graph()["handeye.app.api"]

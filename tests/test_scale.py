@@ -4,7 +4,7 @@ import pytest
 
 import handeye
 from handeye.app import bench, robust
-from handeye.app import calibrate as engine
+from handeye.app import request as request_module
 from handeye.model.calibration import CalibrationModel
 
 
@@ -35,7 +35,7 @@ def test_the_mx_problem_for_ipopt_agrees_with_the_sx_one(monkeypatch):
 
 
 def test_large_datasets_default_to_lm_and_say_so(tmp_path, monkeypatch):
-    monkeypatch.setattr(engine, "LARGE", 10)
+    monkeypatch.setattr(request_module, "LARGE", 10)
     r = handeye.calibrate("thesis-sim", no_loo=True)
     assert r.method == "lm" and any("default method is lm" in w for w in r.warnings)
     assert handeye.calibrate("thesis-sim", no_loo=True, method="ipopt").method == "ipopt"

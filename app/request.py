@@ -1,0 +1,249 @@
+"""A calibration request: every option checked once, before any work, into a frozen record.
+
+:func:`handeye.calibrate` (the CLI's keywords) and the engine
+:func:`handeye.app.calibrate.calibrate` (checked values) both build a
+:class:`CalibrationRequest`; :meth:`CalibrationRequest.checked` validates it against the
+dataset once and resolves every default (method, rotation, residual model, noise levels,
+convention), so that no later stage validates or defaults an option again.
+"""
+from __future__ import annotations
+
+import dataclasses
+import types
+
+import numpy as np
+
+from handeye import solvers
+from handeye.app.errors import CalibrationInputError
+from handeye.model import conventions
+from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
+from handeye.model.names import ROTATIONS
+
+#: Residuals that handeye fits: the ``centre`` model needs the centre columns; ``measurement``
+#: and ``points`` the profiles (:mod:`handeye.model.observations`).
+UNKNOWNS = ("sensor", "sensor+sphere")
+METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
+
+#: Which rotation parametrisations each method can use.
+SUPPORTED = {
+    "ipopt": ("matrix", "euler"),
+    "gn": ("local", "euler"),
+    "lm": ("local", "euler"),
+    "tr": ("local", "euler"),
+    "dogleg": ("local", "euler"),
+    "newton": ("local", "euler"),
+}
+#: Parametrisation used when none is asked for.
+DEFAULT_ROTATION = {"ipopt": "matrix"}
+
+#: Above this many measurements the default method is Levenberg-Marquardt on the local chart
+#: (numpy, time and memory linear in the data) instead of IPOPT (whose problem graph costs far
+#: more per measurement), and leave-one-out uses the deletion formula (robust.LOO_EXACT_UP_TO).
+LARGE = 5000
+
+#: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
+EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
+
+
+def min_measurements(unknowns):
+    """Fewest measurements with more equations (3 each) than unknowns (6 or 9)."""
+    n = 6 if unknowns == "sensor" else 9
+    return n // 3 + 1
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationRequest:
+    """What to calibrate and how: the engine's options (checked values, not CLI text).
+
+    Attributes
+    ----------
+    unknowns : {'sensor', 'sensor+sphere'}
+    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton'} or None
+        None: ``ipopt``, or ``lm`` above :data:`LARGE` measurements (said in ``notes``).
+    rotation : {'matrix', 'local', 'euler'} or None
+        None: ``matrix`` for IPOPT, ``local`` otherwise.
+    start : array_like, shape (6,), optional
+        Start sensor pose (KUKA: mm, degrees); None: the setup's, else the closed form.
+    options : mapping, optional
+        Solver options (:class:`handeye.solvers.Options`), held read-only.
+    outliers : bool
+        Screen and exclude gross errors (:mod:`handeye.app.robust`).
+    alpha : float
+        Family-wise level of the outlier tests.
+    loo : bool
+        Leave-one-out prediction errors (one exact refit per sample).
+    model : {'centre', 'measurement', 'points'} or None
+        Residual of the final fit; None: ``measurement`` when every sample has a profile.
+    robot_sigma, sigma : float, optional
+        Robot repeatability and stated centre noise (mm, 1 sd per axis); None: the setup's.
+    convention : str, optional
+        Convention of the reported pose; None: the dataset's.
+    effects : sequence of str
+        Catalogue effects (:data:`EFFECTS`) calibrated with the pose (``'a,b'`` or a list).
+    notes : tuple of str
+        What :meth:`checked` decided that the user should read (a default method changed).
+    resolved : bool
+        Set by :meth:`checked`: every option valid and every default resolved.
+    """
+
+    unknowns: str = "sensor"
+    method: str | None = None
+    rotation: str | None = None
+    start: object = None
+    options: object = None
+    outliers: bool = True
+    alpha: float = 0.01
+    loo: bool = True
+    model: str | None = None
+    robot_sigma: float | None = None
+    convention: str | None = None
+    sigma: float | None = None
+    effects: tuple = ()
+    notes: tuple = ()
+    resolved: bool = False
+
+    @property
+    def solver_options(self):
+        """A fresh dict of the solver options (the request itself stays unchanged)."""
+        return {k: dict(v) if isinstance(v, types.MappingProxyType) else v for k, v in (self.options or {}).items()}
+
+    @property
+    def polish(self):
+        """Whether a solver that stops early may be polished: not when the user set an
+        iteration limit (a limit is respected, not polished past)."""
+        return not _limits_iterations(self.options or {})
+
+    def checked(self, dataset):
+        """This request validated against ``dataset``, every default resolved.
+
+        Raises
+        ------
+        CalibrationInputError
+            The option at fault named (``--method``, ``--rotation``, ``--effects``, ...).
+        """
+        if self.resolved:
+            return self  # checked once; the stages never check again
+        method, note = _method(self.method, self.rotation, len(dataset))
+        rotation = _rotation(method, self.rotation)
+        effects, unknowns, model = _effects(self.effects, self.unknowns, self.model)
+        enough(dataset, unknowns)
+        start = None if self.start is None else np.asarray(self.start, float).copy()
+        return dataclasses.replace(
+            self, method=method, rotation=rotation, effects=effects, unknowns=unknowns, model=model, start=start,
+            options=_frozen(_solver_options(self.options)), alpha=float(self.alpha),
+            convention=conventions.check(self.convention or dataset.convention),
+            sigma=dataset.noise_centre_mm if self.sigma is None else float(self.sigma),
+            robot_sigma=dataset.noise_robot_mm if self.robot_sigma is None else float(self.robot_sigma),
+            notes=(note,) if note else (), resolved=True)
+
+
+def _method(method, rotation, n):
+    if method is None:
+        if n <= LARGE or rotation in ("matrix", "euler"):
+            return "ipopt", None
+        return "lm", (f"{n} measurements: the default method is lm (Levenberg-Marquardt on the local chart, linear "
+                      f"in the data) above {LARGE}; ask for --method ipopt to use IPOPT")
+    if method not in METHODS:
+        raise CalibrationInputError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS)}")
+    return method, None
+
+
+def _rotation(method, rotation):
+    rotation = rotation or DEFAULT_ROTATION.get(method, "local")
+    if rotation not in ROTATIONS:
+        raise CalibrationInputError(f"--rotation: unknown {rotation!r}; choose one of {', '.join(ROTATIONS)}")
+    if rotation not in SUPPORTED[method]:
+        raise CalibrationInputError(
+            f"--rotation {rotation} does not work with --method {method} (it supports {', '.join(SUPPORTED[method])}):"
+            + (" the matrix entries need the orthogonality constraints only IPOPT handles" if rotation == "matrix" else "")
+            + (" IPOPT has no retraction for the local parametrisation" if rotation == "local" else "")
+        )
+    return rotation
+
+
+def _effects(effects, unknowns, model):
+    """Validated effect names; ``sphere_center`` is the free centre (``unknowns='sensor+sphere'``)."""
+    if unknowns not in UNKNOWNS:
+        raise CalibrationInputError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
+    names = [effects] if isinstance(effects, str) else list(effects or ())
+    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
+    for name in names:
+        if name not in EFFECTS:
+            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
+                                        "(handeye diagnose names the effect a dataset needs)")
+    if not names:
+        return (), unknowns, model
+    if model not in (None, "centre"):
+        raise CalibrationInputError(f"--effects works on the centre residual, not --model {model}")
+    if "sphere_center" in names:
+        unknowns = "sensor+sphere"
+    return tuple(dict.fromkeys(n for n in names if n != "sphere_center")), unknowns, "centre"
+
+
+def enough(dataset, unknowns):
+    """Raise CalibrationInputError when ``dataset`` has too few measurements for ``unknowns``."""
+    need = min_measurements(unknowns)
+    if len(dataset) < need:
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: {len(dataset)} measurement(s); unknowns {unknowns!r} "
+            f"need at least {need} (3 equations each for {3 * need - 3} unknowns, plus redundancy)")
+
+
+def _limits_iterations(options):
+    """True when the options set an iteration limit anywhere (``max_iter``, nested dicts too)."""
+    return any(k == "max_iter" or (isinstance(v, (dict, types.MappingProxyType)) and _limits_iterations(v))
+               for k, v in options.items())
+
+
+def _solver_options(options):
+    """Solver options checked up front: an unknown key is bad input, not a crash."""
+    options = dict(options or {})
+    try:
+        solvers.Options.from_mapping(options)
+    except solvers.UnsupportedProblem as exc:
+        raise CalibrationInputError(f"options: {exc}") from None
+    return options
+
+
+def _frozen(options):
+    return types.MappingProxyType({k: types.MappingProxyType(dict(v)) if isinstance(v, dict) else v
+                                   for k, v in options.items()})
+
+
+def parse_pose(text, what="--start", convention="kuka"):
+    """Parse a pose written in a robot convention (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees)
+    into a KUKA pose; raises CalibrationInputError."""
+    pose = _parse_pose(text, what, convention)
+    if np.any(np.abs(pose[:3]) > LIMIT_POSITION_MM):
+        raise CalibrationInputError(f"{what}: a position beyond +-{LIMIT_POSITION_MM:g} mm in {text!r}: a unit or a "
+                                    "misprint?")
+    return pose
+
+
+def _numbers(parts, what, text):
+    try:
+        values = np.array([float(p) for p in parts])
+    except ValueError:
+        raise CalibrationInputError(f"{what}: not a number in {text!r}") from None
+    if not np.all(np.isfinite(values)):
+        raise CalibrationInputError(f"{what}: values must be finite, got {text!r}")
+    return values
+
+
+def _parse_pose(text, what, convention):
+    cols = conventions.columns(convention)
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != len(cols):
+        if convention == "kuka":
+            raise CalibrationInputError(f"{what}: needs six comma-separated numbers X,Y,Z,A,B,C, got {text!r}")
+        raise CalibrationInputError(f"{what}: needs {len(cols)} numbers {','.join(cols)} ({convention}), got {text!r}")
+    values = _numbers(parts, what, text)
+    if convention != "kuka":
+        try:
+            return conventions.convert(values, convention, "kuka")
+        except conventions.ConventionError as exc:
+            raise CalibrationInputError(f"{what}: {exc}") from None
+    for name, v, lim in zip("ABC", values[3:], GUESS_LIMITS):
+        if abs(v) > lim:
+            raise CalibrationInputError(f"{what}: angle {name} = {v} out of range [-{lim:g}, {lim:g}] degrees")
+    return values

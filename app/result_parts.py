@@ -1,0 +1,133 @@
+"""The parts a :class:`handeye.app.results.CalibrationResult` is made of, one typed record each.
+
+A calibration hands its stages' outcomes to the result as these records: the fit (pose, solver,
+residuals), its uncertainty, the screening, the effects of the catalogue; the global check and
+the identifiability analysis are records of their own modules
+(:class:`handeye.app.guarantee.GlobalCheck`, :class:`handeye.model.identifiability.Identifiability`).
+Every attribute of a part is also an attribute of the result (``result.rms_mm`` is
+``result.fit.rms_mm``), and the JSON keys are the attributes' names, flat, as before the parts.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class FitRecord:
+    """The reported fit: the pose, how the solver got there, and its residuals.
+
+    Attributes
+    ----------
+    sensor2flange : ndarray, shape (4, 4)
+        Sensor frame in the flange frame (mm).
+    sensor_pose : ndarray
+        The same pose in the result's convention (``x, y, z`` mm, then its orientation columns).
+    sensor_pose_kuka : ndarray, shape (6,)
+        KUKA ``x, y, z, A, B, C`` (mm, degrees).
+    sphere_centre : ndarray, shape (3,)
+        Robot base, mm.
+    converged : bool
+    status : int or None
+        Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
+    message : str
+    residuals : list of handeye.app.results.SampleResidual
+        Every sample, used or excluded.
+    iterations, evaluations, history, solver_point, solver_extra, hessian_eigenvalues
+        The solver's record (None for a closed-form method).
+    n_used, rms_mm, max_residual_mm, cost_mm2, rms_what, objective, noise_model, noise_test,
+    loo_error_mm, loo
+        The residuals' statistics (:class:`handeye.app.results.CalibrationResult`); None after
+        a numerical failure.
+    """
+
+    sensor2flange: np.ndarray
+    sensor_pose: np.ndarray
+    sensor_pose_kuka: np.ndarray
+    sphere_centre: np.ndarray
+    converged: bool
+    status: int | None
+    message: str
+    residuals: list = ()
+    iterations: int | None = None
+    evaluations: dict | None = None
+    history: np.ndarray | None = None
+    solver_point: np.ndarray | None = None
+    solver_extra: dict | None = None
+    hessian_eigenvalues: np.ndarray | None = None
+    n_used: int | None = None
+    rms_mm: float | None = None
+    max_residual_mm: float | None = None
+    cost_mm2: float | None = None
+    rms_what: str | None = None
+    objective: dict | None = None
+    noise_model: str | None = None
+    noise_test: object | None = None
+    loo_error_mm: float | None = None
+    loo: dict | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class UncertaintyRecord:
+    """The fit's uncertainty: 1-sd, noise scale, covariance and correlation (local chart:
+    ``tx, ty, tz`` mm, ``wx, wy, wz`` rad about the sensor's axes, then centre and effects).
+
+    Attributes
+    ----------
+    std : handeye.app.results.Uncertainty or None
+    sigma_mm : float or None
+        Noise per component estimated from an unweighted fit, mm.
+    sigma_scale : float or None
+        Ratio of the residuals to their stated sd, for a weighted fit.
+    parameter_names : tuple of str or None
+    correlation, covariance : ndarray, shape (p, p), or None
+    """
+
+    std: object | None = None
+    sigma_mm: float | None = None
+    sigma_scale: float | None = None
+    parameter_names: tuple | None = None
+    correlation: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class ScreeningRecord:
+    """What screening did: the plain fit of every sample and the samples excluded.
+
+    Attributes
+    ----------
+    excluded : list of handeye.app.results.ExcludedSample
+    before : handeye.app.results.Before or None
+    """
+
+    excluded: list = ()
+    before: object | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectsRecord:
+    """The catalogue at the fit: score tests of effects not in the model, and the effects
+    calibrated with the pose (``--effects``).
+
+    Attributes
+    ----------
+    tests : list of handeye.model.extended.ScoreTest or None
+        The result's ``effect_tests``.
+    calibrated : list of handeye.app.results.NamedEffect or None
+        The result's ``effects``.
+    """
+
+    tests: list | None = None
+    calibrated: list | None = None
+
+
+#: Flat attribute of the result -> (part, attribute of the part).
+FLAT = {
+    **{f.name: ("fit", f.name) for f in dataclasses.fields(FitRecord)},
+    **{f.name: ("uncertainty", f.name) for f in dataclasses.fields(UncertaintyRecord)},
+    **{f.name: ("screening", f.name) for f in dataclasses.fields(ScreeningRecord)},
+    "effect_tests": ("catalogue", "tests"),
+    "effects": ("catalogue", "calibrated"),
+}

@@ -1,0 +1,21 @@
+"""The names the symbolic chain is derived for, defined once where nothing is imported.
+
+:mod:`handeye.model.symbolic` derives a function for each of them and the numeric modules
+(:mod:`handeye.model.calibration`, :mod:`handeye.model.conventions`) validate requests against
+them; both import this leaf module, so neither imports the other (and numpy-only code never
+imports sympy).
+"""
+
+#: Names of the rotation parametrisations of the unknown sensor rotation.
+ROTATIONS = ("euler", "matrix", "local")
+
+#: Residual kinds and the rows of one residual.
+KINDS = {"centre": 3, "measurement": 3, "points": 1}
+
+#: Robot-brand rotation conventions and their parameters (units).
+CONVENTIONS = {
+    "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
+    "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)
+    "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
+    "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
+}
