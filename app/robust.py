@@ -23,6 +23,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.results import ExcludedSample
+from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
 from handeye.model.statistics import chi2_survival_array, chi_median, deletion_statistics
 
@@ -84,6 +85,26 @@ def least_squares(model, x0, max_iter=200, lm_iter=50):
     return solvers.solve(newton, res.x, "tr", {"max_iter": max_iter - lm_iter})
 
 
+def _procrustes(model):
+    """True when ``model``'s weighted fit is an absolute orientation, solved exactly by one SVD
+    (:func:`handeye.model.global_fit.absolute_orientation`): the unweighted centre residual with
+    the sphere centre known (``|R_i (X p_i) + t_i - c| = |X p_i - q_i|``)."""
+    return model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
+
+
+def weighted_fit(model, x0, weights, max_iter=100):
+    """The minimum of ``sum w_i |e_i|^2`` near ``x0``: exact (one SVD) where :func:`_procrustes`,
+    else Levenberg-Marquardt from ``x0``."""
+    if _procrustes(model):
+        q = global_fit.centre_targets(model.flange2base, model.fixed_centre)
+        keep = weights > 0
+        with np.errstate(all="ignore"):
+            x, s = global_fit.absolute_orientation(model.centre_in_sensor[keep], q[keep], weights[keep])
+        if s[1] > 1e-12 * max(s[0], 1e-300) and np.all(np.isfinite(x)):
+            return model.point_from(x)
+    return solvers.solve(_weighted_problem(model, weights), x0, "lm", {"max_iter": max_iter}).x
+
+
 def robust_fit(model, x0, max_rounds=50):
     """IRLS with Cauchy weights (module docstring); returns (x, sigma, weights)."""
     x = np.asarray(x0, float)
@@ -91,7 +112,7 @@ def robust_fit(model, x0, max_rounds=50):
     med3 = chi_median(3)
     sigma = np.nan
     for _ in range(max_rounds):
-        x = solvers.solve(_weighted_problem(model, weights), x, "lm", {"max_iter": 100}).x
+        x = weighted_fit(model, x, weights)
         norms = np.linalg.norm(model.residuals(x), axis=1)
         sigma = max(float(np.median(norms)) / med3, 1e-12)
         new = 1.0 / (1.0 + (norms / (CAUCHY_K * sigma)) ** 2)
@@ -239,8 +260,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
             note = note or "the exclusion test cycled; stopped at a set seen before"
             break
         seen.add(key)
-        sub = _subset(full, inliers)
-        x = least_squares(sub, x).x
+        x = weighted_fit(full, x, inliers.astype(float)) if _procrustes(full) else least_squares(_subset(full, inliers), x).x
         e, j = full.residual_and_jacobian(x)
         stat, pval = deletion_statistics(e, j, inliers)
         adj = np.minimum(pval * n, 1.0)

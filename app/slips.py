@@ -32,8 +32,8 @@ import dataclasses
 import numpy as np
 
 from handeye.app.errors import CalibrationInputError
+from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
-from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 
 #: A plain fit with a larger RMS (mm), or residuals above the stated noise, is checked for slips.
 SUSPECT_RMS_MM = 1.0
@@ -100,20 +100,16 @@ def _candidates(dataset):
 
 
 def plain_rms(dataset, unknowns):
-    """RMS (mm) of the plain least-squares fit of every sample from the closed-form start, or
-    None when the closed form is not determined."""
-    from handeye.app import robust
-
+    """RMS (mm) of the plain least-squares fit of every sample: the unweighted centre model's
+    global minimum (:mod:`handeye.model.global_fit`: one SVD with the centre known), or None
+    when the data do not determine it."""
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
-        start, c0 = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, centre)
-    except ClosedFormError:
+        with np.errstate(all="ignore"):
+            best = global_fit.centre_minima(dataset.flange2base(), dataset.centre_in_sensor, centre).best
+    except global_fit.GlobalFitError:
         return None
-    model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=c0)
-    with np.errstate(all="ignore"):
-        x = robust.least_squares(model, model.point_from(start, c0), max_iter=100).x
-        norms = np.linalg.norm(model.residuals(x), axis=1)
-    rms = float(np.sqrt(np.mean(norms**2)))
+    rms = float(np.sqrt(2.0 * best.cost / len(dataset)))
     return rms if np.isfinite(rms) else None
 
 
@@ -248,7 +244,6 @@ SIDE_MOVE_MM, SIDE_MOVE_DEG, SIDE_MOVE_SD = 1.0, 0.5, 3.0
 def _pose_covariance(dataset, unknowns, minimum):
     """Covariance (6 x 6: t mm in the flange, w rad about the sensor's axes) of the centre
     model's pose at a minimum, sigma estimated from its residuals."""
-    from handeye.model.calibration import CalibrationModel
     from handeye.model.statistics import covariance
 
     model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=minimum.centre)

@@ -106,13 +106,15 @@ class CentreMinima:
         return self.minima[1].cost if len(self.minima) > 1 else None
 
 
-def absolute_orientation(p, q):
-    """The rotation and translation minimising ``sum |R p_i + t - q_i|^2`` (Kabsch/Umeyama).
+def absolute_orientation(p, q, weights=None):
+    """The rotation and translation minimising ``sum w_i |R p_i + t - q_i|^2`` (Kabsch/Umeyama).
 
     Parameters
     ----------
     p, q : array_like, shape (N, 3)
         Corresponding points, mm (p in the source frame, q in the target frame).
+    weights : array_like, shape (N,), optional
+        Non-negative weights (default all 1): the weighted centroids and cross-covariance.
 
     Returns
     -------
@@ -122,13 +124,23 @@ def absolute_orientation(p, q):
         Of the cross-covariance; the last two zero: the rotation is not determined.
     """
     p, q = np.asarray(p, float), np.asarray(q, float)
-    pc, qc = p.mean(axis=0), q.mean(axis=0)
-    h = (q - qc).T @ (p - pc)
+    w = np.ones(len(p)) if weights is None else np.asarray(weights, float)
+    pc, qc = w @ p / w.sum(), w @ q / w.sum()
+    h = (w[:, None] * (q - qc)).T @ (p - pc)
     rot = nearest_rotation(h)  # U diag(1, 1, det(U V^T)) V^T: Kabsch's solution
     s = np.linalg.svd(h, compute_uv=False)
     out = np.eye(4)
     out[:3, :3], out[:3, 3] = rot, qc - rot @ pc
     return out, s
+
+
+def centre_targets(flange2base, sphere_centre):
+    """``q_i = R_i^T (c - t_i)``: where sample i's centre must lie in the flange frame, mm (N, 3).
+
+    With the centre known, ``|R_i (X p_i) + t_i - c| = |X p_i - q_i|`` (R_i is orthogonal), so
+    the centre model is the absolute orientation of ``p`` onto ``q``: weighted too."""
+    f2b = np.asarray(flange2base, float)
+    return np.einsum("nba,nb->na", f2b[:, :3, :3], np.asarray(sphere_centre, float) - f2b[:, :3, 3])
 
 
 def centre_cost(flange2base, centre_in_sensor, sensor2flange, centre):
@@ -166,8 +178,7 @@ def centre_minima(flange2base, centre_in_sensor, sphere_centre=None):
     p = np.asarray(centre_in_sensor, float)
     if sphere_centre is not None:
         c = np.asarray(sphere_centre, float)
-        q = np.einsum("nba,nb->na", f2b[:, :3, :3], c - f2b[:, :3, 3])
-        x, s = absolute_orientation(p, q)
+        x, s = absolute_orientation(p, centre_targets(f2b, c))
         if s[1] <= 1e-12 * max(s[0], 1e-300):
             raise GlobalFitError("the centres seen from the flange do not span a plane: the rotation is not determined")
         best = Minimum(x, c.copy(), centre_cost(f2b, p, x, c))
