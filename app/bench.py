@@ -415,6 +415,9 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
 
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=3 if quick else 9, unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
+    from handeye.app import bench_pipeline
+
+    result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=3 if quick else 9)
     if with_startup:
         result["startup"] = startup()
     if pipeline_sizes is None:
@@ -466,6 +469,10 @@ def text(res):
         from handeye.app import bench_guarantee
 
         lines += ["", bench_guarantee.text(res["guarantee"])]
+    if "stages" in res:
+        from handeye.app import bench_pipeline
+
+        lines += ["", *bench_pipeline.text(res["stages"])]
     if "startup" in res:
         s = res["startup"]
         lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "

@@ -150,3 +150,14 @@ def test_solver_bench_reports_a_failed_study(monkeypatch):
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: Done())
     st = bench_solvers.study(quick=True)
     assert st["exit_code"] == 4 and "xyz" in st["error"]
+
+
+def test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve():
+    from handeye.app import bench_pipeline
+
+    res = bench_pipeline.pipeline_vs_solve("thesis-sim", reps=1)
+    assert set(res["stages"]) == set(bench_pipeline.STAGES) == set(res["stages_no_loo"])
+    assert all(v >= 0 for v in res["stages"].values()) and res["ipopt"] > 0 and res["ipopt_converged"]
+    assert res["ratio"] == res["total"] / res["ipopt"] and res["total"] >= sum(res["stages"].values()) * 0.999
+    text = "\n".join(bench_pipeline.text(res))
+    assert "one IPOPT solve" in text and "describe" in text
