@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 
 import numpy as np
 
@@ -38,31 +39,40 @@ from handeye import solvers
 from handeye.app import sweep
 from handeye.app.problems import testfunction_options as options_for
 from handeye.app.problems import testfunction_problem
-from handeye.model import testfunction
+from handeye.model import fast_starts, testfunction
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
-KINDS = ("global", "local", "saddle", "none")
+KINDS = testfunction.END_KINDS
 #: IPOPT runs on every IPOPT_STRIDE-th grid line (module docstring)
 IPOPT_STRIDE = 5
+COMPILED = "compiled per-start loop (C)"
+NUMPY = "numpy batch"
 
 
-def _ends(method, points):
-    """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations)."""
-    res = solvers.solve_many(testfunction_problem(), np.asarray(points, float).reshape(-1, 2), method,
-                             options_for(method))
+def engine(method):
+    """How ``method`` runs the starts here: the compiled per-start loop, else the numpy batch."""
+    if method in fast_starts.METHODS and fast_starts.supports(method, options_for(method)):
+        return COMPILED if fast_starts.library() is not None else NUMPY
+    return "one solver object, starts in a loop" if method == "ipopt" else NUMPY
+
+
+def _ends(method, points, compiled=True):
+    """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations).
+
+    The compiled per-start loop (:mod:`handeye.model.fast_starts`) where it has ``method`` and a
+    C compiler is present (``compiled``), else :func:`handeye.solvers.solve_many`.
+    """
+    points = np.asarray(points, float).reshape(-1, 2)
+    res = fast_starts.solve_many(points, method, options_for(method)) if compiled else None
+    if res is None:
+        res = solvers.solve_many(testfunction_problem(), points, method, options_for(method))
     return np.column_stack([res.x, res.converged, res.iterations]).astype(float)
 
 
 def classify(ends):
     """Index into KINDS for each end point (N, >= 3: x1, x2, converged, ...)."""
-    pts = testfunction.stationary_points()
-    targets = {"global": pts[0].x, "local": pts[1].x, "saddle": pts[2].x}
-    kind = np.full(len(ends), 3)
-    for k, name in enumerate(("global", "local", "saddle")):
-        near = np.linalg.norm(ends[:, :2] - targets[name], axis=1) < 1e-4
-        kind[near & (ends[:, 2] > 0)] = k
-    return kind
+    return testfunction.end_kind(ends[:, :2], ends[:, 2] > 0)
 
 
 def grid_axis(lo, hi, n, method, ipopt_stride=IPOPT_STRIDE):
@@ -135,7 +145,11 @@ def run(out, quick=False):
     seconds["x0max"] = time.perf_counter() - t0
     grids = {m: f"{len(maps['wide'][m][0])} x {len(maps['wide'][m][0])}" for m in METHODS}
     solves = {m: len(windows) * len(maps["wide"][m][0]) ** 2 + 2 * int(50.0 / step) for m in METHODS}
-    rows, summary = [], {"grid": n, "grids": grids, "solves": solves, "methods": {},
+    engines = {m: engine(m) for m in METHODS}
+    if NUMPY in engines.values():
+        warnings.warn("no C compiler: the basin study runs on the numpy batch (same ends to round-off, 10-30x slower)",
+                      stacklevel=2)
+    rows, summary = [], {"grid": n, "grids": grids, "solves": solves, "engines": engines, "methods": {},
                          "ipopt": f"no batch form: a loop over one solver object, on every {stride}-th grid line"
                          if stride > 1 else "no batch form: a loop over one solver object, on the full grid"}
     for method in METHODS:
