@@ -133,3 +133,16 @@ def test_the_basin_study_falls_back_to_the_numpy_batch_and_says_so(monkeypatch):
     assert np.array_equal(study_testfunction.classify(with_c), study_testfunction.classify(without))
     ref = _numpy(starts, "lm")
     assert np.array_equal(without[:, :2], ref.x) and np.array_equal(without[:, 3], ref.iterations)
+
+
+def test_the_solver_bench_sets_both_paths_side_by_side():
+    from handeye.app import bench_solvers
+
+    res = bench_solvers.compiled(methods=("newton", "lm"), n=40)
+    assert [r["method"] for r in res["rows"]] == ["newton", "lm"] and res["starts"] == 40
+    for r in res["rows"]:
+        assert r["numpy_seconds"] > 0
+        if r["compiled_seconds"] is not None:
+            assert r["ratio"] > 0 and r["same_ends"] >= 0.95
+    text = "\n".join(bench_solvers._compiled_text(res))
+    assert "numpy batch against the compiled per-start loop" in text and "newton" in text
