@@ -12,6 +12,10 @@ Sections, in one process and one run:
   from the same seeded starts over the study's two windows; the ratio beside them.
 * ``extrapolated`` -- the study's solve counts at the two paths' per-start times: what its
   solves cost on one core without the batch (an estimate, labelled as one), and with it.
+* ``compiled`` -- per batchable method, the numpy batch against the compiled per-start loop
+  (:mod:`handeye.model.fast_starts`, C) over the same seeded starts, both on one core, the
+  ratio, and the share of starts that end alike (at the same stationary point, or at none,
+  as the basin study classifies them); a total line over all of them.
 * ``scaling`` -- the batch's time and peak memory (``tracemalloc``, numpy's buffers included)
   against the number of starts N, with the log-log slope per method.
 
@@ -31,6 +35,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.problems import testfunction_options, testfunction_problem, testfunction_starts
+from handeye.model import fast_starts, testfunction
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 SCALING = (10, 100, 1000, 10000, 30000)
@@ -103,6 +108,50 @@ def per_start(methods=METHODS, n_batch=20000, n_single=200, seed=SEED):
                      "batch_per_start": batch_s, "batch_starts": len(starts), "speedup": single_s / batch_s,
                      "same_ends": bool(same)})
     return rows
+
+
+def compiled(methods=fast_starts.METHODS, n=20000, seed=SEED):
+    """Per method: the numpy batch against the compiled per-start loop over the same ``n`` starts.
+
+    Returns
+    -------
+    dict
+        ``rows``: ``method``, ``numpy_seconds``, ``compiled_seconds`` (None without a C
+        compiler), ``ratio``, ``same_ends`` (share of starts that end at the same stationary point, or
+        at none on both paths, as the basin study classifies them); ``starts``.
+    """
+    problem, starts, rows = testfunction_problem(), testfunction_starts(n, seed), []
+    fast_starts.library()  # built (or loaded) before the clock starts
+    for method in methods:
+        opts = testfunction_options(method)
+        t0 = time.perf_counter()
+        batch = solvers.solve_many(problem, starts, method, opts)
+        numpy_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        loop = fast_starts.solve_many(starts, method, opts)
+        loop_s = time.perf_counter() - t0 if loop is not None else None
+        same = None
+        if loop is not None:
+            kinds = [testfunction.end_kind(r.x, r.converged) for r in (batch, loop)]
+            same = float(np.mean(kinds[0] == kinds[1]))
+        rows.append({"method": method, "numpy_seconds": numpy_s, "compiled_seconds": loop_s,
+                     "ratio": numpy_s / loop_s if loop_s else None,
+                     "same_ends": same})
+    return {"rows": rows, "starts": n}
+
+
+def _compiled_text(res):
+    lines = ["", f"numpy batch against the compiled per-start loop (C), same {res['starts']} starts, one core",
+             f"{'method':10s} {'numpy batch s':>14s} {'compiled s':>11s} {'ratio':>7s} {'same ends':>10s}"]
+    rows = res["rows"]
+    if any(r["compiled_seconds"] is None for r in rows):
+        return lines + ["  no C compiler: the compiled loop is not available (the studies use the numpy batch)"]
+    for r in rows:
+        lines.append(f"{r['method']:10s} {r['numpy_seconds']:14.3f} {r['compiled_seconds']:11.3f} {r['ratio']:7.1f} "
+                     f"{100 * r['same_ends']:9.2f}%")
+    numpy_s, loop_s = sum(r["numpy_seconds"] for r in rows), sum(r["compiled_seconds"] for r in rows)
+    lines.append(f"{'all':10s} {numpy_s:14.3f} {loop_s:11.3f} {numpy_s / loop_s:7.1f}")
+    return lines
 
 
 def extrapolated(rows, solves):
@@ -233,6 +282,7 @@ def run(quick=False, with_study=True):
     rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
     res["per_start"] = rows
     res["calibration"] = calibration(n_batch=100 if quick else 400, n_single=20 if quick else 40)
+    res["compiled"] = compiled(n=2000 if quick else 20000)
     res["scaling"] = scaling(sizes=SCALING[:-1] if quick else SCALING)
     if with_study:
         res["study"] = study(quick=quick)
@@ -260,6 +310,8 @@ def text(res):
                          f"{100 * r['converged']:9.1f}%")
         lines.append("(lm-fast: the compiled fast path, calibrate_fast one by one against calibrate_many; "
                      "its own LM, so its ends are not compared)")
+    if res.get("compiled"):
+        lines += _compiled_text(res["compiled"])
     st = res.get("study")
     if st:
         lines.append("")

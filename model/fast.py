@@ -28,23 +28,20 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
-import os
 import pathlib
-import shutil
-import subprocess
-import tempfile
 from typing import NamedTuple
 
 import numpy as np
 
-from handeye.model import codegen
+from handeye.model import ccompile, codegen
 from handeye.model.calibration import _sources
 from handeye.model.rotation import matrix_from_rotvec
 from handeye.solvers import CONVERGED
 
 DRIVER = pathlib.Path(__file__).with_name("fast_lm.c")
 CFLAGS = ("-O3", "-fPIC", "-shared")
+#: kept here too: the tests and the cache's users read it from this module
+STALE_BUILD_S = ccompile.STALE_BUILD_S
 
 #: ``status`` codes of the iteration (fast_lm.c): the keys of the solvers' table
 #: (:data:`handeye.solvers.STATUS_MESSAGES`, same meaning, same ``converged``), with the
@@ -122,67 +119,6 @@ def normal_equations(n):
     return ca.Function("normal_all", [x, c, data], [ca.vertcat(ca.sum2(h), ca.sum2(g), ca.sum2(f))])
 
 
-#: A build folder older than this (s) was left by a killed compile: removed.
-STALE_BUILD_S = 3600.0
-
-
-def _load(path):
-    """The library at ``path`` when it loads and has the driver's symbols, else None."""
-    try:
-        dll = ctypes.CDLL(str(path))
-        dll.he_lm, dll.he_lm_batch  # noqa: B018 - both symbols must be there
-    except (OSError, AttributeError):
-        return None
-    return dll
-
-
-def _digest(path):
-    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
-
-
-def _intact(lib):
-    """True when ``lib`` is the file its build recorded (the SHA-256 written beside it)."""
-    try:
-        return lib.is_file() and lib.with_name(lib.name + ".sha256").read_text().strip() == _digest(lib)
-    except OSError:
-        return False
-
-
-def _remove_stale_builds(folder):
-    import time
-
-    try:
-        for entry in folder.glob("tmp*"):
-            if entry.is_dir() and time.time() - entry.stat().st_mtime > STALE_BUILD_S:
-                shutil.rmtree(entry, ignore_errors=True)
-    except OSError:
-        pass
-
-
-def _build(lib, generated, driver, flags):
-    """Compile the driver into ``lib``; a library that does not load is never cached (None)."""
-    compiler = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
-    if compiler is None:
-        return None
-    try:
-        lib.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
-            (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
-            (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
-            out = pathlib.Path(tmp) / "lib.so"
-            subprocess.run([compiler, *flags, "fast_lm.c", "normal_one.c", "-o", str(out), "-lm"], cwd=tmp,
-                           check=True, capture_output=True, timeout=300)
-            if _load(out) is None:  # a compiler that exits 0 but writes a broken library
-                return None
-            digest = pathlib.Path(tmp) / "lib.sha256"
-            digest.write_text(_digest(out))
-            os.replace(out, lib)  # atomic: parallel workers never load a half-written library
-            os.replace(digest, lib.with_name(lib.name + ".sha256"))
-    except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired):
-        return None
-    return _load(lib)
-
-
 @functools.lru_cache(maxsize=None)
 def library():
     """The compiled driver (ctypes), or None when no C compiler is available."""
@@ -191,16 +127,9 @@ def library():
     one = _per_measurement()
     gen = ca.CodeGenerator("normal_one.c", {"with_header": False})
     gen.add(one)
-    generated = gen.dump()
-    driver = DRIVER.read_text()
     flags = (*CFLAGS, f"-DHE_SZ_W={max(one.sz_w(), 1)}")
-    key = hashlib.sha256("\0".join([generated, driver, *flags]).encode()).hexdigest()[:16]
-    folder = codegen.cache_dir() / "c"
-    lib = folder / f"fast_lm_{key}.so"
-    _remove_stale_builds(folder)
-    dll = _load(lib) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
-    if dll is None:  # missing, or damaged (truncated, emptied): build it again
-        dll = _build(lib, generated, driver, flags)
+    dll = ccompile.cached_library("fast_lm", {"fast_lm.c": DRIVER.read_text(), "normal_one.c": gen.dump()}, flags,
+                                  ("he_lm", "he_lm_batch"))
     if dll is None:
         return None
     pointer = ctypes.c_void_p  # addresses (ndarray.ctypes.data) of C-contiguous float64 arrays

@@ -44,6 +44,16 @@ def _functions(part):
     return codegen.numpy_function(_source(part)), codegen.math_function(_source(part))
 
 
+def casadi_function(part):
+    """The generated function ``part`` (a key of ``_PARTS``: f, grad, hess, r, rjac) as a CasADi
+    ``Function`` of the point ``x`` (2,), its output flat (matrices row-major); for C generation."""
+    import casadi as ca
+
+    x = ca.SX.sym("x", 2)
+    out = codegen.casadi_function(_source(part))(x[0], x[1])
+    return ca.Function(f"testfunction_{part}", [x], [ca.vertcat(*out)])
+
+
 def _eval(part, x):
     x = np.asarray(x, dtype=float)
     vectorised, scalar = _functions(part)
@@ -139,3 +149,31 @@ def stationary_points(digits=30):
         w = np.linalg.eigvalsh(hessian(x))
         points.append(StationaryPoint(x=x, value=float(value(x)), eigenvalues=w, kind=classify(w)))
     return tuple(sorted(points, key=lambda p: p.value))
+
+
+#: where a start can end: the stationary points in :func:`stationary_points`'s order, then none
+END_KINDS = ("global", "local", "saddle", "none")
+
+
+def end_kind(x, converged, tol=1e-4):
+    """Where each end lies: index into :data:`END_KINDS` (the basin maps' colours).
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, 2)
+        End points.
+    converged : ndarray of bool, shape (N,)
+        Whether the solver reported convergence; an end that did not converge is "none".
+    tol : float
+        Distance to a stationary point that counts as reaching it.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+    """
+    x = np.asarray(x, dtype=float)
+    kind = np.full(len(x), len(END_KINDS) - 1)
+    for k, point in enumerate(stationary_points()[:3]):
+        near = np.linalg.norm(x - point.x, axis=1) < tol
+        kind[near & np.asarray(converged, dtype=bool)] = k
+    return kind

@@ -13,15 +13,19 @@ Gauss-Newton and Levenberg-Marquardt on the exact sum-of-squares form ``f + 300 
 trust-region Newton, IPOPT. Grids: 301 x 301 over [-50, 50]^2 (covering the thesis's x0max up
 to 45) and over [-4, 4]^2; ``--quick`` uses 15 x 15 grids.
 
-Solve. Every iterative method runs the whole grid as a few batches
-(:func:`handeye.solvers.solve_many`: one row per start, each row stopping on its own tests,
-ending where :func:`handeye.solvers.solve` ends from that start; the ``batch-equivalence``
-study checks it), spread over the sweep's workers. IPOPT has no batch form (one solver
-object, starts in a loop, about 2.5 ms each, more than all batched methods together on the
-full grid): it runs on every fifth grid line (61 x 61 of the 301 x 301 starts, the same
-points), unless :func:`basin_maps` is given ``ipopt_stride=1``; the summary and the figure say
-which grid each method ran on. Measured here (2 cores, ``handeye bench``): the full study
-in about a minute, where the single-start path took about two hours.
+Solve. Every iterative method runs the whole grid in chunks spread over the sweep's workers,
+each chunk through the compiled per-start loop (:mod:`handeye.model.fast_starts`: CasADi-generated
+C of the test function and a C driver of each method's iteration, rule for rule), or, without a
+C compiler, through the numpy batch (:func:`handeye.solvers.solve_many`), with a warning; the
+summary names the engine of each method. Both end at the same stationary points: on the full
+grid 3 of the 90,601 wide-window BFGS starts differ, where the batch's line search stops at
+rounding level without an acceptable step (status -1, "none") and the C calls the same minimum
+converged. IPOPT has no batch form (one solver object, starts in a loop, 2.5-7 ms each): it runs
+on every fifth grid line (61 x 61 of the 301 x 301 starts, the same points), unless
+:func:`basin_maps` is given ``ipopt_stride=1``; the summary and the figure say which grid each
+method ran on. Measured here (2 cores): the full study 15.6 s with the compiled loop (basins
+9.2 s, x0max 3.6 s; IPOPT is now most of it), 172 s with the numpy batch on a loaded machine
+(basins 150 s, x0max 15 s); the single-start path took about two hours.
 
 Claims: (1) plain Newton converges to the saddle point from a set of starts of positive area
 (the thesis says no method finds it); (2) for at least one method the basin of the global
@@ -31,6 +35,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 
 import numpy as np
 
@@ -38,31 +43,40 @@ from handeye import solvers
 from handeye.app import sweep
 from handeye.app.problems import testfunction_options as options_for
 from handeye.app.problems import testfunction_problem
-from handeye.model import testfunction
+from handeye.model import fast_starts, testfunction
 from handeye.studies.study import claim, figure, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
-KINDS = ("global", "local", "saddle", "none")
+KINDS = testfunction.END_KINDS
 #: IPOPT runs on every IPOPT_STRIDE-th grid line (module docstring)
 IPOPT_STRIDE = 5
+COMPILED = "compiled per-start loop (C)"
+NUMPY = "numpy batch"
 
 
-def _ends(method, points):
-    """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations)."""
-    res = solvers.solve_many(testfunction_problem(), np.asarray(points, float).reshape(-1, 2), method,
-                             options_for(method))
+def engine(method):
+    """How ``method`` runs the starts here: the compiled per-start loop, else the numpy batch."""
+    if method in fast_starts.METHODS and fast_starts.supports(method, options_for(method)):
+        return COMPILED if fast_starts.library() is not None else NUMPY
+    return "one solver object, starts in a loop" if method == "ipopt" else NUMPY
+
+
+def _ends(method, points, compiled=True):
+    """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations).
+
+    The compiled per-start loop (:mod:`handeye.model.fast_starts`) where it has ``method`` and a
+    C compiler is present (``compiled``), else :func:`handeye.solvers.solve_many`.
+    """
+    points = np.asarray(points, float).reshape(-1, 2)
+    res = fast_starts.solve_many(points, method, options_for(method)) if compiled else None
+    if res is None:
+        res = solvers.solve_many(testfunction_problem(), points, method, options_for(method))
     return np.column_stack([res.x, res.converged, res.iterations]).astype(float)
 
 
 def classify(ends):
     """Index into KINDS for each end point (N, >= 3: x1, x2, converged, ...)."""
-    pts = testfunction.stationary_points()
-    targets = {"global": pts[0].x, "local": pts[1].x, "saddle": pts[2].x}
-    kind = np.full(len(ends), 3)
-    for k, name in enumerate(("global", "local", "saddle")):
-        near = np.linalg.norm(ends[:, :2] - targets[name], axis=1) < 1e-4
-        kind[near & (ends[:, 2] > 0)] = k
-    return kind
+    return testfunction.end_kind(ends[:, :2], ends[:, 2] > 0)
 
 
 def grid_axis(lo, hi, n, method, ipopt_stride=IPOPT_STRIDE):
@@ -87,7 +101,7 @@ def basin_maps(windows, n, ipopt_stride=IPOPT_STRIDE):
             for k, chunk in enumerate(np.array_split(grid, pieces)):
                 tasks.append((method, chunk))
                 where.append((label, method, k))
-    slow_first = sorted(range(len(tasks)), key=lambda i: tasks[i][0] not in ("sd", "ipopt", "newton-ls"))
+    slow_first = sorted(range(len(tasks)), key=lambda i: (tasks[i][0] != "ipopt", tasks[i][0] not in ("sd", "newton-ls")))
     parts = sweep.run(_ends, [tasks[i] for i in slow_first], label="basins")
     ends = {}
     for i, part in zip(slow_first, parts):
@@ -118,8 +132,8 @@ def x0max(method, minimum, step=0.05, reach=50.0):
             "converges_beyond": bool(ok[last:].any())}
 
 
-def _x0max_all(method, step):
-    return {mn: x0max(method, mn, step=step) for mn in ("global", "local")}
+def _x0max_task(method, minimum, step):
+    return x0max(method, minimum, step=step)
 
 
 def run(out, quick=False):
@@ -131,11 +145,19 @@ def run(out, quick=False):
     seconds = {"basins": time.perf_counter() - t0}
     t0 = time.perf_counter()
     step = 1.0 if quick else 0.05
-    table = dict(zip(METHODS, sweep.run(_x0max_all, [(m, step) for m in METHODS], label="x0max")))
+    pairs = [(m, mn) for m in METHODS for mn in ("global", "local")]  # one task each: IPOPT's two run side by side
+    found = sweep.run(_x0max_task, [(m, mn, step) for m, mn in pairs], label="x0max")
+    table = {m: {} for m in METHODS}
+    for (m, mn), entry in zip(pairs, found):
+        table[m][mn] = entry
     seconds["x0max"] = time.perf_counter() - t0
     grids = {m: f"{len(maps['wide'][m][0])} x {len(maps['wide'][m][0])}" for m in METHODS}
     solves = {m: len(windows) * len(maps["wide"][m][0]) ** 2 + 2 * int(50.0 / step) for m in METHODS}
-    rows, summary = [], {"grid": n, "grids": grids, "solves": solves, "methods": {},
+    engines = {m: engine(m) for m in METHODS}
+    if NUMPY in engines.values():
+        warnings.warn("no C compiler: the basin study runs on the numpy batch (same ends to round-off, 10-30x slower)",
+                      stacklevel=2)
+    rows, summary = [], {"grid": n, "grids": grids, "solves": solves, "engines": engines, "methods": {},
                          "ipopt": f"no batch form: a loop over one solver object, on every {stride}-th grid line"
                          if stride > 1 else "no batch form: a loop over one solver object, on the full grid"}
     for method in METHODS:
