@@ -70,7 +70,7 @@ class ExportResult(ResultProtocol):
         return dataclasses.asdict(self)
 
 
-def export(calibration=None, format="json", parent="flange", child="sensor", tool=1, register=99, out=None,
+def export(calibration=None, *, format="json", parent="flange", child="sensor", tool=1, register=99, out=None,
            sensor_pose=None, convention=None, force=False):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.export`).
 
@@ -191,7 +191,7 @@ def _scan_inputs(path):
     return [folder / "measurements.csv", folder / "setup.toml"]
 
 
-def cloud(dataset, calibration=None, out=None, format=None, sensor_pose=None, convention=None, force=False):
+def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
 
     Parameters
@@ -237,7 +237,7 @@ def cloud(dataset, calibration=None, out=None, format=None, sensor_pose=None, co
     return result
 
 
-def validate(dataset, calibration=None, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
+def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
              mpe=None):
     """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.validate`).
 

@@ -65,3 +65,13 @@ def test_the_result_is_made_of_typed_parts_and_keeps_its_flat_names():
         res.no_such
     copy = dataclasses.replace(res, provenance={"x": 1})
     assert copy.rms_mm == res.rms_mm and copy.provenance == {"x": 1}
+
+
+def test_public_functions_take_their_options_by_keyword():
+    """The inputs (dataset, calibration) may be positional; every option is keyword-only."""
+    import inspect
+
+    for name in ("calibrate", "diagnose", "simulate", "plan", "export", "cloud", "validate"):
+        params = inspect.signature(getattr(handeye, name)).parameters.values()
+        positional = [p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+        assert set(positional) <= {"dataset", "calibration", "out"} and len(positional) <= 2, (name, positional)
