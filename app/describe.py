@@ -10,7 +10,7 @@ import numpy as np
 
 from handeye.app import robust
 from handeye.app.errors import CalibrationInputError
-from handeye.app.results import RMS_PER_CENTRE, SampleResidual, Uncertainty
+from handeye.app.results import RMS_PER_CENTRE, ResidualTable, Uncertainty
 from handeye.model import conventions, identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
@@ -173,8 +173,7 @@ def with_effects(dataset, mask, fit, names, sigma, warnings, common, centre_give
     out.update(
         n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
         max_residual_mm=float(norms[mask].max()), cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
-                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, extended.e, norms, mask)],
+        residuals=ResidualTable(dataset.ids, dataset.rows, extended.e, norms, mask),
         sigma_mm=float(np.sqrt(extended.sigma2)),
         std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
         parameter_names=tuple(extended.names), correlation=corr, covariance=corr * np.outer(std, std),
@@ -317,8 +316,7 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),
         max_residual_mm=float(norms[mask].max()),
         cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u), None if not np.isfinite(lo) else float(lo))
-                   for i, r, v, n, u, lo in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)],
+        residuals=ResidualTable(dataset.ids, dataset.rows, e, norms, mask, loo_errors),
         sigma_mm=cov.sigma if local.whiten is None else None,
         sigma_scale=cov.sigma if local.whiten is not None else None,
         std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]),
