@@ -150,3 +150,18 @@ def test_solver_bench_reports_a_failed_study(monkeypatch):
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: Done())
     st = bench_solvers.study(quick=True)
     assert st["exit_code"] == 4 and "xyz" in st["error"]
+
+
+def test_a_childs_peak_memory_is_its_own_not_the_bench_processs():
+    """``ru_maxrss`` carries the parent's size over fork and exec on Linux: a bench process of
+    300 MB would report every child as at least 300 MB. The child reports its own high-water mark."""
+    import resource
+
+    ballast = np.ones(300 * 2**20 // 8)  # 300 MB, touched
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    tiny = bench.measure_python("pass", "0")
+    assert ballast[-1] == 1.0 and own > 300
+    assert tiny["exit"] == 0 and tiny["peak_mb"] is not None
+    assert tiny["peak_mb"] < 100 < own / 3  # python -c pass: some 10 MB
+    grows = bench.measure_python("import numpy as np; a = np.ones(50 * 2**20 // 8)", "int(a[-1]) - 1")
+    assert grows["exit"] == 0 and 50 < grows["peak_mb"] - tiny["peak_mb"] < 150  # the child's own 50 MB seen
