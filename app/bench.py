@@ -288,23 +288,35 @@ def write_dataset(folder, n, seed=0):
     return folder
 
 
-#: Runs ``handeye ARGS`` in a fresh Python and reports its time (after the interpreter's start),
-#: peak memory and exit code on stderr.
-_PROBE = ("import resource, sys, time; from handeye.app.cli import main; t0 = time.perf_counter(); "
-          "code = main(sys.argv[1:]); "
-          "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counter() - t0, code, "
-          "file=sys.stderr)")
+#: Runs ``{call}`` after ``{setup}`` in a fresh Python and reports its time (after the
+#: interpreter's start and the setup), its own peak memory (:func:`handeye.app.peak.own_peak_kb`)
+#: and the call's value (the exit code) on stderr.
+_PROBE = ("import sys, time; from handeye.app.peak import own_peak_kb; {setup}; t0 = time.perf_counter(); "
+          "code = {call}; "
+          "print('PEAK', own_peak_kb(), time.perf_counter() - t0, code, file=sys.stderr)")
 
 
-def measure_cli(args):
-    """``{'seconds', 'peak_mb', 'exit'}`` of ``handeye ARGS`` in a fresh process (seconds and
-    peak None when it died before reporting)."""
-    out = subprocess.run([sys.executable, "-c", _PROBE, *args], capture_output=True, text=True)
+def measure_python(setup="pass", call="0", args=()):
+    """``{'seconds', 'peak_mb', 'exit'}`` of a fresh Python that runs ``setup``, then times
+    ``call`` (an expression: the exit code reported), with ``args`` in ``sys.argv[1:]``.
+
+    The peak is the child's own high-water mark (MB), not ``ru_maxrss`` of ``RUSAGE_CHILDREN``
+    or of the child itself, which on Linux carry this process's size over fork and exec
+    (:mod:`handeye.app.peak`). Seconds and peak are None when the child died before reporting.
+    """
+    probe = _PROBE.format(setup=setup, call=call)
+    out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
     line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
     if not line:
         return {"seconds": None, "peak_mb": None, "exit": out.returncode}
     _, kb, seconds, code = line[-1].split()
     return {"seconds": float(seconds), "peak_mb": int(kb) / 1024, "exit": int(code)}
+
+
+def measure_cli(args):
+    """``{'seconds', 'peak_mb', 'exit'}`` of ``handeye ARGS`` in a fresh process (seconds and
+    peak None when it died before reporting; :func:`measure_python`)."""
+    return measure_python("from handeye.app.cli import main", "main(sys.argv[1:])", args)
 
 
 def pipeline(sizes=PIPELINE):

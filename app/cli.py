@@ -196,6 +196,9 @@ def build_parser():
     bench.add_argument("--json", action="store_true")
     bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
     bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
+    bench.add_argument("--pipeline-sizes", default=None, metavar="N,N,...",
+                       help="measurements of the end-to-end `handeye calibrate` section (time and own peak memory "
+                            "each, log-log slopes); default 1000,10000,100000,1000000 (--quick: 10000,30000); 0: skip")
     bench.add_argument("--solvers", action="store_true",
                        help="instead: the solver-comparison bench (batched against single-start solvers, and the "
                             "wall time of the full `handeye study testfunction`)")
@@ -235,6 +238,19 @@ def _diagnose(args):
     return EXIT_OK
 
 
+def _sizes(text, option):
+    """``'1000,10000'`` -> (1000, 10000); None stays None (the default); ``'0'`` -> () (skip)."""
+    if text is None:
+        return None
+    try:
+        sizes = tuple(int(float(v)) for v in str(text).split(",") if v.strip())
+    except ValueError:
+        raise RequestError(f"{option}: comma-separated numbers of measurements, got {text!r}") from None
+    if any(n < 0 for n in sizes):
+        raise RequestError(f"{option}: sizes must be positive, got {text!r}")
+    return tuple(n for n in sizes if n > 0)
+
+
 def _bench(args):
     if args.solvers:
         from handeye.app import bench_solvers
@@ -252,7 +268,8 @@ def _bench(args):
         raise RequestError("handeye bench compares against scipy, which is not installed: "
                            "pip install 'handeye[bench]'") from None
 
-    res = bench.run(quick=args.quick, with_startup=not args.no_startup)
+    res = bench.run(quick=args.quick, with_startup=not args.no_startup,
+                    pipeline_sizes=_sizes(args.pipeline_sizes, "--pipeline-sizes"))
     if args.plot:
         bench.plot(res, args.plot)
     print(dumps(res) if args.json else bench.text(res))

@@ -13,7 +13,7 @@ import numpy as np
 from handeye.app import robust
 from handeye.app.errors import CalibrationInputError
 from handeye.app.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
-from handeye.app.results import RMS_PER_CENTRE, SampleResidual, Uncertainty
+from handeye.app.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
 from handeye.model import conventions, extended, identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
@@ -158,8 +158,7 @@ def with_effects(dataset, mask, fit, request, warnings, base, centre_given=True)
         sensor_pose=conventions.pose_from(request.convention, sensor), converged=converged, message=message,
         n_used=int(mask.sum()), rms_mm=rms, max_residual_mm=float(norms[mask].max()),
         cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u))
-                   for i, r, v, n, u in zip(dataset.ids, dataset.rows, efit.e, norms, mask)],
+        residuals=ResidualTable(dataset.ids, dataset.rows, efit.e, norms, mask),
         noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
                      "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
         rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
@@ -298,8 +297,7 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     stats = dict(
         n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))), max_residual_mm=float(norms[mask].max()),
         cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=[SampleResidual(i, int(r), v, float(n), bool(u), None if not np.isfinite(lo) else float(lo))
-                   for i, r, v, n, u, lo in zip(dataset.ids, dataset.rows, e, norms, mask, loo_errors)],
+        residuals=ResidualTable(dataset.ids, dataset.rows, e, norms, mask, loo_errors),
         loo_error_mm=rms(loo_errors) if loo else None, loo=_loo_description(local, int(mask.sum())) if loo else None,
         rms_what=RMS_PER_CENTRE, objective=_objective(local, final), hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),

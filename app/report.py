@@ -55,6 +55,45 @@ def _rms_lines(res):
     return lines
 
 
+#: The text report lists every row up to this many; beyond, the first and the worst half of
+#: this many each and a count (the JSON report keeps every row).
+REPORT_ROWS = 50
+
+
+def _residual_line(r):
+    loo = f"{r.loo_error_mm:8.3f}" if r.loo_error_mm is not None else " " * 8
+    flag = "" if r.used else "  EXCLUDED"
+    return f"{r.id:>10} {r.row:>4} " + _fmt(r.vector, 9, 3) + f" {r.norm:9.3f} {loo}{flag}"
+
+
+def residual_lines(residuals, limit=REPORT_ROWS):
+    """The residual table of the text report: a header and one line per row (mm) up to ``limit``
+    rows; beyond, the first ``limit // 2`` rows, the ``limit // 2`` largest ``|e|`` among the
+    others (in row order) and how many are not shown.
+
+    Parameters
+    ----------
+    residuals : sequence of handeye.app.results.SampleResidual (or a ResidualTable), length N
+    limit : int
+
+    Returns
+    -------
+    list of str
+    """
+    head = [f"{'id':>10} {'row':>4} {'ex':>9} {'ey':>9} {'ez':>9} {'|e|':>9} {'loo':>8}  (mm)"]
+    n = len(residuals)
+    if n <= limit:
+        return head + [_residual_line(r) for r in residuals]
+    first = limit // 2
+    norms = np.asarray(residuals.norms if hasattr(residuals, "norms") else [r.norm for r in residuals], float)
+    rest = np.arange(first, n)
+    worst = np.sort(rest[np.argsort(-np.nan_to_num(norms[first:], nan=np.inf), kind="stable")[:limit - first]])
+    lines = head + [_residual_line(residuals[k]) for k in range(first)]
+    lines.append(f"{'...':>10} ({n - limit:,} of the {n:,} rows not shown; below, the {len(worst)} largest |e| of "
+                 "the others; the JSON report, --json, keeps every row)")
+    return lines + [_residual_line(residuals[int(k)]) for k in worst]
+
+
 def calibration_text(res):
     """A readable report of a :class:`handeye.app.results.CalibrationResult`."""
     if res.closed_form is not None:
@@ -82,14 +121,12 @@ def calibration_text(res):
         lines += ["", "no residuals, uncertainty or identifiability: the solve ended without a finite solution"]
         lines += [f"warning: {w}" for w in res.warnings]
         return "\n".join(lines)
-    lines += ["", f"{'id':>10} {'row':>4} {'ex':>9} {'ey':>9} {'ez':>9} {'|e|':>9} {'loo':>8}  (mm)"]
-    for r in res.residuals:
-        loo = f"{r.loo_error_mm:8.3f}" if r.loo_error_mm is not None else " " * 8
-        flag = "" if r.used else "  EXCLUDED"
-        lines.append(f"{r.id:>10} {r.row:>4} " + _fmt(r.vector, 9, 3) + f" {r.norm:9.3f} {loo}{flag}")
+    lines += [""] + residual_lines(res.residuals)
     if res.excluded:
         lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
-        lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded]
+        lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded[:REPORT_ROWS]]
+        if len(res.excluded) > REPORT_ROWS:
+            lines.append(f"  ... and {len(res.excluded) - REPORT_ROWS:,} more (the JSON report, --json, lists every one)")
     per = "profile point" if res.model == "points" else "component of a sphere centre"
     lines += [""] + _rms_lines(res) + [
         "",

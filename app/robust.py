@@ -25,7 +25,7 @@ from handeye import solvers
 from handeye.app.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
-from handeye.model.statistics import chi2_survival_array, chi_median, deletion_statistics
+from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics
 
 #: Family-wise significance level of the outlier tests.
 ALPHA = 0.01
@@ -242,8 +242,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     min_keep = min(min_keep or max(n // 2 + 1, 4), n)
     x_rob, sigma, _ = robust_fit(full, full.point_from(start))
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
-    p_chi = chi2_survival_array((norms / sigma) ** 2, 3)
-    inliers = np.minimum(p_chi * n, 1.0) >= alpha
+    inliers = bonferroni_survival((norms / sigma) ** 2, n, 3) >= alpha
     note = ""
     if inliers.sum() < min_keep:
         improbable = n - int(inliers.sum())
@@ -262,8 +261,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
         seen.add(key)
         x = weighted_fit(full, x, inliers.astype(float)) if _procrustes(full) else least_squares(_subset(full, inliers), x).x
         e, j = full.residual_and_jacobian(x)
-        stat, pval = deletion_statistics(e, j, inliers)
-        adj = np.minimum(pval * n, 1.0)
+        stat, adj = deletion_statistics(e, j, inliers, n_tests=n)
         fitted_bad = np.where(inliers & (adj < alpha))[0]
         excluded_ok = np.where(~inliers & (adj >= alpha))[0]
         if len(fitted_bad):
@@ -283,8 +281,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
         else:
             break
     e, j = full.residual_and_jacobian(x)
-    stat, pval = deletion_statistics(e, j, inliers)
-    adj = np.minimum(pval * n, 1.0)
+    stat, adj = deletion_statistics(e, j, inliers, n_tests=n)
     excluded = []
     for k in np.where(~inliers)[0]:
         excluded.append(ExcludedSample(

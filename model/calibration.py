@@ -110,6 +110,10 @@ def parameter_names(rotation_name, unknowns):
     return names
 
 
+#: Rows per chunk of a generated function's evaluation (:meth:`CalibrationModel._evaluate`).
+ROW_CHUNK = 16384
+
+
 class CalibrationModel:
     """Residual, derivatives and retraction of one dataset's calibration problem.
 
@@ -293,10 +297,30 @@ class CalibrationModel:
             extra.append(self.radius)
         return (*theta, *extra, *self._data)
 
+    def _evaluate(self, function, x, rows=None):
+        """Outputs (..., R, K) of a generated ``function`` at the point(s) ``x`` for the rows
+        ``rows`` (a slice; default all), computed ROW_CHUNK rows at a time: the generated code's
+        temporaries stay in cache, and a million rows need a few MB of them, not gigabytes."""
+        batch = np.shape(x)[:-1]
+        args = self._args(x)
+        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        start, stop, _ = (rows or slice(None)).indices(self.n_meas)
+        if stop - start <= ROW_CHUNK and rows is None:
+            return codegen.stack_outputs(function(*args), batch + (self.n_meas,))
+        out = None
+        for a in range(start, stop, ROW_CHUNK):
+            b = min(a + ROW_CHUNK, stop)
+            values = function(*head, *(d[a:b] for d in args[len(args) - n_data:]))
+            if out is None:
+                out = np.empty((len(values),) + batch + (stop - start,))
+            for k, v in enumerate(values):
+                out[k, ..., a - start:b - start] = v
+        return np.moveaxis(out, 0, -1)
+
     def _raw(self, x):
         resjac, _ = _numpy_functions(self.rotation, self.kind)
         batch = np.shape(x)[:-1]
-        vals = codegen.stack_outputs(resjac(*self._args(x)), batch + (self.n_meas,))
+        vals = self._evaluate(resjac, x)
         m = self.m
         e = vals[..., :m]
         n_theta = (vals.shape[-1] - m) // m
@@ -316,8 +340,7 @@ class CalibrationModel:
 
     def residuals(self, x):
         """Residual rows (..., N, m) as the model defines them (mm), not whitened."""
-        batch = np.shape(x)[:-1]
-        return codegen.stack_outputs(_numpy_residual(self.rotation, self.kind)(*self._args(x)), batch + (self.n_meas,))
+        return self._evaluate(_numpy_residual(self.rotation, self.kind), x)
 
     def residual(self, x):
         """Stacked whitened residual (..., N m), what the solvers minimise."""
@@ -329,13 +352,14 @@ class CalibrationModel:
         jac = self.residual_and_jacobian(x)[1]
         return jac.reshape(jac.shape[:-3] + (-1, self.n))
 
-    def second_derivatives(self, x):
-        """Second derivatives of each (unwhitened) residual component, shape (..., N, m, n, n)."""
+    def second_derivatives(self, x, rows=None):
+        """Second derivatives of each (unwhitened) residual component, shape (..., N, m, n, n)
+        (the rows of the slice ``rows`` only: (..., R, m, n, n))."""
         _, hess = _numpy_functions(self.rotation, self.kind)
         batch = np.shape(x)[:-1]
-        vals = codegen.stack_outputs(hess(*self._args(x)), batch + (self.n_meas,))
+        vals = self._evaluate(hess, x, rows)
         n_theta = int(round(np.sqrt(vals.shape[-1] / self.m)))
-        d2 = vals.reshape(batch + (self.n_meas, self.m, n_theta, n_theta))
+        d2 = vals.reshape(batch + (vals.shape[-2], self.m, n_theta, n_theta))
         return d2[..., self._cols, self._cols]
 
     def cost(self, x):
@@ -351,10 +375,13 @@ class CalibrationModel:
     def cost_hessian(self, x):
         """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
         e, jac = self.residual_and_jacobian(x)
-        d2 = self.second_derivatives(x)
         weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
         flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
-        return np.swapaxes(flat, -1, -2) @ flat + np.einsum("...ik,...iknm->...nm", weighted, d2)
+        out = np.swapaxes(flat, -1, -2) @ flat
+        for a in range(0, self.n_meas, ROW_CHUNK):  # the second derivatives of a million rows: 3 GB at once
+            rows = slice(a, min(a + ROW_CHUNK, self.n_meas))
+            out = out + np.einsum("...ik,...iknm->...nm", weighted[..., rows, :], self.second_derivatives(x, rows))
+        return out
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):

@@ -144,8 +144,12 @@ def casadi_function(text):
 
 
 def stack_outputs(values, batch_shape):
-    """Stack a flat list of scalars/arrays into one array of shape ``batch_shape + (len,)``."""
-    out = np.empty(tuple(batch_shape) + (len(values),))
+    """Stack a flat list of scalars/arrays into one array of shape ``batch_shape + (len,)``.
+
+    Filled output by output into a ``(len,) + batch_shape`` block and returned as a view with
+    the outputs last (not C-contiguous): contiguous writes, several times faster than writing
+    each output with a stride of ``len`` across a million rows."""
+    out = np.empty((len(values),) + tuple(batch_shape))
     for k, v in enumerate(values):
-        out[..., k] = v
-    return out
+        out[k] = v
+    return np.moveaxis(out, 0, -1)

@@ -47,6 +47,7 @@ from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_tex
     check_angles,
     number,
     pose_list_text,
+    read_plain_rows,
     read_points,
     read_pose,
     read_pose_list,
@@ -426,19 +427,12 @@ def load_setup(name_or_path):
     return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention)
 
 
-def load(name_or_path):
-    """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
-    folder = resolve(name_or_path)
-    st = read_setup(folder)
-    if st.sphere2 is not None:
-        raise DatasetError(folder / "setup.toml", "two spheres: a calibration uses one; [sphere2] is for handeye "
-                                                  "validate and cloud (remove it to calibrate)", column="[sphere2]")
-    start, diam, centre, side, truth, convention = st.start, st.diameter, st.centre, st.side, st.truth, st.convention
-    plate_pose, centre_in_plate, noise = st.plate_pose, st.centre_in_plate, dict(st.noise)
-    limits = noise.pop("limits")
+def _read_rows(folder, file, convention, limits, diam, side):
+    """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
+    lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw)``
+    as lists. Raises DatasetError naming file, row and column."""
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs")
-    file = folder / "measurements.csv"
     table = read_table(file)
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
@@ -484,6 +478,28 @@ def load(name_or_path):
         rows.append(line)
         poses.append(pose)
         centres.append(xs)
+    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw
+
+
+def load(name_or_path):
+    """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
+    folder = resolve(name_or_path)
+    st = read_setup(folder)
+    if st.sphere2 is not None:
+        raise DatasetError(folder / "setup.toml", "two spheres: a calibration uses one; [sphere2] is for handeye "
+                                                  "validate and cloud (remove it to calibrate)", column="[sphere2]")
+    start, diam, centre, side, truth, convention = st.start, st.diameter, st.centre, st.side, st.truth, st.convention
+    plate_pose, centre_in_plate, noise = st.plate_pose, st.centre_in_plate, dict(st.noise)
+    limits = noise.pop("limits")
+    pose_columns = conventions.columns(convention)
+    file = folder / "measurements.csv"
+    plain = read_plain_rows(file, pose_columns, convention, limits)  # a large plain file: column-wise
+    if plain is None:
+        ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = _read_rows(
+            folder, file, convention, limits, diam, side)
+    else:
+        ids, rows, poses, centres, raw = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw"))
+        profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
     if not ids:
         raise DatasetError(file, "no measurements", 2)
     return Dataset(

@@ -278,3 +278,65 @@ def _points_careful(pfile, file, row, limit):
                                           "([limits] sensor_mm in setup.toml sets it)", k, c)
         pts.append(point)
     return np.array(pts, dtype=float).reshape(-1, 2)
+
+
+#: Below this size ``measurements.csv`` is read row by row only; above, :func:`read_plain_rows`
+#: reads a plain file (numbers only, no profiles) column-wise first.
+PLAIN_ABOVE_BYTES = 1 << 20
+
+
+def read_plain_rows(file, pose_columns, convention, limits):
+    """A large plain ``measurements.csv`` (header ``id`` + ``pose_columns`` + ``xs,ys,zs`` in
+    any order, no profile column, no quotes or blank lines) read column-wise with numpy, every
+    check of the row-by-row reader vectorised; None whenever anything is out of the ordinary
+    (then the row-by-row reader reads it and names the offending file, row and column).
+
+    Parameters
+    ----------
+    file : pathlib.Path
+    pose_columns : tuple of str
+        The convention's pose columns (:func:`handeye.model.conventions.columns`).
+    convention : str
+    limits : dict
+        ``position_mm`` and ``sensor_mm`` of ``[limits]``.
+
+    Returns
+    -------
+    dict or None
+        ``ids`` (tuple of str), ``rows`` (tuple of int, lines), ``poses`` (N, 6) KUKA (mm,
+        deg), ``raw`` (N, k) the poses as written, ``centres`` (N, 3) mm.
+    """
+    try:
+        if file.stat().st_size <= min(PLAIN_ABOVE_BYTES, MAX_FILE_BYTES) or file.stat().st_size > MAX_FILE_BYTES:
+            return None
+        text = file.read_bytes().decode("utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+    lines = text.splitlines()
+    header = [h.strip() for h in lines[0].split(",")] if lines else []
+    wanted = ("id", *pose_columns, "xs", "ys", "zs")
+    if sorted(header) != sorted(wanted) or '"' in text or len(lines) < 2:
+        return None
+    commas = len(header) - 1
+    if any(line.count(",") != commas or len(line) > MAX_LINE_BYTES for line in lines):
+        return None
+    col = {c: header.index(c) for c in header}
+    try:
+        values = np.loadtxt(lines[1:], delimiter=",", dtype=float, ndmin=2,
+                            usecols=[col[c] for c in wanted[1:]])
+    except ValueError:
+        return None
+    k = len(pose_columns)
+    raw, centres = values[:, :k], values[:, k:]
+    at = col["id"]
+    ids = tuple(line.split(",", at + 1)[at].strip() for line in lines[1:])
+    ranges = READING_RANGES.get(convention)
+    if (not np.all(np.isfinite(values)) or not all(ids) or len(set(ids)) != len(ids)
+            or np.any(np.abs(raw[:, :3]) > limits["position_mm"]) or np.any(np.abs(centres) > limits["sensor_mm"])
+            or (ranges is not None and np.any(np.abs(raw[:, 3:6]) > np.asarray(ranges)))):
+        return None
+    try:
+        poses = raw.copy() if convention == "kuka" else np.asarray(conventions.convert(raw, convention, "kuka"), float)
+    except conventions.ConventionError:
+        return None
+    return {"ids": ids, "rows": tuple(range(2, len(lines) + 1)), "poses": poses, "raw": raw, "centres": centres}

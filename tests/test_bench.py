@@ -161,3 +161,18 @@ def test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve():
     assert res["ratio"] == res["total"] / res["ipopt"] and res["total"] >= sum(res["stages"].values()) * 0.999
     text = "\n".join(bench_pipeline.text(res))
     assert "one IPOPT solve" in text and "describe" in text
+
+
+def test_a_childs_peak_memory_is_its_own_not_the_bench_processs():
+    """``ru_maxrss`` carries the parent's size over fork and exec on Linux: a bench process of
+    300 MB would report every child as at least 300 MB. The child reports its own high-water mark."""
+    import resource
+
+    ballast = np.ones(300 * 2**20 // 8)  # 300 MB, touched
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    tiny = bench.measure_python("pass", "0")
+    assert ballast[-1] == 1.0 and own > 300
+    assert tiny["exit"] == 0 and tiny["peak_mb"] is not None
+    assert tiny["peak_mb"] < 100 < own / 3  # python -c pass: some 10 MB
+    grows = bench.measure_python("import numpy as np; a = np.ones(50 * 2**20 // 8)", "int(a[-1]) - 1")
+    assert grows["exit"] == 0 and 50 < grows["peak_mb"] - tiny["peak_mb"] < 150  # the child's own 50 MB seen

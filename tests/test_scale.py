@@ -54,3 +54,47 @@ def test_screening_finds_the_same_gross_errors_one_at_a_time_or_together(monkeyp
         monkeypatch.setattr(robust, "LOO_EXACT_UP_TO", 5)
     s = robust.screen(d, "sensor", transform_from_pose(d.start_pose))
     assert {"x+22.5", "x+45", "x*+90", "y*+112.5"} <= {e.id for e in s.excluded}
+
+
+def test_text_report_summarises_beyond_fifty_rows_and_the_json_keeps_them_all(tmp_path, capsys):
+    import json
+
+    from handeye.app import report
+    from handeye.app.cli import main
+
+    folder = bench.write_dataset(tmp_path / "d", 6_000, seed=4)
+    assert main(["calibrate", str(folder), "--no-loo"]) == 0
+    text = capsys.readouterr().out
+    rows = [line for line in text.splitlines() if line.strip().startswith("m") and line.split()[0][1:].isdigit()]
+    assert len(rows) == report.REPORT_ROWS  # the first 25 and the 25 largest |e| of the others
+    assert [r.split()[0] for r in rows[:25]] == [f"m{k}" for k in range(25)]
+    assert "5,950 of the 6,000 rows not shown" in text and "keeps every row" in text
+    assert main(["calibrate", str(folder), "--no-loo", "--json"]) == 0
+    out = capsys.readouterr().out
+    data = json.loads(out)
+    assert len(data["residuals"]) == 6_000 and data["residuals"][5_999]["id"] == "m5999"
+    assert set(data["residuals"][0]) == {"id", "row", "vector", "norm", "used", "loo_error_mm"}
+    shown = {r.split()[0]: float(r.split()[5]) for r in rows[25:]}
+    norms = sorted((r["norm"] for r in data["residuals"][25:]), reverse=True)
+    assert sorted(shown.values(), reverse=True) == pytest.approx(norms[:25], abs=1e-3)  # the worst, as printed
+    result = handeye.calibrate(str(folder), no_loo=True)
+    assert data["residuals"] == json.loads(json.dumps(result.to_dict()["residuals"]))  # the table's dicts, same keys
+    assert len(result.residuals) == 6_000 and result.residuals[-1].id == "m5999"
+
+
+def test_a_plain_csv_reads_column_wise_as_row_by_row(tmp_path, monkeypatch):
+    from handeye.model import dataset, tables
+
+    folder = bench.write_dataset(tmp_path / "d", 300, seed=5)
+    monkeypatch.setattr(tables, "PLAIN_ABOVE_BYTES", 1 << 40)
+    slow = dataset.load(folder)
+    monkeypatch.setattr(tables, "PLAIN_ABOVE_BYTES", 0)
+    fast = dataset.load(folder)
+    for field in ("ids", "rows", "flange_poses", "centre_in_sensor", "raw_poses", "reconstructed", "profiles"):
+        assert np.array_equal(np.asarray(getattr(fast, field)), np.asarray(getattr(slow, field))), field
+    csv = folder / "measurements.csv"
+    lines = csv.read_text().splitlines()
+    lines[7] = lines[7].replace(lines[7].split(",")[4], "200", 1)  # an angle A beyond the controller's range
+    csv.write_text("\n".join(lines) + "\n")
+    with pytest.raises(dataset.DatasetError, match="row 8"):  # the row-by-row reader names it
+        dataset.load(folder)

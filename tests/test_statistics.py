@@ -43,3 +43,50 @@ def test_edges_terminate():
     assert math.isnan(f_survival(math.nan, 3, 7)) and f_survival(math.inf, 3, 7) == 0.0 and f_survival(0, 3, 7) == 1.0
     assert math.isnan(chi2_survival(math.nan, 3)) and chi2_survival(math.inf, 3) == 0.0 and chi2_survival(0, 3) == 1.0
     assert math.isnan(f_survival(1.0, 3, 0))
+
+
+@pytest.mark.parametrize("a", [0.5, 1.0, 1.5, 2.5, 4.5, 15.0, 100.0, 1e3, 3e4, 3e5, 1.5e6])
+def test_gamma_tail_against_scipy_from_the_bulk_to_the_far_tail(a):
+    """Q(a, x) over x from 1e-6 a to 20 a and a +- 37 sqrt(a) (tails down to 1e-290), a up to
+    1.5e6 (chi-square with 3 million degrees of freedom: a million measurements)."""
+    special = pytest.importorskip("scipy.special")
+    from handeye.model.statistics import _gammainc_upper
+
+    xs = np.concatenate([a * np.array([1e-6, 0.01, 0.5, 0.9, 0.99, 1.0, 1.01, 1.1, 2.0, 5.0, 20.0]),
+                         a + np.sqrt(a) * np.array([-8, -3, -1, -0.1, 0.1, 1, 3, 8, 20, 37])])
+    xs = xs[xs > 0]
+    ref = special.gammaincc(a, xs)
+    got = _gammainc_upper(a, xs)
+    tiny = ref < 1e-300  # below the double range scipy's value is 0 as well
+    assert np.all(got[tiny] < 1e-290)
+    assert np.allclose(got[~tiny], ref[~tiny], rtol=1e-11, atol=0), (a, np.max(np.abs(got - ref) / ref))
+
+
+def test_tails_of_a_million_statistics_against_scipy():
+    """The whole-array path (tiny p included): chi-square 3 and F(3, d2) for d2 on both sides of
+    F_AS_CHI2_ABOVE, and the Bonferroni-adjusted tails computed only where they can matter."""
+    stats = pytest.importorskip("scipy.stats")
+    from handeye.model.statistics import bonferroni_survival
+
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.chisquare(3, 200_000), [1e-12, 40.0, 80.0, 150.0, 600.0, 1400.0]])
+    ref = stats.chi2.sf(x, 3)
+    assert np.allclose(chi2_survival_array(x, 3), ref, rtol=1e-11, atol=1e-300)
+    assert ref[-1] < 1e-290  # the far tail is in the grid
+    for d2 in (50.0, 9_000.0):
+        assert np.allclose(f_survival_array(x / 3, 3, d2), stats.f.sf(x / 3, 3, d2), rtol=1e-9, atol=1e-300)
+    n = len(x)
+    adjusted = bonferroni_survival(x, n, 3)
+    assert np.allclose(adjusted, np.minimum(ref * n, 1.0), rtol=1e-11, atol=1e-300)
+    d2 = np.where(np.arange(n) % 2, 2_999_991.0, 2_999_994.0)
+    adjusted = bonferroni_survival(x / 3, n, 3, d2)
+    assert np.allclose(adjusted, np.minimum(f_survival_array(x / 3, 3, d2) * n, 1.0), rtol=1e-12, atol=1e-300)
+    with_nan = bonferroni_survival(np.array([np.nan, 1.0, 1e3]), 10, 3, np.array([5.0, 0.0, 5.0]))
+    assert np.isnan(with_nan[0]) and np.isnan(with_nan[1]) and 0 < with_nan[2] < 1e-3
+
+
+def test_chi2_tail_with_millions_of_degrees_of_freedom_against_scipy():
+    stats = pytest.importorskip("scipy.stats")
+    for k in (2_999_994, 600_000):
+        for x in (k - 5000.0, k - 10.0, float(k), k + 2000.0, k + 12_000.0):
+            assert chi2_survival(x, k) == pytest.approx(stats.chi2.sf(x, k), rel=1e-9, abs=1e-300), (x, k)
