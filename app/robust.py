@@ -22,6 +22,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
+from handeye.app import loo
 from handeye.app.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
@@ -455,6 +456,20 @@ def _group_normal_equations(model, x):
     return out_jtj, out_jtr, out_rtr
 
 
+def _exact_refits(model, x, mask, fitted, rows):
+    """The exact refits of ``model`` without each sample of ``mask`` (G, d): all at once by
+    :func:`handeye.app.loo.refits` (damped Newton with the exact Hessian from the full fit
+    ``x`` of ``fitted``, whose rows ``rows[k]`` are sample k's), and :func:`least_squares` from
+    ``x`` on the subset for a refit that does not converge there."""
+    z, converged = loo.refits(fitted, x, rows, LOO_XTOL, LOO_RATE_SAFETY)
+    used = np.flatnonzero(mask)
+    for k in np.flatnonzero(~converged):
+        keep = mask.copy()
+        keep[used[k]] = False
+        z[k] = least_squares(_subset(model, keep), x).x
+    return z
+
+
 def leave_one_out(model, x, mask=None, predictor=None):
     """Leave-one-out prediction errors of the sphere centre, mm.
 
@@ -506,22 +521,20 @@ def leave_one_out(model, x, mask=None, predictor=None):
     used = np.where(mask)[0]
     if not len(used):
         return out
-    step, leverage, others, info = _deletion_steps(model, x, mask)
     fitted = model if mask.all() else _subset(model, mask)
     rows = _sample_rows(fitted, used)
-    # the rate needs every row's second derivatives: affordable for the refit of every sample, not
-    # for the few high-leverage refits among 10^5 samples (there the strict step test decides)
-    rho = _gauss_newton_rate(fitted, x, info) if len(used) <= LOO_EXACT_UP_TO else np.inf
+    if len(used) <= LOO_EXACT_UP_TO:
+        z = _exact_refits(model, x, mask, fitted, [rows[i] for i in used])
+        out[used] = [_prediction_error(predictor, z[k], i) for k, i in enumerate(used)]
+        return out
+    step, leverage, others, info = _deletion_steps(model, x, mask)
 
     def refit_error(k):
         i = used[k]
         keep = mask.copy()
         keep[i] = False
-        return _prediction_error(predictor, _refit(model, x, keep, step[k], others[k], rho, fitted, rows[i]), i)
+        return _prediction_error(predictor, _refit(model, x, keep, step[k], others[k], np.inf, fitted, rows[i]), i)
 
-    if len(used) <= LOO_EXACT_UP_TO:
-        out[used] = [refit_error(k) for k in range(len(used))]
-        return out
     d, dj = predictor.residual_and_jacobian(x)
     deleted = d[mask] + np.einsum("gkp,gp->gk", dj[mask], step)
     out[mask] = np.linalg.norm(deleted, axis=1)

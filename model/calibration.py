@@ -350,11 +350,48 @@ class CalibrationModel:
 
     def cost_hessian(self, x):
         """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
+        return self.cost_derivatives(x)[2]
+
+    def cost_derivatives(self, x, weights=None):
+        """Cost, gradient and exact Hessian of the row-weighted cost ``1/2 sum_i w_i |W_i e_i|^2``.
+
+        One evaluation of the rows serves many weightings: the leave-one-out problems
+        (:mod:`handeye.app.loo`) are this cost with one sample's rows weighted zero.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n_point,) or (..., n_point)
+            A point or a stack of points.
+        weights : ndarray, shape (..., N), optional
+            Row weights, broadcast against the batch axes of ``x`` (a single point ``x`` with
+            weights (G, N) gives G weighted costs at ``x``); default one.
+
+        Returns
+        -------
+        cost : float or ndarray, shape (...)
+        gradient : ndarray, shape (..., n)
+        hessian : ndarray, shape (..., n, n)
+            ``sum_i w_i (J_i^T J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il)`` (:meth:`cost_hessian`).
+        """
         e, jac = self.residual_and_jacobian(x)
         d2 = self.second_derivatives(x)
-        weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
-        flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
-        return np.swapaxes(flat, -1, -2) @ flat + np.einsum("...ik,...iknm->...nm", weighted, d2)
+        back = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
+        e_w, back_w, jac_w = e, back, jac
+        if weights is not None:
+            w = np.asarray(weights, dtype=float)[..., None]
+            e_w, back_w, jac_w = w * e, w * back, w[..., None] * jac
+        n, rows = self.n, self.n_meas * self.m
+
+        def flat(a, width):  # (..., N, m, width) -> (..., N m, width)
+            return a.reshape(a.shape[:-3] + (rows, width))
+
+        jac_f = flat(jac, n)
+        e_row = e_w.reshape(e_w.shape[:-2] + (1, rows))
+        cost = 0.5 * np.sum(e_w * e, axis=(-2, -1))
+        grad = (e_row @ jac_f)[..., 0, :]
+        second = (back_w.reshape(back_w.shape[:-2] + (1, rows)) @ flat(d2.reshape(d2.shape[:-2] + (n * n,)), n * n))
+        hess = np.swapaxes(flat(jac_w, n), -1, -2) @ jac_f + second.reshape(second.shape[:-2] + (n, n))
+        return (float(cost) if np.ndim(cost) == 0 else cost), grad, hess
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):
