@@ -344,7 +344,8 @@ LOO_XTOL = 1e-9
 LOO_GN_ITER = 8
 LOO_RATE_SAFETY = 10.0
 #: At a rate this high (large residuals: a gross error among the samples) Gauss-Newton is not
-#: tried; the refits are :func:`least_squares` from the full fit.
+#: tried: the high-leverage refits above LOO_EXACT_UP_TO are :func:`least_squares` from the full
+#: fit, the batched refits up to it (:func:`handeye.app.loo.refits`) keep the exact Hessian.
 LOO_GN_MAX_RATE = 0.5
 
 
@@ -458,10 +459,14 @@ def _group_normal_equations(model, x):
 
 def _exact_refits(model, x, mask, fitted, rows):
     """The exact refits of ``model`` without each sample of ``mask`` (G, d): all at once by
-    :func:`handeye.app.loo.refits` (damped Newton with the exact Hessian from the full fit
-    ``x`` of ``fitted``, whose rows ``rows[k]`` are sample k's), and :func:`least_squares` from
-    ``x`` on the subset for a refit that does not converge there."""
-    z, converged = loo.refits(fitted, x, rows, LOO_XTOL, LOO_RATE_SAFETY)
+    :func:`handeye.app.loo.refits` (damped Newton from the full fit ``x`` of ``fitted``, whose
+    rows ``rows[k]`` are sample k's: the exact Hessian's step first, Gauss-Newton's after it
+    where Gauss-Newton's rate at ``x`` is below :data:`LOO_GN_MAX_RATE`, else the exact Hessian
+    throughout), and :func:`least_squares` from ``x`` on the subset for a refit that does not
+    converge there."""
+    jac = fitted.jacobian(x)
+    rho = _gauss_newton_rate(fitted, x, jac.T @ jac)
+    z, converged = loo.refits(fitted, x, rows, LOO_XTOL, LOO_RATE_SAFETY, rho if rho < LOO_GN_MAX_RATE else None)
     used = np.flatnonzero(mask)
     for k in np.flatnonzero(~converged):
         keep = mask.copy()

@@ -352,7 +352,7 @@ class CalibrationModel:
         """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
         return self.cost_derivatives(x)[2]
 
-    def cost_derivatives(self, x, weights=None):
+    def cost_derivatives(self, x, weights=None, second_order=True):
         """Cost, gradient and exact Hessian of the row-weighted cost ``1/2 sum_i w_i |W_i e_i|^2``.
 
         One evaluation of the rows serves many weightings: the leave-one-out problems
@@ -365,6 +365,8 @@ class CalibrationModel:
         weights : ndarray, shape (..., N), optional
             Row weights, broadcast against the batch axes of ``x`` (a single point ``x`` with
             weights (G, N) gives G weighted costs at ``x``); default one.
+        second_order : bool
+            False: Gauss-Newton's ``sum_i w_i J_i^T J_i`` for the Hessian (no second derivatives).
 
         Returns
         -------
@@ -374,24 +376,33 @@ class CalibrationModel:
             ``sum_i w_i (J_i^T J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il)`` (:meth:`cost_hessian`).
         """
         e, jac = self.residual_and_jacobian(x)
-        d2 = self.second_derivatives(x)
         back = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
         e_w, back_w, jac_w = e, back, jac
         if weights is not None:
             w = np.asarray(weights, dtype=float)[..., None]
             e_w, back_w, jac_w = w * e, w * back, w[..., None] * jac
-        n, rows = self.n, self.n_meas * self.m
-
-        def flat(a, width):  # (..., N, m, width) -> (..., N m, width)
-            return a.reshape(a.shape[:-3] + (rows, width))
-
-        jac_f = flat(jac, n)
-        e_row = e_w.reshape(e_w.shape[:-2] + (1, rows))
+        rows = self.n_meas * self.m
+        jac_f = jac.reshape(jac.shape[:-3] + (rows, self.n))
         cost = 0.5 * np.sum(e_w * e, axis=(-2, -1))
-        grad = (e_row @ jac_f)[..., 0, :]
-        second = (back_w.reshape(back_w.shape[:-2] + (1, rows)) @ flat(d2.reshape(d2.shape[:-2] + (n * n,)), n * n))
-        hess = np.swapaxes(flat(jac_w, n), -1, -2) @ jac_f + second.reshape(second.shape[:-2] + (n, n))
+        grad = (e_w.reshape(e_w.shape[:-2] + (1, rows)) @ jac_f)[..., 0, :]
+        gram = np.swapaxes(jac_w.reshape(jac_w.shape[:-3] + (rows, self.n)), -1, -2) @ jac_f
+        hess = gram + self._second_order(x, back_w) if second_order else gram
         return (float(cost) if np.ndim(cost) == 0 else cost), grad, hess
+
+    def _second_order(self, x, back):
+        """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second
+        derivatives contracted output by output, without their (..., N, m, n, n) array."""
+        _, hess = _numpy_functions(self.rotation, self.kind)
+        vals = hess(*self._args(x))
+        n_theta = int(round(np.sqrt(len(vals) / self.m)))
+        cols = np.arange(n_theta)[self._cols]
+        out = np.empty(np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1]) + (self.n, self.n))
+        parts = [back[..., l] for l in range(self.m)]
+        for a, p in enumerate(cols):
+            for b, q in enumerate(cols):
+                out[..., a, b] = sum(np.sum(part * vals[(l * n_theta + p) * n_theta + q], axis=-1)
+                                     for l, part in enumerate(parts))
+        return out
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):
