@@ -397,11 +397,11 @@ class CalibrationModel:
         n_theta = int(round(np.sqrt(len(vals) / self.m)))
         cols = np.arange(n_theta)[self._cols]
         out = np.empty(np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1]) + (self.n, self.n))
-        parts = [back[..., l] for l in range(self.m)]
+        parts = [back[..., comp] for comp in range(self.m)]
         for a, p in enumerate(cols):
             for b, q in enumerate(cols):
-                out[..., a, b] = sum(np.sum(part * vals[(l * n_theta + p) * n_theta + q], axis=-1)
-                                     for l, part in enumerate(parts))
+                out[..., a, b] = sum(np.sum(part * vals[(comp * n_theta + p) * n_theta + q], axis=-1)
+                                     for comp, part in enumerate(parts))
         return out
 
     # -- CasADi ----------------------------------------------------------------------------

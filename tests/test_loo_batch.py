@@ -4,10 +4,10 @@ residual, polished by Newton's method with the exact Hessian) to 1e-6 mm, with a
 errors, for every residual kind and both sets of unknowns."""
 import numpy as np
 import pytest
+from conftest import simulate
 from scipy.optimize import least_squares as scipy_least_squares
 
 import handeye
-from conftest import simulate
 from handeye.app import loo, robust
 from handeye.model import observations
 from handeye.model.calibration import CalibrationModel
