@@ -67,7 +67,7 @@ import numpy as np
 
 #: Iterations of the batched Newton before a problem is handed back as not converged.
 NEWTON_ITER = 30
-#: Bytes of second derivatives per chunk of problems.
+#: Bytes of the largest arrays (module docstring, Memory) per chunk of problems.
 CHUNK_BYTES = 50e6
 #: A gradient this small relative to max(1, cost) is rounding: the problem stops.
 GTOL = 1e-14
@@ -91,8 +91,8 @@ def refits(fitted, x, rows, xtol, safety, rate=None):
         Step tolerance (relative to ``1 + |z|``) and the safety factor of Gauss-Newton's
         estimated distance left.
     rate : float, optional
-        Gauss-Newton's rate at ``x``, below one: the steps after the first are Gauss-Newton's.
-        None: the exact Hessian throughout.
+        Gauss-Newton's rate at ``x``, below one: every step is Gauss-Newton's. None: the exact
+        Hessian throughout.
 
     Returns
     -------

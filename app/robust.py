@@ -489,11 +489,13 @@ def leave_one_out(model, x, mask=None, predictor=None):
     The deletion formula gives the Gauss-Newton step of the fit without sample g from one
     evaluation at ``x``: ``dx_g = (A - B_g)^-1 J_g^T r_g`` (``A = J^T J`` of the fit,
     ``B_g = J_g^T J_g`` and ``r_g`` sample g's whitened rows), exact for the linearised problem.
-    Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact: Gauss-Newton from ``x + dx_g``
-    to the refit's minimum (one evaluation when the residuals are small: a step's error shrinks
-    by Gauss-Newton's rate, estimated once at ``x``; see :data:`LOO_XTOL`), or
-    :func:`least_squares` from ``x`` where Gauss-Newton is not reliable (large residuals, as the
-    unscreened thesis data with their 2 m misprint). Above, the deletion formula stands for the
+    Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact, and all are made at once
+    (:func:`handeye.app.loo.refits`): damped Gauss-Newton from ``x`` on the stack of deleted
+    problems, whose first step is ``dx_g``, when the residuals are small (a step's error shrinks
+    by Gauss-Newton's rate, estimated once at ``x``; see :data:`LOO_XTOL`), damped Newton with
+    the exact Hessian where Gauss-Newton is not reliable (large residuals, as the unscreened
+    thesis data with their 2 m misprint); :func:`least_squares` from ``x`` for a refit that does
+    not converge within a few iterations. Above, the deletion formula stands for the
     refits, in time linear in the samples: i's error is ``|d_i + D_i dx_i|`` with ``d_i, D_i``
     the predictor's residual and Jacobian (for the unweighted centre model the classical
     ``(I - H_ii)^-1 e_i``); samples whose leverage (largest eigenvalue of ``A^-1 B_g``, the hat
