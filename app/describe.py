@@ -353,7 +353,8 @@ def _loo_description(local, n_used):
     """How the final fit's leave-one-out error was made (:attr:`CalibrationResult.loo`)."""
     per = _ROWS[local.kind][0]
     weights = "weighted as the fit" if local.whiten is not None else "unweighted"
-    method = ("exact refit per sample (Gauss-Newton from the deletion-formula point, started at the full fit)"
+    method = ("exact refit per sample (all at once: damped Gauss-Newton, or Newton where the residuals are large, "
+              "from the full fit, whose first step is the deletion formula; handeye.app.loo)"
               if n_used <= robust.LOO_EXACT_UP_TO else
               "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")
     return {"model": local.kind, "weighted": local.whiten is not None, "unknowns": local.unknowns, "method": method,

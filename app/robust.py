@@ -22,6 +22,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
+from handeye.app import loo
 from handeye.app.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
@@ -340,7 +341,8 @@ LOO_XTOL = 1e-9
 LOO_GN_ITER = 8
 LOO_RATE_SAFETY = 10.0
 #: At a rate this high (large residuals: a gross error among the samples) Gauss-Newton is not
-#: tried; the refits are :func:`least_squares` from the full fit.
+#: tried: the high-leverage refits above LOO_EXACT_UP_TO are :func:`least_squares` from the full
+#: fit, the batched refits up to it (:func:`handeye.app.loo.refits`) keep the exact Hessian.
 LOO_GN_MAX_RATE = 0.5
 
 
@@ -452,6 +454,24 @@ def _group_normal_equations(model, x):
     return out_jtj, out_jtr, out_rtr
 
 
+def _exact_refits(model, x, mask, fitted, rows):
+    """The exact refits of ``model`` without each sample of ``mask`` (G, d): all at once by
+    :func:`handeye.app.loo.refits` (damped Newton from the full fit ``x`` of ``fitted``, whose
+    rows ``rows[k]`` are sample k's: the exact Hessian's step first, Gauss-Newton's after it
+    where Gauss-Newton's rate at ``x`` is below :data:`LOO_GN_MAX_RATE`, else the exact Hessian
+    throughout), and :func:`least_squares` from ``x`` on the subset for a refit that does not
+    converge there."""
+    jac = fitted.jacobian(x)
+    rho = _gauss_newton_rate(fitted, x, jac.T @ jac)
+    z, converged = loo.refits(fitted, x, rows, LOO_XTOL, LOO_RATE_SAFETY, rho if rho < LOO_GN_MAX_RATE else None)
+    used = np.flatnonzero(mask)
+    for k in np.flatnonzero(~converged):
+        keep = mask.copy()
+        keep[used[k]] = False
+        z[k] = least_squares(_subset(model, keep), x).x
+    return z
+
+
 def leave_one_out(model, x, mask=None, predictor=None):
     """Leave-one-out prediction errors of the sphere centre, mm.
 
@@ -466,11 +486,13 @@ def leave_one_out(model, x, mask=None, predictor=None):
     The deletion formula gives the Gauss-Newton step of the fit without sample g from one
     evaluation at ``x``: ``dx_g = (A - B_g)^-1 J_g^T r_g`` (``A = J^T J`` of the fit,
     ``B_g = J_g^T J_g`` and ``r_g`` sample g's whitened rows), exact for the linearised problem.
-    Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact: Gauss-Newton from ``x + dx_g``
-    to the refit's minimum (one evaluation when the residuals are small: a step's error shrinks
-    by Gauss-Newton's rate, estimated once at ``x``; see :data:`LOO_XTOL`), or
-    :func:`least_squares` from ``x`` where Gauss-Newton is not reliable (large residuals, as the
-    unscreened thesis data with their 2 m misprint). Above, the deletion formula stands for the
+    Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact, and all are made at once
+    (:func:`handeye.app.loo.refits`): damped Gauss-Newton from ``x`` on the stack of deleted
+    problems, whose first step is ``dx_g``, when the residuals are small (a step's error shrinks
+    by Gauss-Newton's rate, estimated once at ``x``; see :data:`LOO_XTOL`), damped Newton with
+    the exact Hessian where Gauss-Newton is not reliable (large residuals, as the unscreened
+    thesis data with their 2 m misprint); :func:`least_squares` from ``x`` for a refit that does
+    not converge within a few iterations. Above, the deletion formula stands for the
     refits, in time linear in the samples: i's error is ``|d_i + D_i dx_i|`` with ``d_i, D_i``
     the predictor's residual and Jacobian (for the unweighted centre model the classical
     ``(I - H_ii)^-1 e_i``); samples whose leverage (largest eigenvalue of ``A^-1 B_g``, the hat
@@ -503,22 +525,20 @@ def leave_one_out(model, x, mask=None, predictor=None):
     used = np.where(mask)[0]
     if not len(used):
         return out
-    step, leverage, others, info = _deletion_steps(model, x, mask)
     fitted = model if mask.all() else _subset(model, mask)
     rows = _sample_rows(fitted, used)
-    # the rate needs every row's second derivatives: affordable for the refit of every sample, not
-    # for the few high-leverage refits among 10^5 samples (there the strict step test decides)
-    rho = _gauss_newton_rate(fitted, x, info) if len(used) <= LOO_EXACT_UP_TO else np.inf
+    if len(used) <= LOO_EXACT_UP_TO:
+        z = _exact_refits(model, x, mask, fitted, [rows[i] for i in used])
+        out[used] = [_prediction_error(predictor, z[k], i) for k, i in enumerate(used)]
+        return out
+    step, leverage, others, info = _deletion_steps(model, x, mask)
 
     def refit_error(k):
         i = used[k]
         keep = mask.copy()
         keep[i] = False
-        return _prediction_error(predictor, _refit(model, x, keep, step[k], others[k], rho, fitted, rows[i]), i)
+        return _prediction_error(predictor, _refit(model, x, keep, step[k], others[k], np.inf, fitted, rows[i]), i)
 
-    if len(used) <= LOO_EXACT_UP_TO:
-        out[used] = [refit_error(k) for k in range(len(used))]
-        return out
     d, dj = predictor.residual_and_jacobian(x)
     deleted = d[mask] + np.einsum("gkp,gp->gk", dj[mask], step)
     out[mask] = np.linalg.norm(deleted, axis=1)

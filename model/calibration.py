@@ -374,13 +374,64 @@ class CalibrationModel:
 
     def cost_hessian(self, x):
         """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
+        return self.cost_derivatives(x)[2]
+
+    def cost_derivatives(self, x, weights=None, second_order=True):
+        """Cost, gradient and exact Hessian of the row-weighted cost ``1/2 sum_i w_i |W_i e_i|^2``.
+
+        One evaluation of the rows serves many weightings: the leave-one-out problems
+        (:mod:`handeye.app.loo`) are this cost with one sample's rows weighted zero.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n_point,) or (..., n_point)
+            A point or a stack of points.
+        weights : ndarray, shape (..., N), optional
+            Row weights, broadcast against the batch axes of ``x`` (a single point ``x`` with
+            weights (G, N) gives G weighted costs at ``x``); default one.
+        second_order : bool
+            False: Gauss-Newton's ``sum_i w_i J_i^T J_i`` for the Hessian (no second derivatives).
+
+        Returns
+        -------
+        cost : float or ndarray, shape (...)
+        gradient : ndarray, shape (..., n)
+        hessian : ndarray, shape (..., n, n)
+            ``sum_i w_i (J_i^T J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il)`` (:meth:`cost_hessian`).
+        """
         e, jac = self.residual_and_jacobian(x)
-        weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
-        flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
-        out = np.swapaxes(flat, -1, -2) @ flat
-        for a in range(0, self.n_meas, ROW_CHUNK):  # the second derivatives of a million rows: 3 GB at once
-            rows = slice(a, min(a + ROW_CHUNK, self.n_meas))
-            out = out + np.einsum("...ik,...iknm->...nm", weighted[..., rows, :], self.second_derivatives(x, rows))
+        back = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
+        e_w, back_w, jac_w = e, back, jac
+        if weights is not None:
+            w = np.asarray(weights, dtype=float)[..., None]
+            e_w, back_w, jac_w = w * e, w * back, w[..., None] * jac
+        rows = self.n_meas * self.m
+        jac_f = jac.reshape(jac.shape[:-3] + (rows, self.n))
+        cost = 0.5 * np.sum(e_w * e, axis=(-2, -1))
+        grad = (e_w.reshape(e_w.shape[:-2] + (1, rows)) @ jac_f)[..., 0, :]
+        gram = np.swapaxes(jac_w.reshape(jac_w.shape[:-3] + (rows, self.n)), -1, -2) @ jac_f
+        hess = gram + self._second_order(x, back_w) if second_order else gram
+        return (float(cost) if np.ndim(cost) == 0 else cost), grad, hess
+
+    def _second_order(self, x, back):
+        """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second
+        derivatives contracted output by output, ROW_CHUNK rows at a time, without their
+        (..., N, m, n, n) array (3 GB for a million rows)."""
+        _, hess = _numpy_functions(self.rotation, self.kind)
+        args = self._args(x)
+        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        out = np.zeros(np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1]) + (self.n, self.n))
+        for a in range(0, self.n_meas, ROW_CHUNK):
+            b = min(a + ROW_CHUNK, self.n_meas)
+            vals = hess(*head, *(d[a:b] for d in args[len(args) - n_data:]))
+            n_theta = int(round(np.sqrt(len(vals) / self.m)))
+            cols = np.arange(n_theta)[self._cols]
+            parts = [back[..., a:b, comp] for comp in range(self.m)]
+            for i, p in enumerate(cols):
+                for j, q in enumerate(cols):
+                    out[..., i, j] += sum(np.sum(part * vals[(comp * n_theta + p) * n_theta + q], axis=-1)
+                                          for comp, part in enumerate(parts))
+        return out
         return out
 
     # -- CasADi ----------------------------------------------------------------------------

@@ -249,6 +249,11 @@ def _threshold(survival, p, lo=0.0, hi=1.0):
     return lo
 
 
+#: Up to this many statistics of one distribution every tail is evaluated; above, only those
+#: beyond the bisected threshold where the adjusted value can fall below 1.
+BONFERRONI_ALL_UP_TO = 10_000
+
+
 def bonferroni_survival(stat, n_tests, d1, d2=None):
     """Bonferroni-adjusted tails ``min(n_tests P(T > stat), 1)`` of F(d1, d2) statistics (of
     chi^2_d1 ones when ``d2`` is None), evaluating the tail only where it can fall below
@@ -285,8 +290,11 @@ def bonferroni_survival(stat, n_tests, d1, d2=None):
         else:
             def tail(x, d1=d1, dof=dof):
                 return f_survival_array(x, d1, dof)
-        bound = _threshold(lambda x: float(tail(x)), 1.0 / max(n_tests, 1))
-        need = same & (stat >= bound * (1.0 - 1e-9))  # margin: the bisection's and the tail's rounding
+        if same.sum() <= BONFERRONI_ALL_UP_TO:  # few: every tail (the bisection would cost more)
+            need = same & ~np.isnan(stat)
+        else:
+            bound = _threshold(lambda x: float(tail(x)), 1.0 / max(n_tests, 1))
+            need = same & (stat >= bound * (1.0 - 1e-9))  # margin: the bisection's and the tail's rounding
         out[need] = np.minimum(tail(stat[need]) * n_tests, 1.0)
     return out
 
