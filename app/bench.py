@@ -415,6 +415,9 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
 
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=3 if quick else 9, unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
+    from handeye.app import bench_peers, bench_points
+
+    result["peers"], result["points"] = bench_peers.measure(cases["thesis-real"], reps), bench_points.measure(reps=min(reps, 5))
     if with_startup:
         result["startup"] = startup()
     if pipeline_sizes is None:
@@ -466,6 +469,9 @@ def text(res):
         from handeye.app import bench_guarantee
 
         lines += ["", bench_guarantee.text(res["guarantee"])]
+    from handeye.app import bench_peers, bench_points
+
+    lines += [t for k, f in (("peers", bench_peers.text), ("points", bench_points.text)) if k in res for t in ("", f(res[k]))]
     if "startup" in res:
         s = res["startup"]
         lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "
