@@ -290,10 +290,24 @@ class CalibrationModel:
             extra.append(self.radius)
         return (*theta, *extra, *self._data)
 
+    def _rows(self, function, x):
+        """The generated ``function``'s outputs row by row, (..., N, outputs); a point of the
+        ``points`` model is evaluated per profile (:meth:`_profile_layout`) and its real rows
+        taken back in order."""
+        batch = np.shape(x)[:-1]
+        layout = None if batch else self._profile_layout()
+        if layout is None:
+            return codegen.stack_outputs(function(*self._args(x)), batch + (self.n_meas,))
+        return codegen.stack_outputs(function(*self._layout_args(x, layout)), layout[1].shape)[layout[1]]
+
+    def _layout_args(self, x, layout):
+        """The generated functions' arguments at one point with the rows as a (profiles, points) table."""
+        return (*self._args(x)[:-len(self._data)], *layout[2])
+
     def _raw(self, x):
         resjac, _ = _numpy_functions(self.rotation, self.kind)
         batch = np.shape(x)[:-1]
-        vals = codegen.stack_outputs(resjac(*self._args(x)), batch + (self.n_meas,))
+        vals = self._rows(resjac, x)
         m = self.m
         e = vals[..., :m]
         n_theta = (vals.shape[-1] - m) // m
@@ -313,8 +327,7 @@ class CalibrationModel:
 
     def residuals(self, x):
         """Residual rows (..., N, m) as the model defines them (mm), not whitened."""
-        batch = np.shape(x)[:-1]
-        return codegen.stack_outputs(_numpy_residual(self.rotation, self.kind)(*self._args(x)), batch + (self.n_meas,))
+        return self._rows(_numpy_residual(self.rotation, self.kind), x)
 
     def residual(self, x):
         """Stacked whitened residual (..., N m), what the solvers minimise."""
@@ -372,11 +385,8 @@ class CalibrationModel:
         if layout is None:
             vals = hess(*self._args(x))
         else:
-            index, valid = layout
-            n_data = len(self._data)
-            vals = hess(*self._args(x)[:-n_data], *[d[index[:, :1]] for d in self._data[:-2]],
-                        *[d[index] for d in self._data[-2:]])
-            weighted = np.where(valid[..., None], weighted[index], 0.0)  # (G, K, m): padding weighs nothing
+            vals = hess(*self._layout_args(x, layout))
+            weighted = np.where(layout[1][..., None], weighted[layout[0]], 0.0)  # (G, K, m): padding weighs nothing
         per = len(vals) // self.m  # entries of one component's Hessian
         comps = [np.ascontiguousarray(weighted[..., c]) for c in range(self.m)]
         rows = [w.sum(axis=-1) for w in comps]  # per profile in the layout, else the total (for constant entries)
@@ -396,8 +406,9 @@ class CalibrationModel:
 
     def _profile_layout(self):
         """Rows of the ``points`` model as a (profiles, longest profile) table: the row indices,
-        each profile padded with its last row, and which entries are real rows; None for other
-        models, or when a profile's rows are not contiguous or not from one flange pose.
+        each profile padded with its last row, which entries are real rows, and the rows' data
+        in that layout (the flange pose once per profile); None for other models, or when a
+        profile's rows are not contiguous or not from one flange pose.
 
         Evaluated in this layout the generated functions compute the terms of the flange pose
         and the unknowns once per profile (broadcast), not once per point: about half the
@@ -415,7 +426,8 @@ class CalibrationModel:
         if same_pose and len(np.unique(self.groups[starts])) == len(starts):
             k = np.arange(lengths.max())
             index = starts[:, None] + np.minimum(k[None, :], lengths[:, None] - 1)
-            layout = (index, k[None, :] < lengths[:, None])
+            data = (*[d[index[:, :1]] for d in self._data[:-2]], *[d[index] for d in self._data[-2:]])
+            layout = (index, k[None, :] < lengths[:, None], data)
         self._layout = (self.groups, layout)
         return layout
 

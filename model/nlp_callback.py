@@ -20,6 +20,13 @@ from __future__ import annotations
 
 import numpy as np
 
+#: Points closer than this (relative to the largest coordinate, mm) share one Hessian. Near its
+#: end IPOPT (tol 1e-12) keeps taking steps of ~1e-13 mm that no longer change the cost, until
+#: its search direction is "too small": half of a scan's iterations. Over such a step the
+#: Hessian of 33,000 rows changes by ~1e-15 of itself (step / sphere radius), below the
+#: rounding of its own sum; the gradient, which decides convergence, is always evaluated.
+SAME_POINT = 1e-15
+
 
 class _Cache:
     """The model's evaluations at the last points asked for: IPOPT evaluates the cost at each
@@ -44,6 +51,9 @@ class _Cache:
         e, jac = self._at("rows", x, lambda: model.residual_and_jacobian(x))
         if order == 1:
             return self._at("gradient", x, lambda: model.gradient_from(e, jac))
+        last = self.last.get("hessian")
+        if last is not None and np.max(np.abs(x - last[0])) <= SAME_POINT * max(1.0, np.max(np.abs(x))):
+            return last[1]  # the same point to rounding: the Hessian would differ in its rounding only
         return self._at("hessian", x, lambda: model.cost_hessian_from(x, e, jac))
 
 
