@@ -406,6 +406,14 @@ def use_scaling(sizes=CLOUD):
     return out
 
 
+def peers(reps=20):
+    """Ceres and GTSAM beside the fast path and scipy on thesis-real (:mod:`handeye.app.bench_peers`)."""
+    from handeye.app import bench_peers
+
+    case = real_case()
+    return bench_peers.measure(case, _methods(*case, len(case[1])), reps)
+
+
 def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None,
         pipeline_sizes=None, cloud_sizes=None):
     """Run the benchmark; returns the JSON-ready result."""
@@ -430,6 +438,10 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     from handeye.app import bench_pipeline
 
     result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=3 if quick else 9)
+    from handeye.app import bench_points
+
+    result["peers"] = peers(reps)
+    result["points"] = bench_points.measure(reps=min(reps, 5))
     if with_startup:
         result["startup"] = startup()
     if pipeline_sizes is None:
@@ -485,6 +497,11 @@ def text(res):
         from handeye.app import bench_pipeline
 
         lines += ["", *bench_pipeline.text(res["stages"])]
+    from handeye.app import bench_peers, bench_points
+
+    for key, show in (("peers", bench_peers.text), ("points", bench_points.text)):
+        if key in res:
+            lines += ["", show(res[key])]
     if "startup" in res:
         s = res["startup"]
         lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "

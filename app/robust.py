@@ -373,12 +373,13 @@ def _gauss_newton_refit(fitted, out, z, cost=np.inf, rho=np.inf):
         r, j = np.ascontiguousarray(r), np.ascontiguousarray(j)  # strided views make the products slow
         r_out, j_out = r[out].reshape(-1), j[out].reshape(-1, fitted.n)
         r, j = r.reshape(-1), j.reshape(-1, fitted.n)
-        new_cost = float(r @ r - r_out @ r_out)
+        # einsum for the long products: OpenBLAS threads them, slow on a busy machine (points model)
+        new_cost = float(np.einsum("i,i->", r, r) - r_out @ r_out)
         if not np.isfinite(new_cost) or new_cost > cost * (1 + 1e-9) + 1e-300:
             return None
         cost = new_cost
         try:
-            step = -np.linalg.solve(j.T @ j - j_out.T @ j_out, j.T @ r - j_out.T @ r_out)
+            step = -np.linalg.solve(j.T @ j - j_out.T @ j_out, np.einsum("ij,i->j", j, r) - j_out.T @ r_out)
         except np.linalg.LinAlgError:
             return None
         if not np.all(np.isfinite(step)):

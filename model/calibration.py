@@ -46,10 +46,13 @@ from handeye.model.names import KINDS, ROTATIONS  # noqa: F401  (re-exported: th
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
 UNKNOWNS = ("sensor", "sensor+sphere")
-#: Above this many rows the IPOPT problem is a CasADi MX graph calling the one-row residual
-#: function ``map``-ped over the rows (memory O(1) per row); below, the same expressions expanded
-#: to SX (faster per evaluation, as before). The two agree to rounding (tested).
-NLP_MX_ABOVE = 1000
+#: Above this many rows the IPOPT problem's cost is a callback to the model's numpy cost,
+#: gradient and exact Hessian (:mod:`handeye.model.nlp_callback`: built in milliseconds, an
+#: iteration a few passes over the rows); below, the rows' expressions expanded to one CasADi SX
+#: graph that IPOPT differentiates by AD (faster for few rows; for a scan's 33,000 profile
+#: points a map-ped MX graph took 25 s to build and a second per Hessian). The two agree to
+#: rounding (tested).
+NLP_CALLBACK_ABOVE = 1000
 
 
 @functools.lru_cache(maxsize=None)
@@ -300,11 +303,16 @@ class CalibrationModel:
     def _evaluate(self, function, x, rows=None):
         """Outputs (..., R, K) of a generated ``function`` at the point(s) ``x`` for the rows
         ``rows`` (a slice; default all), computed ROW_CHUNK rows at a time: the generated code's
-        temporaries stay in cache, and a million rows need a few MB of them, not gigabytes."""
+        temporaries stay in cache, and a million rows need a few MB of them, not gigabytes; a
+        point of the ``points`` model is evaluated per profile (:meth:`_profile_layout`) and its
+        real rows taken back in order."""
         batch = np.shape(x)[:-1]
         args = self._args(x)
         head, n_data = args[:len(args) - len(self._data)], len(self._data)
         start, stop, _ = (rows or slice(None)).indices(self.n_meas)
+        layout = None if batch or rows is not None else self._profile_layout()
+        if layout is not None:  # a scan's points per profile: the flange pose's terms once per profile
+            return codegen.stack_outputs(function(*self._layout_args(x, layout)), layout[1].shape)[layout[1]]
         if stop - start <= ROW_CHUNK and rows is None:
             return codegen.stack_outputs(function(*args), batch + (self.n_meas,))
         out = None
@@ -316,6 +324,10 @@ class CalibrationModel:
             for k, v in enumerate(values):
                 out[k, ..., a - start:b - start] = v
         return np.moveaxis(out, 0, -1)
+
+    def _layout_args(self, x, layout):
+        """The generated functions' arguments at one point with the rows as a (profiles, points) table."""
+        return (*self._args(x)[:-len(self._data)], *layout[2])
 
     def _raw(self, x):
         resjac, _ = _numpy_functions(self.rotation, self.kind)
@@ -365,16 +377,28 @@ class CalibrationModel:
     def cost(self, x):
         """``1/2 sum |W_i e_i|^2`` (mm^2 without whitening); a float, or (...) for a stack."""
         e = self.residual(x)
-        return 0.5 * float(e @ e) if e.ndim == 1 else 0.5 * np.einsum("...i,...i->...", e, e)
+        # einsum, not e @ e: OpenBLAS threads a long dot product, and on a busy machine its
+        # threads' hand-over costs milliseconds (measured: 15 ms instead of 4 us for 33,000 rows)
+        return 0.5 * float(np.einsum("i,i->", e, e)) if e.ndim == 1 else 0.5 * np.einsum("...i,...i->...", e, e)
 
     def gradient(self, x):
         """Gradient of :meth:`cost` with respect to the step, (..., n)."""
-        e, jac = self.residual_and_jacobian(x)
+        return self.gradient_from(*self.residual_and_jacobian(x))
+
+    @staticmethod
+    def gradient_from(e, jac):
+        """:meth:`gradient` given :meth:`residual_and_jacobian` ``(e, jac)`` at the point."""
         return np.einsum("...ik,...ikn->...n", e, jac)
 
     def cost_hessian(self, x):
         """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
         return self.cost_derivatives(x)[2]
+
+    def cost_hessian_from(self, x, e, jac):
+        """:meth:`cost_hessian` at ``x`` given its :meth:`residual_and_jacobian` ``(e, jac)``."""
+        back = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
+        flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
+        return np.swapaxes(flat, -1, -2) @ flat + self._second_order(x, back)
 
     def cost_derivatives(self, x, weights=None, second_order=True):
         """Cost, gradient and exact Hessian of the row-weighted cost ``1/2 sum_i w_i |W_i e_i|^2``.
@@ -416,7 +440,10 @@ class CalibrationModel:
     def _second_order(self, x, back):
         """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second
         derivatives contracted output by output, ROW_CHUNK rows at a time, without their
-        (..., N, m, n, n) array (3 GB for a million rows)."""
+        (..., N, m, n, n) array (3 GB for a million rows); a point of the ``points`` model per
+        profile (:meth:`_weighted_second_derivatives`)."""
+        if not np.shape(x)[:-1] and back.ndim == 2 and self._profile_layout() is not None:
+            return self._weighted_second_derivatives(x, back)
         _, hess = _numpy_functions(self.rotation, self.kind)
         args = self._args(x)
         head, n_data = args[:len(args) - len(self._data)], len(self._data)
@@ -432,34 +459,115 @@ class CalibrationModel:
                     out[..., i, j] += sum(np.sum(part * vals[(comp * n_theta + p) * n_theta + q], axis=-1)
                                           for comp, part in enumerate(parts))
         return out
-        return out
+
+    def _weighted_second_derivatives(self, x, weighted):
+        """``sum_i sum_l weighted_il grad^2 e_il`` (..., n, n), contracted output by output: the
+        rows' second derivatives (N m n^2 numbers, 60 MB for a scan's 33,000 points) are never
+        stacked into one array. Profile points of one point (not a stack) are evaluated per
+        profile (:meth:`_profile_layout`)."""
+        _, hess = _numpy_functions(self.rotation, self.kind)
+        batch = np.shape(x)[:-1]
+        layout = None if batch else self._profile_layout()
+        if layout is None:
+            vals = hess(*self._args(x))
+        else:
+            vals = hess(*self._layout_args(x, layout))
+            weighted = np.where(layout[1][..., None], weighted[layout[0]], 0.0)  # (G, K, m): padding weighs nothing
+        per = len(vals) // self.m  # entries of one component's Hessian
+        comps = [np.ascontiguousarray(weighted[..., c]) for c in range(self.m)]
+        rows = [w.sum(axis=-1) for w in comps]  # per profile in the layout, else the total (for constant entries)
+        out = np.empty(batch + (len(vals),))
+        for k, v in enumerate(vals):
+            c = k // per
+            if not np.ndim(v):
+                out[..., k] = v * (rows[c] if batch else rows[c].sum())
+            elif batch:
+                out[..., k] = np.einsum("...i,...i->...", comps[c], v)
+            else:  # a profile's constant (G, 1) against its summed weights, else row by row
+                out[k] = rows[c] @ v[:, 0] if v.shape[-1] == 1 and v.ndim == 2 else np.einsum(
+                    "i,i->", comps[c].ravel(), np.ravel(v))  # einsum, not a BLAS dot (see cost)
+        n_theta = int(round(np.sqrt(per)))
+        d2 = out.reshape(batch + (self.m, n_theta, n_theta)).sum(axis=-3)
+        return d2[..., self._cols, self._cols]
+
+    def _profile_layout(self):
+        """Rows of the ``points`` model as a (profiles, longest profile) table: the row indices,
+        each profile padded with its last row, which entries are real rows, and the rows' data
+        in that layout (the flange pose once per profile); None for other models, or when a
+        profile's rows are not contiguous or not from one flange pose.
+
+        Evaluated in this layout the generated functions compute the terms of the flange pose
+        and the unknowns once per profile (broadcast), not once per point: about half the
+        work of the second derivatives. The numbers are the same, row by row."""
+        if self.kind != "points" or self.groups is None or self.n_meas == 0:
+            return None
+        cached = getattr(self, "_layout", None)
+        if cached is not None and cached[0] is self.groups:
+            return cached[1]
+        starts = np.flatnonzero(np.r_[True, self.groups[1:] != self.groups[:-1]])
+        lengths = np.diff(np.r_[starts, self.n_meas])
+        pose_rows = np.stack(self._data[:-2], axis=1)
+        same_pose = np.array_equal(pose_rows, np.repeat(pose_rows[starts], lengths, axis=0))
+        layout = None
+        if same_pose and len(np.unique(self.groups[starts])) == len(starts):
+            k = np.arange(lengths.max())
+            index = starts[:, None] + np.minimum(k[None, :], lengths[:, None] - 1)
+            data = (*[d[index[:, :1]] for d in self._data[:-2]], *[d[index] for d in self._data[-2:]])
+            layout = (index, k[None, :] < lengths[:, None], data)
+        self._layout = (self.groups, layout)
+        return layout
 
     # -- CasADi ----------------------------------------------------------------------------
     def nlp(self):
         """The problem for IPOPT as a dict ``{'x', 'f', 'g', 'p'}`` plus values.
 
         ``x`` is the point (``euler`` or ``matrix``; ``local`` has no meaning without a
-        retraction). ``p`` holds the rows (R1 row-major, t1, the kind's data and the whitening
-        matrix, row-major) and, for ``sensor``, the fixed sphere centre. With ``matrix`` the six independent entries of
-        ``R^T R - I`` are equality constraints ``g = 0``.
+        retraction). With ``matrix`` the six independent entries of ``R^T R - I`` are equality
+        constraints ``g = 0``. Up to :data:`NLP_CALLBACK_ABOVE` rows ``f`` is a CasADi SX
+        graph of every row, and ``p`` holds the rows (R1 row-major, t1, the kind's data and the
+        whitening matrix, row-major) and, for ``sensor``, the fixed sphere centre; above, ``f``
+        is a callback to this model's numpy cost, gradient and Hessian
+        (:mod:`handeye.model.nlp_callback`), there is no ``p``, and ``'callback'`` holds the
+        callback object, which must outlive the solver.
 
         Returns
         -------
         dict
-            ``{'x', 'f', 'g', 'p'}`` (CasADi SX), ``'lbg'``, ``'ubg'`` (arrays) and
-            ``'p_value'`` (the numeric parameter vector).
+            ``{'x', 'f', 'g'}`` (CasADi SX or MX), ``'lbg'``, ``'ubg'`` (arrays), and ``'p'`` with
+            ``'p_value'`` (the numeric parameter vector) or ``'callback'``.
         """
         import casadi as ca
 
         if self.rotation == "local":
             raise ValueError("IPOPT works on 'euler' or 'matrix'; 'local' needs a retraction")
+        if self.n_meas > NLP_CALLBACK_ABOVE:
+            from handeye.model import nlp_callback
+
+            cb = nlp_callback.cost_callback(self)
+            x = ca.MX.sym("x", self.n)
+            out = {"x": x, "f": cb(x), "callback": cb}
+        else:
+            out = self._nlp_graph()
+        x = out["x"]
+        if self.rotation == "matrix":
+            rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
+            m = ca.mtimes(rt.T, rt) - type(x).eye(3)
+            g = ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
+        else:
+            g = type(x)(0, 1)
+        ng = g.shape[0]
+        return {**out, "g": g, "lbg": np.zeros(ng), "ubg": np.zeros(ng)}
+
+    def _nlp_graph(self):
+        """``x``, ``f``, ``p`` and ``p_value`` of :meth:`nlp` as one SX graph of every row."""
+        import casadi as ca
+
         resjac, _ = _sources(self.rotation, self.kind)
         gen = codegen.casadi_function(resjac)
         nr = _N_ROT[self.rotation]
         m = self.m
         n_data = len(self._data)
-        sym = ca.MX if self.n_meas > NLP_MX_ABOVE else ca.SX  # a graph of calls: memory O(1) per row, not O(ops)
-        x = sym.sym("x", self.n)
+        x = ca.SX.sym("x", self.n)
         d = ca.SX.sym("d", n_data + m * m)
         theta = ca.SX.sym("theta", 3 + nr + 3)
         extra = [self.radius] if self.kind != "centre" else []
@@ -468,21 +576,13 @@ class CalibrationModel:
         one = ca.Function("e", [theta, d], [ca.mtimes(w, e)])
         whiten = self.whiten if self.whiten is not None else np.broadcast_to(np.eye(m), (self.n_meas, m, m))
         table = np.concatenate([np.stack(self._data), whiten.reshape(self.n_meas, m * m).T])
-        data = sym.sym("data", table.shape[0], self.n_meas)
+        data = ca.SX.sym("data", table.shape[0], self.n_meas)
         p_value = table.ravel(order="F")  # ca.vec is column-major
         if self.unknowns == "sensor+sphere":
             p, full = ca.vec(data), x
         else:
-            cfix = sym.sym("c", 3)
+            cfix = ca.SX.sym("c", 3)
             p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
             p_value = np.concatenate([p_value, self.fixed_centre])
         e_all = one.map(self.n_meas)(full, data)
-        f = 0.5 * ca.sumsqr(e_all)
-        if self.rotation == "matrix":
-            rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
-            m = ca.mtimes(rt.T, rt) - sym.eye(3)
-            g = ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
-        else:
-            g = sym(0, 1)
-        ng = g.shape[0]
-        return {"x": x, "f": f, "g": g, "p": p, "lbg": np.zeros(ng), "ubg": np.zeros(ng), "p_value": p_value}
+        return {"x": x, "f": 0.5 * ca.sumsqr(e_all), "p": p, "p_value": p_value}

@@ -64,6 +64,7 @@ class _Solver:
         import casadi as ca
 
         nlp = problem.nlp
+        self.nlp = nlp  # keeps a callback in it (e.g. a model's numpy cost) alive as long as the solver
         self.x_sym, self.g_sym, self.p_sym = nlp["x"], nlp["g"], nlp.get("p")
         p_syms = [] if self.p_sym is None else [self.p_sym]
         sizes = (self.x_sym.shape[0], self.g_sym.shape[0], 0 if self.p_sym is None else self.p_sym.shape[0])

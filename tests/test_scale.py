@@ -21,17 +21,17 @@ def test_deletion_formula_leave_one_out_matches_exact_refits(monkeypatch):
     assert np.nanmax(np.abs(fast - exact)) < 1e-5 * np.nanmax(exact)  # measured: ~3e-8 mm of 0.07 mm
 
 
-def test_the_mx_problem_for_ipopt_agrees_with_the_sx_one(monkeypatch):
+def test_the_callback_problem_for_ipopt_agrees_with_the_sx_one(monkeypatch):
     from handeye import solvers
     from handeye.model import calibration
 
     f2b, xs, centre, start = bench.simulated_case(60, seed=1)
     model = CalibrationModel(f2b, xs, centre, "matrix")
     sx = solvers.solve(solvers.Problem(n=12, nlp=model.nlp()), model.point_from(start), "ipopt")
-    monkeypatch.setattr(calibration, "NLP_MX_ABOVE", 10)
-    mx = solvers.solve(solvers.Problem(n=12, nlp=model.nlp()), model.point_from(start), "ipopt")
-    assert sx.converged and mx.converged
-    assert np.max(np.abs(model.sensor2flange(sx.x) - model.sensor2flange(mx.x))) < 1e-9
+    monkeypatch.setattr(calibration, "NLP_CALLBACK_ABOVE", 10)
+    cb = solvers.solve(solvers.Problem(n=12, nlp=model.nlp()), model.point_from(start), "ipopt")
+    assert sx.converged and cb.converged
+    assert np.max(np.abs(model.sensor2flange(sx.x) - model.sensor2flange(cb.x))) < 1e-9
 
 
 def test_large_datasets_default_to_lm_and_say_so(tmp_path, monkeypatch):
