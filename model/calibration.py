@@ -327,6 +327,55 @@ class CalibrationModel:
         jac = vals[..., m:].reshape(batch + (self.n_meas, m, n_theta))[..., self._cols]
         return e, jac
 
+    def _chunk(self, function, x, rows):
+        """The outputs (..., R, K) of a generated ``function`` at ``x`` for the row slice ``rows``
+        (one chunk: the temporaries stay in cache)."""
+        args = self._args(x)
+        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        values = function(*head, *(d[rows] for d in args[len(args) - n_data:]))
+        return codegen.stack_outputs(values, np.shape(x)[:-1] + (rows.stop - rows.start,))
+
+    def chunks(self, x, chunk=None):
+        """Residuals and Jacobians chunk by chunk: yields ``(rows, e, jac)``, ``rows`` a slice of
+        at most ``chunk`` (default :data:`ROW_CHUNK`) rows, ``e`` (..., R, m) and ``jac``
+        (..., R, m, n) as :meth:`residual_and_jacobian` gives for those rows (whitened). What
+        only needs sums over the rows (:meth:`normal_equations`) never holds all of them."""
+        resjac, _ = _numpy_functions(self.rotation, self.kind)
+        batch, m, step = np.shape(x)[:-1], self.m, chunk or ROW_CHUNK
+        for a in range(0, self.n_meas, step):
+            rows = slice(a, min(a + step, self.n_meas))
+            vals = self._chunk(resjac, x, rows)
+            n_theta = (vals.shape[-1] - m) // m
+            e = vals[..., :m]
+            jac = vals[..., m:].reshape(batch + (rows.stop - a, m, n_theta))[..., self._cols]
+            if self.whiten is not None:
+                w = self.whiten[rows]
+                e, jac = np.einsum("ikl,...il->...ik", w, e), np.einsum("ikl,...iln->...ikn", w, jac)
+            yield rows, e, jac
+
+    def normal_equations(self, x, weights=None, chunk=None):
+        """``(J^T J, J^T r, r^T r)`` of the whitened rows, (..., n, n), (..., n), (...), summed
+        chunk by chunk (:meth:`chunks`); ``weights`` (N,) weight each row's contribution."""
+        batch, n = np.shape(x)[:-1], self.n
+        jtj, jtr, rtr = np.zeros(batch + (n, n)), np.zeros(batch + (n,)), np.zeros(batch)
+        for rows, e, jac in self.chunks(x, chunk):
+            if weights is not None:
+                sw = np.sqrt(weights[rows])[:, None]
+                e, jac = sw * e, sw[..., None] * jac
+            flat = jac.reshape(batch + (-1, n))
+            r = e.reshape(batch + (-1,))
+            jtj += np.swapaxes(flat, -1, -2) @ flat
+            jtr += np.einsum("...kn,...k->...n", flat, r)
+            rtr += np.einsum("...k,...k->...", r, r)
+        return jtj, jtr, rtr
+
+    def jacobian_r(self, x, chunk=None):
+        """The triangular factor R (n, n) of the whitened Jacobian at one point, ``J = Q R``,
+        by QR of the chunks' factors stacked (TSQR): the singular values and right singular
+        vectors of J without J."""
+        factors = [np.linalg.qr(jac.reshape(-1, self.n), mode="r") for _, _, jac in self.chunks(x, chunk)]
+        return np.linalg.qr(np.concatenate(factors), mode="r") if len(factors) > 1 else factors[0]
+
     def residual_and_jacobian(self, x):
         """Whitened residuals (..., N, m) and Jacobian (..., N, m, n) with respect to the step."""
         e, jac = self._raw(x)
@@ -369,18 +418,20 @@ class CalibrationModel:
 
     def gradient(self, x):
         """Gradient of :meth:`cost` with respect to the step, (..., n)."""
+        if self.n_meas > ROW_CHUNK:
+            return self.normal_equations(x)[1]
         e, jac = self.residual_and_jacobian(x)
         return np.einsum("...ik,...ikn->...n", e, jac)
 
     def cost_hessian(self, x):
-        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
-        e, jac = self.residual_and_jacobian(x)
-        weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten, e)  # W^T (W e)
-        flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
-        out = np.swapaxes(flat, -1, -2) @ flat
-        for a in range(0, self.n_meas, ROW_CHUNK):  # the second derivatives of a million rows: 3 GB at once
-            rows = slice(a, min(a + ROW_CHUNK, self.n_meas))
-            out = out + np.einsum("...ik,...iknm->...nm", weighted[..., rows, :], self.second_derivatives(x, rows))
+        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n),
+        chunk by chunk (the second derivatives of a million rows: 3 GB at once)."""
+        out = 0.0
+        for rows, e, jac in self.chunks(x):
+            weighted = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten[rows], e)  # W^T (W e)
+            flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
+            out = out + np.swapaxes(flat, -1, -2) @ flat
+            out = out + np.einsum("...ik,...iknm->...nm", weighted, self.second_derivatives(x, rows))
         return out
 
     # -- CasADi ----------------------------------------------------------------------------
