@@ -442,8 +442,11 @@ def _deletion_chunk(info_l, info, total, e, jac, d, dj):
     leverages, the other samples' sums of squares and prediction errors |d + D step| (R,)."""
     jtj = np.einsum("rkp,rkq->rpq", jac, jac)
     jtr = np.einsum("rkp,rk->rp", jac, e)
-    finite = np.all(np.isfinite(info_l))
-    leverage = np.linalg.eigvalsh(info_l @ jtj @ info_l.T)[:, -1] if finite else np.full(len(jtj), np.nan)
+    if np.all(np.isfinite(info_l)):  # the eigenvalues of L^-1 B_g L^-T are those of the hat block M M^T, M = J_g L^-T
+        mm = (info_l @ jac.reshape(-1, jac.shape[-1]).T).T.reshape(jac.shape)
+        leverage = np.linalg.eigvalsh(mm @ np.swapaxes(mm, 1, 2))[:, -1]
+    else:
+        leverage = np.full(len(jtj), np.nan)
     with np.errstate(all="ignore"):
         try:
             step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]

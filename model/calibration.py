@@ -37,6 +37,7 @@ row i), so that the cost ``1/2 sum |W_i e_i|^2`` weights each component by its p
 """
 from __future__ import annotations
 
+import copy
 import functools
 
 import numpy as np
@@ -159,7 +160,9 @@ class CalibrationModel:
         self.n_meas = len(xs)
         self.fixed_centre = np.asarray(sphere_centre, dtype=float).reshape(3)
         # per-row data in the generated functions' argument order: R1 (9), t1, the kind's data
-        self._data = tuple(np.concatenate([f2b[:, :3, :3].reshape(-1, 9), f2b[:, :3, 3], xs], axis=1).T)
+        data = np.empty((12 + xs.shape[1], len(xs)))  # one contiguous row per argument: chunks read it in order
+        data[:9], data[9:12], data[12:] = f2b[:, :3, :3].reshape(-1, 9).T, f2b[:, :3, 3].T, xs.T
+        self._data = tuple(data)
         self.flange2base = f2b
         self.centre_in_sensor = xs
         #: rows that share one measurement (profile points); None: every row its own
@@ -212,10 +215,14 @@ class CalibrationModel:
 
     def with_rotation(self, rotation, sphere_centre=None):
         """The same rows, kind and whitening in another parametrisation (and fixed centre)."""
-        twin = CalibrationModel(self.flange2base, self.centre_in_sensor,
-                                self.fixed_centre if sphere_centre is None else sphere_centre,
-                                rotation, self.unknowns, self.kind, self.radius, self.whiten)
-        twin.groups = self.groups
+        if rotation not in ROTATIONS:
+            raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+        twin = copy.copy(self)  # the rows' arrays shared (read-only), not rebuilt: a million rows take a while
+        twin.rotation = rotation
+        twin.fixed_centre = np.asarray(self.fixed_centre if sphere_centre is None else sphere_centre, float).reshape(3)
+        twin._cols = slice(0, 3 + _N_ROT[rotation] + (3 if self.unknowns == "sensor+sphere" else 0))
+        twin.n = twin._cols.stop
+        twin.names = parameter_names(rotation, self.unknowns)
         return twin
 
     # -- points ----------------------------------------------------------------------------

@@ -189,6 +189,13 @@ class Samples:
 CHOLESKY_QR_ABOVE = 30_000
 
 
+def _times(tall, small):
+    """``tall @ small`` for a tall (m, p) and a small (p, k) matrix, as ``(small^T tall^T)^T``:
+    the same products, several times faster (numpy's matmul of a tall matrix by a small one
+    does not reach BLAS's speed; the transposed product does)."""
+    return (small.T @ tall.T).T
+
+
 def _projection(jac_cur):
     """Orthonormal basis (m, p) of the columns of ``jac_cur`` (m, p)."""
     if len(jac_cur) <= CHOLESKY_QR_ABOVE:
@@ -202,7 +209,7 @@ def _projection(jac_cur):
         d = np.abs(np.diag(r))
         if not np.all(np.isfinite(r)) or d.min() <= 1e-7 * d.max():  # ill-conditioned: Householder
             return np.linalg.qr(jac_cur)[0]
-        q = q @ np.linalg.inv(r)
+        q = _times(q, np.linalg.inv(r))
     return q
 
 
@@ -213,7 +220,7 @@ def gate(jac_cur, cand, names, q=None, absorbers=True):
     norms = np.linalg.norm(cand, axis=0)
     scaled = cand / np.where(norms > 0, norms, 1.0)
     q = _projection(jac_cur) if q is None else q
-    perp = scaled - q @ (q.T @ scaled)
+    perp = scaled - _times(q, q.T @ scaled)
     s_perp = np.linalg.svd(perp, compute_uv=False)
     s_full = np.linalg.svd(scaled, compute_uv=False)
     frac = float(s_perp[-1] / max(s_full[-1], 1e-300))
@@ -257,7 +264,7 @@ def score_test(fit, mask, cand):
     jac_cur = fit.jac[mask].reshape(-1, fit.p)
     r = fit.e[mask].ravel()
     q = _projection(jac_cur)
-    a = cand - q @ (q.T @ cand)
+    a = cand - _times(q, q.T @ cand)
     g = a.T @ r
     stat = float(g @ np.linalg.lstsq(a.T @ a, g, rcond=None)[0]) / fit.sigma2
     return stat, chi2_survival(stat, cand.shape[1])
@@ -270,7 +277,7 @@ def score_test_robust(fit, mask, cand, q=None):
     ``q``: :func:`_projection` of the fit's Jacobian on ``mask`` when already computed."""
     r = fit.e[mask].ravel()
     q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
-    a = cand - q @ (q.T @ cand)
+    a = cand - _times(q, q.T @ cand)
     g = a.T @ r
     per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
     m = len(r)
