@@ -18,7 +18,7 @@ from handeye.model import conventions, extended, identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
 from handeye.model.rotation import nearest_transform
-from handeye.model.statistics import covariance
+from handeye.model.statistics import covariance, covariance_normal
 
 #: A residual this many robust standard deviations above the median is flagged.
 GROSS_ERROR_Z = 10.0
@@ -282,15 +282,13 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     e = allm.residuals(allm.point_from(sensor, centre))
     norms = np.linalg.norm(e, axis=1)
     final = local.point_from(sensor, centre)
-    r_used, j_used = local.residual(final), local.jacobian(final)
-    ident = identifiability.analyse(j_used, local.names)
+    ident, cov, ssr = _fit_statistics(local, final)
     if not ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {ident.describe_null()}")
     elif ident.observability["O2"] < identifiability.WEAK:
         warnings.append(
             f"the poses constrain one direction badly (inverse condition number {ident.observability['O2']:.2g} < "
             f"{identifiability.WEAK:g}): {ident.describe_weakest()}; add poses that move it (handeye plan)")
-    cov = covariance(r_used, j_used, None if local.groups is None else np.repeat(local.groups, local.m))
     loo_errors = _final_loo(dataset, mask, local, final, centre) if loo else np.full(len(mask), np.nan)
     if not outliers_on:
         warnings += gross_error_warnings(dataset.ids, norms)
@@ -301,13 +299,28 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         loo_error_mm=rms(loo_errors) if loo else None, loo=_loo_description(local, int(mask.sum())) if loo else None,
         rms_what=RMS_PER_CENTRE, objective=_objective(local, final), hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
-        noise_test=None if local.kind == "points" else noise_test(float(r_used @ r_used), r_used.size - local.n, sigma,
+        noise_test=None if local.kind == "points" else noise_test(ssr, local.n_meas * local.m - local.n, sigma,
                                                                    local.whiten is not None, warnings, dataset))
     uncertainty = UncertaintyRecord(
         std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]), cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
         sigma_mm=cov.sigma if local.whiten is None else None, sigma_scale=cov.sigma if local.whiten is not None else None,
         parameter_names=tuple(local.names), correlation=np.asarray(cov.correlation), covariance=np.asarray(cov.matrix))
     return stats, uncertainty, ident
+
+
+def _fit_statistics(local, final):
+    """Identifiability, covariance and sum of squares of the final model ``local`` at ``final``:
+    above :data:`~handeye.model.identifiability.TALL` rows (independent ones) from the
+    Jacobian's triangular factor and the normal equations, summed chunk by chunk."""
+    if local.groups is None and local.n_meas > identifiability.TALL:
+        rows = local.n_meas * local.m
+        ident = identifiability.analyse(local.jacobian_r(final), local.names, rows=rows)
+        jtj, _, ssr = local.normal_equations(final)
+        return ident, covariance_normal(jtj, ssr, rows), float(ssr)
+    r_used, j_used = local.residual(final), local.jacobian(final)
+    ident = identifiability.analyse(j_used, local.names)
+    cov = covariance(r_used, j_used, None if local.groups is None else np.repeat(local.groups, local.m))
+    return ident, cov, float(r_used @ r_used)
 
 
 def _final_loo(dataset, mask, local, final, centre):

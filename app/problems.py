@@ -25,7 +25,17 @@ def calibration_problem(model):
         retract=model.retract if model.rotation == "local" else None,
         nlp=nlp,
         vectorised=True,
+        normal=model.normal_equations if smooth and chunked(model) else None,
     )
+
+
+def chunked(model):
+    """Whether least squares on ``model`` sums its normal equations chunk by chunk
+    (:meth:`~handeye.model.calibration.CalibrationModel.normal_equations`) rather than holding
+    its Jacobian: more rows than one chunk."""
+    from handeye.model.calibration import ROW_CHUNK
+
+    return model.n_meas > ROW_CHUNK
 
 
 def testfunction_nlp():

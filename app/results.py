@@ -117,8 +117,11 @@ class ResidualTable:
         numbers as null), formatted column-wise: a list of N strings."""
         from json.encoder import encode_basestring_ascii as quote
 
-        def numbers(a):
-            return [repr(v) if np.isfinite(v) else "null" for v in a.tolist()]
+        def numbers(a):  # repr: the shortest text that parses to the same float; one finiteness test per column
+            out = list(map(float.__repr__, a.tolist()))
+            for k in np.flatnonzero(~np.isfinite(a)).tolist():
+                out[k] = "null"
+            return out
 
         x, y, z = (numbers(self.vectors[:, i]) for i in range(3))
         loo = numbers(self.loo)

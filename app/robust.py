@@ -23,6 +23,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app import loo
+from handeye.app.problems import chunked
 from handeye.app.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
@@ -66,6 +67,7 @@ def _weighted_problem(model, weights):
         residual=lambda x: sw * model.residual(x),
         jacobian=lambda x: sw[:, None] * model.jacobian(x),
         retract=model.retract,
+        normal=(lambda x: model.normal_equations(x, weights)) if chunked(model) else None,
     )
 
 
@@ -438,6 +440,52 @@ def _deletion_steps(model, x, mask):
     return step, leverage, others, info
 
 
+def _deletion_chunk(info_l, info, total, e, jac, d, dj):
+    """The deletion formula on one chunk of samples (one row each): their steps (R, p),
+    leverages, the other samples' sums of squares and prediction errors |d + D step| (R,)."""
+    jtj = np.einsum("rkp,rkq->rpq", jac, jac)
+    jtr = np.einsum("rkp,rk->rp", jac, e)
+    if np.all(np.isfinite(info_l)):  # the eigenvalues of L^-1 B_g L^-T are those of the hat block M M^T, M = J_g L^-T
+        mm = (info_l @ jac.reshape(-1, jac.shape[-1]).T).T.reshape(jac.shape)
+        leverage = np.linalg.eigvalsh(mm @ np.swapaxes(mm, 1, 2))[:, -1]
+    else:
+        leverage = np.full(len(jtj), np.nan)
+    with np.errstate(all="ignore"):
+        try:
+            step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # a sample alone determines a direction: refit from x
+            step = np.full(jtr.shape, np.nan)
+    errors = np.linalg.norm(d + np.einsum("gkp,gp->gk", dj, step), axis=1)
+    return step, leverage, total - np.einsum("rk,rk->r", e, e), errors
+
+
+def _deletion_errors(model, x, mask, predictor, chunk=None):
+    """Leave-one-out errors (G,) of the samples in ``mask`` by the deletion formula
+    (:func:`leave_one_out` above :data:`LOO_EXACT_UP_TO`; one row per sample), summed and
+    applied chunk by chunk: two evaluations at ``x``, no per-sample matrices of all samples.
+    Samples of high leverage are refitted exactly."""
+    info, _, total = model.normal_equations(x, mask.astype(float), chunk)
+    try:
+        info_l = np.linalg.inv(np.linalg.cholesky(info))
+    except np.linalg.LinAlgError:
+        info_l = np.full(info.shape, np.nan)
+    parts = []
+    own = predictor.chunks(x, chunk) if predictor is not model else None
+    for rows, e, jac in model.chunks(x, chunk):
+        _, d, dj = (rows, e, jac) if own is None else next(own)
+        keep = mask[rows]
+        parts.append(_deletion_chunk(info_l, info, total, e[keep], jac[keep], d[keep], dj[keep]))
+    step, leverage, others, errors = (np.concatenate(p) for p in zip(*parts))
+    used, fitted = np.flatnonzero(mask), None
+    for k in np.flatnonzero(~(leverage <= LOO_LEVERAGE) | ~np.isfinite(errors)):
+        keep = mask.copy()
+        keep[used[k]] = False
+        fitted = _subset(model, mask) if fitted is None else fitted
+        z = _refit(model, x, keep, step[k], others[k], np.inf, fitted, slice(k, k + 1))
+        errors[k] = _prediction_error(predictor, z, used[k])
+    return errors
+
+
 def _group_normal_equations(model, x):
     """Per sample: ``J_g^T J_g`` (G, p, p), ``J_g^T r_g`` (G, p) and ``r_g^T r_g`` (G,) of the
     (whitened) rows."""
@@ -525,6 +573,9 @@ def leave_one_out(model, x, mask=None, predictor=None):
     out = np.full(n, np.nan)
     used = np.where(mask)[0]
     if not len(used):
+        return out
+    if len(used) > LOO_EXACT_UP_TO and model.groups is None:
+        out[used] = _deletion_errors(model, x, mask, predictor)
         return out
     fitted = model if mask.all() else _subset(model, mask)
     rows = _sample_rows(fitted, used)

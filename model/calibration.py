@@ -37,6 +37,7 @@ row i), so that the cost ``1/2 sum |W_i e_i|^2`` weights each component by its p
 """
 from __future__ import annotations
 
+import copy
 import functools
 
 import numpy as np
@@ -162,7 +163,9 @@ class CalibrationModel:
         self.n_meas = len(xs)
         self.fixed_centre = np.asarray(sphere_centre, dtype=float).reshape(3)
         # per-row data in the generated functions' argument order: R1 (9), t1, the kind's data
-        self._data = tuple(np.concatenate([f2b[:, :3, :3].reshape(-1, 9), f2b[:, :3, 3], xs], axis=1).T)
+        data = np.empty((12 + xs.shape[1], len(xs)))  # one contiguous row per argument: chunks read it in order
+        data[:9], data[9:12], data[12:] = f2b[:, :3, :3].reshape(-1, 9).T, f2b[:, :3, 3].T, xs.T
+        self._data = tuple(data)
         self.flange2base = f2b
         self.centre_in_sensor = xs
         #: rows that share one measurement (profile points); None: every row its own
@@ -215,10 +218,14 @@ class CalibrationModel:
 
     def with_rotation(self, rotation, sphere_centre=None):
         """The same rows, kind and whitening in another parametrisation (and fixed centre)."""
-        twin = CalibrationModel(self.flange2base, self.centre_in_sensor,
-                                self.fixed_centre if sphere_centre is None else sphere_centre,
-                                rotation, self.unknowns, self.kind, self.radius, self.whiten)
-        twin.groups = self.groups
+        if rotation not in ROTATIONS:
+            raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+        twin = copy.copy(self)  # the rows' arrays shared (read-only), not rebuilt: a million rows take a while
+        twin.rotation = rotation
+        twin.fixed_centre = np.asarray(self.fixed_centre if sphere_centre is None else sphere_centre, float).reshape(3)
+        twin._cols = slice(0, 3 + _N_ROT[rotation] + (3 if self.unknowns == "sensor+sphere" else 0))
+        twin.n = twin._cols.stop
+        twin.names = parameter_names(rotation, self.unknowns)
         return twin
 
     # -- points ----------------------------------------------------------------------------
@@ -339,6 +346,55 @@ class CalibrationModel:
         jac = vals[..., m:].reshape(batch + (self.n_meas, m, n_theta))[..., self._cols]
         return e, jac
 
+    def _chunk(self, function, x, rows):
+        """The outputs (..., R, K) of a generated ``function`` at ``x`` for the row slice ``rows``
+        (one chunk: the temporaries stay in cache)."""
+        args = self._args(x)
+        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        values = function(*head, *(d[rows] for d in args[len(args) - n_data:]))
+        return codegen.stack_outputs(values, np.shape(x)[:-1] + (rows.stop - rows.start,))
+
+    def chunks(self, x, chunk=None):
+        """Residuals and Jacobians chunk by chunk: yields ``(rows, e, jac)``, ``rows`` a slice of
+        at most ``chunk`` (default :data:`ROW_CHUNK`) rows, ``e`` (..., R, m) and ``jac``
+        (..., R, m, n) as :meth:`residual_and_jacobian` gives for those rows (whitened). What
+        only needs sums over the rows (:meth:`normal_equations`) never holds all of them."""
+        resjac, _ = _numpy_functions(self.rotation, self.kind)
+        batch, m, step = np.shape(x)[:-1], self.m, chunk or ROW_CHUNK
+        for a in range(0, self.n_meas, step):
+            rows = slice(a, min(a + step, self.n_meas))
+            vals = self._chunk(resjac, x, rows)
+            n_theta = (vals.shape[-1] - m) // m
+            e = vals[..., :m]
+            jac = vals[..., m:].reshape(batch + (rows.stop - a, m, n_theta))[..., self._cols]
+            if self.whiten is not None:
+                w = self.whiten[rows]
+                e, jac = np.einsum("ikl,...il->...ik", w, e), np.einsum("ikl,...iln->...ikn", w, jac)
+            yield rows, e, jac
+
+    def normal_equations(self, x, weights=None, chunk=None):
+        """``(J^T J, J^T r, r^T r)`` of the whitened rows, (..., n, n), (..., n), (...), summed
+        chunk by chunk (:meth:`chunks`); ``weights`` (N,) weight each row's contribution."""
+        batch, n = np.shape(x)[:-1], self.n
+        jtj, jtr, rtr = np.zeros(batch + (n, n)), np.zeros(batch + (n,)), np.zeros(batch)
+        for rows, e, jac in self.chunks(x, chunk):
+            if weights is not None:
+                sw = np.sqrt(weights[rows])[:, None]
+                e, jac = sw * e, sw[..., None] * jac
+            flat = jac.reshape(batch + (-1, n))
+            r = e.reshape(batch + (-1,))
+            jtj += np.swapaxes(flat, -1, -2) @ flat
+            jtr += np.einsum("...kn,...k->...n", flat, r)
+            rtr += np.einsum("...k,...k->...", r, r)
+        return jtj, jtr, rtr
+
+    def jacobian_r(self, x, chunk=None):
+        """The triangular factor R (n, n) of the whitened Jacobian at one point, ``J = Q R``,
+        by QR of the chunks' factors stacked (TSQR): the singular values and right singular
+        vectors of J without J."""
+        factors = [np.linalg.qr(jac.reshape(-1, self.n), mode="r") for _, _, jac in self.chunks(x, chunk)]
+        return np.linalg.qr(np.concatenate(factors), mode="r") if len(factors) > 1 else factors[0]
+
     def residual_and_jacobian(self, x):
         """Whitened residuals (..., N, m) and Jacobian (..., N, m, n) with respect to the step."""
         e, jac = self._raw(x)
@@ -383,6 +439,8 @@ class CalibrationModel:
 
     def gradient(self, x):
         """Gradient of :meth:`cost` with respect to the step, (..., n)."""
+        if self.n_meas > ROW_CHUNK:  # summed chunk by chunk: no Jacobian of every row at once
+            return self.normal_equations(x)[1]
         return self.gradient_from(*self.residual_and_jacobian(x))
 
     @staticmethod
@@ -391,8 +449,17 @@ class CalibrationModel:
         return np.einsum("...ik,...ikn->...n", e, jac)
 
     def cost_hessian(self, x):
-        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n)."""
-        return self.cost_derivatives(x)[2]
+        """Exact Hessian of the cost: ``sum J_i^T W_i^T W_i J_i + sum_l (W_i^T W_i e_i)_l grad^2 e_il``, (..., n, n);
+        above ROW_CHUNK rows summed chunk by chunk (a million rows' Jacobian is not held at once)."""
+        if self.n_meas <= ROW_CHUNK or self._profile_layout() is not None:
+            return self.cost_derivatives(x)[2]
+        out = 0.0
+        for rows, e, jac in self.chunks(x):
+            back = e if self.whiten is None else np.einsum("ilk,...il->...ik", self.whiten[rows], e)  # W^T (W e)
+            flat = jac.reshape(jac.shape[:-3] + (-1, self.n))
+            out = out + np.swapaxes(flat, -1, -2) @ flat
+            out = out + np.einsum("...ik,...iknm->...nm", back, self.second_derivatives(x, rows))
+        return out
 
     def cost_hessian_from(self, x, e, jac):
         """:meth:`cost_hessian` at ``x`` given its :meth:`residual_and_jacobian` ``(e, jac)``."""

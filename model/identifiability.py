@@ -97,9 +97,17 @@ def _direction_text(direction):
     return " + ".join(f"{v:+.2f}*{k}" for k, v in direction.items())
 
 
-def analyse(jacobian, names, rtol=RTOL):
-    """Rank, singular values and null directions of ``jacobian`` (m, n)."""
+#: Above this many rows a model's Jacobian is analysed through its triangular factor.
+TALL = 16384
+
+
+def analyse(jacobian, names, rtol=RTOL, rows=None):
+    """Rank, singular values and null directions of ``jacobian`` (m, n); with ``rows`` (its m)
+    ``jacobian`` may be the triangular factor R of ``J = Q R`` instead (the same singular
+    values, right singular vectors and column norms:
+    :meth:`~handeye.model.calibration.CalibrationModel.jacobian_r`)."""
     j = np.asarray(jacobian, dtype=float)
+    m = j.shape[0] if rows is None else int(rows)
     raw = np.linalg.svd(j, compute_uv=False)
     norms = np.linalg.norm(j, axis=0)
     scaled = j / np.where(norms > 0, norms, 1.0)
@@ -112,17 +120,17 @@ def analyse(jacobian, names, rtol=RTOL):
     null = []
     for k in range(rank, j.shape[1]):
         v = vt[k] if k < vt.shape[0] else np.eye(j.shape[1])[k]
-        v = v / np.max(np.abs(v))
+        v = v / v[np.argmax(np.abs(v))]  # the largest entry +1: the sign of an SVD's vector is arbitrary
         null.append({names[i]: round(float(v[i]), 4) for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.05})
     cond = float(s_full[0] / s_full[-1]) if rank == j.shape[1] and s_full[-1] > 0 else float("inf")
     n = j.shape[1]
     weakest = {}
     if vt.shape[0] == n:
-        v = vt[-1] / np.max(np.abs(vt[-1]))
+        v = vt[-1] / vt[-1][np.argmax(np.abs(vt[-1]))]  # largest entry +1 (an SVD's sign is arbitrary)
         weakest = {names[i]: round(float(v[i]), 4) for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.05}
     smin = float(s_full[-1])
     obs = {
-        "O1": float(np.exp(np.mean(np.log(np.maximum(s_full, 1e-300)))) / np.sqrt(j.shape[0])),
+        "O1": float(np.exp(np.mean(np.log(np.maximum(s_full, 1e-300)))) / np.sqrt(m)),
         "O2": float(smin / smax) if smax > 0 else 0.0,
         "O3": smin,
         "O4": float(smin**2 / smax) if smax > 0 else 0.0,
@@ -144,7 +152,10 @@ def structural(model, x, rtol=RTOL):
     c = model.sphere_centre(x)
     ideal = np.linalg.solve(model.flange2base @ t2, np.append(c, 1.0))[:, :3]
     twin = CalibrationModel(model.flange2base, ideal, c, model.rotation, model.unknowns)
-    return analyse(twin.jacobian(twin.point_from(t2, c)), model.names, rtol)
+    point = twin.point_from(t2, c)
+    if twin.n_meas > TALL:  # the triangular factor, chunk by chunk: not the (3N, n) Jacobian
+        return analyse(twin.jacobian_r(point), model.names, rtol, rows=twin.n_meas * twin.m)
+    return analyse(twin.jacobian(point), model.names, rtol)
 
 
 def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose, centre_in_plate, rtol=RTOL):

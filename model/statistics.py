@@ -361,6 +361,20 @@ def covariance(residual, jacobian, groups=None):
     return Covariance(float(np.sqrt(sigma2)), dof, cov, std, corr)
 
 
+def covariance_normal(jtj, rtr, m):
+    """:class:`Covariance` (independent rows) from the normal equations at the solution:
+    ``J^T J`` (p, p), ``r^T r`` and the number of residuals m, as :func:`covariance` from r and J."""
+    p = len(jtj)
+    dof = m - p
+    if dof <= 0:
+        raise ValueError(f"no degrees of freedom left for a covariance ({m} residuals, {p} unknowns)")
+    sigma2 = float(rtr) / dof
+    cov = sigma2 * np.linalg.pinv(np.asarray(jtj, float))
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    corr = cov / np.outer(np.where(std > 0, std, 1.0), np.where(std > 0, std, 1.0))
+    return Covariance(float(np.sqrt(sigma2)), dof, cov, std, corr)
+
+
 def prediction_test(e_all, j_all, fitted):
     """A function ``(e_i (3,), J_i (3, p)) -> (T_i, p-value)``: the statistic of a sample left out
     of the fit on ``fitted`` (module docstring), for one sample at a time without re-deriving the

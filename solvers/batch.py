@@ -57,6 +57,16 @@ class Stacked:
     def hessian(self, x):
         return self._map("hessian", self.problem.hessian, x)
 
+    def normal(self, x):
+        """``(J^T J, J^T r)`` stacks (k, n, n), (k, n) from the problem's ``normal``."""
+        fn = self.problem.normal
+        if self.problem.vectorised:
+            a, g, _ = fn(x)
+            return np.asarray(a, float), np.asarray(g, float)
+        parts = [fn(row) for row in x]
+        return (np.array([p[0] for p in parts], float).reshape(len(x), self.n, self.n),
+                np.array([p[1] for p in parts], float).reshape(len(x), self.n))
+
     def cost(self, x):
         if not len(x):
             return np.zeros(0)
@@ -130,6 +140,10 @@ class Runs:
     def jacobian(self, x, rows):
         self.njev[rows] += 1
         return self.stacked.jacobian(x)
+
+    def normal(self, x, rows):
+        self.njev[rows] += 1
+        return self.stacked.normal(x)
 
     def hessian(self, x, rows):
         self.nhev[rows] += 1

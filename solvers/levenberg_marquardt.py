@@ -25,15 +25,22 @@ def _diag(a):
     return np.diagonal(a, axis1=1, axis2=2)
 
 
+def _model(runs, x, rows, r):
+    """``(J^T J, J^T r)`` at the points ``x`` of ``rows`` (residuals ``r``): from the problem's
+    normal equations when it gives them (J never held), else from its Jacobian."""
+    if runs.stacked.problem.normal is not None:
+        return runs.normal(x, rows)
+    j = runs.jacobian(x, rows)
+    return gram(j), transpose_times(j, r)
+
+
 def run(stacked, x0, opts, trace=False):
     """Levenberg-Marquardt from each row of ``x0`` (N, d); returns the :class:`~handeye.solvers.batch.Runs`."""
     runs = Runs(stacked, x0, "lm", trace)
     rows = runs.active()
     r = runs.residual(runs.x, rows)
     runs.f[rows] = half_squares(r)
-    j = runs.jacobian(runs.x, rows)
-    a = gram(j)
-    runs.g[rows] = transpose_times(j, r)
+    a, runs.g[rows] = _model(runs, runs.x, rows, r)
     biggest = np.max(_diag(a), axis=1)
     d = np.maximum(_diag(a), 1e-12 * np.maximum(1.0, biggest)[:, None])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -43,7 +50,7 @@ def run(stacked, x0, opts, trace=False):
     runs.note("damping", rows, mu)
     for k in range(opts.max_iter):
         rows = runs.active()
-        rows = runs.stop(rows, ~finite_rows(runs.f[rows], j[rows]), -1, k)
+        rows = runs.stop(rows, ~finite_rows(runs.f[rows], a[rows], runs.g[rows]), -1, k)
         rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
         if not rows.size:
             break
@@ -70,9 +77,7 @@ def run(stacked, x0, opts, trace=False):
         runs.x[acc], r[acc], runs.f[acc] = x_new[accept], r_new[accept], f_new[accept]
         runs.record(acc, x_new[accept])
         if acc.size:
-            j[acc] = runs.jacobian(runs.x[acc], acc)
-            a[acc] = gram(j[acc])
-            runs.g[acc] = transpose_times(j[acc], r[acc])
+            a[acc], runs.g[acc] = _model(runs, runs.x[acc], acc, r[acc])
             d[acc] = np.maximum(d[acc], _diag(a[acc]))
         mu[acc] *= np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho[accept] - 1.0) ** 3)
         nu[acc] = 2.0

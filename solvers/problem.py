@@ -13,6 +13,9 @@ problem that lacks it.
 * Batches: ``vectorised=True`` says the callables also accept stacks of points, shape
   (k, d) in and (k, ...) out (``retract`` also a stack of steps (k, n)); then
   :func:`handeye.solvers.solve_many` evaluates all running starts in one call.
+* Normal equations: ``normal(x) -> (J^T J (n, n), J^T r (n,), r^T r)``, optional beside
+  ``residual`` and ``jacobian``: Levenberg-Marquardt then never holds J (a million rows are
+  summed chunk by chunk); the cost stays ``1/2 |residual(x)|^2``.
 * IPOPT: ``nlp``, a CasADi problem dict ``{'x', 'f', 'g', 'p'}`` with ``lbg``, ``ubg`` and
   ``p_value``.
 """
@@ -41,6 +44,7 @@ class Problem:
     retract: Optional[Callable] = None
     nlp: Optional[dict] = None
     vectorised: bool = False
+    normal: Optional[Callable] = None
 
     def cost(self, x):
         if self.objective is not None:
