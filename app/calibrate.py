@@ -17,6 +17,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app import describe, guarantee, robust, slips
+from handeye.app.choices import METHODS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import CalibrationInputError
 from handeye.app.problems import calibration_problem
 from handeye.app.results import Before, CalibrationResult, SampleResidual
@@ -27,8 +28,6 @@ from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import nearest_transform, transform_distance
-
-METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
 
 #: Which rotation parametrisations each method can use.
 SUPPORTED = {

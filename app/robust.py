@@ -22,12 +22,11 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
+from handeye.app.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.results import ExcludedSample
 from handeye.model.calibration import CalibrationModel
 from handeye.model.statistics import chi2_survival_array, chi_median, deletion_statistics
 
-#: Family-wise significance level of the outlier tests.
-ALPHA = 0.01
 CAUCHY_K = 2.385 * np.sqrt(3.0)
 
 

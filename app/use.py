@@ -18,9 +18,8 @@ import numpy as np
 
 from handeye.app import export as exports
 from handeye.app import files, saved
+from handeye.app.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import RequestError
-
-CLOUD_FORMATS = ("ply", "csv")
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",

@@ -42,19 +42,13 @@ import functools
 import numpy as np
 
 from handeye.model import codegen, rotation
+from handeye.model.names import KINDS, ROTATIONS, UNKNOWNS  # noqa: F401 - the names, defined without numpy
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
-UNKNOWNS = ("sensor", "sensor+sphere")
 #: Above this many rows the IPOPT problem is a CasADi MX graph calling the one-row residual
 #: function ``map``-ped over the rows (memory O(1) per row); below, the same expressions expanded
 #: to SX (faster per evaluation, as before). The two agree to rounding (tested).
 NLP_MX_ABOVE = 1000
-#: Names of the rotation parametrisations of the unknown sensor rotation (handeye.model.symbolic uses these).
-ROTATIONS = ("euler", "matrix", "local")
-
-
-#: Residual kinds and the rows of one residual (handeye.model.symbolic uses these).
-KINDS = {"centre": 3, "measurement": 3, "points": 1}
 
 
 @functools.lru_cache(maxsize=None)

@@ -26,16 +26,10 @@ import numpy as np
 
 from handeye.model import codegen
 from handeye.model.errors import InputError
+from handeye.model.names import CONVENTIONS  # defined without numpy (the CLI's choices)
 from handeye.model.pose import kuka_from_matrix
 from handeye.model.rotation import rotvec_from_matrix
 
-#: Robot-brand rotation conventions and their parameters (units); handeye.model.symbolic derives each.
-CONVENTIONS = {
-    "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''
-    "fanuc": ("w", "p", "r"),  # W, P, R in degrees: fixed X-Y-Z, i.e. Rz(R) Ry(P) Rx(W)
-    "abb": ("q1", "q2", "q3", "q4"),  # unit quaternion w, x, y, z
-    "ur": ("rx", "ry", "rz"),  # rotation vector in radians: exp([r]x)
-}
 #: No angle (KUKA, FANUC; degrees) may exceed a full turn, start guesses included.
 ANGLE_LIMIT_DEG = 360.0
 #: Tolerance on |q| - 1 for ABB quaternions (they are normalised within it).

@@ -43,3 +43,15 @@ def test_edges_terminate():
     assert math.isnan(f_survival(math.nan, 3, 7)) and f_survival(math.inf, 3, 7) == 0.0 and f_survival(0, 3, 7) == 1.0
     assert math.isnan(chi2_survival(math.nan, 3)) and chi2_survival(math.inf, 3) == 0.0 and chi2_survival(0, 3) == 1.0
     assert math.isnan(f_survival(1.0, 3, 0))
+
+
+@pytest.mark.parametrize("k", [1, 2, 3, 6, 30])
+def test_chi_median_against_mpmath(k):
+    """The median of chi_k (the robust scale's denominator) needs no mpmath at run time."""
+    from handeye.model.statistics import chi_median
+
+    def below_half(x):
+        return mpmath.gammainc(k / 2.0, 0, x / 2.0, regularized=True) - 0.5
+
+    ref = float(mpmath.sqrt(mpmath.findroot(below_half, k - 2.0 / 3.0)))
+    assert chi_median(k) == pytest.approx(ref, rel=1e-14)
