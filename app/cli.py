@@ -388,6 +388,10 @@ def _cannot_write(exc):
     return EXIT_BAD_INPUT, f"handeye: error: cannot write the output: {exc.strerror}"
 
 
+def _one_line_warning(message, category, filename, lineno, line=None):
+    return f"handeye: warning: {message}\n"
+
+
 def main(argv=None):
     """Entry point of the ``handeye`` console script; returns the exit code."""
     if argv is None:  # the console script, not a caller's Python process: a signal ends it at once
@@ -400,7 +404,24 @@ def main(argv=None):
         import warnings
 
         warnings.simplefilter("ignore", RuntimeWarning)
+        if argv is None:  # a warning the user must see (an unwritable code cache) is one line too
+            warnings.formatwarning = _one_line_warning
     args = build_parser().parse_args(argv)
+    code = _guarded(args)
+    if argv is None:  # done: a signal during the interpreter's teardown no longer changes the outcome
+        _ignore_signals()  # (the teardown restores the default action, which would end it with -2 or -15)
+    return code
+
+
+def _ignore_signals():
+    import signal
+
+    for name in _ENDINGS:
+        signal.signal(getattr(signal, name), signal.SIG_IGN)
+
+
+def _guarded(args):
+    """Run the command; every failure becomes one line on stderr and its exit code."""
     from handeye.app.registry import StudyClaimFailed
     from handeye.model.errors import InputError
 

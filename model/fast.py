@@ -38,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from handeye.model import codegen
+from handeye.model import codegen, scratch
 from handeye.model.calibration import _sources
 from handeye.model.rotation import matrix_from_rotvec
 from handeye.solvers import CONVERGED
@@ -166,7 +166,10 @@ def _build(lib, generated, driver, flags):
         return None
     try:
         lib.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
+        with scratch.signals_held():
+            build = tempfile.TemporaryDirectory(dir=lib.parent)
+            scratch.register(build.name, folder=True)  # an interrupted build leaves no folder behind
+        with build as tmp, scratch.pending(tmp, folder=True):
             (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
             (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
             out = pathlib.Path(tmp) / "lib.so"
@@ -195,12 +198,16 @@ def library():
     driver = DRIVER.read_text()
     flags = (*CFLAGS, f"-DHE_SZ_W={max(one.sz_w(), 1)}")
     key = hashlib.sha256("\0".join([generated, driver, *flags]).encode()).hexdigest()[:16]
-    folder = codegen.cache_dir() / "c"
-    lib = folder / f"fast_lm_{key}.so"
-    _remove_stale_builds(folder)
-    dll = _load(lib) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
-    if dll is None:  # missing, or damaged (truncated, emptied): build it again
-        dll = _build(lib, generated, driver, flags)
+    dll = None
+    for folder in codegen.cache_dirs():  # a read-only cache's library is as good as the user's
+        lib = folder / "c" / f"fast_lm_{key}.so"
+        dll = _load(lib) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
+        if dll is not None:
+            break
+    folder = codegen.cache_dir() if dll is None else None
+    if folder is not None:  # missing, or damaged (truncated, emptied): build it again
+        _remove_stale_builds(folder / "c")
+        dll = _build(folder / "c" / f"fast_lm_{key}.so", generated, driver, flags)
     if dll is None:
         return None
     pointer = ctypes.c_void_p  # addresses (ndarray.ctypes.data) of C-contiguous float64 arrays
