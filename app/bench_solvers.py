@@ -23,7 +23,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 import tracemalloc
 
@@ -31,6 +30,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.problems import testfunction_options, testfunction_problem, testfunction_starts
+from handeye.model import scratch
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 SCALING = (10, 100, 1000, 10000, 30000)
@@ -46,7 +46,7 @@ def study(quick=False):
         ``seconds`` (wall, whole command), ``phases`` (the study's timing.json),
         ``solves`` (per method, from its summary.json), ``grids``, ``exit_code``.
     """
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         cmd = [sys.executable, "-m", "handeye.app.cli", "study", "testfunction", "--out", tmp] + (["--quick"] if quick else [])
         t0 = time.perf_counter()
         done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))

@@ -6,7 +6,9 @@ Exit codes
 1  calibration did not converge (the result is still printed, and flagged); validate: a
    maximum permissible error (--mpe) exceeded
 2  bad input: unreadable or malformed dataset, bad option, too few or degenerate poses;
-   one line on stderr naming file, row and column where there is one
+   one line on stderr naming file, row and column where there is one (an argparse error: that
+   line and ``see `handeye SUBCOMMAND --help```); an output that cannot be written, standard
+   output closed or a pipe nobody reads included
 3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
 4  a study's data did not support its claim (``handeye study``)
 130 interrupted (SIGINT, Ctrl-C); 143 terminated (SIGTERM): one line, no temporary file left

@@ -33,7 +33,6 @@ import os
 import pathlib
 import shutil
 import subprocess
-import tempfile
 from typing import NamedTuple
 
 import numpy as np
@@ -166,10 +165,7 @@ def _build(lib, generated, driver, flags):
         return None
     try:
         lib.parent.mkdir(parents=True, exist_ok=True)
-        with scratch.signals_held():
-            build = tempfile.TemporaryDirectory(dir=lib.parent)
-            scratch.register(build.name, folder=True)  # an interrupted build leaves no folder behind
-        with build as tmp, scratch.pending(tmp, folder=True):
+        with scratch.temporary_folder(dir=lib.parent) as tmp:  # an interrupted build leaves no folder behind
             (pathlib.Path(tmp) / "normal_one.c").write_text(generated)
             (pathlib.Path(tmp) / "fast_lm.c").write_text(driver)
             out = pathlib.Path(tmp) / "lib.so"

@@ -13,6 +13,7 @@ import contextlib
 import os
 import shutil
 import signal
+import tempfile
 import threading
 
 #: path -> True for a folder, False for a file (insertion order: removed newest first)
@@ -66,3 +67,17 @@ def remove_all():
         except OSError:
             pass
     _PENDING.clear()
+
+
+@contextlib.contextmanager
+def temporary_folder(**kwargs):
+    """``tempfile.TemporaryDirectory(**kwargs)``, registered from its first moment to its last:
+    the folder's path for the block, removed after it or by the signal handler."""
+    with signals_held():
+        folder = tempfile.TemporaryDirectory(**kwargs)
+        register(folder.name, folder=True)
+    try:
+        with folder as path:
+            yield path
+    finally:
+        forget(folder.name)
