@@ -278,6 +278,9 @@ def _study(args):
 
     if args.jobs is not None and args.jobs < 1:
         raise RequestError("--jobs must be at least 1")
+    # an interrupted sweep's worker pool is cleaned up by joblib's resource tracker (a child with
+    # our stderr), which would report each semaphore and folder it removes: the one line is ours
+    os.environ.setdefault("PYTHONWARNINGS", "ignore::UserWarning:joblib.externals.loky.backend.resource_tracker")
     with sweep.using(jobs=args.jobs, dask=args.dask):
         results = study.run(args.name, args.out, quick=args.quick)
     for name in results:
@@ -352,10 +355,25 @@ def _end(signum, frame):
     word, code = _ENDINGS.get(signal.Signals(signum).name, ("interrupted", 128 + signum))
     try:
         scratch.remove_all()
+        _stop_workers()
         sys.stderr.write(f"handeye: {word}\n")
         sys.stderr.flush()
     finally:
         os._exit(code)
+
+
+def _stop_workers():
+    """SIGTERM to the worker processes of a sweep (joblib's and Dask's are multiprocessing
+    children): an orphan would compute its task to the end after the run has stopped."""
+    if "multiprocessing" not in sys.modules:
+        return
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        try:
+            child.terminate()
+        except Exception:  # noqa: BLE001 - on the way out, a worker already gone is no matter
+            pass
 
 
 def install_signal_handlers():

@@ -315,3 +315,64 @@ def test_suggested_commands_are_complete_and_run(tmp_path, capsys, name):
         assert str(DATA_DIR) not in command
         run = handeye(*argv[1:], *(["--no-loo"] if argv[1] == "calibrate" else []))
         assert run.returncode in (0, 1), (command, run.stderr)
+
+
+def test_a_read_only_filled_cache_is_read_without_deriving(tmp_path, monkeypatch):
+    """The same as root can check it: a HANDEYE_CACHE taken as unwritable is still read first,
+    the user's cache comes after it, and a hit derives nothing and writes nothing."""
+    import sympy as sp
+
+    from handeye.model import codegen
+
+    filled, xdg = tmp_path / "filled", tmp_path / "xdg"
+    monkeypatch.setenv("HANDEYE_CACHE", str(filled))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(xdg))
+    x = sp.Symbol("x")
+
+    def build():
+        return (x,), [x**2 + 1]
+
+    text = codegen.generated_source("edges_probe", build)
+    monkeypatch.setattr(codegen, "_writable", lambda folder: filled not in (pathlib.Path(folder), *pathlib.Path(folder).parents))
+    assert codegen.cache_dirs() == [filled, xdg / "handeye"] and codegen.cache_dir() == xdg / "handeye"
+
+    def must_not_derive():
+        raise AssertionError("derived again although the read-only cache has it")  # same file: same cache key
+
+    assert codegen.generated_source("edges_probe", must_not_derive) == text
+    assert not xdg.exists()
+
+
+def _group(pgid):
+    """Command lines of the live processes of a process group (from /proc)."""
+    out = []
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[2]) == pgid and fields[0] != "Z":
+                out.append((stat.parent / "cmdline").read_text().replace("\0", " "))
+        except (OSError, IndexError, ValueError):
+            continue
+    return out
+
+
+@pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="needs /proc to see the workers")
+def test_ctrl_c_in_a_terminal_stops_the_workers_of_a_study_too(tmp_path):
+    """The terminal's Ctrl-C goes to the whole process group, the sweep's workers included: the
+    run still ends with the one line (no worker's IPOPT warning, no report of the pool's
+    clean-up), and no worker is left computing for a run that has stopped."""
+    proc = subprocess.Popen(HANDEYE + ["study", "random-starts", "--quick", "--jobs", "2", "--out", str(tmp_path / "s")],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while sum("loky" in c and "resource_tracker" not in c for c in _group(proc.pid)) < 2:
+        assert time.monotonic() < deadline and proc.poll() is None, "no worker started"
+        time.sleep(0.05)
+    time.sleep(1.0)  # the workers are computing
+    os.killpg(proc.pid, signal.SIGINT)
+    err = proc.stderr.read()
+    assert proc.wait(timeout=60) == 130 and err.splitlines()[-1] == "handeye: interrupted", err
+    assert "Warning" not in err and "WARNING" not in err and "Traceback" not in err, err
+    deadline = time.monotonic() + 20
+    while _group(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _group(proc.pid) == []
