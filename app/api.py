@@ -298,11 +298,10 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if figures is not None:
         diagnosis_figures(result, figures)
     if plot is not None:
-        import tempfile
-
         from handeye.app.files import write_bytes_atomically
+        from handeye.model import scratch
 
-        with tempfile.TemporaryDirectory() as tmp:
+        with scratch.temporary_folder() as tmp:
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
     return result
 

@@ -27,14 +27,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 from handeye import solvers
 from handeye.app import robust
-from handeye.model import fast, simulate
+from handeye.model import fast, scratch, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -257,7 +256,7 @@ def startup():
     generated-code cache (cold: sympy derives and CasADi builds) and then with it filled (warm)."""
     cmd = [sys.executable, "-m", "handeye.app.cli", "calibrate", "--json"]
     out = {}
-    with tempfile.TemporaryDirectory() as cache:
+    with scratch.temporary_folder() as cache:
         env = dict(os.environ, HANDEYE_CACHE=cache)
         for label in ("cold", "warm", "warm again"):
             t0 = time.perf_counter()
@@ -323,7 +322,7 @@ def pipeline(sizes=PIPELINE):
     """Wall time and peak memory of ``handeye calibrate`` with default options (screening, fit,
     covariance, leave-one-out) against the number of measurements, each in a fresh process."""
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         for n in sizes:
             folder = write_dataset(f"{tmp}/n{n}", n)
             rows.append(dict(n=n, **measure_cli(["calibrate", str(folder), "--json"])))
@@ -385,7 +384,7 @@ def use_scaling(sizes=CLOUD):
     import pathlib
 
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         for n in sizes:
             folder = write_scan(f"{tmp}/n{n}", n)
             cal = str(pathlib.Path(tmp) / f"n{n}.json")

@@ -27,7 +27,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 import tracemalloc
 
@@ -35,7 +34,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.problems import testfunction_options, testfunction_problem, testfunction_starts
-from handeye.model import fast_starts, testfunction
+from handeye.model import fast_starts, scratch, testfunction
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 SCALING = (10, 100, 1000, 10000, 30000)
@@ -51,7 +50,7 @@ def study(quick=False):
         ``seconds`` (wall, whole command), ``phases`` (the study's timing.json),
         ``solves`` (per method, from its summary.json), ``grids``, ``exit_code``.
     """
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         cmd = [sys.executable, "-m", "handeye.app.cli", "study", "testfunction", "--out", tmp] + (["--quick"] if quick else [])
         t0 = time.perf_counter()
         done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))

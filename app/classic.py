@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from handeye.app import robust, slips
+from handeye.app.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
 from handeye.app.errors import CalibrationInputError
 from handeye.app.prepare import resolve_start, with_sphere_centre
 from handeye.app.result_parts import FitRecord, ScreeningRecord
@@ -23,8 +24,6 @@ from handeye.model import classics, conventions
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import transform_distance
-
-METHODS = ("kim-cho", "li-two-step")
 
 
 def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):

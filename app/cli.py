@@ -6,10 +6,16 @@ Exit codes
 1  calibration did not converge (the result is still printed, and flagged); validate: a
    maximum permissible error (--mpe) exceeded
 2  bad input: unreadable or malformed dataset, bad option, too few or degenerate poses;
-   one line on stderr naming file, row and column where there is one
+   one line on stderr naming file, row and column where there is one (an argparse error: that
+   line and ``see `handeye SUBCOMMAND --help```); an output that cannot be written, standard
+   output closed or a pipe nobody reads included
 3  internal error (a bug; set HANDEYE_DEBUG=1 for the traceback)
 4  a study's data did not support its claim (``handeye study``)
-130 interrupted (Ctrl-C)
+130 interrupted (SIGINT, Ctrl-C); 143 terminated (SIGTERM): one line, no temporary file left
+
+Start-up is light: this module imports only the standard library and the names of the
+options (:mod:`handeye.app.choices`, :mod:`handeye.model.names`), so ``handeye --help`` never
+loads numpy, and the signal handlers are in place before anything heavy is imported.
 """
 from __future__ import annotations
 
@@ -17,17 +23,23 @@ import argparse
 import os
 import sys
 
-from handeye.app.errors import RequestError
-from handeye.app.jsonio import dumps
+from handeye.model import scratch
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+def dumps(data):
+    """JSON text of a result (:func:`handeye.app.results.dumps`, imported when needed)."""
+    from handeye.app.results import dumps as to_json
+
+    return to_json(data)
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
-        self.print_usage(sys.stderr)
-        print(f"handeye: error: {message}", file=sys.stderr)
+        """The one line that matters and where to read more; no usage block (exit 2)."""
+        sys.stderr.write(f"{self.prog}: error: {message}\nsee `{self.prog} --help`\n")
         raise SystemExit(EXIT_BAD_INPUT)
 
 
@@ -54,7 +66,7 @@ def _plan_args(sub):
 
 
 def _study_args(sub):
-    from handeye.app.registry import STUDIES
+    from handeye.app.registry import STUDIES  # names only: the studies are imported when one runs
 
     st = sub.add_parser("study", help="run a study (figures, tables, JSON) and check its claims")
     st.add_argument("name", choices=list(STUDIES) + ["all"])
@@ -68,8 +80,7 @@ def _study_args(sub):
 
 def _use_args(sub, conventions):
     """``export``, ``cloud`` and ``validate``: what comes after a calibration."""
-    from handeye.app.export import FORMATS
-    from handeye.app.use import CLOUD_FORMATS
+    from handeye.app.choices import CLOUD_FORMATS, FORMATS
 
     def calibration(p, option=True):
         """--calibration (or, for export, a positional RESULT.json), --sensor-pose, --convention, --force."""
@@ -121,11 +132,8 @@ def _use_args(sub, conventions):
 
 
 def build_parser():
-    from handeye.app.classic import METHODS as CLASSIC_METHODS
-    from handeye.app.request import METHODS
-    from handeye.app.robust import ALPHA
-    from handeye.model.calibration import KINDS, ROTATIONS, UNKNOWNS
-    from handeye.model.conventions import CONVENTIONS
+    from handeye.app.choices import ALPHA, CLASSIC_METHODS, METHODS
+    from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS, UNKNOWNS
 
     parser = _Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -240,6 +248,8 @@ def _diagnose(args):
 
 def _sizes(text, option):
     """``'1000,10000'`` -> (1000, 10000); None stays None (the default); ``'0'`` -> () (skip)."""
+    from handeye.app.errors import RequestError
+
     if text is None:
         return None
     try:
@@ -256,6 +266,8 @@ def _bench(args):
         from handeye.app import bench_solvers
 
         if args.plot:
+            from handeye.app.errors import RequestError
+
             raise RequestError("--plot draws the calibration bench; the solver bench (--solvers) prints tables")
         res = bench_solvers.run(quick=args.quick, with_study=not args.no_study)
         print(dumps(res) if args.json else bench_solvers.text(res))
@@ -265,6 +277,8 @@ def _bench(args):
     try:
         import scipy.optimize  # noqa: F401 - the baseline of every ratio
     except ImportError:
+        from handeye.app.errors import RequestError
+
         raise RequestError("handeye bench compares against scipy, which is not installed: "
                            "pip install 'handeye[bench]'") from None
 
@@ -278,10 +292,14 @@ def _bench(args):
 
 def _study(args):
     from handeye.app import sweep
+    from handeye.app.errors import RequestError
     from handeye.studies import study  # the one import of the studies, only when one is run
 
     if args.jobs is not None and args.jobs < 1:
         raise RequestError("--jobs must be at least 1")
+    # an interrupted sweep's worker pool is cleaned up by joblib's resource tracker (a child with
+    # our stderr), which would report each semaphore and folder it removes: the one line is ours
+    os.environ.setdefault("PYTHONWARNINGS", "ignore::UserWarning:joblib.externals.loky.backend.resource_tracker")
     with sweep.using(jobs=args.jobs, dask=args.dask):
         results = study.run(args.name, args.out, quick=args.quick)
     for name in results:
@@ -303,6 +321,7 @@ def _simulate(args):
 
 def _export(args):
     from handeye.app import use
+    from handeye.app.errors import RequestError
 
     if args.result is None and args.sensor_pose is None:
         raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
@@ -342,67 +361,123 @@ def _calibrate(args):
     return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 
 
-def _interrupted(signum, frame):
-    """Ctrl-C: one line and exit 130 at once, even inside a solver or a worker pool that would
-    otherwise swallow the KeyboardInterrupt (IPOPT turns it into a warning and goes on)."""
+#: signal -> (what stderr says, exit code): the shell's 128 + signal number
+_ENDINGS = {"SIGINT": ("interrupted", EXIT_INTERRUPTED), "SIGTERM": ("terminated", EXIT_TERMINATED)}
+
+
+def _end(signum, frame):
+    """SIGINT (Ctrl-C) or SIGTERM: remove the temporary files in flight, one line, and exit 130 or
+    143 at once, even inside a solver or a worker pool that would otherwise swallow the
+    KeyboardInterrupt (IPOPT turns it into a warning and goes on)."""
+    import signal
+
+    word, code = _ENDINGS.get(signal.Signals(signum).name, ("interrupted", 128 + signum))
     try:
-        sys.stderr.write("handeye: interrupted\n")
+        scratch.remove_all()
+        _stop_workers()
+        sys.stderr.write(f"handeye: {word}\n")
         sys.stderr.flush()
     finally:
-        os._exit(EXIT_INTERRUPTED)
+        os._exit(code)
+
+
+def _stop_workers():
+    """SIGTERM to the worker processes of a sweep (joblib's and Dask's are multiprocessing
+    children): an orphan would compute its task to the end after the run has stopped."""
+    if "multiprocessing" not in sys.modules:
+        return
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        try:
+            child.terminate()
+        except Exception:  # noqa: BLE001 - on the way out, a worker already gone is no matter
+            pass
+
+
+def install_signal_handlers():
+    """SIGINT and SIGTERM end the run with :func:`_end` (the console script's first act)."""
+    import signal
+
+    for name in _ENDINGS:
+        signal.signal(getattr(signal, name), _end)
+
+
+def _run(args):
+    """Run the parsed command; its exit code."""
+    if args.command == "datasets":
+        from handeye.model.dataset import embedded_names
+
+        print("\n".join(embedded_names()))
+        return EXIT_OK
+    commands = {"simulate": _simulate, "diagnose": _diagnose, "bench": _bench, "export": _export, "cloud": _cloud,
+                "validate": _validate, "plan": _plan, "study": _study}
+    return commands.get(args.command, _calibrate)(args)
+
+
+def _cannot_write(exc):
+    """Exit code and stderr line of an OSError: the output cannot be written (2), or a bug (3)."""
+    if isinstance(exc, BrokenPipeError) or exc.errno == 32:  # EPIPE: the reader is gone (`| head -c0`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        return EXIT_BAD_INPUT, "handeye: error: cannot write the output: standard output is closed (broken pipe)"
+    if exc.filename is not None or exc.errno not in (28, 5, 9):  # ENOSPC, EIO, EBADF only
+        if os.environ.get("HANDEYE_DEBUG"):
+            raise exc
+        return EXIT_INTERNAL, f"handeye: internal error: {type(exc).__name__}: {exc} (set HANDEYE_DEBUG=1 for details)"
+    return EXIT_BAD_INPUT, f"handeye: error: cannot write the output: {exc.strerror}"
+
+
+def _one_line_warning(message, category, filename, lineno, line=None):
+    return f"handeye: warning: {message}\n"
 
 
 def main(argv=None):
     """Entry point of the ``handeye`` console script; returns the exit code."""
-    from handeye.app.registry import StudyClaimFailed
-    from handeye.model.errors import InputError
-
-    if argv is None:  # the console script, not a caller's Python process: Ctrl-C ends it at once
-        import signal
-
-        signal.signal(signal.SIGINT, _interrupted)
+    if argv is None:  # the console script, not a caller's Python process: a signal ends it at once
+        install_signal_handlers()
+    if sys.stdout is None:  # started with stdout closed (`handeye ... >&-`): every result would be lost
+        print("handeye: error: standard output is closed; redirect it (> FILE, or > /dev/null to discard)",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     if not os.environ.get("HANDEYE_DEBUG"):  # one line on stderr: numpy's overflow chatter is not it
         import warnings
 
         warnings.simplefilter("ignore", RuntimeWarning)
+        if argv is None:  # a warning the user must see (an unwritable code cache) is one line too
+            warnings.formatwarning = _one_line_warning
     args = build_parser().parse_args(argv)
-    try:
-        if args.command == "datasets":
-            from handeye.model.dataset import embedded_names
+    code = _guarded(args)
+    if argv is None:  # done: a signal during the interpreter's teardown no longer changes the outcome
+        _ignore_signals()  # (the teardown restores the default action, which would end it with -2 or -15)
+    return code
 
-            print("\n".join(embedded_names()))
-            return EXIT_OK
-        if args.command == "simulate":
-            return _simulate(args)
-        if args.command == "diagnose":
-            return _diagnose(args)
-        if args.command == "bench":
-            return _bench(args)
-        if args.command in ("export", "cloud", "validate"):
-            return {"export": _export, "cloud": _cloud, "validate": _validate}[args.command](args)
-        if args.command == "plan":
-            return _plan(args)
-        if args.command == "study":
-            return _study(args)
-        return _calibrate(args)
+
+def _ignore_signals():
+    import signal
+
+    for name in _ENDINGS:
+        signal.signal(getattr(signal, name), signal.SIG_IGN)
+
+
+def _guarded(args):
+    """Run the command; every failure becomes one line on stderr and its exit code."""
+    from handeye.app.registry import StudyClaimFailed
+    from handeye.model.errors import InputError
+
+    try:
+        code = _run(args)
+        sys.stdout.flush()  # a closed pipe or a full disk shows here, not as a warning at exit
+        return code
     except InputError as exc:  # exactly the bad-input hierarchy: anything else is a bug (exit 3)
         print(f"handeye: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's code for SIGINT
+    except KeyboardInterrupt:  # Ctrl-C in a caller's process (no handler): one line, the shell's code
         print("handeye: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except BrokenPipeError:  # the reader went away (e.g. `| head`): nothing left to say
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_OK
-    except OSError as exc:  # the output itself cannot be written (a full disk, /dev/full as stdout)
-        if exc.filename is not None or exc.errno not in (28, 5, 9):  # ENOSPC, EIO, EBADF only
-            if os.environ.get("HANDEYE_DEBUG"):
-                raise
-            print(f"handeye: internal error: {type(exc).__name__}: {exc} (set HANDEYE_DEBUG=1 for details)",
-                  file=sys.stderr)
-            return EXIT_INTERNAL
-        print(f"handeye: error: cannot write the output: {exc.strerror}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except OSError as exc:  # the output itself cannot be written (a closed pipe, a full disk, /dev/full)
+        code, line = _cannot_write(exc)
+        print(line, file=sys.stderr)
+        return code
     except StudyClaimFailed as exc:
         print(f"handeye: {exc}", file=sys.stderr)
         return EXIT_CLAIM_FAILED

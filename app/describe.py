@@ -7,6 +7,8 @@ used and on every sample. Nothing here prints.
 from __future__ import annotations
 
 import dataclasses
+import pathlib
+import shlex
 
 import numpy as np
 
@@ -66,6 +68,21 @@ def _noise_model_text(local):
 NOISE_ALPHA = 0.001
 
 
+def command_argument(dataset):
+    """The dataset as a command to paste names it: an embedded dataset by its name (not the
+    installed folder's path), a folder by the path it was given; quoted for the shell.
+
+    An embedded name shadowed by a folder of that name in the current directory (which the
+    command would read instead) is given by its full path.
+    """
+    from handeye.model.dataset import DATA_DIR
+
+    path = pathlib.Path(dataset.path)
+    if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists():
+        return shlex.quote(dataset.name)
+    return shlex.quote(str(path))
+
+
 def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
     """The fit against the stated noise (chi-square); a warning naming diagnose when it fails."""
     from handeye.app.results import NoiseTest
@@ -83,8 +100,8 @@ def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
         warnings.append(
             f"the residuals are larger than the stated noise: sd {ratio:.1f} x the stated {nominal} (chi2 = "
             f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
-            f"than [noise] in setup.toml says); run `handeye diagnose {dataset.path}` to find and name it, then "
-            "`handeye calibrate --effects NAME`")
+            f"than [noise] in setup.toml says); run `handeye diagnose {command_argument(dataset)}` to find and name it, "
+            "then calibrate with the effect it names (--effects NAME)")
     return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
 
 
@@ -96,8 +113,8 @@ def effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
         warnings.append(f"the residuals show structure the model lacks: {names}; run `handeye diagnose "
-                        f"{dataset.path}` to confirm and name it, then `handeye calibrate --effects "
-                        f"{significant[0].name}`")
+                        f"{command_argument(dataset)}` to confirm and name it, then `handeye calibrate "
+                        f"{command_argument(dataset)} --effects {significant[0].name}`")
     return tests
 
 

@@ -35,10 +35,10 @@ import re
 
 import numpy as np
 
+from handeye.app.choices import FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import RequestError
 from handeye.model import conventions
 
-FORMATS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix", "json")
 #: Frame names: what ROS, URDF and the controllers accept as an identifier.
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_/.-]{0,63}$")
 _RAPID_NAME = re.compile(r"[^A-Za-z0-9_]")

@@ -4,9 +4,11 @@ from __future__ import annotations
 import datetime
 import os
 import pathlib
+import stat
 import tempfile
 
 from handeye.app.errors import RequestError
+from handeye.model import scratch
 
 
 def tool_version():
@@ -60,8 +62,8 @@ def _same_file(a, b):
 
 def _writable(folder, option, path):
     try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".handeye-probe.", delete=True):
-            pass
+        with scratch.signals_held(), tempfile.NamedTemporaryFile(dir=folder, prefix=".handeye-probe.", delete=True):
+            pass  # created and removed with the signals held back: an interruption leaves no probe
     except OSError as exc:
         raise RequestError(f"{option} {path}: cannot write in {folder}: {exc.strerror or exc}") from None
 
@@ -107,26 +109,63 @@ def check_output_folder(path, option, empty=False):
     return target
 
 
+def _umask():
+    """The process's umask, read without changing it where ``/proc`` tells it."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)  # elsewhere: set and restore at once (the CLI runs no other thread here)
+    os.umask(mask)
+    return mask
+
+
+def output_mode(target):
+    """Permission bits of an output: a new file gets what the umask leaves of 0666 (0644 under
+    umask 022, 0640 under 027), as ``open`` would give it; a file written over keeps its own."""
+    try:
+        st = os.stat(target)
+    except OSError:
+        return 0o666 & ~_umask()
+    return stat.S_IMODE(st.st_mode) if stat.S_ISREG(st.st_mode) else 0o666 & ~_umask()
+
+
 def _atomically(path, option, mode, write):
     """Call ``write(file)`` on a temporary file beside ``path``, then rename it over ``path``: never a
     half-written file, a hard link or an existing file replaced rather than written into, and the
-    temporary file removed when anything fails. Raises :class:`RequestError` naming ``option``."""
+    temporary file removed when anything fails or a signal ends the run (:mod:`handeye.model.scratch`).
+    The file gets :func:`output_mode`'s permissions, not the temporary file's private 0600.
+    Raises :class:`RequestError` naming ``option``."""
     target = pathlib.Path(path)
     folder = target.parent if str(target.parent) else pathlib.Path(".")
     if not folder.is_dir():
         raise RequestError(f"{option} {path}: folder {folder} does not exist")
     name = None
     try:
-        with tempfile.NamedTemporaryFile(mode, dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False) as fh:
+        with scratch.signals_held():
+            fh = tempfile.NamedTemporaryFile(mode, dir=folder, prefix=f".{target.name}.", suffix=".tmp", delete=False)
             name = fh.name
+            scratch.register(name)
+        with fh:
             write(fh)
             fh.flush()
+            os.fchmod(fh.fileno(), output_mode(target))
             os.fsync(fh.fileno())
-        os.replace(name, target)
-    except OSError as exc:
+        with scratch.signals_held():
+            os.replace(name, target)
+            scratch.forget(name)
+    except BaseException as exc:  # an error in write() or a KeyboardInterrupt as much as a full disk
         if name is not None and os.path.exists(name):
             os.unlink(name)  # never leave the temporary file behind
-        raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+        if isinstance(exc, OSError):
+            raise RequestError(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
+        raise
+    finally:
+        if name is not None:
+            scratch.forget(name)
 
 
 def write_text_atomically(path, text, option="--out"):

@@ -14,15 +14,13 @@ import types
 import numpy as np
 
 from handeye import solvers
+from handeye.app.choices import METHODS
 from handeye.app.errors import CalibrationInputError
 from handeye.model import conventions
 from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
-from handeye.model.names import ROTATIONS
+from handeye.model.names import ROTATIONS, UNKNOWNS
 
-#: Residuals that handeye fits: the ``centre`` model needs the centre columns; ``measurement``
-#: and ``points`` the profiles (:mod:`handeye.model.observations`).
-UNKNOWNS = ("sensor", "sensor+sphere")
-METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
+# METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 
 #: Which rotation parametrisations each method can use.
 SUPPORTED = {

@@ -23,14 +23,13 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app import loo
+from handeye.app.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.problems import chunked
 from handeye.app.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
 from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics
 
-#: Family-wise significance level of the outlier tests.
-ALPHA = 0.01
 CAUCHY_K = 2.385 * np.sqrt(3.0)
 
 

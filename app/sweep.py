@@ -129,6 +129,29 @@ def _scatter_shared(client, tasks):
     return [tuple(futures.get(j, a) for j, a in enumerate(t)) for t in tasks]
 
 
+def _in_worker(parent, function, *args):
+    """``function(*args)``; in a worker process, Ctrl-C is left to the parent (the terminal sends
+    it to the whole process group): the parent ends the run with one line and stops the workers
+    (SIGTERM, :func:`_worker_end`); a worker's IPOPT would only add its own warning."""
+    if os.getpid() != parent:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, _worker_end)
+    return function(*args)
+
+
+def _worker_end(signum, frame):
+    """SIGTERM in a worker (the parent's handler sends it on its way out): its temporary files
+    go, and it ends at once, silently (the parent says the one line)."""
+    from handeye.model import scratch
+
+    try:
+        scratch.remove_all()
+    finally:
+        os._exit(128 + signum)
+
+
 def run(function, tasks, label="sweep"):
     """``[function(*task) for task in tasks]`` on the backend in force, in task order, printing
     progress to stderr."""
@@ -149,8 +172,9 @@ def run(function, tasks, label="sweep"):
     from joblib import Parallel, delayed
 
     results = []
+    parent = os.getpid()
     with Parallel(n_jobs=n_jobs(), return_as="generator") as parallel:
-        for k, result in enumerate(parallel(delayed(function)(*t) for t in tasks), start=1):
+        for k, result in enumerate(parallel(delayed(_in_worker)(parent, function, *t) for t in tasks), start=1):
             results.append(result)
             _progress(label, k, total)
     return results

@@ -18,10 +18,9 @@ import numpy as np
 
 from handeye.app import export as exports
 from handeye.app import files, saved
+from handeye.app.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import RequestError
 from handeye.app.protocol import ResultProtocol
-
-CLOUD_FORMATS = ("ply", "csv")
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",

@@ -43,10 +43,9 @@ import functools
 import numpy as np
 
 from handeye.model import codegen, rotation
-from handeye.model.names import KINDS, ROTATIONS  # noqa: F401  (re-exported: the public names)
+from handeye.model.names import KINDS, ROTATIONS, UNKNOWNS  # noqa: F401  (re-exported: the names, defined without numpy)
 from handeye.model.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 
-UNKNOWNS = ("sensor", "sensor+sphere")
 #: Above this many rows the IPOPT problem's cost is a callback to the model's numpy cost,
 #: gradient and exact Hessian (:mod:`handeye.model.nlp_callback`: built in milliseconds, an
 #: iteration a few passes over the rows); below, the rows' expressions expanded to one CasADi SX

@@ -17,10 +17,9 @@ import os
 import pathlib
 import shutil
 import subprocess
-import tempfile
 import time
 
-from handeye.model import codegen
+from handeye.model import codegen, scratch
 
 #: A build folder older than this (s) was left by a killed compile: removed.
 STALE_BUILD_S = 3600.0
@@ -72,7 +71,7 @@ def _build(lib, sources, flags, symbols):
         return None
     try:
         lib.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
+        with scratch.temporary_folder(dir=lib.parent) as tmp:  # an interrupted build leaves no folder behind
             for name, text in sources.items():
                 (pathlib.Path(tmp) / name).write_text(text)
             out = pathlib.Path(tmp) / "lib.so"
@@ -108,10 +107,13 @@ def cached_library(stem, sources, flags, symbols):
     ctypes.CDLL or None
     """
     key = hashlib.sha256("\0".join([*sources.values(), *flags]).encode()).hexdigest()[:16]
-    folder = codegen.cache_dir() / "c"
-    lib = folder / f"{stem}_{key}.so"
-    _remove_stale_builds(folder)
-    dll = _load(lib, symbols) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
-    if dll is None:  # missing, or damaged (truncated, emptied): build it again
-        dll = _build(lib, sources, flags, symbols)
-    return dll
+    for folder in codegen.cache_dirs():  # a read-only cache's library is as good as the user's
+        lib = folder / "c" / f"{stem}_{key}.so"
+        dll = _load(lib, symbols) if _intact(lib) else None  # a damaged file is never even opened (dlopen may crash)
+        if dll is not None:
+            return dll
+    folder = codegen.cache_dir()
+    if folder is None:  # no writable cache (said once by codegen): no compiled path
+        return None
+    _remove_stale_builds(folder / "c")  # missing, or damaged (truncated, emptied): build it again
+    return _build(folder / "c" / f"{stem}_{key}.so", sources, flags, symbols)

@@ -10,8 +10,10 @@ Deriving and printing takes about a second; the source text is therefore cached 
 keyed by a hash of the symbolic module, this module, the module that chose the expressions
 and the sympy version, so a warm
 ``handeye calibrate`` never touches sympy's differentiation. The cache lives in
-``$HANDEYE_CACHE``, else ``$XDG_CACHE_HOME/handeye``, else ``~/.cache/handeye``; when it cannot
-be written the functions are simply regenerated each time.
+``$HANDEYE_CACHE``, else ``$XDG_CACHE_HOME/handeye``, else ``~/.cache/handeye``. A
+``$HANDEYE_CACHE`` that cannot be written (a read-only install's pre-filled cache) is still read,
+and what it lacks goes to the user's cache; when no folder can be written the functions are
+derived again on every run, and a :class:`CacheWarning` says so, once per process.
 """
 from __future__ import annotations
 
@@ -21,19 +23,69 @@ import math
 import os
 import pathlib
 import tempfile
+import warnings
 
 import numpy as np
+
+from handeye.model import scratch
 
 _HERE = pathlib.Path(__file__).parent
 
 
-def cache_dir():
-    """Folder of the generated-code cache (see module docstring)."""
-    env = os.environ.get("HANDEYE_CACHE")
-    if env:
-        return pathlib.Path(env)
+class CacheWarning(UserWarning):
+    """The generated-code cache cannot be written: every run derives the code again."""
+
+
+def _user_cache():
     base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
     return pathlib.Path(base) / "handeye"
+
+
+def _writable(folder):
+    """Could a file be made in ``folder`` (or in the existing folder it would be made under)?"""
+    path = pathlib.Path(folder)
+    while not path.exists():
+        if path.parent == path:
+            return False
+        path = path.parent
+    return path.is_dir() and os.access(path, os.W_OK | os.X_OK)
+
+
+def cache_dirs():
+    """Folders of the generated-code cache, in the order they are read: ``$HANDEYE_CACHE`` alone
+    when it is set and writable; the user's cache after it when it is set but cannot be written;
+    else the user's cache (see module docstring)."""
+    env = os.environ.get("HANDEYE_CACHE")
+    if not env:
+        return [_user_cache()]
+    if _writable(env):
+        return [pathlib.Path(env)]
+    return list(dict.fromkeys([pathlib.Path(env), _user_cache()]))
+
+
+def cache_dir():
+    """The folder the cache writes to: the first of :func:`cache_dirs` that can be written; None
+    (after a :class:`CacheWarning`, once) when none can."""
+    folders = cache_dirs()
+    for folder in folders:
+        if _writable(folder):
+            return folder
+    warn_unwritable(folders)
+    return None
+
+
+_WARNED = []
+
+
+def warn_unwritable(folders, reason=None):
+    """Say once per process that no cache folder can be written, which ones and why."""
+    if _WARNED:
+        return
+    _WARNED.append(True)
+    tried = ", ".join(str(f) for f in folders)
+    warnings.warn(f"the generated-code cache cannot be written ({tried}: {reason or 'not writable'}): the code is "
+                  "derived again on every run, several times slower; set HANDEYE_CACHE to a writable folder",
+                  CacheWarning, stacklevel=3)
 
 
 @functools.lru_cache(maxsize=None)
@@ -76,23 +128,38 @@ def generated_source(name, build):
         ``build() -> (inputs, outputs)``: the sympy input symbols (in argument order) and the
         flat list of output expressions. Called only on a cache miss.
     """
-    path = cache_dir() / f"{name}-{_source_fingerprint(build.__code__.co_filename)}.py"
-    cached = _read_checked(path)
-    if cached is not None:
-        return cached
+    file = f"{name}-{_source_fingerprint(build.__code__.co_filename)}.py"
+    for folder in cache_dirs():
+        cached = _read_checked(folder / file)
+        if cached is not None:
+            return cached
     inputs, outputs = build()
     text = _print_function(inputs, outputs)
+    folder = cache_dir()
+    if folder is not None:
+        _store(folder / file, text)
+    return text
+
+
+def _store(path, text):
+    """Write a cache file atomically (with its checksum); a failure only costs the next run time."""
     name_tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as fh:
+        with scratch.signals_held():
+            fh = tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp")
             name_tmp = fh.name
+            scratch.register(name_tmp)
+        with fh:
             fh.write(f"{_CHECK}{hashlib.sha256(text.encode()).hexdigest()}\n{text}")
         os.replace(name_tmp, path)
-    except OSError:
+    except OSError as exc:
         if name_tmp is not None and os.path.exists(name_tmp):
             os.unlink(name_tmp)
-    return text
+        warn_unwritable([path.parent], exc.strerror or str(exc))
+    finally:
+        if name_tmp is not None:
+            scratch.forget(name_tmp)
 
 
 #: First line of a cache file: the SHA-256 of the rest, so that a truncated, emptied or edited

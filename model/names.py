@@ -1,17 +1,19 @@
-"""The names the symbolic chain is derived for, defined once where nothing is imported.
+"""The names the model's options take, defined once where nothing is imported.
 
 :mod:`handeye.model.symbolic` derives a function for each of them and the numeric modules
 (:mod:`handeye.model.calibration`, :mod:`handeye.model.conventions`) validate requests against
-them; both import this leaf module, so neither imports the other (and numpy-only code never
-imports sympy).
+them and re-export them; both import this leaf module, so neither imports the other (and
+numpy-only code never imports sympy). The command line offers them as choices before it
+imports anything heavy (``handeye --help`` does not pay for numpy).
 """
+from __future__ import annotations
 
+#: What a calibration estimates (:mod:`handeye.model.calibration`).
+UNKNOWNS = ("sensor", "sensor+sphere")
 #: Names of the rotation parametrisations of the unknown sensor rotation.
 ROTATIONS = ("euler", "matrix", "local")
-
 #: Residual kinds and the rows of one residual.
 KINDS = {"centre": 3, "measurement": 3, "points": 1}
-
 #: Robot-brand rotation conventions and their parameters (units).
 CONVENTIONS = {
     "kuka": ("a", "b", "c"),  # A, B, C in degrees: Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X''

@@ -19,12 +19,10 @@ leave-one-out error agrees with the held-out prediction error within 25 %.
 """
 from __future__ import annotations
 
-import tempfile
-
 import numpy as np
 
 import handeye
-from handeye.model import bounds, simulate
+from handeye.model import bounds, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
@@ -45,7 +43,7 @@ def run(out, quick=False):
     errors = {k: [] for k in KINDS}
     reported = {k: [] for k in KINDS}
     loo, heldout = [], []
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         for r in range(reps):
             sim = simulate.simulate(setup, seed=r, flange_poses=design.flange_poses, ids=design.ids)
             d = load(simulate.write(sim, f"{tmp}/rep{r}", profiles=True))

@@ -19,12 +19,11 @@ clean, at most 2 % of the runs warn of a missing effect or of more than the stat
 """
 from __future__ import annotations
 
-import tempfile
-
 import numpy as np
 
 import handeye
 from handeye.app import sweep
+from handeye.model import scratch
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
 from handeye.studies.study import claim, figure, write_summary, write_table
@@ -60,7 +59,7 @@ def one(seed, unknowns):
 
     c = cell(seed)
     truth = transform_from_pose(c["truth_kuka"])
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         sim = handeye.simulate(f"{tmp}/d", seed=seed, n_poses=c["n_poses"], max_tilt=c["max_tilt"],
                                diameter=c["diameter"], center=c["center"], convention=c["convention"],
                                truth=conventions.convert(c["truth_kuka"], "kuka", c["convention"]),

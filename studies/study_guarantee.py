@@ -31,13 +31,12 @@ beyond the margin or slipped -- exits 0 away from the truth.
 from __future__ import annotations
 
 import math
-import tempfile
 
 import numpy as np
 
 import handeye
 from handeye.app import sweep
-from handeye.model import conventions
+from handeye.model import conventions, scratch
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec
 from handeye.studies.study import claim, figure, write_summary, write_table
@@ -165,7 +164,7 @@ def _apply(folder, name, convention):
 
 def one(seed, slip):
     """Plan, measure, maybe slip, calibrate with the defaults; one table row."""
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         c, sim = _planned(tmp, seed)
         if slip:
             _apply(sim.path, slip, c["convention"])

@@ -12,12 +12,10 @@ simulated RMSE of the planned 12 poses agrees with its prediction within 35 %.
 """
 from __future__ import annotations
 
-import tempfile
-
 import numpy as np
 
 import handeye
-from handeye.model import bounds, planning, simulate
+from handeye.model import bounds, planning, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
@@ -27,7 +25,7 @@ from handeye.studies.study import claim, figure, write_summary, write_table
 def _rmse(setup, ids, poses, reps):
     truth = transform_from_pose(setup.sensor_pose)
     errs = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         for r in range(reps):
             sim = simulate.simulate(setup, seed=500 + r, flange_poses=poses, ids=ids)
             d = load(simulate.write(sim, f"{tmp}/r{r}", profiles=True))

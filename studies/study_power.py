@@ -11,12 +11,10 @@ and the detection rate does not fall as the size grows (beyond two binomial stan
 """
 from __future__ import annotations
 
-import tempfile
-
 import numpy as np
 
 import handeye
-from handeye.model import simulate
+from handeye.model import scratch, simulate
 from handeye.model.dataset import load
 from handeye.studies.study import claim, figure, write_summary, write_table
 
@@ -37,7 +35,7 @@ def _hidden(name, size):
 def run(out, quick=False):
     seeds = 8 if quick else 40
     rows, summary = [], {"datasets_per_size": seeds, "effects": {}}
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         for name, grid in GRIDS.items():
             rates = []
             for size in grid:

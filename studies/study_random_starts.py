@@ -19,7 +19,6 @@ Claim: with the closed-form restart every method succeeds from every start (100 
 from __future__ import annotations
 
 import json
-import tempfile
 import time
 
 import numpy as np
@@ -29,7 +28,7 @@ from handeye import solvers
 from handeye.app import sweep
 from handeye.app.problems import calibration_problem
 from handeye.app.request import SUPPORTED
-from handeye.model import fast, observations, simulate
+from handeye.model import fast, observations, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
@@ -91,7 +90,7 @@ def run(out, quick=False):
     n_starts = 40 if quick else 1000
     methods = METHODS if not quick else ("lm", "gn", "newton", "ipopt")
     rng = np.random.default_rng(7)
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch.temporary_folder() as tmp:
         d = load(simulate.write(simulate.simulate(simulate.Setup(), seed=3), tmp + "/sim"))
         reference = handeye.calibrate(d, method="lm", no_loo=True, keep_all=True).sensor2flange
         truth = transform_from_pose(d.truth["sensor_pose"])

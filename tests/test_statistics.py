@@ -90,3 +90,15 @@ def test_chi2_tail_with_millions_of_degrees_of_freedom_against_scipy():
     for k in (2_999_994, 600_000):
         for x in (k - 5000.0, k - 10.0, float(k), k + 2000.0, k + 12_000.0):
             assert chi2_survival(x, k) == pytest.approx(stats.chi2.sf(x, k), rel=1e-9, abs=1e-300), (x, k)
+
+
+@pytest.mark.parametrize("k", [1, 2, 3, 6, 30])
+def test_chi_median_against_mpmath(k):
+    """The median of chi_k (the robust scale's denominator) needs no mpmath at run time."""
+    from handeye.model.statistics import chi_median
+
+    def below_half(x):
+        return mpmath.gammainc(k / 2.0, 0, x / 2.0, regularized=True) - 0.5
+
+    ref = float(mpmath.sqrt(mpmath.findroot(below_half, k - 2.0 / 3.0)))
+    assert chi_median(k) == pytest.approx(ref, rel=1e-14)
