@@ -1,5 +1,10 @@
 """Shared fixtures: a small seeded generator of simulated datasets, a private code cache, and
-an import blocker for optional dependencies."""
+an import blocker for optional dependencies; and the record of the test tiers.
+
+Tiers (README, "Run the tests"): ``python -m pytest -q`` runs every test (CI); ``python -m
+pytest -q -m "not slow"`` leaves out the tests marked ``slow``, each of which names the fast
+test of the default tier that keeps its point: ``@pytest.mark.slow(sibling="test_name")``.
+tests/test_tiers.py checks the marks from the record kept here."""
 from __future__ import annotations
 
 import builtins
@@ -10,7 +15,17 @@ import pytest
 
 from handeye.model.pose import pose_from_transform, transform_from_pose
 
-SEED_FILE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "seed" / "000_3098c10cdf8c6ab2.txt"
+#: Every collected test (before ``-m``/``-k`` deselect any): node id -> (file, the ``slow``
+#: mark's sibling or None when not slow, whether slow). Filled by the hook below.
+TIERS = {}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Record every test's tier before ``-m "not slow"`` deselects the slow ones."""
+    for item in items:
+        mark = item.get_closest_marker("slow")
+        TIERS[item.nodeid] = (item.nodeid.split("::")[0], mark.kwargs.get("sibling") if mark else None, mark is not None)
 
 
 def simulated_poses(rng, n):

@@ -21,9 +21,21 @@ from handeye.studies import study_batch
 from handeye.studies.study_testfunction import METHODS
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_batch_and_single_starts_end_at_the_same_stationary_point(method):
-    starts = problems.testfunction_starts(24 if method == "ipopt" else 80, seed=5)
+def _start_counts():
+    """80 starts per method (IPOPT 24); steepest descent's 80 (thousands of iterations each)
+    in the full suite only, 12 of them in the default tier."""
+    for method in METHODS:
+        if method == "sd":
+            yield pytest.param(method, 80, id="sd", marks=pytest.mark.slow(
+                sibling="test_batch_and_single_starts_end_at_the_same_stationary_point[sd-12]"))
+            yield pytest.param(method, 12, id="sd-12")
+        else:
+            yield pytest.param(method, 24 if method == "ipopt" else 80, id=method)
+
+
+@pytest.mark.parametrize("method,n", list(_start_counts()))
+def test_batch_and_single_starts_end_at_the_same_stationary_point(method, n):
+    starts = problems.testfunction_starts(n, seed=5)
     c = study_batch.compare(method, starts, chunks=1)
     assert c.same_end.mean() >= 0.999, c.exceptions()
     assert c.iteration_gap[c.same_end].max() <= 1, c.exceptions()

@@ -67,7 +67,10 @@ def test_degenerate_data_are_not_a_calibration(compiled):
     assert not res.converged
 
 
+@pytest.mark.slow(sibling="test_quick_bench_reports_every_section_and_plots")
 def test_bench_reports_every_method():
+    """The whole benchmark but for the start-up: the guarantee's nine repetitions, the point
+    clouds up to 3 million points (two minutes here)."""
     res = bench.run(reps=1, sizes=(30,), throughput_n=8, with_startup=False, scaling_sizes=(30, 60, 120, 240),
                     pipeline_sizes=(6_000, 12_000))
     table = res["cases"]["thesis-real"]
@@ -89,9 +92,36 @@ def test_bench_reports_every_method():
     assert [r["exit"] for r in pipe["rows"]] == [0, 0] and 0 < pipe["time_slope"] < 2 and "by size" in text
 
 
-def test_bench_plot(tmp_path):
+def test_guarantee_overhead_is_measured():
+    """The guarantee section's measurement, once (the benchmark repeats it nine times for both
+    unknowns)."""
+    from handeye.app import bench_guarantee
+
+    g = bench_guarantee.measure("thesis-real", reps=1, unknowns="sensor")
+    assert g["with_ms"] > 0 and g["without_ms"] > 0 and g["overhead"] == g["with_ms"] / g["without_ms"] - 1
+    assert g["centre_search_ms"] > 0 and g["detective_ms"] > 0
+    assert "thesis-real (sensor)" in bench_guarantee.text([g])
+
+
+def test_quick_bench_reports_every_section_and_plots(tmp_path, monkeypatch):
+    """A small run of every section (the guarantee's measurement, timed above, stubbed; the
+    smallest point cloud; no pipeline): the report names each, and the plot is drawn."""
+    from handeye.app import bench_guarantee
+
+    monkeypatch.setattr(bench_guarantee, "measure", lambda dataset, reps, unknowns: {
+        "dataset": dataset, "unknowns": unknowns, "reps": reps, "with_ms": 2.0, "without_ms": 1.0, "overhead": 1.0,
+        "centre_search_ms": 0.1, "detective_ms": 0.2})
     res = bench.run(reps=1, sizes=(30, 100), throughput_n=4, with_startup=False, scaling_sizes=(30, 100),
-                    pipeline_sizes=())
+                    pipeline_sizes=(), cloud_sizes=bench.CLOUD[:1])
+    table = res["cases"]["thesis-real"]
+    assert set(table) == {"fast", "fast-vm", "thesis", "scipy-2point", "scipy-exact", "ipopt-matrix"}
+    assert table["fast-vm"]["agrees"] and table["ipopt-matrix"]["agrees"]
+    assert res["throughput"]["converged"] == 4 and "pipeline" not in res
+    assert [g["unknowns"] for g in res["guarantee"]] == ["sensor", "sensor+sphere"]
+    assert [(r["points"], r["cloud"]["exit"], r["validate"]["exit"]) for r in res["use"]["rows"]] == [(bench.CLOUD[0], 0, 0)]
+    text = bench.text(res)
+    for section in ("fast path vs scipy", "log-log slope", "Monte Carlo", "global guarantee", "handeye cloud"):
+        assert section in text
     bench.plot(res, tmp_path / "bench.png")
     assert (tmp_path / "bench.png").stat().st_size > 10_000
 
@@ -106,10 +136,33 @@ def test_fast_path_refuses_wrong_shapes_instead_of_reading_past_the_arrays():
     assert res.converged and np.allclose(res.sensor2flange[3], [0, 0, 0, 1])
 
 
-def test_solver_bench_reports_both_paths_and_the_study(monkeypatch):
+@pytest.mark.slow(sibling="test_solver_bench_reports_both_paths_and_the_study_run_in_process")
+def test_solver_bench_reports_both_paths_and_the_study():
     """``handeye bench --solvers`` on a tiny sample: every method has both per-start times,
     their ends agree, the scaling has a slope per method, and the study section comes from
-    the study's own files (a real quick run of ``handeye study testfunction``)."""
+    the study's own files (a real quick run of ``handeye study testfunction``, a subprocess)."""
+    _check_solver_bench()
+
+
+def test_solver_bench_reports_both_paths_and_the_study_run_in_process(monkeypatch):
+    """The same, the study's command run in this process (no interpreter start-up)."""
+    import subprocess
+
+    from handeye.app.cli import main
+
+    class Done:
+        def __init__(self, returncode):
+            self.returncode, self.stderr = returncode, ""
+
+    def run(cmd, **kwargs):
+        assert cmd[1:3] == ["-m", "handeye.app.cli"]
+        return Done(main(cmd[3:]))
+
+    monkeypatch.setattr(subprocess, "run", run)
+    _check_solver_bench()
+
+
+def _check_solver_bench():
     from handeye.app import bench_solvers
 
     rows = bench_solvers.per_start(n_batch=30, n_single=6)

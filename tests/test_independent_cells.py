@@ -5,8 +5,9 @@ at a wrong pose), only an InputError (exit 2), not converged (exit 1), or the tr
 slip does not matter.  Only the public API (``import handeye``) and the CLI are used.
 
 ``pytest -s`` prints a one-line summary of the rates per test.  The ``slow`` versions (200
-correct cells, 12 seeds per slip) run only when asked for: ``pytest -m slow`` (or
-``HANDEYE_SLOW=1``).
+correct cells, 12 seeds per slip, about a minute each) run in the full suite (``python -m
+pytest -q``, CI), not in the default tier (``-m "not slow"``), which runs their 24-cell and
+2-seed siblings.
 """
 import json
 import os
@@ -22,12 +23,6 @@ import pytest
 import handeye
 
 PROFILE_MODES = ("none", "profile", "both", "mixed")
-
-
-def _skip_unless_slow_wanted(config):
-    expr = config.getoption("markexpr") or ""
-    if not (os.environ.get("HANDEYE_SLOW") or ("slow" in expr and "not slow" not in expr)):
-        pytest.skip("slow: run with -m slow or HANDEYE_SLOW=1")
 
 
 def _outcome(folder, cell, row=None):
@@ -120,10 +115,9 @@ def test_correct_cells_converge_at_the_truth(tmp_path):
     _run_correct(tmp_path, range(24), _correct_options)
 
 
-@pytest.mark.slow
-def test_200_correct_cells_converge_at_the_truth(tmp_path, request):
+@pytest.mark.slow(sibling="test_correct_cells_converge_at_the_truth")
+def test_200_correct_cells_converge_at_the_truth(tmp_path):
     """200 correct cells, every choice drawn from the seed."""
-    _skip_unless_slow_wanted(request.config)
     _run_correct(tmp_path, range(1000, 1200), lambda i: {})
 
 
@@ -159,10 +153,9 @@ def test_slips_never_exit_0_at_a_wrong_pose(tmp_path):
     _run_slips(tmp_path, (100, 101))
 
 
-@pytest.mark.slow
-def test_slips_never_exit_0_at_a_wrong_pose_many_seeds(tmp_path, request):
+@pytest.mark.slow(sibling="test_slips_never_exit_0_at_a_wrong_pose")
+def test_slips_never_exit_0_at_a_wrong_pose_many_seeds(tmp_path):
     """Every slip, twelve seeds each, and six more of cells whose poses turn only 8-20 deg."""
-    _skip_unless_slow_wanted(request.config)
     _run_slips(tmp_path, range(200, 212))
     _run_slips(tmp_path, range(300, 306), turn=(8.0, 20.0))
 

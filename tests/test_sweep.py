@@ -29,6 +29,7 @@ def test_dask_local_cluster_sweeps_return_results_in_task_order():
         assert sweep.run(_slow_square, [(k, 0.05 * (5 - k)) for k in range(6)]) == [k * k for k in range(6)]
 
 
+@pytest.mark.slow(sibling="test_dask_local_cluster_sweeps_return_results_in_task_order")
 def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
     ran_on = []
