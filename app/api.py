@@ -21,9 +21,9 @@ import pathlib
 
 import numpy as np
 
+from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import RequestError
-from handeye.app.protocol import ResultProtocol
-from handeye.app.robust import ALPHA
+from handeye.app.present.protocol import ResultProtocol
 
 
 def load_dataset(name_or_folder):
@@ -83,7 +83,7 @@ def start_pose_from(start, convention):
         (UR).
     convention : str
     """
-    from handeye.app.request import parse_pose
+    from handeye.app.engine.request import parse_pose
 
     return parse_pose(_pose_text(start, "--start"), "--start", convention=convention)
 
@@ -138,7 +138,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         The sensor pose (6 unknowns), or the sensor pose and the sphere centre in the base (9).
     method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
         A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
-        and ``lm`` above :data:`handeye.app.request.LARGE` measurements (time and memory
+        and ``lm`` above :data:`handeye.app.engine.request.LARGE` measurements (time and memory
         linear in the data; the result says so).
     rotation : {'matrix', 'local', 'euler'}, optional
         Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
@@ -179,7 +179,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
 
     Returns
     -------
-    handeye.app.results.CalibrationResult
+    handeye.app.present.results.CalibrationResult
         ``to_dict()`` is ``handeye calibrate --json``; ``summary()`` its text report.
 
     Raises
@@ -187,11 +187,11 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     handeye.InputError
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
-    from handeye.app.calibrate import run
-    from handeye.app.classic import METHODS as CLOSED_FORM
-    from handeye.app.classic import calibrate_classic
+    from handeye.app.engine.calibrate import run
+    from handeye.app.engine.classic import METHODS as CLOSED_FORM
+    from handeye.app.engine.classic import calibrate_classic
+    from handeye.app.engine.request import METHODS, UNKNOWNS, CalibrationRequest
     from handeye.app.files import check_output_path, input_files, provenance
-    from handeye.app.request import METHODS, UNKNOWNS, CalibrationRequest
     from handeye.model import conventions
 
     options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
@@ -234,7 +234,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
     if plot is not None:
-        from handeye.app.report import calibration_plot
+        from handeye.app.present.report import calibration_plot
 
         calibration_plot(result, data, plot)
     return result
@@ -260,11 +260,11 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 
     Returns
     -------
-    handeye.app.diagnosis_results.DiagnosisResult
+    handeye.app.present.diagnosis_results.DiagnosisResult
     """
-    from handeye.app import diagnose as procedure
+    from handeye.app.engine import diagnose as procedure
     from handeye.app.files import check_output_folder, check_output_path, input_files, provenance
-    from handeye.app.report import diagnosis_figures
+    from handeye.app.present.report import diagnosis_figures
 
     level = _alpha(alpha)
     if sigma is not None:
@@ -283,8 +283,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
                 check_output_path(pathlib.Path(figures) / name, "--figures", inputs=inputs)
     if plot is not None:
         check_output_path(plot, "--plot", inputs=inputs, plot=True)
-    from handeye.app import slips
-    from handeye.app.prepare import gate
+    from handeye.app.engine import slips
+    from handeye.app.engine.prepare import gate
 
     gate(data, "sensor")  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
@@ -389,7 +389,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     -------
     SimulationResult
     """
-    from handeye.app.request import parse_pose
+    from handeye.app.engine.request import parse_pose
     from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim

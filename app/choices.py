@@ -2,19 +2,19 @@
 
 The command line builds its parser from these before it imports anything heavy (``handeye
 --help`` must not pay for numpy); the modules that implement them re-export them
-(:data:`handeye.app.calibrate.METHODS`, :data:`handeye.app.classic.METHODS`,
-:data:`handeye.app.robust.ALPHA`, :data:`handeye.app.export.FORMATS`,
-:data:`handeye.app.use.CLOUD_FORMATS`).
+(:data:`handeye.app.engine.calibrate.METHODS`, :data:`handeye.app.engine.classic.METHODS`,
+:data:`handeye.app.engine.robust.ALPHA`, :data:`handeye.app.outputs.formats.FORMATS`,
+:data:`handeye.app.outputs.commands.CLOUD_FORMATS`).
 """
 from __future__ import annotations
 
-#: Least-squares methods of ``handeye calibrate`` (:mod:`handeye.app.calibrate`).
+#: Least-squares methods of ``handeye calibrate`` (:mod:`handeye.app.engine.calibrate`).
 METHODS = ("ipopt", "gn", "lm", "tr", "dogleg", "newton")
-#: Closed-form baselines (:mod:`handeye.app.classic`).
+#: Closed-form baselines (:mod:`handeye.app.engine.classic`).
 CLASSIC_METHODS = ("kim-cho", "li-two-step")
-#: Family-wise significance level of the outlier tests (:mod:`handeye.app.robust`).
+#: Family-wise significance level of the outlier tests (:mod:`handeye.app.engine.robust`).
 ALPHA = 0.01
-#: What ``handeye export`` writes (:mod:`handeye.app.export`).
+#: What ``handeye export`` writes (:mod:`handeye.app.outputs.formats`).
 FORMATS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix", "json")
-#: What ``handeye cloud`` writes (:mod:`handeye.app.use`).
+#: What ``handeye cloud`` writes (:mod:`handeye.app.outputs.commands`).
 CLOUD_FORMATS = ("ply", "csv")

@@ -30,8 +30,8 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 
 
 def dumps(data):
-    """JSON text of a result (:func:`handeye.app.results.dumps`, imported when needed)."""
-    from handeye.app.results import dumps as to_json
+    """JSON text of a result (:func:`handeye.app.present.results.dumps`, imported when needed)."""
+    from handeye.app.present.results import dumps as to_json
 
     return to_json(data)
 
@@ -66,7 +66,7 @@ def _plan_args(sub):
 
 
 def _study_args(sub):
-    from handeye.app.registry import STUDIES  # names only: the studies are imported when one runs
+    from handeye.app.tools.registry import STUDIES  # names only: the studies are imported when one runs
 
     st = sub.add_parser("study", help="run a study (figures, tables, JSON) and check its claims")
     st.add_argument("name", choices=list(STUDIES) + ["all"])
@@ -98,7 +98,7 @@ def _use_args(sub, conventions):
         p.add_argument("--force", action="store_true", help="use a calibration that did not converge")
 
     ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
-                                       "JSON (handeye.app.export)")
+                                       "JSON (handeye.app.outputs.formats)")
     calibration(ex, option=False)
     ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
                                                                       "numbers)")
@@ -263,7 +263,7 @@ def _sizes(text, option):
 
 def _bench(args):
     if args.solvers:
-        from handeye.app import bench_solvers
+        from handeye.app.tools import bench_solvers
 
         if args.plot:
             from handeye.app.errors import RequestError
@@ -272,7 +272,7 @@ def _bench(args):
         res = bench_solvers.run(quick=args.quick, with_study=not args.no_study)
         print(dumps(res) if args.json else bench_solvers.text(res))
         return EXIT_OK
-    from handeye.app import bench
+    from handeye.app.tools import bench
 
     try:
         import scipy.optimize  # noqa: F401 - the baseline of every ratio
@@ -291,8 +291,8 @@ def _bench(args):
 
 
 def _study(args):
-    from handeye.app import sweep
     from handeye.app.errors import RequestError
+    from handeye.app.tools import sweep
     from handeye.studies import study  # the one import of the studies, only when one is run
 
     if args.jobs is not None and args.jobs < 1:
@@ -320,8 +320,8 @@ def _simulate(args):
 
 
 def _export(args):
-    from handeye.app import use
     from handeye.app.errors import RequestError
+    from handeye.app.outputs import commands as use
 
     if args.result is None and args.sensor_pose is None:
         raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
@@ -333,7 +333,7 @@ def _export(args):
 
 
 def _cloud(args):
-    from handeye.app import use
+    from handeye.app.outputs import commands as use
 
     result = use.cloud(args.dataset, args.calibration, out=args.out, format=args.format, sensor_pose=args.sensor_pose,
                        convention=args.convention, force=args.force)
@@ -342,7 +342,7 @@ def _cloud(args):
 
 
 def _validate(args):
-    from handeye.app import use
+    from handeye.app.outputs import commands as use
 
     result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
                           sensor_pose=args.sensor_pose, convention=args.convention, force=args.force, mpe=args.mpe)
@@ -461,7 +461,7 @@ def _ignore_signals():
 
 def _guarded(args):
     """Run the command; every failure becomes one line on stderr and its exit code."""
-    from handeye.app.registry import StudyClaimFailed
+    from handeye.app.tools.registry import StudyClaimFailed
     from handeye.model.errors import InputError
 
     try:

@@ -192,6 +192,6 @@ def write_bytes_atomically(path, data, option="--out"):
 
 def write_json_atomically(path, data, option="--out"):
     """JSON through :func:`write_text_atomically`."""
-    from handeye.app.jsonio import dumps
+    from handeye.app.present.jsonio import dumps
 
     write_text_atomically(path, dumps(data), option=option)

@@ -470,7 +470,7 @@ class CalibrationModel:
         """Cost, gradient and exact Hessian of the row-weighted cost ``1/2 sum_i w_i |W_i e_i|^2``.
 
         One evaluation of the rows serves many weightings: the leave-one-out problems
-        (:mod:`handeye.app.loo`) are this cost with one sample's rows weighted zero.
+        (:mod:`handeye.app.engine.loo`) are this cost with one sample's rows weighted zero.
 
         Parameters
         ----------

@@ -38,7 +38,7 @@ The test, per row with both (its uncertainty as stated, never estimated from the
   from ours by many of its standard deviations while agreeing to far better than the sensor's
   accuracy; the floor keeps such rows in. A neighbour's profile differs by millimetres.
 
-Nothing here decides what to do with an inconsistent row (:mod:`handeye.app.robust` excludes
+Nothing here decides what to do with an inconsistent row (:mod:`handeye.app.engine.robust` excludes
 it in calibrate and diagnose alike).
 """
 from __future__ import annotations

@@ -6,7 +6,7 @@ calibrates with (``--effects``): a structure (the centre free or not, the data e
 (the chain's, :class:`~handeye.model.calibration.CalibrationModel`, times each effect's
 derivative), its least-squares fit, and the score (Lagrange multiplier) test of a candidate
 effect at a fit, with the identifiability gate that refuses what the poses cannot separate.
-The application's workflow around it lives in :mod:`handeye.app.diagnose`.
+The application's workflow around it lives in :mod:`handeye.app.engine.diagnose`.
 """
 from __future__ import annotations
 

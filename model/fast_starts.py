@@ -89,7 +89,7 @@ def solve_many(starts, method, options=None):
     """Minimise the test function from every row of ``starts`` with ``method``, in C.
 
     Row i ends where :func:`handeye.solvers.solve_many` on
-    :func:`handeye.app.problems.testfunction_problem` ends from it, to round-off (module
+    :func:`handeye.app.engine.problems.testfunction_problem` ends from it, to round-off (module
     docstring).
 
     Parameters

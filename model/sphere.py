@@ -16,7 +16,7 @@ sphere through one circle is any sphere containing it.
 Sensitivities. At the fit, ``J^T d = 0``; a perturbation ``dd`` of the deviations (a
 calibration or robot error moving the points) moves the fit by
 ``d beta = -(J^T J)^-1 J^T dd`` (the implicit function theorem), which is how
-:mod:`handeye.app.validate` propagates the calibration's covariance and the robot's
+:mod:`handeye.app.outputs.validate` propagates the calibration's covariance and the robot's
 repeatability into the fitted sphere. The points' own scatter gives
 ``s^2 (J^T J)^-1`` (:meth:`SphereFit.noise_covariance`), which assumes independent points.
 """
@@ -74,7 +74,7 @@ class SphereFit:
     def noise_covariance(self):
         """``s^2 (J^T J)^-1`` with ``s^2 = SSR / (M - 4)``: the fit's covariance were the points'
         deviations independent. They are not across one profile (one robot error moves all its
-        points): :mod:`handeye.app.validate` adds that source separately."""
+        points): :mod:`handeye.app.outputs.validate` adds that source separately."""
         m = len(self.deviations)
         return float(self.deviations @ self.deviations) / max(m - 4, 1) * np.linalg.inv(self.information)
 

@@ -12,8 +12,8 @@ import json
 import pathlib
 
 from handeye.app.errors import RequestError
-from handeye.app.plotting import figure  # noqa: F401 - the studies' figures
-from handeye.app.registry import STUDIES, StudyClaimFailed
+from handeye.app.present.plotting import figure  # noqa: F401 - the studies' figures
+from handeye.app.tools.registry import STUDIES, StudyClaimFailed
 
 
 def claim(condition, text):

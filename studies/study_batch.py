@@ -11,7 +11,7 @@ two ends are compared: the same stationary point (global minimum, local minimum,
 or none), or both failed, and iteration counts that differ by at most one. Every exception is
 listed with its start, its two ends and statuses.
 
-Model: :func:`handeye.app.problems.testfunction_problem` (vectorised callables). Data: 2000
+Model: :func:`handeye.app.engine.problems.testfunction_problem` (vectorised callables). Data: 2000
 seeded random starts per method (``--quick``: 60). Solve: ``solve_many`` once per method;
 ``solve`` per start, in parallel through the sweep. IPOPT has no batch form: its batch is a
 loop over one solver object built once, compared all the same.
@@ -27,9 +27,9 @@ import time
 import numpy as np
 
 from handeye import solvers
-from handeye.app import sweep
-from handeye.app.problems import testfunction_options as options_for
-from handeye.app.problems import testfunction_problem, testfunction_starts
+from handeye.app.engine.problems import testfunction_options as options_for
+from handeye.app.engine.problems import testfunction_problem, testfunction_starts
+from handeye.app.tools import sweep
 from handeye.studies.study import claim, figure, write_summary, write_table
 from handeye.studies.study_testfunction import KINDS, METHODS, classify
 

@@ -42,8 +42,8 @@ import time
 import numpy as np
 
 from handeye import solvers
-from handeye.app import sweep
-from handeye.app.problems import calibration_problem
+from handeye.app.engine.problems import calibration_problem
+from handeye.app.tools import sweep
 from handeye.model import bounds, classics, fast, motions, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -192,7 +192,8 @@ def run(out, quick=False):
 def _real_data():
     """thesis-real without its gross errors: Kim & Cho beside the least squares with the plate-
     taught sphere centre and with the centre free (Li et al. has no pure translations there)."""
-    from handeye.app import bench, robust
+    from handeye.app.engine import robust
+    from handeye.app.tools import bench
     from handeye.model.calibration import CalibrationModel
 
     f2b, xs, c, start = bench.real_case()

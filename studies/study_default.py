@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 import handeye
-from handeye.app import sweep
+from handeye.app.tools import sweep
 from handeye.model import scratch
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix

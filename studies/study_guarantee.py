@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 import handeye
-from handeye.app import sweep
+from handeye.app.tools import sweep
 from handeye.model import conventions, scratch
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec

@@ -25,9 +25,9 @@ import numpy as np
 
 import handeye
 from handeye import solvers
-from handeye.app import sweep
-from handeye.app.problems import calibration_problem
-from handeye.app.request import SUPPORTED
+from handeye.app.engine.problems import calibration_problem
+from handeye.app.engine.request import SUPPORTED
+from handeye.app.tools import sweep
 from handeye.model import fast, observations, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose

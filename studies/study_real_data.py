@@ -14,7 +14,7 @@ Claims: with screening, every method and parametrisation lands on the same trans
 from __future__ import annotations
 
 import handeye
-from handeye.app.request import SUPPORTED
+from handeye.app.engine.request import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance

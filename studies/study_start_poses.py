@@ -15,7 +15,7 @@ from __future__ import annotations
 import time
 
 import handeye
-from handeye.app.request import SUPPORTED
+from handeye.app.engine.request import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance

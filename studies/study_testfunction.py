@@ -40,9 +40,9 @@ import warnings
 import numpy as np
 
 from handeye import solvers
-from handeye.app import sweep
-from handeye.app.problems import testfunction_options as options_for
-from handeye.app.problems import testfunction_problem
+from handeye.app.engine.problems import testfunction_options as options_for
+from handeye.app.engine.problems import testfunction_problem
+from handeye.app.tools import sweep
 from handeye.model import fast_starts, testfunction
 from handeye.studies.study import claim, figure, write_summary, write_table
 

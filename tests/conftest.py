@@ -104,7 +104,7 @@ def break_solver(monkeypatch):
     """Call to make every solve of a calibration end at a non-finite point (a numerical failure)."""
     import dataclasses
 
-    from handeye.app import fitting as engine  # the final fit's solver calls
+    from handeye.app.engine import fitting as engine  # the final fit's solver calls
 
     real_solve = engine.solvers.solve
 

@@ -8,10 +8,10 @@ import pytest
 
 import handeye
 from handeye.app import api, cli
-from handeye.app import calibrate as engine
-from handeye.app.diagnosis_results import DiagnosisResult
+from handeye.app.engine import calibrate as engine
 from handeye.app.errors import CalibrationInputError
-from handeye.app.results import CalibrationResult
+from handeye.app.present.diagnosis_results import DiagnosisResult
+from handeye.app.present.results import CalibrationResult
 from handeye.model import circle, classics, closed_form, conventions, dataset, observations, planning, simulate
 
 
@@ -177,7 +177,7 @@ def test_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
 
 def test_screening_never_speaks_of_a_negative_count():
     """With fewer samples than the screening's minimum, it keeps them all and says so sensibly."""
-    from handeye.app import robust
+    from handeye.app.engine import robust
     from handeye.model.pose import transform_from_pose
 
     d = handeye.load_dataset("thesis-real").subset(np.arange(31) < 3)

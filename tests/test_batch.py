@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from handeye import solvers
-from handeye.app import problems
-from handeye.app.problems import calibration_problem
-from handeye.app.problems import testfunction_problem as potential_problem
+from handeye.app.engine import problems
+from handeye.app.engine.problems import calibration_problem
+from handeye.app.engine.problems import testfunction_problem as potential_problem
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose

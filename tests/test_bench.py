@@ -4,7 +4,7 @@ degenerate data are refused; the benchmark reports every method (speed is measur
 import numpy as np
 import pytest
 
-from handeye.app import bench
+from handeye.app.tools import bench
 from handeye.model import fast
 from handeye.model.calibration import CalibrationModel
 from handeye.model.rotation import transform_distance
@@ -95,7 +95,7 @@ def test_bench_reports_every_method():
 def test_guarantee_overhead_is_measured():
     """The guarantee section's measurement, once (the benchmark repeats it nine times for both
     unknowns)."""
-    from handeye.app import bench_guarantee
+    from handeye.app.tools import bench_guarantee
 
     g = bench_guarantee.measure("thesis-real", reps=1, unknowns="sensor")
     assert g["with_ms"] > 0 and g["without_ms"] > 0 and g["overhead"] == g["with_ms"] / g["without_ms"] - 1
@@ -106,7 +106,7 @@ def test_guarantee_overhead_is_measured():
 def test_quick_bench_reports_every_section_and_plots(tmp_path, monkeypatch):
     """A small run of every section (the guarantee's measurement, timed above, stubbed; the
     smallest point cloud; no pipeline): the report names each, and the plot is drawn."""
-    from handeye.app import bench_guarantee
+    from handeye.app.tools import bench_guarantee
 
     monkeypatch.setattr(bench_guarantee, "measure", lambda dataset, reps, unknowns: {
         "dataset": dataset, "unknowns": unknowns, "reps": reps, "with_ms": 2.0, "without_ms": 1.0, "overhead": 1.0,
@@ -163,7 +163,7 @@ def test_solver_bench_reports_both_paths_and_the_study_run_in_process(monkeypatc
 
 
 def _check_solver_bench():
-    from handeye.app import bench_solvers
+    from handeye.app.tools import bench_solvers
 
     rows = bench_solvers.per_start(n_batch=30, n_single=6)
     assert [r["method"] for r in rows] == list(bench_solvers.METHODS)
@@ -195,7 +195,7 @@ def test_solver_bench_reports_a_failed_study(monkeypatch):
     """A study that exits non-zero is reported with its exit code, not parsed."""
     import subprocess
 
-    from handeye.app import bench_solvers
+    from handeye.app.tools import bench_solvers
 
     class Done:
         returncode, stderr = 4, "claim failed: xyz"
@@ -206,7 +206,7 @@ def test_solver_bench_reports_a_failed_study(monkeypatch):
 
 
 def test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve():
-    from handeye.app import bench_pipeline
+    from handeye.app.tools import bench_pipeline
 
     res = bench_pipeline.pipeline_vs_solve("thesis-sim", reps=1)
     assert set(res["stages"]) == set(bench_pipeline.STAGES) == set(res["stages_no_loo"])

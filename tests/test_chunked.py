@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from handeye import solvers
-from handeye.app import robust
-from handeye.app.problems import calibration_problem
+from handeye.app.engine import robust
+from handeye.app.engine.problems import calibration_problem
 from handeye.model import calibration, identifiability
 from handeye.model.statistics import covariance, covariance_normal
 from tests.test_calibration_model import random_model, start_point

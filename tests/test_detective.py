@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli, detective
+from handeye.app import cli
+from handeye.app.engine import detective
 from handeye.model import conventions
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from handeye.app.cli import EXIT_OK, main
-from handeye.app.diagnose import diagnose
+from handeye.app.engine.diagnose import diagnose
 from handeye.model import effects, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose

@@ -56,7 +56,10 @@ def test_help_imports_no_numpy_sympy_or_casadi():
 
 def test_choices_are_the_implementations_own():
     """The light names the parser offers are the very objects the implementing modules use."""
-    from handeye.app import calibrate, choices, classic, export, robust, use
+    from handeye.app import choices
+    from handeye.app.engine import calibrate, classic, robust
+    from handeye.app.outputs import commands as use
+    from handeye.app.outputs import formats as export
     from handeye.model import calibration, conventions, names
 
     assert calibrate.METHODS is choices.METHODS and classic.METHODS is choices.CLASSIC_METHODS

@@ -103,7 +103,7 @@ def test_a_radius_below_a_profiles_circle_is_implausible():
 def test_calibrate_checks_the_radius_against_every_profile(tmp_path, monkeypatch):
     """calibrate hands every profile's circle (used or excluded) to the check: a sample whose
     profile shows a circle larger than the fitted sphere makes the result not converged."""
-    from handeye.app import describe
+    from handeye.app.engine import describe
 
     s = handeye.simulate(tmp_path / "p", seed=2, n_poses=10, diameter=DIAMETER, profiles=True)
     ok = handeye.calibrate(s.path, effects="sphere_radius", no_loo=True)

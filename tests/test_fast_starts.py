@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from handeye import solvers
-from handeye.app.problems import testfunction_options as options_for
-from handeye.app.problems import testfunction_problem as potential_problem
+from handeye.app.engine.problems import testfunction_options as options_for
+from handeye.app.engine.problems import testfunction_problem as potential_problem
 from handeye.model import ccompile, fast_starts, testfunction
 from handeye.studies import study_testfunction
 
@@ -136,7 +136,7 @@ def test_the_basin_study_falls_back_to_the_numpy_batch_and_says_so(monkeypatch):
 
 
 def test_the_solver_bench_sets_both_paths_side_by_side():
-    from handeye.app import bench_solvers
+    from handeye.app.tools import bench_solvers
 
     res = bench_solvers.compiled(methods=("newton", "lm"), n=40)
     assert [r["method"] for r in res["rows"]] == ["newton", "lm"] and res["starts"] == 40

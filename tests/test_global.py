@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli, guarantee
+from handeye.app import cli
+from handeye.app.engine import guarantee
 from handeye.model import global_fit
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec, transform_distance
@@ -139,7 +140,7 @@ def test_a_fit_in_a_wrong_basin_is_never_a_result(tmp_path):
     """If every start but the user's is disabled, the cross-check still refuses the wrong basin."""
     sim = _recipe(tmp_path, 4)
     data = handeye.load_dataset(sim.path)
-    from handeye.app.calibrate import calibrate
+    from handeye.app.engine.calibrate import calibrate
 
     real = guarantee.lowest
     try:

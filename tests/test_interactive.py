@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from handeye.app import interactive
+from handeye.app.present import interactive
 
 
 def _draw(a, kind="line"):

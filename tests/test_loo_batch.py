@@ -1,4 +1,4 @@
-"""The batched leave-one-out refits (handeye.app.loo) are the refits: each sample's LOO error
+"""The batched leave-one-out refits (handeye.app.engine.loo) are the refits: each sample's LOO error
 equals the one of an independent per-sample refit (scipy's least squares on the subset's own
 residual, polished by Newton's method with the exact Hessian) to 1e-6 mm, with and without gross
 errors, for every residual kind and both sets of unknowns."""
@@ -8,7 +8,7 @@ from conftest import simulate
 from scipy.optimize import least_squares as scipy_least_squares
 
 import handeye
-from handeye.app import loo, robust
+from handeye.app.engine import loo, robust
 from handeye.model import observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import robust
+from handeye.app.engine import robust
 from handeye.model import observations
 from handeye.model.calibration import CalibrationModel
 

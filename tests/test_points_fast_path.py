@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import bench, bench_peers, bench_points, robust
+from handeye.app.engine import robust
+from handeye.app.tools import bench, bench_peers, bench_points
 from handeye.model import calibration, observations, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.rotation import matrix_from_rotvec, transform_distance

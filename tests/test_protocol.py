@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app.protocol import ResultProtocol
+from handeye.app.present.protocol import ResultProtocol
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +54,7 @@ def _plain(value):
 
 def test_the_result_is_made_of_typed_parts_and_keeps_its_flat_names():
     res = handeye.calibrate("thesis-sim", no_loo=True)
-    from handeye.app.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
+    from handeye.app.present.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 
     assert isinstance(res.fit, FitRecord) and isinstance(res.uncertainty, UncertaintyRecord)
     assert isinstance(res.screening, ScreeningRecord) and isinstance(res.catalogue, EffectsRecord)

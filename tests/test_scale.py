@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import bench, robust
-from handeye.app import request as request_module
+from handeye.app.engine import request as request_module
+from handeye.app.engine import robust
+from handeye.app.tools import bench
 from handeye.model.calibration import CalibrationModel
 
 
@@ -59,8 +60,8 @@ def test_screening_finds_the_same_gross_errors_one_at_a_time_or_together(monkeyp
 def test_text_report_summarises_beyond_fifty_rows_and_the_json_keeps_them_all(tmp_path, capsys):
     import json
 
-    from handeye.app import report
     from handeye.app.cli import main
+    from handeye.app.present import report
 
     folder = bench.write_dataset(tmp_path / "d", 6_000, seed=4)
     assert main(["calibrate", str(folder), "--no-loo"]) == 0

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from handeye import solvers
-from handeye.app.problems import calibration_problem
-from handeye.app.problems import testfunction_problem as potential_problem
+from handeye.app.engine.problems import calibration_problem
+from handeye.app.engine.problems import testfunction_problem as potential_problem
 from handeye.model import testfunction
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load

@@ -6,7 +6,8 @@ import time
 
 import pytest
 
-from handeye.app import cli, sweep
+from handeye.app import cli
+from handeye.app.tools import sweep
 
 
 def _slow_square(x, delay):

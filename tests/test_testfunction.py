@@ -24,7 +24,7 @@ def test_gradient_and_hessian_against_central_differences():
 def test_derivatives_against_casadi_ad():
     import casadi as ca
 
-    from handeye.app.problems import testfunction_nlp
+    from handeye.app.engine.problems import testfunction_nlp
 
     nlp = testfunction_nlp()
     x = nlp["x"]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import simulate
 
-from handeye.app.calibrate import SUPPORTED, calibrate
+from handeye.app.engine.calibrate import SUPPORTED, calibrate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from handeye.app.calibrate import calibrate
 from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.app.engine.calibrate import calibrate
 from handeye.model import circle, simulate
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.dataset import load
@@ -227,7 +227,7 @@ def test_plain_fit_of_every_sample_converges_despite_the_misprint():
     """thesis-real with its 2,000 mm misprint is a large-residual problem: LM creeps (2,256
     iterations to its tolerance); the fit hands over to exact-Hessian trust region and
     converges, and so does every leave-one-out refit of the unscreened data."""
-    from handeye.app import robust
+    from handeye.app.engine import robust
     from handeye.model.calibration import CalibrationModel
 
     d = load("thesis-real")

@@ -13,7 +13,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.app import cli, export, saved
+from handeye.app import cli
+from handeye.app.outputs import formats as export
+from handeye.app.outputs import saved
 from handeye.model import cloud, conventions, sphere
 
 TOL_MM, TOL_DEG = 1e-6, 1e-6

@@ -20,9 +20,9 @@ import json
 
 import numpy as np
 
-from handeye.app.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
-from handeye.app.protocol import ResultProtocol
-from handeye.app.result_parts import FLAT, EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
+from handeye.app.present.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
+from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.result_parts import FLAT, EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 
 
 def _list(value):
@@ -147,7 +147,7 @@ def _residuals_json(residuals):
 @dataclasses.dataclass(frozen=True)
 class ExcludedSample:
     """A sample excluded as a gross error, or as a row that contradicts itself, with the
-    evidence (:mod:`handeye.app.robust`).
+    evidence (:mod:`handeye.app.engine.robust`).
 
     Attributes
     ----------
@@ -305,7 +305,7 @@ class ClosedFormDetails:
 class CalibrationResult(ResultProtocol):
     """The outcome of :func:`handeye.calibrate` (module docstring).
 
-    Made of typed parts (:mod:`handeye.app.result_parts`): ``fit`` (pose, solver, residuals),
+    Made of typed parts (:mod:`handeye.app.present.result_parts`): ``fit`` (pose, solver, residuals),
     ``uncertainty``, ``screening`` (``before``, ``excluded``), ``global_check``,
     ``identifiability`` and ``catalogue`` (``effect_tests``, ``effects``). Every attribute of a
     part is an attribute of the result too, under the names below (``result.rms_mm`` is
@@ -526,7 +526,7 @@ class CalibrationResult(ResultProtocol):
 
     def summary(self):
         """The CLI's text report."""
-        from handeye.app import report
+        from handeye.app.present import report
 
         return report.calibration_text(self)
 

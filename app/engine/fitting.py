@@ -5,7 +5,7 @@ and the Hessian at the returned point on the local chart (free of the Euler sing
 the matrix constraints), polishes a solver that stopped next to a minimum by trust-region
 Newton, and says what it did. :class:`FinalFit` holds the model and its problem (built once
 per calibration) and solves from any start: the user's, the closed form's, or a minimum of
-the centre model (:mod:`handeye.app.guarantee`).
+the centre model (:mod:`handeye.app.engine.guarantee`).
 """
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app import guarantee
-from handeye.app.problems import calibration_problem
+from handeye.app.engine import guarantee
+from handeye.app.engine.problems import calibration_problem
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
 from handeye.model.pose import pose_from_transform
 from handeye.model.rotation import nearest_transform, transform_distance
@@ -142,8 +142,8 @@ class FinalFit:
         value of a free one).
     model : handeye.model.calibration.CalibrationModel
         The final residual model of those samples (the request's parametrisation and weights).
-    request : handeye.app.request.CalibrationRequest
-        Checked (:meth:`~handeye.app.request.CalibrationRequest.checked`).
+    request : handeye.app.engine.request.CalibrationRequest
+        Checked (:meth:`~handeye.app.engine.request.CalibrationRequest.checked`).
     kind : {'centre', 'measurement', 'points'}
     """
 

@@ -16,11 +16,12 @@ import pathlib
 
 import numpy as np
 
-from handeye.app import export as exports
-from handeye.app import files, saved
+from handeye.app import files
 from handeye.app.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import RequestError
-from handeye.app.protocol import ResultProtocol
+from handeye.app.outputs import formats as exports
+from handeye.app.outputs import saved
+from handeye.app.present.protocol import ResultProtocol
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
@@ -71,7 +72,7 @@ class ExportResult(ResultProtocol):
 
 def export(calibration=None, *, format="json", parent="flange", child="sensor", tool=1, register=99, out=None,
            sensor_pose=None, convention=None, force=False):
-    """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.export`).
+    """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
     """
@@ -238,16 +239,16 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
 
 def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
              mpe=None):
-    """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.validate`).
+    """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.outputs.validate`).
 
     With profiles: the cloud, a geometric sphere fit, PF, PS, the centre's offset and (two
     spheres) SD, each with its 1-sd; without: each pose's centre against the setup's.
     ``exclude``: fraction of points with the largest deviations left out (VDI/VDE 2634-2
     allows up to 0.003). ``mpe``: maximum permissible errors ``"PF,PS[,SD]"`` (mm) for a
     verdict (``result.passed``; the CLI exits 1 when one is exceeded). Returns
-    :class:`handeye.app.validate.ValidationResult`.
+    :class:`handeye.app.outputs.validate.ValidationResult`.
     """
-    from handeye.app import validate as validation
+    from handeye.app.outputs import validate as validation
     from handeye.model import dataset as datasets
     from handeye.model import scan as scans
     from handeye.model import tables
@@ -276,7 +277,7 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     if limits is not None:
         result = dataclasses.replace(result, acceptance=validation.accept(result, limits))
     if plot is not None:
-        from handeye.app import report
+        from handeye.app.present import report
 
         report.validation_figure(result, plot)
     return result

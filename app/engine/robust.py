@@ -22,10 +22,10 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app import loo
 from handeye.app.choices import ALPHA  # noqa: F401 - the level, defined without numpy
-from handeye.app.problems import chunked
-from handeye.app.results import ExcludedSample
+from handeye.app.engine import loo
+from handeye.app.engine.problems import chunked
+from handeye.app.present.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
 from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics
@@ -40,7 +40,7 @@ class Screening:
     Attributes
     ----------
     inliers : ndarray of bool, shape (N,)
-    excluded : list of handeye.app.results.ExcludedSample
+    excluded : list of handeye.app.present.results.ExcludedSample
         With the prediction error from the final fit, the statistic (F), the Bonferroni
         p-value and the reason.
     robust_sigma_mm : float
@@ -185,8 +185,8 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
         a shifted ``profile`` column, another campaign's files) or too few rows would remain for
         the unknowns.
     """
+    from handeye.app.engine.request import min_measurements
     from handeye.app.errors import CalibrationInputError
-    from handeye.app.request import min_measurements
     from handeye.model import consistency
 
     check = consistency.check_rows(dataset)
@@ -343,7 +343,7 @@ LOO_GN_ITER = 8
 LOO_RATE_SAFETY = 10.0
 #: At a rate this high (large residuals: a gross error among the samples) Gauss-Newton is not
 #: tried: the high-leverage refits above LOO_EXACT_UP_TO are :func:`least_squares` from the full
-#: fit, the batched refits up to it (:func:`handeye.app.loo.refits`) keep the exact Hessian.
+#: fit, the batched refits up to it (:func:`handeye.app.engine.loo.refits`) keep the exact Hessian.
 LOO_GN_MAX_RATE = 0.5
 
 
@@ -504,7 +504,7 @@ def _group_normal_equations(model, x):
 
 def _exact_refits(model, x, mask, fitted, rows):
     """The exact refits of ``model`` without each sample of ``mask`` (G, d): all at once by
-    :func:`handeye.app.loo.refits` (damped Newton from the full fit ``x`` of ``fitted``, whose
+    :func:`handeye.app.engine.loo.refits` (damped Newton from the full fit ``x`` of ``fitted``, whose
     rows ``rows[k]`` are sample k's: the exact Hessian's step first, Gauss-Newton's after it
     where Gauss-Newton's rate at ``x`` is below :data:`LOO_GN_MAX_RATE`, else the exact Hessian
     throughout), and :func:`least_squares` from ``x`` on the subset for a refit that does not
@@ -535,7 +535,7 @@ def leave_one_out(model, x, mask=None, predictor=None):
     evaluation at ``x``: ``dx_g = (A - B_g)^-1 J_g^T r_g`` (``A = J^T J`` of the fit,
     ``B_g = J_g^T J_g`` and ``r_g`` sample g's whitened rows), exact for the linearised problem.
     Up to :data:`LOO_EXACT_UP_TO` samples every refit is exact, and all are made at once
-    (:func:`handeye.app.loo.refits`): damped Gauss-Newton from ``x`` on the stack of deleted
+    (:func:`handeye.app.engine.loo.refits`): damped Gauss-Newton from ``x`` on the stack of deleted
     problems, whose first step is ``dx_g``, when the residuals are small (a step's error shrinks
     by Gauss-Newton's rate, estimated once at ``x``; see :data:`LOO_XTOL`), damped Newton with
     the exact Hessian where Gauss-Newton is not reliable (large residuals, as the unscreened

@@ -10,9 +10,9 @@ import html
 
 import numpy as np
 
-from handeye.app.jsonio import dumps  # noqa: F401  (shared JSON helpers)
-from handeye.app.protocol import ResultProtocol
-from handeye.app.results import Uncertainty, _list  # noqa: F401  (shared JSON helpers)
+from handeye.app.present.jsonio import dumps  # noqa: F401  (shared JSON helpers)
+from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.results import Uncertainty, _list  # noqa: F401  (shared JSON helpers)
 from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
@@ -174,13 +174,13 @@ class DiagnosisResult(ResultProtocol):
 
     def summary(self):
         """The CLI's text report."""
-        from handeye.app import report
+        from handeye.app.present import report
 
         return report.diagnosis_text(self)
 
     def figures(self, folder):
         """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""
-        from handeye.app import report
+        from handeye.app.present import report
 
         return report.diagnosis_figures(self, folder)
 

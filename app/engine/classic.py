@@ -1,7 +1,7 @@
 """``handeye calibrate --method kim-cho|li-two-step``: the closed-form baselines on a dataset.
 
 Gross errors are screened first, exactly as ``calibrate`` does (robust pass and deletion
-tests, :func:`handeye.app.robust.screen`; ``--keep-all`` skips it), then the closed-form method of
+tests, :func:`handeye.app.engine.robust.screen`; ``--keep-all`` skips it), then the closed-form method of
 :mod:`handeye.model.classics` runs on the samples kept. The estimate is reported beside what the
 nonlinear least squares makes of the same samples when started from it (distance,
 iterations), so a user sees at once how far the linear method is from the least-squares
@@ -13,13 +13,13 @@ import time
 
 import numpy as np
 
-from handeye.app import robust, slips
 from handeye.app.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
+from handeye.app.engine import robust, slips
+from handeye.app.engine.prepare import resolve_start, with_sphere_centre
+from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import CalibrationInputError
-from handeye.app.prepare import resolve_start, with_sphere_centre
-from handeye.app.result_parts import FitRecord, ScreeningRecord
-from handeye.app.results import CalibrationResult, ClosedFormDetails, SampleResidual
-from handeye.app.robust import ALPHA
+from handeye.app.present.result_parts import FitRecord, ScreeningRecord
+from handeye.app.present.results import CalibrationResult, ClosedFormDetails, SampleResidual
 from handeye.model import classics, conventions
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -36,7 +36,7 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
 
 
 def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA, convention=None):
-    """A closed-form method on ``dataset``, as a :class:`handeye.app.results.CalibrationResult`.
+    """A closed-form method on ``dataset``, as a :class:`handeye.app.present.results.CalibrationResult`.
 
     ``unknowns='sensor+sphere'`` does not use the dataset's sphere centre: Kim & Cho never
     need it (the centre is then the mean of the predicted centres), Li et al. estimate it in

@@ -37,7 +37,7 @@ one-step approximation of a deleted nonlinear fit) with the full cost Hessian. O
 the rows at x serves every problem.
 
 **Small residuals.** Where Gauss-Newton's rate ``rho`` at the fit is small (given by the caller:
-:func:`handeye.app.robust._gauss_newton_rate`), every step uses Gauss-Newton's
+:func:`handeye.app.engine.robust._gauss_newton_rate`), every step uses Gauss-Newton's
 ``sum_i w_ki J_i^T J_i`` for ``H_k`` (the first is then the classical deletion formula
 ``(A - B_k)^-1 J_k^T r_k``), as the per-sample refit it replaces: no second derivatives
 (several times cheaper per evaluation for thousands of profile points), each step gains the
@@ -47,7 +47,7 @@ small residual (simulated profiles, 12 samples: 1e-5 mm left after the first Gau
 2e-4 mm after Newton's). Large residuals (a gross error among the samples) keep the exact
 Hessian throughout: there Gauss-Newton creeps or diverges.
 
-**Convergence**, per problem, as the Gauss-Newton refit it replaces (:data:`handeye.app.robust.LOO_XTOL`):
+**Convergence**, per problem, as the Gauss-Newton refit it replaces (:data:`handeye.app.engine.robust.LOO_XTOL`):
 an undamped step no longer than ``xtol (1 + |z|)`` is taken and the problem stops; with
 Gauss-Newton's Hessian, converging linearly at the rate ``rho``, already when the distance left
 after the step, ``safety rho / (1 - rho) |delta|``, is that small. (With the exact Hessian the

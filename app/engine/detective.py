@@ -7,7 +7,7 @@ radians, and a tf lookup of "base in flange" gives the inverse of the flange in 
 dataset written in one convention and declared as another calibrates to an official-looking
 answer with a residual of hundreds of millimetres.
 
-When the plain fit is far worse than the stated noise (:func:`handeye.app.slips.check`
+When the plain fit is far worse than the stated noise (:func:`handeye.app.engine.slips.check`
 decides that), :func:`candidates` re-reads the file's numbers (``Dataset.raw_poses``) in
 every interpretation a user may have meant: the orientation columns as Euler angles of each
 of the 12 axis sequences (intrinsic; the values in the file's order or reversed, which is the
@@ -156,7 +156,7 @@ def candidates(dataset):
             continue
         for inverted, scale in itertools.product((False, True), (1.0, *UNITS)):
             if reading.convention == dataset.convention and not inverted and scale in (1.0, 1000.0):
-                continue  # as declared (metres alone is handeye.app.slips' own candidate)
+                continue  # as declared (metres alone is handeye.app.engine.slips' own candidate)
             poses = _transforms(rot, raw[:, :3] * scale, inverted)
             out.append(Candidate(reading, inverted, scale, poses))
             if scale != 1.0 and dataset.sphere_centre is not None:

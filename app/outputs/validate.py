@@ -31,7 +31,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.errors import RequestError
-from handeye.app.protocol import ResultProtocol
+from handeye.app.present.protocol import ResultProtocol
 from handeye.model import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
@@ -236,7 +236,7 @@ class ValidationResult(ResultProtocol):
                 "acceptance": None if self.acceptance is None else self.acceptance.to_dict()}
 
     def summary(self):
-        from handeye.app import report
+        from handeye.app.present import report
 
         return report.validation_text(self)
 
@@ -264,7 +264,7 @@ def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclu
         Flange poses, mm.
     index : ndarray, shape (M,)
         Pose of each point.
-    calib : handeye.app.saved.Calibration
+    calib : handeye.app.outputs.saved.Calibration
     setup : handeye.model.scan.Sphere
     robot_sigma : float
         Robot repeatability per axis, mm.

@@ -33,7 +33,7 @@ import tracemalloc
 import numpy as np
 
 from handeye import solvers
-from handeye.app.problems import testfunction_options, testfunction_problem, testfunction_starts
+from handeye.app.engine.problems import testfunction_options, testfunction_problem, testfunction_starts
 from handeye.model import fast_starts, scratch, testfunction
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
@@ -240,7 +240,7 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
         ``speedup``, ``same_ends`` (sample's single and batch ends within 1e-8), ``converged``
         (fraction of the batch).
     """
-    from handeye.app.problems import calibration_problem
+    from handeye.app.engine.problems import calibration_problem
     from handeye.model import fast
 
     models, f2b, xs, centre, starts = _calibration_starts(n_batch, seed)

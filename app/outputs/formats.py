@@ -106,7 +106,7 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
 
     Parameters
     ----------
-    calibration : handeye.app.saved.Calibration
+    calibration : handeye.app.outputs.saved.Calibration
     fmt : str
         One of :data:`FORMATS` except ``json`` (see :func:`data`).
     parent, child : str
@@ -121,7 +121,7 @@ def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99)
     _check_name("--parent", parent)
     _check_name("--child", child)
     if fmt == "json":
-        from handeye.app.jsonio import dumps
+        from handeye.app.present.jsonio import dumps
 
         return dumps(data(calibration, parent, child)) + "\n"
     rep = representations(calibration.sensor2flange)

@@ -114,7 +114,7 @@ def lowest(fit, basin, solve, exact_centre_model=False):
 
     Parameters
     ----------
-    fit : handeye.app.fitting.Verdict
+    fit : handeye.app.engine.fitting.Verdict
         The final fit from the user's (or the closed-form) start.
     basin : handeye.model.global_fit.CentreMinima or None
     solve : callable

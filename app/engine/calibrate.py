@@ -33,9 +33,9 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app import describe, guarantee, robust, slips
-from handeye.app.fitting import FinalFit, closed_form_pose
-from handeye.app.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
+from handeye.app.engine import describe, guarantee, robust, slips
+from handeye.app.engine.fitting import FinalFit, closed_form_pose
+from handeye.app.engine.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
     Prepared,
     check_identifiable,
     gate,
@@ -43,7 +43,7 @@ from handeye.app.prepare import (  # noqa: F401  (the prepare stage's helpers: t
     resolve_start,
     with_sphere_centre,
 )
-from handeye.app.request import (  # noqa: F401  (the request's names: this module's public names too)
+from handeye.app.engine.request import (  # noqa: F401  (the request's names: this module's public names too)
     DEFAULT_ROTATION,
     LARGE,
     METHODS,
@@ -52,7 +52,7 @@ from handeye.app.request import (  # noqa: F401  (the request's names: this modu
     min_measurements,
     parse_pose,
 )
-from handeye.app.results import Before
+from handeye.app.present.results import Before
 from handeye.model.closed_form import ClosedFormError
 from handeye.model.pose import transform_from_pose
 
@@ -66,11 +66,11 @@ class Screened:
 
     Attributes
     ----------
-    before : handeye.app.results.Before
+    before : handeye.app.present.results.Before
         The plain fit of every sample.
     mask : ndarray of bool, shape (N,)
         Samples kept.
-    excluded : list of handeye.app.results.ExcludedSample
+    excluded : list of handeye.app.present.results.ExcludedSample
     used : handeye.model.dataset.Dataset
         The samples kept.
     warnings : tuple of str
@@ -89,9 +89,9 @@ class Verified:
 
     Attributes
     ----------
-    fit : handeye.app.fitting.Verdict
+    fit : handeye.app.engine.fitting.Verdict
     start_used : str
-    global_check : handeye.app.guarantee.GlobalCheck
+    global_check : handeye.app.engine.guarantee.GlobalCheck
     refusal : str or None
         Why the fit is not a calibration (exit 1), or None.
     warnings : tuple of str
@@ -151,7 +151,7 @@ def fit(prep, screened):
 def verify(prep, screened, final, verdict, start_used):
     """The lowest final fit over the start and the centre model's minima, and a refusal (a
     wrong basin, a fit that explains nothing, two groups of samples) or None
-    (:mod:`handeye.app.guarantee`)."""
+    (:mod:`handeye.app.engine.guarantee`)."""
     used, request = screened.used, prep.request
     basin = guarantee.centre_basin(used, request.unknowns)
     exact = prep.kind == "centre" and request.unknowns == "sensor" and verdict.local is not None \
@@ -175,13 +175,13 @@ def run(request, dataset):
 
     Parameters
     ----------
-    request : handeye.app.request.CalibrationRequest
-        Checked (:meth:`~handeye.app.request.CalibrationRequest.checked`).
+    request : handeye.app.engine.request.CalibrationRequest
+        Checked (:meth:`~handeye.app.engine.request.CalibrationRequest.checked`).
     dataset : handeye.model.dataset.Dataset
 
     Returns
     -------
-    handeye.app.results.CalibrationResult
+    handeye.app.present.results.CalibrationResult
     """
     if not request.resolved:
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
@@ -196,7 +196,7 @@ def calibrate(dataset, **keywords):
     """Calibrate the sensor pose on the flange from a dataset.
 
     The engine of :func:`handeye.calibrate` (which takes the CLI's option names); this
-    function takes the checked values of :class:`~handeye.app.request.CalibrationRequest`'s
+    function takes the checked values of :class:`~handeye.app.engine.request.CalibrationRequest`'s
     fields as keywords (``unknowns``, ``method``, ``rotation``, ``start`` (KUKA pose),
     ``options``, ``outliers``, ``alpha``, ``loo``, ``model``, ``robot_sigma``, ``convention``,
     ``sigma``, ``effects``).
@@ -205,11 +205,11 @@ def calibrate(dataset, **keywords):
     ----------
     dataset : handeye.model.dataset.Dataset
     **keywords
-        Fields of :class:`~handeye.app.request.CalibrationRequest`.
+        Fields of :class:`~handeye.app.engine.request.CalibrationRequest`.
 
     Returns
     -------
-    handeye.app.results.CalibrationResult
+    handeye.app.present.results.CalibrationResult
         Complete on every path: after a numerical failure the fields that need a finite
         solution (residual statistics, covariance, identifiability, leave-one-out) are None
         and the poses NaN.

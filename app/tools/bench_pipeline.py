@@ -1,7 +1,7 @@
 """What a user's calibration costs beyond its solve: the default pipeline, stage by stage,
 against one IPOPT solve of its final problem built and solved from scratch (``handeye bench``).
 
-The stages are :mod:`handeye.app.calibrate`'s (request, prepare, screen, fit, verify,
+The stages are :mod:`handeye.app.engine.calibrate`'s (request, prepare, screen, fit, verify,
 describe), timed in process after a warm-up (generated code loaded, nothing cached between
 runs but the code), median of ``reps`` runs; the reference is the final residual model of the
 samples the pipeline kept, built (:func:`handeye.model.observations.build`), turned into a
@@ -17,9 +17,9 @@ STAGES = ("request", "prepare", "screen", "fit", "verify", "describe")
 
 
 def _stage_times(dataset, loo):
-    from handeye.app import calibrate as engine
-    from handeye.app import describe
-    from handeye.app.request import CalibrationRequest
+    from handeye.app.engine import calibrate as engine
+    from handeye.app.engine import describe
+    from handeye.app.engine.request import CalibrationRequest
 
     times, t = {}, time.perf_counter()
     request = CalibrationRequest(loo=loo).checked(dataset)
@@ -39,7 +39,7 @@ def _stage_times(dataset, loo):
 
 def _ipopt_from_scratch(prep, screened):
     from handeye import solvers
-    from handeye.app.problems import calibration_problem
+    from handeye.app.engine.problems import calibration_problem
     from handeye.model import observations
 
     t = time.perf_counter()

@@ -2,8 +2,8 @@
 convention detective, side by side in one process (``handeye bench``'s ``guarantee`` section).
 
 "Without" is today's pipeline with the two steps switched off (the centre-model search and
-the extra final fits of :mod:`handeye.app.guarantee`, the readings of
-:mod:`handeye.app.detective`); runs alternate between the two so that a machine's drift hits
+the extra final fits of :mod:`handeye.app.engine.guarantee`, the readings of
+:mod:`handeye.app.engine.detective`); runs alternate between the two so that a machine's drift hits
 both alike, and the medians are compared. The steps' own parts are timed alone as well.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 @contextlib.contextmanager
 def _without_guarantee():
     """The pipeline without the global step and the detective (restored on exit)."""
-    from handeye.app import guarantee, slips
+    from handeye.app.engine import guarantee, slips
 
     saved = guarantee.centre_basin, guarantee.lowest, slips._check_conventions
     guarantee.centre_basin = lambda dataset, unknowns: None
@@ -48,7 +48,7 @@ def measure(dataset="thesis-real", reps=7, unknowns="sensor"):
         ``detective_ms`` (every reading of the poses scored), ``dataset``, ``reps``.
     """
     import handeye
-    from handeye.app import detective, guarantee
+    from handeye.app.engine import detective, guarantee
 
     data = handeye.load_dataset(dataset)
 

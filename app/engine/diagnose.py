@@ -6,7 +6,7 @@ it *finds* a gap), a catalogue of named candidate effects (like sparse model dis
 *names* terms), and an identifiability gate (like robot-calibration practice it refuses what
 the poses cannot separate):
 
-1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.robust`);
+1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.engine.robust`);
    rows whose centre columns contradict their own profile excluded for good, as in calibrate.
 2. Least-squares fit of the current model; residuals per sample and component, RMS, chi2/dof
    against a stated noise level, 5-fold held-out prediction error.
@@ -32,10 +32,10 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app import robust
-from handeye.app.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
-from handeye.app.prepare import resolve_start
-from handeye.app.results import NamedEffect
+from handeye.app.engine import robust
+from handeye.app.engine.prepare import resolve_start
+from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
+from handeye.app.present.results import NamedEffect
 from handeye.model import effects
 from handeye.model.extended import (
     GATE,
@@ -72,14 +72,14 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     alpha : float
         Family-wise level of the effect and outlier tests.
     start : array_like, shape (6,), optional
-        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.calibrate.resolve_start`.
+        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.engine.calibrate.resolve_start`.
     sigma : float, optional
         Nominal noise per residual component (mm) for chi2/dof; default the dataset's
         ``[noise] centre_mm``.
 
     Returns
     -------
-    handeye.app.diagnosis_results.DiagnosisResult
+    handeye.app.present.diagnosis_results.DiagnosisResult
     """
     prob = Samples(dataset, sigma)
     start_pose, _ = resolve_start(dataset, "sensor", start)
@@ -287,7 +287,7 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     after_norms = np.linalg.norm(fit.e, axis=1)
-    from handeye.app.results import Uncertainty
+    from handeye.app.present.results import Uncertainty
     from handeye.model import conventions
 
     return DiagnosisResult(

@@ -1,9 +1,9 @@
-"""The parts a :class:`handeye.app.results.CalibrationResult` is made of, one typed record each.
+"""The parts a :class:`handeye.app.present.results.CalibrationResult` is made of, one typed record each.
 
 A calibration hands its stages' outcomes to the result as these records: the fit (pose, solver,
 residuals), its uncertainty, the screening, the effects of the catalogue; the global check and
 the identifiability analysis are records of their own modules
-(:class:`handeye.app.guarantee.GlobalCheck`, :class:`handeye.model.identifiability.Identifiability`).
+(:class:`handeye.app.engine.guarantee.GlobalCheck`, :class:`handeye.model.identifiability.Identifiability`).
 Every attribute of a part is also an attribute of the result (``result.rms_mm`` is
 ``result.fit.rms_mm``), and the JSON keys are the attributes' names, flat, as before the parts.
 """
@@ -32,13 +32,13 @@ class FitRecord:
     status : int or None
         Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
     message : str
-    residuals : list of handeye.app.results.SampleResidual
+    residuals : list of handeye.app.present.results.SampleResidual
         Every sample, used or excluded.
     iterations, evaluations, history, solver_point, solver_extra, hessian_eigenvalues
         The solver's record (None for a closed-form method).
     n_used, rms_mm, max_residual_mm, cost_mm2, rms_what, objective, noise_model, noise_test,
     loo_error_mm, loo
-        The residuals' statistics (:class:`handeye.app.results.CalibrationResult`); None after
+        The residuals' statistics (:class:`handeye.app.present.results.CalibrationResult`); None after
         a numerical failure.
     """
 
@@ -75,7 +75,7 @@ class UncertaintyRecord:
 
     Attributes
     ----------
-    std : handeye.app.results.Uncertainty or None
+    std : handeye.app.present.results.Uncertainty or None
     sigma_mm : float or None
         Noise per component estimated from an unweighted fit, mm.
     sigma_scale : float or None
@@ -98,8 +98,8 @@ class ScreeningRecord:
 
     Attributes
     ----------
-    excluded : list of handeye.app.results.ExcludedSample
-    before : handeye.app.results.Before or None
+    excluded : list of handeye.app.present.results.ExcludedSample
+    before : handeye.app.present.results.Before or None
     """
 
     excluded: list = ()
@@ -115,7 +115,7 @@ class EffectsRecord:
     ----------
     tests : list of handeye.model.extended.ScoreTest or None
         The result's ``effect_tests``.
-    calibrated : list of handeye.app.results.NamedEffect or None
+    calibrated : list of handeye.app.present.results.NamedEffect or None
         The result's ``effects``.
     """
 

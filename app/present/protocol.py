@@ -3,14 +3,14 @@
 Each result type (calibration, diagnosis, simulation, plan, export, cloud, validation) writes
 its own ``to_dict`` (the command's ``--json`` object) and, where it has one, its own
 ``summary`` (the command's text report); this mixin gives every one of them the rest, the same
-way: strict JSON (:func:`handeye.app.jsonio.dumps`), an atomic save, and a compact table in
+way: strict JSON (:func:`handeye.app.present.jsonio.dumps`), an atomic save, and a compact table in
 Jupyter made from the summary's ``name: value`` lines.
 """
 from __future__ import annotations
 
 import html
 
-from handeye.app.jsonio import dumps
+from handeye.app.present.jsonio import dumps
 
 
 class ResultProtocol:

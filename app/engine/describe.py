@@ -1,7 +1,7 @@
 """What a final fit says: residuals, uncertainty, leave-one-out, the noise and effect tests,
-and the fit with catalogue effects (fields of :class:`handeye.app.results.CalibrationResult`).
+and the fit with catalogue effects (fields of :class:`handeye.app.present.results.CalibrationResult`).
 
-:mod:`handeye.app.calibrate` solves; this module describes what it solved, on the samples it
+:mod:`handeye.app.engine.calibrate` solves; this module describes what it solved, on the samples it
 used and on every sample. Nothing here prints.
 """
 from __future__ import annotations
@@ -12,10 +12,10 @@ import shlex
 
 import numpy as np
 
-from handeye.app import robust
+from handeye.app.engine import robust
 from handeye.app.errors import CalibrationInputError
-from handeye.app.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
-from handeye.app.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
+from handeye.app.present.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
+from handeye.app.present.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
 from handeye.model import conventions, extended, identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
@@ -85,7 +85,7 @@ def command_argument(dataset):
 
 def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
     """The fit against the stated noise (chi-square); a warning naming diagnose when it fails."""
-    from handeye.app.results import NoiseTest
+    from handeye.app.present.results import NoiseTest
     from handeye.model.statistics import chi2_survival
 
     if dof <= 0:
@@ -122,10 +122,10 @@ def with_effects(dataset, mask, fit, request, warnings, base, centre_given=True)
     """The final fit with catalogue effects (the extended model, :mod:`handeye.model.extended`).
 
     ``request`` (checked) names the effects, the stated noise and the convention; ``base`` is
-    the :class:`~handeye.app.result_parts.FitRecord` of the fit without them.
+    the :class:`~handeye.app.present.result_parts.FitRecord` of the fit without them.
     Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of NamedEffect,
     unknowns)`` of the fit with them; appends to ``warnings``."""
-    from handeye.app.results import NamedEffect
+    from handeye.app.present.results import NamedEffect
 
     names, sigma = request.effects, request.sigma
     prob = extended.Samples(dataset)
@@ -292,7 +292,7 @@ def _effect_params(name):
 
 def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     """Residuals, uncertainty, identifiability and leave-one-out error of the final fit ``fit``
-    (a :class:`handeye.app.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
+    (a :class:`handeye.app.engine.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
     Identifiability)``; appends to ``warnings``."""
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
@@ -344,7 +344,7 @@ def _final_loo(dataset, mask, local, final, centre):
     """Leave-one-out errors (N,) of the final fit: ``local`` (the final model of the samples in
     ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
     ``final``; the error is sample i's sphere centre through the refitted chain
-    (:func:`handeye.app.robust.leave_one_out`). NaN for the samples not used."""
+    (:func:`handeye.app.engine.robust.leave_one_out`). NaN for the samples not used."""
     predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
     out = np.full(len(mask), np.nan)
     out[mask] = robust.leave_one_out(local, final, None, predictor)
@@ -384,7 +384,7 @@ def _loo_description(local, n_used):
     per = _ROWS[local.kind][0]
     weights = "weighted as the fit" if local.whiten is not None else "unweighted"
     method = ("exact refit per sample (all at once: damped Gauss-Newton, or Newton where the residuals are large, "
-              "from the full fit, whose first step is the deletion formula; handeye.app.loo)"
+              "from the full fit, whose first step is the deletion formula; handeye.app.engine.loo)"
               if n_used <= robust.LOO_EXACT_UP_TO else
               "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")
     return {"model": local.kind, "weighted": local.whiten is not None, "unknowns": local.unknowns, "method": method,
@@ -418,8 +418,8 @@ def _fit_record(prep, verified):
 
 
 def result(prep, screened, verified, warnings):
-    """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.calibrate`)."""
-    from handeye.app.results import CalibrationResult
+    """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.engine.calibrate`)."""
+    from handeye.app.present.results import CalibrationResult
 
     request, dataset, mask = prep.request, prep.dataset, screened.mask
     warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]

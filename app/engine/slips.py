@@ -21,7 +21,7 @@ calibration then stops with exit 2 and a message that names the setting, both RM
 and the fix; nothing is changed silently.
 
 The same test names a convention slip (the poses read in another robot's convention, inverted,
-in other units: :mod:`handeye.app.detective`), rows whose side of the laser plane the data do
+in other units: :mod:`handeye.app.engine.detective`), rows whose side of the laser plane the data do
 not settle (:func:`check_equator`), and, for calibrate, a taught sphere centre the sensor pose
 would absorb (:func:`check_centre`).
 """
@@ -206,11 +206,11 @@ def _check_slips(dataset, unknowns, rms_given, dof):
 
 
 def _check_conventions(dataset, unknowns, rms_given, dof):
-    """Raise :class:`CalibrationInputError` when the poses read another way (:mod:`handeye.app.detective`)
+    """Raise :class:`CalibrationInputError` when the poses read another way (:mod:`handeye.app.engine.detective`)
     fit clearly and significantly better, and fit: at most :data:`EXPLAINED_RMS_MM`, or within
     the stated noise (a reading that still leaves centimetres is not named: following it would
     not help)."""
-    from handeye.app import detective
+    from handeye.app.engine import detective
     from handeye.model import conventions
     from handeye.model.statistics import chi2_survival, f_survival
 

@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 from handeye import solvers
-from handeye.app import robust
+from handeye.app.engine import robust
 from handeye.model import fast, scratch, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.dataset import load
@@ -236,7 +236,7 @@ def throughput(quick=False, n=None, chunk=1000):
     """Monte Carlo: independent calibrations of 31 measurements per second on all cores (joblib),
     wall clock including the simulation of their data; and the calibration-only rate of one core.
     Every calibration must converge."""
-    from handeye.app import sweep
+    from handeye.app.tools import sweep
 
     n = n or (4000 if quick else 40000)
     jobs = sweep.n_jobs()
@@ -288,9 +288,9 @@ def write_dataset(folder, n, seed=0):
 
 
 #: Runs ``{call}`` after ``{setup}`` in a fresh Python and reports its time (after the
-#: interpreter's start and the setup), its own peak memory (:func:`handeye.app.peak.own_peak_kb`)
+#: interpreter's start and the setup), its own peak memory (:func:`handeye.app.tools.peak.own_peak_kb`)
 #: and the call's value (the exit code) on stderr.
-_PROBE = ("import sys, time; from handeye.app.peak import own_peak_kb; {setup}; t0 = time.perf_counter(); "
+_PROBE = ("import sys, time; from handeye.app.tools.peak import own_peak_kb; {setup}; t0 = time.perf_counter(); "
           "code = {call}; "
           "print('PEAK', own_peak_kb(), time.perf_counter() - t0, code, file=sys.stderr)")
 
@@ -301,7 +301,7 @@ def measure_python(setup="pass", call="0", args=()):
 
     The peak is the child's own high-water mark (MB), not ``ru_maxrss`` of ``RUSAGE_CHILDREN``
     or of the child itself, which on Linux carry this process's size over fork and exec
-    (:mod:`handeye.app.peak`). Seconds and peak are None when the child died before reporting.
+    (:mod:`handeye.app.tools.peak`). Seconds and peak are None when the child died before reporting.
     """
     probe = _PROBE.format(setup=setup, call=call)
     out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
@@ -328,7 +328,7 @@ def pipeline(sizes=PIPELINE):
             rows.append(dict(n=n, **measure_cli(["calibrate", str(folder), "--json"])))
     # slopes over the sizes where the pipeline is the same one: above 5,000 measurements the default is
     # lm with the deletion-formula leave-one-out (below, IPOPT with exact refits: a different algorithm)
-    from handeye.app.request import LARGE
+    from handeye.app.engine.request import LARGE
 
     ok = [r for r in rows if r["seconds"] and r["n"] > LARGE]
     logn = np.log([r["n"] for r in ok])
@@ -406,8 +406,8 @@ def use_scaling(sizes=CLOUD):
 
 
 def peers(reps=20):
-    """Ceres and GTSAM beside the fast path and scipy on thesis-real (:mod:`handeye.app.bench_peers`)."""
-    from handeye.app import bench_peers
+    """Ceres and GTSAM beside the fast path and scipy on thesis-real (:mod:`handeye.app.tools.bench_peers`)."""
+    from handeye.app.tools import bench_peers
 
     case = real_case()
     return bench_peers.measure(case, _methods(*case, len(case[1])), reps)
@@ -430,14 +430,14 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     tp = throughput(quick, throughput_n)
     result["throughput"] = tp
     result["throughput_per_s"] = tp["all_cores_per_s"]
-    from handeye.app import bench_guarantee
+    from handeye.app.tools import bench_guarantee
 
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=3 if quick else 9, unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
-    from handeye.app import bench_pipeline
+    from handeye.app.tools import bench_pipeline
 
     result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=3 if quick else 9)
-    from handeye.app import bench_points
+    from handeye.app.tools import bench_points
 
     result["peers"] = peers(reps)
     result["points"] = bench_points.measure(reps=min(reps, 5))
@@ -489,14 +489,14 @@ def text(res):
                   f"{tp['jobs']} cores including simulation; calibration alone {tp['calibration_only_per_s_one_core']:.0f}/s "
                   "per core"]
     if "guarantee" in res:
-        from handeye.app import bench_guarantee
+        from handeye.app.tools import bench_guarantee
 
         lines += ["", bench_guarantee.text(res["guarantee"])]
     if "stages" in res:
-        from handeye.app import bench_pipeline
+        from handeye.app.tools import bench_pipeline
 
         lines += ["", *bench_pipeline.text(res["stages"])]
-    from handeye.app import bench_peers, bench_points
+    from handeye.app.tools import bench_peers, bench_points
 
     for key, show in (("peers", bench_peers.text), ("points", bench_points.text)):
         if key in res:

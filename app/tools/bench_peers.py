@@ -1,9 +1,9 @@
 """``handeye bench``'s peers: Ceres and GTSAM on the fast path's problem, side by side.
 
-The problem is the bench's thesis-real case (:func:`handeye.app.bench.real_case`): the
+The problem is the bench's thesis-real case (:func:`handeye.app.tools.bench.real_case`): the
 unweighted ``centre`` model with the sphere centre known, six unknowns. In one run:
 
-* ``fast`` and ``scipy-exact`` -- the bench's own callables (:func:`handeye.app.bench._methods`):
+* ``fast`` and ``scipy-exact`` -- the bench's own callables (:func:`handeye.app.tools.bench._methods`):
   the compiled Levenberg-Marquardt and ``scipy.optimize.least_squares`` with our exact Jacobian;
 * ``ceres`` -- Ceres' Levenberg-Marquardt (``pyceres``) on the same residual: one residual
   block of all rows over the six Euler-angle unknowns, its values and Jacobian from the same
@@ -121,7 +121,7 @@ def measure(case, own, reps=20):
     ----------
     case : tuple
         ``(flange2base, centre_in_sensor, sphere_centre, start)`` (the bench's thesis-real:
-        :func:`handeye.app.bench.peers`).
+        :func:`handeye.app.tools.bench.peers`).
     own : dict
         The bench's own timed callables of the case, ``'fast'`` and ``'scipy-exact'`` among them.
     reps : int

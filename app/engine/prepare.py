@@ -7,10 +7,10 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app import guarantee
+from handeye.app.engine import guarantee
+from handeye.app.engine.fitting import closed_form_pose
+from handeye.app.engine.request import enough
 from handeye.app.errors import CalibrationInputError
-from handeye.app.fitting import closed_form_pose
-from handeye.app.request import enough
 from handeye.model import identifiability, observations
 from handeye.model.calibration import CalibrationModel
 from handeye.model.closed_form import ClosedFormError, closed_form_estimate
@@ -23,7 +23,7 @@ class Prepared:
 
     Attributes
     ----------
-    request : handeye.app.request.CalibrationRequest
+    request : handeye.app.engine.request.CalibrationRequest
         Checked.
     dataset : handeye.model.dataset.Dataset
         Every sample, with a sphere centre (the known one, or the closed-form start value).

@@ -3,7 +3,7 @@
 A study hands :func:`run` a function and its argument tuples; the backend comes from the
 innermost :func:`using` block (default: joblib over all cores)::
 
-    from handeye.app import sweep
+    from handeye.app.tools import sweep
     from handeye.studies import study
 
     with sweep.using(jobs=2):                       # handeye study NAME --jobs 2

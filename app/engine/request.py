@@ -1,7 +1,7 @@
 """A calibration request: every option checked once, before any work, into a frozen record.
 
 :func:`handeye.calibrate` (the CLI's keywords) and the engine
-:func:`handeye.app.calibrate.calibrate` (checked values) both build a
+:func:`handeye.app.engine.calibrate.calibrate` (checked values) both build a
 :class:`CalibrationRequest`; :meth:`CalibrationRequest.checked` validates it against the
 dataset once and resolves every default (method, rotation, residual model, noise levels,
 convention), so that no later stage validates or defaults an option again.
@@ -65,7 +65,7 @@ class CalibrationRequest:
     options : mapping, optional
         Solver options (:class:`handeye.solvers.Options`), held read-only.
     outliers : bool
-        Screen and exclude gross errors (:mod:`handeye.app.robust`).
+        Screen and exclude gross errors (:mod:`handeye.app.engine.robust`).
     alpha : float
         Family-wise level of the outlier tests.
     loo : bool

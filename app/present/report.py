@@ -73,7 +73,7 @@ def residual_lines(residuals, limit=REPORT_ROWS):
 
     Parameters
     ----------
-    residuals : sequence of handeye.app.results.SampleResidual (or a ResidualTable), length N
+    residuals : sequence of handeye.app.present.results.SampleResidual (or a ResidualTable), length N
     limit : int
 
     Returns
@@ -95,7 +95,7 @@ def residual_lines(residuals, limit=REPORT_ROWS):
 
 
 def calibration_text(res):
-    """A readable report of a :class:`handeye.app.results.CalibrationResult`."""
+    """A readable report of a :class:`handeye.app.present.results.CalibrationResult`."""
     if res.closed_form is not None:
         return classic_text(res)
     lines = [
@@ -171,13 +171,13 @@ def calibration_plot(res, dataset, path):
 
     Parameters
     ----------
-    res : handeye.app.results.CalibrationResult
+    res : handeye.app.present.results.CalibrationResult
     dataset : handeye.model.dataset.Dataset
         The dataset ``res`` was calibrated on.
     path : str or pathlib.Path
     """
     from handeye.app.files import save_figure_atomically
-    from handeye.app.plotting import figure
+    from handeye.app.present.plotting import figure
 
     plt = figure()
     if res.rms_mm is None:  # no finite solution: a figure that says so, not a crash
@@ -218,7 +218,7 @@ def _pm(value, sd, prec=4):
 
 
 def validation_text(res):
-    """The text report of ``handeye validate`` (:class:`handeye.app.validate.ValidationResult`)."""
+    """The text report of ``handeye validate`` (:class:`handeye.app.outputs.validate.ValidationResult`)."""
     lines = [f"validation of {res.scan} through {res.calibration}"]
     for s in res.spheres:
         lines += [f"[{s.label}] {s.n_points:,} points from {s.n_poses} poses"
@@ -262,7 +262,7 @@ def validation_figure(res, path, max_points=20_000):
     """Radial deviation of every point on the sphere (3-D scatter, diverging colours, mm) and
     their histogram; for centre validation the |epsilon| of each pose. Written to ``path``."""
     from handeye.app.files import save_figure_atomically
-    from handeye.app.plotting import figure
+    from handeye.app.present.plotting import figure
 
     plt = figure()
     if not res.spheres:
@@ -335,7 +335,7 @@ def classic_text(res):
 
 
 def diagnosis_text(res):
-    """A readable report of a :class:`handeye.app.diagnosis_results.DiagnosisResult`."""
+    """A readable report of a :class:`handeye.app.present.diagnosis_results.DiagnosisResult`."""
     lines = [f"handeye diagnose: dataset {res.dataset}", ""]
     if res.effects:
         lines.append("effects named:")
@@ -369,7 +369,7 @@ def diagnosis_figures(res, out):
     import pathlib
 
     from handeye.app.files import save_figure_atomically
-    from handeye.app.plotting import figure
+    from handeye.app.present.plotting import figure
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)

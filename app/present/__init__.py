@@ -1,0 +1,3 @@
+"""Presentation: the typed results and their one protocol, strict JSON, the text reports,
+the figures and the notebooks' interactive panels.
+"""

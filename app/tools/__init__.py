@@ -1,0 +1,2 @@
+"""Tools around the engine: benchmarks, sweeps over studies and the study registry.
+"""
