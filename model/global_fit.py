@@ -46,6 +46,7 @@ minimum in 160 of 160 cells).
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -242,12 +243,20 @@ def _angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def _seeds(form):
+@functools.lru_cache(maxsize=1)
+def _cover():
+    """The :data:`COVER` rotations (K, 3, 3) of the super-Fibonacci cover, made once (read-only)."""
     cover = conventions.matrix_from("abb", super_fibonacci(COVER))  # unit quaternions w, x, y, z
+    cover.setflags(write=False)
+    return cover
+
+
+def _seeds(form):
+    cover = _cover()
     values = form.value(cover)
     picked = []
     for k in np.argsort(values):
-        if all(_angle_deg(cover[k], cover[j]) >= SEED_SEPARATION_DEG for j in picked):
+        if not picked or np.all(_angle_deg(cover[picked], cover[k]) >= SEED_SEPARATION_DEG):
             picked.append(k)
             if len(picked) == SEEDS:
                 break

@@ -124,8 +124,14 @@ class _Solver:
 
 
 def minimize(problem, x0, opts):
-    """IPOPT from one start, with its iterates recorded."""
-    return _Solver(problem, opts, history=[])(x0)
+    """IPOPT from one start, with its iterates recorded; the solver is built once per problem
+    and options (``problem.built``) and called again for the next start (the same answer as a
+    fresh one: IPOPT keeps no state between calls without warm-start options)."""
+    key = ("ipopt", opts.max_iter, repr(sorted(opts.ipopt.items())))
+    solver = problem.built.get(key)
+    if solver is None:
+        solver = problem.built[key] = _Solver(problem, opts, history=[])
+    return solver(x0)
 
 
 def minimize_many(problem, starts, opts):

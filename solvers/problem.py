@@ -45,6 +45,8 @@ class Problem:
     nlp: Optional[dict] = None
     vectorised: bool = False
     normal: Optional[Callable] = None
+    #: Built solver objects (IPOPT's ``nlpsol``), kept for the next solve of the same problem.
+    built: dict = dataclasses.field(default_factory=dict, compare=False, repr=False, init=False)
 
     def cost(self, x):
         if self.objective is not None:
