@@ -90,8 +90,10 @@ def least_squares(model, x0, max_iter=200, lm_iter=50):
 def _procrustes(model):
     """True when ``model``'s weighted fit is an absolute orientation, solved exactly by one SVD
     (:func:`handeye.model.global_fit.absolute_orientation`): the unweighted centre residual with
-    the sphere centre known (``|R_i (X p_i) + t_i - c| = |X p_i - q_i|``)."""
-    return model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
+    the sphere centre known (``|R_i (X p_i) + t_i - c| = |X p_i - q_i|``), on a chart of SO(3)
+    (not ``matrix``: its free entries, not held to a rotation, have another minimum)."""
+    return (model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
+            and model.rotation != "matrix")
 
 
 def weighted_fit(model, x0, weights, max_iter=100):

@@ -413,6 +413,10 @@ class CalibrationResult(ResultProtocol):
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         return getattr(object.__getattribute__(self, where[0]), where[1])
 
+    def __dir__(self):
+        """The parts' flat attributes too (``dir``, tab completion), as before the parts."""
+        return sorted(set(super().__dir__()) | set(FLAT))
+
     @property
     def outliers(self):
         """Ids of the excluded samples."""
