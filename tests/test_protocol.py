@@ -75,3 +75,23 @@ def test_public_functions_take_their_options_by_keyword():
         params = inspect.signature(getattr(handeye, name)).parameters.values()
         positional = [p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
         assert set(positional) <= {"dataset", "calibration", "out"} and len(positional) <= 2, (name, positional)
+
+
+def test_a_checked_request_is_a_plain_record_bound_to_its_dataset():
+    import pickle
+
+    from handeye.app.engine import calibrate as engine
+    from handeye.app.engine.request import CalibrationRequest
+
+    sim, real = handeye.load_dataset("thesis-sim"), handeye.load_dataset("thesis-real")
+    with pytest.raises(TypeError):
+        CalibrationRequest(resolved="x")  # only checked() resolves a request
+    with pytest.raises(ValueError, match="checked request"):
+        engine.run(CalibrationRequest(), sim)
+    request = CalibrationRequest(options={"max_iter": 50}, loo=False).checked(sim)
+    assert pickle.loads(pickle.dumps(request)) == request  # to a worker and back
+    request.solver_options["max_iter"] = 1  # a copy: the request stays as checked
+    assert request.options == {"max_iter": 50} and request.method == "ipopt" and request.sigma == sim.noise_centre_mm
+    with pytest.raises(ValueError, match="checked against"):
+        engine.run(request, real)
+    assert engine.run(request, sim).converged

@@ -183,8 +183,9 @@ def run(request, dataset):
     -------
     handeye.app.present.results.CalibrationResult
     """
-    if not request.resolved:
+    if request.resolved is None:
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
+    request.checked(dataset)  # a request checked against other data is refused (ValueError)
     prep = prepare(request, dataset)
     screened = screen(prep)
     final, verdict, start_used, warnings = fit(prep, screened)

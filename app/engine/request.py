@@ -8,8 +8,8 @@ convention), so that no later stage validates or defaults an option again.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
-import types
 
 import numpy as np
 
@@ -41,6 +41,11 @@ LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
 EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
+
+
+def fingerprint(dataset):
+    """Which dataset a request was checked against: its folder and number of measurements."""
+    return f"{dataset.path} ({len(dataset)} measurements)"
 
 
 def min_measurements(unknowns):
@@ -80,8 +85,11 @@ class CalibrationRequest:
         Catalogue effects (:data:`EFFECTS`) calibrated with the pose (``'a,b'`` or a list).
     notes : tuple of str
         What :meth:`checked` decided that the user should read (a default method changed).
-    resolved : bool
-        Set by :meth:`checked`: every option valid and every default resolved.
+    resolved : str or None
+        Set by :meth:`checked` (not a constructor argument): which dataset (folder and number
+        of measurements) it was checked against, every option valid and every default resolved;
+        :func:`run <handeye.app.engine.calibrate.run>` refuses a request checked against other
+        data (its defaults, the stated noise and the convention, are that dataset's).
     """
 
     unknowns: str = "sensor"
@@ -98,12 +106,12 @@ class CalibrationRequest:
     sigma: float | None = None
     effects: tuple = ()
     notes: tuple = ()
-    resolved: bool = False
+    resolved: str | None = dataclasses.field(default=None, init=False)
 
     @property
     def solver_options(self):
         """A fresh dict of the solver options (the request itself stays unchanged)."""
-        return {k: dict(v) if isinstance(v, types.MappingProxyType) else v for k, v in (self.options or {}).items()}
+        return copy.deepcopy(dict(self.options or {}))
 
     @property
     def polish(self):
@@ -119,20 +127,24 @@ class CalibrationRequest:
         CalibrationInputError
             The option at fault named (``--method``, ``--rotation``, ``--effects``, ...).
         """
-        if self.resolved:
+        if self.resolved is not None:
+            if self.resolved != fingerprint(dataset):
+                raise ValueError(f"this request was checked against {self.resolved}, not {fingerprint(dataset)}")
             return self  # checked once; the stages never check again
         method, note = _method(self.method, self.rotation, len(dataset))
         rotation = _rotation(method, self.rotation)
         effects, unknowns, model = _effects(self.effects, self.unknowns, self.model)
         enough(dataset, unknowns)
         start = None if self.start is None else np.asarray(self.start, float).copy()
-        return dataclasses.replace(
+        checked = dataclasses.replace(
             self, method=method, rotation=rotation, effects=effects, unknowns=unknowns, model=model, start=start,
-            options=_frozen(_solver_options(self.options)), alpha=float(self.alpha),
+            options=copy.deepcopy(_solver_options(self.options)), alpha=float(self.alpha),
             convention=conventions.check(self.convention or dataset.convention),
             sigma=dataset.noise_centre_mm if self.sigma is None else float(self.sigma),
             robot_sigma=dataset.noise_robot_mm if self.robot_sigma is None else float(self.robot_sigma),
-            notes=(note,) if note else (), resolved=True)
+            notes=(note,) if note else ())
+        object.__setattr__(checked, "resolved", fingerprint(dataset))
+        return checked
 
 
 def _method(method, rotation, n):
@@ -189,7 +201,7 @@ def enough(dataset, unknowns):
 
 def _limits_iterations(options):
     """True when the options set an iteration limit anywhere (``max_iter``, nested dicts too)."""
-    return any(k == "max_iter" or (isinstance(v, (dict, types.MappingProxyType)) and _limits_iterations(v))
+    return any(k == "max_iter" or (isinstance(v, dict) and _limits_iterations(v))
                for k, v in options.items())
 
 
@@ -201,11 +213,6 @@ def _solver_options(options):
     except solvers.UnsupportedProblem as exc:
         raise CalibrationInputError(f"options: {exc}") from None
     return options
-
-
-def _frozen(options):
-    return types.MappingProxyType({k: types.MappingProxyType(dict(v)) if isinstance(v, dict) else v
-                                   for k, v in options.items()})
 
 
 def parse_pose(text, what="--start", convention="kuka"):
