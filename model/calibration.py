@@ -602,53 +602,6 @@ class CalibrationModel:
             ``{'x', 'f', 'g'}`` (CasADi SX or MX), ``'lbg'``, ``'ubg'`` (arrays), and ``'p'`` with
             ``'p_value'`` (the numeric parameter vector) or ``'callback'``.
         """
-        import casadi as ca
+        from handeye.model import nlp_problem
 
-        if self.rotation == "local":
-            raise ValueError("IPOPT works on 'euler' or 'matrix'; 'local' needs a retraction")
-        if self.n_meas > NLP_CALLBACK_ABOVE:
-            from handeye.model import nlp_callback
-
-            cb = nlp_callback.cost_callback(self)
-            x = ca.MX.sym("x", self.n)
-            out = {"x": x, "f": cb(x), "callback": cb}
-        else:
-            out = self._nlp_graph()
-        x = out["x"]
-        if self.rotation == "matrix":
-            rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
-            m = ca.mtimes(rt.T, rt) - type(x).eye(3)
-            g = ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
-        else:
-            g = type(x)(0, 1)
-        ng = g.shape[0]
-        return {**out, "g": g, "lbg": np.zeros(ng), "ubg": np.zeros(ng)}
-
-    def _nlp_graph(self):
-        """``x``, ``f``, ``p`` and ``p_value`` of :meth:`nlp` as one SX graph of every row."""
-        import casadi as ca
-
-        resjac, _ = _sources(self.rotation, self.kind)
-        gen = codegen.casadi_function(resjac)
-        nr = _N_ROT[self.rotation]
-        m = self.m
-        n_data = len(self._data)
-        x = ca.SX.sym("x", self.n)
-        d = ca.SX.sym("d", n_data + m * m)
-        theta = ca.SX.sym("theta", 3 + nr + 3)
-        extra = [self.radius] if self.kind != "centre" else []
-        e = ca.vertcat(*gen(*[theta[k] for k in range(theta.shape[0])], *extra, *[d[k] for k in range(n_data)])[:m])
-        w = ca.reshape(d[n_data:], m, m).T  # row-major entries -> matrix
-        one = ca.Function("e", [theta, d], [ca.mtimes(w, e)])
-        whiten = self.whiten if self.whiten is not None else np.broadcast_to(np.eye(m), (self.n_meas, m, m))
-        table = np.concatenate([np.stack(self._data), whiten.reshape(self.n_meas, m * m).T])
-        data = ca.SX.sym("data", table.shape[0], self.n_meas)
-        p_value = table.ravel(order="F")  # ca.vec is column-major
-        if self.unknowns == "sensor+sphere":
-            p, full = ca.vec(data), x
-        else:
-            cfix = ca.SX.sym("c", 3)
-            p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
-            p_value = np.concatenate([p_value, self.fixed_centre])
-        e_all = one.map(self.n_meas)(full, data)
-        return {"x": x, "f": 0.5 * ca.sumsqr(e_all), "p": p, "p_value": p_value}
+        return nlp_problem.nlp(self, _sources(self.rotation, self.kind)[0], _N_ROT[self.rotation], NLP_CALLBACK_ABOVE)
