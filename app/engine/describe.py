@@ -345,7 +345,11 @@ def _final_loo(dataset, mask, local, final, centre):
     ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
     ``final``; the error is sample i's sphere centre through the refitted chain
     (:func:`handeye.app.engine.robust.leave_one_out`). NaN for the samples not used."""
-    predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
+    if local.kind == "centre" and local.whiten is None and local.groups is None and local.rotation == "local":
+        predictor = local  # its own centres: one evaluation per chunk, no second model of the samples
+    else:
+        predictor = CalibrationModel(dataset.flange2base()[mask], dataset.centre_in_sensor[mask], centre, "local",
+                                     local.unknowns)
     out = np.full(len(mask), np.nan)
     out[mask] = robust.leave_one_out(local, final, None, predictor)
     return out
