@@ -150,6 +150,8 @@ class Dataset(FlangePoses):
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
         mask = np.asarray(mask, bool)
+        if len(mask) == len(self) and mask.all():
+            return self  # immutable: every measurement is this dataset
         out = dataclasses.replace(
             self,
             ids=tuple(i for i, k in zip(self.ids, mask) if k),

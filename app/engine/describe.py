@@ -295,8 +295,7 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     (a :class:`handeye.app.engine.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
     Identifiability)``; appends to ``warnings``."""
     local, sensor, centre = fit.local, fit.sensor, fit.centre
-    allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
-    e = allm.residuals(allm.point_from(sensor, centre))
+    e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
     final = local.point_from(sensor, centre)
     ident, cov, ssr = _fit_statistics(local, final)
@@ -323,6 +322,12 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
         sigma_mm=cov.sigma if local.whiten is None else None, sigma_scale=cov.sigma if local.whiten is not None else None,
         parameter_names=tuple(local.names), correlation=np.asarray(cov.correlation), covariance=np.asarray(cov.matrix))
     return stats, uncertainty, ident
+
+
+def _all_residuals(dataset, unknowns, sensor, centre):
+    """Residuals (N, 3) of every sample at the fit (the model of every sample freed after)."""
+    allm = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=centre)
+    return allm.residuals(allm.point_from(sensor, centre))
 
 
 def _fit_statistics(local, final):
