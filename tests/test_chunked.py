@@ -140,3 +140,22 @@ def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
     j = a.jac[mask].reshape(-1, a.p)
     np.testing.assert_allclose(jtj, j.T @ j, rtol=1e-11, atol=1e-11 * np.abs(jtj).max())
     assert rtr == pytest.approx(a.ssr, rel=1e-12)
+
+
+def test_deletion_statistics_by_chunks_equal_the_full_arrays():
+    """The screening's deletion statistics in two chunked passes (information and SSR, then
+    per-sample statistics) give the full arrays' statistics, p-values and residuals."""
+    from handeye.model.statistics import deletion_statistics, deletion_statistics_chunked
+
+    model = random_model("local", "sensor+sphere", n=29)
+    x = start_point(model)
+    fitted = np.ones(model.n_meas, bool)
+    fitted[[3, 11, 20]] = False
+    e, j = model.residual_and_jacobian(x)
+    stat, p_value = deletion_statistics(e, j, fitted, n_tests=model.n_meas)
+    stat_c, p_c, e_c = deletion_statistics_chunked(lambda: model.chunks(x, 4), fitted, n_tests=model.n_meas)
+    np.testing.assert_allclose(stat_c, stat, rtol=1e-10)
+    np.testing.assert_allclose(p_c, p_value, rtol=1e-8, atol=1e-300)
+    np.testing.assert_array_equal(e_c, e)
+    by_screen = robust._deletion(model, x, fitted, chunk=5)
+    np.testing.assert_allclose(by_screen[0], stat, rtol=1e-10)
