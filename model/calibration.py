@@ -208,6 +208,8 @@ class CalibrationModel:
         """The model of the samples ``keep`` (bool per sample: per row, or per profile for
         ``points``): the same kind, whitening, parametrisation and centre, samples renumbered."""
         keep = np.asarray(keep, bool)
+        if self.groups is None and len(keep) == self.n_meas and keep.all():
+            return copy.copy(self)  # every sample: the rows' arrays shared (read-only), not copied
         rows = keep if self.groups is None else keep[self.groups]
         sub = CalibrationModel(self.flange2base[rows], self.centre_in_sensor[rows], self.fixed_centre, self.rotation,
                                self.unknowns, self.kind, self.radius, None if self.whiten is None else self.whiten[rows])

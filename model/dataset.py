@@ -150,7 +150,9 @@ class Dataset(FlangePoses):
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
         mask = np.asarray(mask, bool)
-        return dataclasses.replace(
+        if len(mask) == len(self) and mask.all():
+            return self  # immutable: every measurement is this dataset
+        out = dataclasses.replace(
             self,
             ids=tuple(i for i, k in zip(self.ids, mask) if k),
             rows=tuple(r for r, k in zip(self.rows, mask) if k),
@@ -160,6 +162,11 @@ class Dataset(FlangePoses):
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
         )
+        if "_flange2base" in self.__dict__:  # computed already: its rows, not a million poses again
+            f2b = self._flange2base[mask]
+            f2b.setflags(write=False)
+            out.__dict__["_flange2base"] = f2b
+        return out
 
     def content_hash(self):
         """SHA-256 of the files that make the dataset (setup, measurements, profiles)."""

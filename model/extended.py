@@ -16,7 +16,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.model import effects
-from handeye.model.calibration import CalibrationModel
+from handeye.model.calibration import ROW_CHUNK, CalibrationModel
 from handeye.model.statistics import chi2_survival
 
 
@@ -56,7 +56,7 @@ class Fit:
     x: np.ndarray  # local point: t2, R2 (9), [c]
     params: dict  # effect name -> array of parameters
     e: np.ndarray  # (N, 3) residuals of all samples
-    jac: np.ndarray  # (N, 3, p) Jacobian of all samples: theta then effect parameters
+    jac: np.ndarray  # (N, 3, p) Jacobian of all samples: theta then effect parameters; None when chunked
     names: list
     ssr: float
     m: int
@@ -78,6 +78,14 @@ class Fit:
         return std, cov / np.outer(scale, scale)
 
 
+def sample_chunks(mask, chunk=None):
+    """The indices of the samples in ``mask`` (bool (N,)), at most ``chunk`` (default
+    :data:`~handeye.model.calibration.ROW_CHUNK`) at a time."""
+    idx, step = np.flatnonzero(mask), chunk or ROW_CHUNK
+    for a in range(0, len(idx), step):
+        yield idx[a : a + step]
+
+
 class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
 
@@ -88,19 +96,25 @@ class Samples:
         self.radius = dataset.sphere_diameter / 2
         self.n = len(dataset)
 
-    def measured(self, structure):
-        xs = self.d.centre_in_sensor.copy()
-        for i in structure.flips:
-            xs[i, 1] = -xs[i, 1]
+    def measured(self, structure, rows=None):
+        """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
+        an index array, only, when given)."""
+        if rows is None:
+            xs = self.d.centre_in_sensor.copy()
+            for i in structure.flips:
+                xs[i, 1] = -xs[i, 1]
+            return xs
+        xs = self.d.centre_in_sensor[rows]
+        if structure.flips:
+            flip = np.isin(rows, np.fromiter(structure.flips, int))
+            xs[flip, 1] = -xs[flip, 1]
         return xs
 
     def evaluate(self, structure, x, params, rows=None):
         """Residuals (N, 3) and Jacobian (N, 3, p) at point x with effect parameters (of the
-        samples ``rows`` only, when given)."""
-        xs = self.measured(structure)
-        f2b = self.f2b
-        if rows is not None:
-            xs, f2b = xs[rows], f2b[rows]
+        samples ``rows``, an index array, only, when given)."""
+        xs = self.measured(structure, rows)
+        f2b = self.f2b if rows is None else self.f2b[rows]
         cols = []
         for name in structure.data_effects:
             with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
@@ -119,42 +133,72 @@ class Samples:
             base += [f"{name}.{p}" for p in effects.get(name).PARAMS]
         return base
 
-    def fit(self, structure, mask, x0, params0=None):
-        """Least squares of the structure on the samples in ``mask``."""
+    def normal_equations(self, structure, x, params, mask, chunk=None):
+        """``(J^T J, J^T r, r^T r)`` over the samples in ``mask``, summed over chunks of at most
+        ``chunk`` (default :data:`~handeye.model.calibration.ROW_CHUNK`) samples."""
+        jtj, jtr, rtr = 0.0, 0.0, 0.0
+        for rows in sample_chunks(mask, chunk):
+            e, jac, _ = self.evaluate(structure, x, params, rows)
+            flat, r = jac.reshape(-1, jac.shape[2]), e.ravel()
+            jtj, jtr, rtr = jtj + flat.T @ flat, jtr + flat.T @ r, rtr + r @ r
+        return jtj, jtr, rtr
+
+    def residuals(self, structure, x, params, mask=None, chunk=None):
+        """Residuals (N, 3) of the samples in ``mask`` (default all), chunk by chunk: the
+        Jacobian of every sample is never held."""
+        mask = np.ones(self.n, bool) if mask is None else mask
+        out = np.full((self.n, 3), np.nan)
+        for rows in sample_chunks(mask, chunk):
+            out[rows] = self.evaluate(structure, x, params, rows)[0]
+        return out
+
+    def fit(self, structure, mask, x0, params0=None, chunk=None):
+        """Least squares of the structure on the samples in ``mask``. Above
+        :data:`~handeye.model.calibration.ROW_CHUNK` samples (or with ``chunk``) on normal
+        equations summed chunk by chunk: the Fit then holds no Jacobian (``jac`` None)."""
         params0 = {n: np.zeros(len(effects.get(n).PARAMS)) for n in structure.data_effects} | (params0 or {})
         keys = list(structure.data_effects)
         sizes = [len(effects.get(n).PARAMS) for n in keys]
-        retract_model = self._chart(structure.centre)
-        n_pt = len(x0)
-        n_theta = retract_model.n
+        n_pt, n_theta = len(x0), self._chart(structure.centre).n
+        big = chunk is not None or int(np.count_nonzero(mask)) > ROW_CHUNK
 
         def split(z):
-            x = z[:n_pt]
-            params, k = {}, n_pt
+            x, params, k = z[:n_pt], {}, n_pt
             for key, size in zip(keys, sizes):
                 params[key] = z[k : k + size]
                 k += size
             return x, params
 
-        def residual(z):
-            x, params = split(z)
-            return self.evaluate(structure, x, params)[0][mask].ravel()
+        z0 = np.concatenate([x0] + [params0[k] for k in keys])
+        problem = self._problem(structure, mask, split, (n_pt, n_theta, n_theta + sum(sizes)), chunk, big)
+        solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
+        x, params = split(solved.x)
+        if big:
+            e, jac = self.residuals(structure, x, params, None, chunk), None
+        else:
+            e, jac, _ = self.evaluate(structure, x, params)
+        ssr = float(np.sum(e[mask] ** 2))
+        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n_theta + sum(sizes),
+                   bool(solved.converged), solved.message)
 
-        def jacobian(z):
-            x, params = split(z)
-            return self.evaluate(structure, x, params)[1][mask].reshape(-1, n_theta + sum(sizes))
+    def _problem(self, structure, mask, split, sizes, chunk, big):
+        """The solvers' Problem of :meth:`fit` (``sizes``: point, chart step and step lengths):
+        on normal equations when ``big``."""
+        retract_model, (n_pt, n_theta, n) = self._chart(structure.centre), sizes
 
         def retract(z, delta):
             return np.concatenate([retract_model.retract(z[:n_pt], delta[:n_theta]), z[n_pt:] + delta[n_theta:]])
 
-        z0 = np.concatenate([x0] + [params0[k] for k in keys])
-        problem = solvers.Problem(n=n_theta + sum(sizes), residual=residual, jacobian=jacobian, retract=retract)
-        solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
-        x, params = split(solved.x)
-        e, jac, _ = self.evaluate(structure, x, params)
-        ssr = float(np.sum(e[mask] ** 2))
-        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), jac.shape[2],
-                   bool(solved.converged), solved.message)
+        if big:
+            return solvers.Problem(
+                n=n, retract=retract,
+                residual=lambda z: self.residuals(structure, *split(z), mask, chunk)[mask].ravel(),
+                jacobian=lambda z: self.evaluate(structure, *split(z))[1][mask].reshape(-1, n),
+                normal=lambda z: self.normal_equations(structure, *split(z), mask, chunk))
+        return solvers.Problem(
+            n=n, retract=retract,
+            residual=lambda z: self.evaluate(structure, *split(z))[0][mask].ravel(),
+            jacobian=lambda z: self.evaluate(structure, *split(z))[1][mask].reshape(-1, n))
 
     def _chart(self, centre_free):
         """A one-row local-chart model: the point layout and retraction of a structure."""
@@ -238,26 +282,30 @@ def gate(jac_cur, cand, names, q=None, absorbers=True):
 
 def candidate_columns(prob, structure, fit, mask, name):
     """Jacobian columns (rows of the samples in mask) of a candidate effect at the fit."""
+    cols = candidate_rows(prob, structure, fit, None, name)
+    return cols[mask].reshape(-1, cols.shape[2])
+
+
+def candidate_rows(prob, structure, fit, rows, name):
+    """Jacobian columns (k, 3, q) of a candidate effect at the fit, of the samples ``rows`` (an
+    index array; None: every sample)."""
     effect = effects.get(name)
-    xs = prob.measured(structure)
+    xs = prob.measured(structure, rows)
+    f2b = prob.f2b if rows is None else prob.f2b[rows]
     for eff in structure.data_effects:
         xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
-    model = CalibrationModel(prob.f2b, xs, prob.centre(structure, fit.x), "local",
-                             "sensor+sphere" if structure.centre else "sensor")
-    r2 = model.sensor_rotation(fit.x)
-    r12 = prob.f2b[:, :3, :3] @ r2
+    r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+    r12 = f2b[:, :3, :3] @ r2
     if effect.KIND == "centre":
-        cols = -np.broadcast_to(np.eye(3), (prob.n, 3, 3))
-    elif effect.KIND == "data":
+        return -np.broadcast_to(np.eye(3), (len(xs), 3, 3))
+    if effect.KIND == "data":
         with np.errstate(invalid="ignore", divide="ignore"):
             _, dxs = effects.correct(name, xs, prob.radius, np.zeros(len(effect.PARAMS)))
-        cols = np.einsum("nij,njk->nik", r12, dxs)
-    else:
-        t2 = fit.x[:3]
-        u = np.einsum("ij,nj->ni", r2, xs) + t2
-        q = np.einsum("nij,nj->ni", prob.f2b[:, :3, :3], u) + prob.f2b[:, :3, 3]
-        cols = effect.columns({"q": q, "u": u, "R1": prob.f2b[:, :3, :3], "R1R2": r12, "xs": xs})
-    return cols[mask].reshape(-1, cols.shape[2])
+        return np.einsum("nij,njk->nik", r12, dxs)
+    t2 = fit.x[:3]
+    u = np.einsum("ij,nj->ni", r2, xs) + t2
+    q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
+    return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
 
 
 def score_test(fit, mask, cand):
@@ -286,7 +334,92 @@ def score_test_robust(fit, mask, cand, q=None):
     return stat, chi2_survival(stat, cand.shape[1])
 
 
-def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=()):
+def _candidates(structure, skip):
+    """The catalogue's effects the score tests try, in the catalogue's order."""
+    return [effect.NAME for effect in effects.catalogue() if effect.KIND in ("data", "centre")
+            and effect.NAME not in skip and not (effect.NAME == "sphere_center" and structure.centre)]
+
+
+def _chunk_columns(prob, structure, fit, rows, names):
+    """The fit's Jacobian (3k, p), residual (3k,) and the candidates' columns (3k, q) of the
+    samples ``rows``."""
+    _, jac, _ = prob.evaluate(structure, fit.x, fit.params, rows)
+    cols = {}
+    for name in names:
+        c = candidate_rows(prob, structure, fit, rows, name)
+        cols[name] = c.reshape(-1, c.shape[2])
+    return jac.reshape(-1, fit.p), fit.e[rows].ravel(), cols
+
+
+def _first_pass(prob, structure, fit, mask, names, chunk):
+    """Sums over the samples in ``mask``: ``J^T J``, ``J^T r``, whether J and r are finite, and
+    per candidate ``(C^T J, C^T C, C^T r, finite)``."""
+    p = fit.p
+    jtj, jtr, finite = np.zeros((p, p)), np.zeros(p), True
+    sums = {name: [0.0, 0.0, 0.0, True] for name in names}
+    for rows in sample_chunks(mask, chunk):
+        j, r, cols = _chunk_columns(prob, structure, fit, rows, names)
+        finite = finite and bool(np.all(np.isfinite(j)) and np.all(np.isfinite(r)))
+        jtj += j.T @ j
+        jtr += j.T @ r
+        for name, c in cols.items():
+            s = sums[name]
+            s[0], s[1], s[2] = s[0] + c.T @ j, s[1] + c.T @ c, s[2] + c.T @ r
+            s[3] = s[3] and bool(np.all(np.isfinite(c)))
+    return jtj, jtr, finite, sums
+
+
+def _gate_from_sums(chol, cj, cc):
+    """:func:`gate`'s fraction from sums: the candidate's scaled columns' Gram matrix less its
+    part in the span of J (``chol``: the lower Cholesky factor of ``J^T J``)."""
+    norms = np.sqrt(np.diag(cc))
+    norms = np.where(norms > 0, norms, 1.0)
+    full = cc / np.outer(norms, norms)
+    w = np.linalg.solve(chol, (cj / norms[:, None]).T)
+    perp = full - w.T @ w
+    s_perp = np.sqrt(max(float(np.linalg.eigvalsh(perp)[0]), 0.0))
+    s_full = np.sqrt(max(float(np.linalg.eigvalsh(full)[0]), 0.0))
+    return float(s_perp / max(s_full, 1e-300))
+
+
+def score_by_sums(prob, structure, fit, mask, names, chunk=None):
+    """The robust score tests (:func:`score_test_robust`) of the candidates ``names`` in two
+    passes over chunks of the samples in ``mask``, never holding the Jacobian of every sample:
+    the first sums the normal equations and the candidates' cross products (gate, score), the
+    second each sample's score for the variance. Returns ``[(p, name, statistic, gate)]``,
+    ``[]`` when the fit has no finite derivative, or None when ``J^T J`` is too ill-conditioned
+    for its Cholesky factor (then the full arrays' Householder QR is needed)."""
+    jtj, jtr, finite, sums = _first_pass(prob, structure, fit, mask, names, chunk)
+    if not finite:
+        return []
+    try:
+        chol = np.linalg.cholesky(jtj)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.abs(np.diag(chol))
+    if not np.all(np.isfinite(chol)) or d.min() <= 1e-7 * d.max():
+        return None
+    tested = {}
+    for name, (cj, cc, cr, ok) in sums.items():
+        frac = _gate_from_sums(chol, cj, cc) if ok else 0.0
+        if ok and frac >= GATE:
+            b = np.linalg.solve(jtj, cj.T)  # projection coefficients G^-1 J^T C
+            tested[name] = (b, cr - b.T @ jtr, frac, 0.0)
+    for rows in sample_chunks(mask, chunk) if tested else ():
+        j, r, cols = _chunk_columns(prob, structure, fit, rows, list(tested))
+        for name, (b, g, frac, v) in tested.items():
+            a = cols[name] - j @ b
+            per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
+            tested[name] = (b, g, frac, v + per_sample.T @ per_sample)
+    m = fit.m
+    found = []
+    for name, (b, g, frac, v) in tested.items():
+        stat = float(g @ np.linalg.lstsq(v * m / max(m - fit.p, 1), g, rcond=None)[0])
+        found.append((chi2_survival(stat, len(g)), name, stat, frac))
+    return found
+
+
+def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=(), chunk=None):
     """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
 
     Parameters
@@ -300,6 +433,9 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
     unknowns : {'sensor', 'sensor+sphere'}
     skip : sequence of str
         Data effects already in the model: fitted with it, and the others tested given them.
+    chunk : int, optional
+        Samples per chunk of the sums (:func:`score_by_sums`); default the full arrays up to
+        :data:`~handeye.model.calibration.ROW_CHUNK` samples used, chunks of that many above.
 
     Returns
     -------
@@ -307,10 +443,15 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
         the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
     """
-    prob = Samples(dataset)
+    prob, mask = Samples(dataset), np.asarray(mask, bool)
     structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
     with np.errstate(all="ignore"):
-        fit = prob.fit(structure, np.asarray(mask, bool), prob.point(structure, sensor2flange, centre))
+        fit = prob.fit(structure, mask, prob.point(structure, sensor2flange, centre), chunk=chunk)
+    if fit.jac is None:  # many samples: sums over chunks
+        found = score_by_sums(prob, structure, fit, mask, _candidates(structure, skip), chunk)
+        if found is not None:
+            return _ranked(found)
+        fit = dataclasses.replace(fit, jac=prob.evaluate(structure, fit.x, fit.params)[1])
     jac_cur = fit.jac[mask].reshape(-1, fit.p)
     if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
         return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
@@ -327,5 +468,10 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
             continue
         stat, p = score_test_robust(fit, mask, cols, q=q)
         found.append((p, name, stat, frac))
-    found.sort()
+    return _ranked(found)
+
+
+def _ranked(found):
+    """ScoreTests of ``[(p, name, statistic, gate)]``, Bonferroni-adjusted, most significant first."""
+    found = sorted(found)
     return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]

@@ -437,12 +437,56 @@ def deletion_statistics(e_all, j_all, fitted, n_tests=None):
     m, p = jf.shape
     info_inv = np.linalg.pinv(jf.T @ jf)
     ssr = float(ef @ ef)
+    q = _deletion_quadratic(np.asarray(e_all, float), np.asarray(j_all, float), fitted, info_inv)
+    return _deletion_tail(q, fitted, ssr, m, p, n_tests)
+
+
+def deletion_statistics_chunked(chunks, fitted, n_tests=None):
+    """:func:`deletion_statistics` in two passes over chunks of the samples, never holding the
+    Jacobian of all of them: the first sums the fit's information matrix and sum of squares,
+    the second gives each chunk's statistics.
+
+    Parameters
+    ----------
+    chunks : callable
+        ``chunks()`` yields ``(rows, e, jac)``: a slice of the samples, their residuals (R, 3)
+        and Jacobians (R, 3, p) (as :meth:`handeye.model.calibration.CalibrationModel.chunks`);
+        called twice.
+    fitted : ndarray of bool, shape (N,)
+    n_tests : int, optional
+
+    Returns
+    -------
+    stat, p_value : ndarray, shape (N,)
+        As :func:`deletion_statistics`.
+    e_all : ndarray, shape (N, 3)
+        The residuals, gathered in the second pass.
+    """
+    fitted = np.asarray(fitted, bool)
+    info, ssr, m, p = 0.0, 0.0, 0, 0
+    for rows, e, jac in chunks():
+        keep = fitted[rows]
+        jf, ef = jac[keep].reshape(-1, jac.shape[2]), e[keep].ravel()
+        info, ssr, m, p = info + jf.T @ jf, ssr + float(ef @ ef), m + len(ef), jac.shape[2]
+    info_inv = np.linalg.pinv(info)
+    q, e_all = np.empty(len(fitted)), np.empty((len(fitted), 3))
+    for rows, e, jac in chunks():
+        q[rows], e_all[rows] = _deletion_quadratic(e, jac, fitted[rows], info_inv), e
+    stat, p_value = _deletion_tail(q, fitted, ssr, m, p, n_tests)
+    return stat, p_value, e_all
+
+
+def _deletion_quadratic(e_all, j_all, fitted, info_inv):
+    """``e_i^T (I -+ H_ii)^-1 e_i`` (N,) of each sample (minus for a fitted one)."""
     eye = np.eye(3)
-    e_all, j_all = np.asarray(e_all, float), np.asarray(j_all, float)
     h = np.einsum("nip,pq,njq->nij", j_all, info_inv, j_all)  # hat blocks, all samples at once
     sign = np.where(fitted, -1.0, 1.0)[:, None, None]
     metric = eye + sign * h + np.where(fitted, 1e-12, 0.0)[:, None, None] * eye
-    q = np.einsum("ni,ni->n", e_all, np.linalg.solve(metric, e_all[..., None])[..., 0])
+    return np.einsum("ni,ni->n", e_all, np.linalg.solve(metric, e_all[..., None])[..., 0])
+
+
+def _deletion_tail(q, fitted, ssr, m, p, n_tests):
+    """The F statistics and their tail probabilities from the quadratic forms ``q``."""
     d2 = np.where(fitted, m - p - 3, m - p).astype(float)
     with np.errstate(all="ignore"):
         s2 = np.where(fitted, np.maximum(ssr - q, 1e-300) / d2, ssr / d2)

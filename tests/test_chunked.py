@@ -108,3 +108,54 @@ def test_levenberg_marquardt_on_normal_equations_ends_where_on_the_jacobian():
     np.testing.assert_allclose(b.x, a.x, rtol=1e-8, atol=1e-8)
     many = solvers.solve_many(normal, np.stack([x0, start_point(model, 5)]), "lm")
     np.testing.assert_allclose(many.x[0], b.x, rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("unknowns, skip", [("sensor", ()), ("sensor+sphere", ()), ("sensor", ("sphere_radius",))])
+def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
+    """The effect tests' own fit on normal equations and their two chunked passes
+    (:func:`handeye.model.extended.score_by_sums`) give the full arrays' scores and gates."""
+    import handeye
+    from handeye.app.api import load_dataset
+    from handeye.model import extended
+
+    dataset = load_dataset("thesis-real")
+    fitted = handeye.calibrate("thesis-real", unknowns=unknowns, no_loo=True).fit
+    mask = fitted.residuals.used.copy()
+    mask[[2, 7]] = False
+    prob = extended.Samples(dataset)
+    sensor = fitted.sensor2flange
+    args = (dataset, mask, sensor, fitted.sphere_centre, unknowns, skip)
+    full, chunked = extended.score_effects(*args), extended.score_effects(*args, chunk=5)
+    assert [t.name for t in chunked] == [t.name for t in full] and (full or unknowns != "sensor")
+    for a, b in zip(full, chunked):
+        assert b.score == pytest.approx(a.score, rel=1e-9)
+        assert b.gate == pytest.approx(a.gate, rel=1e-9)
+        assert b.p_bonferroni == pytest.approx(a.p_bonferroni, rel=1e-9, abs=1e-300)
+    structure = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=skip)
+    x0 = prob.point(structure, sensor)
+    a, b = prob.fit(structure, mask, x0), prob.fit(structure, mask, x0, chunk=4)
+    assert b.jac is None and b.p == a.p and b.ssr == pytest.approx(a.ssr, rel=1e-10)
+    np.testing.assert_allclose(b.e, a.e, rtol=1e-6, atol=1e-7)  # one minimum, tolerances apart
+    jtj, jtr, rtr = prob.normal_equations(structure, a.x, a.params, mask, chunk=3)
+    j = a.jac[mask].reshape(-1, a.p)
+    np.testing.assert_allclose(jtj, j.T @ j, rtol=1e-11, atol=1e-11 * np.abs(jtj).max())
+    assert rtr == pytest.approx(a.ssr, rel=1e-12)
+
+
+def test_deletion_statistics_by_chunks_equal_the_full_arrays():
+    """The screening's deletion statistics in two chunked passes (information and SSR, then
+    per-sample statistics) give the full arrays' statistics, p-values and residuals."""
+    from handeye.model.statistics import deletion_statistics, deletion_statistics_chunked
+
+    model = random_model("local", "sensor+sphere", n=29)
+    x = start_point(model)
+    fitted = np.ones(model.n_meas, bool)
+    fitted[[3, 11, 20]] = False
+    e, j = model.residual_and_jacobian(x)
+    stat, p_value = deletion_statistics(e, j, fitted, n_tests=model.n_meas)
+    stat_c, p_c, e_c = deletion_statistics_chunked(lambda: model.chunks(x, 4), fitted, n_tests=model.n_meas)
+    np.testing.assert_allclose(stat_c, stat, rtol=1e-10)
+    np.testing.assert_allclose(p_c, p_value, rtol=1e-8, atol=1e-300)
+    np.testing.assert_array_equal(e_c, e)
+    by_screen = robust._deletion(model, x, fitted, chunk=5)
+    np.testing.assert_allclose(by_screen[0], stat, rtol=1e-10)

@@ -295,8 +295,7 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     (a :class:`handeye.app.engine.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
     Identifiability)``; appends to ``warnings``."""
     local, sensor, centre = fit.local, fit.sensor, fit.centre
-    allm = CalibrationModel.from_dataset(dataset, "local", local.unknowns, sphere_centre=centre)
-    e = allm.residuals(allm.point_from(sensor, centre))
+    e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
     final = local.point_from(sensor, centre)
     ident, cov, ssr = _fit_statistics(local, final)
@@ -325,6 +324,12 @@ def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
     return stats, uncertainty, ident
 
 
+def _all_residuals(dataset, unknowns, sensor, centre):
+    """Residuals (N, 3) of every sample at the fit (the model of every sample freed after)."""
+    allm = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=centre)
+    return allm.residuals(allm.point_from(sensor, centre))
+
+
 def _fit_statistics(local, final):
     """Identifiability, covariance and sum of squares of the final model ``local`` at ``final``:
     above :data:`~handeye.model.identifiability.TALL` rows (independent ones) from the
@@ -345,7 +350,11 @@ def _final_loo(dataset, mask, local, final, centre):
     ``mask``: its residual kind, weights and unknowns) refitted without each sample, from
     ``final``; the error is sample i's sphere centre through the refitted chain
     (:func:`handeye.app.engine.robust.leave_one_out`). NaN for the samples not used."""
-    predictor = CalibrationModel.from_dataset(dataset.subset(mask), "local", local.unknowns, sphere_centre=centre)
+    if local.kind == "centre" and local.whiten is None and local.groups is None and local.rotation == "local":
+        predictor = local  # its own centres: one evaluation per chunk, no second model of the samples
+    else:
+        predictor = CalibrationModel(dataset.flange2base()[mask], dataset.centre_in_sensor[mask], centre, "local",
+                                     local.unknowns)
     out = np.full(len(mask), np.nan)
     out[mask] = robust.leave_one_out(local, final, None, predictor)
     return out

@@ -28,7 +28,7 @@ from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
-from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics
+from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
 
 CAUCHY_K = 2.385 * np.sqrt(3.0)
 
@@ -221,6 +221,15 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     return keep, records + [e for e in excluded if e.row in screened]
 
 
+def _deletion(model, x, fitted, chunk=None):
+    """Deletion statistics of every sample at ``x`` (Bonferroni over the samples) and the residuals
+    (N, 3); above one chunk (or with ``chunk``) in two passes, no Jacobian of every sample held."""
+    if chunk is None and not chunked(model):
+        e, j = model.residual_and_jacobian(x)
+        return (*deletion_statistics(e, j, fitted, n_tests=model.n_meas), e)
+    return deletion_statistics_chunked(lambda: model.chunks(x, chunk), fitted, n_tests=model.n_meas)
+
+
 def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     """Find gross errors (module docstring).
 
@@ -264,8 +273,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
             break
         seen.add(key)
         x = weighted_fit(full, x, inliers.astype(float)) if _procrustes(full) else least_squares(_subset(full, inliers), x).x
-        e, j = full.residual_and_jacobian(x)
-        stat, adj = deletion_statistics(e, j, inliers, n_tests=n)
+        stat, adj, _ = _deletion(full, x, inliers)
         fitted_bad = np.where(inliers & (adj < alpha))[0]
         excluded_ok = np.where(~inliers & (adj >= alpha))[0]
         if len(fitted_bad):
@@ -284,17 +292,12 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
                 inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
         else:
             break
-    e, j = full.residual_and_jacobian(x)
-    stat, adj = deletion_statistics(e, j, inliers, n_tests=n)
+    stat, adj, e = _deletion(full, x, inliers)
     excluded = []
     for k in np.where(~inliers)[0]:
         excluded.append(ExcludedSample(
-            id=ids[k],
-            row=int(rows[k]),
-            residual_mm=float(np.linalg.norm(e[k])),
-            robust_residual_mm=float(norms[k]),
-            statistic=float(stat[k]),
-            p_bonferroni=float(adj[k]),
+            id=ids[k], row=int(rows[k]), residual_mm=float(np.linalg.norm(e[k])), robust_residual_mm=float(norms[k]),
+            statistic=float(stat[k]), p_bonferroni=float(adj[k]),
             reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
                     f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
         ))
