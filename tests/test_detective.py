@@ -176,3 +176,19 @@ def test_the_batched_linear_closed_form_equals_the_closed_form_module():
             continue
         assert rms == pytest.approx(np.sqrt(2 * global_fit.centre_cost(poses, data.centre_in_sensor, x, c) / len(data)),
                                     rel=1e-9)
+
+
+@pytest.mark.parametrize("unknowns", ["sensor", "sensor+sphere"])
+def test_many_rows_are_screened_on_a_spread_of_rows_and_scored_on_all(tmp_path, monkeypatch, unknowns):
+    """Above SCREEN_ROWS the readings are compared on an even spread of rows (memory bounded:
+    every reading of 200,000 poses at once needed 18 GB); the reading found and its RMS over
+    every row are what comparing on every row gives."""
+    sim = handeye.simulate(tmp_path / "d", seed=11, convention="fanuc", n_poses=30, max_tilt=60)
+    _rewrite(sim.path, fanuc_under_kuka)
+    data = handeye.load_dataset(sim.path)
+    whole = detective.best(data, unknowns)
+    monkeypatch.setattr(detective, "SCREEN_ROWS", 12)
+    spread = detective.best(data, unknowns)
+    assert spread[0].describe() == whole[0].describe() and spread[0].reading.convention == "kuka"  # not as declared
+    assert spread[1] == pytest.approx(whole[1], rel=1e-9, abs=1e-9)
+    assert spread[0].flange2base.shape == (len(data), 4, 4)

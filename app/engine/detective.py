@@ -220,8 +220,37 @@ def _linear_rms(f2b, p):
     return np.where(ok, rms, np.inf)
 
 
+#: Above this many measurements the readings are compared on this many rows, evenly spread
+#: (a convention slip moves every row; every reading's poses at once would need 700 copies of
+#: the flange poses: 18 GB at 200,000 rows), and the best one is scored again on every row.
+SCREEN_ROWS = 2000
+
+
 def best(dataset, unknowns):
-    """The best other reading and its RMS (mm), or None: ``(Candidate, rms)``."""
+    """The best other reading and its RMS (mm) over every row, or None: ``(Candidate, rms)``."""
+    if len(dataset) <= SCREEN_ROWS:
+        return _best(dataset, unknowns)
+    keep = np.zeros(len(dataset), bool)
+    keep[np.linspace(0, len(dataset) - 1, SCREEN_ROWS).round().astype(int)] = True
+    found = _best(dataset.subset(keep), unknowns)
+    if found is None:
+        return None
+    cand = found[0]
+    raw = raw_poses(dataset)
+    with np.errstate(all="ignore"):
+        poses = _transforms(cand.reading.rotation(raw[:, 3:]), raw[:, :3] * cand.scale, cand.inverted)
+    cand = dataclasses.replace(cand, flange2base=poses)
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre * (cand.scale if cand.centre_scaled else 1.0)
+    if centre is None:
+        try:
+            minima = global_fit.centre_minima(poses, dataset.centre_in_sensor, None)
+        except global_fit.GlobalFitError:
+            return None
+        return cand, float(np.sqrt(2 * minima.best.cost / len(dataset)))
+    return cand, float(closed_form_rms(poses[None], dataset.centre_in_sensor, centre[None])[0])
+
+
+def _best(dataset, unknowns):
     found = candidates(dataset)
     if not found:
         return None
