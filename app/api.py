@@ -275,7 +275,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         check_output_path(out, "--out", inputs=inputs)
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
-                           "known sphere centre; give it (or calibrate with unknowns='sensor+sphere')")
+                           "known sphere centre; give it (`handeye calibrate DATASET --unknowns sensor+sphere` estimates one "
+                           "to write there)")
     if figures is not None:
         check_output_folder(figures, "--figures")
         if pathlib.Path(figures).is_dir():  # the two files it will write: never over an input
@@ -423,7 +424,10 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
     made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids)
-    sim.write(made, folder, profiles=profiles, convention=convention, **({"start_offset": None} if no_start else {}))
+    from handeye.app.files import write_folder_atomically
+
+    write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
+                                                         **({"start_offset": None} if no_start else {})))
     return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
 
 

@@ -109,6 +109,23 @@ def check_output_folder(path, option, empty=False):
     return target
 
 
+def write_folder_atomically(folder, write, option="--out"):
+    """``write(temporary folder)`` beside ``folder`` (new, or an empty folder), then rename it
+    into place: an interrupted run (a signal, an error) leaves no half-written dataset, only
+    what was there before (:mod:`handeye.model.scratch` removes the temporary folder). The
+    folder gets the umask's mode, as ``mkdir`` would give it. Raises :class:`RequestError`."""
+    target = pathlib.Path(folder)
+    parent = target.parent if str(target.parent) else pathlib.Path(".")
+    try:
+        with scratch.temporary_folder(dir=parent, prefix=f".{target.name}.", ignore_cleanup_errors=True) as tmp:
+            write(pathlib.Path(tmp))
+            os.chmod(tmp, 0o777 & ~_umask())
+            with scratch.signals_held():
+                os.replace(tmp, target)  # over an empty folder too (POSIX rename)
+    except OSError as exc:
+        raise RequestError(f"{option} {folder}: cannot write: {exc.strerror or exc}") from None
+
+
 def _umask():
     """The process's umask, read without changing it where ``/proc`` tells it."""
     try:

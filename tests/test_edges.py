@@ -379,3 +379,46 @@ def test_ctrl_c_in_a_terminal_stops_the_workers_of_a_study_too(tmp_path):
     while _group(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert _group(proc.pid) == []
+
+
+def _profiles_started(folder, timeout=120):
+    """Wait until a simulate run has written a profile into its (temporary) folder."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if any(pathlib.Path(folder).glob(".d.*/profiles/*")):
+            return True
+        time.sleep(0.005)
+    return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupted_simulate_leaves_no_half_written_dataset(tmp_path, sig):
+    """simulate writes into a temporary folder renamed into place at the end: a signal while the
+    profiles are written leaves nothing (the same command then runs), never a folder that
+    holds profiles but no measurements.csv."""
+    proc = subprocess.Popen(HANDEYE + ["simulate", "--out", str(tmp_path / "d"), "--profiles", "--seed", "1"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    assert _profiles_started(tmp_path)
+    proc.send_signal(sig)
+    err = proc.stderr.read()
+    code, line = ENDINGS[sig]
+    rc = proc.wait(timeout=60)
+    assert (rc, err) == (code, line), (rc, err)
+    assert list(tmp_path.iterdir()) == []
+    done = handeye("simulate", "--out", tmp_path / "d", "--seed", "1")
+    assert done.returncode == 0 and (tmp_path / "d" / "measurements.csv").exists(), done.stderr
+
+
+def test_advice_without_a_sphere_centre_says_to_write_it_first(tmp_path):
+    """diagnose needs a known centre: where calibrate estimated it, its advice to run diagnose
+    says to write the estimate into setup.toml first, and diagnose's refusal names the option."""
+    import handeye
+
+    sim = handeye.simulate(tmp_path / "d", seed=5, effect="sensor_scale=0.003", profiles=True)
+    setup = sim.path / "setup.toml"
+    setup.write_text("\n".join(line for line in setup.read_text().splitlines() if not line.startswith("center")))
+    res = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True)
+    advice = [w for w in res.warnings if "handeye diagnose" in w]
+    assert advice and all("write the sphere centre estimated here into setup.toml" in w for w in advice)
+    with pytest.raises(handeye.InputError, match="--unknowns sensor\\+sphere"):
+        handeye.diagnose(sim.path)

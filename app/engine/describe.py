@@ -403,6 +403,16 @@ def _loo_description(local, n_used):
                      "models; loo_error_mm is its RMS over the samples used")}
 
 
+def _advice(warnings, centre_given):
+    """The warnings, with ``handeye diagnose`` advice made runnable when the setup gives no sphere
+    centre (diagnose tests effects against a known one): say to write the estimated one first."""
+    if centre_given:
+        return list(warnings)
+    first = "run `handeye diagnose "
+    return [w.replace(first, "write the sphere centre estimated here into setup.toml ([sphere] center), then "
+                             + first, 1) if first in w and "[sphere] center" not in w else w for w in warnings]
+
+
 def kuka_pose(sensor2flange):
     """KUKA pose (mm, deg) of a 4x4; NaN when it is not finite (a numerical failure)."""
     t = np.asarray(sensor2flange, float)
@@ -431,7 +441,7 @@ def result(prep, screened, verified, warnings):
     from handeye.app.present.results import CalibrationResult
 
     request, dataset, mask = prep.request, prep.dataset, screened.mask
-    warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
+    warnings = _advice([*prep.warnings, *screened.warnings, *warnings, *verified.warnings], prep.centre_given)
     base = _fit_record(prep, verified)
     start = prep.start_pose
     header = dict(
@@ -451,8 +461,10 @@ def result(prep, screened, verified, warnings):
     if request.effects:
         fitted, uncertainty, ident, named, unknowns = with_effects(dataset, mask, fit, request, warnings, base,
                                                                    centre_given=prep.centre_given)
+        warnings[:] = _advice(warnings, prep.centre_given)
         return CalibrationResult(**dict(header, model="centre", unknowns=unknowns), fit=fitted, uncertainty=uncertainty,
                                  identifiability=ident, catalogue=EffectsRecord(tests, named))
     stats, uncertainty, ident = describe_fit(dataset, mask, fit, request.loo, request.outliers, warnings, request.sigma)
+    warnings[:] = _advice(warnings, prep.centre_given)
     return CalibrationResult(**header, fit=dataclasses.replace(base, **stats), uncertainty=uncertainty,
                              identifiability=ident, catalogue=EffectsRecord(tests, None))
