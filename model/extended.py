@@ -181,6 +181,48 @@ class Samples:
         return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n_theta + sum(sizes),
                    bool(solved.converged), solved.message)
 
+    def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
+        """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
+
+        Parameters
+        ----------
+        structure : Structure
+        rows : ndarray of int
+            The samples fitted (evaluated on these alone: a subsample of a large dataset).
+        weights : ndarray, shape (len(rows),)
+        x0 : ndarray
+            Start point (local chart).
+        params0 : dict, optional
+            Start effect parameters (default zero).
+        max_iter : int
+
+        Returns
+        -------
+        x : ndarray
+        params : dict
+            Effect name -> parameters.
+        e : ndarray, shape (len(rows), 3)
+            Residuals of the samples ``rows`` at the fit.
+        """
+        keys = list(structure.data_effects)
+        params0 = {n: np.zeros(len(effects.get(n).PARAMS)) for n in keys} | (params0 or {})
+        chart, n_pt = self._chart(structure.centre), len(x0)
+        n = chart.n + sum(len(params0[k]) for k in keys)
+        sw = np.sqrt(np.repeat(np.asarray(weights, float), 3))
+
+        def split(z):
+            ends = np.cumsum([n_pt] + [len(params0[k]) for k in keys])
+            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
+
+        problem = solvers.Problem(
+            n=n,
+            retract=lambda z, d: np.concatenate([chart.retract(z[:n_pt], d[:chart.n]), z[n_pt:] + d[chart.n:]]),
+            residual=lambda z: sw * self.evaluate(structure, *split(z), rows)[0].ravel(),
+            jacobian=lambda z: sw[:, None] * self.evaluate(structure, *split(z), rows)[1].reshape(-1, n))
+        z0 = np.concatenate([x0] + [params0[k] for k in keys])
+        x, params = split(solvers.solve(problem, z0, "lm", {"max_iter": max_iter}).x)
+        return x, params, self.evaluate(structure, x, params, rows)[0]
+
     def _problem(self, structure, mask, split, sizes, chunk, big):
         """The solvers' Problem of :meth:`fit` (``sizes``: point, chart step and step lengths):
         on normal equations when ``big``."""

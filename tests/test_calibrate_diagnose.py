@@ -90,3 +90,36 @@ def test_diagnose_reports_the_pose_in_the_datasets_convention_and_saves(tmp_path
     assert all(v > 0 for v in saved["std"]["sensor_translation_mm"])
     text = handeye.diagnose("thesis-real").summary()
     assert "base_frame: not measurable here" in text and "1 sd: translation mm" in text
+
+
+def _shift_x(path, index, mm):
+    """Shift the flange x of measurement ``index`` by ``mm``: a planted gross error."""
+    lines = (path / "measurements.csv").read_text().splitlines()
+    cells = lines[index + 1].split(",")
+    cells[1] = repr(float(cells[1]) + mm)
+    lines[index + 1] = ",".join(cells)
+    (path / "measurements.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_screening_with_effects_keeps_clean_samples_and_excludes_a_gross_error(tmp_path, capsys):
+    """With --effects the outlier tests judge samples against the model with the effects: the
+    plain centre model lacks the scale, and screening on it excluded 3 of 36 clean samples."""
+    s = handeye.simulate(tmp_path / "my cell", seed=4, effect="sensor_scale=0.003")
+    r = handeye.calibrate(s.path, no_loo=True, effects="sensor_scale")
+    (scale,) = r.effects
+    assert r.n_used == 36 and not r.excluded
+    assert abs(scale.parameters["s"] - 0.003) < scale.std["s"]
+    assert cli.main(["calibrate", str(s.path), "--effects", "sensor_scale"]) == cli.EXIT_OK
+    capsys.readouterr()
+    _shift_x(s.path, 14, 5.0)
+    r = handeye.calibrate(s.path, no_loo=True, effects="sensor_scale")
+    assert r.n_used == 35 and [e.id for e in r.excluded] == [s.dataset.ids[14]]
+    assert abs(r.effects[0].parameters["s"] - 0.003) < 2 * r.effects[0].std["s"]
+    assert cli.main(["calibrate", str(s.path), "--effects", "sensor_scale"]) == cli.EXIT_OK
+
+
+def test_screening_without_effects_is_unchanged(tmp_path):
+    """The default path screens on the plain centre model, as before (the same 3 exclusions)."""
+    s = handeye.simulate(tmp_path / "my cell", seed=4, effect="sensor_scale=0.003")
+    r = handeye.calibrate(s.path, no_loo=True)
+    assert r.n_used == 33 and len(r.excluded) == 3

@@ -11,7 +11,9 @@ Stage map (each stage a function of its typed input record; nothing here prints)
                                                  setup and convention slips (slips.py,
                                                  detective.py: exit 2), gross errors and rows
                                                  that contradict their own profile excluded
-                                                 (robust.py), a taught centre the pose would
+                                                 (robust.py; with --effects judged on the
+                                                 centres corrected by a robust fit of the
+                                                 effects), a taught centre the pose would
                                                  absorb (exit 2)
       -> fit                      (fitting.py)   Verdict: the final fit from the start, judged on
                                                  the local chart; the closed form restarts a start
@@ -119,7 +121,9 @@ def screen(prep):
     before = Before(len(dataset), plain_rms, loo)
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
     if request.outliers:
-        screening = robust.screen(dataset, unknowns, transform_from_pose(prep.start_pose), alpha=request.alpha)
+        start = transform_from_pose(prep.start_pose)
+        screening = (robust.screen_with_effects(dataset, unknowns, start, request.effects, alpha=request.alpha)
+                     if request.effects else robust.screen(dataset, unknowns, start, alpha=request.alpha))
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
