@@ -105,11 +105,38 @@ def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
     return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
 
 
-def effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
-    """Score tests of the catalogue's effects at the fit; a warning naming diagnose for a
-    significant one (the test uses the fit's own scale, not the stated noise)."""
-    tests = extended.score_effects(dataset, mask, fit.sensor, fit.centre, unknowns, skip=effects)
-    significant = [t for t in tests if t.p_bonferroni < alpha]
+@dataclasses.dataclass(frozen=True)
+class FinalFit:
+    """What the final fit is described from (:func:`effect_tests`, :func:`describe_fit`,
+    :func:`with_effects`).
+
+    Attributes
+    ----------
+    dataset : handeye.model.dataset.Dataset
+    mask : ndarray of bool, shape (N,)
+        Samples used.
+    fit : handeye.app.engine.fitting.Verdict
+        The final fit.
+    request : handeye.app.engine.request.Request
+        Checked: the effects, unknowns, level, leave-one-out and outlier switches, stated noise
+        and convention.
+    warnings : list of str
+        Appended to.
+    """
+
+    dataset: object
+    mask: np.ndarray
+    fit: object
+    request: object
+    warnings: list
+
+
+def effect_tests(final):
+    """Score tests of the catalogue's effects at the fit ``final`` (a :class:`FinalFit`); a warning
+    naming diagnose for a significant one (the test uses the fit's own scale, not the stated noise)."""
+    dataset, fit, request, warnings = final.dataset, final.fit, final.request, final.warnings
+    tests = extended.score_effects(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, skip=request.effects)
+    significant = [t for t in tests if t.p_bonferroni < request.alpha]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
         warnings.append(f"the residuals show structure the model lacks: {names}; run `handeye diagnose "
@@ -118,61 +145,96 @@ def effect_tests(dataset, mask, fit, effects, unknowns, alpha, warnings):
     return tests
 
 
-def with_effects(dataset, mask, fit, request, warnings, base, centre_given=True):
+def with_effects(final, base, centre_given=True):
     """The final fit with catalogue effects (the extended model, :mod:`handeye.model.extended`).
 
-    ``request`` (checked) names the effects, the stated noise and the convention; ``base`` is
-    the :class:`~handeye.app.present.result_parts.FitRecord` of the fit without them.
-    Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of NamedEffect,
-    unknowns)`` of the fit with them; appends to ``warnings``."""
-    from handeye.app.present.results import NamedEffect
-
-    names, sigma = request.effects, request.sigma
+    ``final`` is the :class:`FinalFit` (its request names the effects, the stated noise and the
+    convention); ``base`` is the :class:`~handeye.app.present.result_parts.FitRecord` of the fit
+    without them. Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of
+    NamedEffect, unknowns)`` of the fit with them; appends to ``final.warnings``."""
+    dataset, mask, names = final.dataset, final.mask, final.request.effects
     prob = extended.Samples(dataset)
-    structure = extended.Structure(centre=fit.local.unknowns == "sensor+sphere", data_effects=names)
-    with np.errstate(all="ignore"):
-        efit = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
-    jac = efit.jac[mask].reshape(-1, efit.p)
-    on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
-    if not np.all(np.isfinite(efit.x)) or (on_plane and not np.all(np.isfinite(jac))):
-        raise CalibrationInputError(
-            f"{dataset.path / 'measurements.csv'}: --effects {','.join(names)} cannot be fitted on these data: the "
-            "effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
-    from handeye.model import effects as catalogue
-
+    structure = extended.Structure(centre=final.fit.local.unknowns == "sensor+sphere", data_effects=names)
+    efit, jac = _fit_with_effects(final, prob, structure)
     stuck = _not_a_minimum(dataset, mask, efit, names, prob.radius)
     if stuck is None:
         std, corr = efit.uncertainty(mask)
     else:  # the fit stopped against a bound, where the linearised sd means nothing
         std, corr = np.full(efit.p, np.nan), np.full((efit.p, efit.p), np.nan)
         jac = np.where(np.isfinite(jac), jac, 0.0)
+    named = _named_effects(final, efit, std, stuck, centre_given and structure.centre)
+    converged, message = _effects_verdict(final, efit, base, stuck)
+    ident = identifiability.analyse(jac, efit.names)
+    final.warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; "
+                          "no leave-one-out error (the effects are fitted to every sample used)")
+    sensor = prob.transform(efit.x)
+    fitted = dataclasses.replace(
+        base, sensor2flange=sensor, sphere_centre=np.asarray(prob.centre(structure, efit.x), float),
+        sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(final.request.convention, sensor),
+        converged=converged, message=message, **_effects_fit_fields(final, efit))
+    uncertainty = UncertaintyRecord(
+        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
+        sigma_mm=float(np.sqrt(efit.sigma2)), parameter_names=tuple(efit.names), correlation=corr,
+        covariance=corr * np.outer(std, std))
+    return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
+
+
+def _fit_with_effects(final, prob, structure):
+    """The extended fit ``structure`` of ``prob`` from the final fit, and its Jacobian of the used
+    samples; a CalibrationInputError when the effects cannot be fitted on these data."""
+    dataset, mask, fit = final.dataset, final.mask, final.fit
+    with np.errstate(all="ignore"):
+        efit = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
+    jac = efit.jac[mask].reshape(-1, efit.p)
+    on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
+    if not np.all(np.isfinite(efit.x)) or (on_plane and not np.all(np.isfinite(jac))):
+        raise CalibrationInputError(
+            f"{dataset.path / 'measurements.csv'}: --effects {','.join(final.request.effects)} cannot be fitted on these "
+            "data: the effect has no derivative where a measured centre lies on the laser plane (ys = 0)")
+    return efit, jac
+
+
+def _named_effects(final, efit, std, stuck, centre_named):
+    """The fitted effects as NamedEffect (with their 1 sd ``std``), the sphere centre's offset first
+    when ``centre_named``."""
+    from handeye.app.present.results import NamedEffect
+
+    dataset, mask, radius = final.dataset, final.mask, final.dataset.sphere_diameter / 2
     index = {n: k for k, n in enumerate(efit.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n), efit.params[n].tolist())),
                          {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n)},
-                         _effect_sd_note(dataset, mask, efit, n, prob.radius, stuck)) for n in names]
-    if structure.centre and centre_given:
+                         _effect_sd_note(dataset, mask, efit, n, radius, stuck)) for n in final.request.effects]
+    if centre_named:
         delta = efit.x[12:15] - dataset.sphere_centre
         named.insert(0, NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
                                     dict(zip(("dx", "dy", "dz"), std[6:9].tolist()))))
-    sensor, centre = prob.transform(efit.x), np.asarray(prob.centre(structure, efit.x), float)
-    circles = circles_shown(dataset, mask) if "sphere_radius" in names else None
-    implausible = [why for n in names if (why := catalogue.implausible(n, efit.params[n], prob.radius, circles))]
+    return named
+
+
+def _effects_verdict(final, efit, base, stuck):
+    """(converged, message) of the fit with effects: not converged when an effect is implausible
+    (appended to the warnings: an official-looking calibration it is not) or the fit did not converge."""
+    from handeye.model import effects as catalogue
+
+    names, radius = final.request.effects, final.dataset.sphere_diameter / 2
+    circles = circles_shown(final.dataset, final.mask) if "sphere_radius" in names else None
+    implausible = [why for n in names if (why := catalogue.implausible(n, efit.params[n], radius, circles))]
     if stuck is not None:
         implausible.append(stuck)
-    converged, message = base.converged, base.message
-    if implausible:  # an official-looking calibration it is not
-        converged, message = False, "; ".join(implausible)
-        warnings.extend(implausible)
-    elif not efit.converged:
-        converged, message = False, f"the fit with the effects did not converge: {efit.message}"
+    if implausible:
+        final.warnings.extend(implausible)
+        return False, "; ".join(implausible)
+    if not efit.converged:
+        return False, f"the fit with the effects did not converge: {efit.message}"
+    return base.converged, base.message
+
+
+def _effects_fit_fields(final, efit):
+    """The residual fields of the FitRecord of the fit with effects (its noise test appends to the warnings)."""
+    dataset, mask = final.dataset, final.mask
     norms = np.linalg.norm(efit.e, axis=1)
-    ident = identifiability.analyse(jac, efit.names)
-    warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; no "
-                    "leave-one-out error (the effects are fitted to every sample used)")
     rms = float(np.sqrt(np.mean(norms[mask] ** 2)))
-    fitted = dataclasses.replace(
-        base, sensor2flange=sensor, sphere_centre=centre, sensor_pose_kuka=pose_from_transform(sensor),
-        sensor_pose=conventions.pose_from(request.convention, sensor), converged=converged, message=message,
+    return dict(
         n_used=int(mask.sum()), rms_mm=rms, max_residual_mm=float(norms[mask].max()),
         cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
         residuals=ResidualTable(dataset.ids, dataset.rows, efit.e, norms, mask),
@@ -186,12 +248,7 @@ def with_effects(dataset, mask, fit, request, warnings, base, centre_given=True)
                    "rms": rms, "unit": "mm", "rms_unweighted_mm": rms,
                    "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
                    "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
-        noise_test=noise_test(efit.ssr, efit.m - efit.p, sigma, False, warnings, dataset))
-    uncertainty = UncertaintyRecord(
-        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        sigma_mm=float(np.sqrt(efit.sigma2)), parameter_names=tuple(efit.names), correlation=corr,
-        covariance=corr * np.outer(std, std))
-    return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
+        noise_test=noise_test(efit.ssr, efit.m - efit.p, final.request.sigma, False, final.warnings, dataset))
 
 
 #: The fit with effects is a minimum when every column of its Jacobian is orthogonal to the
@@ -290,10 +347,12 @@ def _effect_params(name):
     return catalogue.get(name).PARAMS
 
 
-def describe_fit(dataset, mask, fit, loo, outliers_on, warnings, sigma):
-    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit ``fit``
-    (a :class:`handeye.app.engine.fitting.Verdict`): ``(dict of FitRecord fields, UncertaintyRecord,
-    Identifiability)``; appends to ``warnings``."""
+def describe_fit(final):
+    """Residuals, uncertainty, identifiability and leave-one-out error of the final fit (``final``
+    a :class:`FinalFit`, its request's ``loo``, ``outliers`` and ``sigma``): ``(dict of FitRecord
+    fields, UncertaintyRecord, Identifiability)``; appends to ``final.warnings``."""
+    dataset, mask, fit, warnings = final.dataset, final.mask, final.fit, final.warnings
+    loo, outliers_on, sigma = final.request.loo, final.request.outliers, final.request.sigma
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
@@ -457,14 +516,14 @@ def result(prep, screened, verified, warnings):
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
                      for i, r, u in zip(dataset.ids, dataset.rows, mask)]
         return CalibrationResult(fit=dataclasses.replace(base, residuals=residuals, n_used=int(mask.sum())), **header)
-    tests = effect_tests(dataset, mask, fit, request.effects, request.unknowns, request.alpha, warnings)
+    final = FinalFit(dataset, mask, fit, request, warnings)
+    tests = effect_tests(final)
     if request.effects:
-        fitted, uncertainty, ident, named, unknowns = with_effects(dataset, mask, fit, request, warnings, base,
-                                                                   centre_given=prep.centre_given)
+        fitted, uncertainty, ident, named, unknowns = with_effects(final, base, centre_given=prep.centre_given)
         warnings[:] = _advice(warnings, prep.centre_given)
         return CalibrationResult(**dict(header, model="centre", unknowns=unknowns), fit=fitted, uncertainty=uncertainty,
                                  identifiability=ident, catalogue=EffectsRecord(tests, named))
-    stats, uncertainty, ident = describe_fit(dataset, mask, fit, request.loo, request.outliers, warnings, request.sigma)
+    stats, uncertainty, ident = describe_fit(final)
     warnings[:] = _advice(warnings, prep.centre_given)
     return CalibrationResult(**header, fit=dataclasses.replace(base, **stats), uncertainty=uncertainty,
                              identifiability=ident, catalogue=EffectsRecord(tests, None))

@@ -53,6 +53,40 @@ from handeye.model.statistics import deletion_statistics, f_survival, prediction
 ALPHA = robust.ALPHA
 
 
+@dataclasses.dataclass
+class Procedure:
+    """The state of one run of :func:`diagnose`, shared by its steps.
+
+    Attributes
+    ----------
+    prob : Samples
+        The samples and their model.
+    mask : ndarray of bool, shape (N,)
+        Samples fitted (changed in place by the outlier test).
+    alpha : float
+        Family-wise level of the tests.
+    screening : handeye.app.engine.robust.Screening
+    before : dict
+        :func:`_summaries` of the base model.
+    before_norms : ndarray, shape (N,)
+        The base model's residual norms.
+    absorbed, tested, steps, implausible
+        The record so far: effects absorbed by others (name -> who), the rounds of score tests,
+        the steps taken, why a candidate's fit was implausible.
+    """
+
+    prob: Samples
+    mask: np.ndarray
+    alpha: float
+    screening: robust.Screening
+    before: dict
+    before_norms: np.ndarray
+    absorbed: dict = dataclasses.field(default_factory=dict)
+    tested: list = dataclasses.field(default_factory=list)
+    steps: list = dataclasses.field(default_factory=list)
+    implausible: list = dataclasses.field(default_factory=list)
+
+
 def _summaries(prob, structure, fit, mask):
     e = fit.e[mask]
     return {
@@ -89,16 +123,16 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     structure = Structure()
     fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
     before = _summaries(prob, structure, fit, mask)
-    before_norms = np.linalg.norm(fit.e, axis=1)
-    steps = [{"step": "base model", **before}]
-    absorbed, tested, implausible = {}, [], []
+    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1))
+    run.steps.append({"step": "base model", **before})
     flips, outliers = [], []
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
-        structure, fit = _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible)
+        structure, fit = _search(run, structure, fit)
         previous = (mask.copy(), structure.flips)
         structure, fit, mask, flips, outliers = _final_outliers(prob, structure, fit, mask, alpha, allowed)
+        run.mask = mask
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
-            steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
+            run.steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
                           **_summaries(prob, structure, fit, mask)})
         structure, fit = _backward(prob, structure, fit, mask, alpha)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
@@ -111,18 +145,19 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         cols = candidate_columns(prob, with_centre, full, mask, effect.NAME)
         frac, who = gate(full.jac[mask].reshape(-1, full.p), cols, full.names)
         if frac < GATE:
-            absorbed[effect.NAME] = who
-    after = _summaries(prob, structure, fit, mask)
-    result = _report(prob, structure, fit, mask, before, after, before_norms, steps, absorbed, tested, flips,
-                     outliers, screening)
-    if implausible:
-        unexplained = "; ".join(dict.fromkeys(implausible)) + ". " + result.unexplained
+            run.absorbed[effect.NAME] = who
+    result = _report(run, structure, fit, flips, outliers)
+    if run.implausible:
+        unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
         result = dataclasses.replace(result, unexplained=unexplained)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
 
 
-def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausible):
-    """Steps 3-5: test every continuous candidate, confirm the best, repeat."""
+def _search(run, structure, fit):
+    """Steps 3-5: test every continuous candidate, confirm the best, repeat (``run`` the
+    :class:`Procedure`, its record extended)."""
+    prob, mask, alpha = run.prob, run.mask, run.alpha
+    absorbed, tested, steps, implausible = run.absorbed, run.tested, run.steps, run.implausible
     continuous = [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")]
     for _ in range(len(continuous)):
         jac_cur = fit.jac[mask].reshape(-1, fit.p)
@@ -157,7 +192,7 @@ def _search(prob, structure, fit, mask, alpha, absorbed, tested, steps, implausi
             if why is not None:
                 implausible.append(why)
                 continue
-            if _confirmed(prob, structure, fit, trial, new, mask, alpha):
+            if _confirmed(run, structure, fit, trial, new):
                 accepted = (name, trial, new)
                 break
         if accepted is None:
@@ -198,8 +233,10 @@ def _reduce(structure, name):
     return dataclasses.replace(structure, data_effects=tuple(e for e in structure.data_effects if e != name))
 
 
-def _confirmed(prob, base_structure, base, structure, new, mask, alpha):
-    """F test, Delta BIC and held-out error must agree that ``new`` improves on ``base``."""
+def _confirmed(run, base_structure, base, structure, new):
+    """F test, Delta BIC and held-out error must agree that ``new`` improves on ``base``
+    (``run`` the :class:`Procedure`)."""
+    prob, mask, alpha = run.prob, run.mask, run.alpha
     k = new.p - base.p
     if new.ssr >= base.ssr or new.m - new.p <= 0:
         return False
@@ -265,8 +302,10 @@ def _final_outliers(prob, structure, fit, mask, alpha, allowed=None):
     return structure, fit, mask, sorted(flips), outliers
 
 
-def _report(prob, structure, fit, mask, before, after, before_norms, steps, absorbed, tested, flips, outliers,
-            screening):
+def _report(run, structure, fit, flips, outliers):
+    """The :class:`DiagnosisResult` of the final ``structure`` and ``fit`` (``run`` the :class:`Procedure`)."""
+    prob, mask, before = run.prob, run.mask, run.before
+    after = _summaries(prob, structure, fit, mask)
     d = prob.d
     std, corr = fit.uncertainty(mask)
     index = {name: k for k, name in enumerate(fit.names)}
@@ -299,7 +338,7 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         dataset=d.name,
         effects=named,
         outliers=[d.ids[i] for i in outliers],
-        absorbed_by=absorbed,
+        absorbed_by=run.absorbed,
         rms_before_mm=before["rms_mm"],
         rms_after_mm=after["rms_mm"],
         heldout_rms_before_mm=before["heldout_rms_mm"],
@@ -313,11 +352,11 @@ def _report(prob, structure, fit, mask, before, after, before_norms, steps, abso
         sphere_centre=np.asarray(prob.centre(structure, fit.x), float),
         effect_correlations={"names": [fit.names[k] for k in all_cols],
                              "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
-        steps=[Step(**s) for s in steps],
-        tests=[[ScoreTest(**c) for c in round_] for round_ in tested],
+        steps=[Step(**s) for s in run.steps],
+        tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
-                   for i, b, a, u in zip(d.ids, before_norms, after_norms, mask)],
-        screened_out_first=[e.id for e in screening.excluded],
+                   for i, b, a, u in zip(d.ids, run.before_norms, after_norms, mask)],
+        screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=_unexplained(after, prob.sigma),
     )
 

@@ -24,6 +24,18 @@ import numpy as np
 from handeye import solvers
 from handeye.app.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.engine import loo
+from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers are robust's names too
+    LOO_GN_ITER,
+    LOO_GN_MAX_RATE,
+    LOO_RATE_SAFETY,
+    LOO_XTOL,
+    Information,
+    _deletion_chunk,
+    _deletion_steps,
+    _gauss_newton_rate,
+    _gauss_newton_refit,
+    _group_normal_equations,
+)
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
 from handeye.model import effects as catalogue
@@ -189,26 +201,39 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
         the unknowns.
     """
     from handeye.app.engine.request import min_measurements
-    from handeye.app.errors import CalibrationInputError
     from handeye.model import consistency
 
     check = consistency.check_rows(dataset)
-    bad = check.inconsistent
-    if not bad:
+    if not check.inconsistent:
         return mask, excluded
-    n, need = len(dataset), min_measurements(unknowns)
     keep = np.asarray(mask, bool) & check.consistent
-    if len(bad) > n // 2 or keep.sum() < need:
-        named = "; ".join(f"row {c.row} ({c.id!r}: {c.disagreement_mm:.3g} mm, {c.sd:.3g} sd)" for c in bad[:12])
-        raise CalibrationInputError(
-            f"{dataset.path / 'measurements.csv'}: {len(bad)} of the {len(check.checked)} rows that give both xs, ys, "
-            f"zs and a profile contradict themselves (the profile's circle is not the cut the centre columns predict): "
-            f"{named}{' ...' if len(bad) > 12 else ''}; "
-            + ("so many point to a systematic slip, not a bad row. " if len(bad) > n // 2 else "")
-            + (f"Only {int(keep.sum())} usable row(s) would remain; unknowns {unknowns!r} need {need}. "
-               if keep.sum() < need else "")
-            + "Check that each row's profile file is its own (a column shifted by one row?) and that the centres "
-              "come from the same scans; or leave xs, ys, zs empty to reconstruct the centres from the profiles")
+    if len(check.inconsistent) > len(dataset) // 2 or keep.sum() < min_measurements(unknowns):
+        raise _contradiction_error(dataset, check, keep, unknowns)
+    return keep, _contradiction_records(check.inconsistent, excluded)
+
+
+def _contradiction_error(dataset, check, keep, unknowns):
+    """The CalibrationInputError of :func:`exclude_inconsistent` when too many rows contradict
+    themselves (``check`` the consistency check, ``keep`` the rows that would remain)."""
+    from handeye.app.engine.request import min_measurements
+    from handeye.app.errors import CalibrationInputError
+
+    bad, n, need = check.inconsistent, len(dataset), min_measurements(unknowns)
+    named = "; ".join(f"row {c.row} ({c.id!r}: {c.disagreement_mm:.3g} mm, {c.sd:.3g} sd)" for c in bad[:12])
+    return CalibrationInputError(
+        f"{dataset.path / 'measurements.csv'}: {len(bad)} of the {len(check.checked)} rows that give both xs, ys, "
+        f"zs and a profile contradict themselves (the profile's circle is not the cut the centre columns predict): "
+        f"{named}{' ...' if len(bad) > 12 else ''}; "
+        + ("so many point to a systematic slip, not a bad row. " if len(bad) > n // 2 else "")
+        + (f"Only {int(keep.sum())} usable row(s) would remain; unknowns {unknowns!r} need {need}. "
+           if keep.sum() < need else "")
+        + "Check that each row's profile file is its own (a column shifted by one row?) and that the centres "
+          "come from the same scans; or leave xs, ys, zs empty to reconstruct the centres from the profiles")
+
+
+def _contradiction_records(bad, excluded):
+    """The records of the self-contradicting rows ``bad`` first (a row the screening excluded too
+    keeps its record, both reasons), then the other records of ``excluded``."""
     screened = {e.row: e for e in excluded}
     records = []
     for c in bad:
@@ -219,7 +244,7 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
         records.append(ExcludedSample(
             id=c.id, row=c.row, residual_mm=float("nan"), robust_residual_mm=float("nan"), statistic=c.sd**2,
             p_bonferroni=c.p_bonferroni, reason=c.reason))
-    return keep, records + [e for e in excluded if e.row in screened]
+    return records + [e for e in excluded if e.row in screened]
 
 
 def _deletion(model, x, fitted, chunk=None):
@@ -250,66 +275,93 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     -------
     Screening
     """
-    ids, rows = dataset.ids, dataset.rows
     full = CalibrationModel.from_dataset(dataset, "local", unknowns)
     n = full.n_meas
     min_keep = min(min_keep or max(n // 2 + 1, 4), n)
     x_rob, sigma, _ = robust_fit(full, full.point_from(start))
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
+    inliers, note = _robust_inliers(norms, sigma, alpha, min_keep)
+    x, stopped = _test_on_the_fit(full, x_rob, inliers, alpha, min_keep)
+    return Screening(
+        inliers=inliers,
+        excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
+        robust_sigma_mm=float(sigma),
+        robust_sensor2flange=full.sensor2flange(x_rob),
+        robust_centre=full.sphere_centre(x_rob),
+        note=note or stopped,
+    )
+
+
+def _robust_inliers(norms, sigma, alpha, min_keep):
+    """Step 2 of the module docstring: the samples whose robust residual ``norms`` (N,) is probable
+    at the robust scale ``sigma``, at least the ``min_keep`` best; (inliers, note)."""
+    n = len(norms)
     inliers = bonferroni_survival((norms / sigma) ** 2, n, 3) >= alpha
-    note = ""
-    if inliers.sum() < min_keep:
-        improbable = n - int(inliers.sum())
-        keep = np.argsort(norms)[:min_keep]
-        inliers = np.zeros(n, bool)
-        inliers[keep] = True
-        note = (f"the robust pass found {improbable} improbable sample(s), but at least {min_keep} of {n} must be "
-                f"kept; kept the {min_keep} best")
+    if inliers.sum() >= min_keep:
+        return inliers, ""
+    improbable = n - int(inliers.sum())
+    inliers = np.zeros(n, bool)
+    inliers[np.argsort(norms)[:min_keep]] = True
+    return inliers, (f"the robust pass found {improbable} improbable sample(s), but at least {min_keep} of {n} must be "
+                     f"kept; kept the {min_keep} best")
+
+
+def _test_on_the_fit(full, x, inliers, alpha, min_keep):
+    """Step 3 of the module docstring, from the robust fit ``x``: changes ``inliers`` in place until
+    no change is called for; (the last fit, a note: empty, or why it stopped early)."""
     seen = set()
-    x = x_rob
-    for _ in range(2 * n):
+    for _ in range(2 * full.n_meas):
         key = inliers.tobytes()
         if key in seen:
-            note = note or "the exclusion test cycled; stopped at a set seen before"
-            break
+            return x, "the exclusion test cycled; stopped at a set seen before"
         seen.add(key)
         x = weighted_fit(full, x, inliers.astype(float)) if _procrustes(full) else least_squares(_subset(full, inliers), x).x
         stat, adj, _ = _deletion(full, x, inliers)
-        fitted_bad = np.where(inliers & (adj < alpha))[0]
-        excluded_ok = np.where(~inliers & (adj >= alpha))[0]
-        if len(fitted_bad):
-            if inliers.sum() <= min_keep:
-                note = note or f"more samples test as outliers, but at least {min_keep} must be kept"
-                break
-            if n > LOO_EXACT_UP_TO:  # many samples: all significant ones at once (linear, not quadratic)
-                room = max(int(inliers.sum()) - min_keep, 0)
-                inliers[fitted_bad[np.argsort(-stat[fitted_bad])][:room]] = False
-            else:  # one at a time: a gross error can mask another
-                inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
-        elif len(excluded_ok):
-            if n > LOO_EXACT_UP_TO:
-                inliers[excluded_ok] = True
-            else:
-                inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
+        stop = _exclude_or_reinstate(inliers, stat, adj, alpha, min_keep)
+        if stop is not None:
+            return x, stop
+    return x, ""
+
+
+def _exclude_or_reinstate(inliers, stat, adj, alpha, min_keep):
+    """One change of ``inliers`` (in place) by the deletion statistics ``stat`` and adjusted p-values
+    ``adj``: exclude the worst significant fitted sample, else reinstate the most plausible excluded
+    one (above LOO_EXACT_UP_TO samples all of them at once); None after a change, else the note
+    (empty: no change called for)."""
+    fitted_bad = np.where(inliers & (adj < alpha))[0]
+    excluded_ok = np.where(~inliers & (adj >= alpha))[0]
+    many = len(inliers) > LOO_EXACT_UP_TO  # many samples: all significant ones at once (linear, not quadratic)
+    if len(fitted_bad):
+        if inliers.sum() <= min_keep:
+            return f"more samples test as outliers, but at least {min_keep} must be kept"
+        if many:
+            room = max(int(inliers.sum()) - min_keep, 0)
+            inliers[fitted_bad[np.argsort(-stat[fitted_bad])][:room]] = False
+        else:  # one at a time: a gross error can mask another
+            inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
+    elif len(excluded_ok):
+        if many:
+            inliers[excluded_ok] = True
         else:
-            break
+            inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
+    else:
+        return ""
+    return None
+
+
+def _screened_out(dataset, full, x, inliers, norms, alpha):
+    """The records of the samples not in ``inliers``, by the deletion test at the final fit ``x``
+    (``norms`` their robust residuals)."""
     stat, adj, e = _deletion(full, x, inliers)
     excluded = []
     for k in np.where(~inliers)[0]:
         excluded.append(ExcludedSample(
-            id=ids[k], row=int(rows[k]), residual_mm=float(np.linalg.norm(e[k])), robust_residual_mm=float(norms[k]),
-            statistic=float(stat[k]), p_bonferroni=float(adj[k]),
+            id=dataset.ids[k], row=int(dataset.rows[k]), residual_mm=float(np.linalg.norm(e[k])),
+            robust_residual_mm=float(norms[k]), statistic=float(stat[k]), p_bonferroni=float(adj[k]),
             reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
                     f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
         ))
-    return Screening(
-        inliers=inliers,
-        excluded=excluded,
-        robust_sigma_mm=float(sigma),
-        robust_sensor2flange=full.sensor2flange(x_rob),
-        robust_centre=full.sphere_centre(x_rob),
-        note=note,
-    )
+    return excluded
 
 
 def robust_effects(dataset, unknowns, start, effects, max_rounds=50):
@@ -419,75 +471,43 @@ def _prediction_error(predictor, x, i):
     return float(np.linalg.norm(pred[:3] - predictor.sphere_centre(x)))
 
 
-#: A leave-one-out refit is Gauss-Newton from the deletion-formula point. It stops when the
-#: distance left to the refit's minimum is below LOO_XTOL (1 + |x|) (mm and rad of the step):
-#: when a step is that small, or, Gauss-Newton converging linearly at the rate rho (below), when
-#: LOO_RATE_SAFETY rho / (1 - rho) times the step is. It falls back to :func:`least_squares`
-#: from the full fit when it has not stopped within LOO_GN_ITER steps or a step raised the cost.
-LOO_XTOL = 1e-9
-LOO_GN_ITER = 8
-LOO_RATE_SAFETY = 10.0
-#: At a rate this high (large residuals: a gross error among the samples) Gauss-Newton is not
-#: tried: the high-leverage refits above LOO_EXACT_UP_TO are :func:`least_squares` from the full
-#: fit, the batched refits up to it (:func:`handeye.app.engine.loo.refits`) keep the exact Hessian.
-LOO_GN_MAX_RATE = 0.5
+@dataclasses.dataclass(frozen=True)
+class DeletionStart:
+    """Where a leave-one-out refit starts (:func:`_refit_without`): the full fit moved by the
+    deletion formula.
+
+    Attributes
+    ----------
+    fitted : CalibrationModel
+        The model of the samples fitted at the full fit.
+    out : slice or ndarray
+        The left-out sample's rows of ``fitted``.
+    step : ndarray, shape (p,)
+        The deletion formula's step.
+    cost : float
+        The other samples' sum of squares at the full fit.
+    rho : float
+        Gauss-Newton's rate there (:func:`_gauss_newton_rate`); at or above
+        :data:`LOO_GN_MAX_RATE` (the default) Gauss-Newton is not tried.
+    """
+
+    fitted: CalibrationModel
+    out: object
+    step: np.ndarray
+    cost: float = np.inf
+    rho: float = np.inf
 
 
-def _gauss_newton_rate(fitted, x, info):
-    """Gauss-Newton's local rate of convergence at the fit ``x`` of the model ``fitted``: the
-    spectral radius of ``(J^T J)^-1 S``, ``S = sum_k r_k grad^2 r_k`` the part of the cost
-    Hessian Gauss-Newton leaves out (small residuals: rho << 1, each step gains digits; the
-    thesis's real data, 5.6 mm RMS: rho ~ 0.1). ``info`` is its ``J^T J``."""
-    try:
-        s = fitted.cost_hessian(x) - info
-        inv_l = np.linalg.inv(np.linalg.cholesky(info))
-        rho = float(np.max(np.abs(np.linalg.eigvalsh(inv_l @ s @ inv_l.T))))
-    except np.linalg.LinAlgError:
-        return np.inf
-    return rho if np.isfinite(rho) else np.inf
-
-
-def _gauss_newton_refit(fitted, out, z, cost=np.inf, rho=np.inf):
-    """Gauss-Newton on the model ``fitted`` without its rows ``out`` (one sample's), from ``z``
-    (next to the minimum); the point, or None when a step raises the sum of squares (the first
-    one above ``cost``, theirs at the full fit: then the deletion formula's linearisation does
-    not hold, and the caller's fallback decides) or it has not converged (see
-    :data:`LOO_XTOL`). The normal equations are the whole model's minus the sample's rows
-    (no copy of the other rows: the points model has thousands)."""
-    left = LOO_RATE_SAFETY * rho / (1.0 - rho) if rho < LOO_GN_MAX_RATE else np.inf  # distance left per step
-    for _ in range(LOO_GN_ITER):
-        r, j = fitted.residual_and_jacobian(z)
-        r, j = np.ascontiguousarray(r), np.ascontiguousarray(j)  # strided views make the products slow
-        r_out, j_out = r[out].reshape(-1), j[out].reshape(-1, fitted.n)
-        r, j = r.reshape(-1), j.reshape(-1, fitted.n)
-        # einsum for the long products: OpenBLAS threads them, slow on a busy machine (points model)
-        new_cost = float(np.einsum("i,i->", r, r) - r_out @ r_out)
-        if not np.isfinite(new_cost) or new_cost > cost * (1 + 1e-9) + 1e-300:
-            return None
-        cost = new_cost
-        try:
-            step = -np.linalg.solve(j.T @ j - j_out.T @ j_out, np.einsum("ij,i->j", j, r) - j_out.T @ r_out)
-        except np.linalg.LinAlgError:
-            return None
-        if not np.all(np.isfinite(step)):
-            return None
-        z = fitted.retract(z, step)
-        size, tol = np.linalg.norm(step), LOO_XTOL * (1.0 + np.linalg.norm(z))
-        if size <= tol or left * size <= tol:
-            return z
-    return None
-
-
-def _refit(model, x, keep, step=None, cost=np.inf, rho=np.inf, fitted=None, out=None):
-    """The fit of ``model`` on the samples in ``keep``, started at the full fit ``x`` moved by
-    the deletion formula's ``step`` (when given): Gauss-Newton on ``fitted`` (the model of the
-    samples fitted at ``x``) without its rows ``out``, or :func:`least_squares` from ``x`` when
-    that does not converge. ``cost``: the samples' sum of squares at ``x``; ``rho``:
-    Gauss-Newton's rate there (:func:`_gauss_newton_rate`)."""
-    if fitted is not None and step is not None and np.all(np.isfinite(step)) and not rho >= LOO_GN_MAX_RATE:
-        z = _gauss_newton_refit(fitted, out, fitted.retract(x, step), cost, rho)
+def _refit_without(model, x, mask, i, start=None):
+    """The fit of ``model`` on the samples in ``mask`` but sample ``i``, from the full fit ``x``:
+    Gauss-Newton from ``start`` (a :class:`DeletionStart`, when given), or :func:`least_squares`
+    from ``x`` when that does not converge."""
+    if start is not None and np.all(np.isfinite(start.step)) and not start.rho >= LOO_GN_MAX_RATE:
+        z = _gauss_newton_refit(start.fitted, start.out, start.fitted.retract(x, start.step), start.cost, start.rho)
         if z is not None:
             return z
+    keep = mask.copy()
+    keep[i] = False
     return least_squares(_subset(model, keep), x).x
 
 
@@ -503,47 +523,6 @@ def _sample_rows(fitted, used):
     return rows
 
 
-def _deletion_steps(model, x, mask):
-    """Deletion-formula steps ``(A - B_g)^-1 J_g^T r_g`` (G, p) of the samples in ``mask``,
-    their leverages (largest eigenvalue of ``A^-1 B_g``) and the sum of squares of the other
-    samples at ``x`` (G,), from one evaluation at ``x``."""
-    jtj, jtr, rtr = _group_normal_equations(model, x)
-    jtj, jtr, rtr = jtj[mask], jtr[mask], rtr[mask]
-    others = rtr.sum() - rtr
-    info = jtj.sum(axis=0)
-    try:
-        inv_l = np.linalg.inv(np.linalg.cholesky(info))
-    except np.linalg.LinAlgError:
-        nan = np.full(jtr.shape, np.nan)
-        return nan, np.full(len(jtr), np.nan), others, info
-    leverage = np.linalg.eigvalsh(inv_l @ jtj @ inv_l.T)[:, -1]
-    with np.errstate(all="ignore"):
-        try:
-            step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a sample alone determines a direction: refit from x
-            step = np.full(jtr.shape, np.nan)
-    return step, leverage, others, info
-
-
-def _deletion_chunk(info_l, info, total, e, jac, d, dj):
-    """The deletion formula on one chunk of samples (one row each): their steps (R, p),
-    leverages, the other samples' sums of squares and prediction errors |d + D step| (R,)."""
-    jtj = np.einsum("rkp,rkq->rpq", jac, jac)
-    jtr = np.einsum("rkp,rk->rp", jac, e)
-    if np.all(np.isfinite(info_l)):  # the eigenvalues of L^-1 B_g L^-T are those of the hat block M M^T, M = J_g L^-T
-        mm = (info_l @ jac.reshape(-1, jac.shape[-1]).T).T.reshape(jac.shape)
-        leverage = np.linalg.eigvalsh(mm @ np.swapaxes(mm, 1, 2))[:, -1]
-    else:
-        leverage = np.full(len(jtj), np.nan)
-    with np.errstate(all="ignore"):
-        try:
-            step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a sample alone determines a direction: refit from x
-            step = np.full(jtr.shape, np.nan)
-    errors = np.linalg.norm(d + np.einsum("gkp,gp->gk", dj, step), axis=1)
-    return step, leverage, total - np.einsum("rk,rk->r", e, e), errors
-
-
 def _deletion_errors(model, x, mask, predictor, chunk=None):
     """Leave-one-out errors (G,) of the samples in ``mask`` by the deletion formula
     (:func:`leave_one_out` above :data:`LOO_EXACT_UP_TO`; one row per sample), summed and
@@ -551,41 +530,22 @@ def _deletion_errors(model, x, mask, predictor, chunk=None):
     Samples of high leverage are refitted exactly."""
     info, _, total = model.normal_equations(x, mask.astype(float), chunk)
     try:
-        info_l = np.linalg.inv(np.linalg.cholesky(info))
+        normal = Information(info, np.linalg.inv(np.linalg.cholesky(info)), total)
     except np.linalg.LinAlgError:
-        info_l = np.full(info.shape, np.nan)
+        normal = Information(info, np.full(info.shape, np.nan), total)
     parts = []
     own = predictor.chunks(x, chunk) if predictor is not model else None
     for rows, e, jac in model.chunks(x, chunk):
         _, d, dj = (rows, e, jac) if own is None else next(own)
         keep = mask[rows]
-        parts.append(_deletion_chunk(info_l, info, total, e[keep], jac[keep], d[keep], dj[keep]))
+        parts.append(_deletion_chunk(normal, e[keep], jac[keep], d[keep], dj[keep]))
     step, leverage, others, errors = (np.concatenate(p) for p in zip(*parts))
     used, fitted = np.flatnonzero(mask), None
     for k in np.flatnonzero(~(leverage <= LOO_LEVERAGE) | ~np.isfinite(errors)):
-        keep = mask.copy()
-        keep[used[k]] = False
         fitted = _subset(model, mask) if fitted is None else fitted
-        z = _refit(model, x, keep, step[k], others[k], np.inf, fitted, slice(k, k + 1))
+        z = _refit_without(model, x, mask, used[k], DeletionStart(fitted, slice(k, k + 1), step[k], others[k]))
         errors[k] = _prediction_error(predictor, z, used[k])
     return errors
-
-
-def _group_normal_equations(model, x):
-    """Per sample: ``J_g^T J_g`` (G, p, p), ``J_g^T r_g`` (G, p) and ``r_g^T r_g`` (G,) of the
-    (whitened) rows."""
-    r, j = model.residual_and_jacobian(x)
-    jtj = np.einsum("rkp,rkq->rpq", j, j)
-    jtr = np.einsum("rkp,rk->rp", j, r)
-    rtr = np.einsum("rk,rk->r", r, r)
-    if model.groups is None:
-        return jtj, jtr, rtr
-    g = n_samples(model)
-    out_jtj, out_jtr, out_rtr = np.zeros((g, model.n, model.n)), np.zeros((g, model.n)), np.zeros(g)
-    np.add.at(out_jtj, model.groups, jtj)
-    np.add.at(out_jtr, model.groups, jtr)
-    np.add.at(out_rtr, model.groups, rtr)
-    return out_jtj, out_jtr, out_rtr
 
 
 def _exact_refits(model, x, mask, fitted, rows):
@@ -600,9 +560,7 @@ def _exact_refits(model, x, mask, fitted, rows):
     z, converged = loo.refits(fitted, x, rows, LOO_XTOL, LOO_RATE_SAFETY, rho if rho < LOO_GN_MAX_RATE else None)
     used = np.flatnonzero(mask)
     for k in np.flatnonzero(~converged):
-        keep = mask.copy()
-        keep[used[k]] = False
-        z[k] = least_squares(_subset(model, keep), x).x
+        z[k] = _refit_without(model, x, mask, used[k])
     return z
 
 
@@ -656,29 +614,26 @@ def leave_one_out(model, x, mask=None, predictor=None):
         raise ValueError(f"the predictor has {predictor.n_meas} samples, the model {n}")
     mask = np.ones(n, bool) if mask is None else np.asarray(mask, bool)
     out = np.full(n, np.nan)
-    used = np.where(mask)[0]
-    if not len(used):
-        return out
+    if mask.any():
+        out[mask] = _loo_errors(model, x, mask, predictor)
+    return out
+
+
+def _loo_errors(model, x, mask, predictor):
+    """:func:`leave_one_out`'s errors (G,) of the samples in ``mask`` (at least one): the exact
+    refits up to :data:`LOO_EXACT_UP_TO` samples, the deletion formula above."""
+    used = np.flatnonzero(mask)
     if len(used) > LOO_EXACT_UP_TO and model.groups is None:
-        out[used] = _deletion_errors(model, x, mask, predictor)
-        return out
+        return _deletion_errors(model, x, mask, predictor)
     fitted = model if mask.all() else _subset(model, mask)
     rows = _sample_rows(fitted, used)
     if len(used) <= LOO_EXACT_UP_TO:
         z = _exact_refits(model, x, mask, fitted, [rows[i] for i in used])
-        out[used] = [_prediction_error(predictor, z[k], i) for k, i in enumerate(used)]
-        return out
-    step, leverage, others, info = _deletion_steps(model, x, mask)
-
-    def refit_error(k):
-        i = used[k]
-        keep = mask.copy()
-        keep[i] = False
-        return _prediction_error(predictor, _refit(model, x, keep, step[k], others[k], np.inf, fitted, rows[i]), i)
-
+        return [_prediction_error(predictor, z[k], i) for k, i in enumerate(used)]
+    step, leverage, others, _ = _deletion_steps(model, x, mask)
     d, dj = predictor.residual_and_jacobian(x)
-    deleted = d[mask] + np.einsum("gkp,gp->gk", dj[mask], step)
-    out[mask] = np.linalg.norm(deleted, axis=1)
-    for k in np.where(~(leverage <= LOO_LEVERAGE) | ~np.isfinite(out[used]))[0]:
-        out[used[k]] = refit_error(k)
-    return out
+    errors = np.linalg.norm(d[mask] + np.einsum("gkp,gp->gk", dj[mask], step), axis=1)
+    for k in np.flatnonzero(~(leverage <= LOO_LEVERAGE) | ~np.isfinite(errors)):  # the row groups of points
+        z = _refit_without(model, x, mask, used[k], DeletionStart(fitted, rows[used[k]], step[k], others[k]))
+        errors[k] = _prediction_error(predictor, z, used[k])
+    return errors
