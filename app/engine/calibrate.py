@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import describe, guarantee, robust, slips
+from handeye.app.engine import describe, effect_screen, guarantee, robust, slips
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
     Prepared,
@@ -122,7 +122,7 @@ def screen(prep):
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
     if request.outliers:
         start = transform_from_pose(prep.start_pose)
-        screening = (robust.screen_with_effects(dataset, unknowns, start, request.effects, alpha=request.alpha)
+        screening = (effect_screen.screen_with_effects(dataset, unknowns, start, request.effects, alpha=request.alpha)
                      if request.effects else robust.screen(dataset, unknowns, start, alpha=request.alpha))
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []

@@ -38,9 +38,8 @@ from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers 
 )
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
-from handeye.model import effects as catalogue
-from handeye.model import extended, global_fit
-from handeye.model.calibration import ROW_CHUNK, CalibrationModel
+from handeye.model import global_fit
+from handeye.model.calibration import CalibrationModel
 from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
 
 CAUCHY_K = 2.385 * np.sqrt(3.0)
@@ -362,86 +361,6 @@ def _screened_out(dataset, full, x, inliers, norms, alpha):
                     f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
         ))
     return excluded
-
-
-def robust_effects(dataset, unknowns, start, effects, max_rounds=50):
-    """The effects' parameters from a robust fit of the extended model (the pose with ``effects``).
-
-    Cauchy IRLS as :func:`robust_fit`, started from the robust fit of the centre model (its
-    point and weights, so that a gross error cannot pull the first round), on at most
-    :data:`~handeye.model.calibration.ROW_CHUNK` evenly spread samples.
-
-    Parameters
-    ----------
-    dataset : handeye.model.dataset.Dataset
-    unknowns : {'sensor', 'sensor+sphere'}
-    start : ndarray, shape (4, 4)
-        Start sensor pose (sensor in flange, mm).
-    effects : sequence of str
-        Data effects of the catalogue (:mod:`handeye.model.effects`).
-    max_rounds : int
-
-    Returns
-    -------
-    dict
-        Effect name -> parameters.
-    """
-    rows = np.unique(np.linspace(0, len(dataset) - 1, min(len(dataset), ROW_CHUNK)).astype(int))
-    plain = CalibrationModel.from_dataset(dataset.subset(np.isin(np.arange(len(dataset)), rows)), "local", unknowns)
-    x, _, weights = robust_fit(plain, plain.point_from(start))
-    prob = extended.Samples(dataset)
-    structure = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(effects))
-    params, med3 = None, chi_median(3)
-    for _ in range(max_rounds):
-        with np.errstate(all="ignore"):
-            x, params, e = prob.weighted_fit(structure, rows, weights, x, params)
-        norms = np.linalg.norm(e, axis=1)
-        sigma = max(float(np.median(norms)) / med3, 1e-12)
-        new = 1.0 / (1.0 + (norms / (CAUCHY_K * sigma)) ** 2)
-        change, weights = np.max(np.abs(new - weights)), new
-        if not change >= 1e-6:  # converged (or non-finite: stop)
-            break
-    return params
-
-
-def corrected(dataset, params):
-    """The dataset with its measured centres corrected by the effects ``params`` (name ->
-    parameters, :func:`handeye.model.effects.correct`), or None where a correction is not finite."""
-    xs = dataset.centre_in_sensor
-    with np.errstate(all="ignore"):
-        for name, values in params.items():
-            xs = catalogue.correct(name, xs, dataset.sphere_diameter / 2, values)[0]
-    if not np.all(np.isfinite(xs)):
-        return None
-    out = dataclasses.replace(dataset, centre_in_sensor=xs)
-    if "_flange2base" in dataset.__dict__:  # computed already: the same poses
-        out.__dict__["_flange2base"] = dataset.__dict__["_flange2base"]
-    return out
-
-
-def screen_with_effects(dataset, unknowns, start, effects, alpha=ALPHA, min_keep=None):
-    """:func:`screen` against the model with the data effects ``effects``.
-
-    A sample is judged on its centre corrected by the effects of a robust preliminary fit
-    (:func:`robust_effects`): an effect the plain centre model lacks would otherwise make
-    clean samples look like gross errors. Without effects (or when the correction is not
-    finite) this is :func:`screen` of ``dataset``.
-
-    Parameters
-    ----------
-    dataset : handeye.model.dataset.Dataset
-    unknowns : {'sensor', 'sensor+sphere'}
-    start : ndarray, shape (4, 4)
-    effects : sequence of str
-    alpha : float
-    min_keep : int, optional
-
-    Returns
-    -------
-    Screening
-    """
-    fixed = corrected(dataset, robust_effects(dataset, unknowns, start, effects)) if effects else None
-    return screen(dataset if fixed is None else fixed, unknowns, start, alpha=alpha, min_keep=min_keep)
 
 
 #: Up to this many samples leave-one-out refits every sample exactly; above, the deletion formula
