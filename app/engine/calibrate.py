@@ -128,7 +128,7 @@ def screen(prep):
         warnings += [screening.note] if screening.note else []
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
     used = dataset.subset(mask)
-    if unknowns == "sensor":
+    if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
         slips.check_centre(used, request.sigma)  # a taught centre the pose would absorb: named (exit 2)
     return Screened(before, mask, list(excluded), used, tuple(warnings))
 
@@ -157,7 +157,7 @@ def verify(prep, screened, final, verdict, start_used):
     wrong basin, a fit that explains nothing, two groups of samples) or None
     (:mod:`handeye.app.engine.guarantee`)."""
     used, request = screened.used, prep.request
-    basin = guarantee.centre_basin(used, request.unknowns)
+    basin = prep.basin if used is prep.dataset else guarantee.centre_basin(used, request.unknowns)  # every sample kept: known
     exact = prep.kind == "centre" and request.unknowns == "sensor" and verdict.local is not None \
         and verdict.local.whiten is None
     best, note, check = guarantee.lowest(verdict, basin, final.from_minimum, exact_centre_model=exact)

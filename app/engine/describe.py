@@ -83,8 +83,18 @@ def command_argument(dataset):
     return shlex.quote(str(path))
 
 
-def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
-    """The fit against the stated noise (chi-square); a warning naming diagnose when it fails."""
+def diagnose_advice(dataset, centre_given=True):
+    """``run `handeye diagnose DATASET``` as a command to paste; where the setup gives no sphere
+    centre (diagnose tests effects against a known one), preceded by writing the estimated one."""
+    run = f"run `handeye diagnose {command_argument(dataset)}`"
+    if centre_given:
+        return run
+    return "write the sphere centre estimated here into setup.toml ([sphere] center), then " + run
+
+
+def noise_test(ssr, dof, sigma, whitened, warnings, advice):
+    """The fit against the stated noise (chi-square); a warning giving ``advice`` (the diagnose
+    command, :func:`diagnose_advice`) when it fails."""
     from handeye.app.present.results import NoiseTest
     from handeye.model.statistics import chi2_survival
 
@@ -100,13 +110,13 @@ def noise_test(ssr, dof, sigma, whitened, warnings, dataset):
         warnings.append(
             f"the residuals are larger than the stated noise: sd {ratio:.1f} x the stated {nominal} (chi2 = "
             f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
-            f"than [noise] in setup.toml says); run `handeye diagnose {command_argument(dataset)}` to find and name it, "
+            f"than [noise] in setup.toml says); {advice} to find and name it, "
             "then calibrate with the effect it names (--effects NAME)")
     return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
 
 
 @dataclasses.dataclass(frozen=True)
-class FinalFit:
+class Described:
     """What the final fit is described from (:func:`effect_tests`, :func:`describe_fit`,
     :func:`with_effects`).
 
@@ -122,6 +132,8 @@ class FinalFit:
         and convention.
     warnings : list of str
         Appended to.
+    centre_given : bool
+        The setup gave the sphere centre (else it was estimated: advice says to write it).
     """
 
     dataset: object
@@ -129,26 +141,27 @@ class FinalFit:
     fit: object
     request: object
     warnings: list
+    centre_given: bool = True
 
 
 def effect_tests(final):
-    """Score tests of the catalogue's effects at the fit ``final`` (a :class:`FinalFit`); a warning
+    """Score tests of the catalogue's effects at the fit ``final`` (a :class:`Described`); a warning
     naming diagnose for a significant one (the test uses the fit's own scale, not the stated noise)."""
     dataset, fit, request, warnings = final.dataset, final.fit, final.request, final.warnings
     tests = extended.score_effects(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, skip=request.effects)
     significant = [t for t in tests if t.p_bonferroni < request.alpha]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
-        warnings.append(f"the residuals show structure the model lacks: {names}; run `handeye diagnose "
-                        f"{command_argument(dataset)}` to confirm and name it, then `handeye calibrate "
+        warnings.append(f"the residuals show structure the model lacks: {names}; "
+                        f"{diagnose_advice(dataset, final.centre_given)} to confirm and name it, then `handeye calibrate "
                         f"{command_argument(dataset)} --effects {significant[0].name}`")
     return tests
 
 
-def with_effects(final, base, centre_given=True):
+def with_effects(final, base):
     """The final fit with catalogue effects (the extended model, :mod:`handeye.model.extended`).
 
-    ``final`` is the :class:`FinalFit` (its request names the effects, the stated noise and the
+    ``final`` is the :class:`Described` (its request names the effects, the stated noise and the
     convention); ``base`` is the :class:`~handeye.app.present.result_parts.FitRecord` of the fit
     without them. Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of
     NamedEffect, unknowns)`` of the fit with them; appends to ``final.warnings``."""
@@ -162,7 +175,7 @@ def with_effects(final, base, centre_given=True):
     else:  # the fit stopped against a bound, where the linearised sd means nothing
         std, corr = np.full(efit.p, np.nan), np.full((efit.p, efit.p), np.nan)
         jac = np.where(np.isfinite(jac), jac, 0.0)
-    named = _named_effects(final, efit, std, stuck, centre_given and structure.centre)
+    named = _named_effects(final, efit, std, stuck, final.centre_given and structure.centre)
     converged, message = _effects_verdict(final, efit, base, stuck)
     ident = identifiability.analyse(jac, efit.names)
     final.warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; "
@@ -248,7 +261,8 @@ def _effects_fit_fields(final, efit):
                    "rms": rms, "unit": "mm", "rms_unweighted_mm": rms,
                    "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
                    "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
-        noise_test=noise_test(efit.ssr, efit.m - efit.p, final.request.sigma, False, final.warnings, dataset))
+        noise_test=noise_test(efit.ssr, efit.m - efit.p, final.request.sigma, False, final.warnings,
+                              diagnose_advice(dataset, final.centre_given)))
 
 
 #: The fit with effects is a minimum when every column of its Jacobian is orthogonal to the
@@ -349,10 +363,11 @@ def _effect_params(name):
 
 def describe_fit(final):
     """Residuals, uncertainty, identifiability and leave-one-out error of the final fit (``final``
-    a :class:`FinalFit`, its request's ``loo``, ``outliers`` and ``sigma``): ``(dict of FitRecord
+    a :class:`Described`, its request's ``loo``, ``outliers`` and ``sigma``): ``(dict of FitRecord
     fields, UncertaintyRecord, Identifiability)``; appends to ``final.warnings``."""
     dataset, mask, fit, warnings = final.dataset, final.mask, final.fit, final.warnings
     loo, outliers_on, sigma = final.request.loo, final.request.outliers, final.request.sigma
+    advice = diagnose_advice(dataset, final.centre_given)
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
@@ -375,7 +390,7 @@ def describe_fit(final):
         rms_what=RMS_PER_CENTRE, objective=_objective(local, final), hessian_eigenvalues=fit.hess_eig,
         noise_model=_noise_model_text(local),
         noise_test=None if local.kind == "points" else noise_test(ssr, local.n_meas * local.m - local.n, sigma,
-                                                                   local.whiten is not None, warnings, dataset))
+                                                                   local.whiten is not None, warnings, advice))
     uncertainty = UncertaintyRecord(
         std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]), cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
         sigma_mm=cov.sigma if local.whiten is None else None, sigma_scale=cov.sigma if local.whiten is not None else None,
@@ -462,16 +477,6 @@ def _loo_description(local, n_used):
                      "models; loo_error_mm is its RMS over the samples used")}
 
 
-def _advice(warnings, centre_given):
-    """The warnings, with ``handeye diagnose`` advice made runnable when the setup gives no sphere
-    centre (diagnose tests effects against a known one): say to write the estimated one first."""
-    if centre_given:
-        return list(warnings)
-    first = "run `handeye diagnose "
-    return [w.replace(first, "write the sphere centre estimated here into setup.toml ([sphere] center), then "
-                             + first, 1) if first in w and "[sphere] center" not in w else w for w in warnings]
-
-
 def kuka_pose(sensor2flange):
     """KUKA pose (mm, deg) of a 4x4; NaN when it is not finite (a numerical failure)."""
     t = np.asarray(sensor2flange, float)
@@ -500,7 +505,7 @@ def result(prep, screened, verified, warnings):
     from handeye.app.present.results import CalibrationResult
 
     request, dataset, mask = prep.request, prep.dataset, screened.mask
-    warnings = _advice([*prep.warnings, *screened.warnings, *warnings, *verified.warnings], prep.centre_given)
+    warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
     base = _fit_record(prep, verified)
     start = prep.start_pose
     header = dict(
@@ -516,14 +521,12 @@ def result(prep, screened, verified, warnings):
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))
                      for i, r, u in zip(dataset.ids, dataset.rows, mask)]
         return CalibrationResult(fit=dataclasses.replace(base, residuals=residuals, n_used=int(mask.sum())), **header)
-    final = FinalFit(dataset, mask, fit, request, warnings)
+    final = Described(dataset, mask, fit, request, warnings, prep.centre_given)
     tests = effect_tests(final)
     if request.effects:
-        fitted, uncertainty, ident, named, unknowns = with_effects(final, base, centre_given=prep.centre_given)
-        warnings[:] = _advice(warnings, prep.centre_given)
+        fitted, uncertainty, ident, named, unknowns = with_effects(final, base)
         return CalibrationResult(**dict(header, model="centre", unknowns=unknowns), fit=fitted, uncertainty=uncertainty,
                                  identifiability=ident, catalogue=EffectsRecord(tests, named))
     stats, uncertainty, ident = describe_fit(final)
-    warnings[:] = _advice(warnings, prep.centre_given)
     return CalibrationResult(**header, fit=dataclasses.replace(base, **stats), uncertainty=uncertainty,
                              identifiability=ident, catalogue=EffectsRecord(tests, None))
