@@ -187,7 +187,7 @@ class CalibrationModel:
             Robot base, mm; default the dataset's (known value, or start value when free).
         """
         centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
-        return cls(dataset.flange2base(), dataset.centre_in_sensor, centre, rotation, unknowns)
+        return cls(dataset.motions(), dataset.centre_in_sensor, centre, rotation, unknowns)
 
     @classmethod
     def from_circles(cls, flange2base, circles, radius, sphere_centre, rotation="local", unknowns="sensor",

@@ -37,7 +37,8 @@ import tomllib
 
 import numpy as np
 
-from handeye.model import conventions
+from handeye.model import conventions, mount_setup
+from handeye.model.mounts import Mounts, motions
 from handeye.model.pose import transform_from_pose
 from handeye.model.tables import (  # noqa: F401  (read_pose_list, pose_list_text: public here too)
     GUESS_LIMITS,
@@ -72,6 +73,22 @@ class FlangePoses:
     @functools.cached_property
     def _flange2base(self):
         out = transform_from_pose(self.flange_poses)
+        out.setflags(write=False)
+        return out
+
+    def motions(self):
+        """The carrier motions ``M_i`` of the chain ``M_i X xs_i = c`` (:mod:`handeye.model.mounts`),
+        shape (N, 4, 4), mm: the flange poses for the seed's cell (the same array), their inverses
+        for a sensor fixed in the cell, the flange in the table frame for a sphere on a positioner
+        (nominal axes). Read-only; every calibration stage works on these."""
+        return self._motions
+
+    @functools.cached_property
+    def _motions(self):
+        mounts = getattr(self, "mounts", None)
+        if mounts is None or mounts.default:
+            return self.flange2base()
+        out = motions(self.flange2base(), mounts, getattr(self, "axis_angles", None))
         out.setflags(write=False)
         return out
 
@@ -120,6 +137,14 @@ class Dataset(FlangePoses):
     reconstructed : tuple of bool or None
         Per measurement: True when its centre was reconstructed from its profile (so
         ``side`` decided the sign of its y).
+    mounts : handeye.model.mounts.Mounts
+        Where the sensor and the sphere are mounted (``[sensor] mount``, ``[sphere] mount``,
+        ``[positioner] axes``); the default is the seed's cell. ``start_pose``, ``sensor_pose``
+        and ``sphere_centre`` are in their mounts' frames.
+    axis_angles : ndarray, shape (N, k), or None
+        Positioner axis angles, degrees (sphere on a positioner).
+    sensor_pose : ndarray, shape (6,), or None
+        ``[sensor] pose``: the sensor pose known (KUKA), for calibrations that do not estimate it.
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -146,6 +171,9 @@ class Dataset(FlangePoses):
     reconstructed: tuple | None = None
     profile_files: tuple = ()
     raw_poses: np.ndarray | None = None
+    mounts: Mounts = Mounts()
+    axis_angles: np.ndarray | None = None
+    sensor_pose: np.ndarray | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -161,11 +189,13 @@ class Dataset(FlangePoses):
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
+            axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
         )
-        if "_flange2base" in self.__dict__:  # computed already: its rows, not a million poses again
-            f2b = self._flange2base[mask]
-            f2b.setflags(write=False)
-            out.__dict__["_flange2base"] = f2b
+        for key in ("_flange2base", "_motions"):  # computed already: its rows, not a million poses again
+            if key in self.__dict__ and not (key == "_motions" and self.mounts.default):
+                rows = self.__dict__[key][mask]
+                rows.setflags(write=False)
+                out.__dict__[key] = rows
         return out
 
     def content_hash(self):
@@ -244,11 +274,12 @@ def toml_number(v):
 
 _ALLOWED = {
     "robot": {"convention"},
-    "sensor": {"start_pose"},
-    "sphere": {"diameter", "center", "base_pose", "center_in_plate"},
+    "sensor": {"start_pose", "mount", "pose"},
+    "sphere": {"diameter", "center", "base_pose", "center_in_plate", "mount"},
+    "positioner": {"axes"},
     "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
-    "truth": {"sensor_pose", "sphere_center"},
+    "truth": {"sensor_pose", "sphere_center", "axes"},
     "noise": {"centre_mm", "robot_mm"},
     "limits": {"position_mm", "sensor_mm"},
 }
@@ -304,6 +335,12 @@ def read_setup(path, require_sphere=True):
             check_angles(start, file, column_prefix="[sensor] start_pose ", limits=GUESS_LIMITS)
         else:
             start = to_kuka(start, convention, file, None, "[sensor] start_pose")
+    known = None
+    if "pose" in doc.get("sensor", {}):
+        known = _vector(doc["sensor"], "pose", len(conventions.columns(convention)), file, "sensor")
+        known = to_kuka(known, convention, file, None, "[sensor] pose") if convention != "kuka" else known
+        if convention == "kuka":
+            check_angles(known, file, column_prefix="[sensor] pose ", limits=GUESS_LIMITS)
     diam, centre, plate_pose, centre_in_plate = _read_sphere(doc, "sphere", file, convention, require_sphere)
     sphere2 = _read_sphere(doc, "sphere2", file, convention, True) if "sphere2" in doc else None
     side = doc.get("profile", {}).get("side", -1)
@@ -317,6 +354,8 @@ def read_setup(path, require_sphere=True):
         truth = {"sensor_pose": truth_pose}
         if "sphere_center" in doc["truth"]:
             truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
+        if "axes" in doc["truth"]:
+            truth["axes"] = mount_setup.read_axes(doc["truth"], file, LIMIT_RANGE_MM[1], "truth")
     noise = {}
     for key in ("centre_mm", "robot_mm"):
         if doc.get("noise", {}).get(key) is None:
@@ -339,7 +378,11 @@ def read_setup(path, require_sphere=True):
     for name, d in (("sphere", diam), ("sphere2", sphere2[0] if sphere2 else None)):
         if d is not None and not d <= 2 * limits["sensor_mm"]:
             raise DatasetError(file, f"{d:g} mm is not a sphere a laser-line sensor measures", column=f"[{name}] diameter")
-    return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), truth, convention, noise, sphere2)
+    mounts = mount_setup.read_mounts(doc, file, bound)
+    if known is not None and np.any(np.abs(known[:3]) > bound):
+        raise DatasetError(file, f"a position beyond +-{bound:g} mm: a unit or a misprint?", column="[sensor] pose")
+    return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), truth, convention, noise, sphere2,
+                      mounts, known)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -356,6 +399,8 @@ class _SetupFile:
     convention: str
     noise: dict
     sphere2: tuple | None  # (diameter, centre, plate_pose, centre_in_plate) of a second sphere
+    mounts: Mounts = Mounts()
+    sensor_pose: np.ndarray | None = None  # [sensor] pose: the sensor pose known, KUKA
 
 
 def _read_sphere(doc, section, file, convention, required):
@@ -434,12 +479,13 @@ def load_setup(name_or_path):
     return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention)
 
 
-def _read_rows(folder, file, convention, limits, diam, side):
+def _read_rows(folder, file, convention, limits, diam, side, axes=()):
     """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
-    lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw)``
-    as lists. Raises DatasetError naming file, row and column."""
+    lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw,
+    angles)`` as lists (``angles``: the positioner axis columns ``axes``, degrees). Raises
+    DatasetError naming file, row and column."""
     pose_columns = conventions.columns(convention)
-    required = ("id",) + pose_columns + ("xs", "ys", "zs")
+    required = ("id",) + pose_columns + ("xs", "ys", "zs") + tuple(axes)
     table = read_table(file)
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
@@ -455,6 +501,7 @@ def _read_rows(folder, file, convention, limits, diam, side):
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
     ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = [], [], [], [], [], [], [], []
+    angles = []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -479,13 +526,27 @@ def _read_rows(folder, file, convention, limits, diam, side):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:
             xs = _centre_from_profile(points, diam / 2, side, folder / profile)
+        angles.append([_axis_angle(fields[idx[a]], file, line, a) for a in axes])
         reconstructed.append(bool(profile) and not all(cells))
         profiles.append(points)
         ids.append(ident)
         rows.append(line)
         poses.append(pose)
         centres.append(xs)
-    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw
+    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles
+
+
+#: Largest positioner axis angle a row may hold (degrees): beyond it, radians or a misprint are not
+#: the question -- two turns is.
+AXIS_ANGLE_LIMIT_DEG = 720.0
+
+
+def _axis_angle(text, file, line, column):
+    value = number(text, file, line, column)
+    if abs(value) > AXIS_ANGLE_LIMIT_DEG:
+        raise DatasetError(file, f"{value:g} deg is beyond +-{AXIS_ANGLE_LIMIT_DEG:g} deg for a positioner axis", line,
+                           column)
+    return value
 
 
 def load(name_or_path):
@@ -500,12 +561,13 @@ def load(name_or_path):
     limits = noise.pop("limits")
     pose_columns = conventions.columns(convention)
     file = folder / "measurements.csv"
-    plain = read_plain_rows(file, pose_columns, convention, limits)  # a large plain file: column-wise
+    axes = st.mounts.axis_names
+    plain = read_plain_rows(file, pose_columns, convention, limits, axes)  # a large plain file: column-wise
     if plain is None:
-        ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = _read_rows(
-            folder, file, convention, limits, diam, side)
+        ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles = _read_rows(
+            folder, file, convention, limits, diam, side, axes)
     else:
-        ids, rows, poses, centres, raw = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw"))
+        ids, rows, poses, centres, raw, angles = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw", "extra"))
         profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
     if not ids:
         raise DatasetError(file, "no measurements", 2)
@@ -530,4 +592,7 @@ def load(name_or_path):
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
         noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),
+        mounts=st.mounts,
+        axis_angles=np.array(angles, float).reshape(len(ids), len(axes)) if axes else None,
+        sensor_pose=st.sensor_pose,
     )

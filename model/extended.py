@@ -92,7 +92,7 @@ class Samples:
     def __init__(self, dataset, sigma=None):
         self.d = dataset
         self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
-        self.f2b = dataset.flange2base()
+        self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
         self.n = len(dataset)
 

@@ -81,7 +81,7 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
         raise ObservationError(f"--model: unknown {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
     centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
     radius = dataset.sphere_diameter / 2
-    f2b = dataset.flange2base()
+    f2b = dataset.motions()
     if kind == "points":
         _require_profiles(dataset, kind)
         return CalibrationModel.from_profiles(f2b, list(dataset.profiles), radius, centre, rotation, unknowns)

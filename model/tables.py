@@ -285,7 +285,7 @@ def _points_careful(pfile, file, row, limit):
 PLAIN_ABOVE_BYTES = 1 << 20
 
 
-def read_plain_rows(file, pose_columns, convention, limits):
+def read_plain_rows(file, pose_columns, convention, limits, extra=()):
     """A large plain ``measurements.csv`` (header ``id`` + ``pose_columns`` + ``xs,ys,zs`` in
     any order, no profile column, no quotes or blank lines) read column-wise with numpy, every
     check of the row-by-row reader vectorised; None whenever anything is out of the ordinary
@@ -299,12 +299,14 @@ def read_plain_rows(file, pose_columns, convention, limits):
     convention : str
     limits : dict
         ``position_mm`` and ``sensor_mm`` of ``[limits]``.
+    extra : tuple of str
+        Further numeric columns (positioner axis angles, degrees; within +-720).
 
     Returns
     -------
     dict or None
         ``ids`` (tuple of str), ``rows`` (tuple of int, lines), ``poses`` (N, 6) KUKA (mm,
-        deg), ``raw`` (N, k) the poses as written, ``centres`` (N, 3) mm.
+        deg), ``raw`` (N, k) the poses as written, ``centres`` (N, 3) mm, ``extra`` (N, len(extra)).
     """
     try:
         if file.stat().st_size <= min(PLAIN_ABOVE_BYTES, MAX_FILE_BYTES) or file.stat().st_size > MAX_FILE_BYTES:
@@ -314,7 +316,7 @@ def read_plain_rows(file, pose_columns, convention, limits):
         return None
     lines = text.splitlines()
     header = [h.strip() for h in lines[0].split(",")] if lines else []
-    wanted = ("id", *pose_columns, "xs", "ys", "zs")
+    wanted = ("id", *pose_columns, "xs", "ys", "zs", *extra)
     if sorted(header) != sorted(wanted) or '"' in text or len(lines) < 2:
         return None
     commas = len(header) - 1
@@ -327,16 +329,18 @@ def read_plain_rows(file, pose_columns, convention, limits):
     except ValueError:
         return None
     k = len(pose_columns)
-    raw, centres = values[:, :k], values[:, k:]
+    raw, centres, more = values[:, :k], values[:, k:k + 3], values[:, k + 3:]
     at = col["id"]
     ids = tuple(line.split(",", at + 1)[at].strip() for line in lines[1:])
     ranges = READING_RANGES.get(convention)
     if (not np.all(np.isfinite(values)) or not all(ids) or len(set(ids)) != len(ids)
             or np.any(np.abs(raw[:, :3]) > limits["position_mm"]) or np.any(np.abs(centres) > limits["sensor_mm"])
+            or np.any(np.abs(more) > 720.0)
             or (ranges is not None and np.any(np.abs(raw[:, 3:6]) > np.asarray(ranges)))):
         return None
     try:
         poses = raw.copy() if convention == "kuka" else np.asarray(conventions.convert(raw, convention, "kuka"), float)
     except conventions.ConventionError:
         return None
-    return {"ids": ids, "rows": tuple(range(2, len(lines) + 1)), "poses": poses, "raw": raw, "centres": centres}
+    return {"ids": ids, "rows": tuple(range(2, len(lines) + 1)), "poses": poses, "raw": raw, "centres": centres,
+            "extra": more}

@@ -48,7 +48,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     convention = conventions.check(convention or dataset.convention)
     dataset, centre_note = with_sphere_centre(dataset, unknowns)
     slips.check(dataset, unknowns, slips.plain_rms(dataset, unknowns) or 0.0)
-    f2b_all, xs_all = dataset.flange2base(), dataset.centre_in_sensor
+    f2b_all, xs_all = dataset.motions(), dataset.centre_in_sensor
     known = None if unknowns == "sensor+sphere" else np.asarray(dataset.sphere_centre, float)
     mask, excluded = np.ones(len(xs_all), bool), []
     if outliers:

@@ -427,7 +427,7 @@ def _final_loo(dataset, mask, local, final, centre):
     if local.kind == "centre" and local.whiten is None and local.groups is None and local.rotation == "local":
         predictor = local  # its own centres: one evaluation per chunk, no second model of the samples
     else:
-        predictor = CalibrationModel(dataset.flange2base()[mask], dataset.centre_in_sensor[mask], centre, "local",
+        predictor = CalibrationModel(dataset.motions()[mask], dataset.centre_in_sensor[mask], centre, "local",
                                      local.unknowns)
     out = np.full(len(mask), np.nan)
     out[mask] = robust.leave_one_out(local, final, None, predictor)

@@ -174,9 +174,9 @@ def closed_form_pose(dataset, unknowns):
     and when the known centre leaves it undetermined)."""
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
-        t, _ = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, centre)
+        t, _ = closed_form_estimate(dataset.motions(), dataset.centre_in_sensor, centre)
     except ClosedFormError:
         if centre is not None:
             raise
-        t, _ = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, dataset.sphere_centre)
+        t, _ = closed_form_estimate(dataset.motions(), dataset.centre_in_sensor, dataset.sphere_centre)
     return pose_from_transform(t)

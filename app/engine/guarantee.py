@@ -93,7 +93,7 @@ def centre_basin(dataset, unknowns):
     or None when the data do not determine them (the caller's other checks name why)."""
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
-        return global_fit.centre_minima(dataset.flange2base(), dataset.centre_in_sensor, centre)
+        return global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, centre)
     except global_fit.GlobalFitError:
         return None
 
@@ -161,7 +161,7 @@ def lowest(fit, basin, solve, exact_centre_model=False):
 
 
 def _centre_rms(dataset, sensor2flange, centre):
-    cost = global_fit.centre_cost(dataset.flange2base(), dataset.centre_in_sensor, sensor2flange, centre)
+    cost = global_fit.centre_cost(dataset.motions(), dataset.centre_in_sensor, sensor2flange, centre)
     return float(np.sqrt(2 * cost / len(dataset)))
 
 
@@ -184,7 +184,7 @@ def motion_rms(dataset, sensor2flange=None):
     """The robot's own motion (mm): the RMS distance of the flange positions from their mean;
     where the flange stays put (below :data:`STILL_MM`: it only turns about one point), the
     sensor origins' at ``sensor2flange`` instead."""
-    f2b = dataset.flange2base()
+    f2b = dataset.motions()
     flange = f2b[:, :3, 3]
     motion = float(np.sqrt(np.mean(np.sum((flange - flange.mean(axis=0)) ** 2, axis=1))))
     if motion >= STILL_MM or sensor2flange is None:
@@ -246,7 +246,7 @@ def two_groups(dataset, mask, verdict, sigma):
     excluded = ~np.asarray(mask, bool)
     if verdict.local is None or excluded.sum() < 4:
         return None
-    f2b, p = dataset.flange2base(), dataset.centre_in_sensor
+    f2b, p = dataset.motions(), dataset.centre_in_sensor
     try:
         other = global_fit.centre_minima(f2b[excluded], p[excluded], verdict.centre).best
     except global_fit.GlobalFitError:

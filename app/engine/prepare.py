@@ -99,7 +99,7 @@ def with_sphere_centre(dataset, unknowns):
         raise CalibrationInputError(f"{setup}, column '[sphere] center': the setup gives no sphere centre (nor base_pose "
                                     "with center_in_plate): give it, or estimate it with --unknowns sensor+sphere")
     try:
-        _, centre = closed_form_estimate(dataset.flange2base(), dataset.centre_in_sensor, None)
+        _, centre = closed_form_estimate(dataset.motions(), dataset.centre_in_sensor, None)
     except ClosedFormError as exc:
         raise CalibrationInputError(f"{setup}: no sphere centre given, and the poses do not determine the closed-form "
                                     f"estimate of it: {exc}") from None

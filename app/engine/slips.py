@@ -106,7 +106,7 @@ def plain_rms(dataset, unknowns):
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
         with np.errstate(all="ignore"):
-            best = global_fit.centre_minima(dataset.flange2base(), dataset.centre_in_sensor, centre).best
+            best = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, centre).best
     except global_fit.GlobalFitError:
         return None
     rms = float(np.sqrt(2.0 * best.cost / len(dataset)))
@@ -300,8 +300,8 @@ def check_equator(dataset, unknowns="sensor"):
     flipped = p.copy()
     flipped[near, 1] = -flipped[near, 1]
     try:
-        given = global_fit.centre_minima(dataset.flange2base(), p, centre).best
-        other = global_fit.centre_minima(dataset.flange2base(), flipped, centre).best
+        given = global_fit.centre_minima(dataset.motions(), p, centre).best
+        other = global_fit.centre_minima(dataset.motions(), flipped, centre).best
     except global_fit.GlobalFitError:
         return
     dof = 3 * len(p) - (6 if centre is not None else 9)
@@ -350,7 +350,7 @@ def check_centre(dataset, sigma=None):
     sigma = dataset.noise_centre_mm if sigma is None else float(sigma)  # the stated noise (--sigma)
     if dataset.sphere_centre is None or 3 * n - 9 <= 3:
         return
-    f2b, p = dataset.flange2base(), dataset.centre_in_sensor
+    f2b, p = dataset.motions(), dataset.centre_in_sensor
     try:
         given = global_fit.centre_minima(f2b, p, dataset.sphere_centre).best
         if chi2_survival(2 * given.cost / sigma**2, 3 * n - 6) >= P_SUSPECT:

@@ -226,7 +226,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     if out is not None:
         files.check_output_path(out, "--out", list(data.profile_files))
     cal = _calibration(calibration, sensor_pose, convention, force, data.convention)
-    points, index = clouds.points_in_base(data.flange2base(), cal.sensor2flange, data.profiles)
+    points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None
     if cal.covariance is not None:
         sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)

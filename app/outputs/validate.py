@@ -391,7 +391,7 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
     if not scan.spheres:
         raise RequestError(f"{scan.path / 'setup.toml'}: validate needs the sphere: [sphere] diameter (and center to "
                            "compare the centre)")
-    f2b = scan.flange2base()
+    f2b = scan.motions()
     points, index = cloud.points_in_base(f2b, calib.sensor2flange, scan.profiles)
     xz = np.concatenate(scan.profiles, axis=0)
     which, reasons = assign(points, index, scan.spheres, scan.ids)
@@ -425,7 +425,7 @@ def validate_centres(data, calib, own=None):
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}: validation without profiles compares sphere centres: "
                            "[sphere] needs its center (or base_pose and center_in_plate)")
-    f2b = data.flange2base()
+    f2b = data.motions()
     x = calib.sensor2flange
     centre_h = np.c_[data.centre_in_sensor, np.ones(len(data))]
     q = np.einsum("nij,nj->ni", f2b @ x, centre_h)[:, :3]

@@ -199,7 +199,7 @@ def calibration_plot(res, dataset, path):
                 title=f"{res.dataset}: residuals ({res.method}, {res.rotation}, RMS {rms})")
     axes[0].legend()
     sensor = np.asarray(res.sensor2flange)
-    seen = (dataset.flange2base() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
+    seen = (dataset.motions() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
     d = seen[:, :3, 0] - np.asarray(res.sphere_centre)
     axes[1].scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="coolwarm", s=18, label="used (colour: dz)")
     axes[1].scatter(d[~used, 0], d[~used, 1], marker="x", color="C3", label="excluded")

@@ -80,7 +80,7 @@ def real_case():
     d = load("thesis-real")
     start = transform_from_pose(d.start_pose)
     s = robust.screen(d, "sensor", start)
-    return d.flange2base()[s.inliers], d.centre_in_sensor[s.inliers], d.sphere_centre, start
+    return d.motions()[s.inliers], d.centre_in_sensor[s.inliers], d.sphere_centre, start
 
 
 def _methods(f2b, xs, centre, start, n):
