@@ -125,17 +125,36 @@ def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
         raise RequestError(f"--method {method} is closed form; these options do not apply to it: {', '.join(ignored)}")
 
 
+def _held_sensor(calibration, data):
+    """The sensor pose (KUKA) of a saved calibration, checked against the dataset's sensor mount."""
+    if calibration is None:
+        return None
+    from handeye.app.outputs import saved
+    from handeye.model.pose import pose_from_transform
+
+    cal = saved.load(_path_argument(calibration))
+    mount = getattr(cal, "sensor_mount", "flange")
+    if mount != data.mounts.sensor:
+        raise RequestError(f"--calibration: {calibration} is of a sensor mounted on the {mount}, the dataset's sensor "
+                           f"is mounted on the {data.mounts.sensor} ([sensor] mount)")
+    return pose_from_transform(cal.sensor2flange)
+
+
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
-              out=None, sigma=None, robot_sigma=None, effects=None):
-    """Calibrate the sensor pose on the flange (``handeye calibrate``).
+              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None):
+    """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
     Parameters
     ----------
     dataset : str, pathlib.Path or Dataset
         Embedded name or folder (:func:`load_dataset`); default ``'thesis-real'``.
-    unknowns : {'sensor', 'sensor+sphere'}
-        The sensor pose (6 unknowns), or the sensor pose and the sphere centre in the base (9).
+    unknowns : str
+        The parts estimated, ``+``-joined: ``sensor`` (6 unknowns: the sensor frame in its mount's
+        frame), ``sphere`` (3: the centre in its mount's frame), ``positioner`` (4 per axis); for
+        example ``sensor``, ``sensor+sphere``, ``sphere+positioner``, ``sensor+sphere+positioner``
+        (:mod:`handeye.app.engine.cell_stage`). A part not estimated comes from ``setup.toml``
+        (``[sensor] pose``, ``[sphere] center``, ``[positioner] axes``) or ``calibration``.
     method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
         A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
         and ``lm`` above :data:`handeye.app.engine.request.LARGE` measurements (time and memory
@@ -176,6 +195,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         Catalogue effects to calibrate with the sensor pose: ``sensor_scale``,
         ``sphere_radius``, ``sphere_center`` (``'a,b'`` or a list); as ``handeye diagnose``
         names them.
+    calibration : str or pathlib.Path, optional
+        A saved calibration (``calibrate --out``) whose sensor pose is held when ``unknowns``
+        has no ``sensor`` (instead of ``[sensor] pose``).
 
     Returns
     -------
@@ -190,7 +212,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     from handeye.app.engine.calibrate import run
     from handeye.app.engine.classic import METHODS as CLOSED_FORM
     from handeye.app.engine.classic import calibrate_classic
-    from handeye.app.engine.request import METHODS, UNKNOWNS, CalibrationRequest
+    from handeye.app.engine.request import METHODS, UNKNOWNS, CalibrationRequest, unknown_parts
     from handeye.app.files import check_output_path, input_files, provenance
     from handeye.model import conventions
 
@@ -199,12 +221,15 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
                "start": start if start is None or isinstance(start, str) else np.ravel(start).tolist(),
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
-               "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects}
+               "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
+               "calibration": None if calibration is None else str(calibration)}
     if method is not None and method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
-    if unknowns not in UNKNOWNS:
-        raise RequestError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
+    unknowns = unknown_parts(unknowns)
+    if method in CLOSED_FORM and unknowns not in UNKNOWNS:
+        raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
     data = load_dataset(dataset)
+    held = _held_sensor(calibration, data)
     inputs = input_files(data) if out is not None or plot is not None else ()
     for path, option in ((out, "--out"), (plot, "--plot")):
         if path is not None:  # before the work (never half a result), and never over an input
@@ -228,7 +253,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         request = CalibrationRequest(
             unknowns=unknowns, method=method, rotation=rotation, start=start_kuka, options=solver_options,
             outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
-            robot_sigma=robot_sigma, effects=effects or ()).checked(data)
+            robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
         result = run(request, data)
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))

@@ -139,7 +139,12 @@ def build_parser():
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     cal = sub.add_parser("calibrate", help="calibrate the sensor pose on the flange from a dataset")
     cal.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder (default thesis-real)")
-    cal.add_argument("--unknowns", default="sensor", choices=list(UNKNOWNS))
+    cal.add_argument("--unknowns", default="sensor", metavar="PARTS",
+                     help="what to estimate, +-joined: sensor, sphere, positioner (default sensor; e.g. sensor+sphere, "
+                          "sphere+positioner, sensor+sphere+positioner); a part not estimated comes from setup.toml "
+                          "or --calibration")
+    cal.add_argument("--calibration", default=None, metavar="FILE",
+                     help="a saved calibration (calibrate --out) whose sensor pose is held when --unknowns has no sensor")
     cal.add_argument("--method", default=None, choices=list(METHODS) + list(CLASSIC_METHODS),
                      help="solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form "
                           "baseline: kim-cho (AX = XB, linear) or li-two-step (pure translations, then rotations; see "
@@ -356,7 +361,8 @@ def _calibrate(args):
     result = api.calibrate(args.dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation,
                            start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
                            keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
-                           out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects)
+                           out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects,
+                           calibration=args.calibration)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 

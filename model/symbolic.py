@@ -318,3 +318,65 @@ def test_function():
         "r": r,
         "rjac": r.jacobian(x),
     }
+
+
+def _axis_rotation(direction, angle):
+    """Rodrigues' rotation by ``angle`` (radians) about the unit ``direction`` (symbolic)."""
+    w = skew(direction)
+    return sp.cos(angle) * sp.eye(3) + sp.sin(angle) * w + (1 - sp.cos(angle)) * direction * direction.T
+
+
+@functools.lru_cache(maxsize=None)
+def cell_residual(n_axes):
+    """Residual of the whole cell ``M_i X xs_i - P(th_i) c`` with positioner axes, and its Jacobian.
+
+    The chain of :mod:`handeye.model.mounts` with the positioner's axes as unknowns (product of
+    exponentials): ``P(th) = A_1(th_1) ... A_k(th_k)``, ``A_j(th) x = R(d_j, th)(x - p_j) + p_j``.
+    Every unknown is a local chart around a reference, evaluated at zero:
+
+    * sensor ``X = (Xref_R exp([dr]x), Xref_t + dt)``: ``dt`` mm, ``dr`` rad (6);
+    * sphere centre ``c`` in the table (or mount) frame, mm (3);
+    * axis j: direction ``d_j = (d0_j + a_j e1_j + b_j e2_j) / |.|`` (``a, b`` rad: tilts about two
+      directions normal to ``d0_j``) and point ``p_j = p0_j + u_j e1_j + v_j e2_j`` (mm: moves
+      normal to the axis; a move along it changes no rotation and is no parameter) (4 each).
+
+    Parameters
+    ----------
+    n_axes : int
+        Positioner axes (0: no positioner, ``P = I``).
+
+    Returns
+    -------
+    dict
+        ``theta`` (6 + 3 + 4 k), ``extra`` (``Xref`` R row-major (9), t (3), then per axis p0, d0,
+        e1, e2 (12)), ``data`` (``M`` R row-major (9), t (3), ``xs`` (3), angles (k, degrees)),
+        ``e`` (3,), ``jac`` (3, n) at theta = 0.
+    """
+    dt = sp.Matrix(sp.symbols("dtx dty dtz", real=True))
+    dr = sp.Matrix(sp.symbols("drx dry drz", real=True))
+    c = sp.Matrix(sp.symbols("cx cy cz", real=True))
+    xr = sp.symbols("xr_0:9", real=True)
+    xt = sp.Matrix(sp.symbols("xt_0:3", real=True))
+    m_r = sp.symbols("m_0:9", real=True)
+    m_t = sp.Matrix(sp.symbols("mt_0:3", real=True))
+    xs = sp.Matrix(sp.symbols("xs ys zs", real=True))
+    w = skew(dr)
+    sensor_point = sp.Matrix(3, 3, xr) * (sp.eye(3) + w + w * w / 2) * xs + xt + dt
+    theta, extra, angles = list(dt) + list(dr) + list(c), list(xr) + list(xt), []
+    point = c
+    for j in reversed(range(n_axes)):  # A_1(A_2(c)): the last axis acts first
+        a, b, u, v = sp.symbols(f"a{j} b{j} u{j} v{j}", real=True)
+        p0, d0, e1, e2 = (sp.Matrix(sp.symbols(f"{k}{j}_0:3", real=True)) for k in ("p0_", "d0_", "e1_", "e2_"))
+        th = sp.Symbol(f"th{j}", real=True)
+        d = d0 + a * e1 + b * e2
+        d = d / sp.sqrt(d.dot(d))
+        p = p0 + u * e1 + v * e2
+        point = _axis_rotation(d, th * sp.pi / 180) * (point - p) + p
+        theta[9 + 4 * j:9 + 4 * j] = [a, b, u, v]
+        extra[12 + 12 * j:12 + 12 * j] = list(p0) + list(d0) + list(e1) + list(e2)
+        angles.insert(0, th)
+    e = sp.Matrix(3, 3, m_r) * sensor_point + m_t - point
+    jac = e.jacobian(theta)
+    at0 = {s: 0 for s in list(dt) + list(dr) + [s for s in theta[9:]]}
+    return {"theta": tuple(theta), "extra": tuple(extra), "data": tuple(m_r) + tuple(m_t) + tuple(xs) + tuple(angles),
+            "e": e.subs(at0), "jac": jac.subs(at0)}

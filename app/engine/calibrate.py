@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import describe, effect_screen, guarantee, robust, slips
+from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, robust, slips
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
     Prepared,
@@ -190,6 +190,13 @@ def run(request, dataset):
     if request.resolved is None:
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
+    if request.cell:
+        return cell_stage.extend(request, dataset, _stages)
+    return _stages(request, dataset)
+
+
+def _stages(request, dataset):
+    """prepare -> screen -> fit -> verify -> describe on the request's (conditional) unknowns."""
     prep = prepare(request, dataset)
     screened = screen(prep)
     final, verdict, start_used, warnings = fit(prep, screened)

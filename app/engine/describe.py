@@ -500,6 +500,15 @@ def _fit_record(prep, verified):
         solver_extra={k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")})
 
 
+def _nominal_positioner(dataset):
+    """The positioner's axes as set up (held: the stages work at these axes), or None."""
+    if dataset.mounts.sphere != "positioner":
+        return None
+    from handeye.app.engine.cell_stage import PositionerRecord
+
+    return PositionerRecord(dataset.mounts.axes, dataset.mounts.axes)
+
+
 def result(prep, screened, verified, warnings):
     """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.engine.calibrate`)."""
     from handeye.app.present.results import CalibrationResult
@@ -515,7 +524,8 @@ def result(prep, screened, verified, warnings):
         start_pose=conventions.convert(start, "kuka", request.convention) if request.convention != "kuka" else start,
         start_pose_kuka=start, start_used=verified.start_used, convention=request.convention,
         columns=conventions.columns(request.convention), global_check=verified.global_check,
-        screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings)
+        screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings,
+        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=_nominal_positioner(dataset))
     fit = verified.fit
     if fit.local is None:  # numerical failure: nothing to describe, but the same complete type
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))

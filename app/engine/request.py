@@ -48,10 +48,44 @@ def fingerprint(dataset):
     return f"{dataset.path} ({len(dataset)} measurements)"
 
 
-def min_measurements(unknowns):
-    """Fewest measurements with more equations (3 each) than unknowns (6 or 9)."""
-    n = 6 if unknowns == "sensor" else 9
+def min_measurements(unknowns, n_axes=2):
+    """Fewest measurements with more equations (3 each) than unknowns (sensor 6, sphere 3,
+    positioner 4 per axis)."""
+    parts = unknowns.split("+")
+    n = 6 * ("sensor" in parts) + 3 * ("sphere" in parts) + 4 * n_axes * ("positioner" in parts)
     return n // 3 + 1
+
+
+#: The parts ``--unknowns`` may join with ``+``, in their canonical order.
+PARTS = ("sensor", "sphere", "positioner")
+
+
+def unknown_parts(text):
+    """``--unknowns`` as its canonical ``+``-joined parts (``'sphere+sensor'`` -> ``'sensor+sphere'``)."""
+    names = [p.strip() for p in str(text).split("+")]
+    bad = [p for p in names if p not in PARTS]
+    if bad or not names or len(set(names)) != len(names):
+        raise CalibrationInputError(f"--unknowns: {text!r} is not a +-joined set of {', '.join(PARTS)} "
+                                    "(for example sensor+sphere, sphere+positioner, sensor+sphere+positioner)")
+    return "+".join(p for p in PARTS if p in names)
+
+
+def _conditional(parts, dataset, sensor_pose, effects):
+    """The unknowns of the conditional stages for ``parts`` (checked against the dataset's cell)."""
+    if parts in UNKNOWNS:
+        return parts
+    setup = dataset.path / "setup.toml"
+    if "positioner" in parts and dataset.mounts.sphere != "positioner":
+        raise CalibrationInputError(f"--unknowns {parts}: {setup} has no positioner ([sphere] mount = "
+                                    "\"positioner\" with [positioner] axes)")
+    if "sensor" not in parts and sensor_pose is None and dataset.sensor_pose is None:
+        raise CalibrationInputError(f"--unknowns {parts} holds the sensor: give its pose as [sensor] pose in {setup} "
+                                    "or --calibration FILE (an earlier calibrate --out)")
+    if "sphere" not in parts and dataset.sphere_centre is None:
+        raise CalibrationInputError(f"--unknowns {parts} holds the sphere: give [sphere] center in {setup}")
+    if effects:
+        raise CalibrationInputError(f"--effects works with --unknowns sensor or sensor+sphere, not {parts}")
+    return "sensor+sphere" if "sphere" in parts or "sensor" not in parts else "sensor"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,7 +140,9 @@ class CalibrationRequest:
     sigma: float | None = None
     effects: tuple = ()
     notes: tuple = ()
+    sensor_pose: object = None
     resolved: str | None = dataclasses.field(default=None, init=False)
+    parts: str | None = dataclasses.field(default=None, init=False)
 
     @property
     def solver_options(self):
@@ -133,8 +169,12 @@ class CalibrationRequest:
             return self  # checked once; the stages never check again
         method, note = _method(self.method, self.rotation, len(dataset))
         rotation = _rotation(method, self.rotation)
-        effects, unknowns, model = _effects(self.effects, self.unknowns, self.model)
-        enough(dataset, unknowns)
+        parts = unknown_parts(self.unknowns)
+        unknowns = _conditional(parts, dataset, self.sensor_pose, self.effects)
+        effects, unknowns, model = _effects(self.effects, unknowns, self.model)
+        if parts in UNKNOWNS:
+            parts = unknowns  # --effects sphere_center frees the centre
+        enough(dataset, parts)
         start = None if self.start is None else np.asarray(self.start, float).copy()
         checked = dataclasses.replace(
             self, method=method, rotation=rotation, effects=effects, unknowns=unknowns, model=model, start=start,
@@ -144,7 +184,13 @@ class CalibrationRequest:
             robot_sigma=dataset.noise_robot_mm if self.robot_sigma is None else float(self.robot_sigma),
             notes=(note,) if note else ())
         object.__setattr__(checked, "resolved", fingerprint(dataset))
+        object.__setattr__(checked, "parts", parts)
         return checked
+
+    @property
+    def cell(self):
+        """Whether the parts need the cell stage (:mod:`handeye.app.engine.cell_stage`)."""
+        return self.parts is not None and self.parts != self.unknowns
 
 
 def _method(method, rotation, n):
@@ -192,7 +238,7 @@ def _effects(effects, unknowns, model):
 
 def enough(dataset, unknowns):
     """Raise CalibrationInputError when ``dataset`` has too few measurements for ``unknowns``."""
-    need = min_measurements(unknowns)
+    need = min_measurements(unknowns, len(dataset.mounts.axes))
     if len(dataset) < need:
         raise CalibrationInputError(
             f"{dataset.path / 'measurements.csv'}: {len(dataset)} measurement(s); unknowns {unknowns!r} "

@@ -94,6 +94,37 @@ def residual_lines(residuals, limit=REPORT_ROWS):
     return lines + [_residual_line(residuals[int(k)]) for k in worst]
 
 
+#: The frame each mount's pose and centre are given in, as the report names it.
+_MOUNT_FRAME = {"flange": "flange", "world": "base", "positioner": "table"}
+_CELL_WORDS = {("flange", "world"): "the sensor on the flange and the sphere fixed in the robot's base frame",
+               ("world", "flange"): "the sensor fixed in the robot's base frame and the sphere carried on the flange",
+               ("flange", "positioner"): "the sensor on the flange and the sphere on the positioner's table"}
+
+
+def cell_lines(res):
+    """The sensor's 4x4 and the sphere centre in their mounts' frames, the positioner's axes, and in
+    words what was calibrated (the seed's cell: the lines of earlier versions, unchanged)."""
+    sensor_mount, sphere_mount = getattr(res, "sensor_mount", "flange"), getattr(res, "sphere_mount", "world")
+    lines = [f"sensor2{_MOUNT_FRAME[sensor_mount]} (4x4):"]
+    lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
+    where = "base" if sphere_mount == "world" else f"{_MOUNT_FRAME[sphere_mount]}"
+    lines.append(f"sphere centre in {where} (mm): " + _fmt(res.sphere_centre, 12, 4))
+    positioner = getattr(res, "positioner", None)
+    if (sensor_mount, sphere_mount) == ("flange", "world") and positioner is None:
+        return lines
+    parts = res.unknowns.split("+")
+    lines.append(f"cell: {_CELL_WORDS[(sensor_mount, sphere_mount)]}; estimated: {', '.join(parts)}"
+                 + ("; held: " + ", ".join(p for p in ("sensor", "sphere", "positioner") if p not in parts
+                                           and (p != "positioner" or positioner is not None))
+                    if len(parts) < 2 + (positioner is not None) else ""))
+    for j, axis in enumerate(positioner.axes if positioner is not None else ()):
+        sd = "" if positioner.point_sd is None else (
+            f"  (1 sd: point {_fmt(positioner.point_sd[j], 7, 3).strip()} mm, tilt {positioner.tilt_sd_deg[j]:.4f} deg)")
+        lines.append(f"positioner axis {axis.name} ({'calibrated' if positioner.calibrated else 'as set up'}): point "
+                     + _fmt(axis.point, 11, 4).strip() + " mm, direction " + _fmt(axis.direction, 10, 7).strip() + sd)
+    return lines
+
+
 def calibration_text(res):
     """A readable report of a :class:`handeye.app.present.results.CalibrationResult`."""
     if res.closed_form is not None:
@@ -113,9 +144,7 @@ def calibration_text(res):
         lines += [f"start pose   ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.start_pose, 10, 6),
                   f"sensor pose  ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.sensor_pose, 10, 6),
                   "sensor pose  (as KUKA x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka)]
-    lines.append("sensor2flange (4x4):")
-    lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
-    lines.append("sphere centre in base (mm): " + _fmt(res.sphere_centre, 12, 4))
+    lines += cell_lines(res)
     lines.append(f"start: {res.start_used}")
     if res.rms_mm is None:  # no finite solution: nothing more to describe
         lines += ["", "no residuals, uncertainty or identifiability: the solve ended without a finite solution"]

@@ -314,7 +314,13 @@ class CalibrationResult(ResultProtocol):
     Attributes
     ----------
     sensor2flange : ndarray, shape (4, 4)
-        Sensor frame in the flange frame (mm). JSON key ``sensor_matrix``.
+        Sensor frame in its mount's frame (mm): the flange, or the robot base for a sensor fixed in
+        the cell (``sensor_mount``). JSON key ``sensor_matrix``.
+    sensor_mount, sphere_mount : str
+        ``flange`` or ``world``; ``world``, ``flange`` or ``positioner`` (:mod:`handeye.model.mounts`).
+    positioner : handeye.app.engine.cell_stage.PositionerRecord or None
+        The positioner's axes (calibrated with ``positioner`` in ``unknowns``, else as set up) and
+        their 1-sd. JSON key ``positioner``: a list of axes.
     sensor_pose : ndarray
         The same pose in ``convention`` (``x, y, z`` mm, then its orientation columns).
     sensor_pose_kuka : ndarray, shape (6,)
@@ -323,8 +329,9 @@ class CalibrationResult(ResultProtocol):
         Robot convention of ``sensor_pose`` (the dataset's unless asked otherwise) and its
         column names.
     sphere_centre : ndarray, shape (3,)
-        Sphere centre in the robot base, mm (given, or estimated with
-        ``unknowns='sensor+sphere'``). JSON key ``sphere_center``.
+        Sphere centre in its mount's frame, mm: the robot base, the flange, or the positioner's
+        table at zero axis angles (given, or estimated with ``sphere`` in ``unknowns``). JSON key
+        ``sphere_center``, with ``sphere_center_sd``.
     converged : bool
         The method met its convergence test at a minimum (not a saddle, not only stationary
         in a singular Euler chart). The CLI exits 1 when False.
@@ -405,6 +412,9 @@ class CalibrationResult(ResultProtocol):
     start_used: str | None = None
     closed_form: ClosedFormDetails | None = None
     provenance: dict | None = None
+    sensor_mount: str = "flange"
+    sphere_mount: str = "world"
+    positioner: object | None = None
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -474,8 +484,12 @@ class CalibrationResult(ResultProtocol):
             "sensor_pose_kuka": _list(self.sensor_pose_kuka),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose)},
+            "sensor_mount": self.sensor_mount,
+            "sphere_mount": self.sphere_mount,
             "sensor_matrix": _list(self.sensor2flange),
             "sphere_center": _list(self.sphere_centre),
+            "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
+            "positioner": None if self.positioner is None else self.positioner.to_dict(),
             "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
