@@ -175,6 +175,8 @@ def test_explains_nothing_uses_the_robots_motion():
         def flange2base(self):
             return self._f2b
 
+        motions = flange2base  # the seed's cell: the chain's carrier motions are the flange poses
+
         def __len__(self):
             return len(self.centre_in_sensor)
 

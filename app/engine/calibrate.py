@@ -190,9 +190,8 @@ def run(request, dataset):
     if request.resolved is None:
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
-    if request.cell:
-        return cell_stage.extend(request, dataset, _stages)
-    return _stages(request, dataset)
+    result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
+    return cell_stage.with_positioner_hint(result, dataset, request.parts)
 
 
 def _stages(request, dataset):

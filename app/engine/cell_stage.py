@@ -224,3 +224,15 @@ def compose(request, dataset, result, fitted, free, nominal):
     return dataclasses.replace(result, unknowns=request.parts, fit=fit_part, uncertainty=unc,
                                identifiability=fitted.ident, warnings=warnings, positioner=positioner)
 
+
+
+def with_positioner_hint(result, dataset, parts):
+    """A result with the positioner held at its set-up axes and residuals beyond the stated noise
+    says that the axes may be the missing effect, and how to calibrate them."""
+    test = result.noise_test
+    if dataset.mounts.sphere != "positioner" or "positioner" in (parts or "") or test is None or test.passed:
+        return result
+    more = "+".join(p for p in ("sensor", "sphere", "positioner") if p in (parts or "").split("+") or p == "positioner")
+    hint = (f"the positioner's axes are held as set up ([positioner] axes in {dataset.path / 'setup.toml'}); residuals "
+            f"{test.ratio:.3g} x the stated noise may be their error: calibrate them with --unknowns {more}")
+    return dataclasses.replace(result, warnings=[*result.warnings, hint])

@@ -1,0 +1,177 @@
+"""Mounts (model/mounts.py, model/mount_setup.py) and the cell stage (app/engine/cell_stage.py):
+every cell reduces to the seed's chain, the positioner's axes are calibrated with exact
+derivatives, and what the data cannot separate is named instead of solved."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app.errors import CalibrationInputError
+from handeye.model import cell, dataset, mounts
+from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.tables import DatasetError
+from mount_cells import AXES, cell as make_cell, write
+
+
+def _moved_axes(dp=(2.0, -1.5), tilt=(0.004, -0.003)):
+    """Nominal axes a few mm and tenths of a degree off the true ones."""
+    out = []
+    for a in AXES:
+        e1, e2 = cell.normals(a.direction)
+        out.append(mounts.Axis(a.name, a.point + dp[0] * e1 + dp[1] * e2, mounts.unit(a.direction + tilt[0] * e1 + tilt[1] * e2)))
+    return tuple(out)
+
+
+def _line_distance(point, axis):
+    """Distance (mm) of ``point`` from the line of ``axis``."""
+    d = mounts.unit(axis.direction)
+    v = np.asarray(point) - axis.point
+    return float(np.linalg.norm(v - (v @ d) * d))
+
+
+def test_eye_to_hand_motions_are_the_inverse_flange_poses(tmp_path):
+    rows, truth = make_cell("eye_to_hand", seed=1, n=8)
+    d = dataset.load(write(tmp_path / "e2h", "eye_to_hand", rows, truth))
+    assert d.mounts.sensor == "world" and d.mounts.sphere == "flange"
+    np.testing.assert_allclose(d.motions() @ d.flange2base(), np.broadcast_to(np.eye(4), (8, 4, 4)), atol=1e-12)
+    # the chain closes at the truth in the flange frame: base2flange . sensor2base . xs = c_flange
+    q = (d.motions() @ truth["sensor"] @ np.c_[d.centre_in_sensor, np.ones(8)][..., None])[:, :3, 0]
+    assert np.abs(q - truth["centre"]).max() < 0.3
+
+
+def test_roles_of_base_and_flange_exchanged_give_the_same_calibration(tmp_path):
+    """Eye-in-hand data with its flange poses inverted, read as a sensor fixed in the world and a
+    sphere on the flange, is the same least-squares problem: the same pose and centre."""
+    rows, truth = make_cell("eye_in_hand", seed=2, n=20)
+    a = handeye.calibrate(write(tmp_path / "a", "eye_in_hand", rows, truth, centre_known=False), unknowns="sensor+sphere",
+                          no_loo=True)
+    inverted = [(pose_from_transform(np.linalg.inv(transform_from_pose(p))), xs, th) for p, xs, th in rows]
+    b = handeye.calibrate(write(tmp_path / "b", "eye_to_hand", inverted, truth, centre_known=False),
+                          unknowns="sensor+sphere", no_loo=True)
+    assert a.sensor_mount == "flange" and b.sensor_mount == "world" and b.sphere_mount == "flange"
+    # equal up to the files' 6 decimals of the inverted poses (1e-6 mm and deg), far below the 1-sd (~0.05 mm)
+    np.testing.assert_allclose(b.sensor2flange, a.sensor2flange, atol=1e-4)
+    np.testing.assert_allclose(b.sphere_centre, a.sphere_centre, atol=1e-4)
+    np.testing.assert_allclose(b.rms_mm, a.rms_mm, rtol=1e-4)
+
+
+def test_cell_jacobian_against_central_differences(tmp_path):
+    rows, truth = make_cell("positioner", seed=3, n=12)
+    d = dataset.load(write(tmp_path / "p", "positioner", rows, truth))
+    model = cell.CellModel(np.asarray(d.flange2base()), d.centre_in_sensor, d.axis_angles, d.mounts.axis_names)
+    rng = np.random.default_rng(0)
+    x = model.retract(cell.pack(truth["sensor"], truth["centre"], d.mounts.axes), rng.normal(0, 0.02, model.n))
+    jac, h = model.jacobian(x), 1e-6
+    fd = np.column_stack([(model.residual(model.retract(x, h * e)) - model.residual(model.retract(x, -h * e))) / (2 * h)
+                          for e in np.eye(model.n)])
+    assert np.abs(jac - fd).max() < 1e-6 * np.abs(jac).max()
+
+
+def test_cell_residual_equals_the_reduction_at_the_setup_axes(tmp_path):
+    """Sphere on the positioner with the axes known: |M_i X xs_i - c| (reduction into the table frame)
+    equals |F_i X xs_i - P(th_i) c| (the cell model in the base frame) sample by sample."""
+    rows, truth = make_cell("positioner", seed=4, n=10)
+    d = dataset.load(write(tmp_path / "p", "positioner", rows, truth))
+    model = cell.CellModel(np.asarray(d.flange2base()), d.centre_in_sensor, d.axis_angles, d.mounts.axis_names)
+    e_cell = model.evaluate(cell.pack(truth["sensor"], truth["centre"], d.mounts.axes))[0]
+    q = (d.motions() @ truth["sensor"] @ np.c_[d.centre_in_sensor, np.ones(10)][..., None])[:, :3, 0]
+    np.testing.assert_allclose(np.linalg.norm(e_cell, axis=1), np.linalg.norm(q - truth["centre"], axis=1), atol=1e-9)
+
+
+def test_positioner_axes_calibrated_within_three_sd(tmp_path):
+    rows, truth = make_cell("positioner", seed=5, n=30)
+    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes())
+    held = handeye.calibrate(folder, unknowns="sensor+sphere", no_loo=True)
+    assert held.noise_test is not None and not held.noise_test.passed  # nominal axes 2 mm off: the gap shows
+    assert any("--unknowns sensor+sphere+positioner" in w for w in held.warnings)
+    res = handeye.calibrate(folder, unknowns="sensor+sphere+positioner", no_loo=True)
+    assert res.converged and res.unknowns == "sensor+sphere+positioner"
+    err = res.sensor2flange[:3, 3] - truth["sensor"][:3, 3]
+    assert np.all(np.abs(err) < 3 * res.std.sensor_translation_mm)
+    assert np.all(np.abs(res.sphere_centre - truth["centre"]) < 3 * res.std.sphere_center_mm)
+    for j, axis in enumerate(res.positioner.axes):
+        true = AXES[j]
+        assert _line_distance(axis.point, true) < 3 * np.linalg.norm(res.positioner.point_sd[j])
+        tilt = np.degrees(np.arccos(min(1.0, abs(axis.direction @ true.direction))))
+        assert tilt < 3 * res.positioner.tilt_sd_deg[j]
+    doc = res.to_dict()
+    assert doc["sphere_mount"] == "positioner" and [a["name"] for a in doc["positioner"]] == ["e1", "e2"]
+    assert doc["positioner"][0]["calibrated"] and len(doc["positioner"][0]["point_sd"]) == 3
+
+
+def test_sphere_and_positioner_with_the_sensor_held(tmp_path):
+    """The seed's outlook: the positioner calibrated with a sensor calibrated before."""
+    rows, truth = make_cell("positioner", seed=6, n=30)
+    pose = ", ".join(f"{v:.6f}" for v in pose_from_transform(truth["sensor"]))
+    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes(),
+                   extra_setup="")
+    text = (folder / "setup.toml").read_text().replace('mount = "flange"', f'mount = "flange"\npose = [{pose}]', 1)
+    (folder / "setup.toml").write_text(text)
+    res = handeye.calibrate(folder, unknowns="sphere+positioner", no_loo=True)
+    assert res.converged and res.unknowns == "sphere+positioner"
+    np.testing.assert_allclose(res.sensor2flange, truth["sensor"], atol=1e-5)  # held
+    assert np.all(np.abs(res.sphere_centre - truth["centre"]) < 3 * res.std.sphere_center_mm)
+    assert any("held" in w for w in res.warnings)
+
+
+def test_an_axis_that_never_turns_is_named_not_solved(tmp_path):
+    rows, truth = make_cell("positioner", seed=7, n=20, angles=np.c_[np.full(20, 10.0), np.linspace(-170, 170, 20)])
+    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False)
+    with pytest.raises(CalibrationInputError, match="cannot separate.*e1_"):
+        handeye.calibrate(folder, unknowns="sensor+sphere+positioner", no_loo=True)
+
+
+@pytest.mark.parametrize("setup, match", [
+    ('[sensor]\nmount = "world"\n[sphere]\ndiameter = 50.0\n', r"\[sphere\] mount.*nothing moves"),
+    ('[sensor]\nmount = "ceiling"\n[sphere]\ndiameter = 50.0\n', r"\[sensor\] mount.*'flange', 'world'"),
+    ('[sphere]\ndiameter = 50.0\nmount = "positioner"\n', r"\[positioner\].*axes"),
+    ('[sphere]\ndiameter = 50.0\n[positioner]\naxes = []\n', r"\[positioner\].*mount"),
+    ('[sphere]\ndiameter = 50.0\nmount = "positioner"\n[positioner]\naxes = [{ name = "x", point = [0, 0, 0], '
+     'direction = [0, 0, 1] }]\n', r"axes\[0\] name"),
+    ('[sphere]\ndiameter = 50.0\nmount = "positioner"\n[positioner]\naxes = [{ name = "e1", point = [0, 0, 0], '
+     'direction = [0, 0, 0] }]\n', r"axes\[0\] direction.*zero"),
+])
+def test_setup_slips_name_the_key(tmp_path, setup, match):
+    (tmp_path / "setup.toml").write_text(setup)
+    (tmp_path / "measurements.csv").write_text("id,x,y,z,a,b,c,xs,ys,zs\np0,1,2,3,0,0,0,1,2,3\n")
+    with pytest.raises(DatasetError, match=match):
+        dataset.load(tmp_path)
+
+
+def test_missing_axis_column_is_named(tmp_path):
+    rows, truth = make_cell("positioner", seed=8, n=6)
+    folder = write(tmp_path / "p", "positioner", rows, truth)
+    text = (folder / "measurements.csv").read_text().replace(",e2\n", ",E2\n", 1)
+    (folder / "measurements.csv").write_text(text)
+    with pytest.raises(DatasetError, match="E2"):
+        dataset.load(folder)
+
+
+@pytest.mark.parametrize("unknowns, match", [
+    ("sensor+positioner+sensor", "not a"), ("sensor+plate", "not a"),
+    ("sphere+positioner", "holds the sensor"),
+])
+def test_unknowns_parts_are_checked(tmp_path, unknowns, match):
+    rows, truth = make_cell("positioner", seed=9, n=12)
+    folder = write(tmp_path / "p", "positioner", rows, truth)
+    with pytest.raises(handeye.InputError, match=match):
+        handeye.calibrate(folder, unknowns=unknowns)
+
+
+def test_positioner_part_needs_a_positioner(tmp_path):
+    rows, truth = make_cell("eye_in_hand", seed=10, n=12)
+    with pytest.raises(handeye.InputError, match="no positioner"):
+        handeye.calibrate(write(tmp_path / "a", "eye_in_hand", rows, truth), unknowns="sensor+positioner")
+
+
+def test_unknowns_in_any_order_is_one_request(tmp_path):
+    rows, truth = make_cell("eye_to_hand", seed=11, n=15)
+    folder = write(tmp_path / "e", "eye_to_hand", rows, truth, centre_known=False)
+    a = handeye.calibrate(folder, unknowns="sphere+sensor", no_loo=True)
+    assert a.unknowns == "sensor+sphere" and a.converged
+    doc = a.to_dict()
+    assert doc["sensor_mount"] == "world" and doc["sphere_mount"] == "flange" and doc["positioner"] is None
+    assert "sensor2base (4x4):" in a.summary() and "sphere centre in flange" in a.summary()
