@@ -175,3 +175,18 @@ def test_unknowns_in_any_order_is_one_request(tmp_path):
     doc = a.to_dict()
     assert doc["sensor_mount"] == "world" and doc["sphere_mount"] == "flange" and doc["positioner"] is None
     assert "sensor2base (4x4):" in a.summary() and "sphere centre in flange" in a.summary()
+
+
+def test_axes_far_from_the_setup_are_still_found(tmp_path):
+    """Set-up axes 36 mm and 4 deg off: the conditional fit "explains nothing" (refused), the cell fit
+    starts from it all the same and the refined passes reach the truth within 3 sd."""
+    rows, truth = make_cell("positioner", seed=31, n=30)
+    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False,
+                   axes=_moved_axes((30.0, 20.0), (0.06, 0.05)))
+    held = handeye.calibrate(folder, unknowns="sensor+sphere", no_loo=True)
+    assert not held.converged  # refused: exit 1, not a wrong pose
+    res = handeye.calibrate(folder, unknowns="sensor+sphere+positioner", no_loo=True)
+    assert res.converged and res.n_used == 30
+    assert np.all(np.abs(res.sensor2flange[:3, 3] - truth["sensor"][:3, 3]) < 3 * res.std.sensor_translation_mm)
+    for j, axis in enumerate(res.positioner.axes):
+        assert _line_distance(axis.point, AXES[j]) < 3 * np.linalg.norm(res.positioner.point_sd[j])

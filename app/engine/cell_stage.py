@@ -11,8 +11,9 @@
    holding the others (a known sensor from ``[sensor] pose`` or ``--calibration``; a known
    centre from ``[sphere] center``), after checking that the poses and axis angles determine every
    requested parameter (else :class:`CalibrationInputError` names what they cannot separate).
-3. With the positioner free, the stages run once more at the refined axes (screening against the
-   better model), and the cell fit is repeated from there.
+3. With the positioner free, the stages run again at the refined axes (screening against the
+   better model) and the cell fit is repeated from there, until the samples kept stop changing
+   (at most :data:`PASSES` runs).
 
 The result is the conditional result with the cell fit's pose, centre, covariance,
 identifiability and a :class:`PositionerRecord`; its residual table is the conditional fit's at
@@ -32,6 +33,9 @@ from handeye.model.pose import pose_from_transform, transform_from_pose
 
 #: Iteration limit of the cell fit (Levenberg-Marquardt from the conditional fit: a few steps).
 MAX_ITER = 200
+#: Most runs of the conditional stages with the positioner free: the first at the set-up axes,
+#: then at the refined ones until the samples kept stop changing.
+PASSES = 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,22 +178,29 @@ def extend(request, dataset, stages):
     free = tuple(request.parts.split("+"))
     nominal = dataset.mounts.axes
     result = stages(request, dataset)
-    if not result.converged or result.rms_mm is None:
+    if not _solved(result) or (not result.converged and "positioner" not in free):
         return dataclasses.replace(result, unknowns=request.parts)
     held = None if "sensor" in free else known_sensor(request, dataset)
     fitted = fit(dataset, free, result.sensor2flange if held is None else held, result.sphere_centre, mask_of(result))
-    if "positioner" in free:
-        dataset = dataclasses.replace(dataset, mounts=dataset.mounts.with_axes(
-            [a.point for a in fitted.axes], [a.direction for a in fitted.axes]))
+    for _ in range(PASSES - 1 if "positioner" in free else 0):
+        dataset = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted))
+        mask = mask_of(result)
         result = stages(request, dataset)
-        if result.converged and result.rms_mm is not None:
-            start = fitted.sensor if held is None else held
-            fitted = fit(dataclasses.replace(dataset, mounts=request_nominal(dataset, fitted)), free, start,
-                         fitted.centre, mask_of(result))
+        if not _solved(result):
+            break
+        fitted = fit(dataset, free, fitted.sensor, fitted.centre, mask_of(result))
+        if np.array_equal(mask, mask_of(result)):
+            break
     return compose(request, dataset, result, fitted, free, nominal)
 
 
-def request_nominal(dataset, fitted):
+def _solved(result):
+    """A finite conditional solution (it may still be refused: at set-up axes far from the true ones
+    the conditional fit can "explain nothing"; the cell fit starts from it all the same)."""
+    return result.rms_mm is not None and bool(np.all(np.isfinite(result.sensor2flange)))
+
+
+def refined_mounts(dataset, fitted):
     """The mounts with the fitted axes as the cell fit's start (refining from where it stopped)."""
     return dataset.mounts.with_axes([a.point for a in fitted.axes], [a.direction for a in fitted.axes])
 
