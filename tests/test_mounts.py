@@ -3,17 +3,16 @@ every cell reduces to the seed's chain, the positioner's axes are calibrated wit
 derivatives, and what the data cannot separate is named instead of solved."""
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
+from mount_cells import AXES, write
+from mount_cells import cell as make_cell
 
 import handeye
 from handeye.app.errors import CalibrationInputError
 from handeye.model import cell, dataset, mounts
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.tables import DatasetError
-from mount_cells import AXES, cell as make_cell, write
 
 
 def _moved_axes(dp=(2.0, -1.5), tilt=(0.004, -0.003)):
