@@ -189,3 +189,31 @@ def test_axes_far_from_the_setup_are_still_found(tmp_path):
     assert np.all(np.abs(res.sensor2flange[:3, 3] - truth["sensor"][:3, 3]) < 3 * res.std.sensor_translation_mm)
     for j, axis in enumerate(res.positioner.axes):
         assert _line_distance(axis.point, AXES[j]) < 3 * np.linalg.norm(res.positioner.point_sd[j])
+
+
+def test_diagnose_names_the_positioner_axes_and_the_gap_shrinks(tmp_path):
+    rows, truth = make_cell("positioner", seed=41, n=30)
+    folder = write(tmp_path / "p", "positioner", rows, truth, axes=_moved_axes((1.0, -0.8), (0.003, 0.002)))
+    d = handeye.diagnose(folder)
+    named = {e.name: e for e in d.effects}
+    assert list(named) == ["positioner_axes"]
+    axes = named["positioner_axes"]
+    for name in ("e1", "e2"):  # the set-up axes were moved by (+1.0, -0.8) mm: the fit moves them back
+        assert abs(axes.parameters[f"{name}_shift1_mm"] + 1.0) < 4 * axes.std[f"{name}_shift1_mm"]
+        assert abs(axes.parameters[f"{name}_shift2_mm"] - 0.8) < 4 * axes.std[f"{name}_shift2_mm"]
+    assert "[positioner]" in axes.note and "axes = [" in axes.note
+    assert d.rms_after_mm < 0.1 * d.rms_before_mm and d.heldout_rms_after_mm < d.heldout_rms_before_mm
+    assert [s.step for s in d.steps][:2] == ["base model", "+ positioner_axes"]
+
+
+@pytest.mark.parametrize("mount", ["eye_to_hand", "positioner"])
+def test_diagnose_names_a_sphere_centre_slip_in_every_mount(tmp_path, mount):
+    rows, truth = make_cell(mount, seed=21, n=30)
+    given = dict(truth, centre=truth["centre"] + np.array([0.8, -0.5, 0.6]))
+    d = handeye.diagnose(write(tmp_path / mount, mount, rows, given))
+    named = {e.name: e for e in d.effects}
+    assert list(named) == ["sphere_center"]
+    offset = np.array([named["sphere_center"].parameters[k] for k in ("dx", "dy", "dz")])
+    sd = np.array([named["sphere_center"].std[k] for k in ("dx", "dy", "dz")])
+    assert np.all(np.abs(offset + np.array([0.8, -0.5, 0.6])) < 4 * sd)
+    assert d.rms_after_mm < 0.15 * d.rms_before_mm

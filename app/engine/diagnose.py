@@ -6,6 +6,8 @@ it *finds* a gap), a catalogue of named candidate effects (like sparse model dis
 *names* terms), and an identifiability gate (like robot-calibration practice it refuses what
 the poses cannot separate):
 
+0. For a sphere on a positioner, the set-up axes are tested first as the missing effect
+   (:mod:`handeye.app.engine.positioner_effect`); when named, the rest runs at the refined axes.
 1. Robust first fit; gross outliers screened with a robust scale (:mod:`handeye.app.engine.robust`);
    rows whose centre columns contradict their own profile excluded for good, as in calibrate.
 2. Least-squares fit of the current model; residuals per sample and component, RMS, chi2/dof
@@ -32,7 +34,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import robust
+from handeye.app.engine import positioner_effect, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
 from handeye.app.present.results import NamedEffect
@@ -125,6 +127,11 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     before = _summaries(prob, structure, fit, mask)
     run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1))
     run.steps.append({"step": "base model", **before})
+    axes = _positioner_axes(run, fit, sigma)
+    if axes is not None:  # the rest runs at the refined axes
+        dataset, prob = axes.dataset, run.prob
+        fit = prob.fit(structure, mask, fit.x)
+        run.steps.append({"step": "+ positioner_axes", **_summaries(prob, structure, fit, mask)})
     flips, outliers = [], []
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
         structure, fit = _search(run, structure, fit)
@@ -147,10 +154,26 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         if frac < GATE:
             run.absorbed[effect.NAME] = who
     result = _report(run, structure, fit, flips, outliers)
+    if axes is not None:
+        result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
     if run.implausible:
         unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
         result = dataclasses.replace(result, unexplained=unexplained)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
+
+
+def _positioner_axes(run, fit, sigma):
+    """Step 0 for a sphere on a positioner: are the set-up axes the missing effect
+    (:mod:`handeye.app.engine.positioner_effect`)? When named, ``run`` continues at the refined
+    axes (its samples' model replaced, a step recorded) and the finding is returned."""
+    dataset = run.prob.d
+    if dataset.mounts.sphere != "positioner":
+        return None
+    found = positioner_effect.examine(dataset, run.mask, run.prob.transform(fit.x), run.prob.sigma, run.alpha)
+    if found is None:
+        return None
+    run.prob = Samples(found.dataset, sigma)
+    return found
 
 
 def _search(run, structure, fit):
