@@ -259,9 +259,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
     if plot is not None:
+        from handeye.app.engine.cell_stage import dataset_at
         from handeye.app.present.report import calibration_plot
 
-        calibration_plot(result, data, plot)
+        calibration_plot(result, dataset_at(result, data), plot)
     return result
 
 

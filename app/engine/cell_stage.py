@@ -247,3 +247,13 @@ def with_positioner_hint(result, dataset, parts):
     hint = (f"the positioner's axes are held as set up ([positioner] axes in {dataset.path / 'setup.toml'}); residuals "
             f"{test.ratio:.3g} x the stated noise may be their error: calibrate them with --unknowns {more}")
     return dataclasses.replace(result, warnings=[*result.warnings, hint])
+
+
+def dataset_at(result, dataset):
+    """The dataset with the positioner's axes the result calibrated (unchanged otherwise): what the
+    result's chain is, for figures and checks of the centres through it."""
+    positioner = getattr(result, "positioner", None)
+    if positioner is None or not positioner.calibrated:
+        return dataset
+    return dataclasses.replace(dataset, mounts=dataset.mounts.with_axes(
+        [a.point for a in positioner.axes], [a.direction for a in positioner.axes]))

@@ -196,13 +196,14 @@ def _effect_lines(res):
 
 def calibration_plot(res, dataset, path):
     """Residual per measurement and the sphere centres seen through the calibrated chain
-    (base frame, mm) around the calibrated centre; written to ``path`` (PNG).
+    (the sphere mount's frame, mm) around the calibrated centre; written to ``path`` (PNG).
 
     Parameters
     ----------
     res : handeye.app.present.results.CalibrationResult
     dataset : handeye.model.dataset.Dataset
-        The dataset ``res`` was calibrated on.
+        The dataset ``res`` was calibrated on (with a positioner: at the axes ``res`` holds,
+        :func:`handeye.app.engine.cell_stage.dataset_at`).
     path : str or pathlib.Path
     """
     from handeye.app.files import save_figure_atomically
@@ -233,7 +234,8 @@ def calibration_plot(res, dataset, path):
     axes[1].scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="coolwarm", s=18, label="used (colour: dz)")
     axes[1].scatter(d[~used, 0], d[~used, 1], marker="x", color="C3", label="excluded")
     lim = max(3 * np.percentile(np.abs(d[used, :2]), 95), 1e-3)
-    axes[1].set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="dx (mm, base)", ylabel="dy (mm, base)",
+    frame = {"world": "base", "flange": "flange", "positioner": "table"}[getattr(res, "sphere_mount", "world")]
+    axes[1].set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel=f"dx (mm, {frame})", ylabel=f"dy (mm, {frame})",
                 title="sphere centres through the chain", aspect="equal")
     axes[1].legend(fontsize=7)
     fig.tight_layout()
