@@ -78,9 +78,34 @@ def _study_args(sub):
                          "one worker process per core (--jobs of them when given); needs handeye[dask]")
 
 
+def _export_args(sub, calibration):
+    """``export``'s options; ``calibration(parser, option)`` adds the calibration's own."""
+    from handeye.app.choices import FORMATS
+
+    ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
+                                       "JSON (handeye.app.outputs.formats)")
+    calibration(ex, option=False)
+    ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
+                                                                      "numbers)")
+    ex.add_argument("--parent", default=None, help="parent frame name (ros2, urdf; default flange, or base_link for a "
+                                                   "sensor fixed in the cell)")
+    ex.add_argument("--child", default="sensor", help="sensor frame name (ros2, urdf, tool, base and variable names; "
+                                                      "default sensor)")
+    ex.add_argument("--tool", type=int, default=None, help="tool number of a sensor on the flange (KUKA TOOL_DATA, "
+                                                           "FANUC UTOOL; default 1)")
+    ex.add_argument("--base", type=int, default=None, help="base / user frame number of a sensor fixed in the cell "
+                                                           "(KUKA BASE_DATA, FANUC UFRAME; default 1)")
+    ex.add_argument("--register", type=int, default=99,
+                    help="FANUC position register the TP program overwrites (default 99)")
+    ex.add_argument("--sensor-mount", choices=("flange", "world"), default=None,
+                    help="where the --sensor-pose is: on the flange (default) or fixed in the cell, the pose in the "
+                         "robot base (a saved calibration says itself)")
+    ex.add_argument("--out", default=None, metavar="FILE", help="write to FILE (atomically) instead of stdout")
+
+
 def _use_args(sub, conventions):
     """``export``, ``cloud`` and ``validate``: what comes after a calibration."""
-    from handeye.app.choices import CLOUD_FORMATS, FORMATS
+    from handeye.app.choices import CLOUD_FORMATS
 
     def calibration(p, option=True):
         """--calibration (or, for export, a positional RESULT.json), --sensor-pose, --convention, --force."""
@@ -91,23 +116,14 @@ def _use_args(sub, conventions):
             p.add_argument("result", nargs="?", default=None, metavar="RESULT.json",
                            help="a saved calibration (handeye calibrate DATASET --out RESULT.json)")
         p.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
-                       help="instead: a sensor pose on the flange typed in (e.g. the controller's TCP), in "
-                            "--convention's columns; no uncertainty then")
+                       help="instead: a sensor pose on the flange typed in (e.g. the controller's TCP; export: or "
+                            "in the robot base, with --sensor-mount world), in --convention's columns; no "
+                            "uncertainty then")
         p.add_argument("--convention", choices=conventions, default=None,
                        help="convention of --sensor-pose (default: the dataset's; export has none: required)")
         p.add_argument("--force", action="store_true", help="use a calibration that did not converge")
 
-    ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
-                                       "JSON (handeye.app.outputs.formats)")
-    calibration(ex, option=False)
-    ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
-                                                                      "numbers)")
-    ex.add_argument("--parent", default="flange", help="parent frame name (ros2, urdf; default flange)")
-    ex.add_argument("--child", default="sensor", help="sensor frame name (ros2, urdf, tool names; default sensor)")
-    ex.add_argument("--tool", type=int, default=1, help="tool number (KUKA TOOL_DATA, FANUC UTOOL; default 1)")
-    ex.add_argument("--register", type=int, default=99,
-                    help="FANUC position register the TP program overwrites (default 99)")
-    ex.add_argument("--out", default=None, metavar="FILE", help="write to FILE (atomically) instead of stdout")
+    _export_args(sub, calibration)
     cl = sub.add_parser("cloud", help="every profile point of a scan in the robot base, through a calibration "
                                       "(PLY or CSV)")
     cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed)")
@@ -332,7 +348,8 @@ def _export(args):
         raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
     result = use.export(args.result, format=args.format, parent=args.parent, child=args.child, tool=args.tool,
                         register=args.register, out=args.out, sensor_pose=args.sensor_pose,
-                        convention=args.convention, force=args.force)
+                        convention=args.convention, force=args.force, base=args.base,
+                        sensor_mount=args.sensor_mount)
     print(f"written: {args.out} ({args.format})" if args.out else result.text, end="\n" if args.out else "")
     return EXIT_OK
 

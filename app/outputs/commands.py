@@ -25,7 +25,9 @@ from handeye.app.present.protocol import ResultProtocol
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
-                 name="--calibration"):
+                 name="--calibration", sensor_mount=None):
+    """The :class:`saved.Calibration` to use; ``sensor_mount`` (None: flange, or the file's) is
+    that of ``--sensor-pose``, or checked against the calibration's."""
     if sensor_pose is not None:
         if calibration is not None:
             raise RequestError(f"give {name} or --sensor-pose, not both")
@@ -33,27 +35,62 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
             raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
                                "it from")
         values = _numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
-        return saved.from_pose(values, convention or dataset_convention)
+        return saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
+    cal = _given(calibration, sensor_mount)
+    if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
+        raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
+                           "calibration (the option is for --sensor-pose or a 4x4)")
+    if not cal.converged and not force:
+        raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
+                           "calibrate, or pass --force to use it anyway)")
+    return cal
+
+
+def _given(calibration, sensor_mount=None):
+    """A calibration given as a file, a 4x4 (in ``sensor_mount``'s frame), a
+    :class:`saved.Calibration` or a CalibrationResult."""
     if calibration is None:
         raise RequestError("a calibration is needed: --calibration RESULT.json (from handeye calibrate --out) or "
                            "--sensor-pose X,Y,Z,...")
     if isinstance(calibration, saved.Calibration):
         cal = calibration
     elif isinstance(calibration, np.ndarray) or isinstance(calibration, (list, tuple)):
-        cal = saved.from_matrix(calibration)
+        cal = saved.from_matrix(calibration, sensor_mount=sensor_mount or "flange")
     elif hasattr(calibration, "sensor2flange") and hasattr(calibration, "covariance"):  # a CalibrationResult
         if calibration.sensor2flange is None:
             raise RequestError(f"the calibration failed ({calibration.message}); nothing to use")
         cov = None if calibration.covariance is None else np.asarray(calibration.covariance)[:6, :6]
         cal = saved.Calibration(np.asarray(calibration.sensor2flange, float), cov,
                                 f"calibration of {calibration.dataset}", calibration.dataset,
-                                calibration.dataset_sha256, bool(calibration.converged))
+                                calibration.dataset_sha256, bool(calibration.converged),
+                                saved.check_mount(getattr(calibration, "sensor_mount", "flange"), "sensor_mount"))
     else:
         cal = saved.load(calibration)
-    if not cal.converged and not force:
-        raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
-                           "calibrate, or pass --force to use it anyway)")
     return cal
+
+
+def _same_mount(cal, data, command):
+    """``cal``, if its sensor is mounted where the dataset's is (a sensor2flange read as a
+    sensor2base, or the other way round, would give wrong numbers without a warning)."""
+    mounts = getattr(data, "mounts", None)
+    mount = "flange" if mounts is None else mounts.sensor
+    if cal.sensor_mount != mount:
+        raise RequestError(f"{cal.source}: a calibration of a sensor mounted on the {cal.sensor_mount} "
+                           f"(sensor_mount); {data.path / 'setup.toml'} mounts the sensor on the {mount} "
+                           f"([sensor] mount): handeye {command} needs the two to agree")
+    return cal
+
+
+def _at_calibrated_axes(data, cal):
+    """The dataset at the positioner axes the calibration holds (as set up when it holds none)."""
+    axes = getattr(cal, "positioner_axes", None)
+    mounts = getattr(data, "mounts", None)
+    if not axes or mounts is None or mounts.sphere != "positioner":
+        return data
+    if tuple(a.name for a in axes) != mounts.axis_names:
+        raise RequestError(f"{cal.source}: its positioner axes ({', '.join(a.name for a in axes)}) are not the "
+                           f"dataset's ({', '.join(mounts.axis_names)})")
+    return dataclasses.replace(data, mounts=mounts.with_axes([a.point for a in axes], [a.direction for a in axes]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,17 +107,22 @@ class ExportResult(ResultProtocol):
         return dataclasses.asdict(self)
 
 
-def export(calibration=None, *, format="json", parent="flange", child="sensor", tool=1, register=99, out=None,
-           sensor_pose=None, convention=None, force=False):
+def export(calibration=None, *, format="json", parent=None, child="sensor", tool=None, register=99, out=None,
+           sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
+
+    A sensor on the flange is written as a tool (number ``tool``, default 1), a sensor fixed in
+    the cell (the calibration's ``sensor_mount`` "world") as a base / user frame (number
+    ``base``, default 1); ``parent`` defaults to ``flange`` or ``base_link`` accordingly.
+    ``sensor_mount`` ("flange" or "world"; default flange) is where a ``sensor_pose`` is given.
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
     """
     if out is not None:
         inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
         files.check_output_path(out, "--out", inputs)
-    cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration")
-    text = exports.text(cal, format, parent, child, tool, register)
+    cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
+    text = exports.text(cal, format, parent, child, tool, register, base)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -225,7 +267,8 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     data = scans.load(dataset)
     if out is not None:
         files.check_output_path(out, "--out", list(data.profile_files))
-    cal = _calibration(calibration, sensor_pose, convention, force, data.convention)
+    cal = _same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "cloud")
+    data = _at_calibrated_axes(data, cal)
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None
     if cal.covariance is not None:
@@ -268,7 +311,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     data = scans.load(folder) if with_profiles else datasets.load(folder)
-    cal = _calibration(calibration, sensor_pose, convention, force, data.convention)
+    cal = _same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "validate")
+    data = _at_calibrated_axes(data, cal)
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     if with_profiles:
         result = validation.validate_scan(data, cal, float(exclude), own)

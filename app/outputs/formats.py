@@ -1,36 +1,48 @@
 """A calibration written for the robot controller, ROS 2 or URDF (``handeye export``).
 
-Every format is computed from the one 4x4 ``sensor2flange`` (mm) through
-:mod:`handeye.model.conventions`, never from another format's numbers:
+Every format is computed from the one 4x4 sensor matrix (mm) through
+:mod:`handeye.model.conventions`, never from another format's numbers. The calibration's
+``sensor_mount`` decides what is written: a sensor on the flange (``sensor2flange``) is a TOOL,
+a sensor fixed in the cell (``"world"``: ``sensor2base``, the sensor frame in the robot base)
+a BASE / user frame:
 
 ==========  ==========================================================================
 format      what is written (units)
 ==========  ==========================================================================
-ur          URScript ``set_tcp(p[x, y, z, rx, ry, rz])``: metres, rotation vector (rad)
+ur          flange: URScript ``set_tcp(p[x, y, z, rx, ry, rz])``; world: a feature pose
+            ``global sensor_frame = p[..]`` in the base (a point measured by the sensor is
+            ``pose_trans(sensor_frame, p)``): metres, rotation vector (rad)
 ros2        ``ros2 run tf2_ros static_transform_publisher --x .. --qw ..``: metres,
-            quaternion in ROS order x, y, z, w
+            quaternion in ROS order x, y, z, w; parent ``flange`` / world: ``base_link``
 urdf        a fixed ``<joint>`` with ``<origin xyz=".." rpy=".."/>``: metres, URDF's
-            fixed-axis roll, pitch, yaw (R = Rz(yaw) Ry(pitch) Rx(roll)), rad
-kuka        ``TOOL_DATA[n]={X .., Y .., Z .., A .., B .., C ..}`` ($config.dat): mm, deg,
+            fixed-axis roll, pitch, yaw (R = Rz(yaw) Ry(pitch) Rx(roll)), rad; parent link
+            ``flange`` / world: ``base_link``
+kuka        ``TOOL_DATA[n]={X .., Y .., Z .., A .., B .., C ..}`` / world:
+            ``BASE_DATA[n]={..}`` ($config.dat, n = ``--tool`` / ``--base``): mm, deg,
             Rz(A) Ry(B) Rx(C)
-abb         RAPID ``PERS tooldata``: tframe ``[[x, y, z], [q1, q2, q3, q4]]``, mm,
-            quaternion w, x, y, z
-fanuc       UTOOL Direct Entry values and a TP program setting ``UTOOL[n]`` through a
-            position register: mm, deg, W, P, R = fixed X, Y, Z
+abb         RAPID ``PERS tooldata``: tframe ``[[x, y, z], [q1, q2, q3, q4]]`` / world:
+            ``PERS wobjdata`` with that uframe (robhold FALSE, ufprog TRUE, ufmec "",
+            oframe identity): mm, quaternion w, x, y, z
+fanuc       UTOOL / world: UFRAME Direct Entry values and a TP program setting
+            ``UTOOL[n]`` / ``UFRAME[n]`` through a position register: mm, deg,
+            W, P, R = fixed X, Y, Z
 matrix      the 4x4 homogeneous transform, mm
-json        all of the above as numbers, with the 1-sd and the covariance
+json        all of the above as numbers, with the 1-sd and the covariance (world: with
+            ``"sensor_mount": "world"``)
 ==========  ==========================================================================
 
-The 1-sd uncertainty of the calibration (translation in the flange frame, rotation about the
-sensor's axes) is written as a comment in every text format. Numbers carry enough digits that
-reading them back reproduces the 4x4 within 1e-6 mm and 1e-6 deg (tested with an independent
-parser); a controller that stores 32-bit reals keeps about seven significant digits of them.
-Near a format's singularity (KUKA B = +-90 deg, FANUC and URDF pitch = +-90 deg, a half turn
-for UR's rotation vector) the angles are one valid choice among many; the transform they
-make is the calibrated one.
+The 1-sd uncertainty of the calibration (translation in the flange / base frame, rotation
+about the sensor's axes) is written as a comment in every text format. Numbers carry enough
+digits that reading them back reproduces the 4x4 within 1e-6 mm and 1e-6 deg (tested with an
+independent parser); a controller that stores 32-bit reals keeps about seven significant digits
+of them. Near a format's singularity (KUKA B = +-90 deg, FANUC and URDF pitch = +-90 deg, a
+half turn for UR's rotation vector) the angles are one valid choice among many; the transform
+they make is the calibrated one. KUKA's BASE_DATA, ABB's uframe and FANUC's UFRAME are given in
+the controller's world frame: the robot base as long as that is the world (the default).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -42,10 +54,19 @@ from handeye.model import conventions
 #: Frame names: what ROS, URDF and the controllers accept as an identifier.
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_/.-]{0,63}$")
 _RAPID_NAME = re.compile(r"[^A-Za-z0-9_]")
+_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,31}$")
+#: Default parent frame (ros2, urdf) by sensor mount.
+DEFAULT_PARENT = {"flange": "flange", "world": "base_link"}
 
 
 def representations(sensor2flange):
-    """The pose in every format's numbers: a dict of arrays (mm, deg, m, rad as named)."""
+    """The pose in every format's numbers: a dict of arrays (mm, deg, m, rad as named).
+
+    Parameters
+    ----------
+    sensor2flange : array_like, shape (4, 4)
+        The sensor frame in its mount's frame (flange or robot base), mm.
+    """
     t = np.asarray(sensor2flange, float)
     kuka = conventions.pose_from("kuka", t)
     fanuc = conventions.pose_from("fanuc", t)
@@ -77,8 +98,16 @@ def _sd_lines(calibration, unit="mm"):
     tr, rot = sd
     scale = 1e-3 if unit == "m" else 1.0
     trans = ", ".join(f"{v * scale:.3g}" for v in tr)
-    return [f"1 sd: translation +-({trans}) {unit} along the flange's x, y, z;",
+    return [f"1 sd: translation +-({trans}) {unit} along the {_frame(calibration)}'s x, y, z;",
             f"      rotation +-({', '.join(f'{v:.3g}' for v in rot)}) deg about the sensor's x, y, z"]
+
+
+def _frame(calibration):
+    return "base" if _world(calibration) else "flange"
+
+
+def _world(calibration):
+    return getattr(calibration, "sensor_mount", "flange") == "world"
 
 
 def _one_line(text):
@@ -90,7 +119,8 @@ def _one_line(text):
 def _header(calibration, what, unit="mm"):
     source = _one_line(calibration.source) + (f" (dataset {_one_line(calibration.dataset)})" if calibration.dataset
                                               else "")
-    return [f"handeye: the sensor frame on the robot flange ({what})", f"from {source}"] + _sd_lines(calibration, unit)
+    where = "in the robot base, fixed in the cell" if _world(calibration) else "on the robot flange"
+    return [f"handeye: the sensor frame {where} ({what})", f"from {source}"] + _sd_lines(calibration, unit)
 
 
 def _comment(prefix, lines, suffix=""):
@@ -101,97 +131,195 @@ def _f(values, digits):
     return [f"{v + 0.0:.{digits}f}".replace("-0." + "0" * digits, "0." + "0" * digits) for v in values]
 
 
-def text(calibration, fmt, parent="flange", child="sensor", tool=1, register=99):
+@dataclasses.dataclass(frozen=True)
+class _Job:
+    """One export: the calibration, its numbers and the resolved names and numbers.
+
+    ``number`` is the tool number (flange) or the base / user frame number (world).
+    """
+
+    calibration: object
+    rep: dict
+    parent: str
+    child: str
+    number: int
+    register: int
+
+    @property
+    def world(self):
+        return _world(self.calibration)
+
+    def header(self, what, unit="mm"):
+        return _header(self.calibration, what, unit)
+
+
+def _ur(job):
+    m, rep = job.rep["translation_m"], job.rep
+    values = ", ".join(_f(m, 10) + _f(rep["ur_rotvec_rad"], 10))
+    head = job.header("URScript pose: x, y, z in metres, rotation vector rx, ry, rz in radians", "m")
+    if not job.world:
+        return _comment("# ", head) + f"\nset_tcp(p[{values}])\n"
+    name = f"{job.child}_frame"
+    if not _IDENTIFIER.match(name):
+        raise RequestError(f"--child {job.child!r}: the URScript variable is {name}, an identifier: letters, digits "
+                           "and _, at most 32 characters")
+    head += ["a feature pose in the robot base, not a TCP (set_tcp is for a sensor on the flange): a point",
+             f"(x, y, z) in the sensor frame (metres) is pose_trans({name}, p[x, y, z, 0, 0, 0]) in the base;",
+             f"pose_inv({name}) takes base poses into the sensor frame"]
+    return _comment("# ", head) + f"\nglobal {name} = p[{values}]\n"
+
+
+def _ros2(job):
+    parent, child = job.parent, job.child
+    x, y, z = _f(job.rep["translation_m"], 10)
+    qx, qy, qz, qw = _f(job.rep["quaternion_xyzw"], 12)
+    head = job.header(f"tf2 static transform {parent} -> {child}: metres, quaternion x, y, z, w", "m")
+    return (_comment("# ", head) + f"\nros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} "
+            f"--qx {qx} --qy {qy} --qz {qz} --qw {qw} --frame-id {parent} --child-frame-id {child}\n")
+
+
+def _urdf(job):
+    parent, child = job.parent, job.child
+    head = job.header("URDF fixed joint: xyz in metres, rpy = fixed-axis roll, pitch, yaw in radians", "m")
+    xyz, rpy = " ".join(_f(job.rep["translation_m"], 10)), " ".join(_f(job.rep["rpy_rad"], 12))
+    return ("<!--\n" + _comment("  ", [h.replace("--", "- -") for h in head]) + "\n-->\n"
+            f'<joint name="{parent}_to_{child}" type="fixed">\n  <parent link="{parent}"/>\n'
+            f'  <child link="{child}"/>\n  <origin xyz="{xyz}" rpy="{rpy}"/>\n</joint>\n')
+
+
+def _kuka(job):
+    n, child = job.number, job.child
+    kind, option, most = ("BASE", "--base", 32) if job.world else ("TOOL", "--tool", 16)
+    if not 1 <= n <= most:
+        raise RequestError(f"{option} {n}: a KUKA {kind.lower()} number is 1..{most}")
+    if len(child) > 24 or '"' in child:
+        raise RequestError(f"--child {child!r}: KUKA's {kind}_NAME holds at most 24 characters")
+    x, y, z = _f(job.rep["translation_mm"], 6)
+    a, b, c = _f(job.rep["kuka_abc_deg"], 8)
+    head = job.header(f"KRL FRAME for $config.dat, {kind}_DATA[{n}]: X, Y, Z mm, A, B, C deg (Rz(A) Ry(B) Rx(C))")
+    if job.world:
+        head += ["BASE_DATA is given in $WORLD: the robot base while $ROBROOT is the null frame (the default)"]
+    return (_comment("; ", head) + f'\n{kind}_DATA[{n}]={{X {x},Y {y},Z {z},A {a},B {b},C {c}}}\n'
+            f'{kind}_NAME[{n},]="{child[:24]}"\n')
+
+
+def _abb(job):
+    child = job.child
+    name = f"wobj_{child}" if job.world else "t" + child
+    what = "wobjdata" if job.world else "tooldata"
+    if _RAPID_NAME.search(child) or len(name) > 32:
+        raise RequestError(f"--child {child!r}: the ABB {what} is named {name}, a RAPID identifier: letters, "
+                           "digits and _, at most 32 characters")
+    frame = f"[[{', '.join(_f(job.rep['translation_mm'], 6))}], [{', '.join(_f(job.rep['quaternion_wxyz'], 12))}]]"
+    if job.world:
+        head = job.header("RAPID wobjdata, uframe: [x, y, z] mm, [q1, q2, q3, q4] = quaternion w, x, y, z")
+        head += ["a fixed user frame (robhold FALSE, ufprog TRUE, oframe identity) in the world frame: the robot",
+                 "base while the base frame is the world (the default)"]
+        return (_comment("! ", head) + f'\nPERS wobjdata {name} := [FALSE, TRUE, "", {frame}, '
+                "[[0, 0, 0], [1, 0, 0, 0]]];\n")
+    head = job.header("RAPID tooldata, tframe: [x, y, z] mm, [q1, q2, q3, q4] = quaternion w, x, y, z")
+    head += ["tload is load0's placeholder: set the sensor's mass (kg) and centre of gravity (LoadIdentify)"]
+    return (_comment("! ", head) + f"\nPERS tooldata {name} := [TRUE, {frame}, "
+            "[0.001, [0, 0, 0.001], [1, 0, 0, 0], 0, 0, 0]];\n")
+
+
+def _fanuc(job):
+    n, register = job.number, job.register
+    kind, option, most, what = ("UFRAME", "--base", 9, "user") if job.world else ("UTOOL", "--tool", 10, "tool")
+    if not 1 <= n <= most:
+        raise RequestError(f"{option} {n}: a FANUC {what} frame number is 1..{most}")
+    if not 1 <= register <= 100:
+        raise RequestError(f"--register {register}: a FANUC position register is 1..100")
+    values = _f(job.rep["translation_mm"], 6) + _f(job.rep["fanuc_wpr_deg"], 8)
+    sd = job.calibration.sd()
+    where = "fixed in cell" if job.world else "on flange"
+    notes = [f"handeye: sensor {where}", f"frame {job.child}"[:29], f"{kind}: X Y Z mm, W P R deg",
+             "Direct Entry: the PR values"]
+    if sd is not None:  # a TP comment holds 32 characters: one number per line, rounded
+        notes += [f"1sd {a} {v:.3g} mm" for a, v in zip("XYZ", sd[0])]
+        notes += [f"1sd rot {a} {v:.3g} deg" for a, v in zip("xyz", sd[1])]
+    prog = [f"! {note[:29]} ;" for note in notes]
+    constants = [f"({v})" if v.startswith("-") else v for v in values]  # TP writes a negative constant (-1)
+    prog += [f"PR[{register}]=LPOS-LPOS ;"] + [f"PR[{register},{k}]={v} ;" for k, v in enumerate(constants, 1)]
+    prog += [f"{kind}[{n}]=PR[{register}] ;"]
+    body = "\n".join(f"{k:4d}:  {line}" for k, line in enumerate(prog, 1))
+    title = "handeye sensor frame" if job.world else "handeye sensor tool"
+    return f"/PROG HANDEYE_{kind}{n}\n/ATTR\nCOMMENT = \"{title}\";\n/MN\n{body}\n/POS\n/END\n"
+
+
+def _matrix(job):
+    rows = "\n".join(" ".join(_f(row, 10)) for row in job.calibration.sensor2flange)
+    head = job.header(f"4x4 homogeneous transform, sensor -> {_frame(job.calibration)}, mm")
+    return _comment("# ", head) + "\n" + rows + "\n"
+
+
+_WRITERS = {"ur": _ur, "ros2": _ros2, "urdf": _urdf, "kuka": _kuka, "abb": _abb, "fanuc": _fanuc, "matrix": _matrix}
+
+
+def resolve_numbers(calibration, tool=None, base=None):
+    """The tool number (flange) or base / user frame number (world); default 1.
+
+    ``--tool`` belongs to a sensor on the flange, ``--base`` to one fixed in the cell: the
+    other one given is a :class:`RequestError`.
+    """
+    if _world(calibration):
+        if tool is not None:
+            raise RequestError(f"--tool {tool}: the sensor is fixed in the cell (sensor_mount world), written as a "
+                               "base / user frame: give its number with --base")
+        return 1 if base is None else base
+    if base is not None:
+        raise RequestError(f"--base {base}: the sensor is on the flange, written as a tool: give its number with "
+                           "--tool")
+    return 1 if tool is None else tool
+
+
+def resolve_parent(calibration, parent=None):
+    """``parent``, or the mount's default: ``flange``, or ``base_link`` for a sensor fixed in the cell."""
+    return DEFAULT_PARENT["world" if _world(calibration) else "flange"] if parent is None else parent
+
+
+def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, base=None):
     """The calibration as ``fmt`` text (module docstring), ending with a newline.
 
     Parameters
     ----------
     calibration : handeye.app.outputs.saved.Calibration
+        Its ``sensor_mount`` chooses a tool (flange) or a base / user frame (world).
     fmt : str
         One of :data:`FORMATS` except ``json`` (see :func:`data`).
     parent, child : str
-        Frame names (ros2, urdf; the child names the ABB tooldata and the KUKA tool).
-    tool : int
-        Tool number (KUKA ``TOOL_DATA[tool]``, FANUC ``UTOOL[tool]``), 1..16 / 1..10.
+        Frame names (ros2, urdf; the child names the ABB tooldata / wobjdata, the KUKA tool /
+        base and the UR variable). ``parent`` default: ``flange``, or ``base_link`` (world).
+    tool : int, optional
+        Tool number of a flange-mounted sensor (KUKA ``TOOL_DATA[tool]``, FANUC
+        ``UTOOL[tool]``), 1..16 / 1..10; default 1.
     register : int
         FANUC position register the TP program writes (overwritten), 1..100.
+    base : int, optional
+        Base / user frame number of a sensor fixed in the cell (KUKA ``BASE_DATA[base]``,
+        FANUC ``UFRAME[base]``), 1..32 / 1..9; default 1.
     """
     if fmt not in FORMATS:
         raise RequestError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    parent = resolve_parent(calibration, parent)
     _check_name("--parent", parent)
     _check_name("--child", child)
+    number = resolve_numbers(calibration, tool, base)
     if fmt == "json":
         from handeye.app.present.jsonio import dumps
 
         return dumps(data(calibration, parent, child)) + "\n"
-    rep = representations(calibration.sensor2flange)
-    mm, m = rep["translation_mm"], rep["translation_m"]
-    if fmt == "ur":
-        values = ", ".join(_f(m, 10) + _f(rep["ur_rotvec_rad"], 10))
-        head = _header(calibration, "URScript pose: x, y, z in metres, rotation vector rx, ry, rz in radians", "m")
-        return _comment("# ", head) + f"\nset_tcp(p[{values}])\n"
-    if fmt == "ros2":
-        x, y, z = _f(m, 10)
-        qx, qy, qz, qw = _f(rep["quaternion_xyzw"], 12)
-        head = _header(calibration, f"tf2 static transform {parent} -> {child}: metres, quaternion x, y, z, w", "m")
-        return (_comment("# ", head) + f"\nros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} "
-                f"--qx {qx} --qy {qy} --qz {qz} --qw {qw} --frame-id {parent} --child-frame-id {child}\n")
-    if fmt == "urdf":
-        head = _header(calibration, "URDF fixed joint: xyz in metres, rpy = fixed-axis roll, pitch, yaw in radians",
-                       "m")
-        xyz, rpy = " ".join(_f(m, 10)), " ".join(_f(rep["rpy_rad"], 12))
-        return ("<!--\n" + _comment("  ", [h.replace("--", "- -") for h in head]) + "\n-->\n"
-                f'<joint name="{parent}_to_{child}" type="fixed">\n  <parent link="{parent}"/>\n'
-                f'  <child link="{child}"/>\n  <origin xyz="{xyz}" rpy="{rpy}"/>\n</joint>\n')
-    if fmt == "kuka":
-        if not 1 <= tool <= 16:
-            raise RequestError(f"--tool {tool}: a KUKA tool number is 1..16")
-        if len(child) > 24 or '"' in child:
-            raise RequestError(f"--child {child!r}: KUKA's TOOL_NAME holds at most 24 characters")
-        x, y, z = _f(mm, 6)
-        a, b, c = _f(rep["kuka_abc_deg"], 8)
-        head = _header(calibration, f"KRL FRAME for $config.dat, TOOL_DATA[{tool}]: X, Y, Z mm, A, B, C deg "
-                                    "(Rz(A) Ry(B) Rx(C))")
-        return (_comment("; ", head) + f'\nTOOL_DATA[{tool}]={{X {x},Y {y},Z {z},A {a},B {b},C {c}}}\n'
-                f'TOOL_NAME[{tool},]="{child[:24]}"\n')
-    if fmt == "abb":
-        name = "t" + child
-        if _RAPID_NAME.search(child) or len(name) > 32:
-            raise RequestError(f"--child {child!r}: the ABB tooldata is named t{child}, a RAPID identifier: letters, "
-                               "digits and _, at most 32 characters")
-        pos = ", ".join(_f(mm, 6))
-        quat = ", ".join(_f(rep["quaternion_wxyz"], 12))
-        head = _header(calibration, "RAPID tooldata, tframe: [x, y, z] mm, [q1, q2, q3, q4] = quaternion w, x, y, z")
-        head += ["tload is load0's placeholder: set the sensor's mass (kg) and centre of gravity (LoadIdentify)"]
-        return (_comment("! ", head) + f"\nPERS tooldata {name} := [TRUE, [[{pos}], [{quat}]], "
-                "[0.001, [0, 0, 0.001], [1, 0, 0, 0], 0, 0, 0]];\n")
-    if fmt == "fanuc":
-        if not 1 <= tool <= 10:
-            raise RequestError(f"--tool {tool}: a FANUC tool frame number is 1..10")
-        if not 1 <= register <= 100:
-            raise RequestError(f"--register {register}: a FANUC position register is 1..100")
-        values = _f(mm, 6) + _f(rep["fanuc_wpr_deg"], 8)
-        sd = calibration.sd()
-        notes = ["handeye: sensor on flange", f"frame {child}"[:29], "UTOOL: X Y Z mm, W P R deg",
-                 "Direct Entry: the PR values"]
-        if sd is not None:  # a TP comment holds 32 characters: one number per line, rounded
-            notes += [f"1sd {a} {v:.3g} mm" for a, v in zip("XYZ", sd[0])]
-            notes += [f"1sd rot {a} {v:.3g} deg" for a, v in zip("xyz", sd[1])]
-        prog = [f"! {n[:29]} ;" for n in notes]
-        constants = [f"({v})" if v.startswith("-") else v for v in values]  # TP writes a negative constant (-1)
-        prog += [f"PR[{register}]=LPOS-LPOS ;"] + [f"PR[{register},{k}]={v} ;" for k, v in enumerate(constants, 1)]
-        prog += [f"UTOOL[{tool}]=PR[{register}] ;"]
-        body = "\n".join(f"{k:4d}:  {line}" for k, line in enumerate(prog, 1))
-        return (f"/PROG HANDEYE_UTOOL{tool}\n/ATTR\nCOMMENT = \"handeye sensor tool\";\n"
-                f"/MN\n{body}\n/POS\n/END\n")
-    rows = "\n".join(" ".join(_f(row, 10)) for row in calibration.sensor2flange)
-    return _comment("# ", _header(calibration, "4x4 homogeneous transform, sensor -> flange, mm")) + "\n" + rows + "\n"
+    job = _Job(calibration, representations(calibration.sensor2flange), parent, child, number, register)
+    return _WRITERS[fmt](job)
 
 
-def data(calibration, parent="flange", child="sensor"):
-    """Every format's numbers as one JSON-ready dict (``--format json``)."""
+def data(calibration, parent=None, child="sensor"):
+    """Every format's numbers as one JSON-ready dict (``--format json``); a sensor fixed in the
+    cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
+    parent = resolve_parent(calibration, parent)
     rep = representations(calibration.sensor2flange)
-    out = {"parent": parent, "child": child, "sensor_matrix": calibration.sensor2flange.tolist()}
+    mount = {"sensor_mount": "world"} if _world(calibration) else {}
+    out = {**mount, "parent": parent, "child": child, "sensor_matrix": calibration.sensor2flange.tolist()}
     out.update({k: v.tolist() for k, v in rep.items()})
     out["calibration"] = calibration.to_dict()
     return out

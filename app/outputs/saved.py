@@ -1,11 +1,15 @@
-"""A saved calibration read back: the sensor pose on the flange and its covariance.
+"""A saved calibration read back: the sensor pose in its mount's frame and its covariance.
 
 ``handeye calibrate --out RESULT.json`` writes the whole :class:`handeye.CalibrationResult`;
 what the uses of a calibration need from it (``handeye export``, ``cloud``, ``validate``) is
-:class:`Calibration`: the 4x4 ``sensor2flange`` (mm) and the 6x6 covariance of its local chart
-``t + dt, R exp([dw]x)`` (``dt`` mm in the flange frame, ``dw`` rad about the sensor's own axes).
+:class:`Calibration`: the 4x4 ``sensor_matrix`` (mm) and the 6x6 covariance of its local chart
+``t + dt, R exp([dw]x)`` (``dt`` mm in the mount's frame, ``dw`` rad about the sensor's own axes).
 A pose typed in by hand (``--sensor-pose``, e.g. a TCP already in the controller) is a
 calibration without a covariance.
+
+The file's ``sensor_mount`` says where the sensor is: ``"flange"`` (on the robot flange; the
+matrix is sensor2flange; a file without the key is one) or ``"world"`` (fixed in the cell; the
+matrix is sensor2base, the sensor frame in the robot base frame).
 
 Every problem with the file raises :class:`CalibrationFileError` (an ``InputError``: exit 2),
 naming the file and the key.
@@ -26,6 +30,10 @@ from handeye.model import conventions
 ORTHONORMAL_TOLERANCE = 1e-6
 #: A saved result larger than this is not a calibration result.
 MAX_RESULT_BYTES = 256 * 1024**2
+#: Where the sensor is: on the robot flange, or fixed in the cell (the matrix in the robot base).
+SENSOR_MOUNTS = ("flange", "world")
+#: The frame the sensor matrix is given in, by mount.
+MOUNT_FRAME = {"flange": "flange", "world": "base"}
 
 
 class CalibrationFileError(RequestError):
@@ -38,20 +46,26 @@ class CalibrationFileError(RequestError):
 
 @dataclasses.dataclass(frozen=True)
 class Calibration:
-    """The sensor pose on the flange, with its uncertainty.
+    """The sensor pose in its mount's frame, with its uncertainty.
 
     Attributes
     ----------
     sensor2flange : ndarray, shape (4, 4)
-        Sensor frame in the flange frame, mm.
+        Sensor frame in the mount's frame, mm: the flange frame (``sensor_mount`` "flange"), or
+        the robot base frame ("world": sensor2base). :attr:`sensor_matrix` is the same array.
     covariance : ndarray, shape (6, 6), or None
-        Of the local chart ``(tx, ty, tz, wx, wy, wz)``: mm and rad, translation in the flange
+        Of the local chart ``(tx, ty, tz, wx, wy, wz)``: mm and rad, translation in the mount's
         frame, rotation about the sensor's axes; None when unknown.
     source : str
         Where it came from (a file, or ``--sensor-pose``).
     dataset, dataset_sha256 : str or None
         The calibration's dataset, when the file says.
     converged : bool
+    sensor_mount : {'flange', 'world'}
+        On the robot flange, or fixed in the cell.
+    positioner_axes : tuple of handeye.model.mounts.Axis
+        The positioner's axes the calibration estimated (robot base, all angles zero); empty when
+        it held them as set up (or has no positioner).
     """
 
     sensor2flange: np.ndarray
@@ -60,6 +74,18 @@ class Calibration:
     dataset: str | None = None
     dataset_sha256: str | None = None
     converged: bool = True
+    sensor_mount: str = "flange"
+    positioner_axes: tuple = ()
+
+    @property
+    def sensor_matrix(self):
+        """The 4x4 sensor frame in :attr:`frame` (mm): sensor2flange or sensor2base."""
+        return self.sensor2flange
+
+    @property
+    def frame(self):
+        """The frame the sensor matrix is in: ``"flange"`` or ``"base"``."""
+        return MOUNT_FRAME[self.sensor_mount]
 
     def sd(self):
         """1-sd ``(translation (3,) mm, rotation (3,) deg)``, or None without a covariance."""
@@ -69,8 +95,10 @@ class Calibration:
         return sd[:3], np.degrees(sd[3:6])
 
     def to_dict(self):
+        """The calibration as JSON-ready numbers (a world mount says so; a flange one as always)."""
         sd = self.sd()
-        return {"source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
+        mount = {} if self.sensor_mount == "flange" else {"sensor_mount": self.sensor_mount}
+        return {**mount, "source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
                 "sensor_matrix": self.sensor2flange.tolist(),
                 "sd_translation_mm": None if sd is None else sd[0].tolist(),
                 "sd_rotation_deg": None if sd is None else sd[1].tolist(),
@@ -101,6 +129,8 @@ def _covariance(doc, file):
     cov = doc.get("covariance")
     if isinstance(cov, dict) and cov.get("matrix") is not None:
         names = cov.get("names")
+        if isinstance(names, list) and "tx" not in names and names[:1] in (["cx"], ["e1_tilt1"]) or names == []:
+            return None  # the sensor was held (--unknowns without sensor): no covariance of it here
         if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
             raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "covariance")
         m = _matrix(cov["matrix"], (len(names), len(names)), file, "covariance")[:6, :6]
@@ -122,9 +152,8 @@ def _covariance(doc, file):
     return m
 
 
-def load(path):
-    """The :class:`Calibration` of a ``calibrate --out`` file (or of ``--json`` output saved)."""
-    file = pathlib.Path(path)
+def _document(file):
+    """The JSON object of a saved calibration file, or :class:`CalibrationFileError`."""
     try:
         if file.is_dir():
             raise CalibrationFileError(file, "is a folder; give the JSON file `handeye calibrate --out` wrote")
@@ -136,11 +165,30 @@ def load(path):
     except (OSError, UnicodeDecodeError) as exc:
         raise CalibrationFileError(file, f"cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     try:
-        doc = json.loads(text, parse_constant=lambda c: None)
+        return json.loads(text, parse_constant=lambda c: None)
     except json.JSONDecodeError as exc:
         raise CalibrationFileError(file, f"not JSON (line {exc.lineno}: {exc.msg})") from None
     except RecursionError:
         raise CalibrationFileError(file, "nested too deeply to be a calibration result") from None
+
+
+def _mount(doc, file):
+    """The file's ``sensor_mount``: "flange" when absent (files before the key), else checked."""
+    mount = doc.get("sensor_mount", "flange")
+    if mount not in SENSOR_MOUNTS:
+        raise CalibrationFileError(file, f"needs \"flange\" or \"world\", got {_one_line(mount)!r}", "sensor_mount")
+    return mount
+
+
+def _one_line(value):
+    """A value of the file shown in a one-line message: no control characters, at most 40."""
+    return "".join(c if c.isprintable() else " " for c in str(value))[:40]
+
+
+def load(path):
+    """The :class:`Calibration` of a ``calibrate --out`` file (or of ``--json`` output saved)."""
+    file = pathlib.Path(path)
+    doc = _document(file)
     if not isinstance(doc, dict) or "sensor_matrix" not in doc:
         raise CalibrationFileError(file, "not a calibration result: no sensor_matrix (write one with handeye "
                                          "calibrate DATASET --out FILE)")
@@ -153,21 +201,52 @@ def load(path):
         raise CalibrationFileError(file, f"needs true or false, got {str(converged)[:40]!r}", "converged")
     sha = doc.get("dataset_sha256")
     return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), sha if isinstance(sha, str) else None,
-                       converged)
+                       converged, _mount(doc, file), _positioner(doc, file))
+
+
+def _positioner(doc, file):
+    """The calibrated positioner axes of the file (``positioner`` entries with ``calibrated``), or ()."""
+    from handeye.model.mounts import Axis
+
+    entries = doc.get("positioner")
+    if entries is None:
+        return ()
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise CalibrationFileError(file, "needs a list of axes {name, point, direction}", "positioner")
+    if not all(e.get("calibrated") for e in entries):
+        return ()  # held as set up: the dataset's own axes are the calibration's
+    axes = []
+    for k, e in enumerate(entries):
+        point = _matrix([e.get("point")], (1, 3), file, f"positioner[{k}].point")[0]
+        direction = _matrix([e.get("direction")], (1, 3), file, f"positioner[{k}].direction")[0]
+        if not isinstance(e.get("name"), str) or not 0.5 < np.linalg.norm(direction) < 2.0:
+            raise CalibrationFileError(file, "needs a name and a unit direction", f"positioner[{k}]")
+        axes.append(Axis(e["name"], point, direction / np.linalg.norm(direction)))
+    return tuple(axes)
 
 
 #: A sensor origin nearer the flange's than this (mm) is a pose typed in metres (UR's units).
 MIN_OFFSET_MM = 1.0
 
 
-def from_matrix(matrix, source="a 4x4 matrix"):
-    """A :class:`Calibration` without covariance from a 4x4 sensor2flange (mm), checked rigid."""
-    return Calibration(check_transform(_matrix(matrix, (4, 4), source, None), source), None, source)
+def check_mount(mount, option="--sensor-mount"):
+    """``mount`` if it is one of :data:`SENSOR_MOUNTS`, else :class:`RequestError` naming ``option``."""
+    if mount not in SENSOR_MOUNTS:
+        raise RequestError(f"{option} {mount!r}: choose one of {', '.join(SENSOR_MOUNTS)}")
+    return mount
 
 
-def from_pose(pose, convention="kuka"):
+def from_matrix(matrix, source="a 4x4 matrix", sensor_mount="flange"):
+    """A :class:`Calibration` without covariance from a 4x4 sensor2flange (or, ``sensor_mount``
+    "world", sensor2base), mm, checked rigid."""
+    return Calibration(check_transform(_matrix(matrix, (4, 4), source, None), source), None, source,
+                       sensor_mount=check_mount(sensor_mount))
+
+
+def from_pose(pose, convention="kuka", sensor_mount="flange"):
     """A :class:`Calibration` without covariance from a pose typed in (``x, y, z`` mm and the
-    convention's orientation columns)."""
+    convention's orientation columns), in the flange frame or (``sensor_mount`` "world") the
+    robot base frame."""
     cols = conventions.columns(convention)
     values = np.asarray(pose, dtype=float)
     if values.shape != (len(cols),) or not all(math.isfinite(v) for v in values):
@@ -176,8 +255,11 @@ def from_pose(pose, convention="kuka"):
         m = conventions.transform_from(convention, values)
     except conventions.ConventionError as exc:
         raise RequestError(f"--sensor-pose: {exc}") from None
+    frame = MOUNT_FRAME[check_mount(sensor_mount)]
     offset = float(np.linalg.norm(values[:3]))
     if 0 < offset < MIN_OFFSET_MM:
-        raise RequestError(f"--sensor-pose: the sensor origin {offset:.3g} mm from the flange's: metres? handeye "
+        raise RequestError(f"--sensor-pose: the sensor origin {offset:.3g} mm from the {frame}'s: metres? handeye "
                            "positions are mm (UR: multiply x, y, z by 1000)")
-    return Calibration(m, None, f"--sensor-pose {','.join(f'{v:g}' for v in values)} ({convention})")
+    where = "" if sensor_mount == "flange" else ", in the robot base"
+    return Calibration(m, None, f"--sensor-pose {','.join(f'{v:g}' for v in values)} ({convention}{where})",
+                       sensor_mount=sensor_mount)
