@@ -263,7 +263,9 @@ def test_the_parent_default_follows_the_mount(tmp_path):
     assert "sensor_mount" not in json.loads(handeye.export(DATA / "thesis-real.json").text)
 
 
-def test_cloud_and_validate_refuse_a_sensor_fixed_in_the_cell(tmp_path):
+def test_cloud_and_validate_refuse_a_calibration_of_another_mount(tmp_path):
+    """A sensor2base read as a sensor2flange (or the other way round) gives wrong numbers without a
+    warning: validate and cloud refuse it, naming both mounts."""
     world = _edited(tmp_path, sensor_mount="world")
-    with pytest.raises(RequestError, match="fixed in the cell"):
+    with pytest.raises(RequestError, match="sensor mounted on the world.*mounts the sensor on the flange"):
         handeye.validate("thesis-sim", world)
