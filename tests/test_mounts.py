@@ -217,3 +217,30 @@ def test_diagnose_names_a_sphere_centre_slip_in_every_mount(tmp_path, mount):
     sd = np.array([named["sphere_center"].std[k] for k in ("dx", "dy", "dz")])
     assert np.all(np.abs(offset + np.array([0.8, -0.5, 0.6])) < 4 * sd)
     assert d.rms_after_mm < 0.15 * d.rms_before_mm
+
+
+def test_validate_uses_the_positioner_axes_the_calibration_holds(tmp_path):
+    rows, truth = make_cell("positioner", seed=41, n=30)
+    folder = write(tmp_path / "p", "positioner", rows, truth, axes=_moved_axes((1.0, -0.8), (0.003, 0.002)))
+    calibrated = handeye.calibrate(folder, unknowns="sensor+positioner", out=tmp_path / "cal.json", no_loo=True)
+    held = handeye.calibrate(folder, unknowns="sensor", out=tmp_path / "held.json", no_loo=True)
+    good = handeye.validate(folder, tmp_path / "cal.json").to_dict()
+    bad = handeye.validate(folder, tmp_path / "held.json").to_dict()
+    rms = [v["centres"]["rms_mm"] for v in (good, bad)]
+    # the held one is the calibration's own fit; the calibrated one's table is the conditional fit's at the
+    # refined axes, a few um from the cell fit's
+    assert abs(rms[0] - calibrated.rms_mm) < 5e-3 and abs(rms[1] - held.rms_mm) < 1e-6
+    assert rms[0] < 0.1 < 1.0 < rms[1]
+
+
+def test_a_held_sensor_calibration_file_loads_without_a_sensor_covariance(tmp_path):
+    from handeye.app.outputs import saved
+
+    rows, truth = make_cell("positioner", seed=6, n=30)
+    pose = ", ".join(f"{v:.6f}" for v in pose_from_transform(truth["sensor"]))
+    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes())
+    text = (folder / "setup.toml").read_text().replace('mount = "flange"', f'mount = "flange"\npose = [{pose}]', 1)
+    (folder / "setup.toml").write_text(text)
+    handeye.calibrate(folder, unknowns="sphere+positioner", out=tmp_path / "cal.json", no_loo=True)
+    cal = saved.load(tmp_path / "cal.json")
+    assert cal.covariance is None and [a.name for a in cal.positioner_axes] == ["e1", "e2"]
