@@ -227,9 +227,7 @@ def test_validate_uses_the_positioner_axes_the_calibration_holds(tmp_path):
     good = handeye.validate(folder, tmp_path / "cal.json").to_dict()
     bad = handeye.validate(folder, tmp_path / "held.json").to_dict()
     rms = [v["centres"]["rms_mm"] for v in (good, bad)]
-    # the held one is the calibration's own fit; the calibrated one's table is the conditional fit's at the
-    # refined axes, a few um from the cell fit's
-    assert abs(rms[0] - calibrated.rms_mm) < 5e-3 and abs(rms[1] - held.rms_mm) < 1e-6
+    assert abs(rms[0] - calibrated.rms_mm) < 1e-6 and abs(rms[1] - held.rms_mm) < 1e-6
     assert rms[0] < 0.1 < 1.0 < rms[1]
 
 

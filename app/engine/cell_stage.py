@@ -16,8 +16,9 @@
    (at most :data:`PASSES` runs).
 
 The result is the conditional result with the cell fit's pose, centre, covariance,
-identifiability and a :class:`PositionerRecord`; its residual table is the conditional fit's at
-the refined axes.
+identifiability, residual table (every sample at the cell fit, in the sphere mount's frame) and a
+:class:`PositionerRecord`; screening, the global check, leave-one-out errors and the noise test
+are the last conditional run's (at the refined axes).
 """
 from __future__ import annotations
 
@@ -205,6 +206,23 @@ def refined_mounts(dataset, fitted):
     return dataset.mounts.with_axes([a.point for a in fitted.axes], [a.direction for a in fitted.axes])
 
 
+def final_residuals(dataset, result, fitted):
+    """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
+    the leave-one-out errors stay the conditional fit's)."""
+    from handeye.app.present.results import ResidualTable
+
+    data = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted)) if fitted.axes else dataset
+    xs = np.column_stack([data.centre_in_sensor, np.ones(len(data))])
+    e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
+    norms, used = np.linalg.norm(e, axis=1), mask_of(result)
+    loo = getattr(result.residuals, "loo", None)
+    if loo is None:
+        loo = [getattr(r, "loo", float("nan")) for r in result.residuals]
+    return {"residuals": ResidualTable(data.ids, data.rows, e, norms, used, loo),
+            "rms_mm": float(np.sqrt(np.mean(norms[used] ** 2))), "max_residual_mm": float(norms[used].max()),
+            "cost_mm2": float(0.5 * np.sum(norms[used] ** 2))}
+
+
 def compose(request, dataset, result, fitted, free, nominal):
     """The conditional result with the cell fit's parts (module docstring)."""
     from handeye.app.present.results import Uncertainty
@@ -212,7 +230,7 @@ def compose(request, dataset, result, fitted, free, nominal):
     sensor = fitted.sensor
     kuka = pose_from_transform(sensor)
     fit_part = dataclasses.replace(
-        result.fit, sensor2flange=sensor, sensor_pose_kuka=kuka,
+        result.fit, **final_residuals(dataset, result, fitted), sensor2flange=sensor, sensor_pose_kuka=kuka,
         sensor_pose=conventions.pose_from(request.convention, sensor), sphere_centre=fitted.centre,
         converged=result.converged and fitted.converged and fitted.ident.full_rank,
         message=f"{result.message}; cell fit of {request.parts}: {fitted.message} ({fitted.iterations} iterations)")
