@@ -375,7 +375,7 @@ class SimulationResult(ResultProtocol):
 
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
-             no_start=False):
+             no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
     Parameters
@@ -389,7 +389,8 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     profiles : bool
         Also write the laser profiles.
     poses : str or pathlib.Path, optional
-        A pose list (header ``id,x,y,z,a,b,c``, KUKA) instead of the thesis strategy.
+        A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns,
+        degrees) instead of the thesis strategy.
     n_poses : int
         Poses of the thesis strategy (1-36).
     linearity : float
@@ -398,18 +399,28 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     translations : int
         Pure flange translations (0-6) at each of two orientations.
     truth : str or array_like, optional
-        True sensor pose in ``convention`` (KUKA: mm, degrees); default the thesis's
-        (190, 100, 125, 180, -88, 0) in KUKA terms.
+        True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the
+        thesis's (190, 100, 125, 180, -88, 0) in KUKA terms on the flange,
+        :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.
     diameter : float, optional
         Sphere diameter, mm; default the thesis's certified 59.94507.
     center : str or array_like, optional
-        Sphere centre in the robot base, mm (``'X,Y,Z'`` or three numbers); default the thesis's.
+        Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the
+        thesis's in the base, :mod:`handeye.model.simulate_mounts`' on the flange or the table.
     convention : {'kuka', 'abb', 'ur', 'fanuc'}
         Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
     max_tilt : float
         Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
     no_start : bool
         Write no ``start_pose``: a calibration then starts from the closed-form estimate.
+    sensor_mount, sphere_mount : str
+        ``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner``
+        (:mod:`handeye.model.simulate_mounts`).
+    positioner_axes : str, optional
+        Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first;
+        default a KUKA KP1-V-like two-axis positioner.
+    positioner_error : str or sequence of two floats, optional
+        ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
 
     Returns
     -------
@@ -432,6 +443,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     n_poses = _integer(n_poses, "--n-poses", 1)
     translations = _integer(translations, "--translations", 0)
     setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    cell, setup = _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error)
     if truth is not None:
         pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
         setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
@@ -440,20 +452,43 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     if center is not None:
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
-    ids, flange_poses = None, None
+    ids, flange_poses, angles = None, None, None
     if poses is not None:
         if motions != "thesis" or translations:
             raise RequestError("--poses gives the poses: --motions and --translations do not apply")
-        ids, flange_poses = read_pose_list(poses)
+        ids, flange_poses, *angles = read_pose_list(poses, axes=cell.axis_names)
+        angles = angles[0] if angles else None
     elif motions != "thesis" or translations:
+        if not cell.default:
+            raise RequestError("--motions and --translations apply to the sensor on the flange, sphere in the world")
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
-    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids)
+    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids,
+                        cell=cell, axis_angles=angles)
     from handeye.app.files import write_folder_atomically
 
     write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
                                                          **({"start_offset": None} if no_start else {})))
     return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
+
+
+def _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error):
+    """The simulated cell (:class:`handeye.model.simulate_mounts.Cell`) and the setup with this
+    mount's default truth."""
+    from handeye.model import simulate_mounts as sm
+
+    sm.check_pair(sensor_mount, sphere_mount)
+    if positioner_error is not None and sphere_mount != "positioner":
+        raise RequestError("--positioner-error needs --sphere-mount positioner")
+    axes = None if positioner_axes is None else sm.parse_axes(positioner_axes)
+    error = sm.POSITIONER_ERROR if positioner_error is None else _floats(positioner_error, "--positioner-error", 2)
+    cell = sm.make_cell(sensor_mount, sphere_mount, axes, error, seed)
+    pose, centre = sm.default_truth(cell)
+    if pose is not None:
+        setup = dataclasses.replace(setup, sensor_pose=pose)
+    if centre is not None:
+        setup = dataclasses.replace(setup, sphere_centre=centre)
+    return cell, setup
 
 
 @dataclasses.dataclass(frozen=True)

@@ -215,46 +215,73 @@ class Simulation:
     true_centre: np.ndarray
     seed: int
     dropped: list = dataclasses.field(default_factory=list)
+    cell: object = None
+    axis_angles: np.ndarray | None = None
 
 
-def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None):
+def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
+    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation."""
+    if flange_poses is not None:
+        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
+        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+        if cell is not None and cell.sphere == "positioner":
+            if axis_angles is None or np.shape(axis_angles) != (len(true_flanges), len(cell.true_axes)):
+                raise SimulationError(f"custom poses on a positioner need the axis angles ({', '.join(cell.axis_names)})"
+                                      " of every pose")
+            return out_ids, true_flanges, np.asarray(axis_angles, float)
+        return out_ids, true_flanges, None
+    if cell is not None and not cell.default:
+        from handeye.model import simulate_mounts
+
+        return simulate_mounts.cell_poses(cell, setup, rng, centre, n_poses)
+    out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
+    seen_at = np.array([random_view(setup, rng) for _ in rots])
+    return out_ids, flanges_for_views(setup, np.array(rots), seen_at, centre), None
+
+
+def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None, cell=None,
+             axis_angles=None):
     """Simulate a dataset (module docstring).
 
     Parameters
     ----------
     setup : Setup
+        ``sensor_pose`` and ``sphere_centre`` are the truth in their mounts' frames.
     seed : int
         Seed of ``np.random.default_rng``; the same seed gives the same dataset.
     effects : dict, optional
-        From :func:`parse_effects`.
+        From :func:`parse_effects`; ``sphere_center`` offsets the centre in its mount's frame.
     flange_poses : array_like, shape (N, 6), optional
         Custom flange poses (KUKA) instead of the thesis strategy.
     n_poses : int
         Poses of the thesis strategy (1..36).
     ids : list of str, optional
         Ids of custom poses (default ``p1, p2, ...``).
+    cell : handeye.model.simulate_mounts.Cell, optional
+        The mounts (default: the seed's cell, sensor on the flange, sphere in the base).
+    axis_angles : array_like, shape (N, k), optional
+        Positioner axis angles (degrees) of custom poses.
     """
+    from handeye.model import mounts as mount_model
+    from handeye.model.simulate_mounts import centre_in_sensor
+
     rng = np.random.default_rng(seed)
     effects = dict(effects or {})
     t_x = transform_from_pose(setup.sensor_pose)
     radius_setup = setup.diameter / 2
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
-    if flange_poses is None:
-        out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
-        seen_at = np.array([random_view(setup, rng) for _ in rots])
-        true_flanges = flanges_for_views(setup, np.array(rots), seen_at, centre)
-    else:
-        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
-        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+    out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
+    mounts = mount_model.Mounts() if cell is None else cell.mounts
+    tables = None if angles is None else mount_model.table2base(mounts.axes, angles)
     for name in ("sign_flip", "outlier"):
         unknown = sorted(set(effects.get(name, [])) - set(out_ids))
         if unknown:
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
     scale = 1.0 + effects.get("sensor_scale", 0.0)
-    recorded, centres, profiles, kept, dropped = [], [], [], [], []
+    recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
-        in_sensor = np.linalg.solve(flange @ t_x, np.append(centre, 1.0))[:3]
+        in_sensor = centre_in_sensor(mounts, t_x, centre, flange, None if tables is None else tables[k])
         try:
             pts = profile_points(in_sensor, radius_true, setup, rng) * scale
         except SimulationError as exc:
@@ -276,10 +303,12 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         centres.append(xs)
         profiles.append(pts)
         kept.append(ident)
+        kept_k.append(k)
     if not kept:  # an empty dataset is not a simulation: say why instead of writing it
         ident, reason = dropped[0]
         raise SimulationError(f"every pose was dropped (first: {ident}: {reason}); check the effects and the setup")
-    return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped)
+    return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped,
+                      cell, None if angles is None else angles[kept_k])
 
 
 def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0), convention="kuka"):
@@ -296,14 +325,18 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     conventions.check(convention)
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs")) + (",profile" if profiles else "")
+    names = () if sim.axis_angles is None else sim.cell.axis_names
+    header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs") + names) \
+        + (",profile" if profiles else "")
     lines = [header]
     if profiles:
         (folder / "profiles").mkdir(exist_ok=True)
-    for ident, pose, xs, pts in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles):
+    angles = sim.axis_angles if names else [()] * len(sim.ids)
+    for ident, pose, xs, pts, th in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles, angles):
         safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
         written = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
         row = [ident] + [f"{v:.12g}" if convention != "kuka" else f"{v:.9f}" for v in written] + [f"{v:.9f}" for v in xs]
+        row += [f"{v:.9f}" for v in th]
         if profiles:
             name = f"profiles/{safe}.csv"
             np.savetxt(folder / name, pts, fmt="%.9f", delimiter=",", header="x,z", comments="")
@@ -318,19 +351,25 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     def vec(v):
         return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
+    from handeye.model import simulate_mounts
+
+    sensor_keys, sphere_keys, positioner, truth_axes = simulate_mounts.toml_parts(sim.cell or simulate_mounts.Cell())
     start = ("" if start_offset is None else
-             f"[sensor]\nstart_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n\n")
+             f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
         + (f"[robot]\nconvention = \"{convention}\"\n\n" if convention != "kuka" else "")
-        + start +
-        f"[sphere]\ndiameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
-        f"[profile]\nside = {s.side}\n\n"
+        + (f"[sensor]\n{sensor_keys}{start}\n" if sensor_keys or start else "")
+        + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
+        + positioner
+        + f"[profile]\nside = {s.side}\n\n"
         f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
-        f"sphere_center = {vec(sim.true_centre)}\n"
+        f"sphere_center = {vec(sim.true_centre)}\n" + truth_axes
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],
             "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
+    if sim.cell is not None and not sim.cell.default:
+        meta["cell"] = simulate_mounts.describe(sim.cell)
     (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder
