@@ -133,7 +133,7 @@ def _use_args(sub, conventions):
 
 def build_parser():
     from handeye.app.choices import ALPHA, CLASSIC_METHODS, METHODS
-    from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS, UNKNOWNS
+    from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
 
     parser = _Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)

@@ -219,6 +219,28 @@ class Simulation:
     axis_angles: np.ndarray | None = None
 
 
+def _measure(setup, effects, rng, ident, k, in_sensor, radius_true):
+    """The centre the sensor reports for pose ``ident`` (number k from 0) whose true sphere
+    centre is at ``in_sensor`` (sensor frame, mm): ``(xs, profile points)``, or ``(None, reason)``
+    when no centre can be reconstructed (module docstring: ``sphere_radius``)."""
+    radius_setup = setup.diameter / 2
+    try:
+        pts = profile_points(in_sensor, radius_true, setup, rng) * (1.0 + effects.get("sensor_scale", 0.0))
+    except SimulationError as exc:
+        raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
+    side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
+    fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
+    if fitted.r >= radius_setup:
+        # a hidden radius effect makes the circle larger than the setup's sphere near the
+        # equator: no real y; a real pipeline loses such a sample, and so does this one
+        return None, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"
+    xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
+    if ident in effects.get("outlier", []):
+        direction = rng.normal(size=3)
+        xs = xs + 30.0 * direction / np.linalg.norm(direction)
+    return xs, pts
+
+
 def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
     """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation."""
     if flange_poses is not None:
@@ -278,25 +300,13 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         unknown = sorted(set(effects.get(name, [])) - set(out_ids))
         if unknown:
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
-    scale = 1.0 + effects.get("sensor_scale", 0.0)
     recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
         in_sensor = centre_in_sensor(mounts, t_x, centre, flange, None if tables is None else tables[k])
-        try:
-            pts = profile_points(in_sensor, radius_true, setup, rng) * scale
-        except SimulationError as exc:
-            raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
-        side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
-        fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
-        if fitted.r >= radius_setup:
-            # a hidden radius effect makes the circle larger than the setup's sphere near the
-            # equator: no real y; a real pipeline loses such a sample, and so does this one
-            dropped.append((ident, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"))
+        xs, pts = _measure(setup, effects, rng, ident, k, in_sensor, radius_true)
+        if xs is None:
+            dropped.append((ident, pts))
             continue
-        xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
-        if ident in effects.get("outlier", []):
-            direction = rng.normal(size=3)
-            xs = xs + 30.0 * direction / np.linalg.norm(direction)
         noisy = flange.copy()
         noisy[:3, 3] += rng.normal(0.0, setup.sigma_robot, 3)
         recorded.append(pose_from_transform(noisy))
