@@ -515,6 +515,12 @@ class PlanResult(ResultProtocol):
         True when the poses were given (``--score``), not chosen.
     margin : tuple of float
         (mm, deg) the nominal sensor pose may be off while every pose still sees the sphere.
+    axis_names : tuple of str
+        The positioner's axes (sphere on a positioner), else empty.
+    axis_angles : ndarray, shape (n, k), or None
+        Their angles at each pose, degrees (columns of :meth:`pose_list` after the pose's).
+    mounts : tuple of str
+        (sensor mount, sphere mount) of the planned cell.
     """
 
     caption = 'handeye plan'
@@ -530,6 +536,9 @@ class PlanResult(ResultProtocol):
     scored: bool = False
     margin: tuple = (0.0, 0.0)
     warnings: tuple = ()
+    axis_names: tuple = ()
+    axis_angles: np.ndarray | None = None
+    mounts: tuple = ("flange", "world")
 
     def poses_in_convention(self):
         from handeye.model import conventions
@@ -547,13 +556,16 @@ class PlanResult(ResultProtocol):
                 "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
                 "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
                              "poses": np.asarray(self.poses_in_convention()).tolist()},
-                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)}
+                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)} | (
+            {} if self.mounts == ("flange", "world") else
+            {"sensor_mount": self.mounts[0], "sphere_mount": self.mounts[1], "axis_names": list(self.axis_names),
+             "axis_angles": None if self.axis_angles is None else np.asarray(self.axis_angles).tolist()})
 
     def pose_list(self):
         """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
         from handeye.model.dataset import pose_list_text
 
-        return pose_list_text(self.ids, self.poses, self.convention)
+        return pose_list_text(self.ids, self.poses, self.convention, self.axis_names, self.axis_angles)
 
     def summary(self):
         from handeye.model import conventions
@@ -567,8 +579,10 @@ class PlanResult(ResultProtocol):
         lines = [head,
                  "predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in self.predicted_sd[:3])
                  + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6]),
-                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention))}):"]
-        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in p) for i, p in zip(self.ids, self.poses_in_convention())]
+                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention) + self.axis_names)}):"]
+        angles = self.axis_angles if self.axis_names else [()] * len(self.ids)
+        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in (*p, *a))
+                  for i, p, a in zip(self.ids, self.poses_in_convention(), angles)]
         lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
@@ -585,7 +599,8 @@ def _floats(text, option, count):
     return out
 
 
-def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None):
+def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
+         sensor_mount="flange", sphere_mount="world"):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
     Parameters
@@ -610,6 +625,12 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
     score : str or pathlib.Path, optional
         A pose list to score (predicted accuracy) instead of choosing.
+    sensor_mount, sphere_mount : str
+        The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world``
+        (the thesis's cell), ``world``/``flange`` or ``flange``/``positioner``, with ``handeye
+        simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
+        lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
+        (degrees), and each default candidate has its own axis angles.
 
     Returns
     -------
@@ -626,6 +647,11 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
     setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
+        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
+    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
+                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
+    mounts = cell.mounts
     centre, convention = np.asarray(setup.sphere_centre), "kuka"
     if dataset is not None:
         from handeye.model.dataset import Dataset, load_setup
@@ -635,21 +661,28 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
             raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
                                "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
-        centre, convention = d.sphere_centre, d.convention
+        centre, convention, mounts = d.sphere_centre, d.convention, d.mounts
     if out is not None:  # before the work, and never over a file this command reads or of the dataset
         inputs = [p for p in (candidates, score) if p is not None]
         if dataset is not None:
             inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
         check_output_path(out, "--out", inputs=inputs)
+    cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
     if score is not None:
-        ids, poses = read_pose_list(score)
-        sd, value = planning.score(poses, setup, centre)
-        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin)
-    warnings = []
+        ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+        sd, value = planning.score(poses, setup, centre, mounts, angles)
+        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
+                          tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+    warnings, angles = [], None
     if candidates is not None:
-        ids, poses = read_pose_list(candidates)
+        ids, poses, *angles = read_pose_list(candidates, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+    elif not mounts.default:
+        ids, poses, angles = planning.cell_candidates(setup, mounts, centre, margin_mm=margin[0], margin_deg=margin[1])
     else:
         ids, poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
+    if candidates is None:
         cuts, radius = planning.view_window(setup, *margin)["cuts"], setup.diameter / 2
         if np.ptp(cuts) < 0.2 * radius:
             warnings.append(
@@ -661,12 +694,15 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         inside = planning.in_workspace(poses, _floats(workspace, "--workspace", 6))
         skipped = [(i, "flange position outside --workspace") for i, k in zip(ids, inside) if not k]
         ids, poses = [i for i, k in zip(ids, inside) if k], np.asarray(poses)[inside]
+        angles = None if angles is None else angles[inside]
     if not ids:
         raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
-    chosen = planning.plan(ids, poses, n, setup, centre)
+    chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
+    warnings += planning.few_angles(chosen.angles, mounts.axis_names)
     result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
                         np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
-                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings))
+                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
+                        axis_angles=chosen.angles, **cell_keys)
     if out is not None:
         write_text_atomically(out, result.pose_list(), option="--out")
     return result

@@ -62,6 +62,11 @@ def _plan_args(sub):
                       help="flange positions allowed (robot base, mm); candidates outside are skipped")
     plan.add_argument("--score", default=None, metavar="CSV",
                       help="predict the accuracy of this pose list instead of choosing poses")
+    plan.add_argument("--sensor-mount", default="flange", choices=["flange", "world"],
+                      help="without --dataset: plan for `handeye simulate`'s nominal cell of these mounts")
+    plan.add_argument("--sphere-mount", default="world", choices=["world", "flange", "positioner"],
+                      help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list "
+                           "carries one column per axis (degrees) after the pose's, and the plan chooses axis angles")
     plan.add_argument("--json", action="store_true")
 
 
@@ -249,7 +254,8 @@ def _plan(args):
     from handeye.app import api
 
     result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
-                      margin=args.margin, workspace=args.workspace, score=args.score)
+                      margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
+                      sphere_mount=args.sphere_mount)
     print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_OK
 

@@ -8,6 +8,7 @@ import pytest
 from handeye.app import api
 from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from handeye.model import mounts as mount_model
+from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
 
@@ -142,3 +143,32 @@ def test_bad_mount_options_exit_2_with_one_line(tmp_path, capsys, argv):
     assert code == EXIT_BAD_INPUT
     assert len(err.strip().splitlines()) == 1 and "--" in err
     assert not (tmp_path / "bad").exists() or not any((tmp_path / "bad").iterdir())
+
+
+@pytest.mark.parametrize("cell", ["world/flange", "flange/positioner"])
+def test_plan_chooses_poses_and_angles_that_see_the_sphere(tmp_path, capsys, cell):
+    sensor, sphere, unknowns, _ = CELLS[cell]
+    out = tmp_path / "plan.csv"
+    chosen = api.plan(n=10, out=out, sensor_mount=sensor, sphere_mount=sphere)
+    names = ("e1", "e2") if sphere == "positioner" else ()
+    assert chosen.axis_names == names and chosen.mounts == (sensor, sphere)
+    assert out.read_text().splitlines()[0] == ",".join(("id", "x", "y", "z", "a", "b", "c") + names)
+    if names:
+        assert chosen.axis_angles.shape == (10, 2) and not chosen.warnings
+    scored = api.plan(score=out, sensor_mount=sensor, sphere_mount=sphere)
+    assert abs(scored.logdet - chosen.logdet) < 1e-3
+    # the simulator's true cell (axes 1 mm / 0.2 deg off the nominal ones) still sees the sphere at every pose
+    assert main(["simulate", "--out", str(tmp_path / "sim"), "--poses", str(out), "--sensor-mount", sensor,
+                 "--sphere-mount", sphere, "--seed", "1"]) == EXIT_OK
+    result = api.calibrate(tmp_path / "sim", unknowns=unknowns)
+    assert result.converged
+    _within_3_sd(result, load(tmp_path / "sim"))
+
+
+def test_plan_takes_the_mounts_from_the_dataset(tmp_path, capsys):
+    made = _simulate(tmp_path, "flange", "positioner", 1)
+    chosen = api.plan(n=8, dataset=made.path)
+    assert chosen.axis_names == ("e1", "e2") and chosen.axis_angles.shape == (8, 2)
+    assert main(["plan", "--dataset", str(made.path), "--sphere-mount", "flange", "--sensor-mount", "world"]) \
+        == EXIT_BAD_INPUT
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
