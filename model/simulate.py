@@ -219,6 +219,21 @@ class Simulation:
     axis_angles: np.ndarray | None = None
 
 
+def centre_in_sensor(mounts, t_x, centre, flange, table=None):
+    """The sphere centre in the sensor frame (3,), mm, from the true chain of one sample.
+
+    ``t_x`` is the sensor in its mount's frame (4x4), ``centre`` the centre in its mount's frame,
+    ``flange`` the true flange pose (4x4), ``table`` the true table pose (4x4, positioner).
+    """
+    sensor2base = flange @ t_x if mounts.sensor == "flange" else t_x
+    c = np.append(centre, 1.0)
+    if mounts.sphere == "flange":
+        c = flange @ c
+    elif mounts.sphere == "positioner":
+        c = table @ c
+    return np.linalg.solve(sensor2base, c)[:3]
+
+
 def _measure(setup, effects, rng, ident, k, in_sensor, radius_true):
     """The centre the sensor reports for pose ``ident`` (number k from 0) whose true sphere
     centre is at ``in_sensor`` (sensor frame, mm): ``(xs, profile points)``, or ``(None, reason)``
@@ -253,9 +268,7 @@ def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
             return out_ids, true_flanges, np.asarray(axis_angles, float)
         return out_ids, true_flanges, None
     if cell is not None and not cell.default:
-        from handeye.model import simulate_mounts
-
-        return simulate_mounts.cell_poses(cell, setup, rng, centre, n_poses)
+        return cell.poses(setup, rng, centre, n_poses)
     out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
     seen_at = np.array([random_view(setup, rng) for _ in rots])
     return out_ids, flanges_for_views(setup, np.array(rots), seen_at, centre), None
@@ -280,12 +293,12 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     ids : list of str, optional
         Ids of custom poses (default ``p1, p2, ...``).
     cell : handeye.model.simulate_mounts.Cell, optional
-        The mounts (default: the seed's cell, sensor on the flange, sphere in the base).
+        The mounts (default: the seed's cell, sensor on the flange, sphere in the base); its
+        ``poses`` makes the default poses of another cell.
     axis_angles : array_like, shape (N, k), optional
         Positioner axis angles (degrees) of custom poses.
     """
     from handeye.model import mounts as mount_model
-    from handeye.model.simulate_mounts import centre_in_sensor
 
     rng = np.random.default_rng(seed)
     effects = dict(effects or {})
@@ -361,9 +374,8 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     def vec(v):
         return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
-    from handeye.model import simulate_mounts
-
-    sensor_keys, sphere_keys, positioner, truth_axes = simulate_mounts.toml_parts(sim.cell or simulate_mounts.Cell())
+    default = sim.cell is None or sim.cell.default
+    sensor_keys, sphere_keys, positioner, truth_axes = ("",) * 4 if default else sim.cell.toml_parts()
     start = ("" if start_offset is None else
              f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
@@ -379,7 +391,7 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],
             "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
-    if sim.cell is not None and not sim.cell.default:
-        meta["cell"] = simulate_mounts.describe(sim.cell)
+    if not default:
+        meta["cell"] = sim.cell.describe()
     (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder

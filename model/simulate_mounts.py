@@ -36,6 +36,7 @@ from handeye.model.mount_setup import _AXIS_NAME, MAX_AXES, RESERVED
 from handeye.model.mounts import CELLS, Axis, Mounts, table2base, unit
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.simulate import SimulationError, flanges_for_views, random_view, thesis_orientations
 
 #: Default true sensor pose in the robot base for a sensor fixed in the cell (KUKA: mm, degrees):
 #: laser line along the base's y, looking back at the robot (-x) and 20 degrees down.
@@ -55,8 +56,6 @@ TILT_LEVELS = (-45.0, -22.5, 0.0, 22.5, 45.0)
 
 
 def _error(message):
-    from handeye.model.simulate import SimulationError
-
     return SimulationError(message)
 
 
@@ -90,6 +89,18 @@ class Cell:
     @property
     def axis_names(self):
         return tuple(a.name for a in self.nominal_axes)
+
+    def poses(self, setup, rng, centre, n_poses):
+        """:func:`cell_poses` of this cell (what :func:`handeye.model.simulate.simulate` calls)."""
+        return cell_poses(self, setup, rng, centre, n_poses)
+
+    def toml_parts(self):
+        """:func:`toml_parts` of this cell."""
+        return toml_parts(self)
+
+    def describe(self):
+        """:func:`describe` of this cell."""
+        return describe(self)
 
 
 def check_pair(sensor, sphere):
@@ -187,8 +198,6 @@ def flanges_for_cell(mounts, setup, rotations, seen_at, centre, angles=None):
     angles : ndarray, shape (N, k), optional
         Positioner axis angles, degrees.
     """
-    from handeye.model.simulate import flanges_for_views
-
     rotations, seen_at = np.asarray(rotations, float), np.asarray(seen_at, float)
     centre = np.asarray(centre, float)
     if mounts.sensor == "world":  # the sphere where the fixed sensor sees it; the flange turned about it
@@ -205,27 +214,10 @@ def flanges_for_cell(mounts, setup, rotations, seen_at, centre, angles=None):
 def cell_poses(cell, setup, rng, centre, n_poses):
     """The default strategy for a cell other than the seed's: ids, true flanges (N, 4, 4) and
     axis angles (N, k) or None (module docstring)."""
-    from handeye.model.simulate import random_view, thesis_orientations
-
     ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
     seen_at = np.array([random_view(setup, rng) for _ in rots])
     angles = draw_axis_angles(len(ids), len(cell.true_axes), rng) if cell.sphere == "positioner" else None
     return list(ids), flanges_for_cell(cell.mounts, setup, np.array(rots), seen_at, centre, angles), angles
-
-
-def centre_in_sensor(mounts, t_x, centre, flange, table=None):
-    """The sphere centre in the sensor frame (3,), mm, from the true chain of one sample.
-
-    ``t_x`` is the sensor in its mount's frame (4x4), ``centre`` the centre in its mount's frame,
-    ``flange`` the true flange pose (4x4), ``table`` the true table pose (4x4, positioner).
-    """
-    sensor2base = flange @ t_x if mounts.sensor == "flange" else t_x
-    c = np.append(centre, 1.0)
-    if mounts.sphere == "flange":
-        c = flange @ c
-    elif mounts.sphere == "positioner":
-        c = table @ c
-    return np.linalg.solve(sensor2base, c)[:3]
 
 
 def _axes_toml(axes):
