@@ -376,7 +376,7 @@ class SimulationResult(ResultProtocol):
 
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
-             no_start=False):
+             no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
     Parameters
@@ -390,7 +390,8 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     profiles : bool
         Also write the laser profiles.
     poses : str or pathlib.Path, optional
-        A pose list (header ``id,x,y,z,a,b,c``, KUKA) instead of the thesis strategy.
+        A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns,
+        degrees) instead of the thesis strategy.
     n_poses : int
         Poses of the thesis strategy (1-36).
     linearity : float
@@ -399,18 +400,28 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     translations : int
         Pure flange translations (0-6) at each of two orientations.
     truth : str or array_like, optional
-        True sensor pose in ``convention`` (KUKA: mm, degrees); default the thesis's
-        (190, 100, 125, 180, -88, 0) in KUKA terms.
+        True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the
+        thesis's (190, 100, 125, 180, -88, 0) in KUKA terms on the flange,
+        :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.
     diameter : float, optional
         Sphere diameter, mm; default the thesis's certified 59.94507.
     center : str or array_like, optional
-        Sphere centre in the robot base, mm (``'X,Y,Z'`` or three numbers); default the thesis's.
+        Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the
+        thesis's in the base, :mod:`handeye.model.simulate_mounts`' on the flange or the table.
     convention : {'kuka', 'abb', 'ur', 'fanuc'}
         Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
     max_tilt : float
         Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
     no_start : bool
         Write no ``start_pose``: a calibration then starts from the closed-form estimate.
+    sensor_mount, sphere_mount : str
+        ``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner``
+        (:mod:`handeye.model.simulate_mounts`).
+    positioner_axes : str, optional
+        Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first;
+        default a KUKA KP1-V-like two-axis positioner.
+    positioner_error : str or sequence of two floats, optional
+        ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
 
     Returns
     -------
@@ -433,6 +444,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     n_poses = _integer(n_poses, "--n-poses", 1)
     translations = _integer(translations, "--translations", 0)
     setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    cell, setup = _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error)
     if truth is not None:
         pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
         setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
@@ -441,20 +453,43 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     if center is not None:
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
-    ids, flange_poses = None, None
+    ids, flange_poses, angles = None, None, None
     if poses is not None:
         if motions != "thesis" or translations:
             raise RequestError("--poses gives the poses: --motions and --translations do not apply")
-        ids, flange_poses = read_pose_list(poses)
+        ids, flange_poses, *angles = read_pose_list(poses, axes=cell.axis_names)
+        angles = angles[0] if angles else None
     elif motions != "thesis" or translations:
+        if not cell.default:
+            raise RequestError("--motions and --translations apply to the sensor on the flange, sphere in the world")
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
-    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids)
+    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids,
+                        cell=cell, axis_angles=angles)
     from handeye.app.files import write_folder_atomically
 
     write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
                                                          **({"start_offset": None} if no_start else {})))
     return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
+
+
+def _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error):
+    """The simulated cell (:class:`handeye.model.simulate_mounts.Cell`) and the setup with this
+    mount's default truth."""
+    from handeye.model import simulate_mounts as sm
+
+    sm.check_pair(sensor_mount, sphere_mount)
+    if positioner_error is not None and sphere_mount != "positioner":
+        raise RequestError("--positioner-error needs --sphere-mount positioner")
+    axes = None if positioner_axes is None else sm.parse_axes(positioner_axes)
+    error = sm.POSITIONER_ERROR if positioner_error is None else _floats(positioner_error, "--positioner-error", 2)
+    cell = sm.make_cell(sensor_mount, sphere_mount, axes, error, seed)
+    pose, centre = sm.default_truth(cell)
+    if pose is not None:
+        setup = dataclasses.replace(setup, sensor_pose=pose)
+    if centre is not None:
+        setup = dataclasses.replace(setup, sphere_centre=centre)
+    return cell, setup
 
 
 @dataclasses.dataclass(frozen=True)
@@ -481,6 +516,12 @@ class PlanResult(ResultProtocol):
         True when the poses were given (``--score``), not chosen.
     margin : tuple of float
         (mm, deg) the nominal sensor pose may be off while every pose still sees the sphere.
+    axis_names : tuple of str
+        The positioner's axes (sphere on a positioner), else empty.
+    axis_angles : ndarray, shape (n, k), or None
+        Their angles at each pose, degrees (columns of :meth:`pose_list` after the pose's).
+    mounts : tuple of str
+        (sensor mount, sphere mount) of the planned cell.
     """
 
     caption = 'handeye plan'
@@ -496,6 +537,9 @@ class PlanResult(ResultProtocol):
     scored: bool = False
     margin: tuple = (0.0, 0.0)
     warnings: tuple = ()
+    axis_names: tuple = ()
+    axis_angles: np.ndarray | None = None
+    mounts: tuple = ("flange", "world")
 
     def poses_in_convention(self):
         from handeye.model import conventions
@@ -513,13 +557,16 @@ class PlanResult(ResultProtocol):
                 "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
                 "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
                              "poses": np.asarray(self.poses_in_convention()).tolist()},
-                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)}
+                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)} | (
+            {} if self.mounts == ("flange", "world") else
+            {"sensor_mount": self.mounts[0], "sphere_mount": self.mounts[1], "axis_names": list(self.axis_names),
+             "axis_angles": None if self.axis_angles is None else np.asarray(self.axis_angles).tolist()})
 
     def pose_list(self):
         """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
         from handeye.model.dataset import pose_list_text
 
-        return pose_list_text(self.ids, self.poses, self.convention)
+        return pose_list_text(self.ids, self.poses, self.convention, self.axis_names, self.axis_angles)
 
     def summary(self):
         from handeye.model import conventions
@@ -533,8 +580,10 @@ class PlanResult(ResultProtocol):
         lines = [head,
                  "predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in self.predicted_sd[:3])
                  + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6]),
-                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention))}):"]
-        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in p) for i, p in zip(self.ids, self.poses_in_convention())]
+                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention) + self.axis_names)}):"]
+        angles = self.axis_angles if self.axis_names else [()] * len(self.ids)
+        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in (*p, *a))
+                  for i, p, a in zip(self.ids, self.poses_in_convention(), angles)]
         lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
@@ -551,7 +600,8 @@ def _floats(text, option, count):
     return out
 
 
-def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None):
+def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
+         sensor_mount="flange", sphere_mount="world"):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
     Parameters
@@ -576,6 +626,12 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
     score : str or pathlib.Path, optional
         A pose list to score (predicted accuracy) instead of choosing.
+    sensor_mount, sphere_mount : str
+        The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world``
+        (the thesis's cell), ``world``/``flange`` or ``flange``/``positioner``, with ``handeye
+        simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
+        lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
+        (degrees), and each default candidate has its own axis angles.
 
     Returns
     -------
@@ -592,6 +648,11 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
     setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
+        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
+    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
+                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
+    mounts = cell.mounts
     centre, convention = np.asarray(setup.sphere_centre), "kuka"
     if dataset is not None:
         from handeye.model.dataset import Dataset, load_setup
@@ -601,21 +662,28 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
             raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
                                "a sphere center to plan around")
         setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
-        centre, convention = d.sphere_centre, d.convention
+        centre, convention, mounts = d.sphere_centre, d.convention, d.mounts
     if out is not None:  # before the work, and never over a file this command reads or of the dataset
         inputs = [p for p in (candidates, score) if p is not None]
         if dataset is not None:
             inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
         check_output_path(out, "--out", inputs=inputs)
+    cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
     if score is not None:
-        ids, poses = read_pose_list(score)
-        sd, value = planning.score(poses, setup, centre)
-        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin)
-    warnings = []
+        ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+        sd, value = planning.score(poses, setup, centre, mounts, angles)
+        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
+                          tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+    warnings, angles = [], None
     if candidates is not None:
-        ids, poses = read_pose_list(candidates)
+        ids, poses, *angles = read_pose_list(candidates, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+    elif not mounts.default:
+        ids, poses, angles = planning.cell_candidates(setup, mounts, centre, margin_mm=margin[0], margin_deg=margin[1])
     else:
         ids, poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
+    if candidates is None:
         cuts, radius = planning.view_window(setup, *margin)["cuts"], setup.diameter / 2
         if np.ptp(cuts) < 0.2 * radius:
             warnings.append(
@@ -627,12 +695,15 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         inside = planning.in_workspace(poses, _floats(workspace, "--workspace", 6))
         skipped = [(i, "flange position outside --workspace") for i, k in zip(ids, inside) if not k]
         ids, poses = [i for i, k in zip(ids, inside) if k], np.asarray(poses)[inside]
+        angles = None if angles is None else angles[inside]
     if not ids:
         raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
-    chosen = planning.plan(ids, poses, n, setup, centre)
+    chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
+    warnings += planning.few_angles(chosen.angles, mounts.axis_names)
     result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
                         np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
-                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings))
+                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
+                        axis_angles=chosen.angles, **cell_keys)
     if out is not None:
         write_text_atomically(out, result.pose_list(), option="--out")
     return result

@@ -62,6 +62,11 @@ def _plan_args(sub):
                       help="flange positions allowed (robot base, mm); candidates outside are skipped")
     plan.add_argument("--score", default=None, metavar="CSV",
                       help="predict the accuracy of this pose list instead of choosing poses")
+    plan.add_argument("--sensor-mount", default="flange", choices=["flange", "world"],
+                      help="without --dataset: plan for `handeye simulate`'s nominal cell of these mounts")
+    plan.add_argument("--sphere-mount", default="world", choices=["world", "flange", "positioner"],
+                      help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list "
+                           "carries one column per axis (degrees) after the pose's, and the plan chooses axis angles")
     plan.add_argument("--json", action="store_true")
 
 
@@ -238,14 +243,26 @@ def build_parser():
     sim.add_argument("--translations", type=int, default=0, metavar="K",
                      help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)")
     sim.add_argument("--truth", default=None, metavar="POSE",
-                     help="true sensor pose in --convention's columns (default KUKA 190,100,125,180,-88,0)")
+                     help="true sensor pose in its mount's frame, in --convention's columns (default KUKA "
+                          "190,100,125,180,-88,0 on the flange; 1750,-50,1000,90,0,-110 in the cell)")
     sim.add_argument("--diameter", type=float, default=None, metavar="MM", help="sphere diameter (default 59.94507)")
-    sim.add_argument("--center", default=None, metavar="X,Y,Z", help="sphere centre in the robot base, mm")
+    sim.add_argument("--center", default=None, metavar="X,Y,Z",
+                     help="sphere centre in its mount's frame (robot base, flange or table), mm")
     sim.add_argument("--convention", default="kuka", choices=list(CONVENTIONS),
                      help="robot convention of the written dataset and of --truth (default kuka)")
     sim.add_argument("--max-tilt", type=float, default=90.0, metavar="DEG",
                      help="largest sensor tilt from straight down (default 90, the thesis's)")
     sim.add_argument("--no-start", action="store_true", help="write no start pose (calibrate starts from the closed form)")
+    sim.add_argument("--sensor-mount", default="flange", choices=["flange", "world"],
+                     help="where the sensor is: on the flange (default) or fixed in the cell (robot base frame)")
+    sim.add_argument("--sphere-mount", default="world", choices=["world", "flange", "positioner"],
+                     help="where the sphere is: fixed in the cell (default), on the flange or on a positioner's table; "
+                          "observable pairs: flange/world, world/flange, flange/positioner")
+    sim.add_argument("--positioner-axes", default=None, metavar="NAME:PX,PY,PZ:DX,DY,DZ;...",
+                     help="nominal positioner axes, base first: point and direction in the robot base at zero angles "
+                          "(mm); default a KUKA KP1-V-like 2-axis positioner: e1:1500,0,600:0,1,0;e2:1500,0,800:0,0,1")
+    sim.add_argument("--positioner-error", default=None, metavar="MM,DEG",
+                     help="how far the true axes differ from the nominal ones written in setup.toml (default 1.0,0.2)")
     return parser
 
 
@@ -253,7 +270,8 @@ def _plan(args):
     from handeye.app import api
 
     result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
-                      margin=args.margin, workspace=args.workspace, score=args.score)
+                      margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
+                      sphere_mount=args.sphere_mount)
     print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_OK
 
@@ -335,7 +353,8 @@ def _simulate(args):
                           n_poses=args.n_poses, linearity=args.linearity, motions=args.motions,
                           translations=args.translations, truth=args.truth, diameter=args.diameter,
                           center=args.center, convention=args.convention, max_tilt=args.max_tilt,
-                          no_start=args.no_start)
+                          no_start=args.no_start, sensor_mount=args.sensor_mount, sphere_mount=args.sphere_mount,
+                          positioner_axes=args.positioner_axes, positioner_error=args.positioner_error)
     print(result.summary())
     return EXIT_OK
 

@@ -461,6 +461,9 @@ class CellSetup:
     sphere_centre : ndarray, shape (3,), or None
     side : int
     convention : str
+    mounts : handeye.model.mounts.Mounts
+        With the nominal positioner axes; ``start_pose`` and ``sphere_centre`` are in their
+        mounts' frames.
     """
 
     path: pathlib.Path
@@ -469,6 +472,7 @@ class CellSetup:
     sphere_centre: np.ndarray | None
     side: int
     convention: str
+    mounts: Mounts = Mounts()
 
 
 def load_setup(name_or_path):
@@ -476,7 +480,7 @@ def load_setup(name_or_path):
     yet: a cell being planned); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
     st = read_setup(folder)
-    return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention)
+    return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention, st.mounts)
 
 
 def _read_rows(folder, file, convention, limits, diam, side, axes=()):

@@ -137,6 +137,65 @@ def thesis_candidates(setup, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.
     return ids, np.array(poses)
 
 
+def cell_candidates(setup, mounts, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.0):
+    """Candidates of a cell other than the seed's (:mod:`handeye.model.mounts`), made as the
+    simulator makes its poses (:func:`handeye.model.simulate_mounts.flanges_for_cell`): the thesis
+    orientations (the sensor's, or the flange's for a sensor fixed in the cell) x the cuts of
+    :func:`view_window`; on a positioner each with axis angles drawn as the simulator draws them.
+
+    Parameters
+    ----------
+    setup : handeye.model.simulate.Setup
+        Nominal sensor pose in its mount's frame.
+    mounts : handeye.model.mounts.Mounts
+        With the nominal axes.
+    sphere_centre : array_like, shape (3,)
+        Nominal centre in its mount's frame, mm.
+
+    Returns
+    -------
+    ids : list of str
+    poses : ndarray, shape (N, 6)
+        Flange poses, KUKA (mm, degrees).
+    angles : ndarray, shape (N, k), or None
+        Positioner axis angles, degrees.
+    """
+    from handeye.model import simulate_mounts
+
+    rng = np.random.default_rng(seed)
+    window = view_window(setup, margin_mm, margin_deg)
+    ids, rots, seen = [], [], []
+    for ident, rot in simulate.thesis_orientations(36, setup.max_tilt_deg):
+        for cut in window["cuts"]:
+            ids.append(f"{ident}@{cut:.3g}")
+            rots.append(rot)
+            seen.append([rng.uniform(*window["x"]), setup.side * cut, rng.uniform(*window["z"])])
+    angles = None
+    if mounts.sphere == "positioner":
+        angles = simulate_mounts.draw_axis_angles(len(ids), len(mounts.axes), rng)
+    flanges = simulate_mounts.flanges_for_cell(mounts, setup, np.array(rots), np.array(seen), sphere_centre, angles)
+    return ids, pose_from_transform(flanges), angles
+
+
+def carrier_poses(flange_poses, mounts=None, angles=None):
+    """KUKA poses (N, 6) of the carrier motions ``M_i`` (:func:`handeye.model.mounts.motions`): what
+    :func:`handeye.model.bounds.information` takes as flange poses, for any mount."""
+    if mounts is None or mounts.default:
+        return np.asarray(flange_poses, float)
+    from handeye.model.mounts import motions
+
+    return pose_from_transform(motions(transform_from_pose(np.asarray(flange_poses, float)), mounts, angles))
+
+
+def few_angles(angles, names, least=3):
+    """Warnings for positioner axes that take fewer than ``least`` distinct angles in a plan."""
+    if angles is None:
+        return []
+    return [f"axis {name} takes only {len(np.unique(np.round(col, 6)))} distinct angle(s) in these poses: "
+            f"calibrating the positioner needs at least {least}" for name, col in zip(names, np.asarray(angles).T)
+            if len(np.unique(np.round(col, 6))) < least]
+
+
 def in_workspace(flange_poses, workspace):
     """Which flange positions lie in ``workspace`` = (xmin, xmax, ymin, ymax, zmin, zmax), mm, base."""
     w = np.asarray(workspace, float).reshape(3, 2)
@@ -144,9 +203,10 @@ def in_workspace(flange_poses, workspace):
     return np.all((pos >= w[:, 0]) & (pos <= w[:, 1]), axis=1)
 
 
-def score(flange_poses, setup, sphere_centre):
-    """Predicted 1-sd bounds (Cramer-Rao; mm, deg) of a given pose list, and its log det."""
-    info = bounds.information(flange_poses, setup, sphere_centre).sum(axis=0)
+def score(flange_poses, setup, sphere_centre, mounts=None, angles=None):
+    """Predicted 1-sd bounds (Cramer-Rao; mm, deg) of a given pose list, and its log det
+    (``mounts`` and the axis ``angles``, degrees: :func:`carrier_poses`)."""
+    info = bounds.information(carrier_poses(flange_poses, mounts, angles), setup, sphere_centre).sum(axis=0)
     try:
         return predicted_sd(info), float(logdet(info))
     except np.linalg.LinAlgError:
@@ -163,12 +223,19 @@ class Plan:
     logdet: float
     predicted_sd: np.ndarray
     skipped: list
+    angles: np.ndarray | None = None
 
 
-def plan(candidate_ids, candidate_poses, n, setup, sphere_centre):
-    """Choose ``n`` of the candidates (D-optimal); candidates that cannot see the sphere are skipped."""
+def plan(candidate_ids, candidate_poses, n, setup, sphere_centre, mounts=None, angles=None):
+    """Choose ``n`` of the candidates (D-optimal); candidates that cannot see the sphere are skipped.
+
+    ``mounts`` (:class:`handeye.model.mounts.Mounts`, nominal axes) and the candidates' axis
+    ``angles`` (N, k), degrees, make the information of any mount (:func:`carrier_poses`);
+    ``sphere_centre`` is then in its mount's frame.
+    """
     infos, keep, skipped = [], [], []
-    for k, (ident, pose) in enumerate(zip(candidate_ids, candidate_poses)):
+    carriers = carrier_poses(candidate_poses, mounts, angles)
+    for k, (ident, pose) in enumerate(zip(candidate_ids, carriers)):
         try:
             infos.append(bounds.information(pose[None], setup, sphere_centre)[0])
             keep.append(k)
@@ -184,4 +251,5 @@ def plan(candidate_ids, candidate_poses, n, setup, sphere_centre):
         raise PlanningError(f"the {n} poses chosen do not determine the sensor pose (the candidates are too alike: "
                             "identical or only translated poses?)") from None
     idx = [keep[c] for c in chosen]
-    return Plan([candidate_ids[i] for i in idx], np.asarray(candidate_poses)[idx], value, sd, skipped)
+    return Plan([candidate_ids[i] for i in idx], np.asarray(candidate_poses)[idx], value, sd, skipped,
+                None if angles is None else np.asarray(angles)[idx])

@@ -215,71 +215,123 @@ class Simulation:
     true_centre: np.ndarray
     seed: int
     dropped: list = dataclasses.field(default_factory=list)
+    cell: object = None
+    axis_angles: np.ndarray | None = None
 
 
-def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None):
+def centre_in_sensor(mounts, t_x, centre, flange, table=None):
+    """The sphere centre in the sensor frame (3,), mm, from the true chain of one sample.
+
+    ``t_x`` is the sensor in its mount's frame (4x4), ``centre`` the centre in its mount's frame,
+    ``flange`` the true flange pose (4x4), ``table`` the true table pose (4x4, positioner).
+    """
+    sensor2base = flange @ t_x if mounts.sensor == "flange" else t_x
+    c = np.append(centre, 1.0)
+    if mounts.sphere == "flange":
+        c = flange @ c
+    elif mounts.sphere == "positioner":
+        c = table @ c
+    return np.linalg.solve(sensor2base, c)[:3]
+
+
+def _measure(setup, effects, rng, ident, k, in_sensor, radius_true):
+    """The centre the sensor reports for pose ``ident`` (number k from 0) whose true sphere
+    centre is at ``in_sensor`` (sensor frame, mm): ``(xs, profile points)``, or ``(None, reason)``
+    when no centre can be reconstructed (module docstring: ``sphere_radius``)."""
+    radius_setup = setup.diameter / 2
+    try:
+        pts = profile_points(in_sensor, radius_true, setup, rng) * (1.0 + effects.get("sensor_scale", 0.0))
+    except SimulationError as exc:
+        raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
+    side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
+    fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
+    if fitted.r >= radius_setup:
+        # a hidden radius effect makes the circle larger than the setup's sphere near the
+        # equator: no real y; a real pipeline loses such a sample, and so does this one
+        return None, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"
+    xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
+    if ident in effects.get("outlier", []):
+        direction = rng.normal(size=3)
+        xs = xs + 30.0 * direction / np.linalg.norm(direction)
+    return xs, pts
+
+
+def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
+    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation."""
+    if flange_poses is not None:
+        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
+        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+        if cell is not None and cell.sphere == "positioner":
+            if axis_angles is None or np.shape(axis_angles) != (len(true_flanges), len(cell.true_axes)):
+                raise SimulationError(f"custom poses on a positioner need the axis angles ({', '.join(cell.axis_names)})"
+                                      " of every pose")
+            return out_ids, true_flanges, np.asarray(axis_angles, float)
+        return out_ids, true_flanges, None
+    if cell is not None and not cell.default:
+        return cell.poses(setup, rng, centre, n_poses)
+    out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
+    seen_at = np.array([random_view(setup, rng) for _ in rots])
+    return out_ids, flanges_for_views(setup, np.array(rots), seen_at, centre), None
+
+
+def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None, cell=None,
+             axis_angles=None):
     """Simulate a dataset (module docstring).
 
     Parameters
     ----------
     setup : Setup
+        ``sensor_pose`` and ``sphere_centre`` are the truth in their mounts' frames.
     seed : int
         Seed of ``np.random.default_rng``; the same seed gives the same dataset.
     effects : dict, optional
-        From :func:`parse_effects`.
+        From :func:`parse_effects`; ``sphere_center`` offsets the centre in its mount's frame.
     flange_poses : array_like, shape (N, 6), optional
         Custom flange poses (KUKA) instead of the thesis strategy.
     n_poses : int
         Poses of the thesis strategy (1..36).
     ids : list of str, optional
         Ids of custom poses (default ``p1, p2, ...``).
+    cell : handeye.model.simulate_mounts.Cell, optional
+        The mounts (default: the seed's cell, sensor on the flange, sphere in the base); its
+        ``poses`` makes the default poses of another cell.
+    axis_angles : array_like, shape (N, k), optional
+        Positioner axis angles (degrees) of custom poses.
     """
+    from handeye.model import mounts as mount_model
+
     rng = np.random.default_rng(seed)
     effects = dict(effects or {})
     t_x = transform_from_pose(setup.sensor_pose)
     radius_setup = setup.diameter / 2
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
-    if flange_poses is None:
-        out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
-        seen_at = np.array([random_view(setup, rng) for _ in rots])
-        true_flanges = flanges_for_views(setup, np.array(rots), seen_at, centre)
-    else:
-        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
-        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+    out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
+    mounts = mount_model.Mounts() if cell is None else cell.mounts
+    tables = None if angles is None else mount_model.table2base(mounts.axes, angles)
     for name in ("sign_flip", "outlier"):
         unknown = sorted(set(effects.get(name, [])) - set(out_ids))
         if unknown:
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
-    scale = 1.0 + effects.get("sensor_scale", 0.0)
-    recorded, centres, profiles, kept, dropped = [], [], [], [], []
+    recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
-        in_sensor = np.linalg.solve(flange @ t_x, np.append(centre, 1.0))[:3]
-        try:
-            pts = profile_points(in_sensor, radius_true, setup, rng) * scale
-        except SimulationError as exc:
-            raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
-        side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
-        fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
-        if fitted.r >= radius_setup:
-            # a hidden radius effect makes the circle larger than the setup's sphere near the
-            # equator: no real y; a real pipeline loses such a sample, and so does this one
-            dropped.append((ident, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"))
+        in_sensor = centre_in_sensor(mounts, t_x, centre, flange, None if tables is None else tables[k])
+        xs, pts = _measure(setup, effects, rng, ident, k, in_sensor, radius_true)
+        if xs is None:
+            dropped.append((ident, pts))
             continue
-        xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
-        if ident in effects.get("outlier", []):
-            direction = rng.normal(size=3)
-            xs = xs + 30.0 * direction / np.linalg.norm(direction)
         noisy = flange.copy()
         noisy[:3, 3] += rng.normal(0.0, setup.sigma_robot, 3)
         recorded.append(pose_from_transform(noisy))
         centres.append(xs)
         profiles.append(pts)
         kept.append(ident)
+        kept_k.append(k)
     if not kept:  # an empty dataset is not a simulation: say why instead of writing it
         ident, reason = dropped[0]
         raise SimulationError(f"every pose was dropped (first: {ident}: {reason}); check the effects and the setup")
-    return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped)
+    return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped,
+                      cell, None if angles is None else angles[kept_k])
 
 
 def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0), convention="kuka"):
@@ -296,14 +348,18 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     conventions.check(convention)
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs")) + (",profile" if profiles else "")
+    names = () if sim.axis_angles is None else sim.cell.axis_names
+    header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs") + names) \
+        + (",profile" if profiles else "")
     lines = [header]
     if profiles:
         (folder / "profiles").mkdir(exist_ok=True)
-    for ident, pose, xs, pts in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles):
+    angles = sim.axis_angles if names else [()] * len(sim.ids)
+    for ident, pose, xs, pts, th in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles, angles):
         safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
         written = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
         row = [ident] + [f"{v:.12g}" if convention != "kuka" else f"{v:.9f}" for v in written] + [f"{v:.9f}" for v in xs]
+        row += [f"{v:.9f}" for v in th]
         if profiles:
             name = f"profiles/{safe}.csv"
             np.savetxt(folder / name, pts, fmt="%.9f", delimiter=",", header="x,z", comments="")
@@ -318,19 +374,24 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     def vec(v):
         return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
+    default = sim.cell is None or sim.cell.default
+    sensor_keys, sphere_keys, positioner, truth_axes = ("",) * 4 if default else sim.cell.toml_parts()
     start = ("" if start_offset is None else
-             f"[sensor]\nstart_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n\n")
+             f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
         + (f"[robot]\nconvention = \"{convention}\"\n\n" if convention != "kuka" else "")
-        + start +
-        f"[sphere]\ndiameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
-        f"[profile]\nside = {s.side}\n\n"
+        + (f"[sensor]\n{sensor_keys}{start}\n" if sensor_keys or start else "")
+        + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
+        + positioner
+        + f"[profile]\nside = {s.side}\n\n"
         f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
-        f"sphere_center = {vec(sim.true_centre)}\n"
+        f"sphere_center = {vec(sim.true_centre)}\n" + truth_axes
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],
             "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
+    if not default:
+        meta["cell"] = sim.cell.describe()
     (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder

@@ -157,30 +157,36 @@ def read_table(file, file_row=None):
         raise DatasetError(file, f"cannot be read: {exc}") from None
 
 
-def read_pose_list(path, with_convention=False):
+def read_pose_list(path, with_convention=False, axes=()):
     """Flange poses from a pose list, in any robot convention, told by its header.
 
     ``id,x,y,z,a,b,c`` is KUKA (mm, degrees), ``id,x,y,z,w,p,r`` FANUC, ``id,x,y,z,q1,q2,q3,q4``
-    ABB, ``id,x,y,z,rx,ry,rz`` UR (:mod:`handeye.model.conventions`).
+    ABB, ``id,x,y,z,rx,ry,rz`` UR (:mod:`handeye.model.conventions`). ``axes`` names positioner
+    axis columns (degrees) that follow the pose columns, in this order.
 
     Returns ``(ids, poses (N, 6))`` with the poses as KUKA, and the convention when
-    ``with_convention``; raises :class:`DatasetError` naming file, row and column.
+    ``with_convention``; with ``axes``, ``(ids, poses, angles (N, k))`` (and the convention).
+    Raises :class:`DatasetError` naming file, row and column.
     """
     file = pathlib.Path(path)
     table = read_table(file)
     header = [h.strip() for h in table[0]] if table else []
-    convention = pose_list_convention(header)
+    k = len(axes)
+    if k and header[-k:] != list(axes):
+        raise DatasetError(file, f"header must end with the positioner axis columns {','.join(axes)}", 1)
+    convention = pose_list_convention(header[:len(header) - k])
     if convention is None:
         known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
         raise DatasetError(file, f"header must name a convention's pose columns: {known}", 1)
-    ids, poses, seen = [], [], {}
+    ids, poses, seen, angles = [], [], {}, []
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
             continue
         if len(fields) != len(header):
             raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
         ident = row_id(fields, 0, seen, file, line)
-        pose = np.array([number(fields[k], file, line, header[k]) for k in range(1, len(header))])
+        angles.append([number(fields[j], file, line, header[j]) for j in range(len(header) - k, len(header))])
+        pose = np.array([number(fields[j], file, line, header[j]) for j in range(1, len(header) - k)])
         for v, c in zip(pose[:3], header[1:4]):
             if abs(v) > LIMIT_POSITION_MM:
                 raise DatasetError(file, f"{v:g} mm is beyond the plausible robot position +-{LIMIT_POSITION_MM:g} mm",
@@ -193,16 +199,19 @@ def read_pose_list(path, with_convention=False):
         poses.append(pose)
     if not poses:
         raise DatasetError(file, "no poses", 2)
-    return (ids, np.array(poses), convention) if with_convention else (ids, np.array(poses))
+    out = (ids, np.array(poses)) + ((np.array(angles, float).reshape(len(ids), k),) if k else ())
+    return out + (convention,) if with_convention else out
 
 
-def pose_list_text(ids, poses, convention="kuka"):
-    """A pose list (CSV text) of KUKA poses (N, 6), written in ``convention``."""
-    lines = [",".join(["id", *conventions.columns(convention)])]
-    for ident, pose in zip(ids, poses):
+def pose_list_text(ids, poses, convention="kuka", axes=(), angles=None):
+    """A pose list (CSV text) of KUKA poses (N, 6), written in ``convention``; with ``axes``, the
+    positioner axis columns (``angles`` (N, k), degrees) after the pose columns."""
+    lines = [",".join(["id", *conventions.columns(convention), *axes])]
+    for k, (ident, pose) in enumerate(zip(ids, poses)):
         values = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
         fmt = "{:.4f}" if convention == "kuka" else "{:.10g}"
-        lines.append(",".join([str(ident)] + [fmt.format(v) for v in values]))
+        extra = [f"{v:.4f}" for v in angles[k]] if axes else []
+        lines.append(",".join([str(ident)] + [fmt.format(v) for v in values] + extra))
     return "\n".join(lines) + "\n"
 
 

@@ -214,7 +214,10 @@ def _linear_rms(f2b, p):
     in_flange = p @ np.swapaxes(r_x, 1, 2)  # (C, N, 3): R_X p_i
     rhs = (-t - (rot @ in_flange[..., None])[..., 0]).reshape(c_n, 3 * n, 1)
     lt = np.swapaxes(lhs, 1, 2)
-    tc = np.linalg.solve(lt @ lhs, lt @ rhs)
+    normal = lt @ lhs  # singular when every rotation turns about one axis (t, c free along it)
+    sv = np.linalg.svd(normal, compute_uv=False)
+    ok &= sv[:, -1] > 1e-12 * sv[:, 0]
+    tc = np.linalg.solve(np.where(ok[:, None, None], normal, np.eye(6)), lt @ rhs)
     e = lhs @ tc - rhs
     rms = np.sqrt(np.sum(e[..., 0] ** 2, axis=1) / n)
     return np.where(ok, rms, np.inf)
