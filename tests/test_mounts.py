@@ -242,3 +242,23 @@ def test_a_held_sensor_calibration_file_loads_without_a_sensor_covariance(tmp_pa
     handeye.calibrate(folder, unknowns="sphere+positioner", out=tmp_path / "cal.json", no_loo=True)
     cal = saved.load(tmp_path / "cal.json")
     assert cal.covariance is None and [a.name for a in cal.positioner_axes] == ["e1", "e2"]
+
+
+def test_positioner_angles_in_radians_are_named(tmp_path):
+    rows, truth = make_cell("positioner", seed=12, n=30)
+    rows = [(p, xs, np.radians(th)) for p, xs, th in rows]
+    folder = write(tmp_path / "p", "positioner", rows, truth)
+    with pytest.raises(handeye.InputError, match="positioner angles in radians.*e1, e2.*in degrees"):
+        handeye.calibrate(folder)
+
+
+def test_a_convention_slip_is_found_through_the_mount(tmp_path):
+    """The detective re-reads the flange poses and scores each reading through the cell's chain:
+    FANUC W, P, R written under KUKA's columns is named for a sensor fixed in the cell too."""
+    from handeye.model import conventions
+
+    rows, truth = make_cell("eye_to_hand", seed=13, n=30)
+    fanuc = conventions.convert(np.array([p for p, _, _ in rows]), "kuka", "fanuc")
+    rows = [(f, xs, th) for f, (_, xs, th) in zip(fanuc, rows)]
+    with pytest.raises(handeye.InputError, match='convention = "fanuc"'):
+        handeye.calibrate(write(tmp_path / "e", "eye_to_hand", rows, truth))

@@ -26,7 +26,7 @@ import itertools
 
 import numpy as np
 
-from handeye.model import conventions, global_fit
+from handeye.model import conventions, global_fit, mounts
 from handeye.model.rotation import matrix_from_rotvec, nearest_rotation
 
 #: Position scales tried (mm per unit) and what they look like.
@@ -104,7 +104,10 @@ def readings(k, columns):
 
 @dataclasses.dataclass(frozen=True)
 class Candidate:
-    """The flange poses under one reading, inverted or not, in mm or m."""
+    """The flange poses under one reading, inverted or not, in mm or m. ``flange2base`` holds the
+    chain's carrier motions of those poses (:meth:`handeye.model.dataset.Dataset.motions`): the
+    poses themselves for the seed's cell, through the mount otherwise, so every mount is scored by
+    the same centre model."""
 
     reading: Reading
     inverted: bool
@@ -137,6 +140,14 @@ def _transforms(rot, pos, inverted):
     return out
 
 
+def _chain(dataset, flange2base):
+    """The carrier motions of a reading's flange poses in the dataset's cell (:mod:`handeye.model.mounts`)."""
+    if dataset.mounts.default:
+        return flange2base
+    with np.errstate(all="ignore"):
+        return mounts.motions(flange2base, dataset.mounts, dataset.axis_angles)
+
+
 def raw_poses(dataset):
     """The file's pose numbers (N, 3 + k) in the dataset's convention."""
     if dataset.raw_poses is not None:
@@ -157,7 +168,7 @@ def candidates(dataset):
         for inverted, scale in itertools.product((False, True), (1.0, *UNITS)):
             if reading.convention == dataset.convention and not inverted and scale in (1.0, 1000.0):
                 continue  # as declared (metres alone is handeye.app.engine.slips' own candidate)
-            poses = _transforms(rot, raw[:, :3] * scale, inverted)
+            poses = _chain(dataset, _transforms(rot, raw[:, :3] * scale, inverted))
             out.append(Candidate(reading, inverted, scale, poses))
             if scale != 1.0 and dataset.sphere_centre is not None:
                 out.append(Candidate(reading, inverted, scale, poses, centre_scaled=True))
@@ -241,7 +252,7 @@ def best(dataset, unknowns):
     cand = found[0]
     raw = raw_poses(dataset)
     with np.errstate(all="ignore"):
-        poses = _transforms(cand.reading.rotation(raw[:, 3:]), raw[:, :3] * cand.scale, cand.inverted)
+        poses = _chain(dataset, _transforms(cand.reading.rotation(raw[:, 3:]), raw[:, :3] * cand.scale, cand.inverted))
     cand = dataclasses.replace(cand, flange2base=poses)
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre * (cand.scale if cand.centre_scaled else 1.0)
     if centre is None:

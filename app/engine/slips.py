@@ -96,6 +96,10 @@ def _candidates(dataset):
             degrees[:, 3:] = np.degrees(degrees[:, 3:])
         out.append(Slip("robot angles in radians", dataclasses.replace(d, flange_poses=degrees),
                         f"write the flange angles of {d.path / 'measurements.csv'} in degrees"))
+    if d.axis_angles is not None and np.all(np.abs(d.axis_angles) <= 2 * np.pi + 1e-9):
+        out.append(Slip("positioner angles in radians", dataclasses.replace(d, axis_angles=np.degrees(d.axis_angles)),
+                        f"write the positioner axis columns {', '.join(d.mounts.axis_names)} of "
+                        f"{d.path / 'measurements.csv'} in degrees"))
     return out
 
 
