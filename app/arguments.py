@@ -1,0 +1,76 @@
+"""The checks every command's arguments share: a dataset named or given, numbers in their ranges,
+poses as text or numbers (:mod:`handeye.app.api` and :mod:`handeye.app.making` use them; one
+place, one message for each slip)."""
+from __future__ import annotations
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+
+
+def load_dataset(name_or_folder):
+    """Read and check a dataset.
+
+    Parameters
+    ----------
+    name_or_folder : str, pathlib.Path or Dataset
+        An embedded dataset (``'thesis-real'``, ``'thesis-sim'``; see
+        :func:`handeye.model.dataset.embedded_names`) or a folder holding ``measurements.csv``
+        and ``setup.toml``. A Dataset is returned as it is.
+
+    Returns
+    -------
+    handeye.model.dataset.Dataset
+
+    Raises
+    ------
+    handeye.InputError
+        A :class:`handeye.model.dataset.DatasetError` naming file, row and column of the first
+        problem found.
+    """
+    import os
+
+    from handeye.model.dataset import Dataset, load
+
+    if isinstance(name_or_folder, Dataset):
+        return name_or_folder
+    if not isinstance(name_or_folder, (str, os.PathLike)):
+        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {name_or_folder!r}")
+    return load(name_or_folder)
+
+
+def _path_argument(value):
+    import os
+
+    if not isinstance(value, (str, os.PathLike)):
+        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {value!r}")
+    return value
+
+
+def _pose_text(pose, option):
+    """A pose given as text or numbers, as text (numbers that are not numbers are bad input)."""
+    if isinstance(pose, str):
+        return pose
+    try:
+        return ",".join(repr(float(v)) for v in np.ravel(np.asarray(pose, dtype=object)))
+    except (TypeError, ValueError):
+        raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
+
+
+def _number(value, option, low, high, low_open=False):
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) and np.isfinite(value)
+    if not ok or value > high or value < low or (low_open and value == low):
+        raise RequestError(f"{option} must lie in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+#: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).
+MAX_ITER = 1_000_000
+
+
+def _integer(value, option, low, high=None):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
+            high is not None and value > high):
+        bound = f"at least {low}" if high is None else f"at least {low} and at most {high}"
+        raise RequestError(f"{option} must be an integer {bound}, got {value!r}")
+    return int(value)

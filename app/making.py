@@ -1,0 +1,388 @@
+"""Data and poses made for a cell: ``handeye simulate`` and ``handeye plan`` as functions
+(re-exported by :mod:`handeye.app.api`, with the same keyword arguments as the CLI's options)."""
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import numpy as np
+
+from handeye.app.arguments import _integer, _number, _path_argument, _pose_text, load_dataset
+from handeye.app.errors import RequestError
+from handeye.app.present.protocol import ResultProtocol
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulationResult(ResultProtocol):
+    """A simulated dataset written by :func:`simulate`.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The dataset folder.
+    ids : list of str
+        Measurements written.
+    dropped : list of (str, str)
+        Poses that could not see the sphere, with the reason.
+    seed : int
+    effects : dict
+        Hidden effects (name -> value).
+    """
+
+    caption = 'handeye simulate'
+
+    path: pathlib.Path
+    ids: list
+    dropped: list
+    seed: int
+    effects: dict
+
+    @property
+    def dataset(self):
+        """The written dataset, loaded (:func:`load_dataset`)."""
+        return load_dataset(self.path)
+
+    def to_dict(self):
+        return {"path": str(self.path), "ids": list(self.ids), "dropped": [list(d) for d in self.dropped],
+                "seed": self.seed, "effects": {k: np.asarray(v).tolist() for k, v in self.effects.items()}}
+
+    def summary(self):
+        lines = [f"wrote {len(self.ids)} simulated measurements to {self.path} (seed {self.seed}, "
+                 f"effects {self.effects or 'none'})"]
+        lines += [f"dropped {ident}: {reason}" for ident, reason in self.dropped]
+        return "\n".join(lines)
+
+
+def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
+             translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
+             no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None):
+    """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        Dataset folder to write (must be new or empty).
+    seed : int
+    effect : str or sequence of str
+        Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
+        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``.
+    profiles : bool
+        Also write the laser profiles.
+    poses : str or pathlib.Path, optional
+        A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns,
+        degrees) instead of the thesis strategy.
+    n_poses : int
+        Poses of the thesis strategy (1-36).
+    linearity : float
+        Sensor linearity error as a fraction of the 100 mm range, in [0, 0.1).
+    motions : {'thesis', 'about-sphere'}
+    translations : int
+        Pure flange translations (0-6) at each of two orientations.
+    truth : str or array_like, optional
+        True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the
+        thesis's (190, 100, 125, 180, -88, 0) in KUKA terms on the flange,
+        :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.
+    diameter : float, optional
+        Sphere diameter, mm; default the thesis's certified 59.94507.
+    center : str or array_like, optional
+        Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the
+        thesis's in the base, :mod:`handeye.model.simulate_mounts`' on the flange or the table.
+    convention : {'kuka', 'abb', 'ur', 'fanuc'}
+        Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
+    max_tilt : float
+        Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
+    no_start : bool
+        Write no ``start_pose``: a calibration then starts from the closed-form estimate.
+    sensor_mount, sphere_mount : str
+        ``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner``
+        (:mod:`handeye.model.simulate_mounts`).
+    positioner_axes : str, optional
+        Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first;
+        default a KUKA KP1-V-like two-axis positioner.
+    positioner_error : str or sequence of two floats, optional
+        ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    from handeye.app.engine.request import parse_pose
+    from handeye.model import conventions
+    from handeye.model import motions as motion_strategies
+    from handeye.model import simulate as sim
+    from handeye.model.dataset import read_pose_list
+    from handeye.model.pose import pose_from_transform
+
+    conventions.check(convention)
+    from handeye.app.files import check_output_folder
+
+    folder = check_output_folder(out, "--out", empty=True)
+    if isinstance(linearity, bool) or not isinstance(linearity, (int, float)) or not 0 <= linearity < 0.1:
+        raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
+    seed = _integer(seed, "--seed", 0)
+    n_poses = _integer(n_poses, "--n-poses", 1)
+    translations = _integer(translations, "--translations", 0)
+    setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    cell, setup = _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error)
+    if truth is not None:
+        pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
+        setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
+    if diameter is not None:
+        setup = dataclasses.replace(setup, diameter=_number(diameter, "--diameter", 0.0, 10_000.0, low_open=True))
+    if center is not None:
+        setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
+    effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
+    ids, flange_poses, angles = None, None, None
+    if poses is not None:
+        if motions != "thesis" or translations:
+            raise RequestError("--poses gives the poses: --motions and --translations do not apply")
+        ids, flange_poses, *angles = read_pose_list(poses, axes=cell.axis_names)
+        angles = angles[0] if angles else None
+    elif motions != "thesis" or translations:
+        if not cell.default:
+            raise RequestError("--motions and --translations apply to the sensor on the flange, sphere in the world")
+        ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
+        flange_poses = pose_from_transform(flanges)
+    made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids,
+                        cell=cell, axis_angles=angles)
+    from handeye.app.files import write_folder_atomically
+
+    write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
+                                                         **({"start_offset": None} if no_start else {})))
+    return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
+
+
+def _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error):
+    """The simulated cell (:class:`handeye.model.simulate_mounts.Cell`) and the setup with this
+    mount's default truth."""
+    from handeye.model import simulate_mounts as sm
+
+    sm.check_pair(sensor_mount, sphere_mount)
+    if positioner_error is not None and sphere_mount != "positioner":
+        raise RequestError("--positioner-error needs --sphere-mount positioner")
+    axes = None if positioner_axes is None else sm.parse_axes(positioner_axes)
+    error = sm.POSITIONER_ERROR if positioner_error is None else _floats(positioner_error, "--positioner-error", 2)
+    cell = sm.make_cell(sensor_mount, sphere_mount, axes, error, seed)
+    pose, centre = sm.default_truth(cell)
+    if pose is not None:
+        setup = dataclasses.replace(setup, sensor_pose=pose)
+    if centre is not None:
+        setup = dataclasses.replace(setup, sphere_centre=centre)
+    return cell, setup
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanResult(ResultProtocol):
+    """Poses chosen (or scored) by :func:`plan`, with their predicted accuracy.
+
+    Attributes
+    ----------
+    n : int
+    ids : list of str
+    poses : ndarray, shape (n, 6)
+        Flange poses in the robot base, KUKA (mm, degrees).
+    logdet : float
+        log det of the information matrix (the D-optimality criterion).
+    predicted_sd : ndarray, shape (6,)
+        Cramer-Rao bound: translation (mm), rotation (degrees).
+    skipped : list of (str, str)
+        Candidates that cannot see the sphere (or lie outside the workspace), with the reason.
+    usable : int
+        Candidates that can.
+    convention : str
+        Robot convention of :meth:`pose_list` and of ``poses_as`` in :meth:`to_dict`.
+    scored : bool
+        True when the poses were given (``--score``), not chosen.
+    margin : tuple of float
+        (mm, deg) the nominal sensor pose may be off while every pose still sees the sphere.
+    axis_names : tuple of str
+        The positioner's axes (sphere on a positioner), else empty.
+    axis_angles : ndarray, shape (n, k), or None
+        Their angles at each pose, degrees (columns of :meth:`pose_list` after the pose's).
+    mounts : tuple of str
+        (sensor mount, sphere mount) of the planned cell.
+    """
+
+    caption = 'handeye plan'
+
+    n: int
+    ids: list
+    poses: np.ndarray
+    logdet: float
+    predicted_sd: np.ndarray
+    skipped: list
+    usable: int
+    convention: str = "kuka"
+    scored: bool = False
+    margin: tuple = (0.0, 0.0)
+    warnings: tuple = ()
+    axis_names: tuple = ()
+    axis_angles: np.ndarray | None = None
+    mounts: tuple = ("flange", "world")
+
+    def poses_in_convention(self):
+        from handeye.model import conventions
+
+        return self.poses if self.convention == "kuka" else conventions.convert(self.poses, "kuka", self.convention)
+
+    def to_dict(self):
+        """The ``handeye plan --json`` object."""
+        from handeye.model import conventions
+
+        return {"n": self.n, "ids": list(self.ids), "poses": np.asarray(self.poses).tolist(), "logdet": self.logdet,
+                "predicted_sd": {"sensor_translation_mm": np.asarray(self.predicted_sd[:3]).tolist(),
+                                 "sensor_rotation_deg": np.asarray(self.predicted_sd[3:6]).tolist()},
+                "skipped": [{"id": i, "reason": r} for i, r in self.skipped],
+                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
+                "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
+                             "poses": np.asarray(self.poses_in_convention()).tolist()},
+                "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)} | (
+            {} if self.mounts == ("flange", "world") else
+            {"sensor_mount": self.mounts[0], "sphere_mount": self.mounts[1], "axis_names": list(self.axis_names),
+             "axis_angles": None if self.axis_angles is None else np.asarray(self.axis_angles).tolist()})
+
+    def pose_list(self):
+        """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
+        from handeye.model.dataset import pose_list_text
+
+        return pose_list_text(self.ids, self.poses, self.convention, self.axis_names, self.axis_angles)
+
+    def summary(self):
+        from handeye.model import conventions
+
+        if self.scored:
+            head = f"scored {self.n} given poses (log det {self.logdet:.2f})"
+        else:
+            head = f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})"
+        if any(self.margin):
+            head += f"; each still sees the sphere with the sensor off by {self.margin[0]:g} mm / {self.margin[1]:g} deg"
+        lines = [head,
+                 "predicted sd (Cramer-Rao bound): translation mm " + " ".join(f"{v:.4f}" for v in self.predicted_sd[:3])
+                 + "; rotation deg " + " ".join(f"{v:.4f}" for v in self.predicted_sd[3:6]),
+                 f"poses ({self.convention}: {','.join(conventions.columns(self.convention) + self.axis_names)}):"]
+        angles = self.axis_angles if self.axis_names else [()] * len(self.ids)
+        lines += [f"  {i:>14} " + " ".join(f"{v:10.4f}" for v in (*p, *a))
+                  for i, p, a in zip(self.ids, self.poses_in_convention(), angles)]
+        lines += [f"  skipped {i}: {r}" for i, r in self.skipped]
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _floats(text, option, count):
+    values = _pose_text(text, option).split(",")
+    try:
+        out = [float(v) for v in values]
+    except ValueError:
+        raise RequestError(f"{option}: not a number in {text!r}") from None
+    if len(out) != count or not np.all(np.isfinite(out)):
+        raise RequestError(f"{option} needs {count} finite numbers, got {text!r}")
+    return out
+
+
+def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
+         sensor_mount="flange", sphere_mount="world"):
+    """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
+
+    Parameters
+    ----------
+    n : int
+        Number of poses to choose.
+    candidates : str or pathlib.Path, optional
+        Candidate flange poses (a pose list in any convention, told by its header); default
+        the thesis strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
+    dataset : str, pathlib.Path or Dataset, optional
+        Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
+        robot convention from it (only its ``setup.toml`` is read: a cell can be planned before
+        it is measured); default the thesis's cell.
+    out : str or pathlib.Path, optional
+        Write the chosen poses as a pose list in the dataset's convention.
+    max_tilt : float
+        Largest tilt of the sensor from straight down of the default candidates, degrees.
+    margin : str or sequence of two floats, optional
+        ``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps
+        the sphere inside the laser line and the measuring range even then.
+    workspace : str or sequence of six floats, optional
+        ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
+    score : str or pathlib.Path, optional
+        A pose list to score (predicted accuracy) instead of choosing.
+    sensor_mount, sphere_mount : str
+        The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world``
+        (the thesis's cell), ``world``/``flange`` or ``flange``/``positioner``, with ``handeye
+        simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
+        lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
+        (degrees), and each default candidate has its own axis angles.
+
+    Returns
+    -------
+    PlanResult
+    """
+    from handeye.app.files import check_output_path, write_text_atomically
+    from handeye.model import planning
+    from handeye.model import simulate as sim
+    from handeye.model.dataset import read_pose_list
+
+    n = _integer(n, "--n", 1)
+
+    margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
+    if min(margin) < 0:
+        raise RequestError(f"--margin must not be negative, got {margin}")
+    setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
+        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
+    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
+                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
+    mounts = cell.mounts
+    centre, convention = np.asarray(setup.sphere_centre), "kuka"
+    if dataset is not None:
+        from handeye.model.dataset import Dataset, load_setup
+
+        d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
+        if d.start_pose is None or d.sphere_centre is None:
+            raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
+                               "a sphere center to plan around")
+        setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
+        centre, convention, mounts = d.sphere_centre, d.convention, d.mounts
+    if out is not None:  # before the work, and never over a file this command reads or of the dataset
+        inputs = [p for p in (candidates, score) if p is not None]
+        if dataset is not None:
+            inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
+        check_output_path(out, "--out", inputs=inputs)
+    cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
+    if score is not None:
+        ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+        sd, value = planning.score(poses, setup, centre, mounts, angles)
+        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
+                          tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+    warnings, angles = [], None
+    if candidates is not None:
+        ids, poses, *angles = read_pose_list(candidates, axes=mounts.axis_names)
+        angles = angles[0] if angles else None
+    elif not mounts.default:
+        ids, poses, angles = planning.cell_candidates(setup, mounts, centre, margin_mm=margin[0], margin_deg=margin[1])
+    else:
+        ids, poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
+    if candidates is None:
+        cuts, radius = planning.view_window(setup, *margin)["cuts"], setup.diameter / 2
+        if np.ptp(cuts) < 0.2 * radius:
+            warnings.append(
+                f"the margin leaves the laser plane cutting the sphere only {cuts.min():.1f}-{cuts.max():.1f} mm from its "
+                f"centre (R = {radius:g} mm): with one cut depth a wrong [profile] side and a sensor offset along y are "
+                "hard to tell apart, and a scale error of the sensor hard to see; a smaller --margin spreads the cuts")
+    skipped = []
+    if workspace is not None:
+        inside = planning.in_workspace(poses, _floats(workspace, "--workspace", 6))
+        skipped = [(i, "flange position outside --workspace") for i, k in zip(ids, inside) if not k]
+        ids, poses = [i for i, k in zip(ids, inside) if k], np.asarray(poses)[inside]
+        angles = None if angles is None else angles[inside]
+    if not ids:
+        raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
+    chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
+    warnings += planning.few_angles(chosen.angles, mounts.axis_names)
+    result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
+                        np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
+                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
+                        axis_angles=chosen.angles, **cell_keys)
+    if out is not None:
+        write_text_atomically(out, result.pose_list(), option="--out")
+    return result
