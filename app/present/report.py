@@ -376,6 +376,8 @@ def diagnosis_text(res):
             else:
                 lines.append(f"  {eff.name}: " + ", ".join(
                     f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items()))
+            if eff.note:
+                lines.append(f"    {eff.note}")
     else:
         lines.append("effects named: none")
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))

@@ -19,6 +19,7 @@ STUDIES = {
     "honest-default": "handeye.studies.study_default",
     "batch-equivalence": "handeye.studies.study_batch",
     "global-guarantee": "handeye.studies.study_guarantee",
+    "mounts": "handeye.studies.study_mounts",
 }
 
 
