@@ -530,7 +530,7 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:
             xs = _centre_from_profile(points, diam / 2, side, folder / profile)
-        angles.append([_axis_angle(fields[idx[a]], file, line, a) for a in axes])
+        angles.append([axis_angle(fields[idx[a]], file, line, a) for a in axes])
         reconstructed.append(bool(profile) and not all(cells))
         profiles.append(points)
         ids.append(ident)
@@ -545,7 +545,8 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
 AXIS_ANGLE_LIMIT_DEG = 720.0
 
 
-def _axis_angle(text, file, line, column):
+def axis_angle(text, file, line, column):
+    """A positioner axis angle of a row (degrees), checked."""
     value = number(text, file, line, column)
     if abs(value) > AXIS_ANGLE_LIMIT_DEG:
         raise DatasetError(file, f"{value:g} deg is beyond +-{AXIS_ANGLE_LIMIT_DEG:g} deg for a positioner axis", line,

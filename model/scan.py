@@ -26,12 +26,13 @@ import pathlib
 import numpy as np
 
 from handeye.model import conventions, dataset, tables
+from handeye.model.mounts import Mounts
 from handeye.model.tables import DatasetError
 
 
 @dataclasses.dataclass(frozen=True)
 class Sphere:
-    """A sphere of the setup: diameter (mm) and centre in the robot base (mm) or None."""
+    """A sphere of the setup: diameter (mm) and centre in its mount's frame (mm) or None."""
 
     diameter: float
     centre: np.ndarray | None
@@ -60,6 +61,11 @@ class Scan(dataset.FlangePoses):
     skipped : tuple of str
         Ids of rows without a profile.
     profile_files : tuple of pathlib.Path
+    mounts : handeye.model.mounts.Mounts
+        The cell's mounts (``setup.toml``; the seed's cell without one): :meth:`motions` carries
+        the profiles into the sphere mount's frame.
+    axis_angles : ndarray, shape (N, k), or None
+        Positioner axis angles of the poses with a profile, degrees.
     """
 
     name: str
@@ -73,6 +79,8 @@ class Scan(dataset.FlangePoses):
     robot_sigma_mm: float = dataset.NOISE_ROBOT_MM
     skipped: tuple = ()
     profile_files: tuple = ()
+    mounts: Mounts = Mounts()
+    axis_angles: np.ndarray | None = None
 
     @property
     def n_points(self):
@@ -112,22 +120,24 @@ def load(name_or_path):
             raise DatasetError(folder / "setup.toml", "[sphere2] without [sphere]: name the first sphere [sphere]",
                                column="[sphere2]")
         spheres = [Sphere(st.diameter, st.centre)] if st.diameter is not None else []
+        mounts = st.mounts
         if st.sphere2 is not None:
             spheres.append(Sphere(st.sphere2[0], st.sphere2[1]))
     else:
         convention = _convention_from_header(header, file)
         limits = {"position_mm": tables.LIMIT_POSITION_MM, "sensor_mm": dataset.LIMIT_SENSOR_MM}
-        noise, spheres = {}, []
+        noise, spheres, mounts = {}, [], Mounts()
     pose_columns = conventions.columns(convention)
-    for col in ("id",) + pose_columns + ("profile",):
+    axes = mounts.axis_names
+    for col in ("id",) + pose_columns + ("profile",) + axes:
         if col not in header:
             raise DatasetError(file, f"missing column (a scan needs id,{','.join(pose_columns)},profile for the "
                                      f"{convention} convention)", 1, col)
     for col in header:
-        if col not in ("id",) + pose_columns + ("profile", "xs", "ys", "zs"):
-            raise DatasetError(file, f"unknown column (expected id,{','.join(pose_columns)},profile)", 1, col)
+        if col not in ("id",) + pose_columns + ("profile", "xs", "ys", "zs") + axes:
+            raise DatasetError(file, f"unknown column (expected id,{','.join(pose_columns + axes)},profile)", 1, col)
     idx = {c: header.index(c) for c in header}
-    ids, rows, poses, profiles, skipped, files, seen = [], [], [], [], [], [], {}
+    ids, rows, poses, profiles, skipped, files, seen, angles = [], [], [], [], [], [], {}, []
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
             continue
@@ -140,6 +150,7 @@ def load(name_or_path):
             continue
         pose = tables.read_pose(fields, idx, convention, file, line, limits["position_mm"])
         points = tables.read_points(folder, rel, file, line, limits["sensor_mm"], minimum=1)
+        angles.append([dataset.axis_angle(fields[idx[a]], file, line, a) for a in axes])
         files.append((folder / rel).resolve())
         ids.append(ident)
         rows.append(line)
@@ -149,4 +160,4 @@ def load(name_or_path):
         raise DatasetError(file, "no pose with a profile (the profile column names each pose's x,z file)", 2)
     return Scan(folder.name, folder, tuple(ids), tuple(rows), np.array(poses), tuple(profiles), tuple(spheres),
                 convention, float(noise.get("robot_mm", dataset.NOISE_ROBOT_MM)), tuple(skipped),
-                tuple(sorted(set(files))))
+                tuple(sorted(set(files))), mounts, np.array(angles, float).reshape(len(ids), len(axes)) if axes else None)

@@ -262,3 +262,19 @@ def test_a_convention_slip_is_found_through_the_mount(tmp_path):
     rows = [(f, xs, th) for f, (_, xs, th) in zip(fanuc, rows)]
     with pytest.raises(handeye.InputError, match='convention = "fanuc"'):
         handeye.calibrate(write(tmp_path / "e", "eye_to_hand", rows, truth))
+
+
+@pytest.mark.parametrize("sensor, sphere, unknowns, frame", [
+    ("world", "flange", "sensor+sphere", "flange"), ("flange", "positioner", "sensor+sphere+positioner", "table")])
+def test_cloud_and_validate_of_profiles_in_every_mount(tmp_path, sensor, sphere, unknowns, frame):
+    """Profiles through the calibration land on the sphere in its mount's frame: validate's fitted
+    radius is the setup's within 3 sd and its centre is the setup's within 0.05 mm."""
+    made = handeye.simulate(tmp_path / "cell", seed=3, sensor_mount=sensor, sphere_mount=sphere, profiles=True)
+    handeye.calibrate(made.path, unknowns=unknowns, out=tmp_path / "cal.json", no_loo=True)
+    cloud = handeye.cloud(made.path, tmp_path / "cal.json")
+    assert cloud.to_dict()["frame"] in ("flange", "positioner table") and len(cloud.points) > 1000
+    check = handeye.validate(made.path, tmp_path / "cal.json")
+    sph = check.spheres[0]
+    assert check.frame == frame and abs(sph.size_error_mm) < 3 * sph.size_error_sd_mm + 1e-3
+    assert np.linalg.norm(sph.centre - made.dataset.sphere_centre) < 0.05
+    assert f"centre ({frame})" in check.summary()

@@ -22,6 +22,7 @@ from handeye.app.errors import RequestError
 from handeye.app.outputs import formats as exports
 from handeye.app.outputs import saved
 from handeye.app.present.protocol import ResultProtocol
+from handeye.model.mounts import FRAME
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
@@ -135,7 +136,8 @@ class CloudResult(ResultProtocol):
     Attributes
     ----------
     points : ndarray, shape (M, 3)
-        Robot base, mm.
+        mm, in ``frame``: the sphere mount's (the robot base, the flange, the positioner table),
+        where the measured object is fixed.
     pose_index : ndarray, shape (M,)
         Index into ``ids`` of each point's pose.
     sd : ndarray, shape (M,), or None
@@ -145,6 +147,7 @@ class CloudResult(ResultProtocol):
         Poses without a profile.
     out, format : str or None
     calibration : str
+    frame : str
     """
 
     caption = 'handeye cloud'
@@ -157,18 +160,19 @@ class CloudResult(ResultProtocol):
     out: str | None
     format: str
     calibration: str
+    frame: str = "robot base"
 
     def to_dict(self):
         lo, hi = (self.points.min(axis=0), self.points.max(axis=0)) if len(self.points) else (None, None)
         return {"n_points": int(len(self.points)), "n_poses": len(self.ids), "skipped": list(self.skipped),
-                "out": self.out, "format": self.format, "calibration": self.calibration,
+                "out": self.out, "format": self.format, "calibration": self.calibration, "frame": self.frame,
                 "bounds_mm": None if lo is None else {"min": lo.tolist(), "max": hi.tolist()},
                 "sd_mm": None if self.sd is None or not len(self.sd) else {
                     "median": float(np.median(self.sd)), "max": float(self.sd.max())}}
 
     def summary(self):
         d = self.to_dict()
-        lines = [f"{d['n_points']:,} points from {d['n_poses']} poses (robot base, mm; calibration {self.calibration})"]
+        lines = [f"{d['n_points']:,} points from {d['n_poses']} poses ({self.frame}, mm; calibration {self.calibration})"]
         if d["skipped"]:
             lines.append(f"skipped {len(d['skipped'])} rows without a profile: {', '.join(d['skipped'][:10])}")
         if d["bounds_mm"]:
@@ -274,7 +278,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     if cal.covariance is not None:
         sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), format,
-                         cal.source)
+                         cal.source, FRAME[data.mounts.sphere])
     if out is not None:
         _write_cloud(result, out, format)
     return result
@@ -318,6 +322,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
         result = validation.validate_scan(data, cal, float(exclude), own)
     else:
         result = validation.validate_centres(data, cal, own)
+    result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
+        data.mounts.sphere])
     if limits is not None:
         result = dataclasses.replace(result, acceptance=validation.accept(result, limits))
     if plot is not None:

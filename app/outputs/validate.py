@@ -204,6 +204,8 @@ class ValidationResult(ResultProtocol):
         not, None when the calibration does not say (a pose typed in, an older file).
     acceptance : Acceptance or None
         The verdict against stated maximum permissible errors (``mpe``).
+    frame : str
+        The frame of the centres and points: the sphere mount's (``base``, ``flange``, ``table``).
     """
 
     caption = 'handeye validate'
@@ -219,6 +221,7 @@ class ValidationResult(ResultProtocol):
     notes: list
     own_data: bool | None = None
     acceptance: Acceptance | None = None
+    frame: str = "base"
 
     @property
     def passed(self):

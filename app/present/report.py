@@ -258,7 +258,7 @@ def validation_text(res):
                   f"  PS size error      {_pm(s.size_error_mm, s.size_error_sd_mm)} mm (fitted - setup diameter)",
                   f"  PF form error      {s.form_error_mm:.4f} mm (max - min radial deviation; RMS {s.rms_mm:.4f}, "
                   f"max |dev| {s.max_abs_deviation_mm:.4f})",
-                  "  centre (base)     " + _fmt(s.centre) + " mm, 1 sd" + _fmt(s.centre_sd_mm)]
+                  f"  centre ({getattr(res, 'frame', 'base')})".ljust(19) + _fmt(s.centre) + " mm, 1 sd" + _fmt(s.centre_sd_mm)]
         if s.centre_offset_mm is not None:
             lines.append("  centre - setup    " + _fmt(s.centre_offset_mm) + f" mm (|d| = "
                          f"{np.linalg.norm(s.centre_offset_mm):.4f})")
