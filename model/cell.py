@@ -95,6 +95,8 @@ class CellModel:
     axis_names : tuple of str
     free : tuple of str
         Parts estimated, a subset of :data:`PARTS`; the others are held at the point's values.
+    free_axes : tuple of str or None
+        With ``positioner`` free: the axes estimated (None: every axis); the others are held.
     """
 
     motions: np.ndarray
@@ -102,6 +104,7 @@ class CellModel:
     angles: np.ndarray
     axis_names: tuple = ()
     free: tuple = PARTS
+    free_axes: tuple | None = None
 
     @property
     def n_axes(self):
@@ -110,7 +113,9 @@ class CellModel:
     @functools.cached_property
     def columns(self):
         """Indices of the free parts' step coordinates in the full step."""
-        cols = {"sensor": range(0, 6), "sphere": range(6, 9), "positioner": range(9, 9 + 4 * self.n_axes)}
+        turning = [j for j, name in enumerate(self.axis_names) if self.free_axes is None or name in self.free_axes]
+        cols = {"sensor": range(0, 6), "sphere": range(6, 9),
+                "positioner": [9 + 4 * j + k for j in turning for k in range(4)]}
         return np.array([i for part in PARTS if part in self.free for i in cols[part]], int)
 
     @property

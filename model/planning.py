@@ -7,6 +7,11 @@ the volume of the confidence ellipsoid. The selection is greedy (each step adds 
 that raises log det most; by the matrix determinant lemma that is the pose with the largest
 ``log det(I + F_i M^-1)``) followed by Fedorov exchanges (swap a chosen and an unchosen pose
 while log det rises).
+
+For a sphere on a positioner the set must also determine the positioner's axes: there F_i is the
+information of the whole cell (sensor, sphere centre, four parameters per axis:
+:func:`cell_information`, the centre model with the stated centre noise), so the plan chooses
+poses *and* axis angles that separate the axes from the sensor and the centre.
 """
 from __future__ import annotations
 
@@ -203,10 +208,56 @@ def in_workspace(flange_poses, workspace):
     return np.all((pos >= w[:, 0]) & (pos <= w[:, 1]), axis=1)
 
 
+#: Per-component sd of a sphere centre (mm) of the positioner cell's information (the default
+#: ``[noise] centre_mm``).
+CELL_SIGMA_MM = 0.05
+
+
+def cell_information(flange_poses, angles, setup, sphere_centre, mounts, sigma=CELL_SIGMA_MM):
+    """Fisher information (N, 9 + 4k, 9 + 4k) of each pose of a positioner cell on the chart of
+    :class:`handeye.model.cell.CellModel` (sensor mm and rad, centre mm, per axis two tilts (rad)
+    and two shifts (mm)): the centre residual at the nominal cell, isotropic sd ``sigma`` (mm).
+
+    Parameters
+    ----------
+    flange_poses : array_like, shape (N, 6)
+        KUKA, robot base.
+    angles : array_like, shape (N, k)
+        Axis angles, degrees.
+    setup : handeye.model.simulate.Setup
+        Its ``sensor_pose`` is the nominal sensor on the flange.
+    sphere_centre : array_like, shape (3,)
+        Table frame (= base at zero angles), mm.
+    mounts : handeye.model.mounts.Mounts
+        With the nominal axes.
+    """
+    from handeye.model.cell import CellModel, pack
+    from handeye.model.mounts import table2base
+
+    f2b = transform_from_pose(np.asarray(flange_poses, float))
+    sensor = transform_from_pose(setup.sensor_pose)
+    centre = np.asarray(sphere_centre, float)
+    in_base = table2base(mounts.axes, angles) @ np.append(centre, 1.0)
+    xs = np.linalg.solve(f2b @ sensor, in_base[..., None])[:, :3, 0]
+    model = CellModel(f2b, xs, np.asarray(angles, float).reshape(len(f2b), -1), mounts.axis_names)
+    _, jac = model.evaluate(pack(sensor, centre, mounts.axes))
+    return np.einsum("ikn,ikm->inm", jac, jac) / sigma**2
+
+
+def _informations(flange_poses, setup, sphere_centre, mounts, angles):
+    """Per-pose information: the sensor's (measurement model), or the whole positioner cell's."""
+    carriers = carrier_poses(flange_poses, mounts, angles)
+    sensor_info = bounds.information(carriers, setup, sphere_centre)  # also: each pose sees the sphere
+    if mounts is None or mounts.sphere != "positioner":
+        return sensor_info
+    return cell_information(flange_poses, angles, setup, sphere_centre, mounts)
+
+
 def score(flange_poses, setup, sphere_centre, mounts=None, angles=None):
     """Predicted 1-sd bounds (Cramer-Rao; mm, deg) of a given pose list, and its log det
-    (``mounts`` and the axis ``angles``, degrees: :func:`carrier_poses`)."""
-    info = bounds.information(carrier_poses(flange_poses, mounts, angles), setup, sphere_centre).sum(axis=0)
+    (``mounts`` and the axis ``angles``, degrees: :func:`carrier_poses`; on a positioner the
+    whole cell's, :func:`cell_information`)."""
+    info = _informations(flange_poses, setup, sphere_centre, mounts, angles).sum(axis=0)
     try:
         return predicted_sd(info), float(logdet(info))
     except np.linalg.LinAlgError:
@@ -244,6 +295,13 @@ def plan(candidate_ids, candidate_poses, n, setup, sphere_centre, mounts=None, a
     if len(keep) < n:
         raise PlanningError(f"only {len(keep)} candidate poses see the sphere; cannot choose {n}")
     info = np.array(infos)
+    if mounts is not None and mounts.sphere == "positioner":
+        unknowns = 9 + 4 * len(mounts.axes)
+        if 3 * n <= unknowns:
+            raise PlanningError(f"a positioner cell has {unknowns} unknowns (sensor, sphere, axes): plan at least "
+                                f"{unknowns // 3 + 1} poses")
+        info = cell_information(np.asarray(candidate_poses)[keep], np.asarray(angles)[keep], setup, sphere_centre,
+                                mounts)
     chosen, value = select(info, n)
     try:
         sd = predicted_sd(info[chosen].sum(axis=0))

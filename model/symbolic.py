@@ -362,7 +362,7 @@ def cell_residual(n_axes):
     xs = sp.Matrix(sp.symbols("xs ys zs", real=True))
     w = skew(dr)
     sensor_point = sp.Matrix(3, 3, xr) * (sp.eye(3) + w + w * w / 2) * xs + xt + dt
-    theta, extra, angles = list(dt) + list(dr) + list(c), list(xr) + list(xt), []
+    per_axis = {}  # axis j -> (its 4 unknowns, its 12 extra inputs, its angle), in the order j = 0, 1, ...
     point = c
     for j in reversed(range(n_axes)):  # A_1(A_2(c)): the last axis acts first
         a, b, u, v = sp.symbols(f"a{j} b{j} u{j} v{j}", real=True)
@@ -372,9 +372,11 @@ def cell_residual(n_axes):
         d = d / sp.sqrt(d.dot(d))
         p = p0 + u * e1 + v * e2
         point = _axis_rotation(d, th * sp.pi / 180) * (point - p) + p
-        theta[9 + 4 * j:9 + 4 * j] = [a, b, u, v]
-        extra[12 + 12 * j:12 + 12 * j] = list(p0) + list(d0) + list(e1) + list(e2)
-        angles.insert(0, th)
+        per_axis[j] = ([a, b, u, v], list(p0) + list(d0) + list(e1) + list(e2), th)
+    order = [per_axis[j] for j in range(n_axes)]
+    theta = list(dt) + list(dr) + list(c) + [s for unknowns, _, _ in order for s in unknowns]
+    extra = list(xr) + list(xt) + [s for _, inputs, _ in order for s in inputs]
+    angles = [th for _, _, th in order]
     e = sp.Matrix(3, 3, m_r) * sensor_point + m_t - point
     jac = e.jacobian(theta)
     at0 = {s: 0 for s in list(dt) + list(dr) + [s for s in theta[9:]]}

@@ -85,7 +85,8 @@ def test_positioner_axes_calibrated_within_three_sd(tmp_path):
     folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes())
     held = handeye.calibrate(folder, unknowns="sensor+sphere", no_loo=True)
     assert held.noise_test is not None and not held.noise_test.passed  # nominal axes 2 mm off: the gap shows
-    assert any("--unknowns sensor+sphere+positioner" in w for w in held.warnings)
+    assert not held.converged and "set-up axes are off" in held.message  # refused (exit 1), with the evidence
+    assert "--unknowns sensor+sphere+positioner" in held.message
     res = handeye.calibrate(folder, unknowns="sensor+sphere+positioner", no_loo=True)
     assert res.converged and res.unknowns == "sensor+sphere+positioner"
     err = res.sensor2flange[:3, 3] - truth["sensor"][:3, 3]
@@ -224,8 +225,9 @@ def test_validate_uses_the_positioner_axes_the_calibration_holds(tmp_path):
     folder = write(tmp_path / "p", "positioner", rows, truth, axes=_moved_axes((1.0, -0.8), (0.003, 0.002)))
     calibrated = handeye.calibrate(folder, unknowns="sensor+positioner", out=tmp_path / "cal.json", no_loo=True)
     held = handeye.calibrate(folder, unknowns="sensor", out=tmp_path / "held.json", no_loo=True)
+    assert not held.converged  # refused: the axes, estimated too, explain the residuals (exit 1)
     good = handeye.validate(folder, tmp_path / "cal.json").to_dict()
-    bad = handeye.validate(folder, tmp_path / "held.json").to_dict()
+    bad = handeye.validate(folder, tmp_path / "held.json", force=True).to_dict()
     rms = [v["centres"]["rms_mm"] for v in (good, bad)]
     assert abs(rms[0] - calibrated.rms_mm) < 1e-6 and abs(rms[1] - held.rms_mm) < 1e-6
     assert rms[0] < 0.1 < 1.0 < rms[1]
@@ -278,3 +280,66 @@ def test_cloud_and_validate_of_profiles_in_every_mount(tmp_path, sensor, sphere,
     assert check.frame == frame and abs(sph.size_error_mm) < 3 * sph.size_error_sd_mm + 1e-3
     assert np.linalg.norm(sph.centre - made.dataset.sphere_centre) < 0.05
     assert f"centre ({frame})" in check.summary()
+
+
+def test_slips_are_named_with_set_up_axes_millimetres_off(tmp_path):
+    """Set-up axes 3 mm / 0.3 deg off leave millimetres that no slip explains: the slips are compared
+    with the turning axes estimated, so radians and a wrong axis order are still named (exit 2)."""
+    rows, truth = make_cell("positioner", seed=14, n=30)
+    off = _moved_axes((3.0, -2.0), (0.005, 0.004))
+    radians = [(p, xs, np.radians(th)) for p, xs, th in rows]
+    with pytest.raises(handeye.InputError, match="positioner angles in radians"):
+        handeye.calibrate(write(tmp_path / "rad", "positioner", radians, truth, axes=off))
+    swapped = [(p, xs, th[::-1]) for p, xs, th in rows]  # the columns keep their angles; the list is e2, e1
+    with pytest.raises(handeye.InputError, match="positioner axes in the other order.*e1, then e2"):
+        handeye.calibrate(write(tmp_path / "order", "positioner", swapped, truth, axes=off[::-1]))
+
+
+def test_a_fixed_sensor_declared_on_the_flange_is_named_both_ways(tmp_path):
+    """Eye-to-hand data without the mount keys read exactly like eye-in-hand data with inverted poses:
+    the message names both cells; followed the wrong way, the 1 m 'tool' is warned about."""
+    rows, truth = make_cell("eye_to_hand", seed=15, n=30)
+    folder = write(tmp_path / "e", "eye_to_hand", rows, truth, centre_known=False)
+    text = (folder / "setup.toml").read_text().replace('mount = "world"', "").replace('mount = "flange"', "")
+    (folder / "setup.toml").write_text(text)
+    with pytest.raises(handeye.InputError, match=r'inverse of each pose.*\[sensor\] mount = "world"'):
+        handeye.calibrate(folder, unknowns="sensor+sphere")
+    inverted = [(pose_from_transform(np.linalg.inv(transform_from_pose(p))), xs, th) for p, xs, th in rows]
+    res = handeye.calibrate(write(tmp_path / "inv", "eye_in_hand", inverted, truth, centre_known=False),
+                            unknowns="sensor+sphere", no_loo=True)
+    assert any("from the flange" in w and 'mount = "world"' in w for w in res.warnings)
+
+
+def test_a_reversed_axis_direction_is_said(tmp_path):
+    rows, truth = make_cell("positioner", seed=16, n=30)
+    axes = (AXES[0], mounts.Axis("e2", AXES[1].point, -AXES[1].direction))
+    res = handeye.calibrate(write(tmp_path / "p", "positioner", rows, truth, axes=axes),
+                            unknowns="sensor+sphere+positioner", no_loo=True)
+    assert res.converged and any("axis e2 points 180" in w and "other way round" in w for w in res.warnings)
+
+
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_cell_residual_closes_for_any_number_of_axes(k):
+    """The symbolic chain's axes in the order of the list (base first), for 1-3 axes: noise-free
+    centres made with mounts.table2base give a zero cell residual, and the reduction agrees."""
+    rng = np.random.default_rng(k)
+    axes = tuple(mounts.Axis(f"q{j}", rng.uniform(-500, 500, 3), mounts.unit(rng.normal(size=3))) for j in range(k))
+    n = 12
+    f2b = transform_from_pose(np.c_[rng.uniform(-800, 800, (n, 3)), rng.uniform(-170, 170, (n, 1)),
+                                    rng.uniform(-80, 80, (n, 1)), rng.uniform(-170, 170, (n, 1))])
+    sensor = transform_from_pose(np.array(mounts_cells_sensor()))
+    centre = np.array([100.0, -50.0, 300.0])
+    angles = rng.uniform(-170, 170, (n, k))
+    in_base = mounts.table2base(axes, angles) @ np.append(centre, 1.0)
+    xs = np.linalg.solve(f2b @ sensor, in_base[..., None])[:, :3, 0]
+    model = cell.CellModel(f2b, xs, angles, tuple(a.name for a in axes))
+    assert np.abs(model.residual(cell.pack(sensor, centre, axes))).max() < 1e-9
+    m = mounts.motions(f2b, mounts.Mounts("flange", "positioner", axes), angles)
+    q = (m @ sensor @ np.c_[xs, np.ones(n)][..., None])[:, :3, 0]
+    assert np.abs(q - centre).max() < 1e-9
+
+
+def mounts_cells_sensor():
+    from mount_cells import SENSOR_ON_FLANGE
+
+    return SENSOR_ON_FLANGE

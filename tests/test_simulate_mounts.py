@@ -42,16 +42,16 @@ def test_default_output_is_unchanged_byte_for_byte(tmp_path, capsys, extra):
     assert _folder_sha256(tmp_path / "d") == DEFAULT_SHA256[extra]
 
 
-def _within_3_sd(result, data):
-    """Every calibrated part within 3 sd of [truth] (sensor in its mount's frame, local chart)."""
+def _within_3_sd(result, data, k=3.0):
+    """Every calibrated part within ``k`` sd of [truth] (sensor in its mount's frame, local chart)."""
     truth = transform_from_pose(data.truth["sensor_pose"])
     est = np.asarray(result.sensor2flange)
     std = result.std
-    assert np.all(np.abs(est[:3, 3] - truth[:3, 3]) <= 3 * std.sensor_translation_mm + 1e-6)
+    assert np.all(np.abs(est[:3, 3] - truth[:3, 3]) <= k * std.sensor_translation_mm + 1e-6)
     rot = np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))
-    assert np.all(np.abs(rot) <= 3 * std.sensor_rotation_deg + 1e-6), (rot, std.sensor_rotation_deg)
+    assert np.all(np.abs(rot) <= k * std.sensor_rotation_deg + 1e-6), (rot, std.sensor_rotation_deg)
     dc = np.asarray(result.sphere_centre) - data.truth["sphere_center"]
-    assert np.all(np.abs(dc) <= 3 * std.sphere_center_mm + 1e-6), (dc, std.sphere_center_mm)
+    assert np.all(np.abs(dc) <= k * std.sphere_center_mm + 1e-6), (dc, std.sphere_center_mm)
     if result.positioner is None or not result.positioner.calibrated:
         return
     for j, (axis, true) in enumerate(zip(result.positioner.axes, data.truth["axes"])):
@@ -162,7 +162,12 @@ def test_plan_chooses_poses_and_angles_that_see_the_sphere(tmp_path, capsys, cel
                  "--sphere-mount", sphere, "--seed", "1"]) == EXIT_OK
     result = api.calibrate(tmp_path / "sim", unknowns=unknowns)
     assert result.converged
-    _within_3_sd(result, load(tmp_path / "sim"))
+    # the sd comes from the fit's own residuals: with 10 poses and up to 17 unknowns (13 dof) the error over
+    # it is Student-t distributed, and 3 sd of a normal is the t quantile of the same coverage (99.73 %)
+    from scipy.stats import t as student
+
+    dof = 3 * 10 - {"sensor+sphere": 9, "sensor+sphere+positioner": 17}[unknowns]
+    _within_3_sd(result, load(tmp_path / "sim"), k=float(student.ppf(0.99865, dof)))
 
 
 def test_plan_takes_the_mounts_from_the_dataset(tmp_path, capsys):

@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, robust, slips
+from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, positioner_effect, robust, slips
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
     Prepared,
@@ -191,7 +191,8 @@ def run(request, dataset):
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
-    return cell_stage.with_positioner_hint(result, dataset, request.parts)
+    result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
+    return cell_stage.with_mount_plausibility(result, dataset)
 
 
 def _stages(request, dataset):

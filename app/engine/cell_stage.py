@@ -16,9 +16,11 @@
    (at most :data:`PASSES` runs).
 
 The result is the conditional result with the cell fit's pose, centre, covariance,
-identifiability, residual table (every sample at the cell fit, in the sphere mount's frame) and a
-:class:`PositionerRecord`; screening, the global check, leave-one-out errors and the noise test
-are the last conditional run's (at the refined axes).
+identifiability, residual table (every sample at the cell fit, in the sphere mount's frame), noise
+test and a :class:`~handeye.app.present.result_parts.PositionerRecord`; screening, the global
+check and leave-one-out errors are the last conditional run's (at the refined axes). A held part
+that the data contradict (the cell fit fails the noise test that the conditional fit, estimating
+it, passed) is refused: not converged, exit 1, with both tests in the message.
 """
 from __future__ import annotations
 
@@ -28,8 +30,9 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.errors import CalibrationInputError
+from handeye.app.present.result_parts import PositionerRecord
 from handeye.model import conventions, identifiability
-from handeye.model.cell import CellModel, pack, unpack
+from handeye.model.cell import PARTS, CellModel, pack, unpack
 from handeye.model.pose import pose_from_transform, transform_from_pose
 
 #: Iteration limit of the cell fit (Levenberg-Marquardt from the conditional fit: a few steps).
@@ -37,44 +40,6 @@ MAX_ITER = 200
 #: Most runs of the conditional stages with the positioner free: the first at the set-up axes,
 #: then at the refined ones until the samples kept stop changing.
 PASSES = 4
-
-
-@dataclasses.dataclass(frozen=True)
-class PositionerRecord:
-    """The positioner's axes as calibrated (or held), robot base frame, all angles zero.
-
-    Attributes
-    ----------
-    axes : tuple of handeye.model.mounts.Axis
-    nominal : tuple of handeye.model.mounts.Axis
-        The axes of ``setup.toml``.
-    point_sd : ndarray, shape (k, 3) or None
-        1-sd of each axis's point, mm (it moves normal to the axis; along it is no parameter).
-    direction_sd : ndarray, shape (k, 3) or None
-        1-sd of each unit direction's components.
-    tilt_sd_deg : ndarray, shape (k,) or None
-        1-sd of the direction's tilt, degrees (root of the two normal variances' sum).
-    calibrated : bool
-    """
-
-    axes: tuple
-    nominal: tuple
-    point_sd: np.ndarray | None = None
-    direction_sd: np.ndarray | None = None
-    tilt_sd_deg: np.ndarray | None = None
-    calibrated: bool = False
-
-    def to_dict(self):
-        out = []
-        for j, (axis, nom) in enumerate(zip(self.axes, self.nominal)):
-            entry = axis.to_dict()
-            entry["nominal"] = nom.to_dict()
-            entry["point_sd"] = None if self.point_sd is None else [float(v) for v in self.point_sd[j]]
-            entry["direction_sd"] = None if self.direction_sd is None else [float(v) for v in self.direction_sd[j]]
-            entry["tilt_sd_deg"] = None if self.tilt_sd_deg is None else float(self.tilt_sd_deg[j])
-            entry["calibrated"] = self.calibrated
-            out.append(entry)
-        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,12 +59,13 @@ class CellFit:
     message: str
 
 
-def cell_model(dataset, free):
-    """The cell model of a dataset: with the positioner free, the flange poses and the axis angles;
-    otherwise the carrier motions (the positioner, if any, at its current axes)."""
+def cell_model(dataset, free, axes=None):
+    """The cell model of a dataset: with the positioner free, the flange poses and the axis angles
+    (``axes``: the names of those estimated, None: all); otherwise the carrier motions (the
+    positioner, if any, at its current axes)."""
     if "positioner" in free:
         return CellModel(np.asarray(dataset.flange2base()), dataset.centre_in_sensor, dataset.axis_angles,
-                         dataset.mounts.axis_names, free)
+                         dataset.mounts.axis_names, free, None if axes is None else tuple(axes))
     return CellModel(np.asarray(dataset.motions()), dataset.centre_in_sensor, np.zeros((len(dataset), 0)), (), free)
 
 
@@ -115,9 +81,19 @@ def check_determined(model, x, path):
     return ident
 
 
-def fit(dataset, free, sensor, centre, mask):
-    """Fit the ``free`` parts from the sensor 4x4 and centre given, on the samples of ``mask``."""
-    model = cell_model(dataset, free)
+def turning_axes(dataset, least=3):
+    """Names of the positioner axes that take at least ``least`` distinct angles (the others' errors
+    are constant: the sphere centre absorbs them, and they cannot be estimated)."""
+    if dataset.axis_angles is None:
+        return ()
+    return tuple(name for name, col in zip(dataset.mounts.axis_names, np.asarray(dataset.axis_angles).T)
+                 if len(np.unique(np.round(col, 6))) >= least)
+
+
+def fit(dataset, free, sensor, centre, mask, axes=None):
+    """Fit the ``free`` parts from the sensor 4x4 and centre given, on the samples of ``mask``
+    (``axes``: with the positioner free, the axes estimated; None: all)."""
+    model = cell_model(dataset, free, axes)
     model = model.subset(np.asarray(mask, bool))
     axes = dataset.mounts.axes if "positioner" in free else ()
     x0 = pack(sensor, centre, axes)
@@ -179,15 +155,16 @@ def extend(request, dataset, stages):
     free = tuple(request.parts.split("+"))
     nominal = dataset.mounts.axes
     result = stages(request, dataset)
-    if not _solved(result) or (not result.converged and "positioner" not in free):
+    if not solved(result) or (not result.converged and "positioner" not in free):
         return dataclasses.replace(result, unknowns=request.parts)
     held = None if "sensor" in free else known_sensor(request, dataset)
-    fitted = fit(dataset, free, result.sensor2flange if held is None else held, result.sphere_centre, mask_of(result))
+    centre = result.sphere_centre if "sphere" in free else dataset.sphere_centre  # held: the setup's
+    fitted = fit(dataset, free, result.sensor2flange if held is None else held, centre, mask_of(result))
     for _ in range(PASSES - 1 if "positioner" in free else 0):
         dataset = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted))
         mask = mask_of(result)
         result = stages(request, dataset)
-        if not _solved(result):
+        if not solved(result):
             break
         fitted = fit(dataset, free, fitted.sensor, fitted.centre, mask_of(result))
         if np.array_equal(mask, mask_of(result)):
@@ -195,7 +172,7 @@ def extend(request, dataset, stages):
     return compose(request, dataset, result, fitted, free, nominal)
 
 
-def _solved(result):
+def solved(result):
     """A finite conditional solution (it may still be refused: at set-up axes far from the true ones
     the conditional fit can "explain nothing"; the cell fit starts from it all the same)."""
     return result.rms_mm is not None and bool(np.all(np.isfinite(result.sensor2flange)))
@@ -223,28 +200,65 @@ def final_residuals(dataset, result, fitted):
             "cost_mm2": float(0.5 * np.sum(norms[used] ** 2))}
 
 
+def reversed_axes(fitted, nominal):
+    """Warnings for fitted axes that point against their set-up direction (the same rotations with the
+    angles counted the other way round: right, but the setup's sign is not the controller's)."""
+    out = []
+    for axis, nom in zip(fitted.axes, nominal):
+        turn = float(np.degrees(np.arccos(np.clip(axis.direction @ nom.direction, -1.0, 1.0))))
+        if turn > 90.0:
+            out.append(f"positioner axis {axis.name} points {turn:.1f} deg from its direction in [positioner] axes: its "
+                       "angles count the other way round (negate its direction in setup.toml, or check the "
+                       "controller's sign of that axis)")
+    return out
+
+
+def held_contradicted(request, result, fitted, free, positioner):
+    """The cell fit tested against the stated noise: ``(NoiseTest, refusal or None)``. A held part
+    (the sensor, the centre or the axes given) that the data contradict -- the cell fit fails the
+    test the conditional fit, with them estimated, passed -- makes the pose wrong: refused."""
+    from handeye.app.engine.describe import noise_test
+
+    r = fitted.model.residual(fitted.x)
+    test = noise_test(float(r @ r), len(r) - fitted.model.n, request.sigma, False, [], "")
+    held = [p for p in PARTS if p not in free and (p != "positioner" or positioner)]
+    conditional = result.noise_test
+    if test is None or test.passed or conditional is None or not conditional.passed:
+        return test, None
+    given = {"sensor": "the sensor pose given ([sensor] pose or --calibration)", "sphere": "the [sphere] center given",
+             "positioner": "the [positioner] axes given"}
+    return test, (f"not a calibration: with {' and '.join(given[p] for p in held)} held, the residuals are "
+                  f"{test.ratio:.3g} x the stated noise (chi2 = {test.statistic:.4g} on {test.dof} dof, p = "
+                  f"{test.p_value:.2g}), while estimated from these data they are within it ({conditional.ratio:.3g} x): "
+                  "what is held contradicts the data (another cell's, an old or a mistyped value?)")
+
+
 def compose(request, dataset, result, fitted, free, nominal):
     """The conditional result with the cell fit's parts (module docstring)."""
     from handeye.app.present.results import Uncertainty
 
     sensor = fitted.sensor
-    kuka = pose_from_transform(sensor)
+    test, refusal = held_contradicted(request, result, fitted, free, dataset.mounts.sphere == "positioner")
     fit_part = dataclasses.replace(
-        result.fit, **final_residuals(dataset, result, fitted), sensor2flange=sensor, sensor_pose_kuka=kuka,
-        sensor_pose=conventions.pose_from(request.convention, sensor), sphere_centre=fitted.centre,
-        converged=result.converged and fitted.converged and fitted.ident.full_rank,
-        message=f"{result.message}; cell fit of {request.parts}: {fitted.message} ({fitted.iterations} iterations)")
-    trans = _block_sd(fitted, ["tx", "ty", "tz"])
-    rot = np.degrees(_block_sd(fitted, ["wx", "wy", "wz"]))
+        result.fit, **final_residuals(dataset, result, fitted), sensor2flange=sensor,
+        sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(request.convention, sensor),
+        sphere_centre=fitted.centre, noise_test=test,
+        converged=result.converged and fitted.converged and fitted.ident.full_rank and refusal is None,
+        message=refusal or f"{result.message}; then the cell fit of {request.parts} "
+                           f"({'converged' if fitted.converged else 'NOT converged'}: {fitted.message})")
+    held = "sensor" not in free
+    trans = None if held else _block_sd(fitted, ["tx", "ty", "tz"])
+    rot = None if held else np.degrees(_block_sd(fitted, ["wx", "wy", "wz"]))
     centre_sd = _block_sd(fitted, ["cx", "cy", "cz"]) if "sphere" in free else None
     cov = fitted.covariance
     corr = None if cov is None else cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
     unc = dataclasses.replace(result.uncertainty, std=Uncertainty(trans, rot, centre_sd), sigma_mm=fitted.sigma,
                               parameter_names=tuple(fitted.model.names), covariance=cov, correlation=corr)
-    warnings = list(result.warnings)
-    if "sensor" not in free:
+    warnings = list(result.warnings) + ([refusal] if refusal else [])
+    if held:
         warnings.append("the sensor pose is held at the one given (its sd is not in this result's; add it from its "
-                        "own calibration)")
+                        "own calibration); start and screening used a sensor pose estimated from these data")
+    warnings += reversed_axes(fitted, nominal)
     if not fitted.ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {fitted.ident.describe_null()}")
     positioner = None
@@ -254,24 +268,25 @@ def compose(request, dataset, result, fitted, free, nominal):
                                identifiability=fitted.ident, warnings=warnings, positioner=positioner)
 
 
+#: A sensor origin (or a sphere centre on the flange) farther than this from its mount's origin (mm)
+#: is implausible for a part carried on the flange: the cell is probably another one.
+FAR_ON_FLANGE_MM = 600.0
 
-def with_positioner_hint(result, dataset, parts):
-    """A result with the positioner held at its set-up axes and residuals beyond the stated noise
-    says that the axes may be the missing effect, and how to calibrate them."""
-    test = result.noise_test
-    if dataset.mounts.sphere != "positioner" or "positioner" in (parts or "") or test is None or test.passed:
+
+def with_mount_plausibility(result, dataset):
+    """A warning when what the result puts on the flange lies farther than :data:`FAR_ON_FLANGE_MM`
+    from it: a sensor "on the flange" a metre away is a sensor fixed in the cell (and the other
+    way round), since the same data fit both cells with the flange poses inverted."""
+    if not solved(result):
         return result
-    more = "+".join(p for p in ("sensor", "sphere", "positioner") if p in (parts or "").split("+") or p == "positioner")
-    hint = (f"the positioner's axes are held as set up ([positioner] axes in {dataset.path / 'setup.toml'}); residuals "
-            f"{test.ratio:.3g} x the stated noise may be their error: calibrate them with --unknowns {more}")
-    return dataclasses.replace(result, warnings=[*result.warnings, hint])
-
-
-def dataset_at(result, dataset):
-    """The dataset with the positioner's axes the result calibrated (unchanged otherwise): what the
-    result's chain is, for figures and checks of the centres through it."""
-    positioner = getattr(result, "positioner", None)
-    if positioner is None or not positioner.calibrated:
-        return dataset
-    return dataclasses.replace(dataset, mounts=dataset.mounts.with_axes(
-        [a.point for a in positioner.axes], [a.direction for a in positioner.axes]))
+    setup = dataset.path / "setup.toml"
+    if dataset.mounts.sensor == "flange" and np.linalg.norm(result.sensor2flange[:3, 3]) > FAR_ON_FLANGE_MM:
+        what = (f"the sensor's origin lies {np.linalg.norm(result.sensor2flange[:3, 3]):.0f} mm from the flange: if the "
+                f"sensor is fixed in the cell and the robot carries the sphere, set [sensor] mount = \"world\" and "
+                f"[sphere] mount = \"flange\" in {setup} (and write the flange poses as the robot reports them)")
+    elif dataset.mounts.sphere == "flange" and np.linalg.norm(result.sphere_centre) > FAR_ON_FLANGE_MM:
+        what = (f"the sphere's centre lies {np.linalg.norm(result.sphere_centre):.0f} mm from the flange: is the sphere "
+                f"fixed in the cell and the sensor on the flange? ([sensor] and [sphere] mount in {setup})")
+    else:
+        return result
+    return dataclasses.replace(result, warnings=[*result.warnings, what])

@@ -504,7 +504,7 @@ def _nominal_positioner(dataset):
     """The positioner's axes as set up (held: the stages work at these axes), or None."""
     if dataset.mounts.sphere != "positioner":
         return None
-    from handeye.app.engine.cell_stage import PositionerRecord
+    from handeye.app.present.result_parts import PositionerRecord
 
     return PositionerRecord(dataset.mounts.axes, dataset.mounts.axes)
 

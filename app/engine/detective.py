@@ -114,6 +114,7 @@ class Candidate:
     scale: float
     flange2base: np.ndarray
     centre_scaled: bool = False
+    robot_poses: np.ndarray | None = None  # the flange poses of this reading (N, 4, 4), robot base
 
     @property
     def unit(self):
@@ -168,10 +169,11 @@ def candidates(dataset):
         for inverted, scale in itertools.product((False, True), (1.0, *UNITS)):
             if reading.convention == dataset.convention and not inverted and scale in (1.0, 1000.0):
                 continue  # as declared (metres alone is handeye.app.engine.slips' own candidate)
-            poses = _chain(dataset, _transforms(rot, raw[:, :3] * scale, inverted))
-            out.append(Candidate(reading, inverted, scale, poses))
+            robot = _transforms(rot, raw[:, :3] * scale, inverted)
+            poses = _chain(dataset, robot)
+            out.append(Candidate(reading, inverted, scale, poses, robot_poses=robot))
             if scale != 1.0 and dataset.sphere_centre is not None:
-                out.append(Candidate(reading, inverted, scale, poses, centre_scaled=True))
+                out.append(Candidate(reading, inverted, scale, poses, centre_scaled=True, robot_poses=robot))
     return out
 
 
@@ -252,8 +254,9 @@ def best(dataset, unknowns):
     cand = found[0]
     raw = raw_poses(dataset)
     with np.errstate(all="ignore"):
-        poses = _chain(dataset, _transforms(cand.reading.rotation(raw[:, 3:]), raw[:, :3] * cand.scale, cand.inverted))
-    cand = dataclasses.replace(cand, flange2base=poses)
+        robot = _transforms(cand.reading.rotation(raw[:, 3:]), raw[:, :3] * cand.scale, cand.inverted)
+    poses = _chain(dataset, robot)
+    cand = dataclasses.replace(cand, flange2base=poses, robot_poses=robot)
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre * (cand.scale if cand.centre_scaled else 1.0)
     if centre is None:
         try:
@@ -304,7 +307,13 @@ def fix(candidate, dataset):
         cols = ",".join(conventions.columns(dataset.convention)[3:])
         steps.append(f"convert the orientation columns of {measurements} from {candidate.reading.name} to "
                      f"{dataset.convention} {cols} (handeye reads kuka, fanuc, abb and ur; see model/conventions.py)")
-    if candidate.inverted:
+    if candidate.inverted and dataset.mounts.default:
+        steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
+                     "flange, as a tf lookup of base in flange gives it) -- unless the sensor is fixed in the cell and "
+                     f'the robot carries the sphere: then the poses are right, and {setup} needs [sensor] mount = '
+                     '"world" and [sphere] mount = "flange" (the same data fit either way: only you know which cell '
+                     "it is)")
+    elif candidate.inverted:
         steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
                      "flange, as a tf lookup of base in flange gives it)")
     if candidate.unit:

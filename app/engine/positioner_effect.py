@@ -46,8 +46,10 @@ class AxesFinding:
     p_value: float
 
 
-def _fit(dataset, free, sensor, mask):
-    return cell_stage.fit(dataset, free, sensor, dataset.sphere_centre, mask)
+def _fit(dataset, free, sensor, mask, centre=None):
+    """The cell fit with the turning axes (:func:`handeye.app.engine.cell_stage.turning_axes`) free."""
+    centre = dataset.sphere_centre if centre is None else centre
+    return cell_stage.fit(dataset, free, sensor, centre, mask, axes=cell_stage.turning_axes(dataset))
 
 
 def heldout_rms(dataset, free, fitted, mask):
@@ -59,8 +61,8 @@ def heldout_rms(dataset, free, fitted, mask):
     for fold in folds:
         train = mask.copy()
         train[fold] = False
-        f = _fit(dataclasses.replace(dataset, mounts=start), free, fitted.sensor, train)
-        model = cell_stage.cell_model(dataset, free)
+        f = _fit(dataclasses.replace(dataset, mounts=start), free, fitted.sensor, train, fitted.centre)
+        model = cell_stage.cell_model(dataset, free, cell_stage.turning_axes(dataset))
         e = model.subset(np.isin(np.arange(len(mask)), fold)).evaluate(f.x)[0]
         errs.append(np.sum(e**2, axis=1))
     return float(np.sqrt(np.mean(np.concatenate(errs))))
@@ -79,10 +81,12 @@ def axis_offsets(nominal, fitted):
     params, sd = {}, {}
     names, cov = fitted.model.names, fitted.covariance
     for nom, axis in zip(nominal, fitted.axes):
+        if f"{nom.name}_tilt1" not in names:
+            continue  # held: it did not turn
         e1, e2 = normals(nom.direction)
-        d = axis.direction / (axis.direction @ nom.direction)
+        d, along = axis.direction, axis.direction @ nom.direction  # along < 0: the axis turned round
         shift = axis.point - nom.point
-        values = (np.degrees(d @ e1), np.degrees(d @ e2), shift @ e1, shift @ e2)
+        values = (np.degrees(np.arctan2(d @ e1, along)), np.degrees(np.arctan2(d @ e2, along)), shift @ e1, shift @ e2)
         for key, value, unit in zip(("tilt1", "tilt2", "shift1", "shift2"), values, ("deg", "deg", "mm", "mm")):
             name = f"{nom.name}_{key}"
             params[f"{name}_{unit}"] = float(value)
@@ -92,12 +96,16 @@ def axis_offsets(nominal, fitted):
     return params, sd
 
 
-def examine(dataset, mask, sensor, sigma, alpha):
+def examine(dataset, mask, sensor, sigma, alpha, centre=None):
     """The axes tested as the missing effect (module docstring): an :class:`AxesFinding`, or None
-    when they are not measurable here or the tests do not all agree."""
-    base = _fit(dataset, BASE, sensor, mask)
+    when they are not measurable here or the tests do not all agree. Only the axes that turn
+    (at least three angles) are estimated; ``centre`` (table frame) starts the fit, default the
+    setup's."""
+    if not cell_stage.turning_axes(dataset):
+        return None
     try:
-        new = _fit(dataset, BASE + ("positioner",), base.sensor, mask)
+        base = _fit(dataset, BASE, sensor, mask, centre)
+        new = _fit(dataset, BASE + ("positioner",), base.sensor, mask, base.centre)
     except CalibrationInputError:
         return None  # the axis angles do not determine the axes: not measurable, never named
     m, k = 3 * int(mask.sum()), new.model.n - base.model.n
@@ -126,3 +134,41 @@ def toml_axes(axes):
 
     return "axes = [" + ", ".join(f'{{ name = "{a.name}", point = {vec(a.point, 4)}, direction = {vec(a.direction, 8)} }}'
                                   for a in axes) + "]"
+
+
+def with_positioner_hint(result, dataset, parts, alpha):
+    """A result with the positioner held at its set-up axes and residuals beyond the stated noise:
+    when the axes, estimated too, explain the residuals (the tests of
+    :func:`handeye.app.engine.positioner_effect.examine`), the pose at the set-up axes is not right
+    -- the result is refused (not converged: exit 1) with that evidence and the option that
+    calibrates them; otherwise a warning says the axes may be the cause."""
+    test = result.noise_test
+    if dataset.mounts.sphere != "positioner" or "positioner" in (parts or "") or test is None or test.passed:
+        return result
+    more = "+".join(p for p in ("sensor", "sphere", "positioner") if p in (parts or "").split("+") or p == "positioner")
+    found = None
+    if cell_stage.solved(result):
+        found = examine(dataset, cell_stage.mask_of(result), result.sensor2flange, dataset.noise_centre_mm,
+                                          alpha, centre=result.sphere_centre)
+    if found is None:
+        hint = (f"the positioner's axes are held as set up ([positioner] axes in {dataset.path / 'setup.toml'}); "
+                f"residuals {test.ratio:.3g} x the stated noise may be their error: calibrate them with --unknowns {more}")
+        return dataclasses.replace(result, warnings=[*result.warnings, hint])
+    moved = ", ".join(f"{k} {v:+.3g}" for k, v in found.effect.parameters.items())
+    refusal = (f"not a calibration: the positioner's set-up axes are off ({moved}): estimated too, they explain the "
+               f"residuals (RMS {found.before['rms_mm']:.3g} -> {found.after['rms_mm']:.3g} mm, held-out "
+               f"{found.before['heldout_rms_mm']:.3g} -> {found.after['heldout_rms_mm']:.3g} mm, F test p = "
+               f"{found.p_value:.2g}), so the pose at the set-up axes is wrong; calibrate with --unknowns {more} "
+               "(or correct [positioner] axes: handeye diagnose prints them)")
+    return dataclasses.replace(result, fit=dataclasses.replace(result.fit, converged=False, message=refusal),
+                               warnings=[*result.warnings, refusal])
+
+
+def dataset_at(result, dataset):
+    """The dataset with the positioner's axes the result calibrated (unchanged otherwise): what the
+    result's chain is, for figures and checks of the centres through it."""
+    positioner = getattr(result, "positioner", None)
+    if positioner is None or not positioner.calibrated:
+        return dataset
+    return dataclasses.replace(dataset, mounts=dataset.mounts.with_axes(
+        [a.point for a in positioner.axes], [a.direction for a in positioner.axes]))

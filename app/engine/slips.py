@@ -34,6 +34,7 @@ import numpy as np
 from handeye.app.errors import CalibrationInputError
 from handeye.model import global_fit
 from handeye.model.calibration import CalibrationModel
+from handeye.model.pose import pose_from_transform
 
 #: A plain fit with a larger RMS (mm), or residuals above the stated noise, is checked for slips.
 SUSPECT_RMS_MM = 1.0
@@ -96,6 +97,12 @@ def _candidates(dataset):
             degrees[:, 3:] = np.degrees(degrees[:, 3:])
         out.append(Slip("robot angles in radians", dataclasses.replace(d, flange_poses=degrees),
                         f"write the flange angles of {d.path / 'measurements.csv'} in degrees"))
+    if len(d.mounts.axes) == 2:  # base first: the axis that carries the other one listed second?
+        swapped = dataclasses.replace(d.mounts, axes=d.mounts.axes[::-1])
+        out.append(Slip("positioner axes in the other order", dataclasses.replace(
+            d, mounts=swapped, axis_angles=np.asarray(d.axis_angles)[:, ::-1]),
+            f"list [positioner] axes of {setup} base first ({swapped.axes[0].name}, then "
+            f"{swapped.axes[1].name}: the axis that carries the other one comes first)"))
     if d.axis_angles is not None and np.all(np.abs(d.axis_angles) <= 2 * np.pi + 1e-9):
         out.append(Slip("positioner angles in radians", dataclasses.replace(d, axis_angles=np.degrees(d.axis_angles)),
                         f"write the positioner axis columns {', '.join(d.mounts.axis_names)} of "
@@ -115,6 +122,30 @@ def plain_rms(dataset, unknowns):
         return None
     rms = float(np.sqrt(2.0 * best.cost / len(dataset)))
     return rms if np.isfinite(rms) else None
+
+
+def free_axes_rms(dataset, unknowns):
+    """For a sphere on a positioner: RMS (mm) of the plain fit with the positioner's turning axes
+    estimated too (:mod:`handeye.app.engine.cell_stage`), from the centre model's global minimum at
+    the set-up axes; else (or when they are not determined) :func:`plain_rms`. Set-up axes a few
+    millimetres off leave millimetres of residual that no slip explains: slips are compared
+    without them."""
+    rms = plain_rms(dataset, unknowns)
+    if dataset.mounts.sphere != "positioner" or rms is None:
+        return rms
+    from handeye.app.engine import cell_stage
+
+    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
+    try:
+        with np.errstate(all="ignore"):
+            best = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, centre).best
+        free = ("sensor", "sphere", "positioner") if centre is None else ("sensor", "positioner")
+        fitted = cell_stage.fit(dataset, free, best.sensor2flange, best.centre, np.ones(len(dataset), bool),
+                                axes=cell_stage.turning_axes(dataset))
+    except (global_fit.GlobalFitError, CalibrationInputError, np.linalg.LinAlgError):
+        return rms
+    r = fitted.model.residual(fitted.x)
+    return float(np.sqrt(r @ r / len(dataset)))
 
 
 def _suspect(dataset, unknowns, rms_given):
@@ -177,11 +208,13 @@ def check(dataset, unknowns, rms_given):
     dataset : handeye.model.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     rms_given : float
-        RMS (mm, of |e_i|) of the plain fit of every sample as the dataset is.
+        RMS (mm, of |e_i|) of the plain fit of every sample as the dataset is (with a positioner
+        the slips are compared with its turning axes estimated: :func:`free_axes_rms`).
     """
     check_diameter(dataset)
     suspect, dof = _suspect(dataset, unknowns, rms_given)
     if suspect:
+        rms_given = free_axes_rms(dataset, unknowns) if dataset.mounts.sphere == "positioner" else rms_given
         _check_slips(dataset, unknowns, rms_given, dof)
         _check_conventions(dataset, unknowns, rms_given, dof)
     check_equator(dataset, unknowns)  # on data no slip explains better
@@ -196,7 +229,7 @@ def _check_slips(dataset, unknowns, rms_given, dof):
     for slip in _candidates(dataset):
         if slip.dataset.sphere_centre is None and unknowns == "sensor":
             continue
-        rms = plain_rms(slip.dataset, unknowns)
+        rms = free_axes_rms(slip.dataset, unknowns)
         if rms is None or rms <= 0 or rms * FACTOR > rms_given or rms > EXPLAINED_RMS_MM:
             continue
         if f_survival((rms_given / rms) ** 2, dof, dof) < P_SLIP and (best is None or rms < best[1]):
@@ -222,6 +255,11 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
     if found is None:
         return
     candidate, rms = found
+    if dataset.mounts.sphere == "positioner":  # compared as the dataset is: the turning axes estimated too
+        reread = dataclasses.replace(dataset, flange_poses=pose_from_transform(candidate.robot_poses),
+                                     sphere_centre=None if dataset.sphere_centre is None else
+                                     dataset.sphere_centre * (candidate.scale if candidate.centre_scaled else 1.0))
+        rms = free_axes_rms(reread, unknowns) or rms
     n = len(dataset)
     at_noise = chi2_survival(n * rms**2 / dataset.noise_centre_mm**2, dof) >= P_SUSPECT  # fits the stated noise
     if not (rms > 0 and rms * FACTOR <= rms_given and (rms <= EXPLAINED_RMS_MM or at_noise)):

@@ -161,9 +161,12 @@ def calibration_text(res):
         "",
         "uncertainty (1 sd; " + (f"sigma = {res.sigma_mm:.4f} mm per {per}" if res.sigma_mm is not None
                                  else f"weighted residual, scale {res.sigma_scale:.3f}") + ", estimated from the fit):",
-        "  sensor translation (mm):      " + _fmt(res.std.sensor_translation_mm),
-        "  sensor rotation (deg, about sensor x y z): " + _fmt(res.std.sensor_rotation_deg),
     ]
+    if res.std.sensor_translation_mm is None:
+        lines.append("  sensor pose: held as given (its uncertainty is its own calibration's)")
+    else:
+        lines += ["  sensor translation (mm):      " + _fmt(res.std.sensor_translation_mm),
+                  "  sensor rotation (deg, about sensor x y z): " + _fmt(res.std.sensor_rotation_deg)]
     if res.std.sphere_center_mm is not None:
         lines.append("  sphere centre (mm):           " + _fmt(res.std.sphere_center_mm))
     lines += _effect_lines(res)

@@ -123,6 +123,44 @@ class EffectsRecord:
     calibrated: list | None = None
 
 
+@dataclasses.dataclass(frozen=True)
+class PositionerRecord:
+    """The positioner's axes as calibrated (or held), robot base frame, all angles zero.
+
+    Attributes
+    ----------
+    axes : tuple of handeye.model.mounts.Axis
+    nominal : tuple of handeye.model.mounts.Axis
+        The axes of ``setup.toml``.
+    point_sd : ndarray, shape (k, 3) or None
+        1-sd of each axis's point, mm (it moves normal to the axis; along it is no parameter).
+    direction_sd : ndarray, shape (k, 3) or None
+        1-sd of each unit direction's components.
+    tilt_sd_deg : ndarray, shape (k,) or None
+        1-sd of the direction's tilt, degrees (root of the two normal variances' sum).
+    calibrated : bool
+    """
+
+    axes: tuple
+    nominal: tuple
+    point_sd: np.ndarray | None = None
+    direction_sd: np.ndarray | None = None
+    tilt_sd_deg: np.ndarray | None = None
+    calibrated: bool = False
+
+    def to_dict(self):
+        out = []
+        for j, (axis, nom) in enumerate(zip(self.axes, self.nominal)):
+            entry = axis.to_dict()
+            entry["nominal"] = nom.to_dict()
+            entry["point_sd"] = None if self.point_sd is None else [float(v) for v in self.point_sd[j]]
+            entry["direction_sd"] = None if self.direction_sd is None else [float(v) for v in self.direction_sd[j]]
+            entry["tilt_sd_deg"] = None if self.tilt_sd_deg is None else float(self.tilt_sd_deg[j])
+            entry["calibrated"] = self.calibrated
+            out.append(entry)
+        return out
+
+
 #: Flat attribute of the result -> (part, attribute of the part).
 FLAT = {
     **{f.name: ("fit", f.name) for f in dataclasses.fields(FitRecord)},

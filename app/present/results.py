@@ -318,7 +318,7 @@ class CalibrationResult(ResultProtocol):
         the cell (``sensor_mount``). JSON key ``sensor_matrix``.
     sensor_mount, sphere_mount : str
         ``flange`` or ``world``; ``world``, ``flange`` or ``positioner`` (:mod:`handeye.model.mounts`).
-    positioner : handeye.app.engine.cell_stage.PositionerRecord or None
+    positioner : handeye.app.present.result_parts.PositionerRecord or None
         The positioner's axes (calibrated with ``positioner`` in ``unknowns``, else as set up) and
         their 1-sd. JSON key ``positioner``: a list of axes.
     sensor_pose : ndarray
