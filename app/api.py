@@ -73,6 +73,9 @@ def _held_sensor(calibration, data):
     from handeye.model.pose import pose_from_transform
 
     cal = saved.load(_path_argument(calibration))
+    if not cal.converged:
+        raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
+                           "(calibrate again)")
     mount = getattr(cal, "sensor_mount", "flange")
     if mount != data.mounts.sensor:
         raise RequestError(f"--calibration: {calibration} is of a sensor mounted on the {mount}, the dataset's sensor "
@@ -169,6 +172,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     if method in CLOSED_FORM and unknowns not in UNKNOWNS:
         raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
     data = load_dataset(dataset)
+    if calibration is not None and "sensor" in unknowns.split("+"):
+        raise RequestError(f"--calibration holds the sensor pose: it does not apply with --unknowns {unknowns} (which "
+                           "estimates it); leave out sensor, e.g. --unknowns sphere+positioner")
     held = _held_sensor(calibration, data)
     inputs = input_files(data) if out is not None or plot is not None else ()
     for path, option in ((out, "--out"), (plot, "--plot")):

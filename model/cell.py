@@ -28,10 +28,8 @@ import numpy as np
 
 from handeye.model import codegen
 from handeye.model.mounts import Axis, unit
+from handeye.model.names import PARTS  # the parts a calibration can estimate, in the order of the step
 from handeye.model.rotation import matrix_from_rotvec
-
-#: The parts a calibration can estimate, in the order of the step.
-PARTS = ("sensor", "sphere", "positioner")
 
 
 @functools.lru_cache(maxsize=None)

@@ -55,10 +55,11 @@ def _axis_vector(entry, key, file, k, bound):
     if key == "point" and np.any(np.abs(out) > bound):
         raise DatasetError(file, f"a position beyond +-{bound:g} mm: a unit or a misprint?", column=col)
     if key == "direction":
-        n = np.linalg.norm(out)
-        if n < 1e-9:
+        big = np.abs(out).max()
+        if big < 1e-9:
             raise DatasetError(file, "a zero direction: an axis needs a direction", column=col)
-        out = out / n
+        out = out / big  # first to the largest component: no overflow of the norm for 1e300
+        out = out / np.linalg.norm(out)
     return out
 
 

@@ -44,11 +44,9 @@ import dataclasses
 
 import numpy as np
 
+from handeye.model.names import SENSOR_MOUNTS, SPHERE_MOUNTS  # noqa: F401  (named once, where nothing is imported)
 from handeye.model.rotation import matrix_from_rotvec
 
-#: The sensor's and the sphere's possible mounts.
-SENSOR_MOUNTS = ("flange", "world")
-SPHERE_MOUNTS = ("world", "flange", "positioner")
 #: The observable combinations, (sensor mount, sphere mount) -> a sentence for reports.
 CELLS = {
     ("flange", "world"): "sensor on the flange, sphere fixed in the robot's base frame",
@@ -116,10 +114,15 @@ class Mounts:
         axes = tuple(Axis(a.name, np.asarray(p, float), unit(d)) for a, p, d in zip(self.axes, points, directions))
         return dataclasses.replace(self, axes=axes)
 
+    def at(self, axes):
+        """The same mounts at the geometry of ``axes`` (a calibration's: the same names, in order)."""
+        return self.with_axes([a.point for a in axes], [a.direction for a in axes])
+
 
 def unit(v):
-    """``v / |v|`` for a 3-vector."""
+    """``v / |v|`` for a 3-vector (scaled by its largest component first: no overflow)."""
     v = np.asarray(v, float)
+    v = v / np.abs(v).max()
     return v / np.linalg.norm(v)
 
 

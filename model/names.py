@@ -10,6 +10,11 @@ from __future__ import annotations
 
 #: What a calibration estimates (:mod:`handeye.model.calibration`).
 UNKNOWNS = ("sensor", "sensor+sphere")
+#: The parts ``--unknowns`` may join with ``+``, in their canonical order (:mod:`handeye.model.cell`).
+PARTS = ("sensor", "sphere", "positioner")
+#: Where the sensor and the sphere may be mounted (:mod:`handeye.model.mounts`).
+SENSOR_MOUNTS = ("flange", "world")
+SPHERE_MOUNTS = ("world", "flange", "positioner")
 #: Names of the rotation parametrisations of the unknown sensor rotation.
 ROTATIONS = ("euler", "matrix", "local")
 #: Residual kinds and the rows of one residual.

@@ -343,3 +343,63 @@ def mounts_cells_sensor():
     from mount_cells import SENSOR_ON_FLANGE
 
     return SENSOR_ON_FLANGE
+
+
+def _with_sensor_pose(folder, sensor):
+    pose = ", ".join(f"{v:.6f}" for v in pose_from_transform(sensor))
+    text = (folder / "setup.toml").read_text().replace('[sensor]\n', f"[sensor]\npose = [{pose}]\n", 1)
+    (folder / "setup.toml").write_text(text)
+    return folder
+
+
+def test_a_held_sensor_the_data_contradict_is_refused(tmp_path):
+    """A sensor pose held 20 mm off: estimated from the data the residuals are noise, held they are not
+    -- refused (exit 1), not a centre 'calibrated' around a wrong sensor."""
+    rows, truth = make_cell("eye_to_hand", seed=17, n=30)
+    wrong = truth["sensor"].copy()
+    wrong[0, 3] += 20.0
+    folder = _with_sensor_pose(write(tmp_path / "e", "eye_to_hand", rows, truth, centre_known=False), wrong)
+    res = handeye.calibrate(folder, unknowns="sphere", no_loo=True)
+    assert not res.converged and "contradicts the data" in res.message and not res.noise_test.passed
+    good = handeye.calibrate(_with_sensor_pose(write(tmp_path / "g", "eye_to_hand", rows, truth, centre_known=False),
+                                               truth["sensor"]), unknowns="sphere", no_loo=True)
+    assert good.converged and good.noise_test.passed and good.to_dict()["std"]["sensor_translation_mm"] is None
+    assert np.all(np.abs(good.sphere_centre - truth["centre"]) < 3 * good.std.sphere_center_mm + 0.01)
+
+
+def test_positioner_alone_holds_the_setups_centre(tmp_path):
+    rows, truth = make_cell("positioner", seed=18, n=30)
+    folder = _with_sensor_pose(write(tmp_path / "p", "positioner", rows, truth, axes=_moved_axes()), truth["sensor"])
+    res = handeye.calibrate(folder, unknowns="positioner", no_loo=True)
+    assert res.converged and np.array_equal(res.sphere_centre, truth["centre"])
+    for j, axis in enumerate(res.positioner.axes):
+        assert _line_distance(axis.point, AXES[j]) < 3 * np.linalg.norm(res.positioner.point_sd[j])
+
+
+def test_calibration_option_is_checked(tmp_path):
+    import json
+
+    rows, truth = make_cell("positioner", seed=19, n=30)
+    folder = write(tmp_path / "p", "positioner", rows, truth, axes=_moved_axes())
+    handeye.calibrate(folder, unknowns="sensor+positioner", out=tmp_path / "cal.json", no_loo=True)
+    with pytest.raises(handeye.InputError, match="does not apply with --unknowns sensor"):
+        handeye.calibrate(folder, unknowns="sensor+sphere", calibration=tmp_path / "cal.json")
+    doc = json.loads((tmp_path / "cal.json").read_text())
+    (tmp_path / "nc.json").write_text(json.dumps(dict(doc, converged=False)))
+    with pytest.raises(handeye.InputError, match="did not converge"):
+        handeye.calibrate(folder, unknowns="sphere+positioner", calibration=tmp_path / "nc.json")
+    res = handeye.calibrate(folder, unknowns="sphere+positioner", calibration=tmp_path / "cal.json", no_loo=True,
+                            plot=tmp_path / "fig.png")
+    assert res.converged and (tmp_path / "fig.png").stat().st_size > 10_000
+    for change, match in (({"calibrated": "no"}, "true or false"), ({"point": [1e30, 0, 0]}, "beyond")):
+        bad = dict(doc, positioner=[dict(doc["positioner"][0], **change), doc["positioner"][1]])
+        (tmp_path / "bad.json").write_text(json.dumps(bad))
+        with pytest.raises(handeye.InputError, match=match):
+            handeye.validate(folder, tmp_path / "bad.json")
+
+
+def test_a_huge_axis_direction_is_a_direction(tmp_path):
+    rows, truth = make_cell("positioner", seed=20, n=12)
+    axes = (AXES[0], mounts.Axis("e2", AXES[1].point, np.array([1e300, 1e300, 1e300])))
+    d = dataset.load(write(tmp_path / "p", "positioner", rows, truth, axes=axes))
+    np.testing.assert_allclose(d.mounts.axes[1].direction, np.full(3, 1 / np.sqrt(3)))

@@ -180,7 +180,7 @@ def solved(result):
 
 def refined_mounts(dataset, fitted):
     """The mounts with the fitted axes as the cell fit's start (refining from where it stopped)."""
-    return dataset.mounts.with_axes([a.point for a in fitted.axes], [a.direction for a in fitted.axes])
+    return dataset.mounts.at(fitted.axes)
 
 
 def final_residuals(dataset, result, fitted):
@@ -290,3 +290,12 @@ def with_mount_plausibility(result, dataset):
     else:
         return result
     return dataclasses.replace(result, warnings=[*result.warnings, what])
+
+
+def dataset_at(result, dataset):
+    """The dataset with the positioner's axes the result calibrated (unchanged otherwise): what the
+    result's chain is, for figures and checks of the centres through it."""
+    positioner = getattr(result, "positioner", None)
+    if positioner is None or not positioner.calibrated:
+        return dataset
+    return dataclasses.replace(dataset, mounts=dataset.mounts.at(positioner.axes))

@@ -162,13 +162,3 @@ def with_positioner_hint(result, dataset, parts, alpha):
                "(or correct [positioner] axes: handeye diagnose prints them)")
     return dataclasses.replace(result, fit=dataclasses.replace(result.fit, converged=False, message=refusal),
                                warnings=[*result.warnings, refusal])
-
-
-def dataset_at(result, dataset):
-    """The dataset with the positioner's axes the result calibrated (unchanged otherwise): what the
-    result's chain is, for figures and checks of the centres through it."""
-    positioner = getattr(result, "positioner", None)
-    if positioner is None or not positioner.calibrated:
-        return dataset
-    return dataclasses.replace(dataset, mounts=dataset.mounts.with_axes(
-        [a.point for a in positioner.axes], [a.direction for a in positioner.axes]))

@@ -18,7 +18,7 @@ from handeye.app.choices import METHODS
 from handeye.app.errors import CalibrationInputError
 from handeye.model import conventions
 from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
-from handeye.model.names import ROTATIONS, UNKNOWNS
+from handeye.model.names import PARTS, ROTATIONS, UNKNOWNS
 
 # METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 
@@ -56,8 +56,6 @@ def min_measurements(unknowns, n_axes=2):
     return n // 3 + 1
 
 
-#: The parts ``--unknowns`` may join with ``+``, in their canonical order.
-PARTS = ("sensor", "sphere", "positioner")
 
 
 def unknown_parts(text):

@@ -91,7 +91,7 @@ def _at_calibrated_axes(data, cal):
     if tuple(a.name for a in axes) != mounts.axis_names:
         raise RequestError(f"{cal.source}: its positioner axes ({', '.join(a.name for a in axes)}) are not the "
                            f"dataset's ({', '.join(mounts.axis_names)})")
-    return dataclasses.replace(data, mounts=mounts.with_axes([a.point for a in axes], [a.direction for a in axes]))
+    return dataclasses.replace(data, mounts=mounts.at(axes))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -25,14 +25,14 @@ import numpy as np
 
 from handeye.app.errors import RequestError
 from handeye.model import conventions
+from handeye.model.names import SENSOR_MOUNTS
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
 ORTHONORMAL_TOLERANCE = 1e-6
 #: A saved result larger than this is not a calibration result.
 MAX_RESULT_BYTES = 256 * 1024**2
-#: Where the sensor is: on the robot flange, or fixed in the cell (the matrix in the robot base).
-SENSOR_MOUNTS = ("flange", "world")
-#: The frame the sensor matrix is given in, by mount.
+#: The frame the sensor matrix is given in, by mount (on the robot flange, or fixed in the cell:
+#: the matrix in the robot base; the mounts' names: :data:`handeye.model.names.SENSOR_MOUNTS`).
 MOUNT_FRAME = {"flange": "flange", "world": "base"}
 
 
@@ -129,7 +129,7 @@ def _covariance(doc, file):
     cov = doc.get("covariance")
     if isinstance(cov, dict) and cov.get("matrix") is not None:
         names = cov.get("names")
-        if isinstance(names, list) and "tx" not in names and names[:1] in (["cx"], ["e1_tilt1"]) or names == []:
+        if isinstance(names, list) and "tx" not in names:
             return None  # the sensor was held (--unknowns without sensor): no covariance of it here
         if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
             raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "covariance")
@@ -207,20 +207,28 @@ def load(path):
 def _positioner(doc, file):
     """The calibrated positioner axes of the file (``positioner`` entries with ``calibrated``), or ()."""
     from handeye.model.mounts import Axis
+    from handeye.model.tables import LIMIT_POSITION_MM
 
     entries = doc.get("positioner")
     if entries is None:
         return ()
     if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
         raise CalibrationFileError(file, "needs a list of axes {name, point, direction}", "positioner")
-    if not all(e.get("calibrated") for e in entries):
+    flags = [e.get("calibrated") for e in entries]
+    if not all(isinstance(f, bool) for f in flags):
+        raise CalibrationFileError(file, "each axis needs calibrated = true or false", "positioner")
+    if not any(flags):
         return ()  # held as set up: the dataset's own axes are the calibration's
+    if not all(flags):
+        raise CalibrationFileError(file, "some axes calibrated, some not: handeye writes all or none", "positioner")
     axes = []
     for k, e in enumerate(entries):
         point = _matrix([e.get("point")], (1, 3), file, f"positioner[{k}].point")[0]
         direction = _matrix([e.get("direction")], (1, 3), file, f"positioner[{k}].direction")[0]
         if not isinstance(e.get("name"), str) or not 0.5 < np.linalg.norm(direction) < 2.0:
             raise CalibrationFileError(file, "needs a name and a unit direction", f"positioner[{k}]")
+        if np.any(np.abs(point) > LIMIT_POSITION_MM):
+            raise CalibrationFileError(file, f"a point beyond +-{LIMIT_POSITION_MM:g} mm", f"positioner[{k}].point")
         axes.append(Axis(e["name"], point, direction / np.linalg.norm(direction)))
     return tuple(axes)
 
