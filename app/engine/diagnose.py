@@ -144,15 +144,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         structure, fit = _backward(prob, structure, fit, mask, alpha)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
-    # structural effects: checked against the sensor pose and the sphere centre
-    with_centre = _extend(structure, "sphere_center")
-    full = prob.fit(with_centre, mask, fit.x if structure.centre else np.concatenate([fit.x, dataset.sphere_centre]),
-                    fit.params)
-    for effect in effects.catalogue("structural"):
-        cols = candidate_columns(prob, with_centre, full, mask, effect.NAME)
-        frac, who = gate(full.jac[mask].reshape(-1, full.p), cols, full.names)
-        if frac < GATE:
-            run.absorbed[effect.NAME] = who
+    _absorbed_structural(run, structure, fit, mask)
     result = _report(run, structure, fit, flips, outliers)
     if axes is not None:
         result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
@@ -160,6 +152,20 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
         result = dataclasses.replace(result, unexplained=unexplained)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
+
+
+def _absorbed_structural(run, structure, fit, mask):
+    """The structural effects, checked against the sensor pose and the sphere centre: those the
+    current parameters reproduce are recorded in ``run.absorbed``."""
+    prob = run.prob
+    with_centre = _extend(structure, "sphere_center")
+    full = prob.fit(with_centre, mask, fit.x if structure.centre else np.concatenate([fit.x, prob.d.sphere_centre]),
+                    fit.params)
+    for effect in effects.catalogue("structural"):
+        cols = candidate_columns(prob, with_centre, full, mask, effect.NAME)
+        frac, who = gate(full.jac[mask].reshape(-1, full.p), cols, full.names)
+        if frac < GATE:
+            run.absorbed[effect.NAME] = who
 
 
 def _positioner_axes(run, fit, sigma):

@@ -14,6 +14,10 @@ import dataclasses
 import numpy as np
 
 
+def _list(value):
+    return None if value is None else np.asarray(value, float).tolist()
+
+
 @dataclasses.dataclass(frozen=True)
 class FitRecord:
     """The reported fit: the pose, how the solver got there, and its residuals.
@@ -159,6 +163,88 @@ class PositionerRecord:
             entry["calibrated"] = self.calibrated
             out.append(entry)
         return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """1-sd uncertainty of the calibration (local rotation chart).
+
+    Attributes
+    ----------
+    sensor_translation_mm : ndarray, shape (3,)
+        Of the sensor origin in the flange frame, mm.
+    sensor_rotation_deg : ndarray, shape (3,)
+        About the sensor's own x, y, z axes, degrees.
+    sphere_center_mm : ndarray, shape (3,), or None
+        Of the sphere centre (``unknowns='sensor+sphere'`` only), robot base, mm.
+    """
+
+    sensor_translation_mm: np.ndarray
+    sensor_rotation_deg: np.ndarray
+    sphere_center_mm: np.ndarray | None = None
+
+    def to_dict(self):
+        return {"sensor_translation_mm": _list(self.sensor_translation_mm),
+                "sensor_rotation_deg": _list(self.sensor_rotation_deg),
+                "sphere_center_mm": _list(self.sphere_center_mm)}
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseTest:
+    """The fit tested against the stated noise model (``[noise]`` in setup.toml, ``--sigma``).
+
+    Attributes
+    ----------
+    statistic : float
+        ``SSR / sigma_nominal^2`` (whitened residuals: ``SSR``), chi-square with ``dof``
+        degrees of freedom when the noise is as stated.
+    dof : int
+    p_value : float
+        Probability of a statistic this large or larger under the stated noise.
+    ratio : float
+        Estimated over stated noise (sd ratio).
+    nominal : str
+        The stated noise, in words.
+    passed : bool
+        False when the residuals are larger than the noise at the 0.1 % level.
+    """
+
+    statistic: float
+    dof: int
+    p_value: float
+    ratio: float
+    nominal: str
+    passed: bool
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class NamedEffect:
+    """An effect :func:`handeye.diagnose` named, with its parameters and their 1-sd errors.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name (:mod:`handeye.model.effects`) or ``sign_flip``.
+    parameters : dict
+        Parameter name -> value (units of the effect; ``sign_flip``: ``{'ids': [...]}``).
+    std : dict or None
+        Parameter name -> 1 sd (None for ``sign_flip``; a None value where the fit is not a
+        minimum and the linearised sd means nothing).
+    note : str or None
+        What the sd is and why it is the size it is (``sphere_radius`` in calibrate).
+    """
+
+    name: str
+    parameters: dict
+    std: dict | None
+    note: str | None = None
+
+    def to_dict(self):
+        return {"name": self.name, "parameters": dict(self.parameters),
+                "std": None if self.std is None else dict(self.std), "note": self.note}
 
 
 #: Flat attribute of the result -> (part, attribute of the part).

@@ -22,11 +22,17 @@ import numpy as np
 
 from handeye.app.present.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import FLAT, EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
-
-
-def _list(value):
-    return None if value is None else np.asarray(value, float).tolist()
+from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, NoiseTest, Uncertainty: public here too)
+    FLAT,
+    EffectsRecord,
+    FitRecord,
+    NamedEffect,
+    NoiseTest,
+    ScreeningRecord,
+    Uncertainty,
+    UncertaintyRecord,
+    _list,
+)
 
 
 def _unit(name):
@@ -214,61 +220,6 @@ class Before:
     weighted: bool = False
     what: str = ("plain least squares of the centre model on every sample (unweighted, nothing excluded); rms_mm per "
                  "sphere centre as the final fit's; loo_error_mm refits this centre model without each sample")
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
-
-@dataclasses.dataclass(frozen=True)
-class Uncertainty:
-    """1-sd uncertainty of the calibration (local rotation chart).
-
-    Attributes
-    ----------
-    sensor_translation_mm : ndarray, shape (3,)
-        Of the sensor origin in the flange frame, mm.
-    sensor_rotation_deg : ndarray, shape (3,)
-        About the sensor's own x, y, z axes, degrees.
-    sphere_center_mm : ndarray, shape (3,), or None
-        Of the sphere centre (``unknowns='sensor+sphere'`` only), robot base, mm.
-    """
-
-    sensor_translation_mm: np.ndarray
-    sensor_rotation_deg: np.ndarray
-    sphere_center_mm: np.ndarray | None = None
-
-    def to_dict(self):
-        return {"sensor_translation_mm": _list(self.sensor_translation_mm),
-                "sensor_rotation_deg": _list(self.sensor_rotation_deg),
-                "sphere_center_mm": _list(self.sphere_center_mm)}
-
-
-@dataclasses.dataclass(frozen=True)
-class NoiseTest:
-    """The fit tested against the stated noise model (``[noise]`` in setup.toml, ``--sigma``).
-
-    Attributes
-    ----------
-    statistic : float
-        ``SSR / sigma_nominal^2`` (whitened residuals: ``SSR``), chi-square with ``dof``
-        degrees of freedom when the noise is as stated.
-    dof : int
-    p_value : float
-        Probability of a statistic this large or larger under the stated noise.
-    ratio : float
-        Estimated over stated noise (sd ratio).
-    nominal : str
-        The stated noise, in words.
-    passed : bool
-        False when the residuals are larger than the noise at the 0.1 % level.
-    """
-
-    statistic: float
-    dof: int
-    p_value: float
-    ratio: float
-    nominal: str
-    passed: bool
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -577,31 +528,3 @@ class CalibrationResult(ResultProtocol):
         rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
         return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "
                 f"sensor_pose[{self.convention}]={np.round(self.sensor_pose, 4).tolist()})")
-
-
-@dataclasses.dataclass(frozen=True)
-class NamedEffect:
-    """An effect :func:`handeye.diagnose` named, with its parameters and their 1-sd errors.
-
-    Attributes
-    ----------
-    name : str
-        Catalogue name (:mod:`handeye.model.effects`) or ``sign_flip``.
-    parameters : dict
-        Parameter name -> value (units of the effect; ``sign_flip``: ``{'ids': [...]}``).
-    std : dict or None
-        Parameter name -> 1 sd (None for ``sign_flip``; a None value where the fit is not a
-        minimum and the linearised sd means nothing).
-    note : str or None
-        What the sd is and why it is the size it is (``sphere_radius`` in calibrate).
-    """
-
-    name: str
-    parameters: dict
-    std: dict | None
-    note: str | None = None
-
-    def to_dict(self):
-        return {"name": self.name, "parameters": dict(self.parameters),
-                "std": None if self.std is None else dict(self.std), "note": self.note}
-
