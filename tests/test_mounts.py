@@ -403,3 +403,27 @@ def test_a_huge_axis_direction_is_a_direction(tmp_path):
     axes = (AXES[0], mounts.Axis("e2", AXES[1].point, np.array([1e300, 1e300, 1e300])))
     d = dataset.load(write(tmp_path / "p", "positioner", rows, truth, axes=axes))
     np.testing.assert_allclose(d.mounts.axes[1].direction, np.full(3, 1 / np.sqrt(3)))
+
+
+@pytest.mark.parametrize("sensor, sphere", [("world", "flange"), ("flange", "positioner")])
+def test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate(tmp_path, sensor, sphere):
+    """The discrepancy workflow on a stationary sensor and on a positioner: the scale is named, added, the gap
+    shrinks; calibrated with it the pose is within 3 sd; export, cloud and validate take the result."""
+    made = handeye.simulate(tmp_path / "cell", seed=0, sensor_mount=sensor, sphere_mount=sphere, profiles=True,
+                            effect=["sensor_scale=0.003"])
+    d = handeye.diagnose(made.path)
+    named = {e.name: e for e in d.effects}
+    assert "sensor_scale" in named and abs(named["sensor_scale"].parameters["s"] - 0.003) < 4 * named["sensor_scale"].std["s"]
+    assert d.rms_after_mm < 0.6 * d.rms_before_mm and d.heldout_rms_after_mm < d.heldout_rms_before_mm
+    unknowns = "sensor+positioner" if sphere == "positioner" else "sensor"
+    if sphere == "positioner":
+        assert list(named)[0] == "positioner_axes"
+        res = handeye.calibrate(made.path, unknowns=unknowns, out=tmp_path / "cal.json", no_loo=True)
+    else:
+        res = handeye.calibrate(made.path, effects="sensor_scale", out=tmp_path / "cal.json", no_loo=True)
+        assert abs(res.effects[0].parameters["s"] - 0.003) < 4 * res.effects[0].std["s"]
+    assert res.converged
+    text = handeye.export(tmp_path / "cal.json", format="kuka").text
+    assert ("BASE_DATA" in text) == (sensor == "world")
+    assert len(handeye.cloud(made.path, tmp_path / "cal.json").points) > 1000
+    assert handeye.validate(made.path, tmp_path / "cal.json").spheres[0].n_points > 1000
