@@ -213,24 +213,46 @@ def reversed_axes(fitted, nominal):
     return out
 
 
-def held_contradicted(request, result, fitted, free, positioner):
-    """The cell fit tested against the stated noise: ``(NoiseTest, refusal or None)``. A held part
-    (the sensor, the centre or the axes given) that the data contradict -- the cell fit fails the
-    test the conditional fit, with them estimated, passed -- makes the pose wrong: refused."""
+#: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...
+P_HELD = 1e-3
+#: ... and lowers the RMS by at least this factor (a part held from another calibration of the same cell
+#: differs by its own sd, which a large dataset finds significant but not this large).
+HELD_FACTOR = 1.2
+
+
+def held_contradicted(dataset, request, fitted, free, mask):
+    """The cell fit tested against the stated noise, and its held parts against the data:
+    ``(NoiseTest, refusal or None)``. A held part (the sensor, the centre or the axes given) is
+    contradicted when the same cell model with it estimated fits significantly and clearly better
+    (F test below :data:`P_HELD`, RMS lower by :data:`HELD_FACTOR`): the pose at it is wrong."""
     from handeye.app.engine.describe import noise_test
+    from handeye.model.statistics import f_survival
 
     r = fitted.model.residual(fitted.x)
     test = noise_test(float(r @ r), len(r) - fitted.model.n, request.sigma, False, [], "")
-    held = [p for p in PARTS if p not in free and (p != "positioner" or positioner)]
-    conditional = result.noise_test
-    if test is None or test.passed or conditional is None or not conditional.passed:
+    turning = turning_axes(dataset) if dataset.mounts.sphere == "positioner" else ()
+    every = tuple(p for p in PARTS if p != "positioner" or turning)
+    held = [p for p in every if p not in free]
+    if not held:
+        return test, None
+    try:
+        loose = fit(dataset, every, fitted.sensor, fitted.centre, mask, axes=turning or None)
+    except CalibrationInputError:
+        return test, None  # the data cannot estimate what is held: nothing to contradict it
+    q = loose.model.residual(loose.x)
+    k, dof = loose.model.n - fitted.model.n, len(q) - loose.model.n
+    ssr_held, ssr_free = float(r @ r), float(q @ q)
+    if dof <= 0 or ssr_free <= 0 or ssr_held < HELD_FACTOR**2 * ssr_free:
+        return test, None
+    p_value = f_survival(((ssr_held - ssr_free) / k) / (ssr_free / dof), k, dof)
+    if p_value >= P_HELD:
         return test, None
     given = {"sensor": "the sensor pose given ([sensor] pose or --calibration)", "sphere": "the [sphere] center given",
              "positioner": "the [positioner] axes given"}
-    return test, (f"not a calibration: with {' and '.join(given[p] for p in held)} held, the residuals are "
-                  f"{test.ratio:.3g} x the stated noise (chi2 = {test.statistic:.4g} on {test.dof} dof, p = "
-                  f"{test.p_value:.2g}), while estimated from these data they are within it ({conditional.ratio:.3g} x): "
-                  "what is held contradicts the data (another cell's, an old or a mistyped value?)")
+    return test, (f"not a calibration: what is held contradicts the data -- with {' and '.join(given[p] for p in held)}, "
+                  f"the RMS is {np.sqrt(ssr_held / len(mask[mask]) ):.3g} mm per centre; estimating it too, "
+                  f"{np.sqrt(ssr_free / len(mask[mask])):.3g} mm (F test p = {p_value:.2g}): another cell's, an old or a "
+                  "mistyped value? Estimate it (--unknowns) or correct it")
 
 
 def compose(request, dataset, result, fitted, free, nominal):
@@ -238,7 +260,7 @@ def compose(request, dataset, result, fitted, free, nominal):
     from handeye.app.present.results import Uncertainty
 
     sensor = fitted.sensor
-    test, refusal = held_contradicted(request, result, fitted, free, dataset.mounts.sphere == "positioner")
+    test, refusal = held_contradicted(dataset, request, fitted, free, mask_of(result))
     fit_part = dataclasses.replace(
         result.fit, **final_residuals(dataset, result, fitted), sensor2flange=sensor,
         sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(request.convention, sensor),
