@@ -38,6 +38,7 @@ import numpy as np
 from handeye.model import conventions
 from handeye.model.mounts import Mounts, motions
 from handeye.model.pose import transform_from_pose
+from handeye.model.robots import JOINTS
 from handeye.model.setup_file import (  # noqa: F401  (the setup's names: public here too)
     LIMIT_RANGE_MM,
     LIMIT_SENSOR_MM,
@@ -152,6 +153,10 @@ class Dataset(FlangePoses):
         Positioner axis angles, degrees (sphere on a positioner).
     sensor_pose : ndarray, shape (6,), or None
         ``[sensor] pose``: the sensor pose known (KUKA), for calibrations that do not estimate it.
+    joints : ndarray, shape (N, 6), or None
+        Joint angles ``j1..j6`` of each pose, degrees (optional columns; they need ``[robot] model``).
+    robot_model : handeye.model.robots.RobotModel or None
+        ``[robot] model``: the nominal kinematics (checked on load to reproduce the reported poses).
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -181,6 +186,8 @@ class Dataset(FlangePoses):
     mounts: Mounts = Mounts()
     axis_angles: np.ndarray | None = None
     sensor_pose: np.ndarray | None = None
+    joints: np.ndarray | None = None
+    robot_model: object | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -197,6 +204,7 @@ class Dataset(FlangePoses):
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
+            joints=None if self.joints is None else self.joints[mask],
         )
         for key in ("_flange2base", "_motions"):  # computed already: its rows, not a million poses again
             if key in self.__dict__ and not (key == "_motions" and self.mounts.default):
@@ -305,6 +313,8 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
+    joints = JOINTS if any(h in JOINTS for h in header) else ()
+    required += joints  # all six or none
     for col in header:
         if col not in required + OPTIONAL_COLUMNS:
             raise DatasetError(file, f"unknown column (expected {','.join(required)}[,profile] for the "
@@ -341,7 +351,8 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
         else:
             xs = _centre_from_profile(points, diam / 2, side, folder / profile)
-        angles.append([axis_angle(fields[idx[a]], file, line, a) for a in axes])
+        angles.append([axis_angle(fields[idx[a]], file, line, a) for a in axes]
+                      + [_joint_angle(fields[idx[j]], file, line, j) for j in joints])
         reconstructed.append(bool(profile) and not all(cells))
         profiles.append(points)
         ids.append(ident)
@@ -356,6 +367,18 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
 AXIS_ANGLE_LIMIT_DEG = 720.0
 
 
+#: Largest joint angle a row may hold (degrees).
+JOINT_ANGLE_LIMIT_DEG = 400.0
+
+
+def _joint_angle(text, file, line, column):
+    value = number(text, file, line, column)
+    if abs(value) > JOINT_ANGLE_LIMIT_DEG:
+        raise DatasetError(file, f"{value:g} deg is beyond +-{JOINT_ANGLE_LIMIT_DEG:g} deg for a robot joint", line,
+                           column)
+    return value
+
+
 def axis_angle(text, file, line, column):
     """A positioner axis angle of a row (degrees), checked."""
     value = number(text, file, line, column)
@@ -363,6 +386,23 @@ def axis_angle(text, file, line, column):
         raise DatasetError(file, f"{value:g} deg is beyond +-{AXIS_ANGLE_LIMIT_DEG:g} deg for a positioner axis", line,
                            column)
     return value
+
+
+def _robot_model(st, folder, joints, poses, file):
+    """The ``[robot] model`` (None without one), checked against the joint angles when the file has them."""
+    from handeye.model import robots
+
+    if st.robot_model is None:
+        if joints is not None:
+            raise DatasetError(folder / "setup.toml", "measurements.csv has joint angles j1..j6: name the robot's "
+                                                      f"nominal model (built in: {', '.join(robots.builtin_names())}, "
+                                                      "or a model file)", column="[robot] model")
+        return None
+    name = st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model
+    model = robots.load(name)
+    if joints is not None and len(joints):
+        robots.check_reported(model, joints, transform_from_pose(poses), file)
+    return model
 
 
 def load(name_or_path):
@@ -387,6 +427,9 @@ def load(name_or_path):
         profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
     if not ids:
         raise DatasetError(file, "no measurements", 2)
+    angles = np.array(angles, float).reshape(len(ids), -1)
+    joints = angles[:, len(axes):] if angles.shape[1] > len(axes) else None
+    model = _robot_model(st, folder, joints, np.asarray(poses, float), file)
     return Dataset(
         name=folder.name,
         path=folder,
@@ -409,6 +452,8 @@ def load(name_or_path):
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
         noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),
         mounts=st.mounts,
-        axis_angles=np.array(angles, float).reshape(len(ids), len(axes)) if axes else None,
+        axis_angles=angles[:, :len(axes)] if axes else None,
         sensor_pose=st.sensor_pose,
+        joints=joints,
+        robot_model=model,
     )

@@ -28,7 +28,7 @@ from handeye.model.tables import DatasetError
 _AXIS_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,31}$")
 #: Columns an axis may not be named after.
 RESERVED = {"id", "x", "y", "z", "a", "b", "c", "w", "p", "r", "q1", "q2", "q3", "q4", "rx", "ry", "rz",
-            "xs", "ys", "zs", "profile"}
+            "xs", "ys", "zs", "profile", "j1", "j2", "j3", "j4", "j5", "j6"}
 #: Most axes a positioner may have.
 MAX_AXES = 3
 

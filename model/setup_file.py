@@ -59,7 +59,7 @@ def toml_number(v):
 
 
 _ALLOWED = {
-    "robot": {"convention"},
+    "robot": {"convention", "model"},
     "sensor": {"start_pose", "mount", "pose"},
     "sphere": {"diameter", "center", "base_pose", "center_in_plate", "mount"},
     "positioner": {"axes"},
@@ -185,8 +185,11 @@ def read_setup(path, require_sphere=True):
         vectors += [("[sphere2] center", sphere2[1]), ("[sphere2] base_pose", sphere2[2])]
     _check_bounds(file, noise["limits"], vectors, (("sphere", diam), ("sphere2", sphere2[0] if sphere2 else None)))
     mounts = mount_setup.read_mounts(doc, file, noise["limits"]["position_mm"])
+    model = doc.get("robot", {}).get("model")
+    if model is not None and (not isinstance(model, str) or not model.strip()):
+        raise DatasetError(file, f"needs a built-in model's name or a model file, got {model!r}", column="[robot] model")
     return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), _truth(doc, file, convention),
-                      convention, noise, sphere2, mounts, known)
+                      convention, noise, sphere2, mounts, known, model)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -205,6 +208,7 @@ class _SetupFile:
     sphere2: tuple | None  # (diameter, centre, plate_pose, centre_in_plate) of a second sphere
     mounts: Mounts = Mounts()
     sensor_pose: np.ndarray | None = None  # [sensor] pose: the sensor pose known, KUKA
+    robot_model: str | None = None  # [robot] model: a built-in name or a file (relative to the folder)
 
 
 def _read_sphere(doc, section, file, convention, required):

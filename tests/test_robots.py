@@ -1,0 +1,89 @@
+"""Nominal robot kinematics (model/robots.py) and joint angles in datasets (issue 28, first part):
+the built-in models' forward kinematics against values worked out by hand from their sources,
+and the load check that names radians, a TCP and a wrong model."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.model import robots
+from handeye.model.pose import pose_from_transform
+from handeye.model.tables import DatasetError
+
+
+@pytest.mark.parametrize("name, joints, pose", [
+    # KR 60 HA (ROS-I chain): at zero the arm stretches along +x: x = 350 + 850 + 465 + 355 + 170, z = 815 + 145;
+    # the flange's z along +x (KUKA's A 0, B 90, C 0)
+    ("kr60ha", [0, 0, 0, 0, 0, 0], [2190, 0, 960, 0, 90, 0]),
+    # KUKA's home: upper arm up (A2 -90), forearm forward (A3 90): x = 350 + 820 + 170, z = 815 + 850 + 145
+    ("kr60ha", [0, -90, 90, 0, 0, 0], [1340, 0, 1810, 0, 90, 0]),
+    # A1 turns clockwise seen from above (axis -z): +90 puts the arm along -y
+    ("kr60ha", [90, -90, 90, 0, 0, 0], [0, -1340, 1810, -90, 90, 0]),
+    # UR5e at zero (UR's DH): x = a2 + a3, y = -(d4 + d6), z = d1 - d5; flange = Rx(90)
+    ("ur5e", [0, 0, 0, 0, 0, 0], [-817.2, -232.9, 62.8, 0, 0, 90]),
+    ("ur10e", [0, 0, 0, 0, 0, 0], [-1184.25, -290.7, 60.85, 0, 0, 90]),
+    # IRB 4600-60/2.05 at zero: x = 175 + 960 + 135, z = 495 + 900 + 175
+    ("irb4600", [0, 0, 0, 0, 0, 0], [1270, 0, 1570, 0, 90, 0]),
+    # M-20iA at zero in FANUC's world (on J2's height): x = 150 + 835 + 100, z = 790 + 250; W 180, P -90
+    ("m20ia", [0, 0, 0, 0, 0, 0], [1085, 0, 1040, 180, -90, 0]),
+])
+def test_forward_kinematics_of_the_built_in_models(name, joints, pose):
+    got = pose_from_transform(robots.load(name).flange2base(np.array([joints], float)))[0]
+    np.testing.assert_allclose(got[:3], pose[:3], atol=1e-9)
+    want = robots._transform([0, 0, 0], pose[3:][::-1])[:3, :3]  # KUKA A, B, C = yaw, pitch, roll
+    have = robots._transform([0, 0, 0], got[3:][::-1])[:3, :3]
+    np.testing.assert_allclose(have, want, atol=1e-12)
+
+
+def test_fanuc_j3_is_coupled_to_j2():
+    """FANUC reports J3 against the horizontal: turning J2 alone keeps the forearm's direction."""
+    m = robots.load("m20ia")
+    a, b = m.flange2base(np.array([[0, 0, 0, 0, 0, 0], [0, 30, 0, 0, 0, 0]], float))
+    np.testing.assert_allclose(a[:3, :3], b[:3, :3], atol=1e-12)
+
+
+def _write(folder, model, joints, poses):
+    folder.mkdir()
+    (folder / "setup.toml").write_text(f'[robot]\nmodel = "{model}"\n[sphere]\ndiameter = 50\ncenter = [1500, 0, 500]\n')
+    rows = ["id,x,y,z,a,b,c,xs,ys,zs,j1,j2,j3,j4,j5,j6"] + [
+        ",".join([f"p{i}", *(f"{v:.6f}" for v in p), "1", "2", "200", *(f"{v:.8f}" for v in j)])
+        for i, (p, j) in enumerate(zip(poses, joints))]
+    (folder / "measurements.csv").write_text("\n".join(rows) + "\n")
+    return folder
+
+
+def _cell(n=15, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.c_[rng.uniform(-60, 60, n), rng.uniform(-110, -40, n), rng.uniform(40, 120, n),
+                 rng.uniform(-90, 90, (n, 3))]
+
+
+def test_joint_angles_load_and_slips_are_named(tmp_path):
+    m = robots.load("kr60ha")
+    joints = _cell()
+    poses = pose_from_transform(m.flange2base(joints))
+    d = handeye.load_dataset(_write(tmp_path / "ok", "kr60ha", joints, poses))
+    np.testing.assert_allclose(d.joints, joints, atol=1e-7)
+    assert d.robot_model.name == "KUKA KR 60 HA" and d.subset(np.arange(15) < 5).joints.shape == (5, 6)
+    with pytest.raises(DatasetError, match="read as radians.*degrees"):
+        handeye.load_dataset(_write(tmp_path / "rad", "kr60ha", np.radians(joints), poses))
+    with pytest.raises(DatasetError, match=r"wrong \[robot\] model"):
+        handeye.load_dataset(_write(tmp_path / "wrong", "irb4600", joints, poses))
+    tcp = np.eye(4)
+    tcp[:3, 3] = [0, 0, 120]
+    with pytest.raises(DatasetError, match="TCP, not the flange"):
+        handeye.load_dataset(_write(tmp_path / "tcp", "kr60ha", joints, pose_from_transform(m.flange2base(joints) @ tcp)))
+    folder = _write(tmp_path / "nomodel", "kr60ha", joints, poses)
+    (folder / "setup.toml").write_text("[sphere]\ndiameter = 50\ncenter = [1500, 0, 500]\n")
+    with pytest.raises(DatasetError, match=r"\[robot\] model.*built in: irb4600, kr60ha, m20ia, ur10e, ur5e"):
+        handeye.load_dataset(folder)
+    text = (tmp_path / "ok" / "measurements.csv").read_text().replace(",j6\n", "\n", 1)
+    (tmp_path / "ok" / "measurements.csv").write_text(text)
+    with pytest.raises(DatasetError):  # five of six joint columns
+        handeye.load_dataset(tmp_path / "ok")
+
+
+def test_datasets_without_joint_angles_are_as_before():
+    d = handeye.load_dataset("thesis-real")
+    assert d.joints is None and d.robot_model is None
