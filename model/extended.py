@@ -95,6 +95,28 @@ class Samples:
         self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
         self.n = len(dataset)
+        #: the joints ``joint_offsets`` estimates (indices into j1..j6), chosen by the identifiability
+        #: gate (:func:`robot_joints`); all six until then
+        self.joint_free = tuple(range(6))
+
+    def params_of(self, name):
+        """The parameter names an effect has on these samples (``joint_offsets``: its free joints)."""
+        names = effects.get(name).PARAMS
+        return tuple(names[j] for j in self.joint_free) if effects.get(name).KIND == "robot" else names
+
+    def robot_motion(self, params, rows=None):
+        """The flange poses corrected by ``joint_offsets`` (N, 4, 4) and their derivatives
+        (N, k, 4, 4) per degree of each free joint (:mod:`handeye.model.effects.joint_offsets`)."""
+        from handeye.model.robots import offset_derivatives
+
+        delta = np.zeros(6)
+        delta[list(self.joint_free)] = params
+        joints = self.d.joints if rows is None else self.d.joints[rows]
+        f2b = self.f2b if rows is None else self.f2b[rows]
+        fk0, _ = offset_derivatives(self.d.robot_model, joints, np.zeros(6))
+        fk, dfk = offset_derivatives(self.d.robot_model, joints, delta)
+        moved = f2b @ np.linalg.inv(fk0)
+        return moved @ fk, moved[:, None] @ dfk[:, list(self.joint_free)]
 
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
@@ -115,22 +137,29 @@ class Samples:
         samples ``rows``, an index array, only, when given)."""
         xs = self.measured(structure, rows)
         f2b = self.f2b if rows is None else self.f2b[rows]
-        cols = []
+        cols, robot = [], None
         for name in structure.data_effects:
+            if effects.get(name).KIND == "robot":
+                f2b, robot = self.robot_motion(params[name], rows)
+                cols.append(None)
+                continue
             with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
                 xs, dxs = effects.correct(name, xs, self.radius, params[name])
             cols.append(dxs)
         unknowns = "sensor+sphere" if structure.centre else "sensor"
         model = CalibrationModel(f2b, xs, self.d.sphere_centre, "local", unknowns)
         e, j = model.residual_and_jacobian(x)
-        r12 = f2b[:, :3, :3] @ model.sensor_rotation(x)
-        extra = [np.einsum("nij,njk->nik", r12, c) for c in cols]
+        r2 = model.sensor_rotation(x)
+        r12 = f2b[:, :3, :3] @ r2
+        in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
+        extra = [np.einsum("nkij,nj->nik", robot[..., :3, :3], in_flange) + np.swapaxes(robot[..., :3, 3], 1, 2)
+                 if c is None else np.einsum("nij,njk->nik", r12, c) for c in cols]
         return e, np.concatenate([j] + extra, axis=2) if extra else j, model
 
     def names(self, structure):
         base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
         for name in structure.data_effects:
-            base += [f"{name}.{p}" for p in effects.get(name).PARAMS]
+            base += [f"{name}.{p}" for p in self.params_of(name)]
         return base
 
     def normal_equations(self, structure, x, params, mask, chunk=None):
@@ -156,9 +185,9 @@ class Samples:
         """Least squares of the structure on the samples in ``mask``. Above
         :data:`~handeye.model.calibration.ROW_CHUNK` samples (or with ``chunk``) on normal
         equations summed chunk by chunk: the Fit then holds no Jacobian (``jac`` None)."""
-        params0 = {n: np.zeros(len(effects.get(n).PARAMS)) for n in structure.data_effects} | (params0 or {})
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in structure.data_effects} | (params0 or {})
         keys = list(structure.data_effects)
-        sizes = [len(effects.get(n).PARAMS) for n in keys]
+        sizes = [len(self.params_of(n)) for n in keys]
         n_pt, n_theta = len(x0), self._chart(structure.centre).n
         big = chunk is not None or int(np.count_nonzero(mask)) > ROW_CHUNK
 
@@ -205,7 +234,7 @@ class Samples:
             Residuals of the samples ``rows`` at the fit.
         """
         keys = list(structure.data_effects)
-        params0 = {n: np.zeros(len(effects.get(n).PARAMS)) for n in keys} | (params0 or {})
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
         chart, n_pt = self._chart(structure.centre), len(x0)
         n = chart.n + sum(len(params0[k]) for k in keys)
         sw = np.sqrt(np.repeat(np.asarray(weights, float), 3))
@@ -335,7 +364,15 @@ def candidate_rows(prob, structure, fit, rows, name):
     xs = prob.measured(structure, rows)
     f2b = prob.f2b if rows is None else prob.f2b[rows]
     for eff in structure.data_effects:
+        if effects.get(eff).KIND == "robot":
+            f2b = prob.robot_motion(fit.params[eff], rows)[0]
+            continue
         xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
+    if effect.KIND == "robot":
+        _, dfk = prob.robot_motion(np.zeros(len(prob.joint_free)), rows)
+        r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+        in_flange = np.einsum("ij,nj->ni", r2, xs) + fit.x[:3]
+        return np.einsum("nkij,nj->nik", dfk[..., :3, :3], in_flange) + np.swapaxes(dfk[..., :3, 3], 1, 2)
     r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
     r12 = f2b[:, :3, :3] @ r2
     if effect.KIND == "centre":
@@ -517,3 +554,34 @@ def _ranked(found):
     """ScoreTests of ``[(p, name, statistic, gate)]``, Bonferroni-adjusted, most significant first."""
     found = sorted(found)
     return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]
+
+
+#: A joint's offset column must keep this fraction outside the span of the sensor pose, the sphere
+#: centre and the joints already chosen to be estimated (stricter than :data:`GATE`: one column).
+JOINT_GATE = 1e-2
+
+
+def robot_joints(prob, structure, fit, mask):
+    """Choose the joints ``joint_offsets`` estimates on these samples: each joint's column gated
+    against the sensor pose, the sphere centre (free or not: a first-joint offset is a turn of the
+    base, which a centre given wrong looks like) and the joints chosen before it. Sets
+    ``prob.joint_free``; returns ``{joint: absorbers}`` of the joints left out."""
+    prob.joint_free = tuple(range(6))
+    cols = candidate_rows(prob, structure, fit, None, "joint_offsets")[mask]  # (m, 3, 6)
+    current = fit.jac[mask].reshape(-1, fit.p)
+    names = list(fit.names)
+    if not structure.centre:
+        current = np.concatenate([current, -np.tile(np.eye(3), (int(mask.sum()), 1))], axis=1)
+        names += ["cx", "cy", "cz"]
+    free, absorbed = [], {}
+    for j in range(6):
+        col = cols[:, :, j].reshape(-1, 1)
+        frac, who = gate(current, col, names)
+        if frac < JOINT_GATE:
+            absorbed[f"j{j + 1}"] = who
+            continue
+        free.append(j)
+        current = np.concatenate([current, col], axis=1)
+        names.append(f"joint_offsets.j{j + 1}")
+    prob.joint_free = tuple(free)
+    return absorbed

@@ -82,7 +82,7 @@ def test_a_base_frame_offset_is_absorbed_not_named(tmp_path):
 def test_catalogue_is_open_and_documented():
     for effect in effects.catalogue():
         assert effect.NAME in effects.MODULES and effect.DOC and effect.PARAMS
-        assert effect.KIND in ("data", "centre", "discrete", "structural")
+        assert effect.KIND in ("data", "centre", "discrete", "structural", "robot")
     with pytest.raises(ValueError, match="unknown effect"):
         effects.get("gravity")
 

@@ -46,6 +46,7 @@ from handeye.model.extended import (
     Structure,
     candidate_columns,
     gate,
+    robot_joints,
     score_test,
 )
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -187,13 +188,19 @@ def _search(run, structure, fit):
     :class:`Procedure`, its record extended)."""
     prob, mask, alpha = run.prob, run.mask, run.alpha
     absorbed, tested, steps, implausible = run.absorbed, run.tested, run.steps, run.implausible
-    continuous = [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")]
+    continuous = [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")
+                  or (e.KIND == "robot" and e.available(prob.d))]
     for _ in range(len(continuous)):
         jac_cur = fit.jac[mask].reshape(-1, fit.p)
         candidates = []
         for name in continuous:
             if name in structure.data_effects or (name == "sphere_center" and structure.centre):
                 continue
+            if effects.get(name).KIND == "robot":
+                for joint, who in robot_joints(prob, structure, fit, mask).items():
+                    absorbed[f"{name}.{joint}"] = who
+                if not prob.joint_free:
+                    continue
             cols = candidate_columns(prob, structure, fit, mask, name)
             if not np.all(np.isfinite(cols)):
                 continue  # not testable here (e.g. a centre reconstructed exactly on the equator)
@@ -346,7 +353,7 @@ def _report(run, structure, fit, flips, outliers):
                                  dict(zip(("dx", "dy", "dz"), std[ks].tolist()))))
         all_cols += ks
     for name in structure.data_effects:
-        pnames = effects.get(name).PARAMS
+        pnames = prob.params_of(name)
         ks = [index[f"{name}.{p}"] for p in pnames]
         named.append(NamedEffect(name, dict(zip(pnames, fit.params[name].tolist())),
                                  dict(zip(pnames, std[ks].tolist()))))

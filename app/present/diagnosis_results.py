@@ -49,7 +49,7 @@ def absorbed_sentence(name, by, centre_fitted=True):
 
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
-    structural = effects.get(name).KIND == "structural"
+    structural = effects.get(name.split(".")[0]).KIND == "structural"
     by_centre = any(p.startswith("c") for p in by)
     if by_centre and not centre_fitted:
         held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "

@@ -1,0 +1,23 @@
+"""``joint_offsets``: a zero offset of each robot joint (degrees), the most common systematic error
+of an industrial arm (its encoders' zero positions, mastering).
+
+The flange the robot really reached is ``F_rep T(q)^-1 T(q + delta)``: the reported pose moved by
+the nominal model's (:mod:`handeye.model.robots`) change for the offsets ``delta``, so what the
+controller's own, calibrated model knows stays in. Its derivative is the chain's, exact
+(:func:`handeye.model.robots.offset_derivatives`). Needs the joint angles ``j1..j6`` and
+``[robot] model``. Not every joint is measurable: a first-joint offset turns the whole robot
+about the base axis (the sphere centre absorbs it), a last-joint offset turns the flange about
+its axis (the sensor's rotation absorbs it); only the joints this pose set separates from the
+sensor pose and the sphere centre are estimated, the others are reported as absorbed.
+"""
+KIND = "robot"
+NAME = "joint_offsets"
+PARAMS = ("j1", "j2", "j3", "j4", "j5", "j6")
+DOC = "zero offsets of the robot's joints (degrees)"
+
+
+def available(dataset):
+    """Whether a dataset can show this effect: joint angles, a model, the sensor on the flange
+    and the sphere fixed (the chain's carrier motions are then the flange poses)."""
+    return (getattr(dataset, "joints", None) is not None and getattr(dataset, "robot_model", None) is not None
+            and dataset.mounts.default)
