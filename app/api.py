@@ -187,7 +187,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
             _number(value, option, 1e-6, 1e3)
     if effects is not None and not [n for n in str(effects if isinstance(effects, str) else ",".join(effects)).split(",")
                                     if n.strip()]:
-        raise RequestError("--effects: give one or more effect names (sensor_scale, sphere_radius, sphere_center)")
+        raise RequestError("--effects: give one or more effect names (sensor_scale, sphere_radius, sphere_center, "
+                           "joint_offsets)")
     if method in CLOSED_FORM:
         _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
         if effects:

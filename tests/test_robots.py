@@ -143,3 +143,14 @@ def test_diagnose_names_joint_offsets_on_the_joints_that_are_off(tmp_path):
     assert d.chi2_dof_after < 2.0 < 10 * 2.0 < d.chi2_dof_before
     clean = handeye.diagnose(_offset_cell(tmp_path / "clean", [0, 0, 0, 0, 0, 0], seed=1))
     assert not clean.effects
+
+
+def test_calibrate_with_joint_offsets(tmp_path):
+    res = handeye.calibrate(_offset_cell(tmp_path / "off", [0, 0.05, -0.03, 0, 0, 0]), effects="joint_offsets")
+    assert res.converged and [e.name for e in res.effects] == ["joint_offsets"]
+    eff = res.effects[0]
+    assert abs(eff.parameters["j2"] - 0.05) < 3 * eff.std["j2"] and abs(eff.parameters["j3"] + 0.03) < 3 * eff.std["j3"]
+    assert any("j1 not estimated" in w and "j6 not estimated" in w for w in res.warnings)
+    assert res.rms_mm < 0.05
+    with pytest.raises(handeye.InputError, match="joint_offsets needs the joint angles"):
+        handeye.calibrate("thesis-sim", effects="joint_offsets")

@@ -168,6 +168,7 @@ def with_effects(final, base):
     dataset, mask, names = final.dataset, final.mask, final.request.effects
     prob = extended.Samples(dataset)
     structure = extended.Structure(centre=final.fit.local.unknowns == "sensor+sphere", data_effects=names)
+    _choose_joints(final, prob, structure)
     efit, jac = _fit_with_effects(final, prob, structure)
     stuck = _not_a_minimum(dataset, mask, efit, names, prob.radius)
     if stuck is None:
@@ -192,6 +193,27 @@ def with_effects(final, base):
     return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
 
 
+def _choose_joints(final, prob, structure):
+    """With ``joint_offsets``: the joints these poses separate from the sensor pose and the centre
+    (:func:`handeye.model.extended.robot_joints` at a fit without the robot effect); the others are
+    said in a warning; none: CalibrationInputError."""
+    from handeye.model import effects as catalogue
+
+    robot = [n for n in structure.data_effects if catalogue.get(n).KIND == "robot"]
+    if not robot:
+        return
+    base = dataclasses.replace(structure, data_effects=tuple(n for n in structure.data_effects if n not in robot))
+    with np.errstate(all="ignore"):
+        fit = prob.fit(base, final.mask, prob.point(base, final.fit.sensor, final.fit.centre))
+    left_out = extended.robot_joints(prob, base, fit, final.mask)
+    if not prob.joint_free:
+        raise CalibrationInputError(f"{final.dataset.path / 'measurements.csv'}: --effects joint_offsets: these poses "
+                                    "separate no joint's offset from the sensor pose and the sphere centre")
+    if left_out:
+        final.warnings.append("joint_offsets: " + "; ".join(f"{j} not estimated (absorbed by {', '.join(who)})"
+                                                            for j, who in left_out.items()))
+
+
 def _fit_with_effects(final, prob, structure):
     """The extended fit ``structure`` of ``prob`` from the final fit, and its Jacobian of the used
     samples; a CalibrationInputError when the effects cannot be fitted on these data."""
@@ -214,8 +236,8 @@ def _named_effects(final, efit, std, stuck, centre_named):
 
     dataset, mask, radius = final.dataset, final.mask, final.dataset.sphere_diameter / 2
     index = {n: k for k, n in enumerate(efit.names)}
-    named = [NamedEffect(n, dict(zip(_effect_params(n), efit.params[n].tolist())),
-                         {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n)},
+    named = [NamedEffect(n, dict(zip(_effect_params(n, efit), efit.params[n].tolist())),
+                         {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n, efit)},
                          _effect_sd_note(dataset, mask, efit, n, radius, stuck)) for n in final.request.effects]
     if centre_named:
         delta = efit.x[12:15] - dataset.sphere_centre
@@ -355,10 +377,9 @@ def _effect_sd_note(dataset, mask, extended, name, radius, stuck):
             "and the sd is optimistic (the Monte Carlo's is 1.4 x at 0.5 mm on a 25.4 mm sphere)")
 
 
-def _effect_params(name):
-    from handeye.model import effects as catalogue
-
-    return catalogue.get(name).PARAMS
+def _effect_params(name, efit):
+    """The parameters an effect has in the fit (``joint_offsets``: its estimated joints only)."""
+    return tuple(n.split(".", 1)[1] for n in efit.names if n.startswith(f"{name}."))
 
 
 def describe_fit(final):

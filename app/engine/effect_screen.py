@@ -92,5 +92,8 @@ def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, m
     -------
     Screening
     """
+    from handeye.model import effects as catalogue
+
+    effects = [e for e in effects if catalogue.get(e).KIND == "data"]  # a robot effect moves poses, not centres
     fixed = corrected(dataset, robust_effects(dataset, unknowns, start, effects)) if effects else None
     return robust.screen(dataset if fixed is None else fixed, unknowns, start, alpha=alpha, min_keep=min_keep)

@@ -40,7 +40,7 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
-EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center")
+EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center", "joint_offsets")
 
 
 def fingerprint(dataset):
@@ -172,6 +172,7 @@ class CalibrationRequest:
         effects, unknowns, model = _effects(self.effects, unknowns, self.model)
         if parts in UNKNOWNS:
             parts = unknowns  # --effects sphere_center frees the centre
+        _robot_effects_possible(effects, dataset)
         enough(dataset, parts)
         start = None if self.start is None else np.asarray(self.start, float).copy()
         checked = dataclasses.replace(
@@ -232,6 +233,16 @@ def _effects(effects, unknowns, model):
     if "sphere_center" in names:
         unknowns = "sensor+sphere"
     return tuple(dict.fromkeys(n for n in names if n != "sphere_center")), unknowns, "centre"
+
+
+def _robot_effects_possible(effects, dataset):
+    """Raise CalibrationInputError when a robot effect is asked of a dataset that cannot show it."""
+    from handeye.model.effects import joint_offsets
+
+    if "joint_offsets" in effects and not joint_offsets.available(dataset):
+        raise CalibrationInputError(
+            f"--effects joint_offsets needs the joint angles j1..j6 in {dataset.path / 'measurements.csv'} with "
+            f"[robot] model in {dataset.path / 'setup.toml'}, and the sensor on the flange with the sphere fixed")
 
 
 def enough(dataset, unknowns):
