@@ -60,6 +60,8 @@ class RobotModel:
     base, flange : ndarray, shape (4, 4)
     coupling : ndarray, shape (6, 6)
         Joint angles of the chain = ``coupling @ reported angles``.
+    spec : str
+        How it was named: the built-in name, or the model file's absolute path.
     """
 
     name: str
@@ -71,6 +73,11 @@ class RobotModel:
     base: np.ndarray
     flange: np.ndarray
     coupling: np.ndarray
+    spec: str = ""
+
+    def corrected(self, offsets_deg):
+        """The model with zero offsets (degrees, on the chain's joints) added."""
+        return dataclasses.replace(self, offsets=self.offsets + np.asarray(offsets_deg, float))
 
     def flange2base(self, joints_deg):
         """Forward kinematics: flange poses (N, 4, 4), mm, for joint angles (N, 6), degrees."""
@@ -151,8 +158,9 @@ def load(name_or_file):
     if fmt not in ("chain", "dh"):
         raise DatasetError(file, f"format must be \"chain\" or \"dh\", got {fmt!r}", column="format")
     origins, axes, after, offsets = (_chain if fmt == "chain" else _dh)(doc, file)
+    spec = str(name_or_file) if f"{name_or_file}" in builtin_names() else str(file.resolve())
     return RobotModel(str(doc.get("name", file.stem)), str(doc.get("source", "")), origins, axes, after, offsets,
-                      _frame(doc, "base", file), _frame(doc, "flange", file), _coupling(doc, file))
+                      _frame(doc, "base", file), _frame(doc, "flange", file), _coupling(doc, file), spec)
 
 
 #: The nominal model must reproduce the reported flange poses within these (mm, deg): a
@@ -237,3 +245,79 @@ def offset_derivatives(model, joints_deg, offsets_deg):
     for j, (rot, after) in enumerate(links):
         dfk[:, j] = before[j] @ rot @ _skew_hat(model.axes[j]) @ after @ after_all[j + 1]
     return before[-1] @ model.flange, dfk * np.pi / 180.0
+
+
+def chain_origins(model):
+    """The model as a URDF-like chain: per joint the 4x4 origin in the previous link (its angle
+    offset turned into the origin), and the flange in the last link; DH models converted."""
+    origins, flange = [], model.flange
+    carry = np.eye(4)
+    for j in range(6):
+        turn = np.eye(4)
+        turn[:3, :3] = matrix_from_rotvec(model.axes[j] * np.radians(model.offsets[j]))
+        origins.append(carry @ model.origins[j] @ turn)
+        carry = model.after[j]
+    return np.array(origins), carry @ flange
+
+
+def _xyz_rpy(t):
+    """``xyz`` (mm) and URDF ``rpy`` (deg: roll, pitch, yaw) of a 4x4."""
+    from handeye.model.pose import kuka_from_matrix
+
+    a, b, c = kuka_from_matrix(t[:3, :3])  # Rz(A) Ry(B) Rx(C): yaw A, pitch B, roll C
+    return t[:3, 3], np.array([c, b, a])
+
+
+def _vec(v, digits=9):
+    return "[" + ", ".join(f"{x:.{digits}f}".rstrip("0").rstrip(".") if "." in f"{x:.{digits}f}" else f"{x}"
+                           for x in np.asarray(v, float)) + "]"
+
+
+def to_toml(model, note=""):
+    """The model as a ``format = "chain"`` TOML file (offsets folded into the joint origins)."""
+    origins, flange = chain_origins(model)
+    lines = [f"# {note}" if note else "# handeye robot model", f'name = "{model.name}"',
+             f'source = "{model.source}"', 'format = "chain"']
+    bx, br = _xyz_rpy(model.base)
+    lines.append(f"base = {{ xyz = {_vec(bx)}, rpy = {_vec(br)} }}")
+    coupled = {f"j{i + 1}": {f"j{k + 1}": float(model.coupling[i, k]) for k in range(6) if model.coupling[i, k]}
+               for i in range(6) if not np.array_equal(model.coupling[i], np.eye(6)[i])}
+    if coupled:
+        inner = ", ".join(f"{j} = {{ " + ", ".join(f"{k} = {v:g}" for k, v in terms.items()) + " }"
+                          for j, terms in coupled.items())
+        lines.append(f"coupling = {{ {inner} }}")
+    lines.append("joints = [")
+    for j, t in enumerate(origins):
+        xyz, rpy = _xyz_rpy(t)
+        lines.append(f'  {{ name = "j{j + 1}", xyz = {_vec(xyz)}, rpy = {_vec(rpy)}, axis = {_vec(model.axes[j])} }},')
+    fx, fr = _xyz_rpy(flange)
+    lines += ["]", f"flange = {{ xyz = {_vec(fx)}, rpy = {_vec(fr)} }}"]
+    return "\n".join(lines) + "\n"
+
+
+def to_urdf(model, robot_name="robot"):
+    """The model as a URDF (metres, radians): links ``base`` (the controller's base frame),
+    ``base_link``, ``link_1``..``link_6``, ``tool0`` (the flange), joints ``joint_1``..``joint_6``
+    with the (corrected) origins. A coupled joint (FANUC's J3) is the chain's joint: its URDF angle
+    is the coupled combination of the controller's angles."""
+    origins, flange = chain_origins(model)
+
+    def origin(t):
+        xyz, rpy = _xyz_rpy(t)
+        return (f'<origin xyz="{" ".join(f"{v / 1000:.9f}" for v in xyz)}" '
+                f'rpy="{" ".join(f"{np.radians(v):.12f}" for v in rpy)}"/>')
+
+    lines = ['<?xml version="1.0"?>', f'<robot name="{robot_name}">', '  <link name="base"/>', '  <link name="base_link"/>']
+    lines += [f'  <link name="link_{j}"/>' for j in range(1, 7)] + ['  <link name="tool0"/>']
+    lines.append(f'  <joint name="base-base_link" type="fixed"><parent link="base"/><child link="base_link"/>'
+                 f'{origin(model.base)}</joint>')
+    parent = "base_link"
+    for j, t in enumerate(origins, start=1):
+        axis = " ".join(f"{v:g}" for v in model.axes[j - 1])
+        lines.append(f'  <joint name="joint_{j}" type="revolute"><parent link="{parent}"/><child link="link_{j}"/>'
+                     f'{origin(t)}<axis xyz="{axis}"/><limit effort="0" lower="-6.2832" upper="6.2832" velocity="1"/>'
+                     '</joint>')
+        parent = f"link_{j}"
+    lines.append(f'  <joint name="link_6-tool0" type="fixed"><parent link="link_6"/><child link="tool0"/>'
+                 f'{origin(flange)}</joint>')
+    return "\n".join(lines + ["</robot>"]) + "\n"

@@ -154,3 +154,50 @@ def test_calibrate_with_joint_offsets(tmp_path):
     assert res.rms_mm < 0.05
     with pytest.raises(handeye.InputError, match="joint_offsets needs the joint angles"):
         handeye.calibrate("thesis-sim", effects="joint_offsets")
+
+
+def _urdf_fk(text, joints_rad):
+    """Forward kinematics of a URDF chain read with xml.etree (independent of handeye's writer)."""
+    import xml.etree.ElementTree as ET
+
+    from scipy.spatial.transform import Rotation
+
+    def origin(el):
+        o = el.find("origin")
+        t = np.eye(4)
+        t[:3, :3] = Rotation.from_euler("xyz", [float(v) for v in o.get("rpy").split()]).as_matrix()
+        t[:3, 3] = [float(v) for v in o.get("xyz").split()]
+        return t
+
+    joints = {j.find("parent").get("link"): j for j in ET.fromstring(text.encode()).findall("joint")}
+    t, link, k = np.eye(4), "base", 0
+    while link in joints:
+        j = joints[link]
+        t = t @ origin(j)
+        if j.get("type") == "revolute":
+            turn = np.eye(4)
+            axis = np.array([float(v) for v in j.find("axis").get("xyz").split()])
+            turn[:3, :3] = Rotation.from_rotvec(axis * joints_rad[k]).as_matrix()
+            t, k = t @ turn, k + 1
+        link = j.find("child").get("link")
+    return t
+
+
+def test_export_writes_the_corrected_model_as_toml_and_urdf(tmp_path):
+    import json
+
+    folder = _offset_cell(tmp_path / "off", [0, 0.05, -0.03, 0, 0, 0])
+    handeye.calibrate(folder, effects="joint_offsets", out=tmp_path / "cal.json")
+    offsets = np.zeros(6)
+    for joint, value in json.loads((tmp_path / "cal.json").read_text())["effects"][0]["parameters"].items():
+        offsets[robots.JOINTS.index(joint)] = value
+    corrected = robots.load("kr60ha").corrected(offsets)
+    q = np.random.default_rng(3).uniform(-90, 90, (6, 6))
+    (tmp_path / "model.toml").write_text(handeye.export(tmp_path / "cal.json", format="robot-toml").text)
+    np.testing.assert_allclose(robots.load(tmp_path / "model.toml").flange2base(q), corrected.flange2base(q), atol=1e-9)
+    urdf = handeye.export(tmp_path / "cal.json", format="robot-urdf").text
+    for row, fk in zip(q, corrected.flange2base(q)):
+        got = _urdf_fk(urdf, np.radians(row))
+        np.testing.assert_allclose(got[:3, 3] * 1000, fk[:3, 3], atol=1e-5)
+        np.testing.assert_allclose(got[:3, :3], fk[:3, :3], atol=1e-9)
+    assert abs(offsets[1] - 0.05) < 0.005 and offsets[0] == 0 and offsets[5] == 0

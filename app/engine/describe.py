@@ -546,7 +546,8 @@ def result(prep, screened, verified, warnings):
         start_pose_kuka=start, start_used=verified.start_used, convention=request.convention,
         columns=conventions.columns(request.convention), global_check=verified.global_check,
         screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings,
-        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=_nominal_positioner(dataset))
+        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=_nominal_positioner(dataset),
+        robot_model=None if getattr(dataset, "robot_model", None) is None else dataset.robot_model.spec)
     fit = verified.fit
     if fit.local is None:  # numerical failure: nothing to describe, but the same complete type
         residuals = [SampleResidual(i, int(r), np.full(3, np.nan), float("nan"), bool(u))

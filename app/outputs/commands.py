@@ -122,11 +122,42 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
     if out is not None:
         inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
         files.check_output_path(out, "--out", inputs)
-    cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
-    text = exports.text(cal, format, parent, child, tool, register, base)
+    if format in ("robot-toml", "robot-urdf"):
+        text = robot_text(calibration, format, force)
+    else:
+        cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
+        text = exports.text(cal, format, parent, child, tool, register, base)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
+
+
+def robot_text(calibration, format, force=False):
+    """The robot's nominal model corrected by the calibrated ``joint_offsets`` of a saved calibration,
+    as the model TOML (``robot-toml``) or a URDF (``robot-urdf``); :mod:`handeye.model.robots`."""
+    from handeye.model import robots
+
+    if not isinstance(calibration, (str, pathlib.Path)):
+        raise RequestError(f"--format {format}: give a saved calibration file (calibrate --effects joint_offsets --out)")
+    doc = saved.document(pathlib.Path(calibration))
+    spec = doc.get("robot_model") if isinstance(doc, dict) else None
+    if not isinstance(spec, str):
+        raise RequestError(f"{calibration}: no robot_model (calibrate a dataset with j1..j6 and [robot] model)")
+    if doc.get("converged") is not True and not force:
+        raise RequestError(f"{calibration}: the calibration did not converge; handeye will not use it (--force)")
+    offsets = np.zeros(6)
+    for effect in doc.get("effects") or []:
+        if isinstance(effect, dict) and effect.get("name") == "joint_offsets":
+            for joint, value in (effect.get("parameters") or {}).items():
+                if joint in robots.JOINTS and isinstance(value, (int, float)) and np.isfinite(value):
+                    offsets[robots.JOINTS.index(joint)] = float(value)
+    model = robots.load(spec).corrected(offsets)
+    note = (f"{model.name} corrected by the joint offsets of {calibration} "
+            f"({', '.join(f'j{k + 1} {v:+.5f} deg' for k, v in enumerate(offsets) if v) or 'none'})")
+    if format == "robot-toml":
+        return robots.to_toml(model, note)
+    head, rest = robots.to_urdf(model, "".join(c if c.isalnum() else "_" for c in model.name).lower()).split("\n", 1)
+    return f"{head}\n<!-- {note.replace('--', '- -')} -->\n{rest}"  # the XML declaration first
 
 
 @dataclasses.dataclass(frozen=True)

@@ -152,7 +152,7 @@ def _covariance(doc, file):
     return m
 
 
-def _document(file):
+def document(file):
     """The JSON object of a saved calibration file, or :class:`CalibrationFileError`."""
     try:
         if file.is_dir():
@@ -188,7 +188,7 @@ def _one_line(value):
 def load(path):
     """The :class:`Calibration` of a ``calibrate --out`` file (or of ``--json`` output saved)."""
     file = pathlib.Path(path)
-    doc = _document(file)
+    doc = document(file)
     if not isinstance(doc, dict) or "sensor_matrix" not in doc:
         raise CalibrationFileError(file, "not a calibration result: no sensor_matrix (write one with handeye "
                                          "calibrate DATASET --out FILE)")

@@ -269,6 +269,9 @@ class CalibrationResult(ResultProtocol):
         the cell (``sensor_mount``). JSON key ``sensor_matrix``.
     sensor_mount, sphere_mount : str
         ``flange`` or ``world``; ``world``, ``flange`` or ``positioner`` (:mod:`handeye.model.mounts`).
+    robot_model : str or None
+        The dataset's ``[robot] model`` (a built-in name or the model file's path), which
+        ``export --format robot-toml|robot-urdf`` corrects by the calibrated ``joint_offsets``.
     positioner : handeye.app.present.result_parts.PositionerRecord or None
         The positioner's axes (calibrated with ``positioner`` in ``unknowns``, else as set up) and
         their 1-sd. JSON key ``positioner``: a list of axes.
@@ -366,6 +369,7 @@ class CalibrationResult(ResultProtocol):
     sensor_mount: str = "flange"
     sphere_mount: str = "world"
     positioner: object | None = None
+    robot_model: str | None = None
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -441,6 +445,7 @@ class CalibrationResult(ResultProtocol):
             "sphere_center": _list(self.sphere_centre),
             "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
             "positioner": None if self.positioner is None else self.positioner.to_dict(),
+            "robot_model": self.robot_model,
             "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
