@@ -1,0 +1,382 @@
+"""An independent generator of robot datasets with joint angles and hidden joint zero offsets (numpy only).
+
+Written as a robotics user's own script would be: its own forward kinematics from the robots' published
+data, its own rotations and its own numeric inverse kinematics, without any code of ``handeye``, so that a
+test can check handeye's robot kinematics and its ``joint_offsets`` effect against data whose mistakes (if
+any) are not handeye's own.
+
+Kinematics (lengths in mm, joint angles in degrees):
+
+``kr60ha``
+    KUKA KR 60 HA, the joint chain of ROS-Industrial's ``kuka_experimental``
+    (``kuka_kr60_support/urdf/kr60ha_macro.xacro``): joint j at origin ``o_j`` (in the parent link, no
+    rotation) turning about ``axis_j``; ``tool0`` (KUKA's $FLANGE) ``rpy = (0, 90 deg, 0)`` after link 6.
+    The URDF's joint angles are KUKA's A1..A6.
+``ur5e``, ``ur10e``
+    Universal Robots' published standard DH parameters (d1, a2, a3, d4, d5, d6; alpha = 90, 0, 0, 90,
+    -90, 0 deg); ``T_j = Rz(theta_j) Tz(d_j) Tx(a_j) Rx(alpha_j)``, theta = the joint angle.  The base
+    is the controller's base frame (the DH frame 0), the flange the DH frame 6.
+
+The cell: a laser-line sensor on the flange (``X`` = sensor2flange, 100-200 mm off the flange, turned);
+a sphere fixed in the robot base (centre ``c``).  The controller reports ``F_i = FK(q_i)`` (nominal) for
+the joint angles ``q_i`` it reports, but the robot really stands at ``FK(q_i + delta)``: the hidden joint
+zero offsets ``delta``.  The sensor measures ``p_i = (FK(q_i + delta) X)^-1 c`` + N(0, noise^2) per
+component.  The sphere centre is seen 180-300 mm in front of the sensor (``z``), ``|x|, |y| < 40`` mm.
+
+Poses: a working configuration per robot looks at the sphere; every pose is a sensor pose looking at the
+sphere from another direction (tilt up to ``TILT`` deg, any azimuth, a turn about the view axis up to
+``TURN`` deg), reached by damped Newton inverse kinematics started at the working configuration.
+
+Public: :func:`make` (draw a cell, write its folder, return the truth), :func:`forward` (nominal FK),
+:func:`inverse_kinematics`, :func:`chain_residuals`, :func:`read`, and the rotation helpers.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+import tomllib
+
+import numpy as np
+
+#: KR 60 HA joint chain (URDF, converted to mm): origin of joint j in link j-1, axis of joint j
+KR60HA_ORIGINS = ((0.0, 0.0, 0.0), (350.0, 0.0, 815.0), (850.0, 0.0, 0.0), (465.0, 0.0, 145.0),
+                  (355.0, 0.0, 0.0), (170.0, 0.0, 0.0))
+KR60HA_AXES = ((0, 0, -1), (0, 1, 0), (0, 1, 0), (-1, 0, 0), (0, 1, 0), (-1, 0, 0))
+#: UR standard DH (mm): d1, a2, a3, d4, d5, d6 (Universal Robots, "DH parameters for calculations of
+#: kinematics and dynamics")
+UR_DH = {"ur5e": (162.5, -425.0, -392.2, 133.3, 99.7, 99.6),
+         "ur10e": (180.7, -612.7, -571.55, 174.15, 119.85, 116.55)}
+UR_ALPHA = (90.0, 0.0, 0.0, 90.0, -90.0, 0.0)
+#: joint limits (deg) the poses keep inside (a little inside the robots' own)
+LIMITS = {"kr60ha": ((-185, 185), (-135, 35), (-120, 158), (-350, 350), (-119, 119), (-350, 350)),
+          "ur5e": ((-360, 360),) * 6, "ur10e": ((-360, 360),) * 6}
+#: working configuration (deg): the flange looks down at a table in front of the robot
+WORKING = {"kr60ha": (0.0, -50.0, 100.0, 0.0, 40.0, 0.0),
+           "ur5e": (0.0, -110.0, 100.0, -80.0, -90.0, 0.0),
+           "ur10e": (0.0, -110.0, 100.0, -80.0, -90.0, 0.0)}
+CONVENTION = {"kr60ha": "kuka", "ur5e": "ur", "ur10e": "ur"}
+MODELS = tuple(WORKING)
+DIAMETER = 50.0
+TILT, TURN = 50.0, 90.0
+#: the sphere centre in the sensor frame: |x|, |y| <= HALF, z in STANDOFF (mm)
+HALF, STANDOFF = 30.0, (190.0, 290.0)
+
+
+# ----------------------------------------------------------------------------- rotations
+def rodrigues(axis, deg):
+    """Rotation by ``deg`` degrees about ``axis`` (3, any length), Rodrigues' formula (3x3)."""
+    k = np.asarray(axis, float)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    t = math.radians(deg)
+    return np.eye(3) + math.sin(t) * K + (1.0 - math.cos(t)) * K @ K
+
+
+def rot_x(deg):
+    """Rotation about x by ``deg`` degrees (3x3)."""
+    return rodrigues((1, 0, 0), deg)
+
+
+def rot_y(deg):
+    """Rotation about y by ``deg`` degrees (3x3)."""
+    return rodrigues((0, 1, 0), deg)
+
+
+def rot_z(deg):
+    """Rotation about z by ``deg`` degrees (3x3)."""
+    return rodrigues((0, 0, 1), deg)
+
+
+def transform(R, t):
+    """4x4 homogeneous transform from R (3x3) and t (3, mm)."""
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def inverse(T):
+    """Inverse of a rigid 4x4 transform."""
+    R, t = T[:3, :3], T[:3, 3]
+    return transform(R.T, -R.T @ t)
+
+
+def rotation_vector(R):
+    """Rotation matrix -> rotation vector (radians, angle in [0, pi]); stable near 0 and near pi."""
+    cos = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    angle = math.acos(cos)
+    if angle < 1e-9:
+        return np.zeros(3)
+    if angle > math.pi - 1e-6:  # near pi: the axis from R + I (its largest column)
+        B = (R + np.eye(3)) / 2.0
+        k = int(np.argmax(np.diag(B)))
+        axis = B[:, k] / math.sqrt(B[k, k])
+        return axis * angle
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return w * angle / (2.0 * math.sin(angle))
+
+
+def kuka_angles(R):
+    """Rotation matrix -> KUKA (A, B, C) in degrees, ``R = Rz(A) Ry(B) Rx(C)``; A, C in [-180, 180]."""
+    cb = math.hypot(R[0, 0], R[1, 0])
+    b = math.atan2(-R[2, 0], cb)
+    if cb > 1e-10:
+        a, c = math.atan2(R[1, 0], R[0, 0]), math.atan2(R[2, 1], R[2, 2])
+    else:
+        a, c = math.atan2(-R[0, 1], R[1, 1]), 0.0
+    return np.degrees([a, b, c])
+
+
+def pose_row(T, convention):
+    """A flange or sensor pose (4x4) as the controller writes it: KUKA x,y,z,A,B,C or UR x,y,z,rx,ry,rz."""
+    if convention == "kuka":
+        return np.concatenate([T[:3, 3], kuka_angles(T[:3, :3])])
+    if convention == "ur":
+        return np.concatenate([T[:3, 3], rotation_vector(T[:3, :3])])
+    raise ValueError(f"unknown convention {convention!r}")
+
+
+# ----------------------------------------------------------------------------- kinematics
+def _kr60ha(q):
+    """KR 60 HA flange in the base (4x4) from A1..A6 (deg): the URDF chain, then tool0 rpy (0, 90, 0)."""
+    T = np.eye(4)
+    for origin, axis, angle in zip(KR60HA_ORIGINS, KR60HA_AXES, q):
+        T = T @ transform(np.eye(3), origin) @ transform(rodrigues(axis, angle), np.zeros(3))
+    return T @ transform(rot_y(90.0), np.zeros(3))
+
+
+def _dh(theta, d, a, alpha):
+    """One standard DH link: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` (deg, mm)."""
+    return transform(rot_z(theta), (0.0, 0.0, d)) @ transform(rot_x(alpha), (a, 0.0, 0.0))
+
+
+def _ur(q, params):
+    """UR flange (DH frame 6) in the base (DH frame 0) from the joint angles (deg)."""
+    d1, a2, a3, d4, d5, d6 = params
+    ds, as_ = (d1, 0.0, 0.0, d4, d5, d6), (0.0, a2, a3, 0.0, 0.0, 0.0)
+    T = np.eye(4)
+    for theta, d, a, alpha in zip(q, ds, as_, UR_ALPHA):
+        T = T @ _dh(theta, d, a, alpha)
+    return T
+
+
+def forward(model, q):
+    """Nominal forward kinematics: the flange in the robot base (4x4, mm) of joint angles ``q`` (6, deg).
+
+    Parameters
+    ----------
+    model : str
+        One of :data:`MODELS`.
+    q : array_like (6,)
+        Joint angles, degrees.
+    """
+    if model == "kr60ha":
+        return _kr60ha(q)
+    if model in UR_DH:
+        return _ur(q, UR_DH[model])
+    raise ValueError(f"unknown robot model {model!r}")
+
+
+def _pose_error(T, target):
+    """6-vector: position error (mm) and rotation error (rotation vector, rad, scaled by 1000 mm)."""
+    dR = target[:3, :3] @ T[:3, :3].T
+    return np.concatenate([target[:3, 3] - T[:3, 3], 1000.0 * rotation_vector(dR)])
+
+
+def inverse_kinematics(model, target, seed, iterations=100):
+    """Joint angles (deg) whose nominal flange is ``target`` (4x4), by damped Newton from ``seed``.
+
+    Returns
+    -------
+    ndarray (6,) or None
+        The angles, or None if not converged to 1e-7 mm (rotation as 1000 mm x rad).
+    """
+    q = np.array(seed, float)
+    h = 1e-6
+    for _ in range(iterations):
+        e = _pose_error(forward(model, q), target)
+        if np.linalg.norm(e) < 1e-7:
+            return q
+        J = np.empty((6, 6))
+        for j in range(6):
+            dq = np.zeros(6)
+            dq[j] = h
+            J[:, j] = -(_pose_error(forward(model, q + dq), target) - e) / h
+        lam = 1e-3 * np.trace(J.T @ J) / 6.0
+        step = np.linalg.solve(J.T @ J + lam * np.eye(6), J.T @ e)
+        q = q + np.clip(step, -10.0, 10.0)
+    return None
+
+
+# ----------------------------------------------------------------------------- the cell
+def _offsets_vector(offsets):
+    """``{"j2": 0.05, ...}`` (deg) -> a 6-vector; None -> zeros."""
+    delta = np.zeros(6)
+    for name, value in (offsets or {}).items():
+        if name not in {f"j{k}" for k in range(1, 7)}:
+            raise ValueError(f"offsets: unknown joint {name!r} (j1..j6)")
+        delta[int(name[1]) - 1] = float(value)
+    return delta
+
+
+def _draw_sensor(rng):
+    """sensor2flange (4x4): 110-200 mm off the flange, looking roughly along the flange's z, turned."""
+    R = rot_z(rng.uniform(-180, 180)) @ rot_y(rng.uniform(-20, 20)) @ rot_x(rng.uniform(-20, 20))
+    t = np.array([rng.uniform(-60, 60), rng.uniform(-60, 60), rng.uniform(110, 170)])
+    return transform(R, t)
+
+
+def _draw_working(rng, model):
+    """The working configuration of this cell (deg): the robot's own, moved a little."""
+    jitter = np.array([25.0, 5.0, 5.0, 10.0, 5.0, 30.0])
+    return np.asarray(WORKING[model], float) + rng.uniform(-jitter, jitter)
+
+
+def _view(rng, R0, centre):
+    """A sensor pose (4x4) looking at ``centre``: tilted from ``R0``'s view axis, turned about it."""
+    tilt = TILT * math.sqrt(rng.uniform())
+    azimuth = rng.uniform(0, 360)
+    n = R0 @ np.array([math.cos(math.radians(azimuth)), math.sin(math.radians(azimuth)), 0.0])
+    R = rodrigues(n, tilt) @ R0 @ rot_z(rng.uniform(-TURN, TURN))
+    p = np.array([rng.uniform(-HALF, HALF), rng.uniform(-HALF, HALF), rng.uniform(*STANDOFF)])
+    return transform(R, centre - R @ p)
+
+
+def _usable(model, q):
+    """Inside the joint limits and away from the wrist (and, for a UR, the elbow) singularity."""
+    lo, hi = np.array(LIMITS[model], float).T
+    if np.any(q < lo + 2.0) or np.any(q > hi - 2.0):
+        return False
+    if abs(math.sin(math.radians(q[4]))) < math.sin(math.radians(10.0)):
+        return False
+    return model == "kr60ha" or abs(math.sin(math.radians(q[2]))) > math.sin(math.radians(10.0))
+
+
+def _in_view(p):
+    """The sphere centre ``p`` (sensor frame, mm) is where the sensor sees it (with a margin for noise)."""
+    return abs(p[0]) < 40.0 and abs(p[1]) < 40.0 and 180.0 < p[2] < 300.0
+
+
+def draw_cell(model, seed, n=40, offsets=None):
+    """Draw one cell and its poses (no noise); see the module docstring.
+
+    Returns
+    -------
+    dict
+        ``model``, ``sensor`` (4x4 sensor2flange), ``centre`` (3, base, mm), ``offsets`` (6, deg),
+        ``joints`` (n, 6 reported angles, deg), ``flanges`` (n, 4, 4 nominal FK of the reported angles),
+        ``points`` (n, 3: the true sphere centre in the sensor frame).
+    """
+    if model not in MODELS:
+        raise ValueError(f"unknown robot model {model!r}; one of {MODELS}")
+    rng = np.random.default_rng(seed)
+    delta = _offsets_vector(offsets)
+    X = _draw_sensor(rng)
+    working = _draw_working(rng, model)
+    S0 = forward(model, working) @ X
+    centre = S0[:3, :3] @ np.array([0.0, 0.0, 240.0]) + S0[:3, 3]
+    joints, points = [], []
+    for _ in range(50 * n):
+        if len(joints) == n:
+            break
+        target = _view(rng, S0[:3, :3], centre) @ inverse(X)
+        q = inverse_kinematics(model, target, working)
+        if q is None or not _usable(model, q):
+            continue
+        p = (inverse(forward(model, q + delta) @ X) @ np.append(centre, 1.0))[:3]
+        if _in_view(p):
+            joints.append(q)
+            points.append(p)
+    if len(joints) < n:
+        raise RuntimeError(f"{model}, seed {seed}: only {len(joints)} of {n} poses found")
+    joints = np.array(joints)
+    return {"model": model, "sensor": X, "centre": centre, "offsets": delta, "joints": joints,
+            "flanges": np.array([forward(model, q) for q in joints]), "points": np.array(points)}
+
+
+# ----------------------------------------------------------------------------- files
+def _vec(values, digits=9):
+    """A TOML array of floats."""
+    return "[" + ", ".join(f"{float(v):.{digits}f}" for v in values) + "]"
+
+
+def _setup_text(cell, convention, noise):
+    """The text of ``setup.toml``."""
+    sensor_pose = pose_row(cell["sensor"], convention)
+    return "\n".join([
+        "[robot]", f'convention = "{convention}"', f'model = "{cell["model"]}"', "",
+        "[sphere]", f"diameter = {DIAMETER}", f"center = {_vec(cell['centre'])}", "",
+        "[noise]", f"centre_mm = {noise}", "",
+        "[truth]", f"sensor_pose = {_vec(sensor_pose, 12)}", ""])
+
+
+def _header(convention):
+    """The header of ``measurements.csv``."""
+    angles = ["a", "b", "c"] if convention == "kuka" else ["rx", "ry", "rz"]
+    return ["id", "x", "y", "z", *angles, "xs", "ys", "zs"] + [f"j{k}" for k in range(1, 7)]
+
+
+def make(folder, robot, seed, n=40, offsets=None, noise=0.02, convention=None):
+    """Draw a cell, write its dataset folder (``setup.toml``, ``measurements.csv``), return the truth.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        Created if missing.
+    robot : str
+        One of :data:`MODELS` (``kr60ha``, ``ur5e``, ``ur10e``).
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    n : int
+        Number of poses.
+    offsets : dict, optional
+        Hidden joint zero offsets, degrees, e.g. ``{"j2": 0.05, "j3": -0.03}``; the robot really stands
+        at FK(q + offsets) while it reports q and FK(q).
+    noise : float
+        sd (mm) per component of the measured sphere centre.
+    convention : str, optional
+        ``kuka`` or ``ur``; default the robot's own (KUKA for kr60ha, UR for the URs).
+
+    Returns
+    -------
+    dict
+        :func:`draw_cell`'s truth plus ``measured`` (n, 3), ``convention``, ``noise``, ``folder``.
+    """
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    convention = convention or CONVENTION[robot]
+    cell = draw_cell(robot, seed, n, offsets)
+    rng = np.random.default_rng([seed, 1])
+    measured = cell["points"] + rng.normal(0.0, noise, cell["points"].shape)
+    with open(folder / "measurements.csv", "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(_header(convention))
+        for i, (F, p, q) in enumerate(zip(cell["flanges"], measured, cell["joints"])):
+            out.writerow([f"p{i:03d}"] + [repr(float(v)) for v in (*pose_row(F, convention), *p, *q)])
+    (folder / "setup.toml").write_text(_setup_text(cell, convention, noise))
+    return {**cell, "measured": measured, "convention": convention, "noise": noise, "folder": folder}
+
+
+def read(folder):
+    """A dataset folder back (own parser): ``setup`` (dict), ``poses`` (n, 6), ``xs`` (n, 3), ``joints`` (n, 6)."""
+    folder = pathlib.Path(folder)
+    setup = tomllib.loads((folder / "setup.toml").read_text())
+    with open(folder / "measurements.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    values = np.array([[float(v) for v in row[1:]] for row in rows[1:]])
+    return {"setup": setup, "header": rows[0], "poses": values[:, :6], "xs": values[:, 6:9], "joints": values[:, 9:15]}
+
+
+def chain_residuals(truth, measured=None, true_robot=True):
+    """Per row, how far the chain misses (n, 3, mm, base): ``F X p - c``.
+
+    With ``true_robot`` the flange is FK(q + offsets) (closes to the noise), else the reported FK(q)
+    (misses by what the offsets move the sensor).
+    """
+    measured = truth["measured"] if measured is None else measured
+    delta = truth["offsets"] if true_robot else np.zeros(6)
+    out = []
+    for q, p in zip(truth["joints"], measured):
+        S = forward(truth["model"], q + delta) @ truth["sensor"]
+        out.append(S[:3, :3] @ p + S[:3, 3] - truth["centre"])
+    return np.array(out)
