@@ -15,6 +15,8 @@ CLASSIC_METHODS = ("kim-cho", "li-two-step")
 #: Family-wise significance level of the outlier tests (:mod:`handeye.app.engine.robust`).
 ALPHA = 0.01
 #: What ``handeye export`` writes (:mod:`handeye.app.outputs.formats`).
-FORMATS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix", "json", "robot-toml", "robot-urdf")
+FORMATS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix", "json")
+#: The robot's nominal model corrected by a calibration's joint offsets (export --format).
+ROBOT_FORMATS = ("robot-toml", "robot-urdf")
 #: What ``handeye cloud`` writes (:mod:`handeye.app.outputs.commands`).
 CLOUD_FORMATS = ("ply", "csv")

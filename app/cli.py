@@ -85,12 +85,12 @@ def _study_args(sub):
 
 def _export_args(sub, calibration):
     """``export``'s options; ``calibration(parser, option)`` adds the calibration's own."""
-    from handeye.app.choices import FORMATS
+    from handeye.app.choices import FORMATS, ROBOT_FORMATS
 
     ex = sub.add_parser("export", help="write a saved calibration for UR, ROS 2, URDF, KUKA, ABB, FANUC, a matrix or "
                                        "JSON (handeye.app.outputs.formats)")
     calibration(ex, option=False)
-    ex.add_argument("--format", choices=FORMATS, default="json", help="what to write (default json: every format's "
+    ex.add_argument("--format", choices=FORMATS + ROBOT_FORMATS, default="json", help="what to write (default json: every format's "
                                                                       "numbers)")
     ex.add_argument("--parent", default=None, help="parent frame name (ros2, urdf; default flange, or base_link for a "
                                                    "sensor fixed in the cell)")
