@@ -105,8 +105,6 @@ def parse_effects(specs):
             out[name] = parts
             continue
         if name == "joint_offsets":
-            from handeye.model.simulate_robot import parse_joint_offsets
-
             out[name] = parse_joint_offsets(value).tolist()
             continue
         try:
@@ -117,6 +115,24 @@ def parse_effects(specs):
         if len(nums) != want or not np.all(np.isfinite(nums)):
             raise SimulationError(f"--effect {spec!r}: needs {want} finite number(s)")
         out[name] = nums if want == 3 else nums[0]
+    return out
+
+
+def parse_joint_offsets(value):
+    """``'j2:0.05,j3:-0.03'`` -> offsets (6,), degrees; raises SimulationError."""
+    out = np.zeros(6)
+    for part in (p.strip() for p in str(value).split(",") if p.strip()):
+        name, sep, number = part.partition(":")
+        try:
+            angle = float(number)
+        except ValueError:
+            angle = None
+        if not sep or name.strip() not in JOINT_COLUMNS or angle is None or not np.isfinite(angle) or abs(angle) > 5:
+            raise SimulationError(f"--effect joint_offsets={value}: expected JOINT:DEG,... with JOINT one of "
+                                  f"{', '.join(JOINT_COLUMNS)} and |DEG| <= 5")
+        out[JOINT_COLUMNS.index(name.strip())] = angle
+    if not out.any():
+        raise SimulationError(f"--effect joint_offsets={value}: give at least one non-zero offset")
     return out
 
 
