@@ -206,7 +206,12 @@ def build_parser():
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                      help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | "
-                          "sign_flip=ID,ID | outlier=ID,ID (repeatable)")
+                          "sign_flip=ID,ID | outlier=ID,ID | joint_offsets=j2:0.05,j3:-0.03 (degrees, with --robot) "
+                          "(repeatable)")
+    sim.add_argument("--robot", default=None, metavar="MODEL",
+                     help="simulate a robot with joints: a nominal model (irb4600, kr60ha, m20ia, ur10e, ur5e or a "
+                          "model file) reaches the poses by inverse kinematics; writes j1..j6 and [robot] model "
+                          "(default sphere centre inside its workspace)")
     sim.add_argument("--profiles", action="store_true", help="also write the laser profiles")
     sim.add_argument("--poses", default=None, metavar="CSV",
                      help="flange poses (a pose list in any convention: id,x,y,z,a,b,c is KUKA, id,x,y,z,rx,ry,rz UR, "
@@ -355,7 +360,8 @@ def _simulate(args):
                           translations=args.translations, truth=args.truth, diameter=args.diameter,
                           center=args.center, convention=args.convention, max_tilt=args.max_tilt,
                           no_start=args.no_start, sensor_mount=args.sensor_mount, sphere_mount=args.sphere_mount,
-                          positioner_axes=args.positioner_axes, positioner_error=args.positioner_error)
+                          positioner_axes=args.positioner_axes, positioner_error=args.positioner_error,
+                          robot=args.robot)
     print(result.summary())
     return EXIT_OK
 

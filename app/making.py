@@ -27,6 +27,8 @@ class SimulationResult(ResultProtocol):
     seed : int
     effects : dict
         Hidden effects (name -> value).
+    robot : str or None
+        ``[robot] model`` of a simulated robot with joints (``--robot``).
     """
 
     caption = 'handeye simulate'
@@ -36,6 +38,7 @@ class SimulationResult(ResultProtocol):
     dropped: list
     seed: int
     effects: dict
+    robot: str | None = None
 
     @property
     def dataset(self):
@@ -44,18 +47,20 @@ class SimulationResult(ResultProtocol):
 
     def to_dict(self):
         return {"path": str(self.path), "ids": list(self.ids), "dropped": [list(d) for d in self.dropped],
-                "seed": self.seed, "effects": {k: np.asarray(v).tolist() for k, v in self.effects.items()}}
+                "seed": self.seed, "effects": {k: np.asarray(v).tolist() for k, v in self.effects.items()},
+                **({"robot": self.robot} if self.robot is not None else {})}
 
     def summary(self):
         lines = [f"wrote {len(self.ids)} simulated measurements to {self.path} (seed {self.seed}, "
-                 f"effects {self.effects or 'none'})"]
+                 f"effects {self.effects or 'none'}" + (f", robot {self.robot}" if self.robot else "") + ")"]
         lines += [f"dropped {ident}: {reason}" for ident, reason in self.dropped]
         return "\n".join(lines)
 
 
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
-             no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None):
+             no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None,
+             robot=None):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
     Parameters
@@ -65,7 +70,8 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     seed : int
     effect : str or sequence of str
         Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
-        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``.
+        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot``
+        ``joint_offsets=j2:0.05,j3:-0.03`` (degrees).
     profiles : bool
         Also write the laser profiles.
     poses : str or pathlib.Path, optional
@@ -101,6 +107,12 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
         default a KUKA KP1-V-like two-axis positioner.
     positioner_error : str or sequence of two floats, optional
         ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
+    robot : str, optional
+        A nominal robot model (built-in name or model file, :mod:`handeye.model.robots`): the
+        poses are reached by its inverse kinematics and the dataset gets ``j1..j6`` and
+        ``[robot] model`` (:mod:`handeye.model.simulate_robot`); without ``center`` the sphere
+        is placed in its workspace (:data:`handeye.model.simulate_robot.CENTRES`). The sensor on
+        the flange and the sphere in the world only.
 
     Returns
     -------
@@ -132,6 +144,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     if center is not None:
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
+    arm, setup = _simulated_robot(robot, cell, setup, center is not None, effects)
     ids, flange_poses, angles = None, None, None
     if poses is not None:
         if motions != "thesis" or translations:
@@ -144,12 +157,34 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
     made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids,
-                        cell=cell, axis_angles=angles)
+                        cell=cell, axis_angles=angles, robot=arm)
     from handeye.app.files import write_folder_atomically
 
     write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
                                                          **({"start_offset": None} if no_start else {})))
-    return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects)
+    return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects,
+                            None if arm is None else arm.model_key)
+
+
+def _simulated_robot(robot, cell, setup, centre_given, effects):
+    """The simulated robot with joints (None without ``--robot``) and the setup with its default
+    sphere centre (:data:`handeye.model.simulate_robot.CENTRES`) unless ``--center`` was given."""
+    from handeye.model import simulate_robot
+    from handeye.model.tables import DatasetError
+
+    if robot is None:
+        if "joint_offsets" in effects:
+            raise RequestError("--effect joint_offsets needs --robot MODEL (the joints it offsets)")
+        return None, setup
+    if not cell.default:
+        raise RequestError("--robot applies to the sensor on the flange and the sphere in the world")
+    try:
+        arm = simulate_robot.Robot.load(robot)
+    except DatasetError as exc:
+        raise RequestError(f"--robot {robot}: {exc}") from None
+    if not centre_given and str(robot) in simulate_robot.CENTRES:
+        setup = dataclasses.replace(setup, sphere_centre=simulate_robot.CENTRES[str(robot)])
+    return arm, setup
 
 
 def _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error):

@@ -65,7 +65,7 @@ _ALLOWED = {
     "positioner": {"axes"},
     "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
-    "truth": {"sensor_pose", "sphere_center", "axes"},
+    "truth": {"sensor_pose", "sphere_center", "axes", "joint_offsets"},
     "noise": {"centre_mm", "robot_mm"},
     "limits": {"position_mm", "sensor_mm"},
 }
@@ -123,7 +123,8 @@ def _sensor_pose(doc, key, file, convention):
 
 
 def _truth(doc, file, convention):
-    """``[truth]``: ``sensor_pose`` (KUKA), optional ``sphere_center`` and ``axes``; None without it."""
+    """``[truth]``: ``sensor_pose`` (KUKA), optional ``sphere_center``, ``axes`` and ``joint_offsets``
+    (degrees); None without it."""
     if "truth" not in doc:
         return None
     pose = _vector(doc["truth"], "sensor_pose", len(conventions.columns(convention)), file, "truth")
@@ -134,6 +135,8 @@ def _truth(doc, file, convention):
         truth["sphere_center"] = _vector(doc["truth"], "sphere_center", 3, file, "truth")
     if "axes" in doc["truth"]:
         truth["axes"] = mount_setup.read_axes(doc["truth"], file, LIMIT_RANGE_MM[1], "truth")
+    if "joint_offsets" in doc["truth"]:  # the robot's hidden joint offsets j1..j6, degrees
+        truth["joint_offsets"] = _vector(doc["truth"], "joint_offsets", 6, file, "truth")
     return truth
 
 

@@ -39,6 +39,9 @@ Effects that can be hidden in the data (parameters zero when absent)
 * ``sign_flip=ID,ID...``: the centre of these samples is reconstructed on the wrong side.
 * ``outlier=ID,ID...``: a gross error of 30 mm in a random direction is added to these
   samples' centres.
+* ``joint_offsets=j2:0.05,j3:-0.03`` (degrees, needs a robot model): the robot's joints are off
+  by these; the flange reaches ``T(q + delta)``, the controller reports ``T(q)`` and ``q``
+  (:mod:`handeye.model.simulate_robot`).
 """
 from __future__ import annotations
 
@@ -57,8 +60,10 @@ from handeye.model.rotation import matrix_from_rotvec
 #: setup's side of the laser plane, z (module docstring).
 VIEW = ((-10.0, 10.0), (3.0, 20.0), (210.0, 270.0))
 
-EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier")
+EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier", "joint_offsets")
 CERTIFIED_DIAMETER = 59.94507
+#: Joint-angle columns of a simulation with a robot (degrees; :data:`handeye.model.robots.JOINTS`).
+JOINT_COLUMNS = ("j1", "j2", "j3", "j4", "j5", "j6")
 THESIS_CENTRE = (1534.1314, -603.2729, 1118.8028)
 
 
@@ -99,6 +104,9 @@ def parse_effects(specs):
                 raise SimulationError(f"--effect {spec!r}: give one or more sample ids")
             out[name] = parts
             continue
+        if name == "joint_offsets":
+            out[name] = parse_joint_offsets(value).tolist()
+            continue
         try:
             nums = [float(p) for p in parts]
         except ValueError:
@@ -107,6 +115,24 @@ def parse_effects(specs):
         if len(nums) != want or not np.all(np.isfinite(nums)):
             raise SimulationError(f"--effect {spec!r}: needs {want} finite number(s)")
         out[name] = nums if want == 3 else nums[0]
+    return out
+
+
+def parse_joint_offsets(value):
+    """``'j2:0.05,j3:-0.03'`` -> offsets (6,), degrees; raises SimulationError."""
+    out = np.zeros(6)
+    for part in (p.strip() for p in str(value).split(",") if p.strip()):
+        name, sep, number = part.partition(":")
+        try:
+            angle = float(number)
+        except ValueError:
+            angle = None
+        if not sep or name.strip() not in JOINT_COLUMNS or angle is None or not np.isfinite(angle) or abs(angle) > 5:
+            raise SimulationError(f"--effect joint_offsets={value}: expected JOINT:DEG,... with JOINT one of "
+                                  f"{', '.join(JOINT_COLUMNS)} and |DEG| <= 5")
+        out[JOINT_COLUMNS.index(name.strip())] = angle
+    if not out.any():
+        raise SimulationError(f"--effect joint_offsets={value}: give at least one non-zero offset")
     return out
 
 
@@ -217,6 +243,8 @@ class Simulation:
     dropped: list = dataclasses.field(default_factory=list)
     cell: object = None
     axis_angles: np.ndarray | None = None
+    joints: np.ndarray | None = None
+    robot: object = None
 
 
 def centre_in_sensor(mounts, t_x, centre, flange, table=None):
@@ -275,7 +303,7 @@ def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
 
 
 def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None, cell=None,
-             axis_angles=None):
+             axis_angles=None, robot=None):
     """Simulate a dataset (module docstring).
 
     Parameters
@@ -297,6 +325,10 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         ``poses`` makes the default poses of another cell.
     axis_angles : array_like, shape (N, k), optional
         Positioner axis angles (degrees) of custom poses.
+    robot : handeye.model.simulate_robot.Robot, optional
+        A robot with joints (:mod:`handeye.model.simulate_robot`): each flange pose is reached by
+        the nominal inverse kinematics (unreachable poses are dropped), the dataset gets the joint
+        angles, and ``joint_offsets`` among the effects moves the true flange.
     """
     from handeye.model import mounts as mount_model
 
@@ -307,6 +339,11 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
     out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
+    reported, joints, unreached = true_flanges, None, {}
+    if robot is not None:
+        joints, reported, true_flanges, unreached = robot.reach(true_flanges, effects.get("joint_offsets"))
+    elif "joint_offsets" in effects:
+        raise SimulationError("--effect joint_offsets needs a robot with joints (--robot MODEL)")
     mounts = mount_model.Mounts() if cell is None else cell.mounts
     tables = None if angles is None else mount_model.table2base(mounts.axes, angles)
     for name in ("sign_flip", "outlier"):
@@ -315,12 +352,15 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
     recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
+        if k in unreached:
+            dropped.append((ident, unreached[k]))
+            continue
         in_sensor = centre_in_sensor(mounts, t_x, centre, flange, None if tables is None else tables[k])
         xs, pts = _measure(setup, effects, rng, ident, k, in_sensor, radius_true)
         if xs is None:
             dropped.append((ident, pts))
             continue
-        noisy = flange.copy()
+        noisy = reported[k].copy()
         noisy[:3, 3] += rng.normal(0.0, setup.sigma_robot, 3)
         recorded.append(pose_from_transform(noisy))
         centres.append(xs)
@@ -331,7 +371,15 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         ident, reason = dropped[0]
         raise SimulationError(f"every pose was dropped (first: {ident}: {reason}); check the effects and the setup")
     return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped,
-                      cell, None if angles is None else angles[kept_k])
+                      cell, None if angles is None else angles[kept_k], None if joints is None else joints[kept_k],
+                      robot)
+
+
+def _robot_section(convention, robot):
+    """setup.toml's ``[robot]`` (empty for KUKA without a robot model)."""
+    keys = (f"convention = \"{convention}\"\n" if convention != "kuka" else "") \
+        + (f"model = \"{robot.model_key}\"\n" if robot is not None else "")
+    return f"[robot]\n{keys}\n" if keys else ""
 
 
 def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -1.0), convention="kuka"):
@@ -349,12 +397,14 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     names = () if sim.axis_angles is None else sim.cell.axis_names
+    names += () if sim.joints is None else JOINT_COLUMNS
     header = ",".join(("id",) + conventions.columns(convention) + ("xs", "ys", "zs") + names) \
         + (",profile" if profiles else "")
     lines = [header]
     if profiles:
         (folder / "profiles").mkdir(exist_ok=True)
-    angles = sim.axis_angles if names else [()] * len(sim.ids)
+    angles = [np.concatenate([np.asarray(a, float), np.asarray(j, float)]) for a, j in
+              zip(*(v if v is not None else [()] * len(sim.ids) for v in (sim.axis_angles, sim.joints)))]
     for ident, pose, xs, pts, th in zip(sim.ids, sim.flange_poses, sim.centre_in_sensor, sim.profiles, angles):
         safe = ident.replace("*", "s").replace("+", "p").replace("-", "m")
         written = pose if convention == "kuka" else conventions.convert(pose, "kuka", convention)
@@ -380,18 +430,21 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
              f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
-        + (f"[robot]\nconvention = \"{convention}\"\n\n" if convention != "kuka" else "")
+        + _robot_section(convention, sim.robot)
         + (f"[sensor]\n{sensor_keys}{start}\n" if sensor_keys or start else "")
         + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
         + positioner
         + f"[profile]\nside = {s.side}\n\n"
         f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
         f"sphere_center = {vec(sim.true_centre)}\n" + truth_axes
+        + (f"joint_offsets = {vec(sim.effects['joint_offsets'])}\n" if "joint_offsets" in sim.effects else "")
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],
             "true_sphere_center": sim.true_centre.tolist(), "profiles_written": bool(profiles)}
     if not default:
         meta["cell"] = sim.cell.describe()
+    if sim.robot is not None:
+        meta["robot"] = sim.robot.describe()
     (folder / "simulation.json").write_text(json.dumps(meta, indent=1) + "\n")
     return folder
