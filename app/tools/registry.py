@@ -20,6 +20,7 @@ STUDIES = {
     "batch-equivalence": "handeye.studies.study_batch",
     "global-guarantee": "handeye.studies.study_guarantee",
     "mounts": "handeye.studies.study_mounts",
+    "thesis-robot": "handeye.studies.study_thesis_robot",
 }
 
 
