@@ -352,7 +352,7 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
         else:
             xs = _centre_from_profile(points, diam / 2, side, folder / profile)
         angles.append([axis_angle(fields[idx[a]], file, line, a) for a in axes]
-                      + [_joint_angle(fields[idx[j]], file, line, j) for j in joints])
+                      + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in joints])
         reconstructed.append(bool(profile) and not all(cells))
         profiles.append(points)
         ids.append(ident)
@@ -371,20 +371,12 @@ AXIS_ANGLE_LIMIT_DEG = 720.0
 JOINT_ANGLE_LIMIT_DEG = 400.0
 
 
-def _joint_angle(text, file, line, column):
+def axis_angle(text, file, line, column, limit=AXIS_ANGLE_LIMIT_DEG, what="a positioner axis"):
+    """An angle cell of a row (degrees: a positioner axis, or a robot joint with ``limit`` and
+    ``what``), checked against ``limit``."""
     value = number(text, file, line, column)
-    if abs(value) > JOINT_ANGLE_LIMIT_DEG:
-        raise DatasetError(file, f"{value:g} deg is beyond +-{JOINT_ANGLE_LIMIT_DEG:g} deg for a robot joint", line,
-                           column)
-    return value
-
-
-def axis_angle(text, file, line, column):
-    """A positioner axis angle of a row (degrees), checked."""
-    value = number(text, file, line, column)
-    if abs(value) > AXIS_ANGLE_LIMIT_DEG:
-        raise DatasetError(file, f"{value:g} deg is beyond +-{AXIS_ANGLE_LIMIT_DEG:g} deg for a positioner axis", line,
-                           column)
+    if abs(value) > limit:
+        raise DatasetError(file, f"{value:g} deg is beyond +-{limit:g} deg for {what}", line, column)
     return value
 
 

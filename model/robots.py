@@ -29,7 +29,7 @@ import tomllib
 import numpy as np
 
 from handeye.model.pose import matrix_from_kuka
-from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.rotation import matrix_from_rotvec, transform_distance
 from handeye.model.tables import DatasetError
 
 ROBOTS_DIR = pathlib.Path(__file__).parent / "data" / "robots"
@@ -171,9 +171,8 @@ AGREE_MM, AGREE_DEG = 5.0, 0.5
 def _disagreement(model, joints_deg, flange2base):
     """Largest position (mm) and rotation (deg) difference of the model's flange from the reported one."""
     fk = model.flange2base(joints_deg)
-    dpos = np.linalg.norm(fk[:, :3, 3] - flange2base[:, :3, 3], axis=1)
-    cos = (np.trace(np.swapaxes(fk[:, :3, :3], 1, 2) @ flange2base[:, :3, :3], axis1=1, axis2=2) - 1) / 2
-    return float(dpos.max()), float(np.degrees(np.arccos(np.clip(cos, -1, 1))).max()), fk
+    dpos, dang = transform_distance(fk, flange2base)
+    return float(dpos.max()), float(dang.max()), fk
 
 
 def check_reported(model, joints_deg, flange2base, file):

@@ -105,11 +105,8 @@ def test_positioner_axes_calibrated_within_three_sd(tmp_path):
 def test_sphere_and_positioner_with_the_sensor_held(tmp_path):
     """The seed's outlook: the positioner calibrated with a sensor calibrated before."""
     rows, truth = make_cell("positioner", seed=6, n=30)
-    pose = ", ".join(f"{v:.6f}" for v in pose_from_transform(truth["sensor"]))
-    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes(),
-                   extra_setup="")
-    text = (folder / "setup.toml").read_text().replace('mount = "flange"', f'mount = "flange"\npose = [{pose}]', 1)
-    (folder / "setup.toml").write_text(text)
+    folder = _with_sensor_pose(write(tmp_path / "p", "positioner", rows, truth, centre_known=False,
+                                     axes=_moved_axes()), truth["sensor"])
     res = handeye.calibrate(folder, unknowns="sphere+positioner", no_loo=True)
     assert res.converged and res.unknowns == "sphere+positioner"
     np.testing.assert_allclose(res.sensor2flange, truth["sensor"], atol=1e-5)  # held
@@ -237,10 +234,8 @@ def test_a_held_sensor_calibration_file_loads_without_a_sensor_covariance(tmp_pa
     from handeye.app.outputs import saved
 
     rows, truth = make_cell("positioner", seed=6, n=30)
-    pose = ", ".join(f"{v:.6f}" for v in pose_from_transform(truth["sensor"]))
-    folder = write(tmp_path / "p", "positioner", rows, truth, centre_known=False, axes=_moved_axes())
-    text = (folder / "setup.toml").read_text().replace('mount = "flange"', f'mount = "flange"\npose = [{pose}]', 1)
-    (folder / "setup.toml").write_text(text)
+    folder = _with_sensor_pose(write(tmp_path / "p", "positioner", rows, truth, centre_known=False,
+                                     axes=_moved_axes()), truth["sensor"])
     handeye.calibrate(folder, unknowns="sphere+positioner", out=tmp_path / "cal.json", no_loo=True)
     cal = saved.load(tmp_path / "cal.json")
     assert cal.covariance is None and [a.name for a in cal.positioner_axes] == ["e1", "e2"]
