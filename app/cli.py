@@ -206,8 +206,9 @@ def build_parser():
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                      help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | "
-                          "sign_flip=ID,ID | outlier=ID,ID | joint_offsets=j2:0.05,j3:-0.03 (degrees, with --robot) "
-                          "(repeatable)")
+                          "sign_flip=ID,ID | outlier=ID,ID | with --robot: joint_offsets=j2:0.05,j3:-0.03 (degrees), "
+                          "link_lengths=a2:0.3,d4:-0.2 (mm, the model's length names), joint_compliance=j2:0.02,j3:0.01 "
+                          "(degrees per metre of lever) (repeatable)")
     sim.add_argument("--robot", default=None, metavar="MODEL",
                      help="simulate a robot with joints: a nominal model (irb4600, kr60ha, m20ia, ur10e, ur5e or a "
                           "model file) reaches the poses by inverse kinematics; writes j1..j6 and [robot] model "

@@ -71,7 +71,8 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     effect : str or sequence of str
         Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
         ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot``
-        ``joint_offsets=j2:0.05,j3:-0.03`` (degrees).
+        ``joint_offsets=j2:0.05,j3:-0.03`` (degrees), ``link_lengths=a2:0.3,d4:-0.2`` (mm, the
+        model's length names) and ``joint_compliance=j2:0.02,j3:0.01`` (degrees per metre).
     profiles : bool
         Also write the laser profiles.
     poses : str or pathlib.Path, optional
@@ -173,8 +174,9 @@ def _simulated_robot(robot, cell, setup, centre_given, effects):
     from handeye.model.tables import DatasetError
 
     if robot is None:
-        if "joint_offsets" in effects:
-            raise RequestError("--effect joint_offsets needs --robot MODEL (the joints it offsets)")
+        robot_effect = next((n for n in ("joint_offsets", "link_lengths", "joint_compliance") if n in effects), None)
+        if robot_effect:
+            raise RequestError(f"--effect {robot_effect} needs --robot MODEL (the robot it describes)")
         return None, setup
     if not cell.default:
         raise RequestError("--robot applies to the sensor on the flange and the sphere in the world")

@@ -95,28 +95,38 @@ class Samples:
         self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
         self.n = len(dataset)
-        #: the joints ``joint_offsets`` estimates (indices into j1..j6), chosen by the identifiability
-        #: gate (:func:`robot_joints`); all six until then
-        self.joint_free = tuple(range(6))
+        #: per robot effect (:mod:`handeye.model.robot_errors`) the indices of the parameters it
+        #: estimates, chosen by the identifiability gate (:func:`robot_free`); all until then
+        self.robot_free = {}
 
     def params_of(self, name):
-        """The parameter names an effect has on these samples (``joint_offsets``: its free joints)."""
-        names = effects.get(name).PARAMS
-        return tuple(names[j] for j in self.joint_free) if effects.get(name).KIND == "robot" else names
+        """The parameter names an effect has on these samples (a robot effect: those it estimates)."""
+        effect = effects.get(name)
+        if effect.KIND != "robot":
+            return effect.PARAMS
+        names = effect.params(self.d.robot_model)
+        return tuple(names[k] for k in self.robot_free.get(name, range(len(names))))
+
+    def _free(self, name):
+        return list(self.robot_free.get(name, range(len(effects.get(name).params(self.d.robot_model)))))
 
     def robot_motion(self, params, rows=None):
-        """The flange poses corrected by ``joint_offsets`` (N, 4, 4) and their derivatives
-        (N, k, 4, 4) per degree of each free joint (:mod:`handeye.model.effects.joint_offsets`)."""
-        from handeye.model.robots import offset_derivatives
+        """The flange poses corrected by the robot effects ``params`` (name -> the estimated
+        parameters) (N, 4, 4), and per effect their derivatives (N, k, 4, 4) with respect to its
+        estimated parameters: ``F_rep T(q)^-1 T*(q)`` (:mod:`handeye.model.robot_errors`)."""
+        from handeye.model.robot_errors import perturbed
 
-        delta = np.zeros(6)
-        delta[list(self.joint_free)] = params
+        model = self.d.robot_model
+        values = {}
+        for name, p in params.items():
+            full = np.zeros(len(effects.get(name).params(model)))
+            full[self._free(name)] = p
+            values[name] = full
         joints = self.d.joints if rows is None else self.d.joints[rows]
         f2b = self.f2b if rows is None else self.f2b[rows]
-        fk0, _ = offset_derivatives(self.d.robot_model, joints, np.zeros(6))
-        fk, dfk = offset_derivatives(self.d.robot_model, joints, delta)
-        moved = f2b @ np.linalg.inv(fk0)
-        return moved @ fk, moved[:, None] @ dfk[:, list(self.joint_free)]
+        fk, derivatives = perturbed(model, joints, values)
+        moved = f2b @ np.linalg.inv(model.flange2base(joints))
+        return moved @ fk, {name: moved[:, None] @ d[:, self._free(name)] for name, d in derivatives.items()}
 
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
@@ -137,11 +147,14 @@ class Samples:
         samples ``rows``, an index array, only, when given)."""
         xs = self.measured(structure, rows)
         f2b = self.f2b if rows is None else self.f2b[rows]
-        cols, robot = [], None
+        robot_names = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
+        robot = {}
+        if robot_names:
+            f2b, robot = self.robot_motion({n: params[n] for n in robot_names}, rows)
+        cols = []
         for name in structure.data_effects:
-            if effects.get(name).KIND == "robot":
-                f2b, robot = self.robot_motion(params[name], rows)
-                cols.append(None)
+            if name in robot:
+                cols.append(name)
                 continue
             with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
                 xs, dxs = effects.correct(name, xs, self.radius, params[name])
@@ -152,8 +165,8 @@ class Samples:
         r2 = model.sensor_rotation(x)
         r12 = f2b[:, :3, :3] @ r2
         in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
-        extra = [np.einsum("nkij,nj->nik", robot[..., :3, :3], in_flange) + np.swapaxes(robot[..., :3, 3], 1, 2)
-                 if c is None else np.einsum("nij,njk->nik", r12, c) for c in cols]
+        extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
+                 for c in cols]
         return e, np.concatenate([j] + extra, axis=2) if extra else j, model
 
     def names(self, structure):
@@ -351,6 +364,12 @@ def gate(jac_cur, cand, names, q=None, absorbers=True):
     return frac, absorbers
 
 
+def _moved_centre(dfk, in_flange):
+    """Derivatives (N, 3, k) of the centre ``F p`` seen from flanges whose derivatives are ``dfk``
+    (N, k, 4, 4), ``in_flange`` (N, 3) the centre in the flange frame."""
+    return np.einsum("nkij,nj->nik", dfk[..., :3, :3], in_flange) + np.swapaxes(dfk[..., :3, 3], 1, 2)
+
+
 def candidate_columns(prob, structure, fit, mask, name):
     """Jacobian columns (rows of the samples in mask) of a candidate effect at the fit."""
     cols = candidate_rows(prob, structure, fit, None, name)
@@ -363,16 +382,16 @@ def candidate_rows(prob, structure, fit, rows, name):
     effect = effects.get(name)
     xs = prob.measured(structure, rows)
     f2b = prob.f2b if rows is None else prob.f2b[rows]
+    robot = {n: fit.params[n] for n in structure.data_effects if effects.get(n).KIND == "robot"}
+    if robot or effect.KIND == "robot":
+        trial = robot | ({name: np.zeros(len(prob.params_of(name)))} if effect.KIND == "robot" else {})
+        f2b, derivatives = prob.robot_motion(trial, rows)
     for eff in structure.data_effects:
-        if effects.get(eff).KIND == "robot":
-            f2b = prob.robot_motion(fit.params[eff], rows)[0]
-            continue
-        xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
+        if eff not in robot:
+            xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
     if effect.KIND == "robot":
-        _, dfk = prob.robot_motion(np.zeros(len(prob.joint_free)), rows)
         r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
-        in_flange = np.einsum("ij,nj->ni", r2, xs) + fit.x[:3]
-        return np.einsum("nkij,nj->nik", dfk[..., :3, :3], in_flange) + np.swapaxes(dfk[..., :3, 3], 1, 2)
+        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
     r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
     r12 = f2b[:, :3, :3] @ r2
     if effect.KIND == "centre":
@@ -556,32 +575,50 @@ def _ranked(found):
     return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]
 
 
-#: A joint's offset column must keep this fraction outside the span of the sensor pose, the sphere
-#: centre and the joints already chosen to be estimated (stricter than :data:`GATE`: one column).
+#: A robot parameter's column must keep this fraction outside the span of the sensor pose, the
+#: sphere centre and the parameters already chosen to be estimated (stricter than :data:`GATE`:
+#: one column).
 JOINT_GATE = 1e-2
 
 
-def robot_joints(prob, structure, fit, mask):
-    """Choose the joints ``joint_offsets`` estimates on these samples: each joint's column gated
-    against the sensor pose, the sphere centre (free or not: a first-joint offset is a turn of the
-    base, which a centre given wrong looks like) and the joints chosen before it. Sets
-    ``prob.joint_free``; returns ``{joint: absorbers}`` of the joints left out."""
-    prob.joint_free = tuple(range(6))
-    cols = candidate_rows(prob, structure, fit, None, "joint_offsets")[mask]  # (m, 3, 6)
+def robot_free(prob, structure, fit, mask, name="joint_offsets"):
+    """Choose the parameters robot effect ``name`` estimates on these samples: each parameter's
+    column gated against the sensor pose, the sphere centre (free or not: a first-joint offset is a
+    turn of the base, which a centre given wrong looks like), the effects in ``structure`` and the
+    parameters chosen before it. Sets ``prob.robot_free[name]``; returns ``{parameter:
+    absorbers}`` of the parameters left out."""
+    prob.robot_free.pop(name, None)
+    all_names = effects.get(name).params(prob.d.robot_model)
+    cols = candidate_rows(prob, structure, fit, None, name)[mask]  # (m, 3, k)
     current = fit.jac[mask].reshape(-1, fit.p)
     names = list(fit.names)
     if not structure.centre:
         current = np.concatenate([current, -np.tile(np.eye(3), (int(mask.sum()), 1))], axis=1)
         names += ["cx", "cy", "cz"]
     free, absorbed = [], {}
-    for j in range(6):
-        col = cols[:, :, j].reshape(-1, 1)
+    for k, param in enumerate(all_names):
+        col = cols[:, :, k].reshape(-1, 1)
         frac, who = gate(current, col, names)
-        if frac < JOINT_GATE:
-            absorbed[f"j{j + 1}"] = who
+        if not np.all(np.isfinite(col)) or frac < JOINT_GATE:
+            absorbed[param] = who
             continue
-        free.append(j)
+        free.append(k)
         current = np.concatenate([current, col], axis=1)
-        names.append(f"joint_offsets.j{j + 1}")
-    prob.joint_free = tuple(free)
+        names.append(f"{name}.{param}")
+    prob.robot_free[name] = tuple(free)
     return absorbed
+
+
+def gate_robot_effects(prob, structure, mask, sensor2flange, centre=None):
+    """Choose the parameters of every robot effect in ``structure`` (:func:`robot_free`), each
+    against the sensor pose, the centre and the effects before it, from a fit at
+    ``sensor2flange`` (and ``centre``) without it. Returns ``{effect: {parameter: absorbers}}``
+    of the parameters left out; an effect with none estimable has ``prob.robot_free[name] == ()``."""
+    robot = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
+    left_out = {}
+    for k, name in enumerate(robot):
+        base = dataclasses.replace(structure, data_effects=tuple(n for n in structure.data_effects if n not in robot[k:]))
+        with np.errstate(all="ignore"):
+            fit = prob.fit(base, mask, prob.point(base, sensor2flange, centre))
+        left_out[name] = robot_free(prob, base, fit, mask, name)
+    return left_out

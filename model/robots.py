@@ -201,15 +201,9 @@ def check_reported(model, joints_deg, flange2base, file):
                        column="[robot] model")
 
 
-def _skew_hat(w):
-    """``[w]x`` as a 4x4 twist of a pure rotation about the origin (the joint frame's axis)."""
-    out = np.zeros((4, 4))
-    out[:3, :3] = [[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]
-    return out
-
-
 def offset_derivatives(model, joints_deg, offsets_deg):
-    """Flange poses with joint offsets and their exact derivatives (product rule of the chain).
+    """Flange poses with joint offsets and their exact derivatives (product rule of the chain,
+    :func:`handeye.model.robot_errors.perturbed`).
 
     Parameters
     ----------
@@ -224,26 +218,12 @@ def offset_derivatives(model, joints_deg, offsets_deg):
     fk : ndarray, shape (N, 4, 4)
         ``T(q + offsets)``, mm.
     dfk : ndarray, shape (N, 6, 4, 4)
-        ``dT / d offset_j`` per degree: ``T_<j origin_j Rot_j [axis_j]x after_j T_>j`` times pi/180.
+        ``dT / d offset_j`` per degree.
     """
-    q = np.radians(np.asarray(joints_deg, float).reshape(-1, 6) @ model.coupling.T + model.offsets
-                   + np.asarray(offsets_deg, float))
-    n = len(q)
-    links = []
-    for j in range(6):
-        turn = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-        turn[:, :3, :3] = matrix_from_rotvec(model.axes[j][None, :] * q[:, j:j + 1])
-        links.append((model.origins[j] @ turn, model.after[j]))
-    before = [np.broadcast_to(model.base, (n, 4, 4))]
-    for rot, after in links:
-        before.append(before[-1] @ rot @ after)
-    after_all = [np.broadcast_to(model.flange, (n, 4, 4))]
-    for rot, after in reversed(links):
-        after_all.insert(0, rot @ after @ after_all[0])
-    dfk = np.empty((n, 6, 4, 4))
-    for j, (rot, after) in enumerate(links):
-        dfk[:, j] = before[j] @ rot @ _skew_hat(model.axes[j]) @ after @ after_all[j + 1]
-    return before[-1] @ model.flange, dfk * np.pi / 180.0
+    from handeye.model.robot_errors import perturbed
+
+    fk, d = perturbed(model, joints_deg, {"joint_offsets": np.asarray(offsets_deg, float)})
+    return fk, d["joint_offsets"]
 
 
 def chain_origins(model):

@@ -65,7 +65,7 @@ _ALLOWED = {
     "positioner": {"axes"},
     "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
     "profile": {"side"},
-    "truth": {"sensor_pose", "sphere_center", "axes", "joint_offsets"},
+    "truth": {"sensor_pose", "sphere_center", "axes", "joint_offsets", "link_lengths", "joint_compliance"},
     "noise": {"centre_mm", "robot_mm"},
     "limits": {"position_mm", "sensor_mm"},
 }
@@ -123,8 +123,9 @@ def _sensor_pose(doc, key, file, convention):
 
 
 def _truth(doc, file, convention):
-    """``[truth]``: ``sensor_pose`` (KUKA), optional ``sphere_center``, ``axes`` and ``joint_offsets``
-    (degrees); None without it."""
+    """``[truth]``: ``sensor_pose`` (KUKA), optional ``sphere_center``, ``axes``, ``joint_offsets``
+    (degrees), ``link_lengths`` and ``joint_compliance`` (tables parameter -> mm or degrees per
+    metre); None without it."""
     if "truth" not in doc:
         return None
     pose = _vector(doc["truth"], "sensor_pose", len(conventions.columns(convention)), file, "truth")
@@ -137,6 +138,13 @@ def _truth(doc, file, convention):
         truth["axes"] = mount_setup.read_axes(doc["truth"], file, LIMIT_RANGE_MM[1], "truth")
     if "joint_offsets" in doc["truth"]:  # the robot's hidden joint offsets j1..j6, degrees
         truth["joint_offsets"] = _vector(doc["truth"], "joint_offsets", 6, file, "truth")
+    for key in ("link_lengths", "joint_compliance"):  # { parameter = value }: mm, degrees per metre
+        if key in doc["truth"]:
+            table = doc["truth"][key]
+            if not isinstance(table, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                      and np.isfinite(v) for v in table.values()):
+                raise DatasetError(file, "needs { parameter = number, ... }", column=f"[truth] {key}")
+            truth[key] = {str(k): float(v) for k, v in table.items()}
     return truth
 
 

@@ -42,6 +42,11 @@ Effects that can be hidden in the data (parameters zero when absent)
 * ``joint_offsets=j2:0.05,j3:-0.03`` (degrees, needs a robot model): the robot's joints are off
   by these; the flange reaches ``T(q + delta)``, the controller reports ``T(q)`` and ``q``
   (:mod:`handeye.model.simulate_robot`).
+* ``link_lengths=a2:0.3,d4:-0.2`` (mm, needs a robot model): errors of its nominal lengths,
+  named as :func:`handeye.model.robot_errors.param_names` names them (``a2``, ``d4`` of a DH model,
+  ``j3_x`` of a chain model).
+* ``joint_compliance=j2:0.02,j3:0.01`` (degrees per metre of lever, needs a robot model): gravity
+  deflection of the shoulder and the elbow (:mod:`handeye.model.robot_errors`).
 """
 from __future__ import annotations
 
@@ -60,7 +65,13 @@ from handeye.model.rotation import matrix_from_rotvec
 #: setup's side of the laser plane, z (module docstring).
 VIEW = ((-10.0, 10.0), (3.0, 20.0), (210.0, 270.0))
 
-EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier", "joint_offsets")
+EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier", "joint_offsets", "link_lengths",
+           "joint_compliance")
+#: Effects of the robot's own kinematics (need ``--robot``); the first is six numbers, the others
+#: ``{parameter: value}`` (:mod:`handeye.model.robot_errors`).
+ROBOT_EFFECTS = ("joint_offsets", "link_lengths", "joint_compliance")
+#: Largest value of a robot effect's parameter that a simulation accepts (degrees, mm, deg/m).
+ROBOT_LIMITS = {"joint_offsets": 5.0, "link_lengths": 20.0, "joint_compliance": 1.0}
 CERTIFIED_DIAMETER = 59.94507
 #: Joint-angle columns of a simulation with a robot (degrees; :data:`handeye.model.robots.JOINTS`).
 JOINT_COLUMNS = ("j1", "j2", "j3", "j4", "j5", "j6")
@@ -107,6 +118,9 @@ def parse_effects(specs):
         if name == "joint_offsets":
             out[name] = parse_joint_offsets(value).tolist()
             continue
+        if name in ROBOT_EFFECTS:
+            out[name] = parse_named(name, value)
+            continue
         try:
             nums = [float(p) for p in parts]
         except ValueError:
@@ -134,6 +148,46 @@ def parse_joint_offsets(value):
     if not out.any():
         raise SimulationError(f"--effect joint_offsets={value}: give at least one non-zero offset")
     return out
+
+
+def parse_named(name, value):
+    """``'a2:0.3,d4:-0.2'`` -> ``{'a2': 0.3, 'd4': -0.2}`` (the names are checked against the robot
+    model later, :func:`robot_errors`); raises SimulationError."""
+    out, limit = {}, ROBOT_LIMITS[name]
+    for part in (p.strip() for p in str(value).split(",") if p.strip()):
+        key, sep, number = part.partition(":")
+        try:
+            number = float(number)
+        except ValueError:
+            number = None
+        if not sep or not key.strip() or number is None or not np.isfinite(number) or abs(number) > limit:
+            raise SimulationError(f"--effect {name}={value}: expected PARAMETER:VALUE,... with |VALUE| <= {limit:g}")
+        out[key.strip()] = number
+    if not any(out.values()):
+        raise SimulationError(f"--effect {name}={value}: give at least one non-zero value")
+    return out
+
+
+def robot_errors(effects, model):
+    """The robot effects among ``effects`` as full parameter vectors of ``model``
+    (:func:`handeye.model.robot_errors.perturbed`'s ``values``); raises SimulationError naming an
+    unknown parameter."""
+    from handeye.model.robot_errors import param_names
+
+    values = {}
+    for name in ROBOT_EFFECTS:
+        if name not in effects:
+            continue
+        names = param_names(model, name)
+        if name == "joint_offsets":
+            values[name] = np.asarray(effects[name], float)
+            continue
+        unknown = sorted(set(effects[name]) - set(names))
+        if unknown:
+            raise SimulationError(f"--effect {name}: {', '.join(unknown)} not a parameter of the {model.name}; "
+                                  f"its are {', '.join(names)}")
+        values[name] = np.array([effects[name].get(n, 0.0) for n in names])
+    return values
 
 
 def _axis(name):
@@ -341,9 +395,10 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
     reported, joints, unreached = true_flanges, None, {}
     if robot is not None:
-        joints, reported, true_flanges, unreached = robot.reach(true_flanges, effects.get("joint_offsets"))
-    elif "joint_offsets" in effects:
-        raise SimulationError("--effect joint_offsets needs a robot with joints (--robot MODEL)")
+        joints, reported, true_flanges, unreached = robot.reach(true_flanges, robot_errors(effects, robot.model))
+    elif any(name in effects for name in ROBOT_EFFECTS):
+        raise SimulationError(f"--effect {next(n for n in ROBOT_EFFECTS if n in effects)} needs a robot with joints "
+                              "(--robot MODEL)")
     mounts = mount_model.Mounts() if cell is None else cell.mounts
     tables = None if angles is None else mount_model.table2base(mounts.axes, angles)
     for name in ("sign_flip", "outlier"):
@@ -438,6 +493,8 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
         f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
         f"sphere_center = {vec(sim.true_centre)}\n" + truth_axes
         + (f"joint_offsets = {vec(sim.effects['joint_offsets'])}\n" if "joint_offsets" in sim.effects else "")
+        + "".join(f"{name} = {{ " + ", ".join(f"{k} = {float(v)!r}" for k, v in sim.effects[name].items()) + " }\n"
+                  for name in ROBOT_EFFECTS[1:] if name in sim.effects)
     )
     meta = {"seed": sim.seed, "effects": sim.effects, "setup": dataclasses.asdict(s),
             "dropped": [{"id": i, "reason": r} for i, r in sim.dropped],

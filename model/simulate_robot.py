@@ -40,7 +40,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import robots
+from handeye.model import robot_errors, robots
 from handeye.model.rotation import rotvec_from_matrix
 
 #: Convergence of the inverse kinematics: position (mm) and rotation (degrees).
@@ -184,15 +184,17 @@ class Robot:
         return {"model": self.model_key, "name": self.model.name, "source": self.model.source,
                 "ik_tolerance": {"mm": TOL_MM, "deg": TOL_DEG}}
 
-    def reach(self, wanted, offsets=None):
+    def reach(self, wanted, errors=None):
         """Joint angles for the wanted flange poses and the flanges reported and really reached.
 
         Parameters
         ----------
         wanted : ndarray, shape (N, 4, 4)
             Flange poses in the robot base that see the sphere (mm).
-        offsets : array_like, shape (6,), optional
-            Hidden joint offsets, degrees (``joint_offsets``); zero when None.
+        errors : dict or array_like, optional
+            The robot's hidden errors: robot effect name -> its full parameter vector
+            (:func:`handeye.model.robot_errors.perturbed`), or six joint offsets (degrees); none
+            when None.
 
         Returns
         -------
@@ -201,16 +203,16 @@ class Robot:
         reported : ndarray, shape (N, 4, 4)
             ``T(q)`` by the nominal model, the controller's flange pose (mm).
         true : ndarray, shape (N, 4, 4)
-            ``T(q + offsets)``: where the flange really is (mm).
+            ``T*(q)`` with the errors: where the flange really is (mm).
         unreached : dict
             Index -> reason of the poses the inverse kinematics cannot reach.
         """
         wanted = np.asarray(wanted, float)
         joints, ok = inverse_kinematics(self.model, wanted, self.model_key)
         q = np.where(ok[:, None], joints, 0.0)
-        delta = np.zeros(6) if offsets is None else np.asarray(offsets, float)
+        values = {} if errors is None else errors if isinstance(errors, dict) else {"joint_offsets": errors}
         reported = np.where(ok[:, None, None], self.model.flange2base(q), wanted)
-        true = np.where(ok[:, None, None], self.model.flange2base(q + delta), wanted)
+        true = np.where(ok[:, None, None], robot_errors.perturbed(self.model, q, values)[0], wanted)
         unreached = {int(k): f"the {self.model.name} cannot reach this flange pose (no inverse kinematics "
                              f"solution within {TOL_MM:g} mm / {TOL_DEG:g} deg)" for k in np.flatnonzero(~ok)}
         return joints, reported, true, unreached

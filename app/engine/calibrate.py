@@ -116,7 +116,7 @@ def screen(prep):
     plain_rms = float(np.sqrt(np.mean(np.sum(everything.residuals(plain) ** 2, axis=1))))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
     if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
-        slips.check_centre(dataset, request.sigma)
+        slips.check_centre(dataset, request.sigma, request.effects)
     loo = describe.rms(robust.leave_one_out(everything, plain)) if request.loo else None
     before = Before(len(dataset), plain_rms, loo)
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
@@ -129,7 +129,7 @@ def screen(prep):
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
     used = dataset.subset(mask)
     if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
-        slips.check_centre(used, request.sigma)  # a taught centre the pose would absorb: named (exit 2)
+        slips.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)
     return Screened(before, mask, list(excluded), used, tuple(warnings))
 
 

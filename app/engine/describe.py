@@ -194,24 +194,18 @@ def with_effects(final, base):
 
 
 def _choose_joints(final, prob, structure):
-    """With ``joint_offsets``: the joints these poses separate from the sensor pose and the centre
-    (:func:`handeye.model.extended.robot_joints` at a fit without the robot effect); the others are
-    said in a warning; none: CalibrationInputError."""
-    from handeye.model import effects as catalogue
-
-    robot = [n for n in structure.data_effects if catalogue.get(n).KIND == "robot"]
-    if not robot:
-        return
-    base = dataclasses.replace(structure, data_effects=tuple(n for n in structure.data_effects if n not in robot))
-    with np.errstate(all="ignore"):
-        fit = prob.fit(base, final.mask, prob.point(base, final.fit.sensor, final.fit.centre))
-    left_out = extended.robot_joints(prob, base, fit, final.mask)
-    if not prob.joint_free:
-        raise CalibrationInputError(f"{final.dataset.path / 'measurements.csv'}: --effects joint_offsets: these poses "
-                                    "separate no joint's offset from the sensor pose and the sphere centre")
-    if left_out:
-        final.warnings.append("joint_offsets: " + "; ".join(f"{j} not estimated (absorbed by {', '.join(who)})"
-                                                            for j, who in left_out.items()))
+    """With robot effects (``joint_offsets``, ``link_lengths``, ``joint_compliance``): the
+    parameters these poses separate from the sensor pose, the centre and the effects before it
+    (:func:`handeye.model.extended.gate_robot_effects`); the others are said in a warning; an
+    effect with none: CalibrationInputError."""
+    left = extended.gate_robot_effects(prob, structure, final.mask, final.fit.sensor, final.fit.centre)
+    for name, left_out in left.items():
+        if not prob.robot_free[name]:
+            raise CalibrationInputError(f"{final.dataset.path / 'measurements.csv'}: --effects {name}: these poses "
+                                        "separate none of its parameters from the sensor pose and the sphere centre")
+        if left_out:
+            final.warnings.append(f"{name}: " + "; ".join(f"{j} not estimated (absorbed by {', '.join(who)})"
+                                                          for j, who in left_out.items()))
 
 
 def _fit_with_effects(final, prob, structure):

@@ -46,7 +46,7 @@ from handeye.model.extended import (
     Structure,
     candidate_columns,
     gate,
-    robot_joints,
+    robot_free,
     score_test,
 )
 from handeye.model.pose import pose_from_transform, transform_from_pose
@@ -197,9 +197,9 @@ def _search(run, structure, fit):
             if name in structure.data_effects or (name == "sphere_center" and structure.centre):
                 continue
             if effects.get(name).KIND == "robot":
-                for joint, who in robot_joints(prob, structure, fit, mask).items():
-                    absorbed[f"{name}.{joint}"] = who
-                if not prob.joint_free:
+                for param, who in robot_free(prob, structure, fit, mask, name).items():
+                    absorbed[f"{name}.{param}"] = who
+                if not prob.robot_free[name]:
                     continue
             cols = candidate_columns(prob, structure, fit, mask, name)
             if not np.all(np.isfinite(cols)):

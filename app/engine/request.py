@@ -40,7 +40,7 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
-EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center", "joint_offsets")
+EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center", "joint_offsets", "link_lengths", "joint_compliance")
 
 
 def fingerprint(dataset):
@@ -237,12 +237,13 @@ def _effects(effects, unknowns, model):
 
 def _robot_effects_possible(effects, dataset):
     """Raise CalibrationInputError when a robot effect is asked of a dataset that cannot show it."""
-    from handeye.model.effects import joint_offsets
+    from handeye.model import effects as catalogue
 
-    if "joint_offsets" in effects and not joint_offsets.available(dataset):
-        raise CalibrationInputError(
-            f"--effects joint_offsets needs the joint angles j1..j6 in {dataset.path / 'measurements.csv'} with "
-            f"[robot] model in {dataset.path / 'setup.toml'}, and the sensor on the flange with the sphere fixed")
+    for name in (n for n in effects if catalogue.get(n).KIND == "robot"):
+        if not catalogue.get(name).available(dataset):
+            raise CalibrationInputError(
+                f"--effects {name} needs the joint angles j1..j6 in {dataset.path / 'measurements.csv'} with "
+                f"[robot] model in {dataset.path / 'setup.toml'}, and the sensor on the flange with the sphere fixed")
 
 
 def enough(dataset, unknowns):

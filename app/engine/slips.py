@@ -368,7 +368,28 @@ def check_equator(dataset, unknowns="sensor"):
         "its centre (handeye plan, with a --margin at least as large as the nominal pose's error)")
 
 
-def check_centre(dataset, sigma=None):
+def _effects_keep_centre(dataset, effects, given, sigma):
+    """Whether the calibrated ``effects`` (``--effects``) explain the misfit with the given centre:
+    the extended model with it fits within the stated noise (chi-square at :data:`P_SUSPECT`), and
+    freeing the centre beside the effects gains nothing significant (F test at :data:`P_SLIP`).
+    A robot's length error or gravity sag can look like a centre offset to the centre model."""
+    from handeye.model import extended
+    from handeye.model.statistics import chi2_survival, f_survival
+
+    prob, mask = extended.Samples(dataset, sigma), np.ones(len(dataset), bool)
+    held = extended.Structure(centre=False, data_effects=tuple(effects))
+    extended.gate_robot_effects(prob, held, mask, given.sensor2flange)
+    free = dataclasses.replace(held, centre=True)
+    with np.errstate(all="ignore"):
+        a = prob.fit(held, mask, prob.point(held, given.sensor2flange))
+        b = prob.fit(free, mask, prob.point(free, prob.transform(a.x), dataset.sphere_centre), a.params)
+    if not (np.isfinite(a.ssr) and np.isfinite(b.ssr)) or a.m - a.p <= 0 or b.m - b.p <= 0:
+        return False
+    f = (a.ssr - b.ssr) / 3 / max(b.ssr / (b.m - b.p), 1e-300)
+    return chi2_survival(a.ssr / prob.sigma**2, a.m - a.p) >= P_SUSPECT and (f <= 0 or f_survival(f, 3, b.m - b.p) >= P_SLIP)
+
+
+def check_centre(dataset, sigma=None, effects=()):
     """Raise :class:`CalibrationInputError` when the given ``[sphere] center`` contradicts the
     data beyond the pose's own uncertainty.
 
@@ -382,7 +403,9 @@ def check_centre(dataset, sigma=None):
     :data:`SIDE_MOVE_SD` of its standard deviations (Mahalanobis distance). Where freeing the
     centre leaves the residuals above the stated noise, other effects are at work
     (thesis-real: 5.6 mm falls to 0.56 mm, still ten times the stated 0.05 mm), and the
-    warnings point to ``handeye diagnose``, which names them.
+    warnings point to ``handeye diagnose``, which names them. With ``effects`` (``--effects``) the
+    centre is not named when the model with them explains the misfit at the given centre
+    (:func:`_effects_keep_centre`).
     """
     from handeye.model import global_fit
     from handeye.model.rotation import transform_distance
@@ -407,7 +430,7 @@ def check_centre(dataset, sigma=None):
     if chi2_survival(2 * free.cost / sigma**2, dof) < P_SUSPECT:
         return  # the centre does not explain the misfit alone: other effects, for diagnose to name
     moved = _mahalanobis(dataset, given, free)
-    if moved <= SIDE_MOVE_SD:
+    if moved <= SIDE_MOVE_SD or (effects and _effects_keep_centre(dataset, effects, given, sigma)):
         return
     dt, dr = transform_distance(given.sensor2flange, free.sensor2flange)
     shift = free.centre - dataset.sphere_centre

@@ -132,10 +132,36 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
     return ExportResult(format, text, None if out is None else str(out))
 
 
+def _robot_values(doc, model):
+    """The calibrated robot effects of a saved calibration ``doc`` as full parameter vectors of
+    ``model`` (:func:`handeye.model.robot_errors.corrected_model`), and what they are, said (the
+    gravity gains, which no kinematic model holds, as a note)."""
+    from handeye.model import robot_errors
+
+    values, said = {}, []
+    for effect in doc.get("effects") or []:
+        name = effect.get("name") if isinstance(effect, dict) else None
+        if name not in robot_errors.NAMES:
+            continue
+        names, unit = robot_errors.param_names(model, name), {"joint_offsets": "deg", "link_lengths": "mm"}.get(name)
+        full = np.zeros(len(names))
+        for param, value in (effect.get("parameters") or {}).items():
+            if param in names and isinstance(value, (int, float)) and np.isfinite(value):
+                full[names.index(param)] = float(value)
+        if name == "joint_compliance":
+            said.append("gravity deflection not in the model (it depends on the pose): "
+                        + ", ".join(f"{p} {v:+.5f} deg/m" for p, v in zip(names, full) if v))
+            continue
+        values[name] = full
+        said.append(f"{name} " + ", ".join(f"{p} {v:+.5f} {unit}" for p, v in zip(names, full) if v))
+    return values, said
+
+
 def robot_text(calibration, format, force=False):
-    """The robot's nominal model corrected by the calibrated ``joint_offsets`` of a saved calibration,
-    as the model TOML (``robot-toml``) or a URDF (``robot-urdf``); :mod:`handeye.model.robots`."""
-    from handeye.model import robots
+    """The robot's nominal model corrected by the calibrated ``joint_offsets`` and ``link_lengths``
+    of a saved calibration, as the model TOML (``robot-toml``) or a URDF (``robot-urdf``);
+    :mod:`handeye.model.robots`. ``joint_compliance`` depends on the pose: said in a comment."""
+    from handeye.model import robot_errors, robots
 
     if not isinstance(calibration, (str, pathlib.Path)):
         raise RequestError(f"--format {format}: give a saved calibration file (calibrate --effects joint_offsets --out)")
@@ -145,15 +171,10 @@ def robot_text(calibration, format, force=False):
         raise RequestError(f"{calibration}: no robot_model (calibrate a dataset with j1..j6 and [robot] model)")
     if doc.get("converged") is not True and not force:
         raise RequestError(f"{calibration}: the calibration did not converge; handeye will not use it (--force)")
-    offsets = np.zeros(6)
-    for effect in doc.get("effects") or []:
-        if isinstance(effect, dict) and effect.get("name") == "joint_offsets":
-            for joint, value in (effect.get("parameters") or {}).items():
-                if joint in robots.JOINTS and isinstance(value, (int, float)) and np.isfinite(value):
-                    offsets[robots.JOINTS.index(joint)] = float(value)
-    model = robots.load(spec).corrected(offsets)
-    note = (f"{model.name} corrected by the joint offsets of {calibration} "
-            f"({', '.join(f'j{k + 1} {v:+.5f} deg' for k, v in enumerate(offsets) if v) or 'none'})")
+    nominal = robots.load(spec)
+    values, said = _robot_values(doc, nominal)
+    model = robot_errors.corrected_model(nominal, values)
+    note = f"{model.name} corrected by the robot effects of {calibration} ({'; '.join(said) or 'none'})"
     if format == "robot-toml":
         return robots.to_toml(model, note)
     head, rest = robots.to_urdf(model, "".join(c if c.isalnum() else "_" for c in model.name).lower()).split("\n", 1)

@@ -8,9 +8,11 @@ Every effect's parameters are zero when it is absent, so models nest. Three kind
 * ``centre`` -- ``sphere_center``: the true centre is the setup's plus (dx, dy, dz); estimated by
   making the centre an unknown.
 * ``discrete`` -- ``sign_flip`` and ``outlier``: per-sample, decided by the final outlier test.
-* ``robot`` -- ``joint_offsets``: the robot did not reach the pose it reported; the flange pose
-  of each sample is corrected (:mod:`handeye.model.effects.joint_offsets`), with the joints the
-  poses can separate from the sensor pose and the sphere centre only.
+* ``robot`` -- ``joint_offsets``, ``link_lengths``, ``joint_compliance``: the robot did not reach
+  the pose it reported; the flange pose of each sample is corrected through the robot's nominal
+  kinematics (:mod:`handeye.model.robot_errors`), with only the parameters the poses can separate
+  from the sensor pose and the sphere centre; their names depend on the robot model
+  (``params(model)``).
 * ``structural`` -- effects the poses can never separate from the sensor pose and the sphere
   centre (a constant error of the robot base frame or of the flange frame, a laser-plane
   offset or tilt). They are in the catalogue to be *reported* as absorbed, never named.
@@ -29,7 +31,7 @@ import numpy as np
 from handeye.model import codegen
 
 MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier",
-           "base_frame", "flange_frame", "laser_plane", "joint_offsets")
+           "base_frame", "flange_frame", "laser_plane", "joint_offsets", "link_lengths", "joint_compliance")
 
 
 @functools.lru_cache(maxsize=None)

@@ -16,6 +16,11 @@ PARAMS = ("j1", "j2", "j3", "j4", "j5", "j6")
 DOC = "zero offsets of the robot's joints (degrees)"
 
 
+def params(model):
+    """The parameter names on ``model`` (every model has six joints)."""
+    return PARAMS
+
+
 def available(dataset):
     """Whether a dataset can show this effect: joint angles, a model, the sensor on the flange
     and the sphere fixed (the chain's carrier motions are then the flange poses)."""

@@ -1,0 +1,169 @@
+"""The robot's own errors beyond joint offsets (model/robot_errors.py; effects ``link_lengths`` and
+``joint_compliance``): exact derivatives, the effects' geometry checked by hand, simulate writes
+them, diagnose names them with their values on the right parameters, calibrate --effects reports
+them with 1 sd, export folds lengths into the model, and a clean robot names none."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app import api
+from handeye.app.cli import EXIT_BAD_INPUT, main
+from handeye.model import robot_errors, robots
+
+
+def _values(model, rng, scale=0.3):
+    return {n: rng.normal(0, scale, len(robot_errors.param_names(model, n))) for n in robot_errors.NAMES}
+
+
+@pytest.mark.parametrize("name", robots.builtin_names())
+def test_derivatives_of_every_robot_error_against_central_differences(name):
+    """Each parameter's exact derivative (product rule) against central differences of the
+    perturbed forward kinematics, with every error non-zero at once (1e-6 relative: differences of
+    positions of ~1e3 mm carry ~1e-8 of rounding)."""
+    model, rng = robots.load(name), np.random.default_rng(0)
+    q, values = rng.uniform(-80, 80, (5, 6)), _values(model, rng)
+    _, derivatives = robot_errors.perturbed(model, q, values)
+    for effect, full in values.items():
+        for k in range(len(full)):
+            step = np.zeros_like(full)
+            step[k] = 1e-5
+            up = robot_errors.perturbed(model, q, values | {effect: full + step})[0]
+            down = robot_errors.perturbed(model, q, values | {effect: full - step})[0]
+            numeric = (up - down) / 2e-5
+            assert np.abs(numeric - derivatives[effect][:, k]).max() < 1e-6 * max(1.0, np.abs(numeric).max()), (effect, k)
+
+
+@pytest.mark.parametrize("name", robots.builtin_names())
+def test_zero_errors_are_the_nominal_model(name):
+    model = robots.load(name)
+    q = np.random.default_rng(1).uniform(-90, 90, (4, 6))
+    zero = {n: np.zeros(len(robot_errors.param_names(model, n))) for n in robot_errors.NAMES}
+    np.testing.assert_allclose(robot_errors.perturbed(model, q, zero)[0], model.flange2base(q), atol=1e-9)
+    np.testing.assert_allclose(robots.offset_derivatives(model, q, np.zeros(6))[0], model.flange2base(q), atol=1e-9)
+
+
+def test_length_names_are_the_data_sheets_nonzero_lengths():
+    assert robot_errors.param_names(robots.load("kr60ha"), "link_lengths") == (
+        "j2_x", "j2_z", "j3_x", "j4_x", "j4_z", "j5_x", "j6_x")
+    assert robot_errors.param_names(robots.load("ur10e"), "link_lengths") == ("d1", "a2", "a3", "d4", "d5", "d6")
+
+
+def test_a_length_error_moves_the_flange_by_hand():
+    """KR 60 HA at A1 = 0, A2 = -90 (upper arm up), A3 = 90: the 850 mm arm j3_x points up (base
+    +z), so +1 mm of it lifts the flange 1 mm; UR10e at zero: a2 (-612.7 mm) lies along base x, so
+    +1 mm of a2 moves the flange +1 mm in x."""
+    kr = robots.load("kr60ha")
+    q = np.array([[0.0, -90.0, 90.0, 0.0, 0.0, 0.0]])
+    names = robot_errors.param_names(kr, "link_lengths")
+    err = np.zeros(len(names))
+    err[names.index("j3_x")] = 1.0
+    moved = robot_errors.perturbed(kr, q, {"link_lengths": err})[0] - kr.flange2base(q)
+    np.testing.assert_allclose(moved[0, :3, 3], [0, 0, 1], atol=1e-9)
+    ur = robots.load("ur10e")
+    names = robot_errors.param_names(ur, "link_lengths")
+    err = np.zeros(len(names))
+    err[names.index("a2")] = 1.0
+    moved = robot_errors.perturbed(ur, np.zeros((1, 6)), {"link_lengths": err})[0] - ur.flange2base(np.zeros((1, 6)))
+    np.testing.assert_allclose(moved[0, :3, 3], [1, 0, 0], atol=1e-9)
+
+
+def test_gravity_lever_and_sag_by_hand():
+    """KR 60 HA with A1 = 0: A2 turns about base y through the shoulder (350, 0, 815), so the lever
+    of the flange about it is its x beyond the shoulder, (p_x - 350) / 1000 m, whatever A2..A6 are
+    (zero when the flange is straight above or below the shoulder). Stretched forward (all zero) a
+    positive gain sags the flange: down by reach * sin(gain * lever), nothing sideways."""
+    kr = robots.load("kr60ha")
+    q = np.random.default_rng(2).uniform(-60, 60, (20, 6))
+    q[:, 0] = 0.0
+    np.testing.assert_allclose(robot_errors.levers(kr, q)[:, 0], (kr.flange2base(q)[:, 0, 3] - 350.0) / 1000.0, atol=1e-12)
+    stretched = np.zeros((1, 6))
+    lever = robot_errors.levers(kr, stretched)[0, 0]
+    reach = kr.flange2base(stretched)[0, 0, 3] - 350.0
+    sag = robot_errors.perturbed(kr, stretched, {"joint_compliance": np.array([0.02, 0.0])})[0] - kr.flange2base(stretched)
+    assert lever > 1.5 and abs(sag[0, 1, 3]) < 1e-9
+    assert sag[0, 2, 3] == pytest.approx(-reach * np.sin(np.radians(0.02 * lever)), rel=1e-3) and sag[0, 2, 3] < -0.5
+
+
+def _cell(folder, robot, effects, seed=0):
+    api.simulate(folder, robot=robot, effect=list(effects), seed=seed)
+    return folder
+
+
+def _within(effect, truth, sd=3.0):
+    """Every estimated parameter within ``sd`` of its truth (0 where none was planted)."""
+    for param, value in effect.parameters.items():
+        assert abs(value - truth.get(param, 0.0)) < sd * effect.std[param], (effect.name, param, value, truth)
+
+
+def test_diagnose_names_link_lengths_with_their_values(tmp_path):
+    """KR 60 HA, the 850 mm upper arm 0.4 mm long and the 145 mm elbow offset 0.3 mm short: named
+    on those (3 sd); j2_z (absorbed by the centre's z), j6_x (along the last axis: the sensor's
+    translation) and j5_x (along A4's axis, as j4_x) said to be absorbed; the gap shrinks to the
+    noise."""
+    d = handeye.diagnose(_cell(tmp_path / "ll", "kr60ha", ["link_lengths=j3_x:0.4,j4_z:-0.3"], seed=1))
+    named = {e.name: e for e in d.effects}
+    assert list(named) == ["link_lengths"], list(named)
+    assert {"j3_x", "j4_z"} <= set(named["link_lengths"].parameters)
+    _within(named["link_lengths"], {"j3_x": 0.4, "j4_z": -0.3})
+    assert {"link_lengths.j2_z", "link_lengths.j6_x", "link_lengths.j5_x"} <= set(d.not_identifiable)
+    assert d.chi2_dof_after < 2.0 and d.chi2_dof_before > 2.0
+
+
+def test_diagnose_names_joint_compliance_with_its_gains(tmp_path):
+    d = handeye.diagnose(_cell(tmp_path / "jc", "kr60ha", ["joint_compliance=j2:0.03,j3:0.02"], seed=2))
+    named = {e.name: e for e in d.effects}
+    assert list(named) == ["joint_compliance"], list(named)
+    _within(named["joint_compliance"], {"j2": 0.03, "j3": 0.02})
+    assert d.chi2_dof_after < 2.0 < 10 * 2.0 < d.chi2_dof_before
+
+
+def test_calibrate_reports_both_with_1_sd_and_export_folds_the_lengths_in(tmp_path):
+    """UR10e with a2 0.3 mm long and a shoulder sag of 0.03 deg/m: the centre model alone would name
+    the sphere centre (the sag looks like it), --effects with both keeps the given centre, reports
+    the values within 3 sd and fits to the noise; the exported model TOML is the nominal one with
+    the calibrated lengths (its FK equals the perturbed FK), the sag said in its comment."""
+    folder = _cell(tmp_path / "ur", "ur10e", ["joint_compliance=j2:0.03", "link_lengths=a2:0.3"], seed=3)
+    res = handeye.calibrate(folder, effects="joint_compliance,link_lengths", out=tmp_path / "cal.json")
+    assert res.converged and [e.name for e in res.effects] == ["joint_compliance", "link_lengths"]
+    named = {e.name: e for e in res.effects}
+    _within(named["joint_compliance"], {"j2": 0.03})
+    _within(named["link_lengths"], {"a2": 0.3})
+    assert res.rms_mm < 0.06 and any("d1 not estimated" in w for w in res.warnings)
+    doc = json.loads((tmp_path / "cal.json").read_text())
+    text = handeye.export(tmp_path / "cal.json", format="robot-toml").text
+    assert "gravity deflection not in the model" in text and "a2 +0.3" in text
+    (tmp_path / "model.toml").write_text(text)
+    ur = robots.load("ur10e")
+    names = robot_errors.param_names(ur, "link_lengths")
+    lengths = [e for e in doc["effects"] if e["name"] == "link_lengths"][0]["parameters"]
+    full = np.array([lengths.get(n, 0.0) for n in names])
+    q = np.random.default_rng(4).uniform(-120, 120, (5, 6))
+    np.testing.assert_allclose(robots.load(tmp_path / "model.toml").flange2base(q),
+                               robot_errors.perturbed(ur, q, {"link_lengths": full})[0], atol=1e-6)
+
+
+def test_a_clean_robot_names_no_robot_effect(tmp_path):
+    for seed, robot in ((5, "kr60ha"), (6, "ur10e")):
+        d = handeye.diagnose(_cell(tmp_path / f"clean{seed}", robot, [], seed=seed))
+        assert not [e.name for e in d.effects if e.name in robot_errors.NAMES], (robot, [e.name for e in d.effects])
+
+
+def test_simulate_refuses_unknown_parameters_and_robot_effects_without_a_robot(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path / "a"), "--robot", "ur10e", "--effect", "link_lengths=j3_x:0.2"]) \
+        == EXIT_BAD_INPUT
+    assert "j3_x not a parameter of the UR10e" in capsys.readouterr().err
+    assert main(["simulate", "--out", str(tmp_path / "b"), "--effect", "joint_compliance=j2:0.02"]) == EXIT_BAD_INPUT
+    assert "joint_compliance needs --robot" in capsys.readouterr().err
+    assert main(["simulate", "--out", str(tmp_path / "c"), "--robot", "kr60ha", "--effect", "link_lengths=j3_x:50"]) \
+        == EXIT_BAD_INPUT
+    assert "|VALUE| <= 20" in capsys.readouterr().err
+
+
+def test_the_truth_of_robot_errors_reads_back(tmp_path):
+    folder = _cell(tmp_path / "t", "kr60ha", ["link_lengths=j3_x:0.4", "joint_compliance=j2:0.01"], seed=7)
+    truth = handeye.load_dataset(folder).truth
+    assert truth["link_lengths"] == {"j3_x": 0.4} and truth["joint_compliance"] == {"j2": 0.01}
