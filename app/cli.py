@@ -45,7 +45,8 @@ class _Parser(argparse.ArgumentParser):
 
 def _plan_args(sub):
     plan = sub.add_parser("plan", help="choose the N most informative poses (D-optimal) from candidates")
-    plan.add_argument("--n", type=int, default=12, help="number of poses to choose (default 12)")
+    plan.add_argument("--n", type=int, default=None,
+                      help="number of poses to choose (default 12; with a robot the number its --target takes)")
     plan.add_argument("--candidates", default=None, metavar="CSV",
                       help="candidate flange poses (a pose list in any convention, told by its header); default: the "
                            "thesis strategy's 36 orientations x 3 cuts scaled to the sphere (108 poses)")
@@ -67,6 +68,18 @@ def _plan_args(sub):
     plan.add_argument("--sphere-mount", default="world", choices=["world", "flange", "positioner"],
                       help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list "
                            "carries one column per axis (degrees) after the pose's, and the plan chooses axis angles")
+    plan.add_argument("--robot", default=None, metavar="MODEL",
+                      help="plan for the robot's own errors too (default with a --dataset that has [robot] model): a "
+                           "built-in nominal model (kr60ha, ur5e, ur10e, irb4600, m20ia) or a model file; poses reached "
+                           "by its inverse kinematics, the other wrist a candidate of its own, j1..j6 in --out")
+    plan.add_argument("--effects", default=None, metavar="NAME[,NAME]",
+                      help="with a robot: joint_offsets (default), link_lengths, joint_compliance")
+    plan.add_argument("--target", default=None, metavar="EFFECT=SD[,EFFECT=SD]",
+                      help="with a robot: the 1-sd to reach, which sets how many poses (default joint_offsets=0.01 deg, "
+                           "link_lengths=0.05 mm, joint_compliance=0.005 deg/m)")
+    plan.add_argument("--sigma", type=float, default=None, metavar="MM",
+                      help="with a robot: stated noise per component of a sphere centre (default [noise] centre_mm, "
+                           "else 0.05)")
     plan.add_argument("--json", action="store_true")
 
 
@@ -278,9 +291,10 @@ def _plan(args):
 
     result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
                       margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
-                      sphere_mount=args.sphere_mount)
+                      sphere_mount=args.sphere_mount, robot=args.robot, effects=args.effects, target=args.target,
+                      sigma=args.sigma)
     print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK
+    return EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
 
 
 def _diagnose(args):

@@ -178,13 +178,11 @@ def _simulated_robot(robot, cell, setup, centre_given, effects):
         if robot_effect:
             raise RequestError(f"--effect {robot_effect} needs --robot MODEL (the robot it describes)")
         return None, setup
-    if not cell.default:
-        raise RequestError("--robot applies to the sensor on the flange and the sphere in the world")
     try:
         arm = simulate_robot.Robot.load(robot)
     except DatasetError as exc:
         raise RequestError(f"--robot {robot}: {exc}") from None
-    if not centre_given and str(robot) in simulate_robot.CENTRES:
+    if not centre_given and cell.default and str(robot) in simulate_robot.CENTRES:
         setup = dataclasses.replace(setup, sphere_centre=simulate_robot.CENTRES[str(robot)])
     return arm, setup
 
@@ -238,9 +236,15 @@ class PlanResult(ResultProtocol):
         Their angles at each pose, degrees (columns of :meth:`pose_list` after the pose's).
     mounts : tuple of str
         (sensor mount, sphere mount) of the planned cell.
+    robot : handeye.model.planning_robot.RobotPlan or None
+        With a robot (``--robot``): the joint angles of each pose, the predicted sd of the sensor,
+        the centre and every robot parameter at the stated noise (``predicted_sd`` is then this
+        model's), the parameters not identifiable and the number of poses the targets take.
     """
 
     caption = 'handeye plan'
+    #: Joint-angle columns of the pose list with a robot (degrees).
+    joint_columns = ("j1", "j2", "j3", "j4", "j5", "j6")
 
     n: int
     ids: list
@@ -256,6 +260,12 @@ class PlanResult(ResultProtocol):
     axis_names: tuple = ()
     axis_angles: np.ndarray | None = None
     mounts: tuple = ("flange", "world")
+    robot: object | None = None
+
+    @property
+    def joints(self):
+        """Joint angles j1..j6 (n, 6), degrees, of each pose with a robot; else None."""
+        return None if self.robot is None else self.robot.joints
 
     def poses_in_convention(self):
         from handeye.model import conventions
@@ -270,23 +280,32 @@ class PlanResult(ResultProtocol):
                 "predicted_sd": {"sensor_translation_mm": np.asarray(self.predicted_sd[:3]).tolist(),
                                  "sensor_rotation_deg": np.asarray(self.predicted_sd[3:6]).tolist()},
                 "skipped": [{"id": i, "reason": r} for i, r in self.skipped],
-                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)",
+                "noise_model": "simulator defaults: robot 0.025 mm, profile points 0.01 mm (model.simulate)" if
+                self.robot is None else f"centre model: {self.robot.sigma_mm:g} mm per component of a sphere centre, "
+                                        "sensor pose, sphere centre and robot parameters estimated",
                 "poses_as": {"convention": self.convention, "columns": list(conventions.columns(self.convention)),
                              "poses": np.asarray(self.poses_in_convention()).tolist()},
                 "scored": self.scored, "margin": list(self.margin), "warnings": list(self.warnings)} | (
             {} if self.mounts == ("flange", "world") else
             {"sensor_mount": self.mounts[0], "sphere_mount": self.mounts[1], "axis_names": list(self.axis_names),
-             "axis_angles": None if self.axis_angles is None else np.asarray(self.axis_angles).tolist()})
+             "axis_angles": None if self.axis_angles is None else np.asarray(self.axis_angles).tolist()}) | (
+            {} if self.robot is None else
+            {"joint_names": list(self.joint_columns), "joints": np.asarray(self.joints).tolist(), "robot": self.robot.to_dict()})
 
     def pose_list(self):
-        """The poses as a pose-list CSV in :attr:`convention`, ready for the robot."""
+        """The poses as a pose-list CSV in :attr:`convention`, ready for the robot (with a robot,
+        followed by their joint angles j1..j6, degrees)."""
         from handeye.model.dataset import pose_list_text
 
+        if self.robot is not None:
+            return pose_list_text(self.ids, self.poses, self.convention, self.joint_columns, self.joints)
         return pose_list_text(self.ids, self.poses, self.convention, self.axis_names, self.axis_angles)
 
     def summary(self):
         from handeye.model import conventions
 
+        if self.robot is not None:
+            return self._robot_summary()
         if self.scored:
             head = f"scored {self.n} given poses (log det {self.logdet:.2f})"
         else:
@@ -304,6 +323,38 @@ class PlanResult(ResultProtocol):
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def _robot_summary(self):
+        """:meth:`summary` with a robot: the plan's size and why, every sd, the joints of each pose."""
+        from handeye.model import conventions
+        from handeye.model.planning_robot import UNITS, absorbed_why
+
+        r = self.robot
+        if self.scored:
+            head = f"scored {self.n} given poses for the {r.model}'s {', '.join(r.effects)} (log det {self.logdet:.2f})"
+        else:
+            head = (f"chose {self.n} of {self.usable} usable candidate poses for the {r.model}'s {', '.join(r.effects)} "
+                    f"(D-optimal, log det {self.logdet:.2f}; {r.flips} in the other wrist, {r.unreachable} unreachable)")
+        targets = ", ".join(f"{e} {v:g} {UNITS[e]}" for e, v in r.targets.items())
+        if r.n_needed is None:
+            needed = f"no plan of these candidates reaches the targets ({targets}; full rank from {r.n_min} poses)"
+        else:
+            needed = (f"{r.n_needed} (the targets {targets} alone: {r.n_targets}; full rank: {r.n_min}"
+                      + ("; a residual that can test the fit: " + str(r.n_needed) if r.n_needed > r.n_targets else "")
+                      + ")")
+        lines = [head, f"poses needed: {needed}; these {self.n} {'meet' if r.reached else 'miss'} the targets",
+                 f"predicted sd (Cramer-Rao bound, {r.sigma_mm:g} mm per centre component): translation mm "
+                 + " ".join(f"{v:.4f}" for v in r.sd[:3]) + "; rotation deg " + " ".join(f"{v:.4f}" for v in r.sd[3:6])
+                 + "; sphere centre mm " + " ".join(f"{v:.4f}" for v in r.sd[6:9])]
+        lines += [f"  {e} sd {UNITS[e]}: " + " ".join(f"{p} {v:.4g}" for p, v in sds.items())
+                  for e, sds in r.robot_sd().items() if sds]
+        lines += [f"  not identifiable: {p} (absorbed by {', '.join(w)}: {absorbed_why(w)})" for p, w in r.dropped.items()]
+        lines.append(f"poses ({self.convention}: {','.join(conventions.columns(self.convention) + self.joint_columns)}):")
+        lines += [f"  {i:>16} " + " ".join(f"{v:10.4f}" for v in (*p, *q))
+                  for i, p, q in zip(self.ids, self.poses_in_convention(), self.joints)]
+        lines += [f"  skipped {i}: {why}" for i, why in self.skipped]
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
 
 def _floats(text, option, count):
     values = _pose_text(text, option).split(",")
@@ -316,17 +367,18 @@ def _floats(text, option, count):
     return out
 
 
-def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
-         sensor_mount="flange", sphere_mount="world"):
+def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
+         sensor_mount="flange", sphere_mount="world", robot=None, effects=None, target=None, sigma=None):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
     Parameters
     ----------
-    n : int
-        Number of poses to choose.
+    n : int, optional
+        Number of poses to choose; default 12, with a robot the number its ``target`` takes.
     candidates : str or pathlib.Path, optional
-        Candidate flange poses (a pose list in any convention, told by its header); default
-        the thesis strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
+        Candidate flange poses (a pose list in any convention, told by its header; with a robot
+        optionally followed by j1..j6, degrees: those configurations); default the thesis
+        strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
     dataset : str, pathlib.Path or Dataset, optional
         Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
         robot convention from it (only its ``setup.toml`` is read: a cell can be planned before
@@ -348,17 +400,32 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
         lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
         (degrees), and each default candidate has its own axis angles.
+    robot : str, optional
+        Plan for the robot's own errors too (:mod:`handeye.model.planning_robot`): a built-in
+        nominal model or a model file (default the dataset's ``[robot] model``, which turns this
+        on as well). Each candidate is reached by the nominal inverse kinematics (unreachable ones
+        skipped), the other wrist offered as a candidate of its own; the parameters no candidate
+        separates from the sensor pose and the sphere centre are named and left out; ``out``
+        gets j1..j6. Without a dataset the sphere is at :data:`handeye.model.simulate_robot.CENTRES`.
+    effects : str or sequence of str, optional
+        With a robot: ``joint_offsets`` (default), ``link_lengths``, ``joint_compliance``.
+    target : str or dict, optional
+        With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach
+        (default 0.01 deg, 0.05 mm, 0.005 deg/m): the number of poses it takes is the plan's ``n``.
+    sigma : float, optional
+        With a robot: the stated noise per component of a sphere centre, mm (default the
+        dataset's ``[noise] centre_mm``, else 0.05).
 
     Returns
     -------
     PlanResult
     """
     from handeye.app.files import check_output_path, write_text_atomically
-    from handeye.model import planning
+    from handeye.model import planning, planning_robot, simulate_robot
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
-    n = _integer(n, "--n", 1)
+    n = None if n is None else _integer(n, "--n", 1)
 
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:
@@ -384,6 +451,25 @@ def plan(*, n=12, candidates=None, dataset=None, out=None, max_tilt=90.0, margin
         if dataset is not None:
             inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
         check_output_path(out, "--out", inputs=inputs)
+    arm, stated = planning_robot.cell_robot(robot, d if dataset is not None else None)
+    if arm is not None:
+        if not mounts.default:
+            raise RequestError("--robot plans the sensor on the flange and the sphere in the world, not these mounts")
+        if dataset is None:
+            centre = np.asarray(simulate_robot.CENTRES.get(str(robot), centre), float)
+        rp = planning_robot.request(
+            setup, centre, arm, effects, target, n, stated if sigma is None else _number(sigma, "--sigma", 0.0, 1e3, True),
+            score if score is not None else candidates, score is not None,
+            None if workspace is None else _floats(workspace, "--workspace", 6), margin)
+        result = PlanResult(len(rp.ids), list(rp.ids), rp.poses, rp.logdet, rp.sd[:6], rp.skipped, rp.usable,
+                            convention, score is not None, margin, rp.warnings, robot=rp)
+        if out is not None:
+            write_text_atomically(out, result.pose_list(), option="--out")
+        return result
+    if any(v is not None for v in (effects, target, sigma)):
+        raise RequestError("--effects, --target and --sigma plan for a robot's own errors: give --robot MODEL (or a "
+                           "--dataset whose setup.toml has [robot] model)")
+    n = 12 if n is None else n
     cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
     if score is not None:
         ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)

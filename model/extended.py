@@ -111,22 +111,34 @@ class Samples:
         return list(self.robot_free.get(name, range(len(effects.get(name).params(self.d.robot_model)))))
 
     def robot_motion(self, params, rows=None):
-        """The flange poses corrected by the robot effects ``params`` (name -> the estimated
-        parameters) (N, 4, 4), and per effect their derivatives (N, k, 4, 4) with respect to its
-        estimated parameters: ``F_rep T(q)^-1 T*(q)`` (:mod:`handeye.model.robot_errors`)."""
+        """The carrier motions with the flange poses corrected by the robot effects ``params`` (name
+        -> the estimated parameters) (N, 4, 4), and per effect their derivatives (N, k, 4, 4) with
+        respect to its estimated parameters. The flange is ``F' = F_rep T(q)^-1 T*(q)``
+        (:mod:`handeye.model.robot_errors`); the motion is ``F'`` (sensor on the flange), its
+        inverse (sensor fixed, sphere on the flange: ``d inv(F') = -inv(F') dF' inv(F')``) or
+        ``inv(table) F'`` (sphere on a positioner), as :func:`handeye.model.mounts.motions`."""
+        from handeye.model.mounts import inverse_transforms, table2base
         from handeye.model.robot_errors import perturbed
 
-        model = self.d.robot_model
+        model, mounts = self.d.robot_model, self.d.mounts
         values = {}
         for name, p in params.items():
             full = np.zeros(len(effects.get(name).params(model)))
             full[self._free(name)] = p
             values[name] = full
-        joints = self.d.joints if rows is None else self.d.joints[rows]
-        f2b = self.f2b if rows is None else self.f2b[rows]
+        take = (lambda a: a) if rows is None else (lambda a: a[rows])
+        joints, flange = take(self.d.joints), take(self.d.flange2base())
         fk, derivatives = perturbed(model, joints, values)
-        moved = f2b @ np.linalg.inv(model.flange2base(joints))
-        return moved @ fk, {name: moved[:, None] @ d[:, self._free(name)] for name, d in derivatives.items()}
+        moved = flange @ np.linalg.inv(model.flange2base(joints))
+        corrected = moved @ fk
+        d = {name: moved[:, None] @ dfk[:, self._free(name)] for name, dfk in derivatives.items()}
+        if mounts.default:
+            return corrected, d
+        if mounts.sensor == "world":
+            inv = inverse_transforms(corrected)
+            return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
+        table = inverse_transforms(table2base(mounts.axes, take(self.d.axis_angles)))
+        return table @ corrected, {name: table[:, None] @ dm for name, dm in d.items()}
 
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
@@ -579,14 +591,29 @@ def _ranked(found):
 #: sphere centre and the parameters already chosen to be estimated (stricter than :data:`GATE`:
 #: one column).
 JOINT_GATE = 1e-2
+#: A robot parameter whose 1 sd on these samples (at the stated noise, given the sensor pose, the
+#: centre and the parameters chosen before it) exceeds this is too weakly seen to estimate: a
+#: column that passes the gate in direction may still be tiny (a last-joint offset with the sphere
+#: held on the flange axis). Units: degrees, mm, degrees per metre.
+WEAKEST = {"joint_offsets": 0.1, "link_lengths": 1.0, "joint_compliance": 0.05}
+#: How a robot effect's parameters are measured (for the messages).
+UNITS = {"joint_offsets": "deg", "link_lengths": "mm", "joint_compliance": "deg/m"}
+
+
+def _alone_sd(current, col, sigma):
+    """1 sd of one more parameter of column ``col`` (m, 1) beside the columns ``current`` (m, p)."""
+    coef, *_ = np.linalg.lstsq(current, col, rcond=None)
+    perp = float(np.linalg.norm(col - current @ coef))
+    return sigma / perp if perp > 0 else np.inf
 
 
 def robot_free(prob, structure, fit, mask, name="joint_offsets"):
     """Choose the parameters robot effect ``name`` estimates on these samples: each parameter's
     column gated against the sensor pose, the sphere centre (free or not: a first-joint offset is a
     turn of the base, which a centre given wrong looks like), the effects in ``structure`` and the
-    parameters chosen before it. Sets ``prob.robot_free[name]``; returns ``{parameter:
-    absorbers}`` of the parameters left out."""
+    parameters chosen before it, and its 1 sd at the stated noise against :data:`WEAKEST`. Sets
+    ``prob.robot_free[name]``; returns ``{parameter: absorbers}`` of the parameters left out (a
+    weak one: ``['1 sd <value> <unit>']``)."""
     prob.robot_free.pop(name, None)
     all_names = effects.get(name).params(prob.d.robot_model)
     cols = candidate_rows(prob, structure, fit, None, name)[mask]  # (m, 3, k)
@@ -601,6 +628,10 @@ def robot_free(prob, structure, fit, mask, name="joint_offsets"):
         frac, who = gate(current, col, names)
         if not np.all(np.isfinite(col)) or frac < JOINT_GATE:
             absorbed[param] = who
+            continue
+        sd = _alone_sd(current, col, prob.sigma)
+        if sd > WEAKEST[name]:
+            absorbed[param] = [f"1 sd {sd:.3g} {UNITS[name]}"]
             continue
         free.append(k)
         current = np.concatenate([current, col], axis=1)

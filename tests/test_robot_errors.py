@@ -167,3 +167,44 @@ def test_the_truth_of_robot_errors_reads_back(tmp_path):
     folder = _cell(tmp_path / "t", "kr60ha", ["link_lengths=j3_x:0.4", "joint_compliance=j2:0.01"], seed=7)
     truth = handeye.load_dataset(folder).truth
     assert truth["link_lengths"] == {"j3_x": 0.4} and truth["joint_compliance"] == {"j2": 0.01}
+
+
+def test_a_fixed_sensor_with_the_robot_holding_the_sphere_names_joint_offsets(tmp_path):
+    """Eye-to-hand: the robot's corrected flange enters inverted (d inv(F) = -inv(F) dF inv(F));
+    A2/A3 offsets named within 3 sd. A6's offset turns the sphere (on the flange axis) about
+    itself: its column passes the gate in direction but is tiny, said as too weakly seen."""
+    folder = tmp_path / "e2h"
+    api.simulate(folder, robot="kr60ha", sensor_mount="world", sphere_mount="flange",
+                 effect=["joint_offsets=j2:0.05,j3:-0.03"])
+    d = handeye.diagnose(folder)
+    named = {e.name: e for e in d.effects}
+    assert list(named) == ["joint_offsets"] and "j6" not in named["joint_offsets"].parameters
+    _within(named["joint_offsets"], {"j2": 0.05, "j3": -0.03})
+    assert any(s.startswith("joint_offsets.j6: too weakly seen here") for s in d.absorbed_explained)
+
+
+def test_robot_effects_that_explain_alike_are_said_not_chosen_silently(tmp_path):
+    """The IRB 4600 holding the sphere before a fixed sensor: every pose near one place, so A2/A3
+    offsets and length errors with a shoulder sag explain the data alike. diagnose keeps the
+    simplest (the offsets, the truth here) and says the alternative with how far its sensor pose
+    lies; the comparison is in the JSON too."""
+    folder = tmp_path / "irb"
+    api.simulate(folder, robot="irb4600", sensor_mount="world", sphere_mount="flange",
+                 effect=["joint_offsets=j2:0.05,j3:-0.03"])
+    d = handeye.diagnose(folder)
+    assert [e.name for e in d.effects] == ["joint_offsets"]
+    assert d.robot_alternatives and "which robot errors is not settled" in d.robot_alternatives
+    assert "link_lengths" in d.robot_alternatives and "sensor pose" in d.robot_alternatives
+    assert d.to_dict()["robot_alternatives"] == d.robot_alternatives
+    assert "which robot errors is not settled" in d.summary()
+
+
+def test_robot_effects_are_not_offered_with_the_sphere_on_a_positioner(tmp_path):
+    from handeye.model import effects
+
+    folder = tmp_path / "pos"
+    api.simulate(folder, robot="kr60ha", sphere_mount="positioner", n_poses=12)
+    data = handeye.load_dataset(folder)
+    assert data.joints is not None and not any(e.available(data) for e in effects.catalogue("robot"))
+    with pytest.raises(handeye.InputError, match="link_lengths: not with the sphere on a positioner"):
+        handeye.calibrate(folder, effects="link_lengths", unknowns="sensor+sphere")

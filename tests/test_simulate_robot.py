@@ -73,8 +73,17 @@ def test_joint_offsets_need_a_robot_and_valid_joints(tmp_path, capsys):
         assert code == EXIT_BAD_INPUT, bad
     capsys.readouterr()
     assert main(["simulate", "--out", str(tmp_path / "c"), "--robot", "nosuchrobot"]) == EXIT_BAD_INPUT
+
+
+
+def test_a_robot_holds_the_sphere_before_a_fixed_sensor(tmp_path):
+    """--robot with the sensor fixed and the sphere on the flange: the mount's own default truth
+    (not the robot's default sphere centre, which is a base position), joints that load."""
     assert main(["simulate", "--out", str(tmp_path / "d"), "--robot", "kr60ha", "--sensor-mount", "world",
-                 "--sphere-mount", "flange"]) == EXIT_BAD_INPUT
+                 "--sphere-mount", "flange"]) == EXIT_OK
+    data = handeye.load_dataset(tmp_path / "d")
+    assert data.mounts.sensor == "world" and data.joints.shape == (len(data), 6) and len(data) >= 30
+    assert np.linalg.norm(data.sphere_centre) < 500  # in the flange frame
 
 
 def test_diagnose_names_the_simulated_joint_offsets(tmp_path):

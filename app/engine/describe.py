@@ -204,8 +204,9 @@ def _choose_joints(final, prob, structure):
             raise CalibrationInputError(f"{final.dataset.path / 'measurements.csv'}: --effects {name}: these poses "
                                         "separate none of its parameters from the sensor pose and the sphere centre")
         if left_out:
-            final.warnings.append(f"{name}: " + "; ".join(f"{j} not estimated (absorbed by {', '.join(who)})"
-                                                          for j, who in left_out.items()))
+            final.warnings.append(f"{name}: " + "; ".join(
+                f"{j} not estimated (" + (f"too weakly seen: {who[0]})" if who[0].startswith("1 sd ")
+                                          else f"absorbed by {', '.join(who)})") for j, who in left_out.items()))
 
 
 def _fit_with_effects(final, prob, structure):

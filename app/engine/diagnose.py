@@ -34,7 +34,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import positioner_effect, robust
+from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
 from handeye.app.present.results import NamedEffect
@@ -76,6 +76,8 @@ class Procedure:
     absorbed, tested, steps, implausible
         The record so far: effects absorbed by others (name -> who), the rounds of score tests,
         the steps taken, why a candidate's fit was implausible.
+    robot_alternatives : str or None
+        Other robot effects as good as those named (:mod:`handeye.app.engine.robot_choice`).
     """
 
     prob: Samples
@@ -88,6 +90,7 @@ class Procedure:
     tested: list = dataclasses.field(default_factory=list)
     steps: list = dataclasses.field(default_factory=list)
     implausible: list = dataclasses.field(default_factory=list)
+    robot_alternatives: str | None = None
 
 
 def _summaries(prob, structure, fit, mask):
@@ -145,6 +148,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         structure, fit = _backward(prob, structure, fit, mask, alpha)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
+    structure, fit = _robot_choice(run, structure, fit)
     _absorbed_structural(run, structure, fit, mask)
     result = _report(run, structure, fit, flips, outliers)
     if axes is not None:
@@ -153,6 +157,17 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
         result = dataclasses.replace(result, unexplained=unexplained)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
+
+
+def _robot_choice(run, structure, fit):
+    """The robot effects compared as alternatives (:func:`handeye.app.engine.robot_choice.compare`);
+    a step recorded when another combination replaces the searched one."""
+    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask)
+    if set(chosen.data_effects) != set(structure.data_effects) or chosen.centre != structure.centre:
+        robot = [n for n in chosen.data_effects if effects.get(n).KIND == "robot"]
+        label = "+".join(("sphere_center",) * chosen.centre + tuple(robot))
+        run.steps.append({"step": f"simplest: {label}", **_summaries(run.prob, chosen, new, run.mask)})
+    return chosen, new
 
 
 def _absorbed_structural(run, structure, fit, mask):
@@ -394,6 +409,7 @@ def _report(run, structure, fit, flips, outliers):
                    for i, b, a, u in zip(d.ids, run.before_norms, after_norms, mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=_unexplained(after, prob.sigma),
+        robot_alternatives=run.robot_alternatives,
     )
 
 

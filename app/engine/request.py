@@ -240,10 +240,15 @@ def _robot_effects_possible(effects, dataset):
     from handeye.model import effects as catalogue
 
     for name in (n for n in effects if catalogue.get(n).KIND == "robot"):
-        if not catalogue.get(name).available(dataset):
+        if catalogue.get(name).available(dataset):
+            continue
+        if dataset.joints is not None and dataset.robot_model is not None:
             raise CalibrationInputError(
-                f"--effects {name} needs the joint angles j1..j6 in {dataset.path / 'measurements.csv'} with "
-                f"[robot] model in {dataset.path / 'setup.toml'}, and the sensor on the flange with the sphere fixed")
+                f"--effects {name}: not with the sphere on a positioner ({dataset.path / 'setup.toml'}): the turning "
+                "axes absorb the robot's errors in part, and what remains cannot be told from them")
+        raise CalibrationInputError(
+            f"--effects {name} needs the joint angles j1..j6 in {dataset.path / 'measurements.csv'} with "
+            f"[robot] model in {dataset.path / 'setup.toml'}")
 
 
 def enough(dataset, unknowns):

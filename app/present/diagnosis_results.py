@@ -47,6 +47,9 @@ def absorbed_sentence(name, by, centre_fitted=True):
     """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre."""
     from handeye.model import effects
 
+    if len(by) == 1 and by[0].startswith("1 sd "):  # a robot parameter the poses barely move
+        return (f"{name}: too weakly seen here to estimate -- {by[0]} at the stated noise on these poses "
+                "(beside the sensor pose and the centre); poses that move it more could separate it")
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
     structural = effects.get(name.split(".")[0]).KIND == "structural"
@@ -97,6 +100,9 @@ class DiagnosisResult(ResultProtocol):
     residuals : list of DiagnosisResidual
     unexplained : str
         What remains after the named effects.
+    robot_alternatives : str or None
+        Other robot effects that explain the data about as well as those named (their BIC and
+        how far the sensor pose moves with them; :mod:`handeye.app.engine.robot_choice`), or None.
     """
 
     dataset: str
@@ -127,6 +133,7 @@ class DiagnosisResult(ResultProtocol):
     provenance: dict | None = None
     centre_fitted: bool = True
     inconsistent: list = dataclasses.field(default_factory=list)
+    robot_alternatives: str | None = None
 
     @property
     def absorbed_explained(self):
@@ -164,6 +171,7 @@ class DiagnosisResult(ResultProtocol):
             "residuals": [r.to_dict() for r in self.residuals],
             "screened_out_first": list(self.screened_out_first),
             "unexplained": self.unexplained,
+            "robot_alternatives": self.robot_alternatives,
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
                                              else self.sensor_pose)},

@@ -383,6 +383,8 @@ def diagnosis_text(res):
                 lines.append(f"    {eff.note}")
     else:
         lines.append("effects named: none")
+    if res.robot_alternatives:
+        lines.append(f"  {res.robot_alternatives}")
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
     lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))

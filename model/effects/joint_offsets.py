@@ -22,7 +22,10 @@ def params(model):
 
 
 def available(dataset):
-    """Whether a dataset can show this effect: joint angles, a model, the sensor on the flange
-    and the sphere fixed (the chain's carrier motions are then the flange poses)."""
+    """Whether a dataset can show this effect: joint angles and a robot model, the sensor or the
+    sphere fixed in the cell (the corrected flange poses enter the cell's carrier motions). Not
+    with the sphere on a positioner: there the turning axes, refined first, absorb the robot's
+    errors in part, and what remains is not attributable (tried: a named centre offset that is
+    not there beside the robot effects)."""
     return (getattr(dataset, "joints", None) is not None and getattr(dataset, "robot_model", None) is not None
-            and dataset.mounts.default)
+            and dataset.mounts.sphere != "positioner")

@@ -1,0 +1,116 @@
+"""Which of the robot's errors: the robot effects compared as alternatives (a step of diagnose).
+
+A robot's zero offsets, length errors and gravity sag move the flange in similar ways: over a
+narrow range of configurations their columns are nearly parallel, and the forward search of
+:mod:`handeye.app.engine.diagnose`, which takes the most significant candidate first, can name
+one for another. Once the search has named any robot effect, every non-empty combination of the
+robot effects the dataset can show is fitted in its place (each with its parameters chosen by the
+identifiability gate, :func:`handeye.model.extended.gate_robot_effects`), with and without a
+``sphere_center`` the search named before them (a centre offset named first may be a robot error
+seen from poses that do not yet have the robot in the model), and scored by BIC
+``m ln(SSR / m) + p ln m`` (Schwarz 1978). Combinations within :data:`AMBIGUOUS` of the lowest
+score explain the data about as well (Kass & Raftery 1995: a BIC difference below 10 is not
+"very strong" evidence); of them the simplest is kept (fewest effects, then fewest parameters,
+then the lowest score), and the others that are not supersets of it are said, with how far the
+sensor pose moves between the two, instead of claiming to know which.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+
+from handeye.model import effects
+from handeye.model.extended import gate_robot_effects
+from handeye.model.rotation import transform_distance
+
+#: BIC difference below which another combination of robot effects is an alternative (Kass & Raftery).
+AMBIGUOUS = 10.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Candidate:
+    """One combination of robot effects, fitted: its structure, fit, free parameters and BIC."""
+
+    names: tuple
+    centre: bool
+    structure: object
+    fit: object
+    free: dict
+    bic: float
+
+
+def _bic(fit):
+    return float(fit.m * np.log(max(fit.ssr, 1e-300) / fit.m) + fit.p * np.log(fit.m))
+
+
+def _fitted(prob, structure, mask, names, free_centre, start):
+    """The structure with the robot effects ``names`` in place of its own and the centre free or
+    not, gated and fitted from ``start`` (sensor2flange, centre); None when one of them has no
+    estimable parameter or the fit fails."""
+    sensor, centre = start
+    others = tuple(n for n in structure.data_effects if effects.get(n).KIND != "robot")
+    trial = dataclasses.replace(structure, centre=free_centre, data_effects=others + tuple(names))
+    gate_robot_effects(prob, trial, mask, sensor, centre if free_centre else None)
+    if any(not prob.robot_free[n] for n in names):
+        return None
+    with np.errstate(all="ignore"):
+        fit = prob.fit(trial, mask, prob.point(trial, sensor, centre if free_centre else None))
+    if not (np.isfinite(fit.ssr) and fit.converged):
+        return None
+    return Candidate(tuple(names), free_centre, trial, fit, {n: prob.robot_free[n] for n in names}, _bic(fit))
+
+
+def compare(prob, structure, fit, mask):
+    """Choose among the robot effects (module docstring).
+
+    Parameters
+    ----------
+    prob : handeye.model.extended.Samples
+    structure : handeye.model.extended.Structure
+        The searched model; unchanged without a robot effect.
+    fit : handeye.model.extended.Fit
+    mask : ndarray of bool, shape (N,)
+
+    Returns
+    -------
+    structure, fit
+        The combination with the lowest BIC (``prob.robot_free`` set for it).
+    note : str or None
+        The alternatives within :data:`AMBIGUOUS`, said; None when there are none.
+    """
+    named = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
+    if not named:
+        return structure, fit, None
+    kept_free = {n: prob.robot_free[n] for n in named}
+    start = (prob.transform(fit.x), prob.centre(structure, fit.x))
+    available = [e.NAME for e in effects.catalogue("robot") if e.available(prob.d)]
+    combos = [names for r in range(1, len(available) + 1) for names in itertools.combinations(available, r)]
+    tried = [c for centre in dict.fromkeys((structure.centre, False)) for names in combos
+             if (c := _fitted(prob, structure, mask, names, centre, start)) is not None]
+    tried.append(Candidate(tuple(named), structure.centre, structure, fit, kept_free, _bic(fit)))
+    lowest = min(c.bic for c in tried)
+    near = [c for c in tried if c.bic - lowest < AMBIGUOUS]
+    best = min(near, key=lambda c: (len(c.names) + c.centre, c.fit.p, c.bic))
+    prob.robot_free.update(best.free)
+    rivals = {(c.names, c.centre): c for c in near
+              if not (set(best.names) <= set(c.names) and c.centre >= best.centre)}
+    return best.structure, best.fit, _said(prob, best, list(rivals.values()))
+
+
+def _said(prob, best, rivals):
+    if not rivals:
+        return None
+    parts = []
+    for c in sorted(rivals, key=lambda c: c.bic):
+        dt, dr = transform_distance(prob.transform(best.fit.x), prob.transform(c.fit.x))
+        parts.append(f"{_label(c)} (BIC {c.bic - best.bic:+.1f}; sensor pose {float(dt):.3g} mm / "
+                     f"{float(dr):.3g} deg from this one)")
+    return (f"which robot errors is not settled: {_label(best)} explains the residuals as simply as any, but "
+            f"{'; '.join(parts)} about as well -- these poses do not tell them apart (a BIC difference below "
+            f"{AMBIGUOUS:g}); poses that differ more in reach and arm configuration would (handeye plan --robot)")
+
+
+def _label(c):
+    return "+".join(("sphere_center",) * c.centre + c.names)
