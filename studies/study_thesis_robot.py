@@ -1,17 +1,19 @@
-"""Study: how much of the thesis's residual can the robot's joint offsets explain?
+"""Study: how much of the thesis's residual can the robot's own errors explain?
 
 Story. The seed blames what remains after its calibration on "systematic robot errors" (7.3,
 Table 7-5), but its data hold only the flange poses the KR 60 HA reported, not its joint angles.
 Here the angles are *reconstructed*: the inverse kinematics of the KR 60 HA's nominal model
 (:mod:`handeye.model.simulate_robot`) for each printed pose. Then ``handeye diagnose`` runs twice on
-the same samples -- without the angles, and with them (so that ``joint_offsets`` is in the
-catalogue) -- and the gap each leaves is compared.
+the same samples -- without the angles, and with them (so that the robot's errors,
+``joint_offsets``, ``link_lengths`` and ``joint_compliance``, are in the catalogue, compared as
+alternatives by :mod:`handeye.app.engine.robot_choice`) -- and the gap each leaves is compared.
 
 What this can and cannot show. The reconstruction is exact for the nominal model, so a joint-offset
 pattern that lowers the held-out error is *consistent* with the residual: the residual has the
 shape offsets of those joints would give. It cannot show the robot's actual offsets: the robot's
 own (calibrated) kinematics, its wrist configuration (A4/A6 flipped give the same pose) and its
-other errors (link lengths, compliance) are unknown, and the printed poses are rounded.
+other errors are unknown, and the printed poses are rounded; the robot effects that explain the
+data about as well as the one named are reported beside it (``robot_alternatives``).
 
 Claims: the inverse kinematics reproduces at least 90 % of the printed poses (1e-6 mm); with the
 reconstructed angles diagnose's held-out error is not worse than without them; the study reports
@@ -69,7 +71,7 @@ def run(out, quick=False):
                           for e in res.effects if e.std is not None) or "none"
         rows.append((label, res.rms_before_mm, res.rms_after_mm, res.heldout_rms_after_mm, res.chi2_dof_after, named))
         summary[label] = {"rms_after_mm": res.rms_after_mm, "heldout_rms_after_mm": res.heldout_rms_after_mm,
-                          "effects": [e.to_dict() for e in res.effects]}
+                          "effects": [e.to_dict() for e in res.effects], "robot_alternatives": res.robot_alternatives}
     claim(with_joints.heldout_rms_after_mm <= plain.heldout_rms_after_mm + 1e-9,
           "the reconstructed joint angles do not make the held-out error worse")
     _draw(out, plain, with_joints)
