@@ -16,7 +16,7 @@ from handeye.app.engine import robust
 from handeye.app.errors import CalibrationInputError
 from handeye.app.present.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 from handeye.app.present.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
-from handeye.model import conventions, extended, identifiability, observations
+from handeye.model import conventions, extended, identifiability, observations, robot_gate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform
 from handeye.model.rotation import nearest_transform
@@ -196,9 +196,9 @@ def with_effects(final, base):
 def _choose_joints(final, prob, structure):
     """With robot effects (``joint_offsets``, ``link_lengths``, ``joint_compliance``): the
     parameters these poses separate from the sensor pose, the centre and the effects before it
-    (:func:`handeye.model.extended.gate_robot_effects`); the others are said in a warning; an
+    (:func:`handeye.model.robot_gate.gate_robot_effects`); the others are said in a warning; an
     effect with none: CalibrationInputError."""
-    left = extended.gate_robot_effects(prob, structure, final.mask, final.fit.sensor, final.fit.centre)
+    left = robot_gate.gate_robot_effects(prob, structure, final.mask, final.fit.sensor, final.fit.centre)
     for name, left_out in left.items():
         if not prob.robot_free[name]:
             raise CalibrationInputError(f"{final.dataset.path / 'measurements.csv'}: --effects {name}: these poses "

@@ -46,10 +46,10 @@ from handeye.model.extended import (
     Structure,
     candidate_columns,
     gate,
-    robot_free,
     score_test,
 )
 from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.robot_gate import robot_free
 from handeye.model.statistics import deletion_statistics, f_survival, prediction_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).

@@ -5,7 +5,7 @@ narrow range of configurations their columns are nearly parallel, and the forwar
 :mod:`handeye.app.engine.diagnose`, which takes the most significant candidate first, can name
 one for another. Once the search has named any robot effect, every non-empty combination of the
 robot effects the dataset can show is fitted in its place (each with its parameters chosen by the
-identifiability gate, :func:`handeye.model.extended.gate_robot_effects`), with and without a
+identifiability gate, :func:`handeye.model.robot_gate.gate_robot_effects`), with and without a
 ``sphere_center`` the search named before them (a centre offset named first may be a robot error
 seen from poses that do not yet have the robot in the model), and scored by BIC
 ``m ln(SSR / m) + p ln m`` (Schwarz 1978). Combinations within :data:`AMBIGUOUS` of the lowest
@@ -22,7 +22,7 @@ import itertools
 import numpy as np
 
 from handeye.model import effects
-from handeye.model.extended import gate_robot_effects
+from handeye.model.robot_gate import gate_robot_effects
 from handeye.model.rotation import transform_distance
 
 #: BIC difference below which another combination of robot effects is an alternative (Kass & Raftery).

@@ -373,12 +373,12 @@ def _effects_keep_centre(dataset, effects, given, sigma):
     the extended model with it fits within the stated noise (chi-square at :data:`P_SUSPECT`), and
     freeing the centre beside the effects gains nothing significant (F test at :data:`P_SLIP`).
     A robot's length error or gravity sag can look like a centre offset to the centre model."""
-    from handeye.model import extended
+    from handeye.model import extended, robot_gate
     from handeye.model.statistics import chi2_survival, f_survival
 
     prob, mask = extended.Samples(dataset, sigma), np.ones(len(dataset), bool)
     held = extended.Structure(centre=False, data_effects=tuple(effects))
-    extended.gate_robot_effects(prob, held, mask, given.sensor2flange)
+    robot_gate.gate_robot_effects(prob, held, mask, given.sensor2flange)
     free = dataclasses.replace(held, centre=True)
     with np.errstate(all="ignore"):
         a = prob.fit(held, mask, prob.point(held, given.sensor2flange))
