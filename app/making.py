@@ -347,7 +347,7 @@ class PlanResult(ResultProtocol):
                  + "; sphere centre mm " + " ".join(f"{v:.4f}" for v in r.sd[6:9])]
         lines += [f"  {e} sd {UNITS[e]}: " + " ".join(f"{p} {v:.4g}" for p, v in sds.items())
                   for e, sds in r.robot_sd().items() if sds]
-        lines += [f"  not identifiable: {p} (absorbed by {', '.join(w)}: {absorbed_why(w)})" for p, w in r.dropped.items()]
+        lines += [f"  not identifiable: {p} ({absorbed_why(w)})" for p, w in r.dropped.items()]
         lines.append(f"poses ({self.convention}: {','.join(conventions.columns(self.convention) + self.joint_columns)}):")
         lines += [f"  {i:>16} " + " ".join(f"{v:10.4f}" for v in (*p, *q))
                   for i, p, q in zip(self.ids, self.poses_in_convention(), self.joints)]
@@ -451,7 +451,8 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
         if dataset is not None:
             inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
         check_output_path(out, "--out", inputs=inputs)
-    arm, stated = planning_robot.cell_robot(robot, d if dataset is not None else None)
+    # the dataset's [robot] model plans for the robot in the cell that has one (the sensor on its flange)
+    arm, stated = planning_robot.cell_robot(robot, d if dataset is not None and (robot or mounts.default) else None)
     if arm is not None:
         if not mounts.default:
             raise RequestError("--robot plans the sensor on the flange and the sphere in the world, not these mounts")

@@ -29,8 +29,9 @@ class PlanningError(InputError):
 
 
 def logdet(m):
+    """log det of a symmetric matrix (..., p, p); -inf where it is not positive definite."""
     sign, value = np.linalg.slogdet(m)
-    return value if sign > 0 else -np.inf
+    return np.where(sign > 0, value, -np.inf) if np.ndim(value) else (value if sign > 0 else -np.inf)
 
 
 def select(info, n, exchange=True, ridge=1e-9):
@@ -51,24 +52,24 @@ def select(info, n, exchange=True, ridge=1e-9):
     chosen = []
     m = base.copy()
     for _ in range(n):
-        gains = [logdet(m + info[i]) if i not in chosen else -np.inf for i in range(total)]
+        gains = logdet(m + info)  # every candidate at once; the chosen ones left out
+        gains[chosen] = -np.inf
         best = int(np.argmax(gains))
         chosen.append(best)
         m = m + info[best]
-    if exchange:
-        improved = True
-        while improved:
-            improved = False
-            current = logdet(m)
-            for a in list(chosen):
-                for b in range(total):
-                    if b in chosen:
-                        continue
-                    trial = m - info[a] + info[b]
-                    if logdet(trial) > current + 1e-12:
-                        chosen[chosen.index(a)] = b
-                        m, current, improved = trial, logdet(trial), True
-                        break
+    improved = exchange
+    while improved:
+        improved = False
+        current = logdet(m)
+        for a in list(chosen):
+            others = np.setdiff1d(np.arange(total), chosen)
+            trials = (m - info[a]) + info[others]
+            better = np.flatnonzero(logdet(trials) > current + 1e-12)
+            if len(better):  # the first unchosen candidate that raises log det replaces a
+                b = int(others[better[0]])
+                chosen[chosen.index(a)] = b
+                m = trials[better[0]]
+                current, improved = logdet(m), True
     return sorted(chosen), float(logdet(m - base))
 
 
