@@ -123,7 +123,6 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim
-    from handeye.model.dataset import read_pose_list
     from handeye.model.pose import pose_from_transform
 
     conventions.check(convention)
@@ -146,25 +145,43 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
     arm, setup = _simulated_robot(robot, cell, setup, center is not None, effects)
-    ids, flange_poses, angles = None, None, None
+    ids, flange_poses, angles, joints = None, None, None, None
     if poses is not None:
         if motions != "thesis" or translations:
             raise RequestError("--poses gives the poses: --motions and --translations do not apply")
-        ids, flange_poses, *angles = read_pose_list(poses, axes=cell.axis_names)
-        angles = angles[0] if angles else None
+        ids, flange_poses, angles, joints = _pose_list(poses, cell, arm)
     elif motions != "thesis" or translations:
         if not cell.default:
             raise RequestError("--motions and --translations apply to the sensor on the flange, sphere in the world")
         ids, flanges = motion_strategies.strategy(setup, np.random.default_rng(seed), motions, n_poses, translations)
         flange_poses = pose_from_transform(flanges)
     made = sim.simulate(setup, seed=seed, effects=effects, flange_poses=flange_poses, n_poses=n_poses, ids=ids,
-                        cell=cell, axis_angles=angles, robot=arm)
+                        cell=cell, axis_angles=angles, robot=arm, joints=joints)
     from handeye.app.files import write_folder_atomically
 
     write_folder_atomically(folder, lambda tmp: sim.write(made, tmp, profiles=profiles, convention=convention,
                                                          **({"start_offset": None} if no_start else {})))
     return SimulationResult(folder, list(made.ids), list(made.dropped), seed, effects,
                             None if arm is None else arm.model_key)
+
+
+def _pose_list(poses, cell, arm):
+    """``simulate --poses``: ids, KUKA poses, the positioner's axis angles (or None) and, when the
+    header ends with j1..j6 (a plan's pose list), their joint angles (or None; they need --robot)."""
+    from handeye.model.robots import JOINTS
+    from handeye.model.tables import read_pose_list, read_table
+
+    table = read_table(pathlib.Path(poses))
+    with_joints = bool(table) and [h.strip() for h in table[0]][-len(JOINTS):] == list(JOINTS)
+    if with_joints and arm is None:
+        raise RequestError(f"{poses}: a pose list with j1..j6 needs --robot MODEL (the robot those angles move)")
+    axes = tuple(cell.axis_names) + (JOINTS if with_joints else ())
+    ids, flange_poses, *angles = read_pose_list(poses, axes=axes)
+    angles = angles[0] if angles else None
+    if not with_joints:
+        return ids, flange_poses, angles, None
+    k = len(cell.axis_names)
+    return ids, flange_poses, (angles[:, :k] if k else None), angles[:, k:]
 
 
 def _simulated_robot(robot, cell, setup, centre_given, effects):

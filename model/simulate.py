@@ -357,7 +357,7 @@ def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
 
 
 def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None, cell=None,
-             axis_angles=None, robot=None):
+             axis_angles=None, robot=None, joints=None):
     """Simulate a dataset (module docstring).
 
     Parameters
@@ -383,6 +383,9 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         A robot with joints (:mod:`handeye.model.simulate_robot`): each flange pose is reached by
         the nominal inverse kinematics (unreachable poses are dropped), the dataset gets the joint
         angles, and ``joint_offsets`` among the effects moves the true flange.
+    joints : array_like, shape (N, 6), optional
+        With ``robot`` and custom poses: their joint angles (degrees, a planned pose list's), used
+        instead of the inverse kinematics (the other wrist stays the other wrist).
     """
     from handeye.model import mounts as mount_model
 
@@ -393,9 +396,13 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
     out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
-    reported, joints, unreached = true_flanges, None, {}
+    reported, given, joints, unreached = true_flanges, joints, None, {}
     if robot is not None:
-        joints, reported, true_flanges, unreached = robot.reach(true_flanges, robot_errors(effects, robot.model))
+        try:
+            joints, reported, true_flanges, unreached = robot.reach(true_flanges, robot_errors(effects, robot.model),
+                                                                    given)
+        except ValueError as exc:
+            raise SimulationError(f"--poses: {exc}") from None
     elif any(name in effects for name in ROBOT_EFFECTS):
         raise SimulationError(f"--effect {next(n for n in ROBOT_EFFECTS if n in effects)} needs a robot with joints "
                               "(--robot MODEL)")

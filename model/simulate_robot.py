@@ -41,7 +41,7 @@ import dataclasses
 import numpy as np
 
 from handeye.model import robot_errors, robots
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.rotation import rotvec_from_matrix, transform_distance
 
 #: Convergence of the inverse kinematics: position (mm) and rotation (degrees).
 TOL_MM, TOL_DEG = 1e-6, 1e-6
@@ -160,6 +160,11 @@ def inverse_kinematics(model, target, model_name=None):
     return best, ok
 
 
+#: Given joint angles must reach the wanted flange pose within these (mm, degrees): a pose list
+#: written with 4 decimals carries 1e-4 mm.
+GIVEN_MM, GIVEN_DEG = 0.01, 0.01
+
+
 @dataclasses.dataclass(frozen=True)
 class Robot:
     """A simulated robot with joints: its nominal model and the name setup.toml gives it.
@@ -179,12 +184,23 @@ class Robot:
         """The robot of a built-in name or model file (DatasetError when there is none)."""
         return cls(str(name), robots.load(name))
 
+    def _given(self, wanted, joints):
+        """Given joint angles checked against the wanted flange poses: ``(joints, all reached)``."""
+        joints = np.asarray(joints, float).reshape(len(wanted), 6)
+        dpos, dang = transform_distance(self.model.flange2base(joints), wanted)
+        bad = np.flatnonzero((dpos > GIVEN_MM) | (dang > GIVEN_DEG))
+        if len(bad):
+            k = int(bad[0])
+            raise ValueError(f"pose {k + 1}: its joint angles put the {self.model.name}'s flange {dpos[k]:.3g} mm / "
+                             f"{dang[k]:.3g} deg from the pose (more than {GIVEN_MM:g} mm / {GIVEN_DEG:g} deg)")
+        return joints, np.ones(len(wanted), bool)
+
     def describe(self):
         """``simulation.json``'s ``robot``."""
         return {"model": self.model_key, "name": self.model.name, "source": self.model.source,
                 "ik_tolerance": {"mm": TOL_MM, "deg": TOL_DEG}}
 
-    def reach(self, wanted, errors=None):
+    def reach(self, wanted, errors=None, joints=None):
         """Joint angles for the wanted flange poses and the flanges reported and really reached.
 
         Parameters
@@ -195,6 +211,10 @@ class Robot:
             The robot's hidden errors: robot effect name -> its full parameter vector
             (:func:`handeye.model.robot_errors.perturbed`), or six joint offsets (degrees); none
             when None.
+        joints : array_like, shape (N, 6), optional
+            The joint angles to use (degrees; a planned pose list's ``j1..j6``) instead of the
+            inverse kinematics: their nominal flange must be the wanted one within
+            :data:`GIVEN_MM` and :data:`GIVEN_DEG` (ValueError naming the first that is not).
 
         Returns
         -------
@@ -208,7 +228,10 @@ class Robot:
             Index -> reason of the poses the inverse kinematics cannot reach.
         """
         wanted = np.asarray(wanted, float)
-        joints, ok = inverse_kinematics(self.model, wanted, self.model_key)
+        if joints is None:
+            joints, ok = inverse_kinematics(self.model, wanted, self.model_key)
+        else:
+            joints, ok = self._given(wanted, joints)
         q = np.where(ok[:, None], joints, 0.0)
         values = {} if errors is None else errors if isinstance(errors, dict) else {"joint_offsets": errors}
         reported = np.where(ok[:, None, None], self.model.flange2base(q), wanted)

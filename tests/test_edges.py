@@ -359,6 +359,24 @@ def _group(pgid):
     return out
 
 
+#: CPU seconds after which a sweep's worker has done its imports (about 1 s) and is computing.
+WORKER_BUSY_S = 2.5
+
+
+def _worker_cpu(pgid):
+    """CPU seconds (user + system) of each live loky worker of a process group (from /proc)."""
+    out, tick = [], os.sysconf("SC_CLK_TCK")
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            cmd = (stat.parent / "cmdline").read_text()
+            if int(fields[2]) == pgid and fields[0] != "Z" and "loky" in cmd and "resource_tracker" not in cmd:
+                out.append((int(fields[11]) + int(fields[12])) / tick)
+        except (OSError, IndexError, ValueError):
+            continue
+    return out
+
+
 @pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="needs /proc to see the workers")
 def test_ctrl_c_in_a_terminal_stops_the_workers_of_a_study_too(tmp_path):
     """The terminal's Ctrl-C goes to the whole process group, the sweep's workers included: the
@@ -367,10 +385,11 @@ def test_ctrl_c_in_a_terminal_stops_the_workers_of_a_study_too(tmp_path):
     proc = subprocess.Popen(HANDEYE + ["study", "random-starts", "--quick", "--jobs", "2", "--out", str(tmp_path / "s")],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
-    while sum("loky" in c and "resource_tracker" not in c for c in _group(proc.pid)) < 2:
-        assert time.monotonic() < deadline and proc.poll() is None, "no worker started"
+    # the workers are computing: each has spent more CPU than its imports take (on a loaded machine a
+    # fixed wait caught a worker still importing joblib, whose interrupted import prints a traceback)
+    while sum(cpu >= WORKER_BUSY_S for cpu in _worker_cpu(proc.pid)) < 2:
+        assert time.monotonic() < deadline and proc.poll() is None, "no worker started computing"
         time.sleep(0.05)
-    time.sleep(1.0)  # the workers are computing
     os.killpg(proc.pid, signal.SIGINT)
     err = proc.stderr.read()
     assert proc.wait(timeout=60) == 130 and err.splitlines()[-1] == "handeye: interrupted", err

@@ -199,3 +199,32 @@ def test_without_a_robot_plan_is_unchanged(tmp_path):
     assert p.robot is None and p.joints is None and "robot" not in p.to_dict() and "joints" not in p.to_dict()
     assert (tmp_path / "p.csv").read_text().splitlines()[0] == "id,x,y,z,a,b,c"
     assert handeye.plan().n == 12
+
+
+def test_a_plan_replays_in_simulate_with_its_joints_and_identifies_the_offsets(tmp_path, capsys):
+    """plan --robot writes j1..j6; simulate --poses takes those angles (the other wrist stays the
+    other wrist, no inverse kinematics) and diagnose names the hidden offsets on them within 3 sd.
+    Angles that do not reach their pose, or j1..j6 without --robot, exit 2 naming it."""
+    from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+
+    plan_csv = tmp_path / "plan.csv"
+    assert main(["plan", "--robot", "ur10e", "--out", str(plan_csv)]) == EXIT_OK
+    rows = plan_csv.read_text().splitlines()
+    assert rows[0].endswith("j1,j2,j3,j4,j5,j6") and any("~flip" in r for r in rows)
+    assert main(["simulate", "--out", str(tmp_path / "sim"), "--robot", "ur10e", "--poses", str(plan_csv), "--seed", "4",
+                 "--effect", "joint_offsets=j2:0.03,j4:-0.04"]) == EXIT_OK
+    data = handeye.load_dataset(tmp_path / "sim")
+    planned = {r.split(",")[0]: np.array(r.split(",")[7:], float) for r in rows[1:]}
+    np.testing.assert_allclose(data.joints, [planned[i] for i in data.ids], atol=1e-6)
+    found = {e.name: e for e in handeye.diagnose(tmp_path / "sim").effects}
+    assert list(found) == ["joint_offsets"]
+    for joint, value in {"j2": 0.03, "j4": -0.04}.items():
+        assert abs(found["joint_offsets"].parameters[joint] - value) < 3 * found["joint_offsets"].std[joint]
+    capsys.readouterr()
+    bad = tmp_path / "bad.csv"
+    bad.write_text(rows[0] + "\n" + ",".join(rows[1].split(",")[:8] + [str(float(rows[1].split(",")[8]) + 1.0)]
+                                             + rows[1].split(",")[9:]) + "\n")
+    assert main(["simulate", "--out", str(tmp_path / "b"), "--robot", "ur10e", "--poses", str(bad)]) == EXIT_BAD_INPUT
+    assert "its joint angles put the UR10e's flange" in capsys.readouterr().err
+    assert main(["simulate", "--out", str(tmp_path / "c"), "--poses", str(plan_csv)]) == EXIT_BAD_INPUT
+    assert "needs --robot" in capsys.readouterr().err
