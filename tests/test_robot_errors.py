@@ -208,3 +208,15 @@ def test_robot_effects_are_not_offered_with_the_sphere_on_a_positioner(tmp_path)
     assert data.joints is not None and not any(e.available(data) for e in effects.catalogue("robot"))
     with pytest.raises(handeye.InputError, match="link_lengths: not with the sphere on a positioner"):
         handeye.calibrate(folder, effects="link_lengths", unknowns="sensor+sphere")
+
+
+def test_robot_errors_beyond_a_controllers_model_are_not_named():
+    """A fitted offset of 3 deg, a length 12 mm off or a sag of 0.8 deg/m is no robot error a
+    controller's nominal model leaves: it absorbs something else and is said, with the names."""
+    from handeye.model import effects
+
+    assert "j3 = 3, beyond joint zero offsets of at most 2 deg" in effects.implausible(
+        "joint_offsets", np.array([0.1, 3.0]), 25.0, names=("j2", "j3"))
+    assert "a wrong [robot] model" in effects.implausible("link_lengths", np.array([12.0]), 25.0, names=("a2",))
+    assert effects.implausible("joint_compliance", np.array([0.8, 0.0]), 25.0, names=("j2", "j3")) is not None
+    assert effects.implausible("joint_compliance", np.array([0.05, 0.02]), 25.0, names=("j2", "j3")) is None

@@ -248,7 +248,8 @@ def _effects_verdict(final, efit, base, stuck):
 
     names, radius = final.request.effects, final.dataset.sphere_diameter / 2
     circles = circles_shown(final.dataset, final.mask) if "sphere_radius" in names else None
-    implausible = [why for n in names if (why := catalogue.implausible(n, efit.params[n], radius, circles))]
+    implausible = [why for n in names
+                   if (why := catalogue.implausible(n, efit.params[n], radius, circles, _effect_params(n, efit)))]
     if stuck is not None:
         implausible.append(stuck)
     if implausible:

@@ -239,7 +239,7 @@ def _search(run, structure, fit):
             trial = _extend(structure, name)
             x0 = fit.x if name != "sphere_center" else np.concatenate([fit.x, prob.d.sphere_centre])
             new = prob.fit(trial, mask, x0, fit.params)
-            why = effects.implausible(name, new.params.get(name, []), prob.radius)
+            why = effects.implausible(name, new.params.get(name, []), prob.radius, names=prob.params_of(name))
             if why is not None:
                 implausible.append(why)
                 continue

@@ -47,24 +47,31 @@ def get(name):
 LIMITS = {
     "sensor_scale": ("a scale error of at most 5 %", lambda params, radius: abs(params[0]) <= 0.05),
     "sphere_radius": ("a radius error of at most 20 % of the radius", lambda params, radius: abs(params[0]) <= 0.2 * radius),
+    # a robot's errors: mastering within a degree or two, lengths within millimetres, a sag of a
+    # few tenths of a degree at a metre's lever (a controller's nominal model is that close)
+    "joint_offsets": ("joint zero offsets of at most 2 deg", lambda params, radius: np.all(np.abs(params) <= 2.0)),
+    "link_lengths": ("length errors of at most 10 mm", lambda params, radius: np.all(np.abs(params) <= 10.0)),
+    "joint_compliance": ("a gravity sag of at most 0.5 deg per metre",
+                         lambda params, radius: np.all(np.abs(params) <= 0.5)),
 }
 
 
-def implausible(name, params, radius, circles=None):
+def implausible(name, params, radius, circles=None, names=None):
     """Why fitted ``params`` of effect ``name`` are not physical (text), or None when they are.
 
     Two tests: the effect's limit (:data:`LIMITS`), and, for an effect whose module defines
     ``contradicted_by(params, radius, circles)`` (``sphere_radius``: a sphere cannot be smaller
     than a circle measured on it), what the data show: ``circles`` is ``(ids, r, sd)``, the
     radius of each sample's measured circle and its 1 sd (mm); without it only the limit is
-    tested.
+    tested. ``names``: the parameters' names (a robot effect's depend on the robot model).
     """
     if name in LIMITS:
         what, ok = LIMITS[name]
         if not ok(np.asarray(params, float), radius):
-            values = ", ".join(f"{p} = {v:.4g}" for p, v in zip(get(name).PARAMS, np.ravel(params)))
-            return (f"{name} would need {values}, beyond {what}: it absorbs something else (a wrong [profile] side, "
-                    "[sphere] diameter or unit?), it is not named")
+            values = ", ".join(f"{p} = {v:.4g}" for p, v in zip(names or get(name).PARAMS, np.ravel(params)))
+            hint = ("a wrong [robot] model or joint columns?" if get(name).KIND == "robot"
+                    else "a wrong [profile] side, [sphere] diameter or unit?")
+            return f"{name} would need {values}, beyond {what}: it absorbs something else ({hint}), it is not named"
     check = getattr(get(name), "contradicted_by", None) if name in MODULES else None
     if check is not None and circles is not None:
         return check(np.asarray(params, float), radius, circles)
