@@ -27,8 +27,31 @@ Poses: a working configuration per robot looks at the sphere; every pose is a se
 sphere from another direction (tilt up to ``TILT`` deg, any azimuth, a turn about the view axis up to
 ``TURN`` deg), reached by damped Newton inverse kinematics started at the working configuration.
 
-Public: :func:`make` (draw a cell, write its folder, return the truth), :func:`forward` (nominal FK),
-:func:`inverse_kinematics`, :func:`chain_residuals`, :func:`read`, and the rotation helpers.
+Two more hidden robot errors, optional (``make(..., lengths=..., compliance=...)``), both written from
+their definitions here, not from handeye's code:
+
+link lengths (mm)
+    Every joint j has a fixed translation: for the KR 60 HA the joint origin ``o_j`` (in the parent link,
+    before joint j's rotation), for a UR the ``Tz(d_j) Tx(a_j)`` of its DH link (``(a_j, 0, d_j)`` in the
+    frame after ``Rz(theta_j)``). A length error adds to that translation, only in the components that are
+    nonzero in the nominal model (|value| > 1e-6 mm). Names (:func:`length_names`): KR 60 HA ``j{j}_{x|y|z}``
+    (``j3_x`` the error of the 850 mm), UR ``d{j}`` and ``a{j}`` (true a2 = a2 + error).
+joint compliance (deg per metre)
+    Gravity bends the shoulder and the elbow (joints 2, 3) by ``dq_j = c_j * lever_j(q)``, with
+    ``lever_j(q) = ((p_F - o_j) x g) . a_j / 1000`` (m): ``g = (0, 0, -1)`` in the base (z up), ``p_F`` the
+    flange origin, ``o_j`` a point on joint j's axis, ``a_j`` its unit direction (the KR 60 HA's URDF axis
+    carried to the base; a UR's DH z axis of frame j-1), all at the nominal configuration q. The gravity
+    torque turns the joint the way it pulls, whatever the joint's sign convention: ``c > 0`` sags.
+
+All combined: the robot really stands at ``FK_lengths(q + delta + dq(q))`` (:func:`true_forward`), ``dq``
+from the nominal q, while it reports q and the nominal ``FK(q)``.
+
+Public: :func:`make` (draw a cell, write its folder, return the truth), :func:`forward` (FK, nominal or
+with length errors), :func:`true_forward`, :func:`joint_axes`, :func:`lever`, :func:`deflection`,
+:func:`length_names`, :func:`inverse_kinematics`, :func:`chain_residuals`, :func:`expected_sd` (own
+linearised sd of hidden robot errors fitted with the sensor pose and the centre), :func:`fit_robot_errors`
+(own least-squares fit of chosen robot errors to the measured points), :func:`read`, and the rotation
+helpers.
 """
 from __future__ import annotations
 
@@ -55,6 +78,12 @@ LIMITS = {"kr60ha": ((-185, 185), (-135, 35), (-120, 158), (-350, 350), (-119, 1
 WORKING = {"kr60ha": (0.0, -50.0, 100.0, 0.0, 40.0, 0.0),
            "ur5e": (0.0, -110.0, 100.0, -80.0, -90.0, 0.0),
            "ur10e": (0.0, -110.0, 100.0, -80.0, -90.0, 0.0)}
+#: the unit gravity direction in the robot base (base z up)
+GRAVITY = (0.0, 0.0, -1.0)
+#: the joints that bend under gravity (compliance parameters ``j2``, ``j3``)
+COMPLIANT = ("j2", "j3")
+#: a nominal length or offset is a parameter when |value| > this (mm)
+NONZERO = 1e-6
 CONVENTION = {"kr60ha": "kuka", "ur5e": "ur", "ur10e": "ur"}
 MODELS = tuple(WORKING)
 DIAMETER = 50.0
@@ -137,10 +166,10 @@ def pose_row(T, convention):
 
 
 # ----------------------------------------------------------------------------- kinematics
-def _kr60ha(q):
+def _kr60ha(q, origins=KR60HA_ORIGINS):
     """KR 60 HA flange in the base (4x4) from A1..A6 (deg): the URDF chain, then tool0 rpy (0, 90, 0)."""
     T = np.eye(4)
-    for origin, axis, angle in zip(KR60HA_ORIGINS, KR60HA_AXES, q):
+    for origin, axis, angle in zip(origins, KR60HA_AXES, q):
         T = T @ transform(np.eye(3), origin) @ transform(rodrigues(axis, angle), np.zeros(3))
     return T @ transform(rot_y(90.0), np.zeros(3))
 
@@ -150,18 +179,51 @@ def _dh(theta, d, a, alpha):
     return transform(rot_z(theta), (0.0, 0.0, d)) @ transform(rot_x(alpha), (a, 0.0, 0.0))
 
 
-def _ur(q, params):
-    """UR flange (DH frame 6) in the base (DH frame 0) from the joint angles (deg)."""
+def _ur_links(params):
+    """UR (d_j, a_j) of joints 1..6 from (d1, a2, a3, d4, d5, d6)."""
     d1, a2, a3, d4, d5, d6 = params
-    ds, as_ = (d1, 0.0, 0.0, d4, d5, d6), (0.0, a2, a3, 0.0, 0.0, 0.0)
+    return [d1, 0.0, 0.0, d4, d5, d6], [0.0, a2, a3, 0.0, 0.0, 0.0]
+
+
+def _ur(q, params, ds=None, as_=None):
+    """UR flange (DH frame 6) in the base (DH frame 0) from the joint angles (deg); ``ds``, ``as_`` the
+    six d_j and a_j when given (default from ``params``)."""
+    if ds is None:
+        ds, as_ = _ur_links(params)
     T = np.eye(4)
     for theta, d, a, alpha in zip(q, ds, as_, UR_ALPHA):
         T = T @ _dh(theta, d, a, alpha)
     return T
 
 
-def forward(model, q):
-    """Nominal forward kinematics: the flange in the robot base (4x4, mm) of joint angles ``q`` (6, deg).
+def length_names(model):
+    """The length-error parameters of ``model``: its nominal nonzero translation components, in chain order.
+
+    KR 60 HA ``j2_x, j2_z, j3_x, j4_x, j4_z, j5_x, j6_x``; UR ``d1, a2, a3, d4, d5, d6``.
+    """
+    if model == "kr60ha":
+        return tuple(f"j{j}_{'xyz'[k]}" for j, o in enumerate(KR60HA_ORIGINS, 1) for k in range(3)
+                     if abs(o[k]) > NONZERO)
+    if model in UR_DH:
+        ds, as_ = _ur_links(UR_DH[model])
+        return tuple(name for j in range(6) for name, v in ((f"d{j + 1}", ds[j]), (f"a{j + 1}", as_[j]))
+                     if abs(v) > NONZERO)
+    raise ValueError(f"unknown robot model {model!r}")
+
+
+def _checked_lengths(model, lengths):
+    """``{"j3_x": 0.3}`` checked against :func:`length_names` (a dict of floats; None -> {})."""
+    allowed = length_names(model)
+    out = {}
+    for name, value in (lengths or {}).items():
+        if name not in allowed:
+            raise ValueError(f"lengths: {name!r} is not a nonzero nominal length of {model} ({', '.join(allowed)})")
+        out[name] = float(value)
+    return out
+
+
+def forward(model, q, lengths=None):
+    """Forward kinematics: the flange in the robot base (4x4, mm) of joint angles ``q`` (6, deg).
 
     Parameters
     ----------
@@ -169,12 +231,74 @@ def forward(model, q):
         One of :data:`MODELS`.
     q : array_like (6,)
         Joint angles, degrees.
+    lengths : dict, optional
+        Length errors (mm) by :func:`length_names` name; None: the nominal robot.
     """
+    lengths = _checked_lengths(model, lengths) if lengths else {}
     if model == "kr60ha":
-        return _kr60ha(q)
+        origins = np.array(KR60HA_ORIGINS, float)
+        for name, value in lengths.items():
+            origins[int(name[1]) - 1, "xyz".index(name[3])] += value
+        return _kr60ha(q, origins)
     if model in UR_DH:
-        return _ur(q, UR_DH[model])
+        ds, as_ = _ur_links(UR_DH[model])
+        for name, value in lengths.items():
+            (ds if name[0] == "d" else as_)[int(name[1]) - 1] += value
+        return _ur(q, None, ds, as_)
     raise ValueError(f"unknown robot model {model!r}")
+
+
+def joint_axes(model, q):
+    """The joints' axes in the base at the nominal configuration ``q``: (points (6, 3) mm, unit directions
+    (6, 3)). KR 60 HA: the origin of joint j and its URDF axis carried to the base; UR: the origin and z
+    axis of DH frame j-1 (what theta_j turns about)."""
+    points, dirs = [], []
+    T = np.eye(4)
+    if model == "kr60ha":
+        for origin, axis, angle in zip(KR60HA_ORIGINS, KR60HA_AXES, q):
+            T = T @ transform(np.eye(3), origin)
+            points.append(T[:3, 3].copy())
+            dirs.append(T[:3, :3] @ (np.asarray(axis, float) / np.linalg.norm(axis)))
+            T = T @ transform(rodrigues(axis, angle), np.zeros(3))
+    elif model in UR_DH:
+        ds, as_ = _ur_links(UR_DH[model])
+        for theta, d, a, alpha in zip(q, ds, as_, UR_ALPHA):
+            points.append(T[:3, 3].copy())
+            dirs.append(T[:3, 2].copy())
+            T = T @ _dh(theta, d, a, alpha)
+    else:
+        raise ValueError(f"unknown robot model {model!r}")
+    return np.array(points), np.array(dirs)
+
+
+def lever(model, q, joint):
+    """Gravity's lever about joint ``joint`` (1..6) at the nominal ``q``: ``((p_F - o_j) x g) . a_j / 1000``
+    (m), the torque a unit weight at the flange puts on the joint, signed along the joint's own axis."""
+    points, dirs = joint_axes(model, q)
+    p_flange = forward(model, q)[:3, 3]
+    return float(np.cross(p_flange - points[joint - 1], GRAVITY) @ dirs[joint - 1]) / 1000.0
+
+
+def deflection(model, q, compliance):
+    """The joints' gravity deflection (6, deg) at the nominal ``q``: ``c_j * lever_j(q)`` for the joints
+    in ``compliance`` (``{"j2": c2, "j3": c3}``, deg/m), zero elsewhere."""
+    dq = np.zeros(6)
+    for name, c in (compliance or {}).items():
+        if name not in COMPLIANT:
+            raise ValueError(f"compliance: unknown joint {name!r} ({', '.join(COMPLIANT)})")
+        dq[int(name[1]) - 1] = float(c) * lever(model, q, int(name[1]))
+    return dq
+
+
+def true_forward(model, q, offsets=None, lengths=None, compliance=None):
+    """Where the robot really stands when it reports ``q``: ``FK_lengths(q + offsets + dq(q))`` (4x4).
+
+    ``offsets`` a 6-vector or a ``{"j2": ...}`` dict (deg), ``lengths`` (mm) and ``compliance`` (deg/m)
+    dicts; the deflection ``dq`` from the nominal ``q``.
+    """
+    delta = offsets if offsets is not None and not isinstance(offsets, dict) else _offsets_vector(offsets)
+    q = np.asarray(q, float)
+    return forward(model, q + np.asarray(delta, float) + deflection(model, q, compliance), lengths)
 
 
 def _pose_error(T, target):
@@ -232,9 +356,10 @@ def _draw_working(rng, model):
     return np.asarray(WORKING[model], float) + rng.uniform(-jitter, jitter)
 
 
-def _view(rng, R0, centre):
-    """A sensor pose (4x4) looking at ``centre``: tilted from ``R0``'s view axis, turned about it."""
-    tilt = TILT * math.sqrt(rng.uniform())
+def _view(rng, R0, centre, tilt=TILT):
+    """A sensor pose (4x4) looking at ``centre``: tilted (up to ``tilt`` deg) from ``R0``'s view axis,
+    turned about it."""
+    tilt = tilt * math.sqrt(rng.uniform())
     azimuth = rng.uniform(0, 360)
     n = R0 @ np.array([math.cos(math.radians(azimuth)), math.sin(math.radians(azimuth)), 0.0])
     R = rodrigues(n, tilt) @ R0 @ rot_z(rng.uniform(-TURN, TURN))
@@ -257,20 +382,28 @@ def _in_view(p):
     return abs(p[0]) < 40.0 and abs(p[1]) < 40.0 and 180.0 < p[2] < 300.0
 
 
-def draw_cell(model, seed, n=40, offsets=None):
+def draw_cell(model, seed, n=40, offsets=None, lengths=None, compliance=None, tilt=TILT):
     """Draw one cell and its poses (no noise); see the module docstring.
+
+    ``lengths`` (mm), ``compliance`` (deg/m): the hidden length errors and gravity compliance
+    (:func:`true_forward`); ``tilt`` (deg): how far the view directions spread from the working one
+    (wider: the flange's reach varies more).
 
     Returns
     -------
     dict
         ``model``, ``sensor`` (4x4 sensor2flange), ``centre`` (3, base, mm), ``offsets`` (6, deg),
-        ``joints`` (n, 6 reported angles, deg), ``flanges`` (n, 4, 4 nominal FK of the reported angles),
-        ``points`` (n, 3: the true sphere centre in the sensor frame).
+        ``lengths`` (dict, mm), ``compliance`` (dict, deg/m), ``joints`` (n, 6 reported angles, deg),
+        ``flanges`` (n, 4, 4 nominal FK of the reported angles), ``points`` (n, 3: the true sphere centre
+        in the sensor frame).
     """
     if model not in MODELS:
         raise ValueError(f"unknown robot model {model!r}; one of {MODELS}")
     rng = np.random.default_rng(seed)
     delta = _offsets_vector(offsets)
+    lengths = _checked_lengths(model, lengths)
+    compliance = {k: float(v) for k, v in (compliance or {}).items()}
+    deflection(model, np.zeros(6), compliance)  # checks the names
     X = _draw_sensor(rng)
     working = _draw_working(rng, model)
     S0 = forward(model, working) @ X
@@ -279,18 +412,19 @@ def draw_cell(model, seed, n=40, offsets=None):
     for _ in range(50 * n):
         if len(joints) == n:
             break
-        target = _view(rng, S0[:3, :3], centre) @ inverse(X)
+        target = _view(rng, S0[:3, :3], centre, tilt) @ inverse(X)
         q = inverse_kinematics(model, target, working)
         if q is None or not _usable(model, q):
             continue
-        p = (inverse(forward(model, q + delta) @ X) @ np.append(centre, 1.0))[:3]
+        p = (inverse(true_forward(model, q, delta, lengths, compliance) @ X) @ np.append(centre, 1.0))[:3]
         if _in_view(p):
             joints.append(q)
             points.append(p)
     if len(joints) < n:
         raise RuntimeError(f"{model}, seed {seed}: only {len(joints)} of {n} poses found")
     joints = np.array(joints)
-    return {"model": model, "sensor": X, "centre": centre, "offsets": delta, "joints": joints,
+    return {"model": model, "sensor": X, "centre": centre, "offsets": delta, "lengths": lengths,
+            "compliance": compliance, "tilt": tilt, "joints": joints,
             "flanges": np.array([forward(model, q) for q in joints]), "points": np.array(points)}
 
 
@@ -316,7 +450,8 @@ def _header(convention):
     return ["id", "x", "y", "z", *angles, "xs", "ys", "zs"] + [f"j{k}" for k in range(1, 7)]
 
 
-def make(folder, robot, seed, n=40, offsets=None, noise=0.02, convention=None):
+def make(folder, robot, seed, n=40, offsets=None, noise=0.02, convention=None, lengths=None, compliance=None,
+         tilt=TILT):
     """Draw a cell, write its dataset folder (``setup.toml``, ``measurements.csv``), return the truth.
 
     Parameters
@@ -336,6 +471,16 @@ def make(folder, robot, seed, n=40, offsets=None, noise=0.02, convention=None):
         sd (mm) per component of the measured sphere centre.
     convention : str, optional
         ``kuka`` or ``ur``; default the robot's own (KUKA for kr60ha, UR for the URs).
+    lengths : dict, optional
+        Hidden errors of the nominal nonzero lengths (mm) by :func:`length_names` name, e.g.
+        ``{"j3_x": 0.3}`` or ``{"a2": -0.2}``.
+    compliance : dict, optional
+        Hidden gravity compliance of joints 2 and 3 (deg/m), e.g. ``{"j2": 0.02, "j3": 0.01}``.
+    tilt : float
+        Spread of the view directions (deg, default :data:`TILT`).
+
+    The files are what they always were: ``[truth]`` holds ``sensor_pose`` only (the hidden robot errors
+    are returned, not written: handeye's ``[truth]`` has no keys for lengths or compliance).
 
     Returns
     -------
@@ -345,7 +490,7 @@ def make(folder, robot, seed, n=40, offsets=None, noise=0.02, convention=None):
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     convention = convention or CONVENTION[robot]
-    cell = draw_cell(robot, seed, n, offsets)
+    cell = draw_cell(robot, seed, n, offsets, lengths, compliance, tilt)
     rng = np.random.default_rng([seed, 1])
     measured = cell["points"] + rng.normal(0.0, noise, cell["points"].shape)
     with open(folder / "measurements.csv", "w", newline="") as f:
@@ -370,13 +515,150 @@ def read(folder):
 def chain_residuals(truth, measured=None, true_robot=True):
     """Per row, how far the chain misses (n, 3, mm, base): ``F X p - c``.
 
-    With ``true_robot`` the flange is FK(q + offsets) (closes to the noise), else the reported FK(q)
-    (misses by what the offsets move the sensor).
+    With ``true_robot`` the flange is the true one (:func:`true_forward`: offsets, length errors,
+    compliance; closes to the noise), else the reported FK(q) (misses by what the hidden errors move the
+    sensor).
     """
     measured = truth["measured"] if measured is None else measured
-    delta = truth["offsets"] if true_robot else np.zeros(6)
     out = []
     for q, p in zip(truth["joints"], measured):
-        S = forward(truth["model"], q + delta) @ truth["sensor"]
+        if true_robot:
+            F = true_forward(truth["model"], q, truth["offsets"], truth.get("lengths"), truth.get("compliance"))
+        else:
+            F = forward(truth["model"], q)
+        S = F @ truth["sensor"]
         out.append(S[:3, :3] @ p + S[:3, 3] - truth["centre"])
     return np.array(out)
+
+
+def _hat(w):
+    """The cross-product matrix of a 3-vector."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _chain_jacobian(truth, parameters, centre=True, step=1e-4):
+    """The chain ``r_i = F_i X p_i - c`` (base, mm) differentiated at the truth: (3n, k) and the column names.
+
+    Columns: the sensor pose (3 rotations about the sensor's axes, rad, and 3 translations, mm), the centre
+    (3, mm; only with ``centre``) and ``parameters``, named ``offsets.jk`` (deg), ``lengths.<name>`` (mm) or
+    ``compliance.jk`` (deg/m), by central differences of :func:`true_forward`.
+    """
+    model, X = truth["model"], truth["sensor"]
+    offsets, lengths, compliance = truth["offsets"], dict(truth.get("lengths") or {}), dict(truth.get("compliance") or {})
+    cols = {f"_sensor{k}": [] for k in range(6)} | {f"_centre{k}": [] for k in range(3 if centre else 0)}
+    cols |= {n: [] for n in parameters}
+    for q, p in zip(truth["joints"], truth["points"]):
+        F = true_forward(model, q, offsets, lengths, compliance)
+        R = F[:3, :3]
+        Xp = X[:3, :3] @ p
+        for k in range(3):  # X -> X (I + [e]x) and X -> X + R_X e: the chain's change, per unit
+            e = np.zeros(3)
+            e[k] = 1.0
+            cols[f"_sensor{k}"].append(R @ X[:3, :3] @ (_hat(e) @ p))
+            cols[f"_sensor{k + 3}"].append(R @ X[:3, :3] @ e)
+            if centre:
+                cols[f"_centre{k}"].append(-e)
+        for name in parameters:
+            kind, key = name.split(".")
+            values = []
+            for sign in (1.0, -1.0):
+                off, ln, co = np.array(offsets, float), dict(lengths), dict(compliance)
+                if kind == "offsets":
+                    off[int(key[1]) - 1] += sign * step
+                elif kind == "lengths":
+                    ln[key] = ln.get(key, 0.0) + sign * step
+                elif kind == "compliance":
+                    co[key] = co.get(key, 0.0) + sign * step
+                else:
+                    raise ValueError(f"unknown parameter {name!r}")
+                Fk = true_forward(model, q, off, ln, co)
+                values.append(Fk[:3, :3] @ Xp + Fk[:3, :3] @ X[:3, 3] + Fk[:3, 3])
+            cols[name].append((values[0] - values[1]) / (2 * step))
+    names = list(cols)
+    return np.stack([np.concatenate(cols[n]) for n in names], axis=1), names
+
+
+def expected_sd(truth, parameters, noise=None, step=1e-4, centre=True):
+    """Own linearised 1-sd of hidden robot errors fitted together with the sensor pose (and the centre).
+
+    The chain's Jacobian at the truth (:func:`_chain_jacobian`: the sensor pose, the centre unless
+    ``centre`` is False -- a known centre -- and ``parameters``); the noise is isotropic, so
+    ``sd = noise * sqrt(diag((J^T J)^-1))``.
+
+    Returns
+    -------
+    dict
+        name -> sd; and ``"_unexplained"`` -> name -> the fraction of that column's size left after
+        projecting out the sensor pose, the centre and the other parameters (0: absorbed).
+    """
+    noise = truth["noise"] if noise is None else noise
+    J, names = _chain_jacobian(truth, parameters, centre, step)
+    cov = np.linalg.pinv(J.T @ J)
+    out = {n: noise * math.sqrt(max(cov[i, i], 0.0)) for i, n in enumerate(names) if n in parameters}
+    left = {}
+    for i, n in enumerate(names):
+        if n not in parameters:
+            continue
+        others = np.delete(J, i, axis=1)
+        fit = others @ np.linalg.lstsq(others, J[:, i], rcond=None)[0]
+        left[n] = float(np.linalg.norm(J[:, i] - fit) / max(np.linalg.norm(J[:, i]), 1e-300))
+    out["_unexplained"] = left
+    return out
+
+
+def fit_robot_errors(truth, parameters, centre=False, iterations=8):
+    """Own least-squares fit of robot errors to the measured points (Gauss-Newton with this module's
+    kinematics): the sensor pose free, the centre free with ``centre`` (else the true one), the robot errors
+    named in ``parameters`` (``offsets.jk``, ``lengths.<name>``, ``compliance.jk``) free and every other one
+    held at zero (the nominal robot) -- the model a calibration that estimates just these fits. Starts at
+    the truth.
+
+    Returns
+    -------
+    dict
+        name -> (estimate, 1 sd from the fit's own residual, 1 sd from the generator's noise) for every name of
+        ``parameters``; ``"_sigma"`` -> the fit's residual sd per component (mm).
+    """
+    planted = {f"offsets.j{k + 1}": v for k, v in enumerate(truth["offsets"])}
+    planted |= {f"lengths.{k}": v for k, v in (truth.get("lengths") or {}).items()}
+    planted |= {f"compliance.{k}": v for k, v in (truth.get("compliance") or {}).items()}
+    values = {n: planted.get(n, 0.0) for n in parameters}
+    X, c = truth["sensor"].copy(), np.array(truth["centre"], float)
+    measured = truth["measured"]
+
+    def cell():
+        offsets = np.zeros(6)
+        lengths, compliance = {}, {}
+        for name, v in values.items():
+            kind, key = name.split(".")
+            if kind == "offsets":
+                offsets[int(key[1]) - 1] = v
+            else:
+                (lengths if kind == "lengths" else compliance)[key] = v
+        return {"model": truth["model"], "sensor": X, "centre": c, "offsets": offsets, "lengths": lengths,
+                "compliance": compliance, "joints": truth["joints"], "points": measured, "measured": measured}
+
+    for _ in range(iterations):
+        J, names = _chain_jacobian(cell(), list(parameters), centre)
+        r = chain_residuals(cell()).ravel()
+        delta = -np.linalg.lstsq(J, r, rcond=None)[0]
+        w, dt = delta[:3], delta[3:6]
+        X = X.copy()
+        X[:3, 3] = X[:3, 3] + X[:3, :3] @ dt
+        if np.linalg.norm(w) > 0:
+            X[:3, :3] = X[:3, :3] @ rodrigues(w, math.degrees(np.linalg.norm(w)))
+        if centre:
+            c = c + delta[6:9]
+        for i, name in enumerate(names):
+            if name in values:
+                values[name] += delta[i]
+        if np.abs(delta).max() < 1e-12:
+            break
+    J, names = _chain_jacobian(cell(), list(parameters), centre)
+    r = chain_residuals(cell()).ravel()
+    sigma = math.sqrt(float(r @ r) / (len(r) - J.shape[1]))
+    cov = np.linalg.pinv(J.T @ J)
+    out = {n: (values[n], sigma * math.sqrt(cov[i, i]), truth["noise"] * math.sqrt(cov[i, i]))
+           for i, n in enumerate(names) if n in values}
+    out["_sigma"] = sigma
+    return out
