@@ -17,13 +17,13 @@ from handeye.model.rotation import rotvec_from_matrix
 
 @dataclasses.dataclass(frozen=True)
 class PlannedArm(simulate_robot.Robot):
-    """A simulated robot that goes to the plan's joint angles (its configurations), not to the
-    inverse kinematics' first solution as ``handeye simulate --poses`` does."""
+    """A simulated robot that goes to the plan's joint angles (its configurations) given to it once
+    (``handeye simulate --poses`` with a plan's j1..j6 does the same from the file)."""
 
     joints: np.ndarray = None
 
-    def reach(self, wanted, errors=None):
-        q = np.asarray(self.joints, float)
+    def reach(self, wanted, errors=None, joints=None):
+        q = np.asarray(self.joints if joints is None else joints, float)
         true = robot_errors.perturbed(self.model, q, errors or {})[0]
         return q, self.model.flange2base(q), true, {}
 

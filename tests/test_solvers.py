@@ -114,8 +114,11 @@ def test_every_solver_on_the_calibration(method, rotation):
     m = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, rotation)
     # local Newton has no globalisation: it converges to whichever stationary point is near
     start = [6, 1, 4, 1, -89, 1] if method == "newton" else [20, 10, 15, 5, -80, 3]
-    res = solve(calibration_problem(m), m.point_from(transform_from_pose(start)), method=method,
-                options=OPTIONS.get(method))
+    # thesis-sim's residual is zero at the truth, where a relative cost reduction means nothing: the
+    # line-search Newton in Euler angles stopped on it at 1.2e-6 deg (numpy 2.4's rounding), so there
+    # the gradient decides (22 iterations to 4e-11 deg)
+    options = OPTIONS.get(method, {"ftol": 0.0} if (method, rotation) == ("newton-ls", "euler") else None)
+    res = solve(calibration_problem(m), m.point_from(transform_from_pose(start)), method=method, options=options)
     assert res.converged, res.message
     dt, dr = transform_distance(m.sensor2flange(res.x), transform_from_pose(d.truth["sensor_pose"]))
     assert dt < TOLERANCE.get(method, 1e-6) and dr < TOLERANCE.get(method, 1e-6)
