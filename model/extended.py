@@ -98,6 +98,8 @@ class Samples:
         #: per robot effect (:mod:`handeye.model.robot_errors`) the indices of the parameters it
         #: estimates, chosen by the identifiability gate (:func:`handeye.model.robot_gate.robot_free`); all until then
         self.robot_free = {}
+        #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
+        self.robot_always = set()
 
     def params_of(self, name):
         """The parameter names an effect has on these samples (a robot effect: those it estimates)."""

@@ -190,3 +190,25 @@ def corrected_model(model, values):
     origins, after = _fixed(model, values)
     offsets = model.offsets + np.asarray(values.get("joint_offsets", np.zeros(6)), float)
     return dataclasses.replace(model, origins=origins, after=after, offsets=offsets)
+
+
+def always_absorbed(model, name, samples=24, seed=0):
+    """The parameters of robot effect ``name`` that no pose set can separate from a fixed sphere's
+    centre or the sensor pose: their change of the flange is a constant transform on the base side
+    (``dT T^-1`` the same at every configuration: a length before the first joint's turn, a
+    first-joint offset about a vertical axis...) or on the flange side (``T^-1 dT`` constant: a
+    last-joint offset, a length along the last axis). Checked at ``samples`` random
+    configurations; returns ``{parameter: 'base' | 'flange'}``."""
+    q = np.random.default_rng(seed).uniform(-170.0, 170.0, (samples, 6))
+    values = {name: np.zeros(len(param_names(model, name)))}
+    fk, d = perturbed(model, q, values)
+    inv = np.linalg.inv(fk)
+    out = {}
+    for k, param in enumerate(param_names(model, name)):
+        left, right = d[name][:, k] @ inv, inv @ d[name][:, k]
+        for side, twist in (("base", left), ("flange", right)):
+            scale = max(float(np.abs(twist).max()), 1e-12)
+            if np.abs(twist - twist[0]).max() <= 1e-9 * scale:
+                out[param] = side
+                break
+    return out

@@ -7,7 +7,8 @@ first-joint offset is a turn of the base, which a centre given wrong looks like)
 already in the model and the parameters chosen before it: it must keep
 :data:`~handeye.model.extended.JOINT_GATE` of its size outside their span
 (:func:`handeye.model.extended.gate`), and its 1 sd at the stated noise must stay below
-:data:`WEAKEST`. What is left out is reported with what absorbs it.
+:data:`WEAKEST`. What is left out is reported with what absorbs it; what no pose set can separate
+(:func:`handeye.model.robot_errors.always_absorbed`) is recorded in ``Samples.robot_always``.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import effects
+from handeye.model import effects, robot_errors
 from handeye.model.extended import JOINT_GATE, candidate_rows, gate
 
 #: A robot parameter whose 1 sd on these samples (at the stated noise, given the sensor pose, the
@@ -50,6 +51,8 @@ def robot_free(prob, structure, fit, mask, name="joint_offsets"):
         current = np.concatenate([current, -np.tile(np.eye(3), (int(mask.sum()), 1))], axis=1)
         names += ["cx", "cy", "cz"]
     free, absorbed = [], {}
+    always = robot_errors.always_absorbed(prob.d.robot_model, name)
+    prob.robot_always |= {f"{name}.{param}" for param in always}
     for k, param in enumerate(all_names):
         col = cols[:, :, k].reshape(-1, 1)
         frac, who = gate(current, col, names)

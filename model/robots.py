@@ -143,6 +143,24 @@ def _coupling(doc, file):
     return out
 
 
+#: The keys a model file may have, by format (a typo is named, never silently a different robot).
+KEYS = {"chain": {"joints", "base", "flange"}, "dh": {"d", "a", "alpha", "theta", "base", "flange"}}
+COMMON_KEYS = {"name", "source", "format", "coupling"}
+
+
+def _known_keys(doc, fmt, file):
+    allowed = COMMON_KEYS | KEYS.get(fmt, set().union(*KEYS.values()))
+    unknown = sorted(set(doc) - allowed)
+    if unknown:
+        raise DatasetError(file, f"unknown key {unknown[0]!r} (a {fmt or 'robot'} model has "
+                                 f"{', '.join(sorted(allowed))})", column=unknown[0])
+    for k, joint in enumerate(doc.get("joints") or []):
+        extra = sorted(set(joint) - {"name", "xyz", "rpy", "axis"}) if isinstance(joint, dict) else []
+        if extra:
+            raise DatasetError(file, f"unknown key {extra[0]!r} in a joint (it has name, xyz, rpy, axis)",
+                               column=f"joints[{k}]")
+
+
 def load(name_or_file):
     """A :class:`RobotModel` by built-in name or TOML file; raises DatasetError naming the key."""
     path = pathlib.Path(str(name_or_file))
@@ -155,6 +173,7 @@ def load(name_or_file):
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise DatasetError(file, f"not a robot model: {exc}") from None
     fmt = doc.get("format")
+    _known_keys(doc, fmt, file)
     if fmt not in ("chain", "dh"):
         raise DatasetError(file, f"format must be \"chain\" or \"dh\", got {fmt!r}", column="format")
     origins, axes, after, offsets = (_chain if fmt == "chain" else _dh)(doc, file)

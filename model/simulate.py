@@ -162,6 +162,8 @@ def parse_named(name, value):
             number = None
         if not sep or not key.strip() or number is None or not np.isfinite(number) or abs(number) > limit:
             raise SimulationError(f"--effect {name}={value}: expected PARAMETER:VALUE,... with |VALUE| <= {limit:g}")
+        if key.strip() in out:
+            raise SimulationError(f"--effect {name}={value}: {key.strip()} given twice")
         out[key.strip()] = number
     if not any(out.values()):
         raise SimulationError(f"--effect {name}={value}: give at least one non-zero value")
@@ -185,7 +187,7 @@ def robot_errors(effects, model):
         unknown = sorted(set(effects[name]) - set(names))
         if unknown:
             raise SimulationError(f"--effect {name}: {', '.join(unknown)} not a parameter of the {model.name}; "
-                                  f"its are {', '.join(names)}")
+                                  f"its parameters are {', '.join(names)}")
         values[name] = np.array([effects[name].get(n, 0.0) for n in names])
     return values
 
@@ -398,9 +400,9 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
     reported, given, joints, unreached = true_flanges, joints, None, {}
     if robot is not None:
+        errors = robot_errors(effects, robot.model)
         try:
-            joints, reported, true_flanges, unreached = robot.reach(true_flanges, robot_errors(effects, robot.model),
-                                                                    given)
+            joints, reported, true_flanges, unreached = robot.reach(true_flanges, errors, given)
         except ValueError as exc:
             raise SimulationError(f"--poses: {exc}") from None
     elif any(name in effects for name in ROBOT_EFFECTS):
@@ -437,10 +439,22 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
                       robot)
 
 
-def _robot_section(convention, robot):
-    """setup.toml's ``[robot]`` (empty for KUKA without a robot model)."""
+#: The name a robot model file gets in a simulated dataset (setup.toml's ``[robot] model``).
+MODEL_FILE = "robot_model.toml"
+
+
+def _robot_section(convention, robot, folder):
+    """setup.toml's ``[robot]`` (empty for KUKA without a robot model). A model file (not a built-in
+    name) is copied into the dataset as :data:`MODEL_FILE`, so that the dataset reads it from any
+    working folder (a path in setup.toml is the dataset folder's)."""
+    from handeye.model import robots
+
+    model = None if robot is None else robot.model_key
+    if model is not None and model not in robots.builtin_names():
+        (folder / MODEL_FILE).write_bytes(pathlib.Path(robot.model.spec).read_bytes())
+        model = MODEL_FILE
     keys = (f"convention = \"{convention}\"\n" if convention != "kuka" else "") \
-        + (f"model = \"{robot.model_key}\"\n" if robot is not None else "")
+        + (f"model = \"{model}\"\n" if model is not None else "")
     return f"[robot]\n{keys}\n" if keys else ""
 
 
@@ -492,7 +506,7 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
              f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
-        + _robot_section(convention, sim.robot)
+        + _robot_section(convention, sim.robot, folder)
         + (f"[sensor]\n{sensor_keys}{start}\n" if sensor_keys or start else "")
         + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
         + positioner

@@ -220,3 +220,46 @@ def test_robot_errors_beyond_a_controllers_model_are_not_named():
     assert "a wrong [robot] model" in effects.implausible("link_lengths", np.array([12.0]), 25.0, names=("a2",))
     assert effects.implausible("joint_compliance", np.array([0.8, 0.0]), 25.0, names=("j2", "j3")) is not None
     assert effects.implausible("joint_compliance", np.array([0.05, 0.02]), 25.0, names=("j2", "j3")) is None
+
+
+@pytest.mark.parametrize("name", robots.builtin_names())
+def test_what_no_pose_set_separates_is_found_from_the_chain(name):
+    """A first-joint offset and a length before the first joint's turn change the flange by a
+    constant transform on the base side; a last-joint offset and a length along the last axis by one
+    on the flange side: for every built-in robot exactly these four, and no sag gain."""
+    model = robots.load(name)
+    lengths = robot_errors.always_absorbed(model, "link_lengths")
+    assert robot_errors.always_absorbed(model, "joint_offsets") == {"j1": "base", "j6": "flange"}
+    assert sorted(lengths.values()) == ["base", "flange"] and len(lengths) == 2
+    assert robot_errors.always_absorbed(model, "joint_compliance") == {}
+
+
+def test_diagnose_says_which_robot_parameters_no_pose_set_separates(tmp_path):
+    d = handeye.diagnose(_cell(tmp_path / "jo", "ur10e", ["joint_offsets=j2:0.05"], seed=8))
+    said = dict(zip(d.absorbed_by, d.absorbed_explained))
+    for param in ("joint_offsets.j1", "joint_offsets.j6", "link_lengths.d1", "link_lengths.d6"):
+        assert "no choice of poses can separate it" in said[param], said[param]
+
+
+def test_a_model_file_is_copied_into_the_simulated_dataset(tmp_path, monkeypatch):
+    """simulate --robot FILE writes the file into the dataset (robot_model.toml), so the dataset
+    loads from any working folder; a model file with an unknown key is named, exit 2."""
+    text = (robots.ROBOTS_DIR / "ur10e.toml").read_text()
+    (tmp_path / "arm.toml").write_text(text.replace('name = "UR10e"', 'name = "my arm"'))
+    monkeypatch.chdir(tmp_path)
+    api.simulate("sim", robot="arm.toml", n_poses=8, center="600,-300,100")
+    monkeypatch.chdir("/")
+    data = handeye.load_dataset(tmp_path / "sim")
+    assert data.robot_model.name == "my arm" and (tmp_path / "sim" / "robot_model.toml").is_file()
+    (tmp_path / "typo.toml").write_text(text.replace("alpha =", "alhpa ="))
+    assert main(["simulate", "--out", str(tmp_path / "t"), "--robot", str(tmp_path / "typo.toml")]) == EXIT_BAD_INPUT
+
+
+def test_simulate_names_a_parameter_given_twice(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path / "a"), "--robot", "ur10e", "--effect",
+                 "link_lengths=a2:0.4,a2:0.1"]) == EXIT_BAD_INPUT
+    assert "a2 given twice" in capsys.readouterr().err
+    assert main(["simulate", "--out", str(tmp_path / "b"), "--robot", "ur10e", "--effect", "link_lengths=a7:0.1"]) \
+        == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "a7 not a parameter of the UR10e; its parameters are d1, a2" in err and "--poses" not in err

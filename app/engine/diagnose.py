@@ -162,11 +162,11 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
 def _robot_choice(run, structure, fit):
     """The robot effects compared as alternatives (:func:`handeye.app.engine.robot_choice.compare`);
     a step recorded when another combination replaces the searched one."""
-    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask)
+    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask, run.alpha)
     if set(chosen.data_effects) != set(structure.data_effects) or chosen.centre != structure.centre:
         robot = [n for n in chosen.data_effects if effects.get(n).KIND == "robot"]
         label = "+".join(("sphere_center",) * chosen.centre + tuple(robot))
-        run.steps.append({"step": f"simplest: {label}", **_summaries(run.prob, chosen, new, run.mask)})
+        run.steps.append({"step": f"robot effects: {label}", **_summaries(run.prob, chosen, new, run.mask)})
     return chosen, new
 
 
@@ -410,6 +410,7 @@ def _report(run, structure, fit, flips, outliers):
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=_unexplained(after, prob.sigma),
         robot_alternatives=run.robot_alternatives,
+        always_absorbed=tuple(sorted(prob.robot_always)),
     )
 
 

@@ -43,8 +43,9 @@ class DiagnosisResidual:
         return dataclasses.asdict(self)
 
 
-def absorbed_sentence(name, by, centre_fitted=True):
-    """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre."""
+def absorbed_sentence(name, by, centre_fitted=True, always=False):
+    """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre
+    (``always``: no pose set could, as for the catalogue's structural effects)."""
     from handeye.model import effects
 
     if len(by) == 1 and by[0].startswith("1 sd "):  # a robot parameter the poses barely move
@@ -52,7 +53,7 @@ def absorbed_sentence(name, by, centre_fitted=True):
                 "(beside the sensor pose and the centre); poses that move it more could separate it")
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
-    structural = effects.get(name.split(".")[0]).KIND == "structural"
+    structural = always or effects.get(name.split(".")[0]).KIND == "structural"
     by_centre = any(p.startswith("c") for p in by)
     if by_centre and not centre_fitted:
         held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
@@ -100,6 +101,8 @@ class DiagnosisResult(ResultProtocol):
     residuals : list of DiagnosisResidual
     unexplained : str
         What remains after the named effects.
+    always_absorbed : tuple of str
+        The robot parameters (``effect.parameter``) no pose set could separate.
     robot_alternatives : str or None
         Other robot effects that explain the data about as well as those named (their BIC and
         how far the sensor pose moves with them; :mod:`handeye.app.engine.robot_choice`), or None.
@@ -134,11 +137,13 @@ class DiagnosisResult(ResultProtocol):
     centre_fitted: bool = True
     inconsistent: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
+    always_absorbed: tuple = ()
 
     @property
     def absorbed_explained(self):
         """Each absorbed effect in a sentence a user understands."""
-        return [absorbed_sentence(name, by, self.centre_fitted) for name, by in self.absorbed_by.items()]
+        return [absorbed_sentence(name, by, self.centre_fitted, name in self.always_absorbed)
+                for name, by in self.absorbed_by.items()]
 
     @property
     def not_identifiable(self):

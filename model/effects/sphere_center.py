@@ -6,4 +6,4 @@ making the centre an unknown (``--unknowns sensor+sphere``); reported as ``c_est
 KIND = "centre"
 NAME = "sphere_center"
 PARAMS = ("dx", "dy", "dz")
-DOC = "sphere centre offset from the setup's, mm (base frame)"
+DOC = "sphere centre offset from the setup's, mm (in its mount's frame: the robot base, the flange or the table)"
