@@ -105,7 +105,7 @@ def _export_args(sub, calibration):
     calibration(ex, option=False)
     ex.add_argument("--format", choices=FORMATS + ROBOT_FORMATS, default="json",
                     help="what to write (default json: every format's numbers; robot-toml, robot-urdf: the robot's "
-                         "model corrected by calibrated joint_offsets)")
+                         "model corrected by calibrated joint_offsets and link_lengths; its flange link is tool0)")
     ex.add_argument("--parent", default=None, help="parent frame name (ros2, urdf; default flange, or base_link for a "
                                                    "sensor fixed in the cell)")
     ex.add_argument("--child", default="sensor", help="sensor frame name (ros2, urdf, tool, base and variable names; "
