@@ -397,6 +397,22 @@ def _robot_model(st, folder, joints, poses, file):
     return model
 
 
+def _check_truth_params(truth, model, file):
+    """``[truth] link_lengths`` / ``joint_compliance`` name parameters of the robot model."""
+    from handeye.model import robot_errors
+
+    for name in ("link_lengths", "joint_compliance"):
+        given = (truth or {}).get(name)
+        if not given:
+            continue
+        if model is None:
+            raise DatasetError(file, f"[truth] {name} needs [robot] model", column=f"[truth] {name}")
+        unknown = sorted(set(given) - set(robot_errors.param_names(model, name)))
+        if unknown:
+            raise DatasetError(file, f"{unknown[0]} is not a parameter of the {model.name} (it has "
+                                     f"{', '.join(robot_errors.param_names(model, name))})", column=f"[truth] {name}")
+
+
 def load(name_or_path):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
     folder = resolve(name_or_path)
@@ -422,6 +438,7 @@ def load(name_or_path):
     angles = np.array(angles, float).reshape(len(ids), -1)
     joints = angles[:, len(axes):] if angles.shape[1] > len(axes) else None
     model = _robot_model(st, folder, joints, np.asarray(poses, float), file)
+    _check_truth_params(st.truth, model, folder / "setup.toml")
     return Dataset(
         name=folder.name,
         path=folder,

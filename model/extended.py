@@ -117,9 +117,10 @@ class Samples:
         -> the estimated parameters) (N, 4, 4), and per effect their derivatives (N, k, 4, 4) with
         respect to its estimated parameters. The flange is ``F' = F_rep T(q)^-1 T*(q)``
         (:mod:`handeye.model.robot_errors`); the motion is ``F'`` (sensor on the flange), its
-        inverse (sensor fixed, sphere on the flange: ``d inv(F') = -inv(F') dF' inv(F')``) or
-        ``inv(table) F'`` (sphere on a positioner), as :func:`handeye.model.mounts.motions`."""
-        from handeye.model.mounts import inverse_transforms, table2base
+        inverse (sensor fixed, sphere on the flange: ``d inv(F') = -inv(F') dF' inv(F')``), as
+        :func:`handeye.model.mounts.motions`; not with the sphere on a positioner (the robot effects'
+        ``available`` says why)."""
+        from handeye.model.mounts import inverse_transforms
         from handeye.model.robot_errors import perturbed
 
         model, mounts = self.d.robot_model, self.d.mounts
@@ -136,11 +137,10 @@ class Samples:
         d = {name: moved[:, None] @ dfk[:, self._free(name)] for name, dfk in derivatives.items()}
         if mounts.default:
             return corrected, d
-        if mounts.sensor == "world":
-            inv = inverse_transforms(corrected)
-            return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
-        table = inverse_transforms(table2base(mounts.axes, take(self.d.axis_angles)))
-        return table @ corrected, {name: table[:, None] @ dm for name, dm in d.items()}
+        if mounts.sensor != "world":
+            raise ValueError("robot effects with the sphere on a positioner are not modelled")
+        inv = inverse_transforms(corrected)
+        return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
 
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
@@ -531,7 +531,7 @@ def score_by_sums(prob, structure, fit, mask, names, chunk=None):
     return found
 
 
-def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=(), chunk=None):
+def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=(), chunk=None, robot=None, prob=None):
     """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
 
     Parameters
@@ -548,6 +548,13 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
     chunk : int, optional
         Samples per chunk of the sums (:func:`score_by_sums`); default the full arrays up to
         :data:`~handeye.model.calibration.ROW_CHUNK` samples used, chunks of that many above.
+    robot : callable, optional
+        ``robot(prob, structure, fit, mask) -> [(p, name, statistic, gate)]``: the robot effects'
+        tests (:func:`handeye.model.robot_gate.robot_scores`, which gates their parameters), taken
+        into the same Bonferroni family; not on the chunked path.
+    prob : Samples, optional
+        The dataset's samples with the robot effects of ``skip`` already gated
+        (:func:`handeye.model.robot_gate.score_effects`); default new ones.
 
     Returns
     -------
@@ -555,7 +562,7 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
         the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
     """
-    prob, mask = Samples(dataset), np.asarray(mask, bool)
+    prob, mask = prob or Samples(dataset), np.asarray(mask, bool)
     structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
     with np.errstate(all="ignore"):
         fit = prob.fit(structure, mask, prob.point(structure, sensor2flange, centre), chunk=chunk)
@@ -580,7 +587,7 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
             continue
         stat, p = score_test_robust(fit, mask, cols, q=q)
         found.append((p, name, stat, frac))
-    return _ranked(found)
+    return _ranked(found + (robot(prob, structure, fit, mask) if robot is not None else []))
 
 
 def _ranked(found):

@@ -16,8 +16,15 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import effects, robot_errors
-from handeye.model.extended import JOINT_GATE, candidate_rows, gate
+from handeye.model import effects, extended, robot_errors
+from handeye.model.extended import (
+    GATE,
+    JOINT_GATE,
+    candidate_columns,
+    candidate_rows,
+    gate,
+    score_test_robust,
+)
 
 #: A robot parameter whose 1 sd on these samples (at the stated noise, given the sensor pose, the
 #: centre and the parameters chosen before it) exceeds this is too weakly seen to estimate: a
@@ -83,3 +90,38 @@ def gate_robot_effects(prob, structure, mask, sensor2flange, centre=None):
             fit = prob.fit(base, mask, prob.point(base, sensor2flange, centre))
         left_out[name] = robot_free(prob, base, fit, mask, name)
     return left_out
+
+
+def robot_scores(prob, structure, fit, mask):
+    """The robust score tests (:func:`handeye.model.extended.score_test_robust`) of the robot
+    effects the dataset can show and ``structure`` lacks, each with its parameters gated first:
+    ``[(p, name, statistic, gate)]`` for :func:`handeye.model.extended.score_effects`'s ``robot``."""
+    out = []
+    if fit.jac is None:
+        return out
+    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    for effect in effects.catalogue("robot"):
+        name = effect.NAME
+        if not effect.available(prob.d) or name in structure.data_effects:
+            continue
+        robot_free(prob, structure, fit, mask, name)
+        if not prob.robot_free[name]:
+            continue
+        cols = candidate_columns(prob, structure, fit, mask, name)
+        if not np.all(np.isfinite(cols)):
+            continue
+        frac, _ = gate(jac_cur, cols, fit.names, absorbers=False)
+        if frac >= GATE:
+            stat, p = score_test_robust(fit, mask, cols)
+            out.append((p, name, stat, frac))
+    return out
+
+
+def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=()):
+    """:func:`handeye.model.extended.score_effects` with the robot effects: those among ``skip``
+    (``--effects``) fitted with only the parameters the samples separate, the others tested."""
+    prob, mask = extended.Samples(dataset), np.asarray(mask, bool)
+    held = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
+    if any(effects.get(n).KIND == "robot" for n in skip):
+        gate_robot_effects(prob, held, mask, sensor2flange, centre if held.centre else None)
+    return extended.score_effects(dataset, mask, sensor2flange, centre, unknowns, skip, robot=robot_scores, prob=prob)

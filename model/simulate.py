@@ -119,7 +119,11 @@ def parse_effects(specs):
             out[name] = parse_joint_offsets(value).tolist()
             continue
         if name in ROBOT_EFFECTS:
-            out[name] = parse_named(name, value)
+            named = parse_named(name, value)
+            twice = sorted(set(named) & set(out.get(name, {})))
+            if twice:
+                raise SimulationError(f"--effect {name}: {twice[0]} given twice")
+            out[name] = {**out.get(name, {}), **named}
             continue
         try:
             nums = [float(p) for p in parts]

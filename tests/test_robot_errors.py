@@ -263,3 +263,40 @@ def test_simulate_names_a_parameter_given_twice(tmp_path, capsys):
         == EXIT_BAD_INPUT
     err = capsys.readouterr().err
     assert "a7 not a parameter of the UR10e; its parameters are d1, a2" in err and "--poses" not in err
+
+
+def test_a_robot_error_the_centre_check_would_blame_is_named_beside_it(tmp_path):
+    """A KR 60 HA's upper arm 0.4 mm long looks, to the centre model, like a centre taught off: the
+    refusal (exit 2) names the robot's lengths as the other explanation when the joints are there,
+    and a calibration with the centre free warns that the residuals have a robot effect's shape."""
+    folder = _cell(tmp_path / "a", "kr60ha", ["link_lengths=j3_x:0.4"], seed=0)
+    with pytest.raises(handeye.InputError, match="or the robot's own errors are: with link_lengths"):
+        handeye.calibrate(folder)
+    freed = handeye.calibrate(folder, unknowns="sensor+sphere")
+    assert any("structure the model lacks: link_lengths" in w for w in freed.warnings), freed.warnings
+    fixed = handeye.calibrate(folder, effects="link_lengths")
+    assert fixed.converged and abs(fixed.effects[0].parameters["j3_x"] - 0.4) < 3 * fixed.effects[0].std["j3_x"]
+
+
+def test_joint_angles_on_a_positioner_cell_are_said_to_leave_the_robot_unmodelled(tmp_path):
+    folder = tmp_path / "pos"
+    api.simulate(folder, robot="kr60ha", sphere_mount="positioner", n_poses=12, effect=["link_lengths=j3_x:0.4"])
+    d = handeye.diagnose(folder)
+    assert "not modelled with the sphere on a positioner" in d.unexplained
+
+
+def test_truth_names_robot_parameters_of_its_model(tmp_path):
+    folder = _cell(tmp_path / "t", "ur10e", [], seed=1)
+    setup = folder / "setup.toml"
+    setup.write_text(setup.read_text() + "link_lengths = { zz = 0.4 }\n")
+    with pytest.raises(handeye.InputError, match="zz is not a parameter of the UR10e"):
+        handeye.load_dataset(folder)
+
+
+def test_repeated_effect_options_add_up_and_a_repeat_is_named(tmp_path, capsys):
+    made = api.simulate(tmp_path / "r", robot="ur10e", n_poses=6,
+                        effect=["link_lengths=a2:0.3", "link_lengths=d4:0.2"])
+    assert made.dataset.truth["link_lengths"] == {"a2": 0.3, "d4": 0.2}
+    assert main(["simulate", "--out", str(tmp_path / "x"), "--robot", "ur10e", "--effect", "link_lengths=a2:0.3",
+                 "--effect", "link_lengths=a2:0.1"]) == EXIT_BAD_INPUT
+    assert "a2 given twice" in capsys.readouterr().err

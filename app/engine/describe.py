@@ -12,7 +12,7 @@ import shlex
 
 import numpy as np
 
-from handeye.app.engine import robust
+from handeye.app.engine import robot_choice, robust
 from handeye.app.errors import CalibrationInputError
 from handeye.app.present.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
 from handeye.app.present.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
@@ -148,7 +148,7 @@ def effect_tests(final):
     """Score tests of the catalogue's effects at the fit ``final`` (a :class:`Described`); a warning
     naming diagnose for a significant one (the test uses the fit's own scale, not the stated noise)."""
     dataset, fit, request, warnings = final.dataset, final.fit, final.request, final.warnings
-    tests = extended.score_effects(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, skip=request.effects)
+    tests = robot_gate.score_effects(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, skip=request.effects)
     significant = [t for t in tests if t.p_bonferroni < request.alpha]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
@@ -385,6 +385,9 @@ def describe_fit(final):
     dataset, mask, fit, warnings = final.dataset, final.mask, final.fit, final.warnings
     loo, outliers_on, sigma = final.request.loo, final.request.outliers, final.request.sigma
     advice = diagnose_advice(dataset, final.centre_given)
+    note = robot_choice.unmodelled(dataset)
+    if note:
+        warnings.append(note)
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)

@@ -408,7 +408,7 @@ def _report(run, structure, fit, flips, outliers):
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
                    for i, b, a, u in zip(d.ids, run.before_norms, after_norms, mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
-        unexplained=_unexplained(after, prob.sigma),
+        unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
         robot_alternatives=run.robot_alternatives,
         always_absorbed=tuple(sorted(prob.robot_always)),
     )

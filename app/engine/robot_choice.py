@@ -52,6 +52,11 @@ def _bic(fit):
     return float(fit.m * np.log(max(fit.ssr, 1e-300) / fit.m) + fit.p * np.log(fit.m))
 
 
+def _implausible(prob, fit, names):
+    """Whether a fitted robot effect is beyond its physical limit (:func:`handeye.model.effects.implausible`)."""
+    return any(effects.implausible(n, fit.params[n], prob.radius, names=prob.params_of(n)) is not None for n in names)
+
+
 def _fitted(prob, structure, mask, names, free_centre, start):
     """The structure with the robot effects ``names`` in place of its own and the centre free or
     not, gated and fitted from ``start`` (sensor2flange, centre); None when one of them has no
@@ -64,7 +69,7 @@ def _fitted(prob, structure, mask, names, free_centre, start):
         return None
     with np.errstate(all="ignore"):
         fit = prob.fit(trial, mask, prob.point(trial, sensor, centre if free_centre else None))
-    if not (np.isfinite(fit.ssr) and fit.converged):
+    if not (np.isfinite(fit.ssr) and fit.converged) or _implausible(prob, fit, names):
         return None
     return Candidate(tuple(names), free_centre, trial, fit, {n: prob.robot_free[n] for n in names}, _bic(fit))
 
@@ -122,27 +127,54 @@ def compare(prob, structure, fit, mask, alpha):
     tried = [c for centre in dict.fromkeys((structure.centre, False)) for names in combos
              if (c := _fitted(prob, structure, mask, names, centre, start)) is not None]
     searched = Candidate(tuple(named), structure.centre, structure, fit, kept_free, _bic(fit))
+    prob.robot_free.update(kept_free)
+    if _implausible(prob, fit, named):  # refitted beside outliers since the search checked it
+        if not tried:
+            return (*_without_robot(prob, structure, fit, mask), None)
+        searched = min(tried, key=lambda c: c.bic)
     lowest = min(tried, key=lambda c: c.bic, default=searched)
     best = lowest if _replaces(prob, mask, searched, lowest, alpha) else searched
     prob.robot_free.update(best.free)
     rivals = {(c.names, c.centre): c for c in tried + [searched]
               if c.bic - best.bic < AMBIGUOUS and (set(c.names), c.centre) != (set(best.names), best.centre)
               and not (set(best.names) <= set(c.names) and c.centre >= best.centre)}
-    return best.structure, best.fit, _said(prob, best, list(rivals.values()))
+    return best.structure, best.fit, _said(prob, best, list(rivals.values()), mask)
 
 
-def _said(prob, best, rivals):
+def _without_robot(prob, structure, fit, mask):
+    """The structure without its robot effects, refitted: ``(structure, fit)``."""
+    kept = tuple(n for n in structure.data_effects if effects.get(n).KIND != "robot")
+    reduced = dataclasses.replace(structure, data_effects=kept)
+    with np.errstate(all="ignore"):
+        return reduced, prob.fit(reduced, mask, fit.x, {n: fit.params[n] for n in kept})
+
+
+def _said(prob, best, rivals, mask):
     if not rivals:
         return None
+    sd = float(np.linalg.norm(best.fit.uncertainty(mask)[0][:3]))  # the kept pose's translation, 1 sd (3-D)
     parts = []
     for c in sorted(rivals, key=lambda c: c.bic):
         dt, dr = transform_distance(prob.transform(best.fit.x), prob.transform(c.fit.x))
         parts.append(f"{_label(c)} (BIC {c.bic - best.bic:+.1f}; sensor pose {float(dt):.3g} mm / "
-                     f"{float(dr):.3g} deg from this one)")
+                     f"{float(dr):.3g} deg from this one, {float(dt) / max(sd, 1e-12):.2g} times its 1 sd)")
     return (f"which robot errors is not settled: {_label(best)} explains the residuals, but "
             f"{'; '.join(parts)} about as well -- these poses do not tell them apart (a BIC difference below "
-            f"{AMBIGUOUS:g}); poses that differ more in reach and arm configuration would (handeye plan --robot)")
+            f"{AMBIGUOUS:g}), and where the sensor pose moves by more than its sd between them, the sd does not "
+            "hold; poses that differ more in reach and arm configuration would (handeye plan --robot)")
 
 
 def _label(c):
     return "+".join(("sphere_center",) * c.centre + c.names)
+
+
+def unmodelled(dataset):
+    """What to say when a dataset has the robot's joint angles but its cell does not let the robot's
+    errors be modelled (the sphere on a positioner), or None."""
+    if getattr(dataset, "joints", None) is None or getattr(dataset, "robot_model", None) is None:
+        return None
+    if any(e.available(dataset) for e in effects.catalogue("robot")):
+        return None
+    return ("the robot's own errors (joint offsets, lengths, sag) are not modelled with the sphere on a positioner: "
+            "the turning axes and the sphere centre absorb them in part, so a centre offset or axes named here may be "
+            "a robot error, and the pose is only as right as the robot's nominal kinematics")

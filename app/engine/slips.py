@@ -28,6 +28,7 @@ would absorb (:func:`check_centre`).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 
@@ -389,6 +390,22 @@ def _effects_keep_centre(dataset, effects, given, sigma):
     return chi2_survival(a.ssr / prob.sigma**2, a.m - a.p) >= P_SUSPECT and (f <= 0 or f_survival(f, 3, b.m - b.p) >= P_SLIP)
 
 
+def _robot_alternative(dataset, effects, given, sigma):
+    """The robot effects not asked for (``--effects``) that explain the misfit at the given centre
+    as well (:func:`_effects_keep_centre`), joined for ``--effects``; None without joint angles or
+    when they do not."""
+    from handeye.model import effects as catalogue
+
+    robot = [e.NAME for e in catalogue.catalogue("robot") if e.available(dataset) and e.NAME not in effects]
+    if not robot:
+        return None
+    for k in range(1, len(robot) + 1):  # the fewest first
+        for names in itertools.combinations(robot, k):
+            if _effects_keep_centre(dataset, tuple(effects) + names, given, sigma):
+                return ",".join(names)
+    return None
+
+
 def check_centre(dataset, sigma=None, effects=()):
     """Raise :class:`CalibrationInputError` when the given ``[sphere] center`` contradicts the
     data beyond the pose's own uncertainty.
@@ -432,6 +449,7 @@ def check_centre(dataset, sigma=None, effects=()):
     moved = _mahalanobis(dataset, given, free)
     if moved <= SIDE_MOVE_SD or (effects and _effects_keep_centre(dataset, effects, given, sigma)):
         return
+    robot = _robot_alternative(dataset, effects, given, sigma)
     dt, dr = transform_distance(given.sensor2flange, free.sensor2flange)
     shift = free.centre - dataset.sphere_centre
     raise CalibrationInputError(
@@ -439,5 +457,7 @@ def check_centre(dataset, sigma=None, effects=()):
         f"({', '.join(f'{v:.2f}' for v in free.centre)}) mm, ({', '.join(f'{v:+.2f}' for v in shift)}) mm from the "
         f"given one; with the centre free the centre model's RMS falls from {np.sqrt(2 * given.cost / n):.3g} to "
         f"{np.sqrt(2 * free.cost / n):.3g} mm, the stated noise, and the sensor pose moves {dt:.3g} mm / {dr:.3g} deg, "
-        f"{moved:.3g} sd (Mahalanobis): the given centre is off and the pose would absorb it. "
-        "Correct [sphere] center, or calibrate with --unknowns sensor+sphere")
+        f"{moved:.3g} sd (Mahalanobis): the given centre is off and the pose would absorb it"
+        + (f" -- or the robot's own errors are: with {robot} the given centre fits within the stated noise. "
+           f"handeye diagnose tests both; then correct [sphere] center, or calibrate with --effects {robot}"
+           if robot else ". Correct [sphere] center, or calibrate with --unknowns sensor+sphere"))
