@@ -165,14 +165,20 @@ def _score_offsets(result, offsets):
 
 @pytest.mark.slow(sibling="test_diagnose_names_nothing_on_clean_data")
 def test_joint_offset_rates_over_seeds(tmp_path):
-    """100 clean datasets (50 per robot): joint_offsets named in <= 10 %; 40 with offsets (20 per robot):
-    exactly the offset joints named in >= 90 %, >= 95 % of the values within 3 sd."""
+    """50 clean datasets (25 per robot): a robot effect (any of joint_offsets, link_lengths,
+    joint_compliance) named on <= 5 (the false-positive rate of the whole robot catalogue, measured
+    once here for both rate tests); 40 with offsets (20 per robot): exactly the offset joints named in
+    >= 90 %, >= 95 % of the values within 3 sd."""
     false_positives = clean = 0
+    hits = []
     for model in ("kr60ha", "ur10e"):
-        for seed in range(50):
+        for seed in range(25):
             ir.make(tmp_path / f"c-{model}-{seed}", model, seed=1000 + seed)
-            false_positives += joint_offsets(handeye.diagnose(tmp_path / f"c-{model}-{seed}")) is not None
+            named = robot_effects(handeye.diagnose(tmp_path / f"c-{model}-{seed}"))
+            false_positives += bool(named)
             clean += 1
+            if named:
+                hits.append((model, seed, sorted(named)))
     rng = np.random.default_rng(7)
     right = inside = estimated = runs = 0
     for model in ("kr60ha", "ur10e"):
@@ -181,8 +187,8 @@ def test_joint_offset_rates_over_seeds(tmp_path):
             ir.make(tmp_path / f"o-{model}-{seed}", model, seed=2000 + seed, offsets=offsets)
             ok, k, m = _score_offsets(handeye.diagnose(tmp_path / f"o-{model}-{seed}"), offsets)
             right, inside, estimated, runs = right + ok, inside + k, estimated + m, runs + 1
-    print(f"\njoint_offsets false positives {false_positives}/{clean}; right joints named {right}/{runs}; "
-          f"values within 3 sd {inside}/{estimated}")
+    print(f"\nrobot effects named on clean data {false_positives}/{clean} {hits}; joint_offsets: right joints named "
+          f"{right}/{runs}; values within 3 sd {inside}/{estimated}")
     assert false_positives <= 0.10 * clean
     assert right >= 0.90 * runs
     assert inside >= 0.95 * estimated
@@ -518,28 +524,20 @@ def _run(folder, truth, plants):
 
 @pytest.mark.slow(sibling="test_diagnose_names_no_robot_effect_on_clean_data")
 def test_robot_error_rates_over_seeds(tmp_path):
-    """50 clean datasets (25 per robot, noise 0.02 mm): a robot effect (any of joint_offsets, link_lengths,
-    joint_compliance) named on <= 5. Per planted effect 20 datasets (10 per robot; lengths 0.1-0.5 mm at
-    noise 0.02 mm, compliance 0.01-0.05 deg/m at 0.015 mm) and 10 with all three hidden (5 per robot, the
+    """(The false-positive rate on clean data: test_joint_offset_rates_over_seeds.) Per planted effect 12
+    datasets (6 per robot; lengths 0.1-0.5 mm at noise 0.02 mm, compliance 0.01-0.05 deg/m at 0.015 mm;
+    20 each once measured: 20/20 and 20/20) and 8 with all three hidden (4 per robot, the
     wider spread): recovered -- named, the visible parameters estimated, every estimated robot parameter
     within 3 sd of the truth -- in >= 80 %; >= 90 % of all estimated values within 3 sd; wherever handeye's
     model is the same problem, its values the generator's own fit's to 0.1 sd."""
     lines = []
-    hits = []
-    for model in ("kr60ha", "ur10e"):
-        for seed in range(25):
-            ir.make(tmp_path / f"c-{model}-{seed}", model, seed=3000 + seed)
-            named = robot_effects(handeye.diagnose(tmp_path / f"c-{model}-{seed}"))
-            if named:
-                hits.append((model, seed, {n: e.parameters for n, e in named.items()}))
-    lines.append(f"clean: a robot effect named on {len(hits)}/50 datasets {hits}")
     rng = np.random.default_rng(17)
     rates, worst = {}, 0.0
     for effect in ("link_lengths", "joint_compliance", "all three"):
         right = runs = inside = estimated = 0
         misses = []
         for model in ("kr60ha", "ur10e"):
-            for seed in range(5 if effect == "all three" else 10):
+            for seed in range(4 if effect == "all three" else 6):
                 folder = tmp_path / f"{effect}-{model}-{seed}".replace(" ", "-")
                 if effect == "link_lengths":
                     plants = {effect: _draw_lengths(rng, model)}
@@ -566,7 +564,6 @@ def test_robot_error_rates_over_seeds(tmp_path):
                      f"misses {misses}")
     lines.append(f"largest difference between handeye and the generator's own fit: {worst:.3f} sd")
     print("\n" + "\n".join(lines))
-    assert len(hits) <= 5, hits
     for effect, (right, runs, inside, estimated) in rates.items():
         assert right >= 0.8 * runs, (effect, right, runs)
         assert inside >= 0.9 * estimated, (effect, inside, estimated)
