@@ -11,6 +11,7 @@ The application's workflow around it lives in :mod:`handeye.app.engine.diagnose`
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -31,7 +32,6 @@ class ScoreTest:
 
     def to_dict(self):
         return dataclasses.asdict(self)
-
 
 
 #: Fraction of an effect's columns that must lie outside the current model's span.
@@ -130,9 +130,8 @@ class Samples:
             full[self._free(name)] = p
             values[name] = full
         take = (lambda a: a) if rows is None else (lambda a: a[rows])
-        joints, flange = take(self.d.joints), take(self.d.flange2base())
-        fk, derivatives = perturbed(model, joints, values)
-        moved = flange @ np.linalg.inv(model.flange2base(joints))
+        fk, derivatives = perturbed(model, take(self.d.joints), values)
+        moved = take(self._reported_over_nominal)
         corrected = moved @ fk
         d = {name: moved[:, None] @ dfk[:, self._free(name)] for name, dfk in derivatives.items()}
         if mounts.default:
@@ -141,6 +140,11 @@ class Samples:
             raise ValueError("robot effects with the sphere on a positioner are not modelled")
         inv = inverse_transforms(corrected)
         return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
+
+    @functools.cached_property
+    def _reported_over_nominal(self):
+        """``F_rep T(q)^-1`` of every sample (N, 4, 4), the same at every evaluation."""
+        return self.d.flange2base() @ np.linalg.inv(self.d.robot_model.flange2base(self.d.joints))
 
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,

@@ -137,21 +137,14 @@ def parse_effects(specs):
 
 
 def parse_joint_offsets(value):
-    """``'j2:0.05,j3:-0.03'`` -> offsets (6,), degrees; raises SimulationError."""
-    out = np.zeros(6)
-    for part in (p.strip() for p in str(value).split(",") if p.strip()):
-        name, sep, number = part.partition(":")
-        try:
-            angle = float(number)
-        except ValueError:
-            angle = None
-        if not sep or name.strip() not in JOINT_COLUMNS or angle is None or not np.isfinite(angle) or abs(angle) > 5:
-            raise SimulationError(f"--effect joint_offsets={value}: expected JOINT:DEG,... with JOINT one of "
-                                  f"{', '.join(JOINT_COLUMNS)} and |DEG| <= 5")
-        out[JOINT_COLUMNS.index(name.strip())] = angle
-    if not out.any():
-        raise SimulationError(f"--effect joint_offsets={value}: give at least one non-zero offset")
-    return out
+    """``'j2:0.05,j3:-0.03'`` -> offsets (6,), degrees (:func:`parse_named`, the names the joints');
+    raises SimulationError."""
+    named = parse_named("joint_offsets", value)
+    unknown = sorted(set(named) - set(JOINT_COLUMNS))
+    if unknown:
+        raise SimulationError(f"--effect joint_offsets={value}: expected JOINT:DEG,... with JOINT one of "
+                              f"{', '.join(JOINT_COLUMNS)} and |DEG| <= {ROBOT_LIMITS['joint_offsets']:g}")
+    return np.array([named.get(j, 0.0) for j in JOINT_COLUMNS])
 
 
 def parse_named(name, value):
