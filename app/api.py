@@ -65,27 +65,51 @@ def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
         raise RequestError(f"--method {method} is closed form; these options do not apply to it: {', '.join(ignored)}")
 
 
-def _held_sensor(calibration, data):
-    """The sensor pose (KUKA) of a saved calibration, checked against the dataset's sensor mount."""
-    if calibration is None:
-        return None
-    from handeye.app.outputs import saved
-    from handeye.model.pose import pose_from_transform
+def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
+    """The sensor pose given (4x4, the mount's frame) and where it came from: a saved calibration
+    (``--calibration``) or a pose typed in (``--sensor-pose``, in ``convention``), checked against
+    the dataset's sensor mount; ``(None, None)`` when neither is given. A calibration that did not
+    converge is held only to be scored."""
+    if calibration is None and sensor_pose is None:
+        return None, None
+    from handeye.app.outputs import commands, saved
 
-    cal = saved.load(_path_argument(calibration))
-    if not cal.converged:
-        raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
-                           "(calibrate again)")
+    if calibration is not None and sensor_pose is not None:
+        raise RequestError("give --calibration or --sensor-pose, not both")
+    if sensor_pose is not None:
+        values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
+        cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {sensor_pose}"
+    else:
+        cal, source = saved.load(_path_argument(calibration)), str(calibration)
+        if not cal.converged and not scoring:
+            raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
+                               "(calibrate again)")
     mount = getattr(cal, "sensor_mount", "flange")
     if mount != data.mounts.sensor:
-        raise RequestError(f"--calibration: {calibration} is of a sensor mounted on the {mount}, the dataset's sensor "
-                           f"is mounted on the {data.mounts.sensor} ([sensor] mount)")
-    return pose_from_transform(cal.sensor2flange)
+        raise RequestError(f"{'--calibration' if calibration is not None else '--sensor-pose'}: {source} is of a sensor "
+                           f"mounted on the {mount}, the dataset's sensor is mounted on the {data.mounts.sensor} "
+                           "([sensor] mount)")
+    return np.asarray(cal.sensor2flange, float), source
+
+
+def _score_options(unknowns, method, effects, plot):
+    """The options a score (a given sensor pose among --unknowns) refuses."""
+    if unknowns not in ("sensor", "sensor+sphere"):
+        raise RequestError(f"a sensor pose given with --unknowns {unknowns}: leave out sensor (--unknowns "
+                           f"{unknowns.replace('sensor+', '')}) to hold it while the others are calibrated")
+    for given, option in ((effects, "--effects"), (plot, "--plot")):
+        if given:
+            raise RequestError(f"{option} does not apply to a score of a given sensor pose")
+    from handeye.app.engine.classic import METHODS as CLOSED_FORM
+
+    if method in CLOSED_FORM:
+        raise RequestError(f"--method {method} is closed form: a given sensor pose is scored with a least-squares "
+                           "method")
 
 
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
-              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None):
+              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
     Parameters
@@ -139,13 +163,21 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         ``sphere_radius``, ``sphere_center`` (``'a,b'`` or a list); as ``handeye diagnose``
         names them.
     calibration : str or pathlib.Path, optional
-        A saved calibration (``calibrate --out``) whose sensor pose is held when ``unknowns``
-        has no ``sensor`` (instead of ``[sensor] pose``).
+        A saved calibration (``calibrate --out``) whose sensor pose is held: when ``unknowns``
+        has no ``sensor``, instead of ``[sensor] pose``; when it has, the pose is *scored*
+        (below).
+    sensor_pose : str or array_like, optional
+        A sensor pose typed in (``convention``'s columns, e.g. the vendor's), held as
+        ``calibration`` is.
 
     Returns
     -------
-    handeye.app.present.results.CalibrationResult
-        ``to_dict()`` is ``handeye calibrate --json``; ``summary()`` its text report.
+    handeye.app.present.results.CalibrationResult or handeye.app.present.score_results.ScoreResult
+        ``to_dict()`` is ``handeye calibrate --json``; ``summary()`` its text report. With a
+        sensor pose given (``calibration`` or ``sensor_pose``) and ``sensor`` among ``unknowns``,
+        the pose is scored, not calibrated (:mod:`handeye.app.engine.score`): held, the sphere
+        centre fitted with it when ``unknowns`` is ``sensor+sphere``, and judged against the
+        data's own calibration (the same request): a :class:`ScoreResult`.
 
     Raises
     ------
@@ -156,8 +188,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     from handeye.app.engine.classic import METHODS as CLOSED_FORM
     from handeye.app.engine.classic import calibrate_classic
     from handeye.app.engine.request import METHODS, UNKNOWNS, CalibrationRequest, unknown_parts
+    from handeye.app.engine.score import run_score
     from handeye.app.files import check_output_path, input_files, provenance
     from handeye.model import conventions
+    from handeye.model.pose import pose_from_transform
 
     options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
                "unknowns": unknowns, "method": method, "rotation": rotation,
@@ -165,22 +199,27 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
                "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
-               "calibration": None if calibration is None else str(calibration)}
+               "calibration": None if calibration is None else str(calibration),
+               "sensor_pose": None if sensor_pose is None or isinstance(sensor_pose, str) else np.ravel(sensor_pose).tolist()}
+    if isinstance(sensor_pose, str):
+        options["sensor_pose"] = sensor_pose
     if method is not None and method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
     unknowns = unknown_parts(unknowns)
     if method in CLOSED_FORM and unknowns not in UNKNOWNS:
         raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
     data = load_dataset(dataset)
-    if calibration is not None and "sensor" in unknowns.split("+"):
-        raise RequestError(f"--calibration holds the sensor pose: it does not apply with --unknowns {unknowns} (which "
-                           "estimates it); leave out sensor, e.g. --unknowns sphere+positioner")
-    held = _held_sensor(calibration, data)
+    scoring = (calibration is not None or sensor_pose is not None) and "sensor" in unknowns.split("+")
+    if scoring:
+        _score_options(unknowns, method, effects, plot)
+    convention = conventions.check(convention or data.convention)
+    given, source = _given_sensor(calibration, sensor_pose if sensor_pose is None or isinstance(sensor_pose, str)
+                                  else ",".join(map(repr, np.ravel(sensor_pose).tolist())), convention, data, scoring)
+    held = None if given is None or scoring else pose_from_transform(given)
     inputs = input_files(data) if out is not None or plot is not None else ()
     for path, option in ((out, "--out"), (plot, "--plot")):
         if path is not None:  # before the work (never half a result), and never over an input
             check_output_path(path, option, inputs=inputs, plot=option == "--plot")
-    convention = conventions.check(convention or data.convention)
     level = _alpha(alpha)
     for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
         if value is not None:
@@ -201,7 +240,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
             unknowns=unknowns, method=method, rotation=rotation, start=start_kuka, options=solver_options,
             outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
             robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
-        result = run(request, data)
+        result = run_score(request, data, given, source) if scoring else run(request, data)
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
@@ -278,3 +317,50 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         with scratch.temporary_folder() as tmp:
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
     return result
+
+
+def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None, robot_sigma=None, convention=None,
+            keep_all=False):
+    """Which of two calibrations fits a dataset better, and is the difference significant
+    (``handeye compare DATASET A.json B.json``; :mod:`handeye.app.engine.score`).
+
+    Parameters
+    ----------
+    dataset : str, pathlib.Path or Dataset
+    a, b : str, pathlib.Path, CalibrationResult or array_like (4, 4)
+        The two calibrations (saved files, results, or sensor poses as 4x4 in the mount's frame, mm).
+    unknowns : {'sensor', 'sensor+sphere'}, optional
+        ``sensor+sphere`` fits the sphere centre with each pose held; default ``sensor`` when the
+        setup gives the centre, else ``sensor+sphere``.
+    model, alpha, sigma, robot_sigma, convention, keep_all
+        As :func:`calibrate` (the data's own calibration, whose screening and residual model both
+        poses are scored with; ``alpha`` is also the level of "significant").
+
+    Returns
+    -------
+    handeye.app.present.score_results.CompareResult
+    """
+    from handeye.app.engine import score
+    from handeye.app.engine.request import CalibrationRequest, unknown_parts
+    from handeye.app.outputs import commands
+    from handeye.model import conventions
+
+    data = load_dataset(dataset)
+    unknowns = unknown_parts(unknowns or ("sensor" if data.sphere_centre is not None else "sensor+sphere"))
+    _score_options(unknowns, None, None, None)
+    poses, sources = [], []
+    for given in (a, b):
+        cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given),
+                                  data, "compare")
+        poses.append(np.asarray(cal.sensor2flange, float))
+        sources.append(cal.source)
+    if sources[0] == sources[1]:
+        sources = [f"A ({sources[0]})", f"B ({sources[1]})"]
+    level = _alpha(alpha)
+    for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
+        if value is not None:
+            _number(value, option, 1e-6, 1e3)
+    request = CalibrationRequest(unknowns=unknowns, model=model, outliers=not keep_all, alpha=level, loo=False,
+                                 convention=conventions.check(convention or data.convention), sigma=sigma,
+                                 robot_sigma=robot_sigma).checked(data)
+    return score.compare(request, data, poses, sources, level)

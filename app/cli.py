@@ -40,7 +40,13 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         """The one line that matters and where to read more; no usage block (exit 2)."""
         sys.stderr.write(f"{self.prog}: error: {message}\nsee `{self.prog} --help`\n")
+        if _JSON_WANTED:  # the JSON of every exit: this one's too
+            sys.stdout.write(dumps({"error": f"{self.prog}: {message}", "exit_code": EXIT_BAD_INPUT}) + "\n")
         raise SystemExit(EXIT_BAD_INPUT)
+
+
+#: Set by :func:`main`: ``--json`` among the arguments (an argparse error prints its JSON object too).
+_JSON_WANTED = False
 
 
 def _plan_args(sub):
@@ -81,6 +87,33 @@ def _plan_args(sub):
                       help="with a robot: stated noise per component of a sphere centre (default [noise] centre_mm, "
                            "else 0.05)")
     plan.add_argument("--json", action="store_true")
+
+
+def _compare_args(sub, alpha, kinds):
+    co = sub.add_parser("compare", help="which of two calibrations fits a dataset better, and whether significantly")
+    co.add_argument("dataset", help="embedded dataset name or folder")
+    co.add_argument("a", metavar="A.json", help="a saved calibration (calibrate --out)")
+    co.add_argument("b", metavar="B.json", help="another saved calibration")
+    co.add_argument("--unknowns", default=None, choices=["sensor", "sensor+sphere"],
+                    help="sensor+sphere fits the sphere centre with each pose held (default: sensor when setup.toml "
+                         "gives [sphere] center, else sensor+sphere)")
+    co.add_argument("--model", default=None, choices=list(kinds), help="residual model both are scored with (default: "
+                                                                      "as calibrate)")
+    co.add_argument("--alpha", type=float, default=None, help=f"level of 'significant' and of the screening (default "
+                                                               f"{alpha:g})")
+    co.add_argument("--keep-all", action="store_true", help="score every sample: no outlier screening")
+    co.add_argument("--sigma", type=float, default=None, metavar="MM", help="stated noise, as calibrate's")
+    co.add_argument("--robot-sigma", type=float, default=None, metavar="MM", help="robot repeatability, as calibrate's")
+    co.add_argument("--json", action="store_true")
+
+
+def _compare(args):
+    from handeye.app import api
+
+    result = api.compare(args.dataset, args.a, args.b, unknowns=args.unknowns, model=args.model, alpha=args.alpha,
+                         sigma=args.sigma, robot_sigma=args.robot_sigma, keep_all=args.keep_all)
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_OK
 
 
 def _study_args(sub):
@@ -179,7 +212,13 @@ def build_parser():
                           "sphere+positioner, sensor+sphere+positioner); a part not estimated comes from setup.toml "
                           "or --calibration")
     cal.add_argument("--calibration", default=None, metavar="FILE",
-                     help="a saved calibration (calibrate --out) whose sensor pose is held when --unknowns has no sensor")
+                     help="a saved calibration (calibrate --out) whose sensor pose is held: calibrating the other parts "
+                          "when --unknowns has no sensor, else scored as --sensor-pose is")
+    cal.add_argument("--sensor-pose", default=None, metavar="X,Y,Z,...",
+                     help="score this sensor pose (e.g. the vendor's, in --convention's columns) instead of calibrating "
+                          "it: held, the sphere centre fitted with it under --unknowns sensor+sphere, judged against the "
+                          "data's own calibration (exit 0; the verdict says whether the data contradict it); --calibration "
+                          "FILE with the sensor among --unknowns does the same")
     cal.add_argument("--method", default=None, choices=list(METHODS) + list(CLASSIC_METHODS),
                      help="solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form "
                           "baseline: kim-cho (AX = XB, linear) or li-two-step (pure translations, then rotations; see "
@@ -243,6 +282,7 @@ def build_parser():
                       help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
     diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
     _plan_args(sub)
+    _compare_args(sub, ALPHA, KINDS)
     _use_args(sub, list(CONVENTIONS))
     _study_args(sub)
     bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
@@ -293,8 +333,10 @@ def _plan(args):
                       margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
                       sphere_mount=args.sphere_mount, robot=args.robot, effects=args.effects, target=args.target,
                       sigma=args.sigma)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
+    code = EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
+    error = "even every candidate pose misses the --target" if code else None
+    print(dumps({**result.to_dict(), "error": error}) if args.json else result.summary())
+    return code
 
 
 def _diagnose(args):
@@ -409,7 +451,8 @@ def _validate(args):
 
     result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
                           sensor_pose=args.sensor_pose, convention=args.convention, force=args.force, mpe=args.mpe)
-    print(dumps(result.to_dict()) if args.json else result.summary())
+    error = "a maximum permissible error (--mpe) is exceeded" if result.passed is False else None
+    print(dumps({**result.to_dict(), "error": error}) if args.json else result.summary())
     return EXIT_NOT_CONVERGED if result.passed is False else EXIT_OK
 
 
@@ -420,9 +463,9 @@ def _calibrate(args):
                            start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
                            keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
                            out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects,
-                           calibration=args.calibration)
+                           calibration=args.calibration, sensor_pose=args.sensor_pose)
     print(result.to_json() if args.json else result.summary())
-    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
+    return EXIT_OK if getattr(result, "converged", True) else EXIT_NOT_CONVERGED  # a score (no converged) is exit 0
 
 
 #: signal -> (what stderr says, exit code): the shell's 128 + signal number
@@ -475,7 +518,7 @@ def _run(args):
         print("\n".join(embedded_names()))
         return EXIT_OK
     commands = {"simulate": _simulate, "diagnose": _diagnose, "bench": _bench, "export": _export, "cloud": _cloud,
-                "validate": _validate, "plan": _plan, "study": _study}
+                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare}
     return commands.get(args.command, _calibrate)(args)
 
 
@@ -509,6 +552,8 @@ def main(argv=None):
         warnings.simplefilter("ignore", RuntimeWarning)
         if argv is None:  # a warning the user must see (an unwritable code cache) is one line too
             warnings.formatwarning = _one_line_warning
+    global _JSON_WANTED
+    _JSON_WANTED = "--json" in (sys.argv[1:] if argv is None else list(argv))
     args = build_parser().parse_args(argv)
     code = _guarded(args)
     if argv is None:  # done: a signal during the interpreter's teardown no longer changes the outcome
@@ -523,6 +568,19 @@ def _ignore_signals():
         signal.signal(getattr(signal, name), signal.SIG_IGN)
 
 
+def _json_error(args, exc, code):
+    """With ``--json``, the error as the JSON object on standard output too (a program reading the
+    JSON of every exit finds ``error`` and what is known: the command, the dataset, and for a
+    dataset's error its file, row and column)."""
+    if not getattr(args, "json", False):
+        return
+    out = {"error": str(exc), "exit_code": code, "command": args.command, "dataset": getattr(args, "dataset", None)}
+    for key in ("file", "row", "column"):
+        if getattr(exc, key, None) is not None:
+            out[key] = getattr(exc, key)
+    print(dumps(out))
+
+
 def _guarded(args):
     """Run the command; every failure becomes one line on stderr and its exit code."""
     from handeye.app.tools.registry import StudyClaimFailed
@@ -534,6 +592,7 @@ def _guarded(args):
         return code
     except InputError as exc:  # exactly the bad-input hierarchy: anything else is a bug (exit 3)
         print(f"handeye: error: {exc}", file=sys.stderr)
+        _json_error(args, exc, EXIT_BAD_INPUT)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:  # Ctrl-C in a caller's process (no handler): one line, the shell's code
         print("handeye: interrupted", file=sys.stderr)

@@ -1,7 +1,8 @@
 """Datasets: a folder with ``measurements.csv`` and ``setup.toml``.
 
 ``measurements.csv``
-    Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column; with
+    Header ``id,x,y,z,a,b,c,xs,ys,zs`` (any order) and an optional ``profile`` column (with it,
+    ``xs,ys,zs`` may be left out altogether when every row has a profile); with
     ``[robot] convention`` other than ``kuka`` the pose columns are those of that convention
     (``x,y,z,q1,q2,q3,q4`` for abb, ``x,y,z,rx,ry,rz`` for ur, ``x,y,z,w,p,r`` for fanuc;
     :mod:`handeye.model.conventions`), and so is ``start_pose``.
@@ -313,6 +314,9 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
+    centre_columns = not ("profile" in header and not any(c in header for c in ("xs", "ys", "zs")))
+    if not centre_columns:  # every row's centre from its profile: the columns may be left out
+        required = tuple(c for c in required if c not in ("xs", "ys", "zs"))
     joints = JOINTS if any(h in JOINTS for h in header) else ()
     required += joints  # all six or none
     for col in header:
@@ -336,8 +340,10 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
         ident = row_id(fields, idx["id"], seen, file, line)
         pose = read_pose(fields, idx, convention, file, line, limits["position_mm"])
         raw.append([float(fields[idx[c]]) for c in pose_columns])  # read_pose checked them
-        cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")]
+        cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")] if centre_columns else ["", "", ""]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
+        if not profile and not centre_columns:
+            raise DatasetError(file, "no profile: without xs,ys,zs columns every row needs one", line, "profile")
         points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None
         if profile:
             profile_files.append((folder / profile).resolve())

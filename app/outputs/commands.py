@@ -35,9 +35,9 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
         if convention is None and dataset_convention is None:
             raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
                                "it from")
-        values = _numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
+        values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         return saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
-    cal = _given(calibration, sensor_mount)
+    cal = given_calibration(calibration, sensor_mount)
     if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
         raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
                            "calibration (the option is for --sensor-pose or a 4x4)")
@@ -47,7 +47,7 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
     return cal
 
 
-def _given(calibration, sensor_mount=None):
+def given_calibration(calibration, sensor_mount=None):
     """A calibration given as a file, a 4x4 (in ``sensor_mount``'s frame), a
     :class:`saved.Calibration` or a CalibrationResult."""
     if calibration is None:
@@ -70,7 +70,7 @@ def _given(calibration, sensor_mount=None):
     return cal
 
 
-def _same_mount(cal, data, command):
+def same_mount(cal, data, command):
     """``cal``, if its sensor is mounted where the dataset's is (a sensor2flange read as a
     sensor2base, or the other way round, would give wrong numbers without a warning)."""
     mounts = getattr(data, "mounts", None)
@@ -323,7 +323,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     data = scans.load(dataset)
     if out is not None:
         files.check_output_path(out, "--out", list(data.profile_files))
-    cal = _same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "cloud")
+    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "cloud")
     data = _at_calibrated_axes(data, cal)
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None
@@ -367,7 +367,7 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     data = scans.load(folder) if with_profiles else datasets.load(folder)
-    cal = _same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "validate")
+    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "validate")
     data = _at_calibrated_axes(data, cal)
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     if with_profiles:
@@ -389,13 +389,13 @@ def _mpe(mpe):
     """``"PF,PS[,SD]"`` (mm) or a sequence, checked; None stays None."""
     if mpe is None:
         return None
-    values = list(_numbers(mpe, "--mpe", "PF,PS[,SD] in mm, e.g. 0.05,0.03"))
+    values = list(numbers(mpe, "--mpe", "PF,PS[,SD] in mm, e.g. 0.05,0.03"))
     if len(values) not in (2, 3) or not all(np.isfinite(v) and v > 0 for v in values):
         raise RequestError(f"--mpe {mpe!r}: two or three positive numbers (PF, PS[, SD] in mm)")
     return values
 
 
-def _numbers(value, option, form):
+def numbers(value, option, form):
     """Comma-separated numbers of an option (a sequence passes as it is); RequestError naming
     ``option`` and the expected ``form`` otherwise."""
     if not isinstance(value, str):

@@ -449,6 +449,7 @@ class CalibrationResult(ResultProtocol):
             "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
+            "error": None if self.converged else self.message,
             "status": None if self.status is None else int(self.status),
             "message": self.message,
             "outliers": self.outliers,
