@@ -252,7 +252,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     return result
 
 
-def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None):
+def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor"):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
     Parameters
@@ -269,10 +269,17 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         setup's ``[noise] centre_mm`` (0.05).
     out : str or pathlib.Path, optional
         Also write the JSON result with provenance, atomically.
+    unknowns : {'sensor', 'sensor+sphere'}
+        ``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when
+        the setup gives none; its start is :func:`calibrate`'s estimate); ``sensor`` tests the
+        effects against the setup's centre.
 
     Returns
     -------
     handeye.app.present.diagnosis_results.DiagnosisResult
+        Its ``against_calibrate`` says whether its pose is :func:`calibrate`'s with the same
+        unknowns (within 1 sd) and, if not, why (effects named, another residual model, other
+        samples excluded).
     """
     from handeye.app.engine import diagnose as procedure
     from handeye.app.files import check_output_folder, check_output_path, input_files, provenance
@@ -281,14 +288,19 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     level = _alpha(alpha)
     if sigma is not None:
         _number(sigma, "--sigma", 1e-6, 1e3)
+    from handeye.app.engine.request import unknown_parts
+
+    parts = unknown_parts(unknowns)
+    if parts not in ("sensor", "sensor+sphere"):
+        raise RequestError(f"--unknowns {parts}: diagnose estimates sensor or sensor+sphere (a positioner's axes are "
+                           "tested as its first effect)")
     data = load_dataset(dataset)
     inputs = input_files(data) if (out, figures, plot) != (None, None, None) else ()
     if out is not None:
         check_output_path(out, "--out", inputs=inputs)
-    if data.sphere_centre is None:
-        raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': diagnose tests effects against a "
-                           "known sphere centre; give it (`handeye calibrate DATASET --unknowns sensor+sphere` estimates one "
-                           "to write there)")
+    if data.sphere_centre is None and parts == "sensor":
+        raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': no sphere centre given; estimate it "
+                           f"with the pose: `handeye diagnose {dataset} --unknowns sensor+sphere`")
     if figures is not None:
         check_output_folder(figures, "--figures")
         if pathlib.Path(figures).is_dir():  # the two files it will write: never over an input
@@ -297,13 +309,22 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if plot is not None:
         check_output_path(plot, "--plot", inputs=inputs, plot=True)
     from handeye.app.engine import slips
-    from handeye.app.engine.prepare import gate
+    from handeye.app.engine.prepare import gate, with_sphere_centre
 
-    gate(data, "sensor")  # the checks calibrate runs: too few or degenerate poses are bad input
-    slips.check(data, "sensor", slips.plain_rms(data, "sensor") or 0.0)  # a wrong side is not an "effect"
-    result = procedure.diagnose(data, alpha=level, sigma=sigma)
+    data = with_sphere_centre(data, parts)[0]  # a start for a centre not given
+    gate(data, parts)  # the checks calibrate runs: too few or degenerate poses are bad input
+    slips.check(data, parts, slips.plain_rms(data, parts) or 0.0)  # a wrong side is not an "effect"
+    own = calibrate(data, unknowns=parts, no_loo=True, alpha=level, sigma=sigma)
+    if parts == "sensor+sphere":
+        if not own.converged:
+            raise RequestError(f"--unknowns sensor+sphere: calibrate cannot estimate the sphere centre from these data "
+                               f"({own.message}); diagnose needs it as its start")
+        data = dataclasses.replace(data, sphere_centre=np.asarray(own.sphere_centre, float))
+    result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
+    result = dataclasses.replace(result, unknowns=parts, against_calibrate=procedure.against_calibrate(result, own))
     if out is not None:
         options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
+                   "unknowns": parts,
                    "sigma": sigma, "figures": None if figures is None else str(figures),
                    "plot": None if plot is None else str(plot)}
         result = dataclasses.replace(result, provenance=provenance(data, options))

@@ -281,6 +281,9 @@ def build_parser():
     diag.add_argument("--sigma", type=float, default=None, metavar="MM",
                       help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
     diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
+    diag.add_argument("--unknowns", default="sensor", choices=["sensor", "sensor+sphere"],
+                      help="sensor+sphere: the sphere centre estimated with the pose in every model (when setup.toml "
+                           "gives none); default sensor: effects tested against the setup's centre")
     _plan_args(sub)
     _compare_args(sub, ALPHA, KINDS)
     _use_args(sub, list(CONVENTIONS))
@@ -343,7 +346,7 @@ def _diagnose(args):
     from handeye.app import api
 
     result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot, sigma=args.sigma,
-                          out=args.out)
+                          out=args.out, unknowns=args.unknowns)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK
 

@@ -91,6 +91,7 @@ class Procedure:
     steps: list = dataclasses.field(default_factory=list)
     implausible: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
+    centre_unknown: bool = False
 
 
 def _summaries(prob, structure, fit, mask):
@@ -103,7 +104,7 @@ def _summaries(prob, structure, fit, mask):
     }
 
 
-def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
+def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False):
     """Run the procedure (module docstring) on a dataset.
 
     Parameters
@@ -116,20 +117,25 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
     sigma : float, optional
         Nominal noise per residual component (mm) for chi2/dof; default the dataset's
         ``[noise] centre_mm``.
+    centre_unknown : bool
+        The sphere centre is estimated with the pose (``--unknowns sensor+sphere``): free in the
+        base model and in every model after it (never tested, named or removed as an effect);
+        ``dataset.sphere_centre`` is its start.
 
     Returns
     -------
     handeye.app.present.diagnosis_results.DiagnosisResult
     """
     prob = Samples(dataset, sigma)
-    start_pose, _ = resolve_start(dataset, "sensor", start)
-    screening = robust.screen(dataset, "sensor", transform_from_pose(start_pose), alpha=alpha)
-    mask, inconsistent = robust.exclude_inconsistent(dataset, "sensor", screening.inliers.copy(), [])
+    unknowns = "sensor+sphere" if centre_unknown else "sensor"
+    start_pose, _ = resolve_start(dataset, unknowns, start)
+    screening = robust.screen(dataset, unknowns, transform_from_pose(start_pose), alpha=alpha)
+    mask, inconsistent = robust.exclude_inconsistent(dataset, unknowns, screening.inliers.copy(), [])
     allowed = ~np.isin(dataset.rows, [e.row for e in inconsistent])  # never reinstated
-    structure = Structure()
+    structure = Structure(centre=centre_unknown)
     fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
     before = _summaries(prob, structure, fit, mask)
-    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1))
+    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1), centre_unknown=centre_unknown)
     run.steps.append({"step": "base model", **before})
     axes = _positioner_axes(run, fit, sigma)
     if axes is not None:  # the rest runs at the refined axes
@@ -145,7 +151,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
             run.steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
                           **_summaries(prob, structure, fit, mask)})
-        structure, fit = _backward(prob, structure, fit, mask, alpha)
+        structure, fit = _backward(prob, structure, fit, mask, alpha, centre_unknown)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
     structure, fit = _robot_choice(run, structure, fit)
@@ -162,10 +168,11 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None):
 def _robot_choice(run, structure, fit):
     """The robot effects compared as alternatives (:func:`handeye.app.engine.robot_choice.compare`);
     a step recorded when another combination replaces the searched one."""
-    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask, run.alpha)
+    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask, run.alpha,
+                                                               run.centre_unknown)
     if set(chosen.data_effects) != set(structure.data_effects) or chosen.centre != structure.centre:
         robot = [n for n in chosen.data_effects if effects.get(n).KIND == "robot"]
-        label = "+".join(("sphere_center",) * chosen.centre + tuple(robot))
+        label = "+".join(("sphere_center",) * (chosen.centre and not run.centre_unknown) + tuple(robot))
         run.steps.append({"step": f"robot effects: {label}", **_summaries(run.prob, chosen, new, run.mask)})
     return chosen, new
 
@@ -249,7 +256,7 @@ def _search(run, structure, fit):
         if accepted is None:
             break
         name, structure, fit = accepted
-        structure, fit = _backward(prob, structure, fit, mask, alpha)
+        structure, fit = _backward(prob, structure, fit, mask, alpha, run.centre_unknown)
         steps.append({"step": f"+ {name}", **_summaries(prob, structure, fit, mask)})
     return structure, fit
 
@@ -299,9 +306,10 @@ def _confirmed(run, base_structure, base, structure, new):
     return prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
 
 
-def _backward(prob, structure, fit, mask, alpha):
-    """Re-test every accepted effect for removal (F test)."""
-    names = (["sphere_center"] if structure.centre else []) + list(structure.data_effects)
+def _backward(prob, structure, fit, mask, alpha, centre_unknown=False):
+    """Re-test every accepted effect for removal (F test); a centre estimated from the start
+    (``centre_unknown``) is not an effect and stays."""
+    names = (["sphere_center"] if structure.centre and not centre_unknown else []) + list(structure.data_effects)
     for name in names:
         reduced = _reduce(structure, name)
         x0 = fit.x[:12] if name == "sphere_center" else fit.x
@@ -361,7 +369,7 @@ def _report(run, structure, fit, flips, outliers):
     std, corr = fit.uncertainty(mask)
     index = {name: k for k, name in enumerate(fit.names)}
     named, all_cols = [], []
-    if structure.centre:
+    if structure.centre and not run.centre_unknown:
         ks = [index["cx"], index["cy"], index["cz"]]
         delta = fit.x[12:15] - d.sphere_centre
         named.append(NamedEffect("sphere_center", dict(zip(("dx", "dy", "dz"), delta.tolist())),
@@ -420,3 +428,32 @@ def _unexplained(after, sigma):
         return f"nothing beyond the nominal noise: chi2/dof {ratio:.2f} at sigma = {sigma:g} mm"
     return (f"residual scatter sigma = {after['sigma_mm']:.3f} mm is {np.sqrt(ratio):.1f} x the nominal {sigma:g} mm: "
             "an effect outside the catalogue (or a larger noise than assumed) remains")
+
+
+def against_calibrate(result, own):
+    """Whether the diagnosis's pose is calibrate's (``own``, the same unknowns) within 1 sd, and
+    if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
+    (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
+    from handeye.app.engine.score import pose_distance
+
+    if not own.converged:
+        return f"calibrate did not converge on these data ({own.message}); nothing to compare"
+    d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
+                      own.parameter_names)
+    far = (f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg" + ("" if d["sd"] is None else
+                                                                              f" ({d['sd']:.1f} sd of calibrate's)"))
+    if d["sd"] is not None and d["sd"] <= 1.0:
+        return f"the same pose as `handeye calibrate`'s within 1 sd ({far} apart)"
+    why = []
+    named = [e.name for e in result.effects if e.name != "sign_flip"]
+    if named:
+        why.append(f"diagnose corrects the data by the effects it names ({', '.join(named)}), calibrate does not "
+                   f"(calibrate --effects {','.join(named)} does)")
+    if own.model != "centre":
+        why.append(f"diagnose fits the sphere centres, calibrate the {own.model} model (calibrate --model centre fits "
+                   "what diagnose fits)")
+    left_out = set(result.outliers) ^ set(own.outliers)
+    if left_out:
+        why.append(f"they exclude different samples ({', '.join(sorted(left_out)[:6])})")
+    return (f"{far} from `handeye calibrate`'s pose: " + ("; ".join(why) if why else
+            "the two fits differ though they have the same model and samples (report it)"))

@@ -96,7 +96,7 @@ def _replaces(prob, mask, searched, other, alpha):
     return new < prob.heldout_rms(searched.structure, mask, searched.fit)
 
 
-def compare(prob, structure, fit, mask, alpha):
+def compare(prob, structure, fit, mask, alpha, centre_unknown=False):
     """Choose among the robot effects (module docstring).
 
     Parameters
@@ -108,6 +108,9 @@ def compare(prob, structure, fit, mask, alpha):
     mask : ndarray of bool, shape (N,)
     alpha : float
         Level of the F test a combination holding the searched one must pass (diagnose's).
+    centre_unknown : bool
+        The centre is estimated in every model (``--unknowns sensor+sphere``): no combination
+        without it is tried.
 
     Returns
     -------
@@ -124,7 +127,7 @@ def compare(prob, structure, fit, mask, alpha):
     start = (prob.transform(fit.x), prob.centre(structure, fit.x))
     available = [e.NAME for e in effects.catalogue("robot") if e.available(prob.d)]
     combos = [names for r in range(1, len(available) + 1) for names in itertools.combinations(available, r)]
-    tried = [c for centre in dict.fromkeys((structure.centre, False)) for names in combos
+    tried = [c for centre in dict.fromkeys((structure.centre, structure.centre and centre_unknown)) for names in combos
              if (c := _fitted(prob, structure, mask, names, centre, start)) is not None]
     searched = Candidate(tuple(named), structure.centre, structure, fit, kept_free, _bic(fit))
     prob.robot_free.update(kept_free)

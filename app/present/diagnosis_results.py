@@ -138,6 +138,8 @@ class DiagnosisResult(ResultProtocol):
     inconsistent: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
     always_absorbed: tuple = ()
+    unknowns: str = "sensor"
+    against_calibrate: str | None = None
 
     @property
     def absorbed_explained(self):
@@ -154,6 +156,8 @@ class DiagnosisResult(ResultProtocol):
         """The ``handeye diagnose --json`` object."""
         return {
             "dataset": self.dataset,
+            "unknowns": self.unknowns,
+            "against_calibrate": self.against_calibrate,
             "effects": [e.to_dict() for e in self.effects],
             "outliers": list(self.outliers),
             "inconsistent": [e.to_dict() for e in self.inconsistent],

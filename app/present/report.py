@@ -370,7 +370,9 @@ def classic_text(res):
 
 def diagnosis_text(res):
     """A readable report of a :class:`handeye.app.present.diagnosis_results.DiagnosisResult`."""
-    lines = [f"handeye diagnose: dataset {res.dataset}", ""]
+    lines = [f"handeye diagnose: dataset {res.dataset}, unknowns {res.unknowns}"
+             + (" (the sphere centre estimated with the pose in every model)" if res.unknowns == "sensor+sphere" else ""),
+             ""]
     if res.effects:
         lines.append("effects named:")
         for eff in res.effects:
@@ -397,8 +399,12 @@ def diagnosis_text(res):
               + " ".join(f"{v:.4f}" for v in (res.sensor_pose_as if res.sensor_pose_as is not None else res.sensor_pose)),
               "  1 sd: translation mm " + " ".join(f"{v:.4f}" for v in res.std.sensor_translation_mm)
               + "; rotation deg (about the sensor's axes) " + " ".join(f"{v:.4f}" for v in res.std.sensor_rotation_deg),
-              "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res.sphere_centre),
+              "sphere centre (mm): " + " ".join(f"{v:.4f}" for v in res.sphere_centre)
+              + ("  1 sd " + " ".join(f"{v:.4f}" for v in res.std.sphere_center_mm)
+                 if res.unknowns == "sensor+sphere" and res.std.sphere_center_mm is not None else ""),
               f"unexplained: {res.unexplained}"]
+    if res.against_calibrate:
+        lines.append(f"against calibrate: {res.against_calibrate}")
     return "\n".join(lines)
 
 
