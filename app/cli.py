@@ -336,10 +336,8 @@ def _plan(args):
                       margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
                       sphere_mount=args.sphere_mount, robot=args.robot, effects=args.effects, target=args.target,
                       sigma=args.sigma)
-    code = EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
-    error = "even every candidate pose misses the --target" if code else None
-    print(dumps({**result.to_dict(), "error": error}) if args.json else result.summary())
-    return code
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
 
 
 def _diagnose(args):
@@ -454,8 +452,7 @@ def _validate(args):
 
     result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
                           sensor_pose=args.sensor_pose, convention=args.convention, force=args.force, mpe=args.mpe)
-    error = "a maximum permissible error (--mpe) is exceeded" if result.passed is False else None
-    print(dumps({**result.to_dict(), "error": error}) if args.json else result.summary())
+    print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_NOT_CONVERGED if result.passed is False else EXIT_OK
 
 

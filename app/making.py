@@ -293,7 +293,9 @@ class PlanResult(ResultProtocol):
         """The ``handeye plan --json`` object."""
         from handeye.model import conventions
 
-        return {"n": self.n, "ids": list(self.ids), "poses": np.asarray(self.poses).tolist(), "logdet": self.logdet,
+        missed = self.robot is not None and self.robot.n_needed is None  # the exit 1 of handeye plan
+        return {"n": self.n, "error": "even every candidate pose misses the --target" if missed else None,
+                "ids": list(self.ids), "poses": np.asarray(self.poses).tolist(), "logdet": self.logdet,
                 "predicted_sd": {"sensor_translation_mm": np.asarray(self.predicted_sd[:3]).tolist(),
                                  "sensor_rotation_deg": np.asarray(self.predicted_sd[3:6]).tolist()},
                 "skipped": [{"id": i, "reason": r} for i, r in self.skipped],

@@ -229,7 +229,9 @@ class ValidationResult(ResultProtocol):
         return None if self.acceptance is None else self.acceptance.passed
 
     def to_dict(self):
-        return {"scan": self.scan, "calibration": self.calibration, "n_points": self.n_points,
+        failed = self.passed is False  # the exit 1 of handeye validate
+        return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if failed else None,
+                "calibration": self.calibration, "n_points": self.n_points,
                 "n_poses": self.n_poses,
                 "sphere": self.spheres[0].to_dict() if self.spheres else None,
                 "spheres": [s.to_dict() for s in self.spheres],
