@@ -57,6 +57,7 @@ class Cell:
     flange2base: np.ndarray       # (N, 4, 4), mm
     profiles: list                # per pose (K, 2) sensor (x, z), mm
     side: int
+    circles: list                 # per pose (xc, zc, r) of the laser plane's circle, mm
 
     def kuka(self):
         return np.array([[*f[:3, 3], *zyx_angles(f[:3, :3])] for f in self.flange2base])
@@ -75,7 +76,7 @@ def make_cell(n=16, seed=0, side=-1, noise=0.01, points=60, diameter=50.8):
     centre = np.array([650.0, -120.0, 310.0])
     radius = diameter / 2
     x_true = homogeneous(rot_z(np.radians(30)) @ rot_y(np.radians(-85)) @ rot_x(np.radians(5)), [45.0, -60.0, 160.0])
-    flanges, profiles = [], []
+    flanges, profiles, circles = [], [], []
     for _ in range(n):
         tilt, azimuth, roll = np.radians(rng.uniform(0, 55)), rng.uniform(-np.pi, np.pi), rng.uniform(-np.pi, np.pi)
         # sensor axes in the base: z looks down at the sphere, tilted; any roll about it
@@ -85,10 +86,11 @@ def make_cell(n=16, seed=0, side=-1, noise=0.01, points=60, diameter=50.8):
         sensor2base = homogeneous(r_s, centre - r_s @ in_sensor)
         flanges.append(sensor2base @ np.linalg.inv(x_true))
         r = np.sqrt(radius**2 - y0**2)
+        circles.append((in_sensor[0], in_sensor[2], r))
         phi = rng.uniform(-1.1, 1.1, points)
         xz = np.column_stack([in_sensor[0] + r * np.sin(phi), in_sensor[2] - r * np.cos(phi)])
         profiles.append(xz + rng.normal(0, noise, xz.shape))
-    return Cell(centre, diameter, x_true, np.array(flanges), profiles, side)
+    return Cell(centre, diameter, x_true, np.array(flanges), profiles, side, circles)
 
 
 def pose_error(cell, sensor2flange):

@@ -78,10 +78,11 @@ def map_to_plane(profiles, diameter, axes=None, units_option="--profile-units"):
             raise DatasetError(p.label, f"{len(p.points)} finite points (after {p.dropped} NaN/inf rows dropped): a "
                                         "circle needs at least 3")
     three = [(p.label, p.points) for p in profiles if p.points.shape[1] == 3]
-    if three and len(three) != len(profiles):
-        two = next(p for p in profiles if p.points.shape[1] == 2)
-        raise DatasetError(two.label, f"2 columns, where {three[0][0]} has 3: give all profiles alike")
     mapping = plane.decide(three, axes) if three else None
+    if mapping is not None and not mapping.identity and len(three) != len(profiles):
+        two = next(p for p in profiles if p.points.shape[1] == 2)
+        raise DatasetError(two.label, f"2 columns (x, z), where {three[0][0]}'s 3 columns are turned into the laser "
+                                      "plane: give all profiles alike")
     for p in profiles:
         p.xz = plane.to_xz(p.points, mapping)
         plane.check_scale(p.xz, diameter, p.label, units_option)
