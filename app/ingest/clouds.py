@@ -137,7 +137,7 @@ def _ply(path, raw):
     if fmt == "ascii":
         skip = sum(n for _, n, _ in before)
         body = raw[offset:].decode("ascii", errors="replace").splitlines()[skip:skip + count]
-        data = np.loadtxt(body, ndmin=2, dtype=float) if body else np.zeros((0, len(props)))
+        data = _loadtxt(path, body, len(props))
         cols = {p: data[:, k] for k, (p, _) in enumerate(props)}
     else:
         order = "<" if fmt == "binary_little_endian" else ">"
@@ -147,6 +147,19 @@ def _ply(path, raw):
         data = np.frombuffer(raw, dtype, count=count, offset=offset)
         cols = {p: data[p] for p, _ in props}
     return [("vertex", _fields(path, cols, [p for p, _ in props]))]
+
+
+def _loadtxt(path, lines, width):
+    """Numbers of ASCII point lines (K, width); a bad line is a DatasetError naming the file."""
+    if not lines:
+        return np.zeros((0, width))
+    try:
+        data = np.loadtxt(lines, ndmin=2, dtype=float)
+    except ValueError as exc:
+        raise DatasetError(path, f"ASCII points: {str(exc).splitlines()[0]}") from None
+    if data.shape[1] < width:
+        raise DatasetError(path, f"ASCII points: {data.shape[1]} numbers per line, the header names {width}")
+    return data
 
 
 def _pcd(path, raw):
@@ -165,7 +178,7 @@ def _pcd(path, raw):
         raise DatasetError(path, "PCD header needs FIELDS, SIZE and TYPE of equal length")
     if data == "ascii":
         body = raw[offset:].decode("ascii", errors="replace").splitlines()
-        table = np.loadtxt([b for b in body if b.strip()], ndmin=2, dtype=float)
+        table = _loadtxt(path, [b for b in body if b.strip()], sum(counts))
         starts = np.cumsum([0] + counts[:-1])
         cols = {f: table[:, s] for f, s in zip(fields, starts)}
     elif data == "binary":

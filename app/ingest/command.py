@@ -125,6 +125,10 @@ def _check_options(out, opts):
                                f"got {opts[key]!r}")
     if opts["convention"] is not None:
         conventions.check(opts["convention"])
+    if opts["profile_axes"] is not None:
+        from handeye.app.ingest.plane import parse_axes
+
+        parse_axes(opts["profile_axes"])
     if opts["joints"] is not None and opts["robot"] is None:
         raise RequestError("--joints needs --robot MODEL (the nominal kinematics the loader checks them against)")
     if not isinstance(opts["max_dt"], (int, float)) or not opts["max_dt"] > 0:

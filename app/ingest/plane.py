@@ -92,6 +92,18 @@ def _signed_axis(text):
     return AXES.index(name), sign
 
 
+def parse_axes(axes):
+    """``--profile-axes 'y,-x'`` -> ((1, 1.0), (0, -1.0)): the file's axes (index, sign) that are
+    handeye's x and z."""
+    parts = str(axes).split(",")
+    if len(parts) != 2:
+        raise RequestError(f"--profile-axes takes two axes (handeye's x, z), got {axes!r}")
+    (ax, sx), (az, sz) = (_signed_axis(p) for p in parts)
+    if ax == az:
+        raise RequestError(f"--profile-axes {axes}: two different axes")
+    return (ax, sx), (az, sz)
+
+
 def decide(profiles3, axes=None):
     """The :class:`PlaneMapping` of a set of 3-column profiles ``[(file, points)]``: one normal for
     all (else a DatasetError naming the first profile that differs). ``axes``: ``--profile-axes``."""
@@ -101,10 +113,7 @@ def decide(profiles3, axes=None):
         if n != normal:
             raise DatasetError(file, f"its laser plane is {AXES[n]} = 0, {normals[0][0]}'s is {AXES[normal]} = 0")
     if axes is not None:
-        parts = str(axes).split(",")
-        if len(parts) != 2:
-            raise RequestError(f"--profile-axes takes two axes (handeye's x, z), got {axes!r}")
-        (ax, sx), (az, sz) = (_signed_axis(p) for p in parts)
+        (ax, sx), (az, sz) = parse_axes(axes)
         if len({ax, az, normal}) != 3:
             raise RequestError(f"--profile-axes {axes}: the two axes must be the in-plane ones (the normal is "
                                f"{AXES[normal]})")
