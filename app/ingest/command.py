@@ -290,8 +290,7 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
         rels.append(rel)
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    options = {k: (list(map(str, v)) if isinstance(v, (list, tuple)) else v if isinstance(v, (int, float)) else str(v))
-               for k, v in opts.items() if v is not None and v != []}
+    options = {k: _option_value(v) for k, v in opts.items() if v is not None and not (isinstance(v, list) and not v)}
     sections = {"options": options, "conversions": {"made": list(result.conversions)},
                 "plane": {"mapping": result.plane, "rotation_handeye_from_file": None if result.rotation is None
                           else np.asarray(result.rotation).tolist()},
@@ -305,6 +304,15 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
                                             opts["robot"])
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files
+
+
+def _option_value(v):
+    """An option's value for PROVENANCE.toml: numbers as numbers, sequences as lists, else text."""
+    if isinstance(v, (bool, int, float)):
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [x if isinstance(x, (int, float)) else str(x) for x in np.asarray(v, object).ravel().tolist()]
+    return str(v)
 
 
 def _unique(roles):
