@@ -107,7 +107,9 @@ def _check_options(out, opts):
     from handeye.app.files import check_output_folder
 
     check_output_folder(out, "OUT", empty=True)
-    if (opts["poses"] is None) == (opts["bag"] is None):
+    if opts["poses"] is not None and opts["bag"] is not None:
+        raise RequestError("--poses and --bag: give one of them (the bag's --pose-topic has the poses)")
+    if opts["poses"] is None and opts["bag"] is None:
         raise RequestError("give the poses: --poses FILE, or --bag PATH with --pose-topic and --profile-topic")
     if opts["poses"] is not None and not opts["profiles"]:
         raise RequestError("--poses needs --profiles FILES|GLOB|DIR (the laser profile of each pose)")
@@ -116,15 +118,20 @@ def _check_options(out, opts):
     diameter = opts["diameter"]
     if diameter is None:
         raise RequestError("--diameter MM is required: the sphere's diameter from its certificate, mm")
-    if isinstance(diameter, bool) or not isinstance(diameter, (int, float)) or not 0 < diameter < 10_000:
+    try:
+        ok = not isinstance(diameter, (bool, str)) and 0 < float(diameter) < 10_000
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
         raise RequestError(f"--diameter must be a number of mm in (0, 10000), got {diameter!r}")
+    opts["diameter"] = float(diameter)
     for key, allowed in (("units", UNITS), ("profile_units", UNITS + (None,)), ("angles", ANGLES + (None,)),
                          ("side", SIDES), ("pair", PAIRINGS)):
         if opts[key] not in allowed:
             raise RequestError(f"--{key.replace('_', '-')} must be one of {', '.join(map(str, allowed))}, "
                                f"got {opts[key]!r}")
-    if opts["convention"] is not None:
-        conventions.check(opts["convention"])
+    if opts["convention"] is not None and opts["convention"] not in conventions.CONVENTIONS:
+        raise RequestError(f"--convention must be one of {', '.join(conventions.CONVENTIONS)}, got {opts['convention']!r}")
     if opts["profile_axes"] is not None:
         from handeye.app.ingest.plane import parse_axes
 
@@ -263,7 +270,7 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     centre = _vector(center, 3, "--center")
     ids, values, conv, per_pose, inputs, notes, how, roles, pose_ids = (_from_files if bag is None else _from_bag)(opts)
     start_pose = _vector(start, len(conventions.columns(conv)), "--start")
-    mapping = sources.map_to_plane(per_pose, diameter, profile_axes,
+    mapping = sources.map_to_plane(per_pose, opts["diameter"], profile_axes,
                                    "--profile-units" if bag is None else "the bag's profile topic")
     joint_values = _joints(opts, pose_ids, len(ids))
     inputs["profiles"] = sources.formats(per_pose)

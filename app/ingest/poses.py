@@ -150,7 +150,7 @@ def _numbers(table, names, wanted):
             raise DatasetError(table.file, f"expected {len(names)} fields, got {len(row)}", line)
         for c, j in enumerate(idx):
             try:
-                v = float(row[j])
+                v = float(row[j]) if "_" not in row[j] else float("x")  # Python's 1_000 is no number in a table
             except ValueError:
                 raise DatasetError(table.file, f"not a number: {row[j]!r}", line, heads[j]) from None
             if not math.isfinite(v):

@@ -5,6 +5,7 @@ line (or JSON item) each row came from, so that every later error names file and
 """
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import math
@@ -86,7 +87,14 @@ def read_table(path, known_name=None):
 
 
 def _split(line, sep):
-    return [c.strip().strip('"').strip("'") for c in (line.split(sep) if sep else line.split())]
+    """The cells of a line: CSV quoting honoured for ',' and ';' (a quoted id may hold the separator)."""
+    if sep is None:
+        return [c.strip('"').strip("'") for c in line.split()]
+    try:
+        cells = next(csv.reader([line], delimiter=sep))
+    except (csv.Error, StopIteration):
+        cells = line.split(sep)
+    return [c.strip() for c in cells]
 
 
 def _text_table(path, text, known_name):

@@ -2,7 +2,9 @@
 ``PROVENANCE.toml`` (every source file with its SHA-256, the options, the conversions made)."""
 from __future__ import annotations
 
+import csv
 import hashlib
+import io
 import json
 import pathlib
 import re
@@ -28,12 +30,14 @@ def measurements_text(ids, values, convention, profile_paths, joints=None):
     """``measurements.csv``: id, the convention's pose columns, empty ``xs,ys,zs``, [j1..j6,] profile."""
     header = ["id", *conventions.columns(convention), "xs", "ys", "zs", *(JOINTS if joints is not None else ()),
               "profile"]
-    lines = [",".join(header)]
+    buffer = io.StringIO()
+    out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted
+    out.writerow(header)
     for k, (ident, pose, path) in enumerate(zip(ids, values, profile_paths)):
         row = [str(ident), *(f"{v:.10g}" for v in pose), "", "", ""]
         row += [f"{v:.6f}" for v in joints[k]] if joints is not None else []
-        lines.append(",".join(row + [path]))
-    return "\n".join(lines) + "\n"
+        out.writerow(row + [path])
+    return buffer.getvalue()
 
 
 def profile_text(xz):
