@@ -189,8 +189,10 @@ def _dataset_args(sub):
     new.add_argument("--profile-units", choices=("mm", "m"), default=None, help="units of the profiles (default mm)")
     new.add_argument("--profile-axes", metavar="X,Z", help="the profile files' axes that are handeye's sensor x and z "
                                                            "(e.g. y,-x); default found from the data")
-    new.add_argument("--diameter", type=float, metavar="MM", help="sphere diameter, mm (required)")
-    new.add_argument("--side", type=int, choices=(1, -1), default=-1, help="sign of the centre's sensor-y (default -1)")
+    new.add_argument("--diameter", type=float, metavar="MM", help="sphere diameter, mm (required unless --setup gives it)")
+    new.add_argument("--setup", metavar="SETUP.toml", help="an existing setup.toml: its sphere diameter and centre, side, "
+                                                          "start pose, convention and robot model fill the options not given")
+    new.add_argument("--side", type=int, choices=(1, -1), default=None, help="sign of the centre's sensor-y (default -1)")
     new.add_argument("--center", metavar="X,Y,Z", help="sphere centre in the robot base, mm (without it: calibrate "
                                                        "with --unknowns sensor+sphere)")
     new.add_argument("--start", metavar="X,Y,Z,...", help="start sensor pose on the flange, in the convention's columns")
@@ -219,7 +221,7 @@ def _dataset(args):
                          profile_axes=args.profile_axes, diameter=args.diameter, side=args.side, center=args.center,
                          start=args.start, joints=args.joints, robot=args.robot, pair=args.pair, match=args.match,
                          bag=args.bag, pose_topic=args.pose_topic, profile_topic=args.profile_topic,
-                         base_frame=args.base_frame, flange_frame=args.flange_frame, max_dt=args.max_dt)
+                         base_frame=args.base_frame, flange_frame=args.flange_frame, max_dt=args.max_dt, setup=args.setup)
     print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_OK
 

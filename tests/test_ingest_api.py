@@ -87,3 +87,21 @@ def test_bag_topic_errors_name_the_topic(tmp_path, capsys, storage):
                  "--profile-topic", "/sensor/profile", "--diameter", "50.8", "--max-dt", "0.001"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and "no profile has a pose within --max-dt 0.001 s" in err[0]
+
+
+def test_setup_file_fills_the_options_not_given(tmp_path, capsys):
+    cell = make_cell(n=4, seed=9)
+    rows = "".join(f"{k + 1},{','.join(f'{v:.6f}' for v in p)}\n" for k, p in enumerate(cell.fanuc()))
+    (tmp_path / "poses.csv").write_text("id,x,y,z,w,p,r\n" + rows)
+    (tmp_path / "prof").mkdir()
+    for k in range(4):
+        np.savetxt(tmp_path / "prof" / f"s{k + 1}.csv", cell.profiles[k], delimiter=",")
+    (tmp_path / "old.toml").write_text("[robot]\nconvention = \"kuka\"\n[sphere]\ndiameter = 50.8\n"
+                                       "center = [650.0, -120.0, 310.0]\n[profile]\nside = 1\n")
+    code = main(["dataset", "new", str(tmp_path / "out"), "--poses", str(tmp_path / "poses.csv"), "--profiles",
+                 str(tmp_path / "prof"), "--setup", str(tmp_path / "old.toml"), "--side", "-1"])
+    assert code == 0 and "poses converted fanuc -> kuka" in capsys.readouterr().out
+    setup = tomllib.loads((tmp_path / "out" / "setup.toml").read_text())
+    assert setup["sphere"] == {"diameter": 50.8, "center": [650.0, -120.0, 310.0]} and setup["profile"]["side"] == -1
+    assert setup["robot"]["convention"] == "kuka"
+    np.testing.assert_allclose(handeye.load_dataset(tmp_path / "out").flange_poses, cell.kuka(), atol=1e-5)

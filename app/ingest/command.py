@@ -102,11 +102,36 @@ def _vector(value, n, option):
     return out
 
 
+def _from_setup(opts):
+    """``--setup FILE``: an existing setup.toml fills the options not given (diameter, center, side,
+    start pose, convention, robot model)."""
+    import tomllib
+
+    file = opts["setup"]
+    if file is None:
+        return
+    try:
+        doc = tomllib.loads(pathlib.Path(file).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DatasetError(file, f"not valid TOML: {exc}") from None
+    sphere, sensor, robot = doc.get("sphere", {}), doc.get("sensor", {}), doc.get("robot", {})
+    found = {"diameter": sphere.get("diameter"), "center": sphere.get("center"),
+             "side": doc.get("profile", {}).get("side"), "start": sensor.get("start_pose"),
+             "convention": robot.get("convention"), "robot": robot.get("model")}
+    for key, value in found.items():
+        if opts[key] is None and value is not None:
+            opts[key] = value
+
+
 def _check_options(out, opts):
     """Options checked before anything is read; raises RequestError naming the option."""
     from handeye.app.files import check_output_folder
 
     check_output_folder(out, "OUT", empty=True)
+    _from_setup(opts)
+    opts["side"] = -1 if opts["side"] is None else opts["side"]
     if opts["poses"] is not None and opts["bag"] is not None:
         raise RequestError("--poses and --bag: give one of them (the bag's --pose-topic has the poses)")
     if opts["poses"] is None and opts["bag"] is None:
@@ -200,9 +225,9 @@ def _joints(opts, pose_ids, n):
 
 
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
-                profile_units=None, profile_axes=None, diameter=None, side=-1, center=None, start=None, joints=None,
+                profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
-                flange_frame=None, max_dt=0.05):
+                flange_frame=None, max_dt=0.05, setup=None):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
 
     Parameters
@@ -229,9 +254,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
         ``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default
         found from the data (:mod:`handeye.app.ingest.plane`).
     diameter : float
-        Sphere diameter, mm (required).
-    side : {-1, 1}
-        Sign of the sphere centre's sensor-y (``[profile] side``).
+        Sphere diameter, mm (required, unless ``setup`` gives it).
+    side : {-1, 1}, optional
+        Sign of the sphere centre's sensor-y (``[profile] side``; default -1).
     center : str or sequence of 3 floats, optional
         Sphere centre in the robot base, mm; without it, calibrate with ``--unknowns sensor+sphere``.
     start : str or sequence, optional
@@ -250,6 +275,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
         The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`).
     max_dt : float
         Largest time between a bag's profile and its pose, s.
+    setup : path-like, optional
+        An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``,
+        ``[sensor] start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.
 
     Returns
     -------
@@ -265,11 +293,11 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
                 convention=convention, columns=columns, units=units, angles=angles, profile_units=profile_units,
                 profile_axes=profile_axes, diameter=diameter, side=side, center=center, start=start, joints=joints,
                 robot=robot, pair=pair, match=match, bag=bag, pose_topic=pose_topic, profile_topic=profile_topic,
-                base_frame=base_frame, flange_frame=flange_frame, max_dt=max_dt)
+                base_frame=base_frame, flange_frame=flange_frame, max_dt=max_dt, setup=setup)
     _check_options(out, opts)
-    centre = _vector(center, 3, "--center")
+    centre = _vector(opts["center"], 3, "--center")
     ids, values, conv, per_pose, inputs, notes, how, roles, pose_ids = (_from_files if bag is None else _from_bag)(opts)
-    start_pose = _vector(start, len(conventions.columns(conv)), "--start")
+    start_pose = _vector(opts["start"], len(conventions.columns(conv)), "--start")
     mapping = sources.map_to_plane(per_pose, opts["diameter"], profile_axes,
                                    "--profile-units" if bag is None else "the bag's profile topic")
     joint_values = _joints(opts, pose_ids, len(ids))
@@ -304,7 +332,8 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
                 "pairing": {"method": result.pairing, "pairs": {i: p.label for i, p in zip(result.ids, per_pose)}},
                 "dropped_nonfinite": dict(result.dropped)}
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
-            for role, f, fmt in _unique(roles + ([("joints", opts["joints"], "table")] if opts["joints"] else []))]
+            for role, f, fmt in _unique(roles + [(r, opts[r], "table" if r == "joints" else "TOML") for r in ("joints", "setup")
+                                                 if opts[r] is not None])]
     files = dict(profile_files)
     files["measurements.csv"] = writer.measurements_text(result.ids, values, result.convention, rels, joints)
     files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], opts["side"], centre, start_pose,
