@@ -326,7 +326,7 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     options = {k: _option_value(v) for k, v in opts.items() if v is not None and not (isinstance(v, list) and not v)}
-    sections = {"options": options, "conversions": {"made": list(result.conversions)},
+    sections = {"options": options, "inputs": dict(result.inputs), "conversions": {"made": list(result.conversions)},
                 "plane": {"mapping": result.plane, "rotation_handeye_from_file": None if result.rotation is None
                           else np.asarray(result.rotation).tolist()},
                 "pairing": {"method": result.pairing, "pairs": {i: p.label for i, p in zip(result.ids, per_pose)}},
