@@ -161,6 +161,8 @@ def _check_options(out, opts):
         from handeye.app.ingest.plane import parse_axes
 
         parse_axes(opts["profile_axes"])
+    if opts["joints"] is not None and opts["bag"] is not None:
+        raise RequestError("--joints with --bag: a bag's joint states are not read; give --poses and --profiles files")
     if opts["joints"] is not None and opts["robot"] is None:
         raise RequestError("--joints needs --robot MODEL (the nominal kinematics the loader checks them against)")
     if not isinstance(opts["max_dt"], (int, float)) or not opts["max_dt"] > 0:
@@ -168,7 +170,8 @@ def _check_options(out, opts):
 
 
 def _from_files(opts):
-    """Poses and profiles from loose files: ``(ids, values, convention, profiles per pose, inputs, notes, pairing)``."""
+    """Poses and profiles from loose files: ``(ids, values (N, 3 + k) in the convention, convention, Profile per
+    pose, inputs, notes, pairing, source roles [(role, file, format)], (the pose file's ids or None, its lines))``."""
     from handeye.app.ingest.poses import read_poses
 
     table = read_poses(opts["poses"], opts["convention"], opts["columns"], opts["units"], opts["angles"])
