@@ -139,3 +139,21 @@ def test_missing_diameter_and_non_empty_out(tmp_path, capsys):
     code = main(["dataset", "new", str(tmp_path / "busy"), "--poses", str(poses), "--profiles", str(prof),
                  "--diameter", "50"])
     assert code == 2 and "not an empty folder" in capsys.readouterr().err
+
+
+def test_truncated_and_corrupt_files_are_bad_input(tmp_path):
+    """Cut or damaged files of every binary format: a DatasetError naming the file, never a traceback."""
+    from handeye.app.ingest import clouds
+    from handeye.model.errors import InputError
+
+    pts = np.column_stack([np.arange(20.0), np.zeros(20), 240 + np.arange(20.0)])
+    np.save(tmp_path / "a.npy", pts)
+    np.savez(tmp_path / "a.npz", a=pts)
+    (tmp_path / "a.pcd").write_bytes(b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 20\n"
+                                     b"HEIGHT 1\nPOINTS 20\nDATA binary\n" + pts.astype("<f4").tobytes())
+    for name in ("a.npy", "a.npz", "a.pcd"):
+        raw = (tmp_path / name).read_bytes()
+        for cut in (len(raw) // 3, len(raw) - 7):
+            (tmp_path / "cut").write_bytes(raw[:cut])
+            with pytest.raises(InputError, match="cut"):
+                clouds.read_profile_file(tmp_path / "cut")

@@ -145,3 +145,16 @@ def test_unknown_format_is_named(tmp_path):
     (tmp_path / "x.bin").write_bytes(b"\x00\x01\x02garbage")
     with pytest.raises(DatasetError, match=r"x\.bin: unknown format"):
         _read(tmp_path / "x.bin")
+
+
+def test_opencv4_yaml_header_sequences_and_channels(tmp_path):
+    """OpenCV 3/4 write ``%YAML:1.0`` and wrap long data over lines; a sequence of matrices gives one
+    profile each; a 3-channel matrix (a vector of Point3f) one point per element."""
+    (tmp_path / "scans.yml").write_text(
+        "%YAML:1.0\n---\nprofiles:\n   - !!opencv-matrix\n      rows: 3\n      cols: 2\n      dt: d\n"
+        "      data: [ 1., 240., 2., 241.,\n          .Nan, 242. ]\n   - !!opencv-matrix\n      rows: 3\n"
+        "      cols: 1\n      dt: \"3f\"\n      data: [ 1., 0., 240., 2., 0., 241., 3., 0., -.Inf ]\n")
+    fmt, mats = _read(tmp_path / "scans.yml")
+    assert fmt == "FileStorage YAML" and len(mats) == 2
+    np.testing.assert_array_equal(mats[0][1][:2], [[1, 240], [2, 241]])
+    assert mats[1][1].shape == (3, 3) and plane.finite_rows(mats[1][1])[1] == 1

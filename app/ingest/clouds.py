@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import io
 import re
+import zipfile
 
 import numpy as np
 
@@ -55,10 +56,14 @@ def read_profile_file(path):
     fmt = detect(raw)
     if fmt is None:
         raise DatasetError(path, "unknown format: not FileStorage YAML/XML/JSON, .npy/.npz, PLY, PCD, CSV or text")
-    if fmt.startswith("FileStorage"):
-        return fmt, opencv_storage.read(path, raw)
-    reader = {"npy": _npy, "npz": _npz, "ply": _ply, "pcd": _pcd, "text": _text}[fmt]
-    return fmt, reader(path, raw)
+    reader = {"npy": _npy, "npz": _npz, "ply": _ply, "pcd": _pcd, "text": _text}.get(fmt, opencv_storage.read)
+    try:
+        return fmt, reader(path, raw)
+    except DatasetError:
+        raise
+    except (ValueError, IndexError, KeyError, TypeError, EOFError, OSError, NotImplementedError, zipfile.BadZipFile,
+            RecursionError) as exc:  # a truncated or corrupt file: bad input, named, not a traceback
+        raise DatasetError(path, f"a malformed {fmt} file ({type(exc).__name__}: {str(exc)[:80]})") from None
 
 
 def _numeric(path, name, array):
@@ -74,17 +79,19 @@ def _numeric(path, name, array):
 
 def _npy(path, raw):
     try:
-        return [_numeric(path, "array", np.load(io.BytesIO(raw), allow_pickle=False))]
-    except ValueError as exc:
-        raise DatasetError(path, f"not a readable .npy file: {exc}") from None
+        array = np.load(io.BytesIO(raw), allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - numpy's header parser raises what it meets (a TokenError too)
+        raise DatasetError(path, f"not a readable .npy file ({type(exc).__name__}: {str(exc)[:80]})") from None
+    return [_numeric(path, "array", array)]
 
 
 def _npz(path, raw):
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-            return [_numeric(path, name, z[name]) for name in z.files]
-    except ValueError as exc:
-        raise DatasetError(path, f"not a readable .npz file: {exc}") from None
+            arrays = [(name, z[name]) for name in z.files]
+    except Exception as exc:  # noqa: BLE001 - a corrupt zip or header raises anything zipfile or numpy meets
+        raise DatasetError(path, f"not a readable .npz file ({type(exc).__name__}: {str(exc)[:80]})") from None
+    return [_numeric(path, name, a) for name, a in arrays]
 
 
 def _fields(path, columns, names):
