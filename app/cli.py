@@ -204,10 +204,11 @@ def _dataset_args(sub):
                                                       "(default: the last digits)")
     new.add_argument("--bag", metavar="PATH", help="a ROS 2 bag (sqlite3 or mcap) instead of --poses/--profiles "
                                                    "(pip install 'handeye[ros]')")
-    new.add_argument("--pose-topic", help="geometry_msgs/PoseStamped, or /tf with --base-frame and --flange-frame")
-    new.add_argument("--profile-topic", help="sensor_msgs/PointCloud2 or sensor_msgs/LaserScan")
-    new.add_argument("--base-frame", help="with /tf: the robot base frame")
-    new.add_argument("--flange-frame", help="with /tf: the flange frame")
+    new.add_argument("--pose-topic", metavar="TOPIC",
+                     help="geometry_msgs/PoseStamped, or /tf with --base-frame and --flange-frame")
+    new.add_argument("--profile-topic", metavar="TOPIC", help="sensor_msgs/PointCloud2 or sensor_msgs/LaserScan")
+    new.add_argument("--base-frame", metavar="FRAME", help="with /tf: the robot base frame")
+    new.add_argument("--flange-frame", metavar="FRAME", help="with /tf: the flange frame")
     new.add_argument("--max-dt", type=float, default=0.05, metavar="SECONDS",
                      help="largest time between a profile and its pose (default 0.05)")
     new.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -36,12 +36,17 @@ def test_python_api_npz_of_all_profiles(tmp_path):
     assert prov["dropped_nonfinite"] == {"3": 1} and prov["pairing"]["pairs"]["3"].endswith("all.npz[profile_3]")
 
 
-def test_json_summary_and_joints_with_a_robot(tmp_path, capsys):
-    """--joints (a whitespace file with a header) with --robot: j1..j6 and [robot] model written,
-    the poses the nominal model's forward kinematics (the loader checks them)."""
+@pytest.mark.parametrize("robot", ["kr60ha", "file"])
+def test_json_summary_and_joints_with_a_robot(tmp_path, capsys, robot):
+    """--joints (a whitespace file with a header) with --robot (a built-in name, or a model file,
+    copied into the dataset): j1..j6 and [robot] model written, the poses the nominal model's
+    forward kinematics (the loader checks them)."""
     from handeye.model import robots
 
     model = robots.load("kr60ha")
+    if robot == "file":
+        (tmp_path / "my_robot.toml").write_text(robots.to_toml(model))
+        robot = str(tmp_path / "my_robot.toml")
     rng = np.random.default_rng(3)
     joints = np.array([0, -90, 90, 0, 45, 0]) + rng.uniform(-10, 10, (4, 6))
     flanges = model.flange2base(joints)
@@ -53,13 +58,15 @@ def test_json_summary_and_joints_with_a_robot(tmp_path, capsys):
     for k in range(4):
         np.savetxt(tmp_path / "prof" / f"{k}.txt", cell.profiles[k])
     code = main(["dataset", "new", str(tmp_path / "out"), "--poses", str(tmp_path / "poses.txt"), "--profiles",
-                 str(tmp_path / "prof"), "--joints", str(tmp_path / "joints.txt"), "--robot", "kr60ha",
+                 str(tmp_path / "prof"), "--joints", str(tmp_path / "joints.txt"), "--robot", robot,
                  "--diameter", "50.8", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["ids"] == ["0", "1", "2", "3"] and out["next"].endswith("--unknowns sensor+sphere")
     header = (tmp_path / "out" / "measurements.csv").read_text().splitlines()[0]
     assert header == "id,x,y,z,a,b,c,xs,ys,zs,j1,j2,j3,j4,j5,j6,profile"
-    assert 'model = "kr60ha"' in (tmp_path / "out" / "setup.toml").read_text()
+    named = "kr60ha" if robot == "kr60ha" else "robot_model.toml"
+    assert f'model = "{named}"' in (tmp_path / "out" / "setup.toml").read_text()
+    assert (tmp_path / "out" / "robot_model.toml").is_file() == (robot != "kr60ha")
     np.testing.assert_allclose(handeye.load_dataset(tmp_path / "out").joints, joints, atol=1e-5)
 
 

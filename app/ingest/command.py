@@ -120,6 +120,9 @@ def _from_setup(opts):
     found = {"diameter": sphere.get("diameter"), "center": sphere.get("center"),
              "side": doc.get("profile", {}).get("side"), "start": sensor.get("start_pose"),
              "convention": robot.get("convention"), "robot": robot.get("model")}
+    model = found["robot"]
+    if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
+        found["robot"] = str(pathlib.Path(file).parent / model)
     for key, value in found.items():
         if opts[key] is None and value is not None:
             opts[key] = value
@@ -334,15 +337,37 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
                           else np.asarray(result.rotation).tolist()},
                 "pairing": {"method": result.pairing, "pairs": {i: p.label for i, p in zip(result.ids, per_pose)}},
                 "dropped_nonfinite": dict(result.dropped)}
-    srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
-            for role, f, fmt in _unique(roles + [(r, opts[r], "table" if r == "joints" else "TOML") for r in ("joints", "setup")
-                                                 if opts[r] is not None])]
     files = dict(profile_files)
+    model = _robot_model(opts["robot"], files)
+    extra = [(r, opts[r], "table" if r == "joints" else "TOML") for r in ("joints", "setup") if opts[r] is not None]
+    extra += [("robot model", opts["robot"], "TOML")] if model == MODEL_FILE else []
+    srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
+            for role, f, fmt in _unique(roles + extra)]
     files["measurements.csv"] = writer.measurements_text(result.ids, values, result.convention, rels, joints)
-    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], opts["side"], centre, start_pose,
-                                            opts["robot"])
+    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], opts["side"], centre, start_pose, model)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files
+
+
+#: The name a robot model file gets in the dataset (as ``handeye simulate --robot FILE`` names it).
+MODEL_FILE = "robot_model.toml"
+
+
+def _robot_model(robot, files):
+    """``[robot] model``: a built-in name as it is; a model file copied into the dataset as
+    :data:`MODEL_FILE` (a path in setup.toml is the dataset folder's)."""
+    from handeye.model import robots
+
+    if robot is None or str(robot) in robots.builtin_names():
+        return robot
+    path = pathlib.Path(robot)
+    if not path.is_file():
+        raise RequestError(f"--robot {robot}: not a built-in model ({', '.join(robots.builtin_names())}) nor a file")
+    try:
+        files[MODEL_FILE] = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RequestError(f"--robot {robot}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    return MODEL_FILE
 
 
 def _option_value(v):
