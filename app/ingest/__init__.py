@@ -10,7 +10,8 @@ and writes ``measurements.csv``, ``setup.toml``, ``profiles/*.csv`` and ``PROVEN
 Modules: :mod:`~handeye.app.ingest.tables` (text and JSON tables), :mod:`~handeye.app.ingest.poses`
 (pose columns, units, plausibility), :mod:`~handeye.app.ingest.opencv_storage` (FileStorage
 YAML/XML/JSON), :mod:`~handeye.app.ingest.clouds` (CSV/TXT, .npy/.npz, PLY, PCD),
-:mod:`~handeye.app.ingest.plane` (NaN rows, the laser plane's axes), :mod:`~handeye.app.ingest.pairing`,
+:mod:`~handeye.app.ingest.plane` (NaN rows, the laser plane's axes), :mod:`~handeye.app.ingest.sources`
+(profiles read and mapped), :mod:`~handeye.app.ingest.pairing`,
 :mod:`~handeye.app.ingest.rosbag` (ROS 2 bags, optional ``rosbags``), :mod:`~handeye.app.ingest.writer`
 and :mod:`~handeye.app.ingest.command` (the command and its result).
 """
