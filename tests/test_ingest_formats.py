@@ -158,3 +158,16 @@ def test_opencv4_yaml_header_sequences_and_channels(tmp_path):
     assert fmt == "FileStorage YAML" and len(mats) == 2
     np.testing.assert_array_equal(mats[0][1][:2], [[1, 240], [2, 241]])
     assert mats[1][1].shape == (3, 3) and plane.finite_rows(mats[1][1])[1] == 1
+
+
+def test_sensor_export_headers_and_decimal_commas(tmp_path):
+    """A sensor's CSV export names its columns with units (``X [mm]``) and carries more columns; a
+    European controller export uses ';' and decimal commas."""
+    (tmp_path / "prof.csv").write_text("Index,X [mm],Z [mm],Intensity\n" + "".join(
+        f"{k},{x:.4f},{z:.4f},high\n" for k, (x, _, z) in enumerate(POINTS)))
+    np.testing.assert_allclose(_read(tmp_path / "prof.csv")[1][0][1], POINTS[:, [0, 2]], atol=1e-4)
+    (tmp_path / "poses.csv").write_text("Nr;X;Y;Z;A;B;C\n1;500,5;10;300;10;-80,25;5\n2;510;0,5;310;-170;20;179\n"
+                                        "3;490;-5;305;45;0;90\n")
+    t = poses.read_poses(tmp_path / "poses.csv")
+    assert t.format == "semicolon-separated text, decimal commas" and t.ids == ("1", "2", "3")
+    np.testing.assert_allclose(t.values[:2], [[500.5, 10, 300, 10, -80.25, 5], [510, 0.5, 310, -170, 20, 179]])

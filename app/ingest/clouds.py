@@ -22,6 +22,7 @@ import zipfile
 import numpy as np
 
 from handeye.app.ingest import opencv_storage
+from handeye.app.ingest.poses import canonical
 from handeye.app.ingest.tables import Table, is_number, read_bytes, read_table
 from handeye.model.tables import DatasetError
 
@@ -201,8 +202,7 @@ def _pcd(path, raw):
 
 
 def _text(path, raw):
-    names = {"x", "y", "z"}
-    table = read_table(path, known_name=lambda c: c.strip().lower() in names)
+    table = read_table(path, known_name=lambda c: canonical(c) in ("x", "y", "z"))
     if table.kind.startswith("JSON"):
         raise DatasetError(path, "a JSON table is not a profile (FileStorage JSON has opencv-matrix nodes)")
     return [("table", _text_points(table))]
@@ -210,8 +210,9 @@ def _text(path, raw):
 
 def _text_points(table: Table):
     path = table.file
-    if table.header is not None:
-        return _fields(path, {h: _column(table, k) for k, h in enumerate(table.header)}, table.header)
+    if table.header is not None:  # names as the poses' (``X [mm]``, ``pos_z``): x, y, z by the canonical name
+        names = [canonical(h) or h for h in table.header]
+        return _fields(path, {n: _column(table, k) for k, n in enumerate(names) if n in ("x", "y", "z")}, names)
     width = len(table.rows[0])
     if width not in (2, 3):
         raise DatasetError(path, f"{width} columns: a profile has 2 (x, z) or 3 (x, y, z); name them in a header",

@@ -17,6 +17,9 @@ from handeye.model.tables import MAX_FILE_BYTES, DatasetError
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 
 
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
+
+
 def is_number(text):
     """True for a decimal number, ``nan`` or ``inf`` (not ``1_000``, not empty)."""
     return bool(_NUMBER.match(str(text).strip()))
@@ -107,6 +110,9 @@ def _text_table(path, text, known_name):
     sep, kind = ((",", "CSV") if "," in first else (";", "semicolon-separated text") if ";" in first
                  else (None, "whitespace-separated text"))
     rows = [(k, _split(line, sep)) for k, line in body]
+    if sep == ";" and any(_DECIMAL_COMMA.match(c) for _, r in rows[1:3] for c in r):  # 12,5;7,25: a European export
+        rows = [(k, [c.replace(",", ".") if _DECIMAL_COMMA.match(c) else c for c in r]) for k, r in rows]
+        kind += ", decimal commas"
     header = None
     if _looks_like_header(rows[0][1], known_name):
         header = tuple(rows.pop(0)[1])
