@@ -116,7 +116,34 @@ def test_ros2_bag_tf_chain_and_laserscan_turned_into_the_plane(tmp_path, capsys)
     out, summary, res = _new_and_calibrate(tmp_path, capsys, [
         "--bag", str(bag), "--pose-topic", "/tf", "--base-frame", "base_link", "--flange-frame", "tool0",
         "--profile-topic", "/sensor/profile", "--diameter", str(cell.diameter), "--center", centre])
-    assert "laser plane z = 0: handeye x = file y, z = file x" in summary and "convention abb" in summary
+    assert "laser plane z = 0: handeye x = file y, y = file z, z = file x (R" in summary and "convention abb" in summary
     prov = (out / "PROVENANCE.toml").read_text()
     assert "rotation_handeye_from_file" in prov and "[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]" in prov
+    _assert_near_truth(cell, res)
+
+
+def test_abb_csv_with_ply_profiles_whose_z_grows_towards_the_sensor(tmp_path, capsys):
+    """Profiles (binary PLY, written here) in a frame turned half a turn about x from handeye's
+    (z a height towards the sensor, as RobCalibrator's scanner writes it): the cap faces +z, so z
+    is flipped (and y with it); --side is given in the files' frame and written in handeye's."""
+    import struct
+
+    from ingest_truth import quaternion
+
+    cell = make_cell(n=14, seed=8, side=-1)
+    rows = "".join(f"{k + 1},{','.join(f'{v:.9f}' for v in (*f[:3, 3], *quaternion(f[:3, :3])))}\n"
+                   for k, f in enumerate(cell.flange2base))
+    (tmp_path / "poses.csv").write_text("id,x,y,z,q1,q2,q3,q4\n" + rows)
+    (tmp_path / "ply").mkdir()
+    for k, xz in enumerate(cell.profiles):
+        pts = np.column_stack([xz[:, 0], np.zeros(len(xz)), -xz[:, 1]])  # the file's z = -handeye's z, y = -y
+        head = f"ply\nformat binary_little_endian 1.0\nelement vertex {len(pts)}\nproperty float x\nproperty float y\n" \
+               "property float z\nend_header\n"
+        (tmp_path / "ply" / f"line{k + 1}.ply").write_bytes(head.encode() + b"".join(struct.pack("<fff", *p) for p in pts))
+    out, summary, res = _new_and_calibrate(tmp_path, capsys, [
+        "--poses", str(tmp_path / "poses.csv"), "--profiles", str(tmp_path / "ply"), "--diameter", str(cell.diameter),
+        "--center", ",".join(map(str, cell.centre)), "--side", "1"])
+    assert "faced +z in 14 of 14" in summary and "y = file -y, z = file -z" in summary
+    assert "--side +1 (the profiles' y) is side -1 in handeye's y" in summary
+    assert "side = -1" in (out / "setup.toml").read_text()
     _assert_near_truth(cell, res)

@@ -44,6 +44,8 @@ class NewDatasetResult(ResultProtocol):
         How poses and profiles were paired.
     next_command : str
         The calibration to run next.
+    side : int
+        ``[profile] side`` written: ``side`` given in the profiles' frame, in handeye's.
     """
 
     caption = "handeye dataset new"
@@ -58,12 +60,14 @@ class NewDatasetResult(ResultProtocol):
     dropped: dict
     pairing: str
     next_command: str
+    side: int = -1
 
     def to_dict(self):
         return {"path": str(self.path), "measurements": len(self.ids), "ids": list(self.ids),
                 "convention": self.convention, "inputs": self.inputs, "conversions": list(self.conversions),
                 "plane": self.plane, "rotation": None if self.rotation is None else np.asarray(self.rotation).tolist(),
-                "dropped_nonfinite": dict(self.dropped), "pairing": self.pairing, "next": self.next_command}
+                "dropped_nonfinite": dict(self.dropped), "pairing": self.pairing, "side": self.side,
+                "next": self.next_command}
 
     def summary(self):
         src = self.inputs.get("poses") or self.inputs.get("bag")
@@ -78,6 +82,10 @@ class NewDatasetResult(ResultProtocol):
         fmts = ", ".join(f"{n} {f}" for f, n in self.inputs["profiles"].items())
         lines.append(f"  profiles  {fmts}; {sum(self.dropped.values())} NaN/inf rows dropped in {len(self.dropped)} "
                      "profiles")
+        if self.inputs.get("skipped"):
+            lines.append(f"  skipped   {len(self.inputs['skipped'])} files of the folders that are no profile: "
+                         + ", ".join(pathlib.Path(f).name for f in list(self.inputs["skipped"])[:4])
+                         + (", ..." if len(self.inputs["skipped"]) > 4 else "") + " (PROVENANCE.toml says why)")
         lines.append(f"  plane     {self.plane}")
         if self.rotation is not None:
             lines.append("            the calibrated sensor frame is this rotated one (R in PROVENANCE.toml)")
@@ -178,9 +186,16 @@ def _from_files(opts):
     from handeye.app.ingest.poses import read_poses
 
     table = read_poses(opts["poses"], opts["convention"], opts["columns"], opts["units"], opts["angles"])
-    profiles = sources.read_profiles(opts["profiles"], opts["profile_units"] or "mm")
-    index, ids, how = pair([p.label for p in profiles], [p.name for p in profiles], table.ids, len(table.values),
-                           str(table.file), opts["pair"], opts["match"])
+    profiles, skipped = sources.read_profiles(opts["profiles"], opts["profile_units"] or "mm",
+                                              exclude=[opts[k] for k in ("poses", "joints", "setup")])
+    try:
+        index, ids, how = pair([p.label for p in profiles], [p.name for p in profiles], table.ids, len(table.values),
+                               str(table.file), opts["pair"], opts["match"])
+    except DatasetError as exc:
+        if not skipped:
+            raise
+        raise DatasetError(exc.file, f"{exc.problem}; skipped as no profile: {skipped[0][0]} ({skipped[0][1]})"
+                           + (f" and {len(skipped) - 1} more" if len(skipped) > 1 else ""), exc.row, exc.column) from None
     per_pose = [None] * len(ids)
     for p, k in zip(profiles, index):
         per_pose[k] = p
@@ -188,6 +203,8 @@ def _from_files(opts):
     inputs = {"poses": {"file": str(table.file), "format": table.format, "columns": list(table.columns),
                         "source_convention": table.source, "units": opts["units"],
                         "angles": opts["angles"] or "the convention's"}}
+    if skipped:
+        inputs["skipped"] = {f: why for f, why in skipped}
     roles = [("poses", table.file, table.format)] + [("profile", p.file, p.format) for p in profiles]
     return ([ids[k] for k in keep], table.values[keep], table.convention, [per_pose[k] for k in keep], inputs,
             list(table.notes), how, roles, (table.ids, table.lines))
@@ -262,7 +279,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     diameter : float
         Sphere diameter, mm (required, unless ``setup`` gives it).
     side : {-1, 1}, optional
-        Sign of the sphere centre's sensor-y (``[profile] side``; default -1).
+        Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own
+        frame (their y for 2-column profiles; default -1); written as ``[profile] side`` in
+        handeye's frame (:meth:`~handeye.app.ingest.plane.PlaneMapping.side`).
     center : str or sequence of 3 floats, optional
         Sphere centre in the robot base, mm; without it, calibrate with ``--unknowns sensor+sphere``.
     start : str or sequence, optional
@@ -308,13 +327,14 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
                                    "--profile-units" if bag is None else "the bag's profile topic")
     joint_values = _joints(opts, pose_ids, len(ids))
     inputs["profiles"] = sources.formats(per_pose)
-    rotated = mapping is not None and not mapping.identity
+    side = mapping.side(opts["side"])
+    if side != opts["side"]:
+        notes.append(f"--side {opts['side']:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")
     result = NewDatasetResult(
         path=pathlib.Path(out), ids=tuple(ids), convention=conv, inputs=inputs, conversions=tuple(notes),
-        plane=mapping.describe() if mapping is not None else "2-column profiles: read as handeye's (x, z)",
-        rotation=mapping.rotation if rotated else None,
+        plane=mapping.describe(), rotation=None if mapping.identity else mapping.rotation,
         dropped={i: p.dropped for i, p in zip(ids, per_pose) if p.dropped}, pairing=how,
-        next_command=f"handeye calibrate {out}" + (" --unknowns sensor+sphere" if centre is None else ""))
+        next_command=f"handeye calibrate {out}" + (" --unknowns sensor+sphere" if centre is None else ""), side=side)
     files = _files(result, values, per_pose, joint_values, opts, centre, start_pose, roles)
     _write_checked(out, files)
     return result
@@ -344,7 +364,7 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(roles + extra)]
     files["measurements.csv"] = writer.measurements_text(result.ids, values, result.convention, rels, joints)
-    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], opts["side"], centre, start_pose, model)
+    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], result.side, centre, start_pose, model)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files
 

@@ -2,7 +2,11 @@
 
 Only what a profile needs: every ``opencv-matrix`` node (``rows``, ``cols``, ``dt``, ``data``; a
 ``dt`` with a channel count such as ``3f`` gives one point per element), its values with
-FileStorage's ``.Nan``, ``.Inf`` and ``-.Inf``. Anything else in the file is left alone.
+FileStorage's ``.Nan``, ``.Inf`` and ``-.Inf``. A file without matrices may hold points as a flat
+sequence (``fs << "scan_line" << std::vector<cv::Point3f>`` writes ``scan_line: [x, y, z, ...]``):
+each top-level key holding only numbers is read as (x, y, z) triplets when their count divides
+by 3 and one coordinate of the triplets is constant (a laser plane), else as (x, z) pairs.
+Anything else in the file is left alone.
 """
 from __future__ import annotations
 
@@ -20,7 +24,7 @@ _SPECIAL = {".nan": np.nan, ".inf": np.inf, "-.inf": -np.inf, "+.inf": np.inf}
 def sniff(head):
     """The FileStorage flavour of a file's first bytes: 'yaml', 'xml', 'json' or None."""
     text = head.lstrip(b"\xef\xbb\xbf").lstrip()
-    if text.startswith(b"%YAML") and b"opencv-matrix" in head:
+    if text.startswith(b"%YAML"):
         return "yaml"
     if (text.startswith(b"<?xml") or text.startswith(b"<opencv_storage")) and b"opencv_storage" in head:
         return "xml"
@@ -58,7 +62,36 @@ def _matrix(name, rows, cols, dt, values, file):
     return name, out
 
 
+def flat_points(name, values, file):
+    """(name, points) of a flat number sequence: (K, 3) triplets when the count divides by 3 and
+    one coordinate is constant, else (K, 2) pairs."""
+    data = np.asarray(values, float)
+    if data.size % 3 == 0 and data.size >= 9:
+        triplets = data.reshape(-1, 3)
+        with np.errstate(invalid="ignore"):
+            spread = [np.nanmax(c) - np.nanmin(c) if np.isfinite(c).any() else np.inf for c in triplets.T]
+        if min(spread) == 0:
+            return name, triplets
+    if data.size % 2 == 0:
+        return name, data.reshape(-1, 2)
+    raise DatasetError(file, f"FileStorage sequence {name!r}: {data.size} numbers are neither (x, z) pairs nor "
+                             "(x, y, z) triplets in a plane")
+
+
+def _yaml_sequences(text, file):
+    """Top-level ``key: [ numbers ]`` sequences of a FileStorage YAML file."""
+    out = []
+    for m in re.finditer(r"^([A-Za-z_][\w.-]*)\s*:\s*\[(.*?)\]", text, re.MULTILINE | re.DOTALL):
+        tokens = [t for t in m.group(2).replace("\n", " ").split(",") if t.strip()]
+        if tokens and all(re.fullmatch(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*|\s*[-+]?\.(Nan|Inf)\s*", t)
+                          for t in tokens):
+            out.append(flat_points(m.group(1), [_value(t, file) for t in tokens], file))
+    return out
+
+
 def _yaml(text, file):
+    if "!!opencv-matrix" not in text:
+        return _yaml_sequences(text, file)
     parts = text.split("!!opencv-matrix")
     out = []
     for k in range(1, len(parts)):
@@ -131,5 +164,5 @@ def read(file, raw):
     text = raw.decode("utf-8-sig", errors="replace")
     matrices = {"yaml": _yaml, "xml": _xml, "json": _json}[flavour](text, file)
     if not matrices:
-        raise DatasetError(file, "an OpenCV FileStorage file without an opencv-matrix")
+        raise DatasetError(file, "an OpenCV FileStorage file without an opencv-matrix or a sequence of numbers")
     return matrices

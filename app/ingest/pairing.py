@@ -5,8 +5,9 @@ argument. ``pair='id'`` matches a number in each profile's name (the last run of
 file's stem, or of its key when a file holds several profiles; ``--match REGEX`` with one group
 instead) against the pose ids (numerically when both are integers); without an id column the poses
 are numbered 1..N, or 0..N-1 when the names are. ``pair='order'`` takes the k-th profile for the
-k-th pose. ``pair='auto'`` (the default) pairs by id when every name's number matches a pose, by
-order when no name has one; a partial match is an error (a missing or extra file).
+k-th pose. ``pair='auto'`` (the default) pairs by id when every name's last number (or else every
+name's first number: ``7_3C_line``) matches a different pose, by order when no name has one; a
+partial match is an error (a missing or extra file).
 """
 from __future__ import annotations
 
@@ -25,14 +26,17 @@ def natural_key(text):
     return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", str(text)) if t]
 
 
-def expand(specs):
-    """The profile files of ``--profiles`` arguments (files, globs, folders), natural order within
-    each argument, argument order kept; a folder's hidden files and subfolders are left out."""
+def expand(specs, exclude=()):
+    """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
+    pairs, natural order within each argument, argument order kept; ``listed`` is False for a
+    folder's files (which may hold other files too). A folder's hidden files and subfolders, and
+    the files in ``exclude`` (the pose file, ...), are left out."""
+    skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
     out = []
     for spec in specs:
         p = pathlib.Path(spec)
         if p.is_dir():
-            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".")]
+            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
             where = f"folder {spec}"
         elif any(c in str(spec) for c in "*?["):
             files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
@@ -43,7 +47,7 @@ def expand(specs):
             raise RequestError(f"--profiles {spec}: no such file or folder")
         if not files:
             raise RequestError(f"--profiles: {where} has no files")
-        out += sorted(files, key=lambda f: natural_key(f.name))
+        out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
     return out
 
 
@@ -103,13 +107,14 @@ def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
     (list of int, list of str, str)
         Pose index per profile, the pose ids (generated when ``pose_ids`` is None), how.
     """
+    if match is None and mode != "order":
+        for pattern, words in ((DEFAULT_MATCH, "last digits of the name"), (FIRST_DIGITS, "first digits of the name")):
+            tokens = [_token(name, pattern, label) for name, label in zip(names, labels)]
+            ids = _pose_ids(pose_ids, tokens, n_poses)
+            if _all_match(tokens, ids):
+                return _by_id(labels, names, ids, tokens, pose_file), list(ids), f"by id in the file name ({words})"
     tokens = [_token(name, match or DEFAULT_MATCH, label) for name, label in zip(names, labels)]
-    ids = pose_ids
-    if ids is None:
-        numbers = sorted(int(t) for t in tokens if t is not None and t.isdigit())
-        zero = bool(numbers) and numbers[0] == 0
-        ids = tuple(str(k + (0 if zero else 1)) for k in range(n_poses))
-    how_id = f"by id in the file name ({'--match ' + repr(match) if match else 'last digits of the name'})"
+    ids = _pose_ids(pose_ids, tokens, n_poses)
     if mode == "order" or (mode == "auto" and match is None and all(t is None for t in tokens)):
         return _by_order(labels, ids, pose_file), list(ids), "by order (natural sort of the file names)"
     if mode == "auto" and match is None:
@@ -121,7 +126,28 @@ def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
     if missing:
         raise DatasetError(pose_file, f"pose {ids[missing[0]]!r} has no profile ({len(missing)} of {len(ids)} poses have "
                                       "none; pair by order with --pair order, or add the files)")
-    return index, list(ids), how_id
+    how = f"--match {match!r}" if match else "last digits of the name"
+    return index, list(ids), f"by id in the file name ({how})"
+
+
+FIRST_DIGITS = r"^\D*?(\d+)"
+
+
+def _pose_ids(pose_ids, tokens, n_poses):
+    """The poses' ids; without an id column 1..N, or 0..N-1 when the names' numbers start at 0."""
+    if pose_ids is not None:
+        return pose_ids
+    numbers = sorted(int(t) for t in tokens if t is not None and t.isdigit())
+    zero = bool(numbers) and numbers[0] == 0
+    return tuple(str(k + (0 if zero else 1)) for k in range(n_poses))
+
+
+def _all_match(tokens, ids):
+    """Every name has a number, each a different pose's, and every pose has one."""
+    if not tokens or any(t is None for t in tokens) or len(tokens) != len(ids):
+        return False
+    hits = [[k for k, i in enumerate(ids) if _same(t, i)] for t in tokens]
+    return all(len(h) == 1 for h in hits) and len({h[0] for h in hits}) == len(ids)
 
 
 def _by_order(labels, ids, pose_file):

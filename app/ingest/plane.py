@@ -42,16 +42,25 @@ class PlaneMapping:
     normal: str
     x_from: str
     z_from: str
+    votes: tuple | None = None
 
     @property
     def identity(self):
         return bool(np.allclose(self.rotation, np.eye(3)))
 
+    def side(self, side_in_file):
+        """``[profile] side`` in handeye's frame of a side given in the files' frame (the sign of the
+        sphere centre's coordinate along the laser plane's normal)."""
+        return int(np.sign(self.rotation[1, AXES.index(self.normal)])) * int(side_in_file)
+
     def describe(self):
+        why = (f" (the profiles' cap faced +{self.z_from.lstrip('-')} in {self.votes[0]} of {sum(self.votes)}: "
+               "handeye's z runs away from the sensor)" if self.votes and self.z_from.startswith("-") else "")
         if self.identity:
             return "laser plane y = 0: points kept as (x, z)"
-        return (f"laser plane {self.normal} = 0: handeye x = file {self.x_from}, z = file {self.z_from} "
-                f"(rotation R = {self.rotation.astype(int).tolist()}, p_handeye = R p_file)")
+        return (f"laser plane {self.normal} = 0: handeye x = file {self.x_from}, y = file "
+                f"{'-' if self.rotation[1, AXES.index(self.normal)] < 0 else ''}{self.normal}, z = file {self.z_from}"
+                f"{why} (R = {self.rotation.astype(int).tolist()}, p_handeye = R p_file)")
 
 
 def finite_rows(points):
@@ -104,41 +113,86 @@ def parse_axes(axes):
     return (ax, sx), (az, sz)
 
 
-def decide(profiles3, axes=None):
-    """The :class:`PlaneMapping` of a set of 3-column profiles ``[(file, points)]``: one normal for
-    all (else a DatasetError naming the first profile that differs). ``axes``: ``--profile-axes``."""
-    normals = [(file, normal_axis(pts, file)) for file, pts in profiles3]
+def _normal(profiles):
+    """The laser plane's normal (0, 1, 2) of 3-column profiles, one for all; y for 2-column ones."""
+    normals = [(file, normal_axis(pts, file)) for file, pts in profiles if pts.shape[1] == 3]
+    if not normals:
+        return 1
     normal = normals[0][1]
     for file, n in normals:
         if n != normal:
             raise DatasetError(file, f"its laser plane is {AXES[n]} = 0, {normals[0][0]}'s is {AXES[normal]} = 0")
+    return normal
+
+
+def _in_plane(profiles, normal):
+    """(x axis, depth axis) among the in-plane ones: x, z for the plane y = 0; otherwise the axis
+    with the larger mean distance from zero is the depth (the sensor's stand-off)."""
+    if normal == 1:
+        return 0, 2
+    inplane = [a for a in range(3) if a != normal]
+    means = np.mean(np.concatenate([p for _, p in profiles if p.shape[1] == 3])[:, inplane], axis=0)
+    az = inplane[int(np.argmax(np.abs(means)))]
+    return (inplane[0] if az == inplane[1] else inplane[1]), az
+
+
+def _rotation(ax, sx, az, sz):
+    rot = np.zeros((3, 3))
+    rot[0, ax], rot[2, az] = sx, sz
+    rot[1] = np.cross(rot[2], rot[0])
+    return rot
+
+
+def cap_votes(xz_profiles):
+    """(profiles whose points lie on the +z side of their circle's centre, on the -z side): the
+    sensor sees the cap of the sphere that faces it, so a cap at larger z means that z grows
+    towards the sensor. Circles by the algebraic (Kasa) fit; the median point decides (speckle
+    aside); profiles that do not fit are not counted."""
+    up = down = 0
+    for xz in xz_profiles:
+        if len(xz) < 3:
+            continue
+        x, z = xz[:, 0], xz[:, 1]
+        a = np.column_stack([x, z, np.ones_like(x)])
+        sol, _, rank, _ = np.linalg.lstsq(a, -(x**2 + z**2), rcond=None)
+        if rank < 3:
+            continue
+        above = np.median(z) > -sol[1] / 2
+        up, down = up + int(above), down + int(not above)
+    return up, down
+
+
+def decide(profiles, axes=None):
+    """The :class:`PlaneMapping` of profiles ``[(label, points (K, 2) or (K, 3))]`` (module
+    docstring): the plane's normal becomes handeye's y, the depth axis z, signed so that z runs
+    away from the sensor (:func:`cap_votes`; 2-column profiles are (x, z) of the plane y = 0).
+    ``axes`` (``--profile-axes``) names handeye's x and z instead, as they are."""
+    normal = _normal(profiles)
+    votes = None
     if axes is not None:
         (ax, sx), (az, sz) = parse_axes(axes)
         if len({ax, az, normal}) != 3:
             raise RequestError(f"--profile-axes {axes}: the two axes must be the in-plane ones (the normal is "
                                f"{AXES[normal]})")
-    elif normal == 1:
-        (ax, sx), (az, sz) = (0, 1.0), (2, 1.0)
     else:
-        inplane = [a for a in range(3) if a != normal]
-        allpts = np.concatenate([p for _, p in profiles3])
-        means = np.mean(allpts[:, inplane], axis=0)
-        az = inplane[int(np.argmax(np.abs(means)))]
-        ax = inplane[0] if az == inplane[1] else inplane[1]
-        sz, sx = (1.0 if means[inplane.index(az)] >= 0 else -1.0), 1.0
-    rot = np.zeros((3, 3))
-    rot[0, ax], rot[2, az] = sx, sz
-    rot[1] = np.cross(rot[2], rot[0])
+        (ax, az), sx = _in_plane(profiles, normal), 1.0
+        trial = _rotation(ax, sx, az, 1.0)
+        votes = cap_votes([_turned(p, trial)[:, [0, 2]] for _, p in profiles])
+        sz = -1.0 if votes[0] > votes[1] else 1.0
     name = {1.0: "", -1.0: "-"}
-    return PlaneMapping(rot, AXES[normal], name[sx] + AXES[ax], name[sz] + AXES[az])
+    return PlaneMapping(_rotation(ax, sx, az, sz), AXES[normal], name[sx] + AXES[ax], name[sz] + AXES[az], votes)
+
+
+def _turned(points, rotation):
+    """Points (K, 2: x, z of the plane y = 0, or K, 3) in handeye's frame."""
+    p3 = points if points.shape[1] == 3 else np.column_stack([points[:, 0], np.zeros(len(points)), points[:, 1]])
+    return p3 @ rotation.T
 
 
 def to_xz(points, mapping):
-    """(K, 2) handeye (x, z) of (K, 2) points (as they are) or (K, 3) points (through ``mapping``)."""
-    if points.shape[1] == 2:
-        return points
-    turned = points @ mapping.rotation.T
-    return turned[:, [0, 2]]
+    """(K, 2) handeye (x, z) of (K, 2) points (x, z of the plane y = 0) or (K, 3) points, through
+    ``mapping``."""
+    return _turned(points, mapping.rotation)[:, [0, 2]]
 
 
 def check_scale(xz, diameter, file, units_option="--profile-units"):

@@ -45,16 +45,31 @@ class Profile:
     xz: np.ndarray | None = None
 
 
-def read_profiles(specs, units="mm"):
-    """Every profile of the ``--profiles`` arguments (files, globs, folders), in pairing order."""
-    out = []
-    for f in expand(specs):
-        fmt, matrices = clouds.read_profile_file(f)
+def read_profiles(specs, units="mm", exclude=()):
+    """``(profiles, skipped)``: every profile of the ``--profiles`` arguments (files, globs,
+    folders) in pairing order, and the files of a folder that are no profile (``[(file, why)]``:
+    a folder may hold the pose file or a calibration report too; a file named or matched is read
+    or is an error). ``exclude``: input files that are not profiles (the pose file, ...)."""
+    out, skipped = [], []
+    for f, listed in expand(specs, exclude):
+        try:
+            fmt, matrices = clouds.read_profile_file(f)
+            if not listed:
+                for key, pts in matrices:
+                    _profile(str(f), key, f, fmt, pts, units)  # a shape that is no profile: skipped too
+        except DatasetError as exc:
+            if listed:
+                raise
+            skipped.append((str(f), exc.problem))
+            continue
         for key, pts in matrices:
             several = len(matrices) > 1
             label, name = (f"{f}[{key}]", key) if several else (str(f), f.stem)
             out.append(_profile(label, name, f, fmt, pts, units))
-    return out
+    if not out:
+        raise DatasetError(skipped[0][0], f"no profile in the --profiles folders ({len(skipped)} files skipped; this "
+                                          f"one: {skipped[0][1]})")
+    return out, skipped
 
 
 def _profile(label, name, file, fmt, pts, units):
@@ -71,18 +86,18 @@ def bag_profiles(clouds_mm, topic):
 
 
 def map_to_plane(profiles, diameter, axes=None, units_option="--profile-units"):
-    """Fill each profile's ``xz``; the :class:`~handeye.app.ingest.plane.PlaneMapping` of the
-    3-column ones (None when all have 2 columns). Fewer than 3 finite points is an error."""
+    """Fill each profile's ``xz``; the :class:`~handeye.app.ingest.plane.PlaneMapping` of them all
+    (:func:`handeye.app.ingest.plane.decide`). Fewer than 3 finite points is an error."""
     for p in profiles:
         if len(p.points) < 3:
             raise DatasetError(p.label, f"{len(p.points)} finite points (after {p.dropped} NaN/inf rows dropped): a "
                                         "circle needs at least 3")
-    three = [(p.label, p.points) for p in profiles if p.points.shape[1] == 3]
-    mapping = plane.decide(three, axes) if three else None
-    if mapping is not None and not mapping.identity and len(three) != len(profiles):
+    three = [p for p in profiles if p.points.shape[1] == 3]
+    mapping = plane.decide([(p.label, p.points) for p in profiles], axes)
+    if mapping.normal != "y" and len(three) != len(profiles):
         two = next(p for p in profiles if p.points.shape[1] == 2)
-        raise DatasetError(two.label, f"2 columns (x, z), where {three[0][0]}'s 3 columns are turned into the laser "
-                                      "plane: give all profiles alike")
+        raise DatasetError(two.label, f"2 columns (x, z), where {three[0].label}'s 3 columns lie in the plane "
+                                      f"{mapping.normal} = 0: give all profiles alike")
     for p in profiles:
         p.xz = plane.to_xz(p.points, mapping)
         plane.check_scale(p.xz, diameter, p.label, units_option)
