@@ -83,7 +83,8 @@ class NewDatasetResult(ResultProtocol):
         lines.append(f"  profiles  {fmts}; {sum(self.dropped.values())} NaN/inf rows dropped in {len(self.dropped)} "
                      "profiles")
         if self.inputs.get("skipped"):
-            lines.append(f"  skipped   {len(self.inputs['skipped'])} files of the folders that are no profile: "
+            n = len(self.inputs["skipped"])
+            lines.append(f"  skipped   {n} file{'s' if n > 1 else ''} of the folders that {'are' if n > 1 else 'is'} no profile: "
                          + ", ".join(pathlib.Path(f).name for f in list(self.inputs["skipped"])[:4])
                          + (", ..." if len(self.inputs["skipped"]) > 4 else "") + " (PROVENANCE.toml says why)")
         lines.append(f"  plane     {self.plane}")
