@@ -192,7 +192,9 @@ def _dataset_args(sub):
     new.add_argument("--diameter", type=float, metavar="MM", help="sphere diameter, mm (required unless --setup gives it)")
     new.add_argument("--setup", metavar="SETUP.toml", help="an existing setup.toml: its sphere diameter and centre, side, "
                                                           "start pose, convention and robot model fill the options not given")
-    new.add_argument("--side", type=int, choices=(1, -1), default=None, help="sign of the centre's sensor-y (default -1)")
+    new.add_argument("--side", type=int, choices=(1, -1), default=None,
+                     help="sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own "
+                          "frame (their y; default -1); written in handeye's frame")
     new.add_argument("--center", metavar="X,Y,Z", help="sphere centre in the robot base, mm (without it: calibrate "
                                                        "with --unknowns sensor+sphere)")
     new.add_argument("--start", metavar="X,Y,Z,...", help="start sensor pose on the flange, in the convention's columns")

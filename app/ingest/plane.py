@@ -1,14 +1,17 @@
 """Profile points into handeye's sensor frame: NaN rows dropped, the laser plane's axes found.
 
 handeye's sensor frame has the laser plane at y = 0, x along the line, z the measuring direction
-(away from the sensor), y = z x x; a profile is (x, z) points. Two-column profiles are (x, z).
-Three-column profiles must lie in a coordinate plane through the origin: the axis with (near)
-zero spread is the plane's normal. When it is y the points are kept as they are; when it is
-another axis (a LaserScan's points lie in z = 0) the points are turned by a proper rotation
-``R`` (``p_handeye = R p_file``) that makes the normal handeye's y and the in-plane axis with the
-larger mean distance from zero (the measuring direction) handeye's z, pointing away from the
-sensor; ``--profile-axes X,Z`` names the two in-plane axes instead (``y,-x``). The calibrated
-sensor frame is then the rotated one: the file's frame on the flange is ``T_flange_sensor R``.
+(away from the sensor), y = z x x; a profile is (x, z) points. Three-column profiles must lie in a
+coordinate plane through the origin: the axis with (near) zero spread is the plane's normal, and
+becomes handeye's y; of the two in-plane axes the one with the larger mean distance from zero (the
+stand-off) becomes z (for the plane y = 0: z), and x the other. z is then signed by the sphere:
+the sensor sees the cap that faces it, so when most profiles' points lie on the +z side of their
+circle's centre, z grows towards the sensor and is flipped (a half turn about x). Two-column
+profiles are (x, z) of the plane y = 0, signed the same way. The result is a proper rotation
+``R`` (``p_handeye = R p_file``); ``--profile-axes X,Z`` names the files' axes that are handeye's
+x and z instead (``y,-x``), used as they are. The calibrated sensor frame is the turned one: the
+file's frame on the flange is ``T_flange_sensor R``. ``--side`` is given in the files' frame (the
+sign along their normal) and written in handeye's (:meth:`PlaneMapping.side`).
 """
 from __future__ import annotations
 
