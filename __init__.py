@@ -11,6 +11,7 @@ The public API (the ``handeye`` command's functions, with its options as keyword
     d = handeye.diagnose(data)                     # a DiagnosisResult
     handeye.simulate("my-sim", seed=1, effect=["sensor_scale=0.001"])
     handeye.plan(n=12)
+    handeye.new_dataset("mycell", poses="poses.csv", profiles="scans/", diameter=50.8)  # from loose files
     handeye.export("result.json", format="ur")     # after calibrate --out result.json
     handeye.cloud("my-scan", "result.json", out="scan.ply")
     handeye.validate("sphere-scan", "result.json")  # VDI/VDE 2634-2 PF, PS, SD
@@ -36,6 +37,8 @@ _PUBLIC = {
     "compare": "handeye.app.api",
     "simulate": "handeye.app.api",
     "plan": "handeye.app.api",
+    "new_dataset": "handeye.app.ingest.command",
+    "NewDatasetResult": "handeye.app.ingest.command",
     "export": "handeye.app.outputs.commands",
     "cloud": "handeye.app.outputs.commands",
     "validate": "handeye.app.outputs.commands",

@@ -199,6 +199,69 @@ def _use_args(sub, conventions):
                     help="radial deviations on the sphere (3-D) and their histogram")
 
 
+def _dataset_args(sub):
+    """``handeye dataset new OUT``: a dataset folder from loose files or a ROS 2 bag (handeye.app.ingest)."""
+    ds = sub.add_parser("dataset", help="make a dataset folder: `handeye dataset new OUT` from loose files or a ROS 2 bag")
+    actions = ds.add_subparsers(dest="action", required=True, parser_class=_Parser)
+    new = actions.add_parser("new", help="assemble a dataset folder (measurements.csv, setup.toml, profiles/, "
+                                         "PROVENANCE.toml) from loose pose and profile files or a ROS 2 bag")
+    new.add_argument("out", metavar="OUT", help="dataset folder to write (new or empty)")
+    new.add_argument("--poses", metavar="FILE", help="flange poses in the robot base: CSV, whitespace text or JSON "
+                                                     "(told by the content); header optional")
+    new.add_argument("--profiles", action="append", default=[], metavar="FILES|GLOB|DIR",
+                     help="laser profiles, one per pose (repeatable): OpenCV FileStorage YAML/XML/JSON, CSV/TXT with "
+                          "2 (x,z) or 3 (x,y,z) columns, .npy/.npz, PLY, PCD")
+    new.add_argument("--convention", choices=("kuka", "abb", "ur", "fanuc"), default=None,
+                     help="the poses' convention (a headerless file's columns in order, optional leading id); the "
+                          "dataset is written in it (named columns of another convention are converted; default: the "
+                          "file's, abb for a bag)")
+    new.add_argument("--columns", metavar="NAMES", help="the pose file's columns, e.g. id,x,y,z,qx,qy,qz,qw; - skips one")
+    new.add_argument("--units", choices=("mm", "m"), default="mm", help="units of the pose positions (default mm)")
+    new.add_argument("--angles", choices=("deg", "rad"), default=None,
+                     help="units of the pose angles (default the convention's: degrees, radians for ur)")
+    new.add_argument("--profile-units", choices=("mm", "m"), default=None, help="units of the profiles (default mm)")
+    new.add_argument("--profile-axes", metavar="X,Z", help="the profile files' axes that are handeye's sensor x and z "
+                                                           "(e.g. y,-x); default found from the data")
+    new.add_argument("--diameter", type=float, metavar="MM", help="sphere diameter, mm (required unless --setup gives it)")
+    new.add_argument("--setup", metavar="SETUP.toml", help="an existing setup.toml: its sphere diameter and centre, side, "
+                                                          "start pose, convention and robot model fill the options not given")
+    new.add_argument("--side", type=int, choices=(1, -1), default=None,
+                     help="sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own "
+                          "frame (their y; default -1); written in handeye's frame")
+    new.add_argument("--center", metavar="X,Y,Z", help="sphere centre in the robot base, mm (without it: calibrate "
+                                                       "with --unknowns sensor+sphere)")
+    new.add_argument("--start", metavar="X,Y,Z,...", help="start sensor pose on the flange, in the convention's columns")
+    new.add_argument("--joints", metavar="FILE", help="joint angles j1..j6 per pose, degrees (needs --robot)")
+    new.add_argument("--robot", metavar="MODEL", help="[robot] model: a built-in nominal model or a model file")
+    new.add_argument("--pair", choices=("auto", "id", "order"), default="auto",
+                     help="pair profiles with poses by a number in the file name (id), by order, or auto (default)")
+    new.add_argument("--match", metavar="REGEX", help="regex with one group: the pose id in a profile's file name "
+                                                      "(default: the last digits)")
+    new.add_argument("--bag", metavar="PATH", help="a ROS 2 bag (sqlite3 or mcap) instead of --poses/--profiles "
+                                                   "(pip install 'handeye[ros]')")
+    new.add_argument("--pose-topic", metavar="TOPIC",
+                     help="geometry_msgs/PoseStamped, or /tf with --base-frame and --flange-frame")
+    new.add_argument("--profile-topic", metavar="TOPIC", help="sensor_msgs/PointCloud2 or sensor_msgs/LaserScan")
+    new.add_argument("--base-frame", metavar="FRAME", help="with /tf: the robot base frame")
+    new.add_argument("--flange-frame", metavar="FRAME", help="with /tf: the flange frame")
+    new.add_argument("--max-dt", type=float, default=0.05, metavar="SECONDS",
+                     help="largest time between a profile and its pose (default 0.05)")
+    new.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+
+def _dataset(args):
+    from handeye.app.ingest.command import new_dataset
+
+    result = new_dataset(args.out, poses=args.poses, profiles=args.profiles, convention=args.convention,
+                         columns=args.columns, units=args.units, angles=args.angles, profile_units=args.profile_units,
+                         profile_axes=args.profile_axes, diameter=args.diameter, side=args.side, center=args.center,
+                         start=args.start, joints=args.joints, robot=args.robot, pair=args.pair, match=args.match,
+                         bag=args.bag, pose_topic=args.pose_topic, profile_topic=args.profile_topic,
+                         base_frame=args.base_frame, flange_frame=args.flange_frame, max_dt=args.max_dt, setup=args.setup)
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_OK
+
+
 def build_parser():
     from handeye.app.choices import ALPHA, CLASSIC_METHODS, METHODS
     from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
@@ -288,6 +351,7 @@ def build_parser():
     _compare_args(sub, ALPHA, KINDS)
     _use_args(sub, list(CONVENTIONS))
     _study_args(sub)
+    _dataset_args(sub)
     bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
     bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
     bench.add_argument("--json", action="store_true")
@@ -518,7 +582,7 @@ def _run(args):
         print("\n".join(embedded_names()))
         return EXIT_OK
     commands = {"simulate": _simulate, "diagnose": _diagnose, "bench": _bench, "export": _export, "cloud": _cloud,
-                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare}
+                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare, "dataset": _dataset}
     return commands.get(args.command, _calibrate)(args)
 
 

@@ -1,0 +1,168 @@
+"""OpenCV FileStorage files (YAML, XML, JSON) read without OpenCV or a YAML library.
+
+Only what a profile needs: every ``opencv-matrix`` node (``rows``, ``cols``, ``dt``, ``data``; a
+``dt`` with a channel count such as ``3f`` gives one point per element), its values with
+FileStorage's ``.Nan``, ``.Inf`` and ``-.Inf``. A file without matrices may hold points as a flat
+sequence (``fs << "scan_line" << std::vector<cv::Point3f>`` writes ``scan_line: [x, y, z, ...]``):
+each top-level key holding only numbers is read as (x, y, z) triplets when their count divides
+by 3 and one coordinate of the triplets is constant (a laser plane), else as (x, z) pairs.
+Anything else in the file is left alone.
+"""
+from __future__ import annotations
+
+import json
+import re
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+
+from handeye.model.tables import DatasetError
+
+_SPECIAL = {".nan": np.nan, ".inf": np.inf, "-.inf": -np.inf, "+.inf": np.inf}
+
+
+def sniff(head):
+    """The FileStorage flavour of a file's first bytes: 'yaml', 'xml', 'json' or None."""
+    text = head.lstrip(b"\xef\xbb\xbf").lstrip()
+    if text.startswith(b"%YAML"):
+        return "yaml"
+    if (text.startswith(b"<?xml") or text.startswith(b"<opencv_storage")) and b"opencv_storage" in head:
+        return "xml"
+    if text.startswith(b"{") and b"opencv-matrix" in head:
+        return "json"
+    return None
+
+
+def _value(token, file):
+    t = token.strip()
+    if t.lower() in _SPECIAL:
+        return _SPECIAL[t.lower()]
+    try:
+        return float(t)
+    except ValueError:
+        raise DatasetError(file, f"FileStorage matrix: not a number: {t[:30]!r}") from None
+
+
+def _matrix(name, rows, cols, dt, values, file):
+    """The points of one matrix: (K, c) with c the columns (or channels)."""
+    try:
+        rows, cols = int(rows), int(cols)
+    except (TypeError, ValueError):
+        raise DatasetError(file, f"FileStorage matrix {name!r}: rows and cols must be integers") from None
+    match = re.fullmatch(r"(\d*)([ucwsifdh])", str(dt).strip())
+    if match is None:
+        raise DatasetError(file, f"FileStorage matrix {name!r}: unknown dt {dt!r}")
+    channels = int(match.group(1) or 1)
+    data = np.asarray(values, float)
+    if data.size != rows * cols * channels:
+        raise DatasetError(file, f"FileStorage matrix {name!r}: {data.size} values for {rows} x {cols} x {channels}")
+    out = data.reshape(rows * cols, channels) if channels > 1 else data.reshape(rows, cols)
+    if out.shape[0] in (2, 3) and out.shape[1] > 3:  # one point per column
+        out = out.T
+    return name, out
+
+
+def flat_points(name, values, file):
+    """(name, points) of a flat number sequence: (K, 3) triplets when the count divides by 3 and
+    one coordinate is constant, else (K, 2) pairs."""
+    data = np.asarray(values, float)
+    if data.size % 3 == 0 and data.size >= 9:
+        triplets = data.reshape(-1, 3)
+        with np.errstate(invalid="ignore"):
+            spread = [np.nanmax(c) - np.nanmin(c) if np.isfinite(c).any() else np.inf for c in triplets.T]
+        if min(spread) == 0:
+            return name, triplets
+    if data.size % 2 == 0:
+        return name, data.reshape(-1, 2)
+    raise DatasetError(file, f"FileStorage sequence {name!r}: {data.size} numbers are neither (x, z) pairs nor "
+                             "(x, y, z) triplets in a plane")
+
+
+def _yaml_sequences(text, file):
+    """Top-level ``key: [ numbers ]`` sequences of a FileStorage YAML file."""
+    out = []
+    for m in re.finditer(r"^([A-Za-z_][\w.-]*)\s*:\s*\[(.*?)\]", text, re.MULTILINE | re.DOTALL):
+        tokens = [t for t in m.group(2).replace("\n", " ").split(",") if t.strip()]
+        if tokens and all(re.fullmatch(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*|\s*[-+]?\.(Nan|Inf)\s*", t)
+                          for t in tokens):
+            out.append(flat_points(m.group(1), [_value(t, file) for t in tokens], file))
+    return out
+
+
+def _yaml(text, file):
+    if "!!opencv-matrix" not in text:
+        return _yaml_sequences(text, file)
+    parts = text.split("!!opencv-matrix")
+    out = []
+    for k in range(1, len(parts)):
+        before = parts[k - 1].rsplit("\n", 1)[-1].strip().rstrip(":").strip()
+        name = before.lstrip("-").strip() or f"item{k}"
+        block = parts[k]
+        fields = {}
+        for key in ("rows", "cols", "dt"):
+            m = re.search(rf"^\s*{key}\s*:\s*(\S+)", block, re.MULTILINE)
+            if m is None:
+                raise DatasetError(file, f"FileStorage matrix {name!r}: no {key}")
+            fields[key] = m.group(1).strip("\"'")
+        m = re.search(r"^\s*data\s*:\s*\[(.*?)\]", block, re.MULTILINE | re.DOTALL)
+        if m is None:
+            raise DatasetError(file, f"FileStorage matrix {name!r}: no data [ ... ]")
+        values = [_value(v, file) for v in m.group(1).replace("\n", " ").split(",") if v.strip()]
+        out.append(_matrix(name, fields["rows"], fields["cols"], fields["dt"], values, file))
+    return out
+
+
+def _xml(text, file):
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise DatasetError(file, f"FileStorage XML: {exc}") from None
+    out = []
+    for node in root.iter():
+        if node.get("type_id") != "opencv-matrix":
+            continue
+        get = {child.tag: (child.text or "").strip() for child in node}
+        missing = [k for k in ("rows", "cols", "dt", "data") if k not in get]
+        if missing:
+            raise DatasetError(file, f"FileStorage matrix {node.tag!r}: no {missing[0]}")
+        values = [_value(v, file) for v in get["data"].split()]
+        out.append(_matrix(node.tag, get["rows"], get["cols"], get["dt"], values, file))
+    return out
+
+
+def _json(text, file):
+    fixed = re.sub(r'(?<![\w"])([+-]?)\.(Nan|Inf)\b',
+                   lambda m: "NaN" if m.group(2) == "Nan" else ("-Infinity" if m.group(1) == "-" else "Infinity"), text)
+    try:
+        doc = json.loads(fixed)
+    except json.JSONDecodeError as exc:
+        raise DatasetError(file, f"FileStorage JSON: {exc.msg}", exc.lineno) from None
+    out = []
+
+    def walk(node, name):
+        if isinstance(node, dict):
+            if node.get("type_id") == "opencv-matrix":
+                missing = [k for k in ("rows", "cols", "dt", "data") if k not in node]
+                if missing:
+                    raise DatasetError(file, f"FileStorage matrix {name!r}: no {missing[0]}")
+                values = [_value(str(v), file) if isinstance(v, str) else v for v in node["data"]]
+                out.append(_matrix(name, node["rows"], node["cols"], node["dt"], values, file))
+                return
+            for key, value in node.items():
+                walk(value, key)
+        elif isinstance(node, list):
+            for k, value in enumerate(node):
+                walk(value, f"{name}[{k}]")
+
+    walk(doc, "root")
+    return out
+
+
+def read(file, raw):
+    """Every matrix of a FileStorage file as ``[(name, (K, c) array)]``, in file order."""
+    flavour = sniff(raw[:4096])
+    text = raw.decode("utf-8-sig", errors="replace")
+    matrices = {"yaml": _yaml, "xml": _xml, "json": _json}[flavour](text, file)
+    if not matrices:
+        raise DatasetError(file, "an OpenCV FileStorage file without an opencv-matrix or a sequence of numbers")
+    return matrices

@@ -1,0 +1,157 @@
+"""Which profile belongs to which pose: by a number in the file name, or by order.
+
+Profile files are taken in natural order (``p2`` before ``p10``) within each ``--profiles``
+argument. ``pair='id'`` matches a number in each profile's name (the last run of digits of the
+file's stem, or of its key when a file holds several profiles; ``--match REGEX`` with one group
+instead) against the pose ids (numerically when both are integers); without an id column the poses
+are numbered 1..N, or 0..N-1 when the names are. ``pair='order'`` takes the k-th profile for the
+k-th pose. ``pair='auto'`` (the default) pairs by id when every name's last number (or else every
+name's first number: ``7_3C_line``) matches a different pose, by order when no name has one; a
+partial match is an error (a missing or extra file).
+"""
+from __future__ import annotations
+
+import glob
+import pathlib
+import re
+
+from handeye.app.errors import RequestError
+from handeye.model.tables import DatasetError
+
+DEFAULT_MATCH = r"(\d+)(?!.*\d)"
+
+
+def natural_key(text):
+    """Sort key that orders embedded numbers by value (``p2`` < ``p10``)."""
+    return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", str(text)) if t]
+
+
+def expand(specs, exclude=()):
+    """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
+    pairs, natural order within each argument, argument order kept; ``listed`` is False for a
+    folder's files (which may hold other files too). A folder's hidden files and subfolders, and
+    the files in ``exclude`` (the pose file, ...), are left out."""
+    skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
+    out = []
+    for spec in specs:
+        p = pathlib.Path(spec)
+        if p.is_dir():
+            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
+            where = f"folder {spec}"
+        elif any(c in str(spec) for c in "*?["):
+            files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
+            where = f"pattern {spec!r}"
+        elif p.is_file():
+            files, where = [p], spec
+        else:
+            raise RequestError(f"--profiles {spec}: no such file or folder")
+        if not files:
+            raise RequestError(f"--profiles: {where} has no files")
+        out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
+    return out
+
+
+def _token(name, pattern, label):
+    regex = re.compile(pattern)
+    if regex.groups != 1:
+        raise RequestError(f"--match {pattern!r} needs exactly one group (...), it has {regex.groups}")
+    m = regex.search(name)
+    return None if m is None else m.group(1)
+
+
+def _same(token, ident):
+    """A name's id matches a pose id: the same text, or the same number (``007`` is pose ``7``
+    and pose ``P7``: an id's last digits)."""
+    if token == ident:
+        return True
+    digits = re.findall(r"\d+", ident)
+    return token.isdigit() and bool(digits) and int(token) == int(digits[-1])
+
+
+def _by_id(labels, names, pose_ids, tokens, pose_file):
+    """Pose index of each profile; errors name the file."""
+    index, taken = [], {}
+    for label, name, token in zip(labels, names, tokens):
+        if token is None:
+            raise DatasetError(label, f"no id in the name {name!r} (--match takes a regex with one group)")
+        hits = [k for k, ident in enumerate(pose_ids) if _same(token, ident)]
+        if not hits:
+            shown = ", ".join(pose_ids[:3]) + (", ..." if len(pose_ids) > 3 else "")
+            raise DatasetError(label, f"id {token!r} is not a pose id of {pose_file} (ids {shown})")
+        if hits[0] in taken:
+            raise DatasetError(label, f"is pose {pose_ids[hits[0]]!r}, as {taken[hits[0]]} is: two profiles of one pose")
+        taken[hits[0]] = label
+        index.append(hits[0])
+    return index
+
+
+def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
+    """Pose index of each profile and a description of the pairing.
+
+    Parameters
+    ----------
+    labels : list of str
+        Each profile's file (and key), for messages.
+    names : list of str
+        The text an id is searched in (the file's stem, or the key).
+    pose_ids : tuple of str or None
+        The poses' ids; None: the poses are numbered (1..N, or 0..N-1 when the names are).
+    n_poses : int
+    pose_file : str
+    mode : {'auto', 'id', 'order'}
+    match : str or None
+        ``--match`` regex (one group).
+
+    Returns
+    -------
+    (list of int, list of str, str)
+        Pose index per profile, the pose ids (generated when ``pose_ids`` is None), how.
+    """
+    if match is None and mode != "order":
+        for pattern, words in ((DEFAULT_MATCH, "last digits of the name"), (FIRST_DIGITS, "first digits of the name")):
+            tokens = [_token(name, pattern, label) for name, label in zip(names, labels)]
+            ids = _pose_ids(pose_ids, tokens, n_poses)
+            if _all_match(tokens, ids):
+                return _by_id(labels, names, ids, tokens, pose_file), list(ids), f"by id in the file name ({words})"
+    tokens = [_token(name, match or DEFAULT_MATCH, label) for name, label in zip(names, labels)]
+    ids = _pose_ids(pose_ids, tokens, n_poses)
+    if mode == "order" or (mode == "auto" and match is None and all(t is None for t in tokens)):
+        return _by_order(labels, ids, pose_file), list(ids), "by order (natural sort of the file names)"
+    if mode == "auto" and match is None:
+        matched = [any(_same(t, i) for i in ids) for t in tokens if t is not None]
+        if not any(matched) and len(labels) == len(ids):
+            return _by_order(labels, ids, pose_file), list(ids), "by order (the numbers in the names are not pose ids)"
+    index = _by_id(labels, names, ids, tokens, pose_file)
+    missing = sorted(set(range(len(ids))) - set(index))
+    if missing:
+        raise DatasetError(pose_file, f"pose {ids[missing[0]]!r} has no profile ({len(missing)} of {len(ids)} poses have "
+                                      "none; pair by order with --pair order, or add the files)")
+    how = f"--match {match!r}" if match else "last digits of the name"
+    return index, list(ids), f"by id in the file name ({how})"
+
+
+FIRST_DIGITS = r"^\D*?(\d+)"
+
+
+def _pose_ids(pose_ids, tokens, n_poses):
+    """The poses' ids; without an id column 1..N, or 0..N-1 when the names' numbers start at 0."""
+    if pose_ids is not None:
+        return pose_ids
+    numbers = sorted(int(t) for t in tokens if t is not None and t.isdigit())
+    zero = bool(numbers) and numbers[0] == 0
+    return tuple(str(k + (0 if zero else 1)) for k in range(n_poses))
+
+
+def _all_match(tokens, ids):
+    """Every name has a number, each a different pose's, and every pose has one."""
+    if not tokens or any(t is None for t in tokens) or len(tokens) != len(ids):
+        return False
+    hits = [[k for k, i in enumerate(ids) if _same(t, i)] for t in tokens]
+    return all(len(h) == 1 for h in hits) and len({h[0] for h in hits}) == len(ids)
+
+
+def _by_order(labels, ids, pose_file):
+    if len(labels) != len(ids):
+        raise DatasetError(pose_file, f"{len(ids)} poses but {len(labels)} profiles ({labels[0]} ...): pair by id "
+                                      "(a number in each file name, --match) or give as many of each")
+    return list(range(len(ids)))

@@ -1,0 +1,281 @@
+"""Flange poses (and joint angles) from a loose table: column names, units, plausibility.
+
+Column names are matched case-insensitively with common aliases (``X``, ``pos_x``,
+``position.x``, ``Tx``; ``A,B,C`` KUKA; ``W,P,R`` FANUC; ``rx,ry,rz`` UR; ``qw,qx,qy,qz``,
+``q1..q4`` (w first) or ``orientation.x..w`` quaternions; ``id``, ``name``, ``index``). The
+names tell the poses' convention; a file without a header needs ``--convention`` (its numbers are
+that convention's columns in order, with an optional leading id) or ``--columns``.
+Positions are mm in the dataset (``--units m`` multiplies by 1000); angles degrees for KUKA and
+FANUC, radians for UR (``--angles`` says what the file holds).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+from handeye.app.ingest.tables import read_table
+from handeye.model import conventions
+from handeye.model.tables import DatasetError
+
+#: orientation columns (canonical names) of each convention; abb: quaternion, w first
+KINDS = {"kuka": ("a", "b", "c"), "fanuc": ("w", "p", "r"), "ur": ("rx", "ry", "rz"), "abb": ("qw", "qx", "qy", "qz")}
+_SINGLE = {**{n: n for n in ("x", "y", "z", "a", "b", "c", "w", "p", "r", "rx", "ry", "rz", "qw", "qx", "qy", "qz")},
+           **{f"{p}{a}": a for p in ("p", "t") for a in "xyz"},
+           "q1": "qw", "q2": "qx", "q3": "qy", "q4": "qz",
+           **{n: "id" for n in ("id", "name", "index", "idx", "pose", "poseid", "no", "nr", "number", "n")},
+           **{f"{p}{k}": f"j{k}" for p in ("j", "joint", "axis") for k in range(1, 7)}}
+_POSITION = {"pos", "position", "translation", "trans", "t", "p", "tcp", "flange", "xyz", "location", "loc"}
+_QUATERNION = {"orientation", "quat", "quaternion", "q", "ori", "rotation", "rot"}
+_ROTVEC = {"rotvec", "rvec", "r"}
+#: below this largest |position| (in the file's units) mm are implausible: metres
+METRES_BELOW = 5.0
+#: above this largest |position| (in the file's units) metres are implausible: mm
+MM_ABOVE = 50.0
+
+
+def canonical(name):
+    """The canonical column name of a header cell (``'Pos_X [mm]'`` -> ``'x'``), or None.
+
+    ``rot.x`` and ``rotation.x`` are quaternion components (ROS's Transform); ``rotvec_x`` a
+    rotation vector's."""
+    s = re.sub(r"[\(\[].*?[\)\]]", "", str(name).lower()).strip()
+    tokens = [t for t in re.split(r"[\s._\-/:]+", s) if t]
+    if not tokens:
+        return None
+    joined = "".join(tokens)
+    if joined in _SINGLE:
+        return _SINGLE[joined]
+    if len(tokens) >= 2:
+        prefix, axis = tokens[-2], tokens[-1]
+        if axis in ("x", "y", "z") and prefix in _POSITION:
+            return axis
+        if axis in ("x", "y", "z", "w") and prefix in _QUATERNION:
+            return "q" + axis
+        if axis in ("x", "y", "z") and prefix in _ROTVEC:
+            return "r" + axis
+    return None
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseTable:
+    """Poses read from a file.
+
+    Attributes
+    ----------
+    file : pathlib.Path
+    format : str
+        The content found (``CSV``, ``JSON list of objects``, ...).
+    ids : tuple of str or None
+        From the id column; None without one.
+    lines : tuple of int
+        Line (or JSON item) of each pose in the file.
+    values : ndarray, shape (N, 3 + k)
+        The flange poses in the robot base in ``convention`` (mm; degrees for kuka and fanuc,
+        radians for ur, unit quaternions w, x, y, z for abb).
+    convention : str
+        The dataset's convention (the file's, or ``--convention`` when it converted).
+    source : str
+        The convention the file's columns were in.
+    columns : tuple of str
+        How each file column was read (canonical names; ``-`` ignored).
+    notes : tuple of str
+        Conversions made (units, angles, quaternion order, convention).
+    """
+
+    file: object
+    format: str
+    ids: tuple | None
+    lines: tuple
+    values: np.ndarray
+    convention: str
+    source: str
+    columns: tuple
+    notes: tuple
+
+
+def _names(table, columns, convention, width, what="pose"):
+    """Canonical names of the table's columns: from --columns, the header or the convention."""
+    if columns is not None:
+        names = [c.strip() for c in str(columns).split(",")]
+        mapped = [None if n in ("-", "_", "skip", "") else canonical(n) for n in names]
+        for n, m in zip(names, mapped):
+            if m is None and n not in ("-", "_", "skip", ""):
+                raise RequestError(f"--columns: unknown column name {n!r} (x,y,z, a,b,c | w,p,r | rx,ry,rz | "
+                                   "qw,qx,qy,qz, id; '-' skips a column)")
+        if len(mapped) != width:
+            raise RequestError(f"--columns names {len(mapped)} columns; {table.file} has {width} per row")
+        return mapped
+    if table.header is not None:
+        return [canonical(h) for h in table.header]
+    if convention is None:
+        raise RequestError(f"{table.file} has no header: give --convention (kuka|abb|ur|fanuc; its columns in "
+                           "order, with an optional leading id) or --columns")
+    cols = ["x", "y", "z", *KINDS[convention]] if what == "pose" else [f"j{k}" for k in range(1, 7)]
+    if width == len(cols):
+        return cols
+    if width == len(cols) + 1:
+        return ["id", *cols]
+    wanted = ",".join(cols)
+    raise DatasetError(table.file, f"{width} numbers per row; the {convention + ' ' if what == 'pose' else ''}columns "
+                                   f"{wanted} are {len(cols)} (or {len(cols) + 1} with a leading id)", table.lines[0])
+
+
+def _kind(names, file):
+    """The convention the canonical names make (x,y,z + one orientation set)."""
+    found = [k for k, cols in KINDS.items() if set(cols) <= set(names)]
+    missing = [c for c in ("x", "y", "z") if c not in names]
+    if len(found) != 1 or missing:
+        known = ", ".join(n for n in names if n) or "none"
+        why = (f"no column {missing[0]!r}" if missing else
+               "no complete orientation (a,b,c | w,p,r | rx,ry,rz | qw,qx,qy,qz)" if not found else
+               f"orientations of several conventions ({', '.join(found)})")
+        raise DatasetError(file, f"{why}; columns recognised: {known} (--columns names them)", 1)
+    for n in set(names):
+        if n is not None and names.count(n) > 1:
+            raise DatasetError(file, f"two columns read as {n!r}", 1, n)
+    return found[0]
+
+
+def _numbers(table, names, wanted):
+    """(N, len(wanted)) floats of the named columns; errors name file, row and column."""
+    idx = [names.index(c) for c in wanted]
+    heads = table.header or names
+    out = np.empty((len(table.rows), len(wanted)))
+    for r, (row, line) in enumerate(zip(table.rows, table.lines)):
+        if len(row) != len(names):
+            raise DatasetError(table.file, f"expected {len(names)} fields, got {len(row)}", line)
+        for c, j in enumerate(idx):
+            try:
+                v = float(row[j]) if "_" not in row[j] else float("x")  # Python's 1_000 is no number in a table
+            except ValueError:
+                raise DatasetError(table.file, f"not a number: {row[j]!r}", line, heads[j]) from None
+            if not math.isfinite(v):
+                raise DatasetError(table.file, f"not a finite number: {row[j]!r}", line, heads[j])
+            out[r, c] = v
+    return out
+
+
+def _ids(table, names):
+    if "id" not in names:
+        return None
+    j, seen = names.index("id"), {}
+    for row, line in zip(table.rows, table.lines):
+        ident = row[j].strip()
+        if not ident:
+            raise DatasetError(table.file, "empty id", line, "id")
+        if ident in seen:
+            raise DatasetError(table.file, f"duplicate id {ident!r} (first on row {seen[ident]})", line, "id")
+        seen[ident] = line
+    return tuple(row[j].strip() for row in table.rows)
+
+
+def _check_units(values, units, file):
+    """Positions to mm, refusing metres given as mm and mm given as metres."""
+    top = float(np.max(np.abs(values[:, :3])))
+    if units == "mm" and top < METRES_BELOW and len(values) > 1:
+        raise DatasetError(file, f"every position is within +-{top:.3g}: metres, not mm? give --units m")
+    if units == "m" and top > MM_ABOVE:
+        raise DatasetError(file, f"positions up to {top:g} with --units m: they look like mm (leave out --units m)")
+    out = values.copy()
+    out[:, :3] *= 1000.0 if units == "m" else 1.0
+    return out, (["positions m -> mm (x1000)"] if units == "m" else [])
+
+
+def _check_angles(values, kind, angles, file):
+    """Angles to the convention's units (deg for kuka/fanuc, rad for ur); quaternions normalised."""
+    rot, notes = values[:, 3:], []
+    if kind in ("kuka", "fanuc"):
+        if angles == "rad":
+            rot, notes = np.degrees(rot), ["angles rad -> deg"]
+        elif np.max(np.abs(rot)) <= math.pi + 1e-6 and np.ptp(rot) > 0 and len(rot) > 2:
+            raise DatasetError(file, f"every {kind} angle is within +-pi: radians, not degrees? give --angles rad")
+    elif kind == "ur":
+        if angles == "deg":
+            rot, notes = np.radians(rot), ["rotation vectors deg -> rad"]
+        elif np.max(np.linalg.norm(rot, axis=1)) > 2 * math.pi + 1e-6:
+            raise DatasetError(file, "a UR rotation vector longer than 2 pi: degrees, not radians? give --angles deg")
+    else:
+        norm = np.linalg.norm(rot, axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > 0.01)
+        if bad.size:
+            raise DatasetError(file, f"quaternion of norm {norm[bad[0]]:.4g}, not a unit quaternion", int(bad[0]) + 1)
+        rot = rot / norm[:, None]
+    return np.column_stack([values[:, :3], rot]), notes
+
+
+def read_poses(path, convention=None, columns=None, units="mm", angles=None):
+    """Flange poses of a CSV, whitespace-separated or JSON file (module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+    convention : str or None
+        kuka, abb, ur or fanuc: the columns of a headerless file, and the dataset's convention
+        (named columns in another convention are converted to it). None: the file's.
+    columns : str or None
+        Comma-separated names of the file's columns (``id,x,y,z,qx,qy,qz,qw`` for ROS-ordered
+        quaternions; ``-`` skips a column); overrides the header.
+    units : {'mm', 'm'}
+        Units of the positions.
+    angles : {'deg', 'rad'} or None
+        Units of the angles (None: the convention's own).
+
+    Returns
+    -------
+    PoseTable
+    """
+    table = read_table(path, known_name=lambda c: canonical(c) is not None)
+    width = len(table.header) if table.header is not None and columns is None else len(table.rows[0])
+    names = _names(table, columns, convention, width)
+    kind = _kind(names, table.file)
+    cols = ("x", "y", "z") + KINDS[kind]
+    raw = _numbers(table, names, cols)
+    values, notes = _check_units(raw, units, table.file)
+    values, more = _check_angles(values, kind, angles, table.file)
+    notes += more
+    if kind == "abb" and [n for n in names if n in KINDS["abb"]] != list(KINDS["abb"]):
+        notes.append("quaternion columns reordered to w,x,y,z")
+    target = convention or kind
+    if target != kind:
+        values = conventions.convert(values, kind, target)
+        notes.append(f"poses converted {kind} -> {target}")
+    elif kind in ("kuka", "fanuc"):
+        values, moved = _in_reading_ranges(values, kind)
+        notes += moved
+    ignored = tuple(h for h, n in zip(table.header or (), names) if n is None)
+    if ignored:
+        notes.append(f"columns ignored: {', '.join(ignored)}")
+    return PoseTable(table.file, table.kind, _ids(table, names), table.lines, values, target, kind,
+                     tuple(n or "-" for n in names), tuple(notes))
+
+
+def _in_reading_ranges(values, kind):
+    """Angles outside the controller's ranges (A, C in +-180, B in +-90) re-expressed in them
+    (the same rotations)."""
+    lim = np.array([180.0, 90.0, 180.0])
+    if np.all(np.abs(values[:, 3:]) <= lim + 1e-9):
+        return values, []
+    return conventions.convert(values, kind, kind), [f"{kind} angles re-expressed in the controller's ranges"]
+
+
+def read_joints(path, units="deg"):
+    """Joint angles j1..j6 (degrees) of a CSV, whitespace-separated or JSON file; returns
+    ``(ids or None, (N, 6) array, lines)``. A header (``j1..j6``, ``joint_1``, ``axis1``, ``id``) is
+    optional; without one, 6 numbers per row or an id and 6."""
+    table = read_table(path, known_name=lambda c: canonical(c) is not None)
+    width = len(table.header) if table.header is not None else len(table.rows[0])
+    names = _names(table, None, "joints", width, what="joints")
+    cols = tuple(f"j{k}" for k in range(1, 7))
+    missing = [c for c in cols if c not in names]
+    if missing:
+        raise DatasetError(table.file, f"no column {missing[0]!r} (joint angles j1..j6, degrees)", 1)
+    values = _numbers(table, names, cols)
+    if units == "rad":
+        values = np.degrees(values)
+    elif np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
+        raise DatasetError(table.file, "every joint angle is within +-pi: radians, not degrees? convert them to degrees")
+    return _ids(table, names), values, table.lines

@@ -1,0 +1,200 @@
+"""Poses and profiles from a ROS 2 bag (sqlite3 or mcap), read by the pure-Python ``rosbags``.
+
+``rosbags`` is an optional extra (``pip install 'handeye[ros]'``); no ROS installation is needed.
+Poses: ``geometry_msgs/msg/PoseStamped`` (the flange in the robot base), or ``tf2_msgs/msg/TFMessage``
+on ``/tf`` (with ``/tf_static`` when the bag has it) composed from ``base_frame`` to
+``flange_frame``. Profiles: ``sensor_msgs/msg/PointCloud2`` (float32 or float64 x, y, z fields) or
+``sensor_msgs/msg/LaserScan`` (points ``r (cos t, sin t, 0)`` in the scan's frame: the plane
+z = 0). Each profile takes the pose nearest in time (header stamps; the bag's time when a stamp
+is zero) within ``max_dt`` seconds; the others are counted. ROS is SI: metres become mm,
+quaternions are (x, y, z, w).
+"""
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import numpy as np
+
+from handeye.app.errors import RequestError
+from handeye.model.conventions import matrix_from
+from handeye.model.tables import DatasetError
+
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage")
+PROFILE_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan")
+_FLOAT = {7: "f4", 8: "f8"}
+
+
+@dataclasses.dataclass(frozen=True)
+class BagData:
+    """What a bag gave.
+
+    Attributes
+    ----------
+    flange2base : ndarray, shape (N, 4, 4)
+        The pose matched to each kept profile, mm.
+    profiles : list of ndarray (K, 3)
+        Points in the sensor message's frame, mm (NaN rows still in).
+    stamps : ndarray, shape (N,)
+        Profile times, s.
+    counts : dict
+        ``poses``, ``profiles``, ``unmatched`` (profiles without a pose within max_dt), ``max_dt_used``.
+    types : tuple of str
+        Message types of the pose and the profile topic.
+    """
+
+    flange2base: np.ndarray
+    profiles: list
+    stamps: np.ndarray
+    counts: dict
+    types: tuple
+
+
+def _reader_class():
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError:
+        raise RequestError("--bag needs the rosbags package: pip install 'handeye[ros]'") from None
+    return AnyReader
+
+
+def _stamp(msg, bag_ns):
+    s = msg.header.stamp
+    t = s.sec + s.nanosec * 1e-9
+    return t if t > 0 else bag_ns * 1e-9
+
+
+def _transform(translation, q):
+    out = np.eye(4)
+    out[:3, :3] = matrix_from("abb", [q.w, q.x, q.y, q.z])
+    out[:3, 3] = [translation.x * 1000.0, translation.y * 1000.0, translation.z * 1000.0]
+    return out
+
+
+def _cloud_points(msg, file):
+    fields = {f.name: f for f in msg.fields}
+    missing = [a for a in "xyz" if a not in fields]
+    if missing or any(fields[a].datatype not in _FLOAT for a in "xyz"):
+        raise DatasetError(file, f"PointCloud2 needs float32/float64 fields x, y, z, has "
+                                 f"{', '.join(f'{f.name}:{f.datatype}' for f in msg.fields)}")
+    order = ">" if msg.is_bigendian else "<"
+    dtype = np.dtype({"names": list("xyz"), "formats": [order + _FLOAT[fields[a].datatype] for a in "xyz"],
+                      "offsets": [fields[a].offset for a in "xyz"], "itemsize": msg.point_step})
+    data = np.asarray(msg.data, np.uint8).tobytes()
+    rows = [np.frombuffer(data, dtype, count=msg.width, offset=r * msg.row_step) for r in range(msg.height)]
+    pts = np.concatenate(rows) if rows else np.zeros(0, dtype)
+    return np.column_stack([pts["x"], pts["y"], pts["z"]]).astype(float) * 1000.0
+
+
+def _scan_points(msg):
+    r = np.asarray(msg.ranges, float)
+    t = msg.angle_min + msg.angle_increment * np.arange(len(r))
+    bad = ~np.isfinite(r) | (r < msg.range_min) | (r > msg.range_max)
+    r = np.where(bad, np.nan, r)
+    return np.column_stack([r * np.cos(t), r * np.sin(t), np.zeros_like(r)]) * 1000.0
+
+
+def _connections(reader, topic, types, option, file):
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        have = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections}))
+        raise RequestError(f"{option} {topic}: no such topic in {file} (it has {have})")
+    if found[0].msgtype not in types:
+        raise RequestError(f"{option} {topic}: type {found[0].msgtype}; handeye reads {', '.join(types)}")
+    return found
+
+
+def _tf_poses(reader, conns, base, flange, file):
+    """(stamps, transforms) of flange in base composed from /tf (and /tf_static) at each message."""
+    if not base or not flange:
+        raise RequestError("a TFMessage pose topic needs --base-frame and --flange-frame")
+    static = [c for c in reader.connections if c.topic == "/tf_static"]
+    links, stamps, poses = {}, [], []
+    for conn, bag_ns, raw in reader.messages(connections=static + conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        for tf in msg.transforms:
+            links[tf.child_frame_id.lstrip("/")] = (tf.header.frame_id.lstrip("/"), _transform(tf.transform.translation,
+                                                                                                tf.transform.rotation))
+        if conn.topic == "/tf_static" or not msg.transforms:
+            continue
+        chain, frame, hops = np.eye(4), flange.lstrip("/"), 0
+        while frame != base.lstrip("/") and frame in links and hops <= len(links):  # a loop in the tree ends too
+            parent, t = links[frame]
+            chain, frame, hops = t @ chain, parent, hops + 1
+        if frame == base.lstrip("/"):
+            stamps.append(_stamp(msg.transforms[-1], bag_ns))
+            poses.append(chain)
+    if not poses:
+        raise DatasetError(file, f"/tf never links {flange} to {base} (--base-frame, --flange-frame)")
+    return np.array(stamps), np.array(poses)
+
+
+def _pose_stamped(reader, conns):
+    stamps, poses = [], []
+    for conn, bag_ns, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        stamps.append(_stamp(msg, bag_ns))
+        poses.append(_transform(msg.pose.position, msg.pose.orientation))
+    return np.array(stamps), np.array(poses).reshape(-1, 4, 4)
+
+
+def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None, max_dt=0.05):
+    """Poses and profiles of a ROS 2 bag folder or file, matched by time (module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+    pose_topic, profile_topic : str
+    base_frame, flange_frame : str or None
+        For a TFMessage pose topic: the robot base and the flange frame.
+    max_dt : float
+        Largest time between a profile and its pose, s.
+
+    Returns
+    -------
+    BagData
+    """
+    if not pose_topic or not profile_topic:
+        raise RequestError("--bag needs --pose-topic and --profile-topic")
+    reader_class, file = _reader_class(), pathlib.Path(path)
+    if not file.exists():
+        raise RequestError(f"--bag {path}: no such file or folder")
+    try:
+        with reader_class([file]) as reader:
+            pconns = _connections(reader, pose_topic, POSE_TYPES, "--pose-topic", file)
+            sconns = _connections(reader, profile_topic, PROFILE_TYPES, "--profile-topic", file)
+            if pconns[0].msgtype == POSE_TYPES[1]:
+                pstamps, poses = _tf_poses(reader, pconns, base_frame, flange_frame, file)
+            else:
+                pstamps, poses = _pose_stamped(reader, pconns)
+            stamps, clouds = [], []
+            for conn, bag_ns, raw in reader.messages(connections=sconns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                stamps.append(_stamp(msg, bag_ns))
+                clouds.append(_scan_points(msg) if conn.msgtype == PROFILE_TYPES[1] else _cloud_points(msg, file))
+    except (RequestError, DatasetError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a broken bag) are bad input here
+        raise DatasetError(file, f"cannot be read as a ROS 2 bag: {type(exc).__name__}: {exc}") from None
+    return _match(file, pstamps, poses, np.array(stamps), clouds, max_dt, (pconns[0].msgtype, sconns[0].msgtype))
+
+
+def _match(file, pstamps, poses, stamps, clouds, max_dt, types):
+    if not len(pstamps):
+        raise DatasetError(file, "no pose messages on the pose topic")
+    order = np.argsort(pstamps)
+    pstamps, poses = pstamps[order], poses[order]
+    keep, chosen = [], []
+    for k, t in enumerate(stamps):
+        j = int(np.searchsorted(pstamps, t))
+        near = [i for i in (j - 1, j) if 0 <= i < len(pstamps)]
+        best = min(near, key=lambda i: abs(pstamps[i] - t))
+        if abs(pstamps[best] - t) <= max_dt:
+            keep.append(k)
+            chosen.append(best)
+    if not keep:
+        raise DatasetError(file, f"no profile has a pose within --max-dt {max_dt:g} s ({len(stamps)} profiles, "
+                                 f"{len(pstamps)} poses)")
+    counts = {"poses": int(len(pstamps)), "profiles": int(len(stamps)), "unmatched": int(len(stamps) - len(keep)),
+              "max_dt_s": float(max_dt)}
+    return BagData(poses[chosen], [clouds[k] for k in keep], stamps[keep], counts, types)

@@ -1,0 +1,100 @@
+"""The files of an assembled dataset: ``measurements.csv``, ``setup.toml``, ``profiles/*.csv`` and
+``PROVENANCE.toml`` (every source file with its SHA-256, the options, the conversions made)."""
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import pathlib
+import re
+
+import numpy as np
+
+from handeye.model import conventions
+from handeye.model.robots import JOINTS
+
+
+def safe_name(ident, taken):
+    """A file name of an id (``profiles/<name>.csv``), unique among ``taken`` (updated)."""
+    base = re.sub(r"[^A-Za-z0-9_.-]", "_", str(ident)).strip(".") or "pose"
+    name, k = base, 1
+    while name.lower() in taken:
+        k += 1
+        name = f"{base}_{k}"
+    taken.add(name.lower())
+    return name
+
+
+def measurements_text(ids, values, convention, profile_paths, joints=None):
+    """``measurements.csv``: id, the convention's pose columns, empty ``xs,ys,zs``, [j1..j6,] profile."""
+    header = ["id", *conventions.columns(convention), "xs", "ys", "zs", *(JOINTS if joints is not None else ()),
+              "profile"]
+    buffer = io.StringIO()
+    out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted
+    out.writerow(header)
+    for k, (ident, pose, path) in enumerate(zip(ids, values, profile_paths)):
+        row = [str(ident), *(f"{v:.10g}" for v in pose), "", "", ""]
+        row += [f"{v:.6f}" for v in joints[k]] if joints is not None else []
+        out.writerow(row + [path])
+    return buffer.getvalue()
+
+
+def profile_text(xz):
+    """A profile CSV: header ``x,z``, sensor x and z in mm."""
+    return "x,z\n" + "".join(f"{x:.6f},{z:.6f}\n" for x, z in xz)
+
+
+def _vec(v):
+    return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
+
+
+def setup_text(convention, diameter, side, center=None, start=None, robot=None):
+    """``setup.toml`` of the assembled dataset (:mod:`handeye.model.dataset` has the format)."""
+    text = "# assembled by `handeye dataset new`; PROVENANCE.toml says from what\n"
+    text += f"[robot]\nconvention = \"{convention}\"\n" + (f"model = {json.dumps(robot)}\n" if robot else "") + "\n"
+    if start is not None:
+        text += f"[sensor]\nstart_pose = {_vec(start)}\n\n"
+    text += f"[sphere]\ndiameter = {float(diameter)!r}\n" + (f"center = {_vec(center)}\n" if center is not None else "")
+    return text + f"\n[profile]\nside = {int(side)}\n"
+
+
+def sha256(path):
+    """SHA-256 of a file (streamed)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def source_files(path):
+    """The files of an input (a bag folder: each of its files)."""
+    p = pathlib.Path(path)
+    return sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
+
+
+def _toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{json.dumps(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return json.dumps(str(v))
+
+
+def provenance_text(head, sections, sources):
+    """``PROVENANCE.toml``: ``head`` (key -> value), ``sections`` (name -> dict) and one
+    ``[[source]]`` table per input file (role, path, format, sha256)."""
+    lines = [f"{k} = {_toml_value(v)}" for k, v in head.items() if v is not None]
+    for name, table in sections.items():
+        lines += ["", f"[{name}]"] + [f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in table.items() if v is not None]
+    for src in sources:
+        lines += ["", "[[source]]"] + [f"{k} = {_toml_value(v)}" for k, v in src.items()]
+    return "\n".join(lines) + "\n"
+
