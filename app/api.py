@@ -32,6 +32,7 @@ from handeye.app.arguments import (  # noqa: F401  (load_dataset and MAX_ITER: p
 from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import RequestError
 from handeye.app.making import PlanResult, SimulationResult, plan, simulate  # noqa: F401  (the API's)
+from handeye.model.errors import InputError
 
 
 def _alpha(alpha):
@@ -81,6 +82,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {sensor_pose}"
     else:
         cal, source = saved.load(_path_argument(calibration)), str(calibration)
+        source += "" if cal.converged else " (a calibration that did not converge)"
         if not cal.converged and not scoring:
             raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
                                "(calibrate again)")
@@ -92,8 +94,12 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     return np.asarray(cal.sensor2flange, float), source
 
 
-def _score_options(unknowns, method, effects, plot):
-    """The options a score (a given sensor pose among --unknowns) refuses."""
+def _score_options(unknowns, method, effects, plot, data):
+    """The options (and cells) a score (a given sensor pose among --unknowns) refuses."""
+    if data.mounts.sphere == "positioner":
+        raise RequestError(f"{data.path / 'setup.toml'}: the sphere is on a positioner; a given sensor pose is not scored "
+                           "there (the set-up axes' errors would be blamed on it): hold it while the axes are calibrated, "
+                           "--unknowns sphere+positioner with --sensor-pose or --calibration")
     if unknowns not in ("sensor", "sensor+sphere"):
         raise RequestError(f"a sensor pose given with --unknowns {unknowns}: leave out sensor (--unknowns "
                            f"{unknowns.replace('sensor+', '')}) to hold it while the others are calibrated")
@@ -211,7 +217,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     data = load_dataset(dataset)
     scoring = (calibration is not None or sensor_pose is not None) and "sensor" in unknowns.split("+")
     if scoring:
-        _score_options(unknowns, method, effects, plot)
+        _score_options(unknowns, method, effects, plot, data)
     convention = conventions.check(convention or data.convention)
     given, source = _given_sensor(calibration, sensor_pose if sensor_pose is None or isinstance(sensor_pose, str)
                                   else ",".join(map(repr, np.ravel(sensor_pose).tolist())), convention, data, scoring)
@@ -314,14 +320,16 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     data = with_sphere_centre(data, parts)[0]  # a start for a centre not given
     gate(data, parts)  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, parts, slips.plain_rms(data, parts) or 0.0)  # a wrong side is not an "effect"
-    own = calibrate(data, unknowns=parts, no_loo=True, alpha=level, sigma=sigma)
-    if parts == "sensor+sphere":
-        if not own.converged:
-            raise RequestError(f"--unknowns sensor+sphere: calibrate cannot estimate the sphere centre from these data "
-                               f"({own.message}); diagnose needs it as its start")
+    try:  # calibrate's own pose, to compare with (and with the centre unknown, the centre's start)
+        own = calibrate(data, unknowns=parts, no_loo=True, alpha=level, sigma=sigma)
+    except InputError as exc:  # calibrate refuses what diagnose is for (a taught centre off, say)
+        own = exc
+    if parts == "sensor+sphere" and not isinstance(own, Exception) and np.all(np.isfinite(own.sphere_centre)):
         data = dataclasses.replace(data, sphere_centre=np.asarray(own.sphere_centre, float))
     result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
-    result = dataclasses.replace(result, unknowns=parts, against_calibrate=procedure.against_calibrate(result, own))
+    against = (f"calibrate refuses these data: {own}" if isinstance(own, Exception)
+               else procedure.against_calibrate(result, own))
+    result = dataclasses.replace(result, unknowns=parts, against_calibrate=against)
     if out is not None:
         options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
                    "unknowns": parts,
@@ -368,13 +376,13 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
 
     data = load_dataset(dataset)
     unknowns = unknown_parts(unknowns or ("sensor" if data.sphere_centre is not None else "sensor+sphere"))
-    _score_options(unknowns, None, None, None)
+    _score_options(unknowns, None, None, None, data)
     poses, sources = [], []
     for given in (a, b):
         cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given),
                                   data, "compare")
         poses.append(np.asarray(cal.sensor2flange, float))
-        sources.append(cal.source)
+        sources.append(cal.source + ("" if cal.converged else " (did not converge)"))
     if sources[0] == sources[1]:
         sources = [f"A ({sources[0]})", f"B ({sources[1]})"]
     level = _alpha(alpha)

@@ -39,6 +39,8 @@ def dumps(data):
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
         """The one line that matters and where to read more; no usage block (exit 2)."""
+        if message.endswith("expected one argument"):  # `--sensor-pose -1750,...`: the value read as an option
+            message += " (a value that starts with '-' is written --option=VALUE, e.g. --sensor-pose=-1750,...)"
         sys.stderr.write(f"{self.prog}: error: {message}\nsee `{self.prog} --help`\n")
         if _JSON_WANTED:  # the JSON of every exit: this one's too
             sys.stdout.write(dumps({"error": f"{self.prog}: {message}", "exit_code": EXIT_BAD_INPUT}) + "\n")

@@ -196,3 +196,40 @@ def test_centre_columns_optional_with_profiles(tmp_path):
     (folder / "measurements.csv").write_text("\n".join(rows) + "\n")
     with pytest.raises(handeye.InputError, match=r"row 4, column 'profile': no profile"):
         handeye.load_dataset(folder)
+
+
+def test_no_verdict_when_the_data_own_calibration_does_not_converge(cell, capsys, break_solver):
+    break_solver()  # every final solve ends at a non-finite point
+    code = main(["calibrate", str(cell), "--sensor-pose", _pose_text(TRUTH), "--no-loo", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 1 and out["contradicted"] is None and out["converged"] is False
+    assert out["error"].startswith("no verdict: the data's own calibration did not converge")
+    assert out["verdict"] == out["error"]
+
+
+def test_a_saved_contradicted_score_is_not_a_usable_calibration(cell, tmp_path):
+    saved = tmp_path / "off.json"
+    handeye.calibrate(cell, sensor_pose=np.array(TRUTH) + [2.0, 0, 0, 0, 0, 0], no_loo=True, out=saved)
+    doc = json.loads(saved.read_text())
+    assert doc["converged"] is False and doc["sensor_mount"] == "flange"
+    with pytest.raises(handeye.InputError, match="did not converge"):
+        handeye.export(saved, format="matrix")
+
+
+def test_positioner_cells_are_not_scored(tmp_path):
+    folder = tmp_path / "pos"
+    assert main(["simulate", "--out", str(folder), "--sphere-mount", "positioner", "--n-poses", "12"]) == 0
+    truth = handeye.load_dataset(folder).truth["sensor_pose"]
+    with pytest.raises(handeye.InputError, match="positioner.*--unknowns sphere\\+positioner"):
+        handeye.calibrate(folder, sensor_pose=truth)
+    with pytest.raises(handeye.InputError, match="positioner"):
+        handeye.compare(folder, np.eye(4), np.eye(4))
+
+
+def test_points_model_is_tested_on_its_circles(tmp_path):
+    folder = tmp_path / "sim"
+    assert main(["simulate", "--out", str(folder), "--profiles", "--n-poses", "12", "--seed", "4"]) == 0
+    truth = handeye.load_dataset(folder).truth["sensor_pose"]
+    result = handeye.calibrate(folder, sensor_pose=truth, model="points", no_loo=True)
+    assert result.model == "measurement" and result.f_test[1] > 1e-3 and not result.contradicted
+    assert set(result.given.rms_mm) == {"centre", "measurement", "points"}

@@ -39,6 +39,7 @@ import numpy as np
 from handeye.app.engine.cell_stage import HELD_FACTOR, P_HELD, mask_of
 from handeye.model import observations
 from handeye.model.calibration import CalibrationModel
+from handeye.model.rotation import rotation_angle_deg, rotvec_from_matrix
 from handeye.model.statistics import chi2_survival, f_survival
 
 #: Gauss-Newton steps of the sphere centre with the pose held (linear for the centre model: one).
@@ -85,7 +86,9 @@ class Scorer:
     mask : ndarray of bool, shape (N,)
         Samples used (the data's own calibration's).
     kind : {'centre', 'measurement', 'points'}
-        The request's residual model (its sum of squares is tested).
+        The request's residual model; its sum of squares is tested, but for ``points`` (a
+        profile's points share its pose's robot error: not independent rows for an F test) the
+        ``measurement`` model's, the circles of the same points.
     robot_sigma : float
         Robot repeatability, mm per axis (weights of the profile models).
     centre_free : bool
@@ -93,6 +96,7 @@ class Scorer:
     """
 
     def __init__(self, dataset, mask, kind, robot_sigma, centre_free):
+        kind = "measurement" if kind == "points" else kind
         self.dataset, self.mask, self.kind, self.centre_free = dataset, np.asarray(mask, bool), kind, centre_free
         used = dataset.subset(self.mask)
         start = dataset.sphere_centre if dataset.sphere_centre is not None else np.zeros(3)
@@ -143,34 +147,17 @@ class Scorer:
         return 6 + 3 * self.centre_free
 
 
-def rotation_angle_deg(rot):
-    """Angle of a rotation matrix, degrees."""
-    return math.degrees(math.acos(max(-1.0, min(1.0, (float(np.trace(rot)) - 1.0) / 2.0))))
-
-
-def _rotation_vector(rot):
-    """The rotation vector (rad) of a rotation matrix (log map)."""
-    angle = math.radians(rotation_angle_deg(rot))
-    if angle < 1e-12:
-        return np.zeros(3)
-    w = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    if math.pi - angle < 1e-6:  # about a half turn: the axis from the symmetric part
-        axis = np.sqrt(np.clip((np.diag(rot) + 1.0) / 2.0, 0.0, None))
-        return angle * axis
-    return angle * w / (2.0 * math.sin(angle))
-
-
 def pose_distance(given, estimate, covariance=None, names=None):
     """How far ``given`` (4x4) lies from ``estimate`` (4x4): translation (mm), rotation (deg) and,
     with the estimate's covariance on the local chart (``names`` tx..wz), the Mahalanobis
     distance in its sd and its chi^2_6 p-value."""
     out = {"translation_mm": float(np.linalg.norm(given[:3, 3] - estimate[:3, 3])),
-           "rotation_deg": rotation_angle_deg(estimate[:3, :3].T @ given[:3, :3]), "sd": None, "p_value": None}
+           "rotation_deg": float(rotation_angle_deg(estimate[:3, :3], given[:3, :3])), "sd": None, "p_value": None}
     if covariance is None or names is None:
         return out
     idx = [list(names).index(n) for n in ("tx", "ty", "tz", "wx", "wy", "wz")]
     cov = np.asarray(covariance, float)[np.ix_(idx, idx)]
-    delta = np.concatenate([given[:3, 3] - estimate[:3, 3], _rotation_vector(estimate[:3, :3].T @ given[:3, :3])])
+    delta = np.concatenate([given[:3, 3] - estimate[:3, 3], rotvec_from_matrix(estimate[:3, :3].T @ given[:3, :3])])
     d2 = float(delta @ np.linalg.pinv(cov) @ delta)
     out.update(sd=math.sqrt(max(d2, 0.0)), p_value=float(chi2_survival(d2, 6)))
     return out
@@ -227,13 +214,14 @@ def score_against(estimate, dataset, request, sensor2flange, source, scorer=None
     own = scorer.score(estimate.sensor2flange, estimate.sphere_centre)
     cov = estimate.covariance if estimate.converged else None
     distance = pose_distance(s, np.asarray(estimate.sensor2flange, float), cov, estimate.parameter_names)
+    tested = f_test(given, own, scorer.n_params) if estimate.converged else (float("nan"), float("nan"), None)
     whitened = scorer.model.whiten is not None
     test = None
     if whitened or scorer.kind == "centre":
         test = noise_test(given.ssr, given.m - 3 * scorer.centre_free, request.sigma, whitened, [], "")
     return ScoreResult(dataset.name, str(dataset.path), source, request.convention,
                        conventions.columns(request.convention), conventions.pose_from(request.convention, s), s,
-                       given, estimate, own, scorer.kind, f_test(given, own, scorer.n_params), distance, test,
+                       given, estimate, own, scorer.kind, tested, distance, test,
                        scorer.centre_free)
 
 

@@ -75,8 +75,22 @@ class ScoreResult(ResultProtocol):
 
     @property
     def contradicted(self):
-        """True when the data contradict the given pose (module docstring of the engine)."""
-        return bool(self.f_test[2])
+        """True when the data contradict the given pose (module docstring of the engine); None when
+        the data's own calibration did not converge (no minimum to test it against)."""
+        return None if self.f_test[2] is None else bool(self.f_test[2])
+
+    @property
+    def converged(self):
+        """Whether the score has a verdict: the data's own calibration converged (exit 0; else 1)."""
+        return bool(self.estimate.converged)
+
+    @property
+    def error(self):
+        """Why there is no verdict (exit 1), or None."""
+        if self.converged:
+            return None
+        return (f"no verdict: the data's own calibration did not converge ({self.estimate.message}), so there is no "
+                "minimum to test the given pose against")
 
     @property
     def residuals(self):
@@ -93,6 +107,8 @@ class ScoreResult(ResultProtocol):
         g, e = self.given.rms_mm.get(self.model, self.given.rms_mm["centre"]), self.estimate_score.rms_mm.get(
             self.model, self.estimate_score.rms_mm["centre"])
         per = _PER[self.model]
+        if not self.converged:
+            return self.error
         if not np.isfinite(f):
             return "no comparison: the data's own calibration has no residual degrees of freedom"
         if bad:
@@ -111,12 +127,13 @@ class ScoreResult(ResultProtocol):
         est = self.estimate
         out = {
             "scored": True, "dataset": self.dataset, "dataset_path": self.dataset_path, "source": self.source,
-            "error": None, "sensor_pose": _list(self.sensor_pose),
+            "error": self.error, "converged": self.converged and not bad,
+            "sensor_mount": self.estimate.sensor_mount, "sensor_pose": _list(self.sensor_pose),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose)},
             "sensor_matrix": _list(self.sensor2flange), "sphere_center": _list(self.given.centre),
             "centre_fitted": self.centre_fitted, "model": self.model, "rms_mm": _rms_dict(self.given),
-            "ssr": self.given.ssr, "contradicted": bool(bad), "verdict": self.verdict(),
+            "ssr": self.given.ssr, "contradicted": self.contradicted, "verdict": self.verdict(),
             "f_test": {"statistic": f, "dof": [6, self.given.m - 6 - 3 * self.centre_fitted], "p_value": p},
             "distance_to_estimate": dict(self.distance),
             "noise_test": None if self.noise_test is None else self.noise_test.to_dict(),
