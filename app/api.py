@@ -85,7 +85,7 @@ def _held_sensor(calibration, data):
 
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
-              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None):
+              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, no_clean=False):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
     Parameters
@@ -141,6 +141,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     calibration : str or pathlib.Path, optional
         A saved calibration (``calibrate --out``) whose sensor pose is held when ``unknowns``
         has no ``sensor`` (instead of ``[sensor] pose``).
+    no_clean : bool
+        Fit every profile point: no profile cleaning (:mod:`handeye.model.profile_clean`; by
+        default speckle and background points off the sphere's arc are dropped, and the result's
+        ``cleaning`` says how many of which profile). Applies when ``dataset`` is a name or folder.
 
     Returns
     -------
@@ -165,13 +169,13 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
                "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
-               "calibration": None if calibration is None else str(calibration)}
+               "calibration": None if calibration is None else str(calibration), "no_clean": bool(no_clean)}
     if method is not None and method not in METHODS + CLOSED_FORM:
         raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
     unknowns = unknown_parts(unknowns)
     if method in CLOSED_FORM and unknowns not in UNKNOWNS:
         raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
-    data = load_dataset(dataset)
+    data = load_dataset(dataset, clean=not no_clean)
     if calibration is not None and "sensor" in unknowns.split("+"):
         raise RequestError(f"--calibration holds the sensor pose: it does not apply with --unknowns {unknowns} (which "
                            "estimates it); leave out sensor, e.g. --unknowns sphere+positioner")
@@ -213,7 +217,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     return result
 
 
-def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None):
+def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
     Parameters
@@ -230,6 +234,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         setup's ``[noise] centre_mm`` (0.05).
     out : str or pathlib.Path, optional
         Also write the JSON result with provenance, atomically.
+    no_clean : bool
+        Fit every profile point: no profile cleaning (as :func:`calibrate`).
 
     Returns
     -------
@@ -242,7 +248,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     level = _alpha(alpha)
     if sigma is not None:
         _number(sigma, "--sigma", 1e-6, 1e3)
-    data = load_dataset(dataset)
+    data = load_dataset(dataset, clean=not no_clean)
     inputs = input_files(data) if (out, figures, plot) != (None, None, None) else ()
     if out is not None:
         check_output_path(out, "--out", inputs=inputs)
@@ -266,7 +272,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if out is not None:
         options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
                    "sigma": sigma, "figures": None if figures is None else str(figures),
-                   "plot": None if plot is None else str(plot)}
+                   "plot": None if plot is None else str(plot), "no_clean": bool(no_clean)}
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
     if figures is not None:

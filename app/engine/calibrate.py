@@ -55,6 +55,7 @@ from handeye.app.engine.request import (  # noqa: F401  (the request's names: th
     parse_pose,
 )
 from handeye.app.present.results import Before
+from handeye.model import profile_clean
 from handeye.model.closed_form import ClosedFormError
 from handeye.model.pose import transform_from_pose
 
@@ -192,6 +193,7 @@ def run(request, dataset):
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
+    result = dataclasses.replace(result, cleaning=profile_clean.summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
 
 

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from handeye.model.profile_clean import summary_lines
+
 #: What the orientation columns of each convention hold.
 _CONVENTION_UNITS = {"abb": "mm, unit quaternion w x y z", "ur": "mm, rotation vector in rad",
                      "fanuc": "mm, W P R in deg", "kuka": "mm, A B C in deg"}
@@ -151,6 +153,7 @@ def calibration_text(res):
         lines += [f"warning: {w}" for w in res.warnings]
         return "\n".join(lines)
     lines += [""] + residual_lines(res.residuals)
+    lines += summary_lines(res.cleaning)
     if res.excluded:
         lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
         lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded[:REPORT_ROWS]]
@@ -361,6 +364,7 @@ def classic_text(res):
         f"least squares started here: {'converged' if ls['converged'] else 'NOT converged'} in {ls['iterations']} "
         f"iterations, {ls['distance_mm']:.4f} mm and {ls['distance_deg']:.4f} deg away, RMS {ls['rms_mm']:.4f} mm",
     ]
+    lines += summary_lines(res.cleaning)
     if res.excluded:
         lines.append("excluded samples (gross errors, screened as calibrate does):")
         lines += [f"  {x.id} (row {x.row}): {x.reason}" for x in res.excluded]

@@ -333,6 +333,10 @@ class CalibrationResult(ResultProtocol):
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
+    cleaning : dict or None
+        What profile cleaning dropped (:func:`handeye.model.profile_clean.summary`: totals, and
+        per profile that lost points its id, row, counts and reasons); ``{'applied': False}``
+        with ``--no-clean``; None without profiles.
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
@@ -370,6 +374,7 @@ class CalibrationResult(ResultProtocol):
     sphere_mount: str = "world"
     positioner: object | None = None
     robot_model: str | None = None
+    cleaning: dict | None = None
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -484,6 +489,7 @@ class CalibrationResult(ResultProtocol):
             "objective": self.objective,
             "loo": self.loo,
             "rms_note": self.rms_note,
+            "cleaning": self.cleaning,
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance
