@@ -128,6 +128,7 @@ def screen(prep):
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
+    excluded = robust.with_geometry(dataset, excluded)  # a profile's arc that explains its poor centre, named
     used = dataset.subset(mask)
     if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
         slips.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)

@@ -56,6 +56,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
         screening = robust.screen(dataset, unknowns, start, alpha=alpha)
         mask, excluded = screening.inliers, screening.excluded
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # as calibrate and diagnose
+    excluded = robust.with_geometry(dataset, excluded)
     f2b, xs = f2b_all[mask], xs_all[mask]
     classics.axxb_system(np.eye(4)[None], p=np.zeros((1, 3)), q=np.zeros((1, 3)))  # load the generated code untimed
     t0 = time.perf_counter()

@@ -171,6 +171,10 @@ class ExcludedSample:
     p_bonferroni : float
         Bonferroni-adjusted p-value.
     reason : str
+        The statistical reason, and the geometric one after it when there is one.
+    geometry : str or None
+        The profile's geometry when it explains a poorly determined centre (a short, one-sided
+        arc near the equator ...: :mod:`handeye.model.arc_geometry`), else None.
     """
 
     id: str
@@ -180,6 +184,7 @@ class ExcludedSample:
     statistic: float
     p_bonferroni: float
     reason: str
+    geometry: str | None = None
 
     def to_dict(self):
         return dataclasses.asdict(self)
