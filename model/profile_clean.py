@@ -49,7 +49,7 @@ from handeye.model import circle
 #: Points farther than this many robust sd from the arc are dropped (module docstring).
 K_SD = 5.0
 #: Floor of the robust scale, mm (a laser-line sensor's point noise is not below it).
-SCALE_FLOOR_MM = 0.01
+SCALE_FLOOR_MM = 0.02
 #: The fast path takes a profile as clean only when its robust scale is at most this, mm.
 FAST_SCALE_MM = 0.1
 #: Half-width of the band that scores a RANSAC candidate, mm.
