@@ -54,8 +54,8 @@ from handeye.app.engine.request import (  # noqa: F401  (the request's names: th
     min_measurements,
     parse_pose,
 )
+from handeye.app.present.result_parts import cleaning_summary
 from handeye.app.present.results import Before
-from handeye.model import profile_clean
 from handeye.model.closed_form import ClosedFormError
 from handeye.model.pose import transform_from_pose
 
@@ -194,7 +194,7 @@ def run(request, dataset):
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
-    result = dataclasses.replace(result, cleaning=profile_clean.summary(dataset))  # what the profiles lost, reported
+    result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
 
 

@@ -18,9 +18,9 @@ from handeye.app.engine import robust, slips
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import CalibrationInputError
-from handeye.app.present.result_parts import FitRecord, ScreeningRecord
+from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleaning_summary
 from handeye.app.present.results import CalibrationResult, ClosedFormDetails, SampleResidual
-from handeye.model import classics, conventions, profile_clean
+from handeye.model import classics, conventions
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import transform_distance
@@ -96,7 +96,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     return CalibrationResult(
         dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
         method=method, unknowns=unknowns, convention=convention, columns=conventions.columns(convention),
-        fit=fit, screening=ScreeningRecord(list(excluded)), warnings=warnings, cleaning=profile_clean.summary(dataset),
+        fit=fit, screening=ScreeningRecord(list(excluded)), warnings=warnings, cleaning=cleaning_summary(dataset),
         closed_form=ClosedFormDetails(
             linear_matrix=est.linear, details=est.details, time_ms=elapsed * 1e3,
             least_squares_from_here={"distance_mm": float(dt), "distance_deg": float(dr),

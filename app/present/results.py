@@ -339,7 +339,7 @@ class CalibrationResult(ResultProtocol):
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
     cleaning : dict or None
-        What profile cleaning dropped (:func:`handeye.model.profile_clean.summary`: totals, and
+        What profile cleaning dropped (:func:`handeye.app.present.result_parts.cleaning_summary`: totals, and
         per profile that lost points its id, row, counts and reasons); ``{'applied': False}``
         with ``--no-clean``; None without profiles.
 
