@@ -61,6 +61,8 @@ RADIUS_TOL = 0.02
 #: Minimal circles drawn (with half the points on the arc, each is of three arc points with
 #: probability 1/8: the chance that none of 512 is, 1e-30).
 CANDIDATES = 512
+#: Above this many points a profile's candidates are scored on this many of them, drawn at random.
+SCORE_POINTS = 5000
 #: A wider circle beats the sphere's only with this many times its points and a sagitta of at
 #: least SAGITTA_MM over them (a line -- the table -- is no arc).
 WIDER_FACTOR = 1.5
@@ -169,7 +171,8 @@ def ransac(x, z, radius, rng):
         The candidate with ``r <= R (1 + RADIUS_TOL) + BAND_MM`` that has the most points within
         BAND_MM, None when no candidate is finite.
     n_best : int
-        Its points.
+        Its points (above :data:`SCORE_POINTS` points counted on that many drawn at random, and
+        scaled to the profile's number).
     wider : handeye.model.circle.Circle or None
         The wider candidate with the most points that is an arc (sagitta >= SAGITTA_MM), when it
         holds WIDER_FACTOR times ``n_best`` or more; else None.
@@ -178,12 +181,16 @@ def ransac(x, z, radius, rng):
     cand = cand[np.all(np.isfinite(cand), axis=1) & (cand[:, 2] > BAND_MM)]
     if not len(cand):
         return None, 0, None
+    scale = 1.0
+    if len(x) > SCORE_POINTS:  # memory and time bounded: candidates x points
+        pick = np.sort(rng.choice(len(x), SCORE_POINTS, replace=False))
+        scale, x, z = len(x) / SCORE_POINTS, x[pick], z[pick]
     inside = np.abs(np.hypot(x[None] - cand[:, :1], z[None] - cand[:, 1:2]) - cand[:, 2:]) < BAND_MM
     score = inside.sum(axis=1)
     fits = cand[:, 2] <= radius * (1 + RADIUS_TOL) + BAND_MM
-    n_best = int(score[fits].max()) if fits.any() else 0
+    n_best = int(round(scale * score[fits].max())) if fits.any() else 0
     best = circle.Circle(*map(float, cand[fits][np.argmax(score[fits])])) if fits.any() else None
-    wide = np.flatnonzero(~fits & (score >= WIDER_FACTOR * max(n_best, 1)))
+    wide = np.flatnonzero(~fits & (scale * score >= WIDER_FACTOR * max(n_best, 1)))
     wide = wide[_sagitta(x, z, cand[wide], inside[wide]) >= SAGITTA_MM] if len(wide) else wide
     wider = circle.Circle(*map(float, cand[wide[np.argmax(score[wide])]])) if len(wide) else None
     return best, n_best, wider

@@ -153,6 +153,8 @@ def test_speckled_dataset_calibrates_within_one_sd_of_the_clean_one(simulated, c
         handeye.calibrate(dirty, no_loo=True, no_clean=True)
     assert cli.main(["calibrate", str(dirty), "--no-loo", "--no-clean"]) == 2
     assert "exceeds the sphere radius" in capsys.readouterr().err
+    assert cli.main(["diagnose", str(dirty), "--no-clean"]) == 2
+    assert "exceeds the sphere radius" in capsys.readouterr().err
 
 
 def test_clean_data_calibrate_the_same_with_and_without_cleaning(simulated, tmp_path):
@@ -233,3 +235,13 @@ def test_real_scanner_profiles_lose_almost_nothing(name):
     data = load(folder)
     total = sum(c.n_points for c in data.cleaning)
     assert sum(c.n_dropped for c in data.cleaning) <= 0.003 * total
+
+
+def test_a_large_profile_is_cleaned_in_bounded_memory():
+    """200,000 points, half speckle: the candidates are scored on 5,000 of them; the arc is kept whole."""
+    rng = np.random.default_rng(0)
+    t = np.radians(np.linspace(-60, 60, 100_000))
+    arc = np.column_stack([25 * np.sin(t), 240 - 25 * np.cos(t) + rng.normal(0, 0.01, t.size)])
+    speckle = np.column_stack([rng.uniform(-50, 50, 100_000), rng.uniform(190, 290, 100_000)])
+    c = profile_clean.clean(np.concatenate([arc, speckle]), 30.0)
+    assert c.kept[:100_000].all() and c.n_dropped > 99_000
