@@ -263,14 +263,15 @@ def resolve(name_or_path):
     )
 
 
-def _clean_profile(points, radius, pfile):
+def _clean_profile(points, radius, rel, file, line):
     """The profile's points on the sphere's arc and the :class:`~handeye.model.profile_clean.Cleaning`
-    record (:mod:`handeye.model.profile_clean`); a profile without an arc is refused, naming its file."""
+    record (:mod:`handeye.model.profile_clean`); a profile without an arc is refused, naming its
+    file (``rel``) and the row ``line`` of ``file`` (measurements.csv) that names it."""
     from handeye.model import profile_clean
 
     record = profile_clean.clean(points, radius)
     if record.status == "no arc":
-        raise DatasetError(pfile, profile_clean.no_arc_message(record, radius))
+        raise DatasetError(file, f"the profile {rel}: {profile_clean.no_arc_message(record, radius)}", line, "profile")
     return (points if record.kept.all() else points[record.kept]), record
 
 
@@ -367,7 +368,7 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=(), clean=True
         if profile:
             profile_files.append((folder / profile).resolve())
             if clean:
-                points, record = _clean_profile(points, diam / 2, folder / profile)
+                points, record = _clean_profile(points, diam / 2, profile, file, line)
         cleaning.append(record)
         if all(cells) or not profile:
             xs = [number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]

@@ -35,7 +35,8 @@ that little.
 
 A profile with no arc -- fewer than :data:`MIN_ARC_POINTS` points, or than
 :data:`MIN_ARC_FRACTION` of its points, on any circle of the sphere -- is reported as such
-(``status`` ``'no arc'``), never silently fitted.
+(``status`` ``'no arc'``), never silently fitted. A profile of fewer than :data:`MIN_ARC_POINTS`
+points is left as it is (too few to tell an arc from speckle; the circle fit judges it).
 """
 from __future__ import annotations
 
@@ -283,11 +284,13 @@ def clean(points, radius):
     """
     pts = np.asarray(points, float).reshape(-1, 2)
     x, z, k = pts[:, 0], pts[:, 1], len(pts)
-    fast = _fast(x, z, radius) if k >= 3 else None
+    if k < MIN_ARC_POINTS:  # too few to tell an arc from speckle: left as they are (the fit judges them)
+        return Cleaning(np.ones(k, bool), k, "clean")
+    fast = _fast(x, z, radius)
     if fast is not None:
         return fast
     need = max(MIN_ARC_POINTS, int(np.ceil(MIN_ARC_FRACTION * k)))
-    best, n_best, wider = ransac(x, z, radius, _seed(pts)) if k >= 3 else (None, 0, None)
+    best, n_best, wider = ransac(x, z, radius, _seed(pts))
     seed, status = (wider, "wider") if wider is not None else (best, "cleaned")
     if seed is None or (wider is None and n_best < need):
         return Cleaning(np.zeros(k, bool), k, "no arc", (("off the arc", k),))

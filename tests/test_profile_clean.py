@@ -192,6 +192,7 @@ def test_a_profile_of_speckle_alone_is_named(simulated, tmp_path):
     with pytest.raises(DatasetError, match=r"no arc of the 59.9451 mm sphere found among its 900 points") as err:
         load(folder)
     assert path.name in str(err.value) and "exceeds" not in str(err.value)
+    assert "measurements.csv, row 3, column 'profile'" in str(err.value)
 
 
 def test_a_wrong_diameter_still_gets_the_diameter_hint(simulated, tmp_path):
