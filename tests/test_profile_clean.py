@@ -155,6 +155,8 @@ def test_speckled_dataset_calibrates_within_one_sd_of_the_clean_one(simulated, c
     assert "exceeds the sphere radius" in capsys.readouterr().err
     assert cli.main(["diagnose", str(dirty), "--no-clean"]) == 2
     assert "exceeds the sphere radius" in capsys.readouterr().err
+    d = handeye.diagnose(dirty)  # diagnose cleans and reports alike
+    assert d.to_dict()["cleaning"] == rep and "profile cleaning:" in d.summary()
 
 
 def test_clean_data_calibrate_the_same_with_and_without_cleaning(simulated, tmp_path):

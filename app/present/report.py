@@ -387,6 +387,7 @@ def diagnosis_text(res):
         lines.append("effects named: none")
     if res.robot_alternatives:
         lines.append(f"  {res.robot_alternatives}")
+    lines += cleaning_lines(getattr(res, "cleaning", None))[1:]
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
     lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
