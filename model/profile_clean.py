@@ -21,8 +21,11 @@ reconstruction refuses it). Cleaning finds the arc and drops the rest, per profi
 3. **M-estimator.** Tukey's biweight (c = 4.685 s) by iteratively reweighted Gauss-Newton on
    the geometric distances ``|p - c| - r``, seeded from the RANSAC circle; the scale
    ``s = 1.4826 MAD`` of the distances within :data:`WINDOW_MM` of the circle, at least
-   :data:`SCALE_FLOOR_MM` (a laser-line sensor's noise, tens of microns at best: no quantised
-   profile is cut to its rounding).
+   :data:`SCALE_FLOOR_MM` (0.02 mm: no point within 0.1 mm of its arc is ever dropped -- a
+   physical floor, as the row consistency check has one: a real sensor's profile departs from a
+   circle by more than its noise, through the sphere's form and the sensor's linearity, and a
+   point that close cannot pull the circle; the simulator's sensor has 0.01 mm, RobCalibrator's
+   real scanner a MAD of 0.011 mm).
 4. Points farther than :data:`K_SD` s from the final circle are dropped ("off the arc"); of the
    rest, runs of fewer than :data:`MIN_RUN` points separated from the arc along the circle by
    more than :data:`GAP_MM` are dropped too ("isolated": speckle that happens to fall on the
@@ -30,8 +33,9 @@ reconstruction refuses it). Cleaning finds the arc and drops the rest, per profi
 
 Why ``K_SD = 5``: a Gaussian point lies beyond 5 sd with probability 5.7e-7, so over a dataset
 of 36 profiles of 1,280 points the expected number of clean points dropped is 0.026 (one in 38
-such datasets loses one point). The scale's own error (MAD of about a thousand points, 3 %) moves
-that little.
+such datasets loses one point); with the scale floored above the noise, fewer still. The scale's
+own error (MAD of about a thousand points, 3 %) moves that little. Measured: 0 of 115,643 points
+of 180 simulated profiles; on real scans only points at least 9 robust sd off their arcs (README).
 
 A profile with no arc -- fewer than :data:`MIN_ARC_POINTS` points, or than
 :data:`MIN_ARC_FRACTION` of its points, on any circle of the sphere -- is reported as such
