@@ -115,7 +115,8 @@ def _score_options(unknowns, method, effects, plot, data):
 
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
-              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None):
+              out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
+              no_clean=False):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
     Parameters
@@ -175,6 +176,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     sensor_pose : str or array_like, optional
         A sensor pose typed in (``convention``'s columns, e.g. the vendor's), held as
         ``calibration`` is.
+    no_clean : bool
+        Fit every profile point: no profile cleaning (:mod:`handeye.model.profile_clean`; by
+        default speckle and background points off the sphere's arc are dropped, and the result's
+        ``cleaning`` says how many of which profile). Applies when ``dataset`` is a name or folder.
 
     Returns
     -------
@@ -205,7 +210,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
                "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
                "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
-               "calibration": None if calibration is None else str(calibration),
+               "calibration": None if calibration is None else str(calibration), "no_clean": bool(no_clean),
                "sensor_pose": None if sensor_pose is None or isinstance(sensor_pose, str) else np.ravel(sensor_pose).tolist()}
     if isinstance(sensor_pose, str):
         options["sensor_pose"] = sensor_pose
@@ -214,7 +219,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     unknowns = unknown_parts(unknowns)
     if method in CLOSED_FORM and unknowns not in UNKNOWNS:
         raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
-    data = load_dataset(dataset)
+    data = load_dataset(dataset, clean=not no_clean)
     scoring = (calibration is not None or sensor_pose is not None) and "sensor" in unknowns.split("+")
     if scoring:
         _score_options(unknowns, method, effects, plot, data)
@@ -258,7 +263,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     return result
 
 
-def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor"):
+def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor",
+             no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
     Parameters
@@ -279,6 +285,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         ``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when
         the setup gives none; its start is :func:`calibrate`'s estimate); ``sensor`` tests the
         effects against the setup's centre.
+    no_clean : bool
+        Fit every profile point: no profile cleaning (as :func:`calibrate`).
 
     Returns
     -------
@@ -300,7 +308,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     if parts not in ("sensor", "sensor+sphere"):
         raise RequestError(f"--unknowns {parts}: diagnose estimates sensor or sensor+sphere (a positioner's axes are "
                            "tested as its first effect)")
-    data = load_dataset(dataset)
+    data = load_dataset(dataset, clean=not no_clean)
     inputs = input_files(data) if (out, figures, plot) != (None, None, None) else ()
     if out is not None:
         check_output_path(out, "--out", inputs=inputs)
@@ -334,7 +342,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
                    "unknowns": parts,
                    "sigma": sigma, "figures": None if figures is None else str(figures),
-                   "plot": None if plot is None else str(plot)}
+                   "plot": None if plot is None else str(plot), "no_clean": bool(no_clean)}
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
     if figures is not None:

@@ -8,7 +8,7 @@ import numpy as np
 from handeye.app.errors import RequestError
 
 
-def load_dataset(name_or_folder):
+def load_dataset(name_or_folder, clean=True):
     """Read and check a dataset.
 
     Parameters
@@ -16,7 +16,10 @@ def load_dataset(name_or_folder):
     name_or_folder : str, pathlib.Path or Dataset
         An embedded dataset (``'thesis-real'``, ``'thesis-sim'``; see
         :func:`handeye.model.dataset.embedded_names`) or a folder holding ``measurements.csv``
-        and ``setup.toml``. A Dataset is returned as it is.
+        and ``setup.toml``. A Dataset is returned as it is (cleaned or not as it was loaded).
+    clean : bool
+        Clean every profile (:mod:`handeye.model.profile_clean`: speckle and background points
+        dropped, what was dropped recorded in ``cleaning``); False keeps every point (``--no-clean``).
 
     Returns
     -------
@@ -36,7 +39,7 @@ def load_dataset(name_or_folder):
         return name_or_folder
     if not isinstance(name_or_folder, (str, os.PathLike)):
         raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {name_or_folder!r}")
-    return load(name_or_folder)
+    return load(name_or_folder, clean=bool(clean))
 
 
 def _path_argument(value):

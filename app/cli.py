@@ -180,7 +180,8 @@ def _use_args(sub, conventions):
     _export_args(sub, calibration)
     cl = sub.add_parser("cloud", help="every profile point of a scan in the robot base, through a calibration "
                                       "(PLY or CSV)")
-    cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed)")
+    cl.add_argument("dataset", help="a scan or dataset folder with profiles (no sphere needed); every profile point, "
+                                    "not cleaned (calibrate's profile cleaning does not apply)")
     calibration(cl)
     cl.add_argument("--out", required=True, metavar="FILE", help="the point cloud to write")
     cl.add_argument("--format", choices=CLOUD_FORMATS, default=None,
@@ -189,7 +190,8 @@ def _use_args(sub, conventions):
     cl.add_argument("--json", action="store_true", help="print the summary as JSON")
     va = sub.add_parser("validate", help="measure the setup's sphere through a calibration: VDI/VDE 2634-2 PF, PS, "
                                          "SD and the centre, with their 1 sd")
-    va.add_argument("dataset", help="a scan or dataset folder (profiles: sphere fit; without: sphere centres)")
+    va.add_argument("dataset", help="a scan or dataset folder (profiles: sphere fit of every point, not cleaned -- a "
+                                    "form test sees every point; --exclude leaves the worst out; without: sphere centres)")
     calibration(va)
     va.add_argument("--exclude", type=float, default=0.0, metavar="FRACTION",
                     help="leave out this fraction of points with the largest deviations (VDI/VDE 2634-2 allows "
@@ -304,6 +306,9 @@ def build_parser():
     cal.add_argument("--alpha", type=float, default=None,
                      help=f"family-wise level of the outlier tests (default {ALPHA:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
+    cal.add_argument("--no-clean", action="store_true",
+                     help="fit every profile point: no profile cleaning (by default speckle and background points off "
+                          "the sphere's arc are dropped and reported)")
     cal.add_argument("--sigma", type=float, default=None, metavar="MM",
                      help="stated noise of a sphere centre (mm per component) the centre residual is tested "
                           "against (default: setup.toml [noise] centre_mm, else 0.05); the profile models are "
@@ -341,6 +346,7 @@ def build_parser():
     diag.add_argument("dataset", nargs="?", default="thesis-real")
     diag.add_argument("--alpha", type=float, default=ALPHA, help=f"family-wise level of the tests (default {ALPHA:g})")
     diag.add_argument("--json", action="store_true")
+    diag.add_argument("--no-clean", action="store_true", help="fit every profile point: no profile cleaning")
     diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
     diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
     diag.add_argument("--sigma", type=float, default=None, metavar="MM",
@@ -410,7 +416,7 @@ def _diagnose(args):
     from handeye.app import api
 
     result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot, sigma=args.sigma,
-                          out=args.out, unknowns=args.unknowns)
+                          out=args.out, unknowns=args.unknowns, no_clean=args.no_clean)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK
 
@@ -529,7 +535,7 @@ def _calibrate(args):
                            start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
                            keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
                            out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects,
-                           calibration=args.calibration, sensor_pose=args.sensor_pose)
+                           calibration=args.calibration, sensor_pose=args.sensor_pose, no_clean=args.no_clean)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK if getattr(result, "converged", True) else EXIT_NOT_CONVERGED  # a score (no converged) is exit 0
 

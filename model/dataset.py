@@ -136,7 +136,14 @@ class Dataset(FlangePoses):
         ``sensor_pose`` (6,) and maybe ``sphere_center`` (3,); simulated data only.
     profiles : tuple or None
         Per measurement the profile points (K, 2: sensor x, z in mm) or None; None when the
-        dataset has no profiles at all.
+        dataset has no profiles at all. Cleaned (the points on the sphere's arc) unless loaded
+        with ``clean=False``; every fit and check uses these.
+    raw_profiles : tuple or None
+        The same profiles as read, every point (what ``handeye validate`` and ``cloud`` see).
+    cleaning : tuple or None
+        Per measurement its :class:`handeye.model.profile_clean.Cleaning` (kept mask, points
+        dropped and why) or None without a profile; None when the dataset was loaded with
+        ``clean=False`` or has no profiles.
     convention : str
         The robot-brand convention of the files (:mod:`handeye.model.conventions`); poses here are
         always KUKA.
@@ -189,6 +196,8 @@ class Dataset(FlangePoses):
     sensor_pose: np.ndarray | None = None
     joints: np.ndarray | None = None
     robot_model: object | None = None
+    raw_profiles: tuple | None = None
+    cleaning: tuple | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -202,6 +211,8 @@ class Dataset(FlangePoses):
             flange_poses=self.flange_poses[mask],
             centre_in_sensor=self.centre_in_sensor[mask],
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
+            raw_profiles=None if self.raw_profiles is None else tuple(p for p, k in zip(self.raw_profiles, mask) if k),
+            cleaning=None if self.cleaning is None else tuple(c for c, k in zip(self.cleaning, mask) if k),
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
@@ -251,6 +262,18 @@ def resolve(name_or_path):
     raise DatasetError(
         name_or_path, f"no dataset folder or embedded dataset of that name (embedded: {', '.join(embedded_names())})"
     )
+
+
+def _clean_profile(points, radius, rel, file, line):
+    """The profile's points on the sphere's arc and the :class:`~handeye.model.profile_clean.Cleaning`
+    record (:mod:`handeye.model.profile_clean`); a profile without an arc is refused, naming its
+    file (``rel``) and the row ``line`` of ``file`` (measurements.csv) that names it."""
+    from handeye.model import profile_clean
+
+    record = profile_clean.clean(points, radius)
+    if record.status == "no arc":
+        raise DatasetError(file, f"the profile {rel}: {profile_clean.no_arc_message(record, radius)}", line, "profile")
+    return (points if record.kept.all() else points[record.kept]), record
 
 
 def _centre_from_profile(points, radius, side, pfile):
@@ -303,11 +326,12 @@ def load_setup(name_or_path):
     return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention, st.mounts)
 
 
-def _read_rows(folder, file, convention, limits, diam, side, axes=()):
+def _read_rows(folder, file, convention, limits, diam, side, axes=(), clean=True):
     """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
     lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw,
-    angles)`` as lists (``angles``: the positioner axis columns ``axes``, degrees). Raises
-    DatasetError naming file, row and column."""
+    angles, raw_profiles, cleaning)`` as lists (``angles``: the positioner axis columns ``axes``,
+    degrees; ``profiles`` cleaned when ``clean``, ``raw_profiles`` as read). Raises DatasetError
+    naming file, row and column."""
     pose_columns = conventions.columns(convention)
     required = ("id",) + pose_columns + ("xs", "ys", "zs") + tuple(axes)
     table = read_table(file)
@@ -330,7 +354,7 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
             raise DatasetError(file, "missing column", 1, col)
     idx = {c: header.index(c) for c in header}
     ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = [], [], [], [], [], [], [], []
-    angles = []
+    angles, raw_profiles, cleaning = [], [], []
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if not any(f.strip() for f in fields):
@@ -345,8 +369,13 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
         if not profile and not centre_columns:
             raise DatasetError(file, "no profile: without xs,ys,zs columns every row needs one", line, "profile")
         points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None
+        raw_profiles.append(points)
+        record = None
         if profile:
             profile_files.append((folder / profile).resolve())
+            if clean:
+                points, record = _clean_profile(points, diam / 2, profile, file, line)
+        cleaning.append(record)
         if all(cells) or not profile:
             xs = [number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
             for v, c in zip(xs, ("xs", "ys", "zs")):
@@ -365,7 +394,7 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=()):
         rows.append(line)
         poses.append(pose)
         centres.append(xs)
-    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles
+    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles, cleaning
 
 
 #: Largest positioner axis angle a row may hold (degrees): beyond it, radians or a misprint are not
@@ -419,8 +448,12 @@ def _check_truth_params(truth, model, file):
                                      f"{', '.join(robot_errors.param_names(model, name))})", column=f"[truth] {name}")
 
 
-def load(name_or_path):
-    """Read and check a dataset (module docstring); raises :class:`DatasetError`."""
+def load(name_or_path, clean=True):
+    """Read and check a dataset (module docstring); raises :class:`DatasetError`.
+
+    With ``clean`` (the default) every profile is cleaned (:mod:`handeye.model.profile_clean`:
+    speckle and background dropped) before anything is fitted to it: ``profiles`` holds the
+    points on the arc, ``raw_profiles`` the points as read and ``cleaning`` what was dropped."""
     folder = resolve(name_or_path)
     st = read_setup(folder)
     if st.sphere2 is not None:
@@ -434,11 +467,12 @@ def load(name_or_path):
     axes = st.mounts.axis_names
     plain = read_plain_rows(file, pose_columns, convention, limits, axes)  # a large plain file: column-wise
     if plain is None:
-        ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles = _read_rows(
-            folder, file, convention, limits, diam, side, axes)
+        (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles,
+         cleaning) = _read_rows(folder, file, convention, limits, diam, side, axes, clean)
     else:
         ids, rows, poses, centres, raw, angles = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw", "extra"))
         profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
+        raw_profiles, cleaning = profiles, profiles
     if not ids:
         raise DatasetError(file, "no measurements", 2)
     angles = np.array(angles, float).reshape(len(ids), -1)
@@ -460,6 +494,8 @@ def load(name_or_path):
         side=side,
         truth=truth,
         profiles=tuple(profiles) if any(p is not None for p in profiles) else None,
+        raw_profiles=tuple(raw_profiles) if any(p is not None for p in profiles) else None,
+        cleaning=tuple(cleaning) if clean and any(p is not None for p in profiles) else None,
         reconstructed=tuple(reconstructed),
         profile_files=tuple(sorted(set(profile_files))),
         raw_poses=np.array(raw, dtype=float),

@@ -54,6 +54,7 @@ from handeye.app.engine.request import (  # noqa: F401  (the request's names: th
     min_measurements,
     parse_pose,
 )
+from handeye.app.present.result_parts import cleaning_summary
 from handeye.app.present.results import Before
 from handeye.model.closed_form import ClosedFormError
 from handeye.model.pose import transform_from_pose
@@ -127,6 +128,7 @@ def screen(prep):
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
+    excluded = robust.with_geometry(dataset, excluded)  # a profile's arc that explains its poor centre, named
     used = dataset.subset(mask)
     if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
         slips.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)
@@ -192,6 +194,7 @@ def run(request, dataset):
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
+    result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
 
 

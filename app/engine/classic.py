@@ -18,7 +18,7 @@ from handeye.app.engine import robust, slips
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import CalibrationInputError
-from handeye.app.present.result_parts import FitRecord, ScreeningRecord
+from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleaning_summary
 from handeye.app.present.results import CalibrationResult, ClosedFormDetails, SampleResidual
 from handeye.model import classics, conventions
 from handeye.model.calibration import CalibrationModel
@@ -56,6 +56,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
         screening = robust.screen(dataset, unknowns, start, alpha=alpha)
         mask, excluded = screening.inliers, screening.excluded
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # as calibrate and diagnose
+    excluded = robust.with_geometry(dataset, excluded)
     f2b, xs = f2b_all[mask], xs_all[mask]
     classics.axxb_system(np.eye(4)[None], p=np.zeros((1, 3)), q=np.zeros((1, 3)))  # load the generated code untimed
     t0 = time.perf_counter()
@@ -95,7 +96,7 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     return CalibrationResult(
         dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
         method=method, unknowns=unknowns, convention=convention, columns=conventions.columns(convention),
-        fit=fit, screening=ScreeningRecord(list(excluded)), warnings=warnings,
+        fit=fit, screening=ScreeningRecord(list(excluded)), warnings=warnings, cleaning=cleaning_summary(dataset),
         closed_form=ClosedFormDetails(
             linear_matrix=est.linear, details=est.details, time_ms=elapsed * 1e3,
             least_squares_from_here={"distance_mm": float(dt), "distance_deg": float(dr),

@@ -385,6 +385,7 @@ def _report(run, structure, fit, flips, outliers):
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     after_norms = np.linalg.norm(fit.e, axis=1)
+    from handeye.app.present.result_parts import cleaning_summary
     from handeye.app.present.results import Uncertainty
     from handeye.model import conventions
 
@@ -419,6 +420,7 @@ def _report(run, structure, fit, flips, outliers):
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
         robot_alternatives=run.robot_alternatives,
         always_absorbed=tuple(sorted(prob.robot_always)),
+        cleaning=cleaning_summary(d),
     )
 
 

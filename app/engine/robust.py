@@ -211,6 +211,25 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     return keep, _contradiction_records(check.inconsistent, excluded)
 
 
+def with_geometry(dataset, excluded):
+    """The records ``excluded`` with the geometric cause of each whose profile explains a poorly
+    determined centre (:func:`handeye.model.arc_geometry.causes`: a short or one-sided arc, near
+    the equator, few points; named only when its centre's sd along an axis exceeds five times
+    the other profiles' median and accounts for its prediction error): in ``geometry`` and
+    after the statistical reason."""
+    if not excluded or dataset.profiles is None:
+        return excluded
+    from handeye.model import arc_geometry
+
+    index = {int(r): k for k, r in enumerate(dataset.rows)}
+    records = [e for e in excluded if e.row in index and dataset.profiles[index[e.row]] is not None]
+    named = arc_geometry.causes(dataset.profiles, dataset.sphere_diameter / 2, dataset.side,
+                                [index[e.row] for e in records], [e.residual_mm for e in records])
+    return [dataclasses.replace(e, geometry=named[index[e.row]],
+                                reason=f"{e.reason}; its profile explains it: {named[index[e.row]]}")
+            if index.get(e.row) in named else e for e in excluded]
+
+
 def _contradiction_error(dataset, check, keep, unknowns):
     """The CalibrationInputError of :func:`exclude_inconsistent` when too many rows contradict
     themselves (``check`` the consistency check, ``keep`` the rows that would remain)."""

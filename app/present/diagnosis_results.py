@@ -106,6 +106,10 @@ class DiagnosisResult(ResultProtocol):
     robot_alternatives : str or None
         Other robot effects that explain the data about as well as those named (their BIC and
         how far the sensor pose moves with them; :mod:`handeye.app.engine.robot_choice`), or None.
+    cleaning : dict or None
+        What profile cleaning dropped, as :attr:`CalibrationResult.cleaning
+        <handeye.app.present.results.CalibrationResult>` (``{'applied': False}`` with
+        ``--no-clean``; None without profiles).
     """
 
     dataset: str
@@ -140,6 +144,7 @@ class DiagnosisResult(ResultProtocol):
     always_absorbed: tuple = ()
     unknowns: str = "sensor"
     against_calibrate: str | None = None
+    cleaning: dict | None = None
 
     @property
     def absorbed_explained(self):
@@ -186,6 +191,7 @@ class DiagnosisResult(ResultProtocol):
                                              else self.sensor_pose)},
             "std": None if self.std is None else self.std.to_dict(),
             "absorbed_explained": self.absorbed_explained,
+            "cleaning": self.cleaning,
             **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 

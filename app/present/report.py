@@ -151,6 +151,7 @@ def calibration_text(res):
         lines += [f"warning: {w}" for w in res.warnings]
         return "\n".join(lines)
     lines += [""] + residual_lines(res.residuals)
+    lines += cleaning_lines(res.cleaning)
     if res.excluded:
         lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
         lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded[:REPORT_ROWS]]
@@ -361,6 +362,7 @@ def classic_text(res):
         f"least squares started here: {'converged' if ls['converged'] else 'NOT converged'} in {ls['iterations']} "
         f"iterations, {ls['distance_mm']:.4f} mm and {ls['distance_deg']:.4f} deg away, RMS {ls['rms_mm']:.4f} mm",
     ]
+    lines += cleaning_lines(res.cleaning)
     if res.excluded:
         lines.append("excluded samples (gross errors, screened as calibrate does):")
         lines += [f"  {x.id} (row {x.row}): {x.reason}" for x in res.excluded]
@@ -387,6 +389,7 @@ def diagnosis_text(res):
         lines.append("effects named: none")
     if res.robot_alternatives:
         lines.append(f"  {res.robot_alternatives}")
+    lines += cleaning_lines(getattr(res, "cleaning", None))[1:]
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
     lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
@@ -443,3 +446,25 @@ def diagnosis_figures(res, out):
     save_figure_atomically(fig, out / "gap.png", option="--figures")
     plt.close(fig)
     return [out / "residuals.png", out / "gap.png"]
+
+
+def cleaning_lines(report, limit=20):
+    """The text report's lines of a result's ``cleaning``
+    (:func:`handeye.app.present.result_parts.cleaning_summary`; empty when there is nothing to say)."""
+    if not report:
+        return []
+    if not report["applied"]:
+        return ["", "profile cleaning: off (--no-clean): every profile point is fitted"]
+    head = (f"profile cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
+            f"{len(report['samples'])} of {report['profiles']} profiles")
+    if not report["dropped"]:
+        return ["", head + " (every point lies on its arc)"]
+    why = ", ".join(f"{name} {n:,}" for name, n in report["reasons"].items())
+    lines = ["", f"{head} ({why}; speckle, background or clusters, not the sphere):"]
+    for s in report["samples"][:limit]:
+        parts = ", ".join(f"{name} {n:,}" for name, n in s["reasons"].items())
+        lines.append(f"  {s['id']} (row {s['row']}): {s['dropped']:,} of {s['points']:,} dropped ({parts})"
+                     + (" -- an arc wider than the sphere, kept" if s["status"] == "wider" else ""))
+    if len(report["samples"]) > limit:
+        lines.append(f"  ... and {len(report['samples']) - limit} more (the JSON report, --json, lists every one)")
+    return lines

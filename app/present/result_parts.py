@@ -247,6 +247,36 @@ class NamedEffect:
                 "std": None if self.std is None else dict(self.std), "note": self.note}
 
 
+def cleaning_summary(dataset):
+    """What profile cleaning (:mod:`handeye.model.profile_clean`) did to a dataset's profiles,
+    JSON-ready (the calibration result's ``cleaning``).
+
+    Parameters
+    ----------
+    dataset : handeye.model.dataset.Dataset
+
+    Returns
+    -------
+    dict or None
+        None without profiles; else ``applied`` (False when loaded with ``clean=False``: then
+        nothing more), ``profiles``, ``points`` and ``dropped`` (totals), ``reasons`` (totals by
+        reason) and ``samples``: ``id``, ``row``, ``points``, ``dropped``, ``status``,
+        ``reasons`` of each profile that lost points (only those).
+    """
+    if dataset.profiles is None:
+        return None
+    if dataset.cleaning is None:
+        return {"applied": False}
+    records = [(i, r, c) for i, r, c in zip(dataset.ids, dataset.rows, dataset.cleaning) if c is not None]
+    reasons = {}
+    for _, _, c in records:
+        for name, n in c.dropped:
+            reasons[name] = reasons.get(name, 0) + int(n)
+    return {"applied": True, "profiles": len(records), "points": int(sum(c.n_points for _, _, c in records)),
+            "dropped": int(sum(c.n_dropped for _, _, c in records)), "reasons": reasons,
+            "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped]}
+
+
 #: Flat attribute of the result -> (part, attribute of the part).
 FLAT = {
     **{f.name: ("fit", f.name) for f in dataclasses.fields(FitRecord)},

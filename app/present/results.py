@@ -171,6 +171,10 @@ class ExcludedSample:
     p_bonferroni : float
         Bonferroni-adjusted p-value.
     reason : str
+        The statistical reason, and the geometric one after it when there is one.
+    geometry : str or None
+        The profile's geometry when it explains a poorly determined centre (a short, one-sided
+        arc near the equator ...: :mod:`handeye.model.arc_geometry`), else None.
     """
 
     id: str
@@ -180,6 +184,7 @@ class ExcludedSample:
     statistic: float
     p_bonferroni: float
     reason: str
+    geometry: str | None = None
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -333,6 +338,10 @@ class CalibrationResult(ResultProtocol):
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
+    cleaning : dict or None
+        What profile cleaning dropped (:func:`handeye.app.present.result_parts.cleaning_summary`: totals, and
+        per profile that lost points its id, row, counts and reasons); ``{'applied': False}``
+        with ``--no-clean``; None without profiles.
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
@@ -370,6 +379,7 @@ class CalibrationResult(ResultProtocol):
     sphere_mount: str = "world"
     positioner: object | None = None
     robot_model: str | None = None
+    cleaning: dict | None = None
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -485,6 +495,7 @@ class CalibrationResult(ResultProtocol):
             "objective": self.objective,
             "loo": self.loo,
             "rms_note": self.rms_note,
+            "cleaning": self.cleaning,
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance

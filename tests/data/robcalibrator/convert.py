@@ -31,7 +31,8 @@ cleaning
     with at least ``MIN_NEIGHBOURS`` other points within ``NEIGHBOUR_MM``, then the largest
     group of them linked by steps shorter than ``LINK_MM``. It removes isolated speckle (the
     ball scans 7, 9 and 10 have hundreds of points scattered over the whole field of view) and
-    nothing from a clean profile.
+    nothing from a clean profile. ``ball-2023-05-raw`` (``"filter": False``) keeps every non-NaN
+    point: the speckle is left for handeye's profile cleaning.
 reference
     ``Solution.HTM`` of the ``calibration.sec`` is the sensor in the flange in the file's frame;
     in handeye's frame it is ``HTM @ diag(1, -1, -1, 1)``.
@@ -67,6 +68,10 @@ DATASETS = {
     # another sensor (the "3C" line, AT C5 factory file in data/) on a 1-inch ball; its solution is
     # tmp/calibration.sec (Radius 12.7; its RobPoses, tmp/RobPoses.rob, are these poses)
     "ball-2023-05": {"poses": "ball/robpose.txt", "profiles": "ball/{k}_3C_line.yml", "section": "tmp/calibration.sec"},
+    # the same ball scans with only their NaN points dropped (no filter): the speckle of scans 7, 9
+    # and 10 left in, for handeye's own profile cleaning (tests/test_profile_clean.py)
+    "ball-2023-05-raw": {"poses": "ball/robpose.txt", "profiles": "ball/{k}_3C_line.yml",
+                         "section": "tmp/calibration.sec", "filter": False},
 }
 
 
@@ -146,6 +151,12 @@ def clean(points):
     return pts[label == biggest], valid
 
 
+def raw(points):
+    """Drop only the NaN rows (a dataset left for handeye's own cleaning). Returns (kept, valid)."""
+    pts = points[~np.isnan(points).any(axis=1)]
+    return pts, len(pts)
+
+
 def side_from(section, given=None):
     """handeye's ``[profile] side`` from ``SphCtrDirc`` (file's y; handeye's y is its opposite)."""
     dirc = given or section.get("CalibObj", {}).get("SphCtrDirc", "+Y")  # DataProc::CalcSphereCtrs' default
@@ -169,7 +180,7 @@ def convert(src, out, name, spec):
     rows, kept = ["id,x,y,z,w,p,r,xs,ys,zs,profile"], {}
     for k, pose in enumerate(poses, start=1):
         rel = spec["profiles"].format(k=k)
-        pts, valid = clean(read_profile(source(rel)))
+        pts, valid = clean(read_profile(source(rel))) if spec.get("filter", True) else raw(read_profile(source(rel)))
         ident = pathlib.Path(rel).stem
         kept[ident] = {"points": int(valid), "kept": len(pts)}
         lines = "".join(f"{x:.3f},{-z:.4f}\n" for x, z in zip(pts[:, 0], pts[:, 2]))
