@@ -116,6 +116,7 @@ def screen(prep):
     plain = robust.least_squares(everything, plain_start).x
     plain_rms = float(np.sqrt(np.mean(np.sum(everything.residuals(plain) ** 2, axis=1))))
     slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
+    slips.check_radius(dataset, unknowns, request.sigma, request.effects)  # a wrong diameter the pose would absorb
     if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
         slips.check_centre(dataset, request.sigma, request.effects)
     loo = describe.rms(robust.leave_one_out(everything, plain)) if request.loo else None

@@ -461,3 +461,67 @@ def check_centre(dataset, sigma=None, effects=()):
         + (f" -- or the robot's own errors are: with {robot} the given centre fits within the stated noise. "
            f"handeye diagnose tests both; then correct [sphere] center, or calibrate with --effects {robot}"
            if robot else ". Correct [sphere] center, or calibrate with --unknowns sensor+sphere"))
+
+
+def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
+    """Raise :class:`CalibrationInputError` when ``[sphere] diameter`` contradicts the data beyond
+    the pose's own uncertainty.
+
+    A centre reconstructed from a profile puts it ``sqrt(R^2 - r^2)`` from the laser plane: a
+    wrong R moves every centre along the sensor's y by an amount that depends on the cut, and the
+    pose absorbs part of it (a 30 mm sphere given as 50.8 mm: 16.7 mm off at exit 0; given as
+    30.5 mm: 0.67 mm off, two good samples excluded as gross errors). As for the centre
+    (:func:`check_centre`): when the centre model is worse than the stated noise, the model with
+    the radius free (the catalogue's ``sphere_radius``) is the alternative, named when it fits
+    significantly better (F test on one parameter, p below :data:`P_SLIP`), fits within the
+    stated noise (the radius alone explains the misfit) and moves the pose by more than
+    :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
+    depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
+    """
+    from handeye.model import extended, global_fit
+    from handeye.model.rotation import rotvec_from_matrix, transform_distance
+    from handeye.model.statistics import chi2_survival, f_survival
+
+    if "sphere_radius" in effects or not any(dataset.reconstructed or ()) or unknowns not in ("sensor", "sensor+sphere"):
+        return
+    free_centre, n = unknowns == "sensor+sphere", len(dataset)
+    sigma = dataset.noise_centre_mm if sigma is None else float(sigma)
+    if free_centre or dataset.sphere_centre is not None:
+        try:
+            given = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor,
+                                             None if free_centre else dataset.sphere_centre).best
+        except global_fit.GlobalFitError:
+            return
+    else:
+        return
+    if 3 * n - 7 - 3 * free_centre <= 0 or chi2_survival(2 * given.cost / sigma**2, 3 * n - 6 - 3 * free_centre) >= P_SUSPECT:
+        return
+    prob, mask = extended.Samples(dataset, sigma), np.ones(n, bool)
+    held = extended.Structure(centre=free_centre)
+    radius = dataclasses.replace(held, data_effects=("sphere_radius",))
+    with np.errstate(all="ignore"):
+        a = prob.fit(held, mask, prob.point(held, given.sensor2flange, given.centre))
+        b = prob.fit(radius, mask, prob.point(radius, prob.transform(a.x), prob.centre(held, a.x)))
+    if not (np.isfinite(a.ssr) and np.isfinite(b.ssr)) or b.m - b.p <= 0 or b.ssr <= 0:
+        return
+    f = (a.ssr - b.ssr) / (b.ssr / (b.m - b.p))
+    if f <= 0 or f_survival(f, 1, b.m - b.p) >= P_SLIP or chi2_survival(b.ssr / sigma**2, b.m - b.p) < P_SUSPECT:
+        return
+    jac = b.jac[mask].reshape(-1, b.p)
+    cov = b.sigma2 * np.linalg.pinv(jac.T @ jac)
+    sa, sb = prob.transform(a.x), prob.transform(b.x)
+    delta = np.concatenate([sb[:3, 3] - sa[:3, 3], rotvec_from_matrix(sa[:3, :3].T @ sb[:3, :3])])
+    moved = float(np.sqrt(delta @ np.linalg.pinv(cov[:6, :6]) @ delta))
+    if moved <= SIDE_MOVE_SD:
+        return
+    k = b.names.index("sphere_radius.dr")
+    dr, sd = float(b.params["sphere_radius"][0]), float(np.sqrt(max(cov[k, k], 0.0)))
+    dt, da = transform_distance(sa, sb)
+    diameter = dataset.sphere_diameter
+    raise CalibrationInputError(
+        f"{dataset.path / 'setup.toml'}, column '[sphere] diameter': the profiles put the sphere's diameter at "
+        f"{diameter + 2 * dr:.3f} +- {2 * sd:.2g} mm, not the given {diameter:g} mm; with it the centre model's RMS falls "
+        f"from {np.sqrt(a.ssr / n):.3g} to {np.sqrt(b.ssr / n):.3g} mm, the stated noise, and the sensor pose moves "
+        f"{dt:.3g} mm / {da:.3g} deg, {moved:.3g} sd (Mahalanobis): a wrong diameter (another sphere's? a radius? "
+        "inches?) that the pose would absorb. Correct [sphere] diameter, or calibrate the radius with --effects "
+        "sphere_radius (a sensor that sees every sphere smaller)")
