@@ -252,6 +252,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
             outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
             robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
         result = run_score(request, data, given, source) if scoring else run(request, data)
+        if data.own_axes is not None and not scoring:  # profiles turned by dataset new: the own frame too
+            result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)

@@ -165,6 +165,9 @@ class Dataset(FlangePoses):
         Joint angles ``j1..j6`` of each pose, degrees (optional columns; they need ``[robot] model``).
     robot_model : handeye.model.robots.RobotModel or None
         ``[robot] model``: the nominal kinematics (checked on load to reproduce the reported poses).
+    own_axes : ndarray, shape (3, 3), or None
+        ``[profile] own_axes``: R with ``p = R p_own``, the sensor's own frame (its driver's points)
+        in the frame of the profiles (laser plane y = 0) that the calibration is of; None: the same.
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -198,6 +201,7 @@ class Dataset(FlangePoses):
     robot_model: object | None = None
     raw_profiles: tuple | None = None
     cleaning: tuple | None = None
+    own_axes: np.ndarray | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -507,4 +511,5 @@ def load(name_or_path, clean=True):
         sensor_pose=st.sensor_pose,
         joints=joints,
         robot_model=model,
+        own_axes=st.own_axes,
     )

@@ -64,7 +64,7 @@ _ALLOWED = {
     "sphere": {"diameter", "center", "base_pose", "center_in_plate", "mount"},
     "positioner": {"axes"},
     "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
-    "profile": {"side"},
+    "profile": {"side", "own_axes"},
     "truth": {"sensor_pose", "sphere_center", "axes", "joint_offsets", "link_lengths", "joint_compliance"},
     "noise": {"centre_mm", "robot_mm"},
     "limits": {"position_mm", "sensor_mm"},
@@ -189,6 +189,7 @@ def read_setup(path, require_sphere=True):
     side = doc.get("profile", {}).get("side", -1)
     if side not in (1, -1) or isinstance(side, bool):
         raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
+    own_axes = _own_axes(doc.get("profile", {}).get("own_axes"), file)
     noise = _noise_and_limits(doc, file)
     vectors = [("[sensor] start_pose", start), ("[sensor] pose", known), ("[sphere] center", centre),
                ("[sphere] base_pose", plate_pose)]
@@ -200,7 +201,24 @@ def read_setup(path, require_sphere=True):
     if model is not None and (not isinstance(model, str) or not model.strip()):
         raise DatasetError(file, f"needs a built-in model's name or a model file, got {model!r}", column="[robot] model")
     return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), _truth(doc, file, convention),
-                      convention, noise, sphere2, mounts, known, model)
+                      convention, noise, sphere2, mounts, known, model, own_axes)
+
+
+def _own_axes(value, file):
+    """``[profile] own_axes``: the rotation R (3 x 3, rows) with ``p = R p_own`` from the sensor's own
+    frame (its driver's points) to the frame of the profiles (laser plane y = 0); None when absent.
+    Written by ``handeye dataset new`` when it turned the files' points; a proper rotation."""
+    if value is None:
+        return None
+    try:
+        rot = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        rot = None
+    if rot is None or rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
+        raise DatasetError(file, "needs three rows of three numbers (a rotation)", column="[profile] own_axes")
+    if not (np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.linalg.det(rot) > 0):
+        raise DatasetError(file, "is not a proper rotation (R R^T = I, det R = +1)", column="[profile] own_axes")
+    return rot
 
 
 @dataclasses.dataclass(frozen=True)
@@ -220,6 +238,7 @@ class _SetupFile:
     mounts: Mounts = Mounts()
     sensor_pose: np.ndarray | None = None  # [sensor] pose: the sensor pose known, KUKA
     robot_model: str | None = None  # [robot] model: a built-in name or a file (relative to the folder)
+    own_axes: np.ndarray | None = None  # [profile] own_axes: p = R p_own (the sensor's own frame)
 
 
 def _read_sphere(doc, section, file, convention, required):

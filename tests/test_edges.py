@@ -428,9 +428,10 @@ def test_an_interrupted_simulate_leaves_no_half_written_dataset(tmp_path, sig):
     assert done.returncode == 0 and (tmp_path / "d" / "measurements.csv").exists(), done.stderr
 
 
-def test_advice_without_a_sphere_centre_says_to_write_it_first(tmp_path):
-    """diagnose needs a known centre: where calibrate estimated it, its advice to run diagnose
-    says to write the estimate into setup.toml first, and diagnose's refusal names the option."""
+def test_advice_without_a_sphere_centre_names_diagnose_with_the_centre_free(tmp_path):
+    """Where calibrate estimated the centre, its advice to run diagnose says --unknowns sensor+sphere
+    (diagnose estimates it too), diagnose without it refuses naming the option, and with it names
+    the effect."""
     import handeye
 
     sim = handeye.simulate(tmp_path / "d", seed=5, effect="sensor_scale=0.003", profiles=True)
@@ -438,6 +439,8 @@ def test_advice_without_a_sphere_centre_says_to_write_it_first(tmp_path):
     setup.write_text("\n".join(line for line in setup.read_text().splitlines() if not line.startswith("center")))
     res = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True)
     advice = [w for w in res.warnings if "handeye diagnose" in w]
-    assert advice and all("write the sphere centre estimated here into setup.toml" in w for w in advice)
+    assert advice and all("/d --unknowns sensor+sphere`" in w for w in advice), advice
     with pytest.raises(handeye.InputError, match="--unknowns sensor\\+sphere"):
         handeye.diagnose(sim.path)
+    named = handeye.diagnose(sim.path, unknowns="sensor+sphere")
+    assert [e.name for e in named.effects] == ["sensor_scale"]

@@ -85,11 +85,8 @@ def command_argument(dataset):
 
 def diagnose_advice(dataset, centre_given=True):
     """``run `handeye diagnose DATASET``` as a command to paste; where the setup gives no sphere
-    centre (diagnose tests effects against a known one), preceded by writing the estimated one."""
-    run = f"run `handeye diagnose {command_argument(dataset)}`"
-    if centre_given:
-        return run
-    return "write the sphere centre estimated here into setup.toml ([sphere] center), then " + run
+    centre, with ``--unknowns sensor+sphere`` (the centre estimated with the pose there too)."""
+    return f"run `handeye diagnose {command_argument(dataset)}" + ("`" if centre_given else " --unknowns sensor+sphere`")
 
 
 def noise_test(ssr, dof, sigma, whitened, warnings, advice):

@@ -58,6 +58,17 @@ class Slip:
     fix: str
 
 
+def _side_in_files(dataset, side):
+    """For a dataset whose profiles ``handeye dataset new`` turned (``[profile] own_axes``): the
+    same side as ``dataset new --side`` takes it, in the files' own frame."""
+    if getattr(dataset, "own_axes", None) is None:
+        return ""
+    row = np.asarray(dataset.own_axes, float)[1]  # handeye's y along the files' normal
+    k = int(np.argmax(np.abs(row)))
+    return (f"; with handeye dataset new, --side {int(side * np.sign(row[k])):+d} (the side in the profile files' "
+            f"{'xyz'[k]}, as that command takes it)")
+
+
 def _candidates(dataset):
     d, setup = dataset, dataset.path / "setup.toml"
     out = []
@@ -67,7 +78,7 @@ def _candidates(dataset):
         xs[rows, 1] = -xs[rows, 1]
         out.append(Slip("[profile] side", dataclasses.replace(d, centre_in_sensor=xs, side=-d.side),
                         f"set side = {-d.side} in {setup} (the side of the laser plane the sphere's centre lies on, "
-                        "in the sensor's y)"))
+                        "in the sensor's y)" + _side_in_files(d, -d.side)))
     given = np.ones(len(d), bool) if d.reconstructed is None else ~np.array(d.reconstructed)
     if given.any():  # centres the file gives: their y sign is the sensor's (a y axis the other way?)
         xs = d.centre_in_sensor.copy()

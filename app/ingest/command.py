@@ -143,6 +143,7 @@ def _check_options(out, opts):
 
     check_output_folder(out, "OUT", empty=True)
     _from_setup(opts)
+    opts["side_default"] = opts["side"] is None
     opts["side"] = -1 if opts["side"] is None else opts["side"]
     if opts["poses"] is not None and opts["bag"] is not None:
         raise RequestError("--poses and --bag: give one of them (the bag's --pose-topic has the poses)")
@@ -330,7 +331,8 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     inputs["profiles"] = sources.formats(per_pose)
     side = mapping.side(opts["side"])
     if side != opts["side"]:
-        notes.append(f"--side {opts['side']:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")
+        given = "the default --side" if opts.get("side_default") else "--side"
+        notes.append(f"{given} {opts['side']:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")
     result = NewDatasetResult(
         path=pathlib.Path(out), ids=tuple(ids), convention=conv, inputs=inputs, conversions=tuple(notes),
         plane=mapping.describe(), rotation=None if mapping.identity else mapping.rotation,
@@ -365,7 +367,8 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(roles + extra)]
     files["measurements.csv"] = writer.measurements_text(result.ids, values, result.convention, rels, joints)
-    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], result.side, centre, start_pose, model)
+    files["setup.toml"] = writer.setup_text(result.convention, opts["diameter"], result.side, centre, start_pose, model,
+                                            result.rotation)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files
 
@@ -424,7 +427,8 @@ def _write_checked(out, files):
         except DatasetError as exc:
             rel = pathlib.Path(exc.file).resolve()
             name = rel.relative_to(tmp.resolve()) if rel.is_relative_to(tmp.resolve()) else rel
-            raise DatasetError(pathlib.Path(out) / name, f"the assembled dataset does not load: {exc.problem}", exc.row,
+            problem = exc.problem.replace(" in setup.toml", " (--diameter)")  # the setup is the options' here
+            raise DatasetError(pathlib.Path(out) / name, f"the assembled dataset does not load: {problem}", exc.row,
                                exc.column) from None
 
     write_folder_atomically(out, write, option="OUT")

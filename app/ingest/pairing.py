@@ -124,8 +124,12 @@ def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
     index = _by_id(labels, names, ids, tokens, pose_file)
     missing = sorted(set(range(len(ids))) - set(index))
     if missing:
+        numbered = pose_ids is None
         raise DatasetError(pose_file, f"pose {ids[missing[0]]!r} has no profile ({len(missing)} of {len(ids)} poses have "
-                                      "none; pair by order with --pair order, or add the files)")
+                                      "none): add its file, or leave the pose out by deleting its row"
+                                      + (" and giving the poses an id column (the numbers in the file names), since "
+                                         "without ids the poses are numbered in order and the rest would shift"
+                                         if numbered else "") + " (--pair order only pairs equal counts)")
     how = f"--match {match!r}" if match else "last digits of the name"
     return index, list(ids), f"by id in the file name ({how})"
 

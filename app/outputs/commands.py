@@ -126,6 +126,7 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
         text = robot_text(calibration, format, force)
     else:
         cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
+        cal = cal.in_own_frame()  # profiles turned by dataset new: the sensor's own frame, as its driver reports
         text = exports.text(cal, format, parent, child, tool, register, base)
     if out is not None:
         files.write_text_atomically(out, text)

@@ -76,6 +76,24 @@ class Calibration:
     converged: bool = True
     sensor_mount: str = "flange"
     positioner_axes: tuple = ()
+    own_axes: np.ndarray | None = None
+
+    def in_own_frame(self):
+        """The calibration of the sensor's own frame (its driver's points) when the dataset's
+        profiles were turned into handeye's (``[profile] own_axes`` R, ``p = R p_own``): the matrix
+        ``S [R 0; 0 1]``, the covariance's rotation block turned by R^T (``S exp(w) R = S R exp(R^T w)``);
+        itself when there is no turn."""
+        if self.own_axes is None:
+            return self
+        rot = np.asarray(self.own_axes, float)
+        turn = np.eye(4)
+        turn[:3, :3] = rot
+        cov = None
+        if self.covariance is not None:
+            jac = np.eye(6)
+            jac[3:, 3:] = rot.T
+            cov = jac @ self.covariance @ jac.T
+        return dataclasses.replace(self, sensor2flange=self.sensor2flange @ turn, covariance=cov, own_axes=None)
 
     @property
     def sensor_matrix(self):
@@ -201,7 +219,17 @@ def load(path):
         raise CalibrationFileError(file, f"needs true or false, got {str(converged)[:40]!r}", "converged")
     sha = doc.get("dataset_sha256")
     return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), sha if isinstance(sha, str) else None,
-                       converged, _mount(doc, file), _positioner(doc, file))
+                       converged, _mount(doc, file), _positioner(doc, file), _own_axes(doc, file))
+
+
+def _own_axes(doc, file):
+    """``own_axes`` of the file (the turn from the sensor's own frame to its profiles'), or None."""
+    if doc.get("own_axes") is None:
+        return None
+    rot = _matrix(doc["own_axes"], (3, 3), file, "own_axes")
+    if not (np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.linalg.det(rot) > 0):
+        raise CalibrationFileError(file, "is not a proper rotation", "own_axes")
+    return rot
 
 
 def _positioner(doc, file):

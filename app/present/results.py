@@ -380,6 +380,7 @@ class CalibrationResult(ResultProtocol):
     positioner: object | None = None
     robot_model: str | None = None
     cleaning: dict | None = None
+    own_axes: np.ndarray | None = None
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -452,6 +453,7 @@ class CalibrationResult(ResultProtocol):
             "sensor_mount": self.sensor_mount,
             "sphere_mount": self.sphere_mount,
             "sensor_matrix": _list(self.sensor2flange),
+            **self._own_frame(),
             "sphere_center": _list(self.sphere_centre),
             "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
             "positioner": None if self.positioner is None else self.positioner.to_dict(),
@@ -500,6 +502,18 @@ class CalibrationResult(ResultProtocol):
         if self.provenance is not None:
             out["provenance"] = self.provenance
         return out
+
+    def _own_frame(self):
+        """``own_axes``, ``sensor_matrix_own`` and ``sensor_pose_own`` (the sensor's own frame, when the
+        profiles were turned into handeye's: ``[profile] own_axes``), else nothing."""
+        if self.own_axes is None or self.sensor2flange is None:
+            return {}
+        from handeye.model import conventions
+
+        own = np.asarray(self.sensor2flange, float).copy()
+        own[:3, :3] = own[:3, :3] @ np.asarray(self.own_axes, float)
+        return {"own_axes": _list(self.own_axes), "sensor_matrix_own": _list(own),
+                "sensor_pose_own": _list(conventions.pose_from(self.convention, own))}
 
     def to_json(self, indent=1):
         """:meth:`to_dict` as strict JSON text (non-finite numbers as null); the residual rows
