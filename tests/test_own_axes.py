@@ -1,0 +1,77 @@
+"""Profiles in the sensor's own frame, turned by ``handeye dataset new`` into handeye's (laser
+plane y = 0), keep their turn as ``[profile] own_axes``: calibrate reports the pose of the
+sensor's own frame, and export writes that one (a new user's ROS export was 90 deg off their
+sensor's frame before). The cell here is handeye's simulator, its profiles rewritten by plain
+numpy as 3-column points in the plane z = 0 (a sensor that reports x along the line, y the
+depth), so the true pose of the files' frame is the simulated truth turned by hand."""
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app.cli import main
+from handeye.model.pose import transform_from_pose
+
+
+@pytest.fixture(scope="module")
+def turned(tmp_path_factory):
+    root = tmp_path_factory.mktemp("own")
+    sim = root / "sim"
+    assert main(["simulate", "--out", str(sim), "--profiles", "--seed", "7", "--n-poses", "16"]) == 0
+    rows = list(csv.DictReader((sim / "measurements.csv").open()))
+    files = root / "files"
+    files.mkdir()
+    for k, row in enumerate(rows, start=1):
+        xz = np.loadtxt(sim / row["profile"], delimiter=",", skiprows=1)
+        # the sensor's own frame: x = handeye x, y = handeye z (depth), z = -handeye y (the plane z = 0)
+        np.save(files / f"scan_{k:03d}.npy", np.column_stack([xz[:, 0], xz[:, 1], np.zeros(len(xz))]))
+    with (root / "poses.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["x", "y", "z", "a", "b", "c"])
+        w.writerows([[row[c] for c in ("x", "y", "z", "a", "b", "c")] for row in rows])
+    # the files' frame in handeye's: p_h = R p_file with (x, y, z)_file = (x_h, z_h, -y_h)
+    rot = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+    truth = transform_from_pose(handeye.load_dataset(sim).truth["sensor_pose"])
+    turn = np.eye(4)
+    turn[:3, :3] = rot
+    return root, sim, truth @ turn, rot
+
+
+def test_dataset_new_keeps_the_turn_and_calibrate_reports_the_own_frame(turned, tmp_path, capsys):
+    root, sim, truth_own, rot = turned
+    out = tmp_path / "cell"
+    side = handeye.load_dataset(sim).side
+    code = main(["dataset", "new", str(out), "--poses", str(root / "poses.csv"), "--profiles", str(root / "files"),
+                 "--diameter", "59.94507", "--side", str(-side), "--center",
+                 ",".join(map(str, handeye.load_dataset(sim).sphere_centre))])
+    assert code == 0, capsys.readouterr()
+    capsys.readouterr()
+    data = handeye.load_dataset(out)
+    np.testing.assert_allclose(data.own_axes, rot, atol=1e-12)
+    result = handeye.calibrate(out, no_loo=True, out=tmp_path / "cal.json")
+    assert result.converged
+    own = np.array(result.to_dict()["sensor_matrix_own"])
+    assert np.linalg.norm(own[:3, 3] - truth_own[:3, 3]) < 0.2
+    assert np.degrees(np.arccos(np.clip((np.trace(own[:3, :3].T @ truth_own[:3, :3]) - 1) / 2, -1, 1))) < 0.1
+    assert "the sensor's own frame" in result.summary()
+    exported = handeye.export(tmp_path / "cal.json", format="matrix").text
+    matrix = np.array([[float(v) for v in line.split()] for line in exported.splitlines() if not line.startswith("#")])
+    np.testing.assert_allclose(matrix, own, atol=1e-8)  # export writes the own frame
+    cal = json.loads((tmp_path / "cal.json").read_text())
+    np.testing.assert_allclose(cal["own_axes"], rot)
+
+
+def test_own_axes_must_be_a_rotation(turned, tmp_path):
+    _, sim, _, _ = turned
+    import shutil
+
+    folder = tmp_path / "bad"
+    shutil.copytree(sim, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(setup.read_text().replace("[profile]", "[profile]\nown_axes = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]"))
+    with pytest.raises(handeye.InputError, match=r"\[profile\] own_axes.*proper rotation"):
+        handeye.load_dataset(folder)
