@@ -291,14 +291,38 @@ def compose(request, dataset, result, fitted, free, nominal):
 
 
 #: A sensor origin (or a sphere centre on the flange) farther than this from its mount's origin (mm)
-#: is implausible for a part carried on the flange: the cell is probably another one.
+#: is implausible for a part carried on the flange: the cell is probably another one ...
 FAR_ON_FLANGE_MM = 600.0
+#: ... said between the two only when the other cell does not fit clearly worse (a real line scanner's
+#: 874 mm on a FANUC flange fits 1.04 mm the other way against 0.18 mm), always beyond this (mm).
+SURELY_FAR_MM = 1000.0
+
+
+def _other_mount_fits_better(dataset):
+    """Whether the other cell of the same data (the flange poses inverted: the sensor fixed and
+    the sphere on the flange, or the other way round) fits about as well or better: the centre
+    model's global minimum, centre free, RMS not above :data:`HELD_FACTOR` times this cell's. A
+    long-stand-off sensor really on the flange (a real FANUC cell: 874 mm) fits clearly worse the
+    other way (1.04 against 0.18 mm)."""
+    from handeye.model import global_fit
+    from handeye.model.mounts import inverse_transforms
+
+    if dataset.mounts.sphere == "positioner":
+        return True  # no simple other cell to compare: keep the warning
+    motions = np.asarray(dataset.motions())
+    try:
+        here = global_fit.centre_minima(motions, dataset.centre_in_sensor, None).best.cost
+        other = global_fit.centre_minima(inverse_transforms(motions), dataset.centre_in_sensor, None).best.cost
+    except global_fit.GlobalFitError:
+        return True
+    return bool(other < HELD_FACTOR**2 * here)  # not clearly worse
 
 
 def with_mount_plausibility(result, dataset):
     """A warning when what the result puts on the flange lies farther than :data:`FAR_ON_FLANGE_MM`
-    from it: a sensor "on the flange" a metre away is a sensor fixed in the cell (and the other
-    way round), since the same data fit both cells with the flange poses inverted."""
+    from it and the other cell of the same data fits clearly better: a sensor "on the flange" a
+    metre away is a sensor fixed in the cell (and the other way round), since the same data fit
+    both cells with the flange poses inverted."""
     if not solved(result):
         return result
     setup = dataset.path / "setup.toml"
@@ -310,6 +334,9 @@ def with_mount_plausibility(result, dataset):
         what = (f"the sphere's centre lies {np.linalg.norm(result.sphere_centre):.0f} mm from the flange: is the sphere "
                 f"fixed in the cell and the sensor on the flange? ([sensor] and [sphere] mount in {setup})")
     else:
+        return result
+    far = np.linalg.norm(result.sensor2flange[:3, 3] if dataset.mounts.sensor == "flange" else result.sphere_centre)
+    if far <= SURELY_FAR_MM and not _other_mount_fits_better(dataset):
         return result
     return dataclasses.replace(result, warnings=[*result.warnings, what])
 
