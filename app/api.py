@@ -392,7 +392,7 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
         cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given),
                                   data, "compare")
         poses.append(np.asarray(cal.sensor2flange, float))
-        sources.append(cal.source + ("" if cal.converged else " (did not converge)"))
+        sources.append(cal.source + ("" if cal.converged else " (converged: false in the file)"))
     if sources[0] == sources[1]:
         sources = [f"A ({sources[0]})", f"B ({sources[1]})"]
     level = _alpha(alpha)
