@@ -80,6 +80,11 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     if sensor_pose is not None:
         values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {sensor_pose}"
+        if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
+            turn = np.eye(4)
+            turn[:3, :3] = np.asarray(data.own_axes, float)
+            cal = dataclasses.replace(cal, sensor2flange=cal.sensor2flange @ turn.T)
+            source += " (the sensor's own frame, turned by [profile] own_axes)"
     else:
         cal, source = saved.load(_path_argument(calibration)), str(calibration)
         source += "" if cal.converged else " (a calibration that did not converge)"

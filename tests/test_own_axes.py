@@ -75,3 +75,20 @@ def test_own_axes_must_be_a_rotation(turned, tmp_path):
     setup.write_text(setup.read_text().replace("[profile]", "[profile]\nown_axes = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]"))
     with pytest.raises(handeye.InputError, match=r"\[profile\] own_axes.*proper rotation"):
         handeye.load_dataset(folder)
+
+
+def test_a_typed_sensor_pose_is_of_the_own_frame(turned, tmp_path, capsys):
+    """--sensor-pose on a turned dataset is the sensor's own pose (what export wrote): scored as
+    the same pose as the calibration's."""
+    root, sim, truth_own, rot = turned
+    out = tmp_path / "cell"
+    data = handeye.load_dataset(sim)
+    assert main(["dataset", "new", str(out), "--poses", str(root / "poses.csv"), "--profiles", str(root / "files"),
+                 "--diameter", "59.94507", "--side", str(-data.side), "--center",
+                 ",".join(map(str, data.sphere_centre))]) == 0
+    capsys.readouterr()
+    result = handeye.calibrate(out, no_loo=True)
+    own = result.to_dict()["sensor_pose_own"]
+    score = handeye.calibrate(out, sensor_pose=own, no_loo=True)
+    assert "own frame" in score.source and not score.contradicted
+    assert score.distance["translation_mm"] < 1e-6 and score.distance["rotation_deg"] < 1e-6
