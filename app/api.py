@@ -81,9 +81,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {sensor_pose}"
         if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
-            turn = np.eye(4)
-            turn[:3, :3] = np.asarray(data.own_axes, float)
-            cal = dataclasses.replace(cal, sensor2flange=cal.sensor2flange @ turn.T)
+            cal = commands.own_pose(cal, data.own_axes)
             source += " (the sensor's own frame, turned by [profile] own_axes)"
     else:
         cal, source = saved.load(_path_argument(calibration)), str(calibration)
@@ -257,8 +255,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
             outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
             robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
         result = run_score(request, data, given, source) if scoring else run(request, data)
-        if data.own_axes is not None and not scoring:  # profiles turned by dataset new: the own frame too
-            result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
+    if data.own_axes is not None:  # profiles turned by dataset new: the sensor's own frame too (export writes it)
+        result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
@@ -344,7 +342,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
     against = (f"calibrate refuses these data: {own}" if isinstance(own, Exception)
                else procedure.against_calibrate(result, own))
-    result = dataclasses.replace(result, unknowns=parts, against_calibrate=against)
+    result = dataclasses.replace(result, unknowns=parts, against_calibrate=against,
+                                 own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float))
     if out is not None:
         options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
                    "unknowns": parts,

@@ -241,14 +241,16 @@ def tukey_fit(x, z, start, max_iter=50):
 
 def _isolated(x, z, c, keep):
     """Of the points ``keep``, those in runs of fewer than MIN_RUN points that lie more than
-    GAP_MM along the circle ``c`` from every other kept point (bool mask over all points)."""
+    GAP_MM (or 3 x the median spacing, on a sparse profile) along the circle ``c`` from every other
+    kept point (bool mask over all points)."""
     idx = np.flatnonzero(keep)
     if len(idx) <= MIN_RUN:
         return np.zeros(len(x), bool)
     theta = np.arctan2(z[idx] - c.z, x[idx] - c.x)
     order = np.argsort(theta)
     gaps = np.diff(np.r_[theta[order], theta[order[0]] + 2 * np.pi]) * c.r  # the last wraps round
-    ends = np.flatnonzero(gaps > GAP_MM)
+    gap = max(GAP_MM, 3.0 * float(np.median(gaps)))  # a sparse profile's own spacing is no gap
+    ends = np.flatnonzero(gaps > gap)
     out = np.zeros(len(x), bool)
     if len(ends) < 2:  # one run (or the whole circle): nothing isolated
         return out

@@ -81,6 +81,7 @@ class Scan(dataset.FlangePoses):
     profile_files: tuple = ()
     mounts: Mounts = Mounts()
     axis_angles: np.ndarray | None = None
+    own_axes: np.ndarray | None = None  # [profile] own_axes: the profiles turned from the sensor's own frame
 
     @property
     def n_points(self):
@@ -120,13 +121,13 @@ def load(name_or_path):
             raise DatasetError(folder / "setup.toml", "[sphere2] without [sphere]: name the first sphere [sphere]",
                                column="[sphere2]")
         spheres = [Sphere(st.diameter, st.centre)] if st.diameter is not None else []
-        mounts = st.mounts
+        mounts, own_axes = st.mounts, st.own_axes
         if st.sphere2 is not None:
             spheres.append(Sphere(st.sphere2[0], st.sphere2[1]))
     else:
         convention = _convention_from_header(header, file)
         limits = {"position_mm": tables.LIMIT_POSITION_MM, "sensor_mm": dataset.LIMIT_SENSOR_MM}
-        noise, spheres, mounts = {}, [], Mounts()
+        noise, spheres, mounts, own_axes = {}, [], Mounts(), None
     pose_columns = conventions.columns(convention)
     axes = mounts.axis_names
     for col in ("id",) + pose_columns + ("profile",) + axes:
@@ -160,4 +161,5 @@ def load(name_or_path):
         raise DatasetError(file, "no pose with a profile (the profile column names each pose's x,z file)", 2)
     return Scan(folder.name, folder, tuple(ids), tuple(rows), np.array(poses), tuple(profiles), tuple(spheres),
                 convention, float(noise.get("robot_mm", dataset.NOISE_ROBOT_MM)), tuple(skipped),
-                tuple(sorted(set(files))), mounts, np.array(angles, float).reshape(len(ids), len(axes)) if axes else None)
+                tuple(sorted(set(files))), mounts, np.array(angles, float).reshape(len(ids), len(axes)) if axes else None,
+                own_axes)

@@ -157,3 +157,16 @@ def test_truncated_and_corrupt_files_are_bad_input(tmp_path):
             (tmp_path / "cut").write_bytes(raw[:cut])
             with pytest.raises(InputError, match="cut"):
                 clouds.read_profile_file(tmp_path / "cut")
+
+
+@pytest.mark.parametrize("toml, column", [("sphere = 3\n", "[sphere]"), ('profile = "x"\n', "[profile]"),
+                                          ("[robot]\nmodel = 5\n", "[robot] model"),
+                                          ('[sphere]\ndiameter = "abc"\n', "[sphere] diameter"),
+                                          ('[profile]\nside = "up"\n', "[profile] side")])
+def test_a_malformed_setup_file_is_named(tmp_path, capsys, toml, column):
+    poses = _poses(tmp_path)
+    prof = _profiles(tmp_path, ["p1.csv", "p2.csv", "p3.csv", "p4.csv"])
+    setup = tmp_path / "s.toml"
+    setup.write_text(toml)
+    _one_line(*_run(capsys, tmp_path, "--poses", str(poses), "--profiles", str(prof), "--setup", str(setup),
+                    diameter=False), setup, column)

@@ -92,3 +92,51 @@ def test_a_typed_sensor_pose_is_of_the_own_frame(turned, tmp_path, capsys):
     score = handeye.calibrate(out, sensor_pose=own, no_loo=True)
     assert "own frame" in score.source and not score.contradicted
     assert score.distance["translation_mm"] < 1e-6 and score.distance["rotation_deg"] < 1e-6
+
+
+def test_every_path_of_a_turned_dataset_agrees(turned, tmp_path, capsys):
+    """The paths a review found 90 deg off: cloud and validate with a typed own pose, export of a
+    Python result, a closed-form result, a saved score, a diagnosis, and an export read back."""
+    root, sim, truth_own, rot = turned
+    data = handeye.load_dataset(sim)
+    out = tmp_path / "cell"
+    assert main(["dataset", "new", str(out), "--poses", str(root / "poses.csv"), "--profiles", str(root / "files"),
+                 "--diameter", "59.94507", "--side", str(-data.side), "--center",
+                 ",".join(map(str, data.sphere_centre))]) == 0
+    capsys.readouterr()
+    result = handeye.calibrate(out, no_loo=True, out=tmp_path / "cal.json")
+    own = np.array(result.to_dict()["sensor_matrix_own"])
+    own_pose = ",".join(map(repr, result.to_dict()["sensor_pose_own"]))
+
+    def matrix(exported):
+        return np.array([[float(v) for v in ln.split()] for ln in exported.text.splitlines() if not ln.startswith("#")])
+
+    np.testing.assert_allclose(matrix(handeye.export(result, format="matrix")), own, atol=1e-8)  # a Python result
+    kim = handeye.calibrate(out, method="kim-cho", keep_all=True, out=tmp_path / "kc.json")
+    assert "own_axes" in kim.to_dict()
+    score = handeye.calibrate(out, sensor_pose=own_pose, no_loo=True, out=tmp_path / "score.json")
+    np.testing.assert_allclose(matrix(handeye.export(tmp_path / "score.json", format="matrix")), own, atol=1e-6)
+    assert "the sensor's own" in score.summary()
+    handeye.diagnose(out, out=tmp_path / "diag.json")
+    np.testing.assert_allclose(matrix(handeye.export(tmp_path / "diag.json", format="matrix")), own, atol=0.2)
+    by_file = handeye.cloud(out, tmp_path / "cal.json", out=tmp_path / "a.ply")
+    by_pose = handeye.cloud(out, sensor_pose=own_pose, out=tmp_path / "b.ply")
+    for key in ("min", "max"):
+        np.testing.assert_allclose(by_pose.to_dict()["bounds_mm"][key], by_file.to_dict()["bounds_mm"][key], atol=1e-6)
+    handeye.validate(out, sensor_pose=own_pose)  # sees the sphere (a pose 90 deg off does not)
+    exported = tmp_path / "exported.json"
+    exported.write_text(handeye.export(tmp_path / "cal.json", format="json").text)
+    back = handeye.compare(out, tmp_path / "cal.json", exported)
+    assert back.between["translation_mm"] < 1e-6 and back.between["rotation_deg"] < 1e-6  # read back in its frame
+
+
+def test_a_setup_s_side_is_not_turned_twice(turned, tmp_path, capsys):
+    """--setup takes [profile] side from a setup.toml, which is in handeye's frame already."""
+    root, sim, _, _ = turned
+    data = handeye.load_dataset(sim)
+    first, second = tmp_path / "a", tmp_path / "b"
+    args = ["--poses", str(root / "poses.csv"), "--profiles", str(root / "files")]
+    assert main(["dataset", "new", str(first), *args, "--diameter", "59.94507", "--side", str(-data.side)]) == 0
+    assert main(["dataset", "new", str(second), *args, "--setup", str(first / "setup.toml")]) == 0
+    capsys.readouterr()
+    assert handeye.load_dataset(second).side == handeye.load_dataset(first).side == data.side

@@ -270,3 +270,15 @@ def test_real_speckle_is_dropped_as_robcalibrators_filter_drops_it(capsys):
     assert cli.main(["calibrate", str(data_dir / "ball-2023-05-raw"), "--unknowns", "sensor+sphere", "--no-loo",
                      "--no-clean"]) == 2
     assert "fitted circle radius 49.08" in capsys.readouterr().err
+
+
+def test_a_sparse_arc_with_one_speckle_point_keeps_its_arc():
+    """20 points 3.7 mm apart (a coarse sensor) and one speckle point: the arc's own spacing is no
+    gap, so only the speckle goes (a review found the whole profile refused as "no arc")."""
+    t = np.linspace(0.6, 2.5, 20)
+    arc = np.c_[25.0 * np.cos(t), 240.0 - 25.0 * np.sin(t)]
+    rng = np.random.default_rng(3)
+    arc += rng.normal(0.0, 0.01, arc.shape)
+    record = profile_clean.clean(np.vstack([arc, [[30.0, 200.0]]]), 30.0)
+    assert record.status != "no arc", record
+    assert record.kept[:20].all() and not record.kept[20]

@@ -112,6 +112,25 @@ def _vector(value, n, option):
     return out
 
 
+_SETUP_KEYS = {"diameter": "[sphere] diameter", "center": "[sphere] center", "side": "[profile] side",
+               "start": "[sensor] start_pose", "convention": "[robot] convention", "robot": "[robot] model"}
+
+
+def _check_setup_values(found, file):
+    """The --setup file's values of the right kinds, named with the file and key (DatasetError)."""
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    checks = {"diameter": number, "side": lambda v: v in (1, -1) and not isinstance(v, bool),
+              "center": lambda v: isinstance(v, list) and len(v) == 3 and all(map(number, v)),
+              "start": lambda v: isinstance(v, list) and all(map(number, v)),
+              "convention": lambda v: isinstance(v, str), "robot": lambda v: isinstance(v, str) and v.strip()}
+    for key, ok in checks.items():
+        if found[key] is not None and not ok(found[key]):
+            raise DatasetError(file, f"{str(found[key])[:40]!r} is not a value of this key (the --setup file)",
+                               column=_SETUP_KEYS[key])
+
+
 def _from_setup(opts):
     """``--setup FILE``: an existing setup.toml fills the options not given (diameter, center, side,
     start pose, convention, robot model)."""
@@ -126,10 +145,16 @@ def _from_setup(opts):
         raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise DatasetError(file, f"not valid TOML: {exc}") from None
+    for section in ("sphere", "sensor", "robot", "profile"):
+        if not isinstance(doc.get(section, {}), dict):
+            raise DatasetError(file, "must be a [section] of keys (the --setup file)", column=f"[{section}]")
     sphere, sensor, robot = doc.get("sphere", {}), doc.get("sensor", {}), doc.get("robot", {})
     found = {"diameter": sphere.get("diameter"), "center": sphere.get("center"),
              "side": doc.get("profile", {}).get("side"), "start": sensor.get("start_pose"),
              "convention": robot.get("convention"), "robot": robot.get("model")}
+    _check_setup_values(found, file)
+    if opts["side"] is None and found["side"] is not None:
+        opts["side_from_setup"] = True  # a setup's side is in handeye's frame already
     model = found["robot"]
     if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
         found["robot"] = str(pathlib.Path(file).parent / model)
@@ -330,7 +355,7 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
                                    "--profile-units" if bag is None else "the bag's profile topic")
     joint_values = _joints(opts, pose_ids, len(ids))
     inputs["profiles"] = sources.formats(per_pose)
-    side = mapping.side(opts["side"])
+    side = opts["side"] if opts.get("side_from_setup") else mapping.side(opts["side"])
     if side != opts["side"]:
         given = "the default --side" if opts.get("side_default") else "--side"
         notes.append(f"{given} {opts['side']:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")

@@ -26,9 +26,10 @@ from handeye.model.mounts import FRAME
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
-                 name="--calibration", sensor_mount=None):
+                 name="--calibration", sensor_mount=None, own_axes=None):
     """The :class:`saved.Calibration` to use; ``sensor_mount`` (None: flange, or the file's) is
-    that of ``--sensor-pose``, or checked against the calibration's."""
+    that of ``--sensor-pose``, or checked against the calibration's; ``own_axes`` (a dataset whose
+    profiles ``dataset new`` turned): a typed pose is of the sensor's own frame, turned back."""
     if sensor_pose is not None:
         if calibration is not None:
             raise RequestError(f"give {name} or --sensor-pose, not both")
@@ -36,7 +37,8 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
             raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
                                "it from")
         values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
-        return saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
+        cal = saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
+        return own_pose(cal, own_axes)
     cal = given_calibration(calibration, sensor_mount)
     if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
         raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
@@ -45,6 +47,14 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
         raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
                            "calibrate, or pass --force to use it anyway)")
     return cal
+
+
+def own_pose(cal, own_axes):
+    """A pose typed in for a dataset whose profiles were turned (``own_axes``): of the sensor's own
+    frame (what export writes), returned in the profiles' frame; unchanged without a turn."""
+    if own_axes is None:
+        return cal
+    return dataclasses.replace(cal, own_axes=np.asarray(own_axes, float), own_frame=True).in_profiles_frame()
 
 
 def given_calibration(calibration, sensor_mount=None):
@@ -64,7 +74,8 @@ def given_calibration(calibration, sensor_mount=None):
         cal = saved.Calibration(np.asarray(calibration.sensor2flange, float), cov,
                                 f"calibration of {calibration.dataset}", calibration.dataset,
                                 calibration.dataset_sha256, bool(calibration.converged),
-                                saved.check_mount(getattr(calibration, "sensor_mount", "flange"), "sensor_mount"))
+                                saved.check_mount(getattr(calibration, "sensor_mount", "flange"), "sensor_mount"),
+                                own_axes=getattr(calibration, "own_axes", None))
     else:
         cal = saved.load(calibration)
     return cal
@@ -324,7 +335,8 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     data = scans.load(dataset)
     if out is not None:
         files.check_output_path(out, "--out", list(data.profile_files))
-    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "cloud")
+    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention,
+                                  own_axes=getattr(data, "own_axes", None)), data, "cloud")
     data = _at_calibrated_axes(data, cal)
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None
@@ -368,7 +380,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     data = scans.load(folder) if with_profiles else datasets.load(folder)
-    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention), data, "validate")
+    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention,
+                                  own_axes=getattr(data, "own_axes", None)), data, "validate")
     data = _at_calibrated_axes(data, cal)
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     if with_profiles:

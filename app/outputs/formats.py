@@ -319,7 +319,9 @@ def data(calibration, parent=None, child="sensor"):
     parent = resolve_parent(calibration, parent)
     rep = representations(calibration.sensor2flange)
     mount = {"sensor_mount": "world"} if _world(calibration) else {}
-    out = {**mount, "parent": parent, "child": child, "sensor_matrix": calibration.sensor2flange.tolist()}
+    own = {} if getattr(calibration, "own_axes", None) is None else {
+        "sensor_frame": "own" if calibration.own_frame else "profiles", "own_axes": np.asarray(calibration.own_axes).tolist()}
+    out = {**mount, **own, "parent": parent, "child": child, "sensor_matrix": calibration.sensor2flange.tolist()}
     out.update({k: v.tolist() for k, v in rep.items()})
     out["calibration"] = calibration.to_dict()
     return out

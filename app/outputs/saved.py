@@ -77,15 +77,10 @@ class Calibration:
     sensor_mount: str = "flange"
     positioner_axes: tuple = ()
     own_axes: np.ndarray | None = None
+    own_frame: bool = False
 
-    def in_own_frame(self):
-        """The calibration of the sensor's own frame (its driver's points) when the dataset's
-        profiles were turned into handeye's (``[profile] own_axes`` R, ``p = R p_own``): the matrix
-        ``S [R 0; 0 1]``, the covariance's rotation block turned by R^T (``S exp(w) R = S R exp(R^T w)``);
-        itself when there is no turn."""
-        if self.own_axes is None:
-            return self
-        rot = np.asarray(self.own_axes, float)
+    def _turned(self, forward):
+        rot = np.asarray(self.own_axes, float) if forward else np.asarray(self.own_axes, float).T
         turn = np.eye(4)
         turn[:3, :3] = rot
         cov = None
@@ -93,7 +88,19 @@ class Calibration:
             jac = np.eye(6)
             jac[3:, 3:] = rot.T
             cov = jac @ self.covariance @ jac.T
-        return dataclasses.replace(self, sensor2flange=self.sensor2flange @ turn, covariance=cov, own_axes=None)
+        return dataclasses.replace(self, sensor2flange=self.sensor2flange @ turn, covariance=cov, own_frame=forward)
+
+    def in_own_frame(self):
+        """The calibration of the sensor's own frame (its driver's points) when the dataset's
+        profiles were turned into handeye's (``own_axes`` R, ``p = R p_own``): the matrix
+        ``S [R 0; 0 1]``, the covariance's rotation block turned by R^T (``S exp(w) R = S R exp(R^T w)``);
+        ``own_frame`` then True. Itself without a turn, or when it is of the own frame already."""
+        return self if self.own_axes is None or self.own_frame else self._turned(True)
+
+    def in_profiles_frame(self):
+        """The inverse of :meth:`in_own_frame`: the frame of the turned profiles, what the
+        dataset's chain uses (``cloud``, ``validate``, a held or scored pose)."""
+        return self._turned(False) if self.own_axes is not None and self.own_frame else self
 
     @property
     def sensor_matrix(self):
@@ -116,7 +123,9 @@ class Calibration:
         """The calibration as JSON-ready numbers (a world mount says so; a flange one as always)."""
         sd = self.sd()
         mount = {} if self.sensor_mount == "flange" else {"sensor_mount": self.sensor_mount}
-        return {**mount, "source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
+        own = {} if self.own_axes is None else {"own_axes": np.asarray(self.own_axes).tolist(),
+                                                 "sensor_frame": "own" if self.own_frame else "profiles"}
+        return {**mount, **own, "source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
                 "sensor_matrix": self.sensor2flange.tolist(),
                 "sd_translation_mm": None if sd is None else sd[0].tolist(),
                 "sd_rotation_deg": None if sd is None else sd[1].tolist(),
@@ -218,8 +227,13 @@ def load(path):
     if not isinstance(converged, bool):
         raise CalibrationFileError(file, f"needs true or false, got {str(converged)[:40]!r}", "converged")
     sha = doc.get("dataset_sha256")
+    own = _own_axes(doc, file)
+    frame = doc.get("sensor_frame", "profiles")
+    if frame not in ("own", "profiles") or (frame == "own" and own is None):
+        raise CalibrationFileError(file, f"must be \"own\" (with own_axes) or \"profiles\", got {str(frame)[:40]!r}",
+                                   "sensor_frame")
     return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), sha if isinstance(sha, str) else None,
-                       converged, _mount(doc, file), _positioner(doc, file), _own_axes(doc, file))
+                       converged, _mount(doc, file), _positioner(doc, file), own, frame == "own").in_profiles_frame()
 
 
 def _own_axes(doc, file):

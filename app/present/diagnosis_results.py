@@ -12,7 +12,7 @@ import numpy as np
 
 from handeye.app.present.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.results import Uncertainty, _list  # noqa: F401  (shared JSON helpers)
+from handeye.app.present.results import Uncertainty, _list, own_frame_fields  # noqa: F401  (shared JSON helpers)
 from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
@@ -144,6 +144,7 @@ class DiagnosisResult(ResultProtocol):
     always_absorbed: tuple = ()
     unknowns: str = "sensor"
     against_calibrate: str | None = None
+    own_axes: np.ndarray | None = None
     cleaning: dict | None = None
 
     @property
@@ -178,6 +179,7 @@ class DiagnosisResult(ResultProtocol):
             "sigma_after_mm": self.sigma_after_mm,
             "sensor_pose": _list(self.sensor_pose),
             "sensor_matrix": _list(self.sensor2flange),
+            **own_frame_fields(self.sensor2flange, self.own_axes, self.convention),
             "sphere_center": _list(self.sphere_centre),
             "effect_correlations": self.effect_correlations,
             "steps": [s.to_dict() for s in self.steps],

@@ -137,6 +137,20 @@ class ResidualTable:
                                                     loo)]
 
 
+def own_frame_fields(sensor2flange, own_axes, convention):
+    """``own_axes``, ``sensor_matrix_own`` and ``sensor_pose_own`` (in ``convention``) of a result
+    whose profiles were turned from the sensor's own frame (``[profile] own_axes`` R, ``p = R p_own``:
+    the own frame is ``S [R 0; 0 1]``), else an empty dict."""
+    if own_axes is None or sensor2flange is None:
+        return {}
+    from handeye.model import conventions
+
+    own = np.asarray(sensor2flange, float).copy()
+    own[:3, :3] = own[:3, :3] @ np.asarray(own_axes, float)
+    return {"own_axes": _list(own_axes), "sensor_matrix_own": _list(own),
+            "sensor_pose_own": _list(conventions.pose_from(convention, own))}
+
+
 def residual_dicts(residuals):
     """The JSON entries of a list of :class:`SampleResidual` or a :class:`ResidualTable`."""
     return residuals.to_dicts() if isinstance(residuals, ResidualTable) else [r.to_dict() for r in residuals]
@@ -504,16 +518,7 @@ class CalibrationResult(ResultProtocol):
         return out
 
     def _own_frame(self):
-        """``own_axes``, ``sensor_matrix_own`` and ``sensor_pose_own`` (the sensor's own frame, when the
-        profiles were turned into handeye's: ``[profile] own_axes``), else nothing."""
-        if self.own_axes is None or self.sensor2flange is None:
-            return {}
-        from handeye.model import conventions
-
-        own = np.asarray(self.sensor2flange, float).copy()
-        own[:3, :3] = own[:3, :3] @ np.asarray(self.own_axes, float)
-        return {"own_axes": _list(self.own_axes), "sensor_matrix_own": _list(own),
-                "sensor_pose_own": _list(conventions.pose_from(self.convention, own))}
+        return own_frame_fields(self.sensor2flange, self.own_axes, self.convention)
 
     def to_json(self, indent=1):
         """:meth:`to_dict` as strict JSON text (non-finite numbers as null); the residual rows

@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.results import ResidualTable, _list
+from handeye.app.present.results import ResidualTable, _list, own_frame_fields
 
 #: Residual model -> what one of its rows is.
 _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points": "profile point"}
@@ -72,6 +72,7 @@ class ScoreResult(ResultProtocol):
     noise_test: object | None
     centre_fitted: bool
     provenance: dict | None = None
+    own_axes: np.ndarray | None = None
 
     @property
     def contradicted(self):
@@ -131,7 +132,9 @@ class ScoreResult(ResultProtocol):
             "sensor_mount": self.estimate.sensor_mount, "sensor_pose": _list(self.sensor_pose),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose)},
-            "sensor_matrix": _list(self.sensor2flange), "sphere_center": _list(self.given.centre),
+            "sensor_matrix": _list(self.sensor2flange),
+            **own_frame_fields(self.sensor2flange, self.own_axes, self.convention),
+            "sphere_center": _list(self.given.centre),
             "centre_fitted": self.centre_fitted, "model": self.model, "rms_mm": _rms_dict(self.given),
             "ssr": self.given.ssr, "contradicted": self.contradicted, "verdict": self.verdict(),
             "f_test": {"statistic": f, "dof": [6, self.given.m - 6 - 3 * self.centre_fitted], "p_value": p},
@@ -157,7 +160,11 @@ class ScoreResult(ResultProtocol):
         lines = [f"handeye calibrate (score): dataset {self.dataset}, the sensor pose given by {self.source} held"
                  + (", the sphere centre fitted" if self.centre_fitted else ", nothing fitted"),
                  f"verdict: {self.verdict()}", "",
-                 f"given pose ({self.convention}: {','.join(self.columns)}): " + " ".join(f"{v:.4f}" for v in self.sensor_pose),
+                 f"given pose ({self.convention}: {','.join(self.columns)}): " + " ".join(f"{v:.4f}" for v in self.sensor_pose)
+                 + (" (the profiles' frame; in the sensor's own: "
+                    + " ".join(f"{v:.4f}" for v in own_frame_fields(self.sensor2flange, self.own_axes,
+                                                                    self.convention)["sensor_pose_own"]) + ")"
+                    if self.own_axes is not None else ""),
                  f"data's own  ({self.convention}: {','.join(self.columns)}): " + " ".join(f"{v:.4f}" for v in est.sensor_pose)
                  + ("" if est.converged else "  (NOT converged)"),
                  "sphere centre (mm): " + " ".join(f"{v:.3f}" for v in self.given.centre)
@@ -221,6 +228,11 @@ class CompareResult(ResultProtocol):
         rms = [s.given.rms_mm.get(model, s.given.rms_mm["centre"]) for s in self.scores]
         if self.better is None or self.vuong is None:
             return f"{self.sources[0]} and {self.sources[1]} fit these data equally well"
+        bad = [s.contradicted for s in self.scores]
+        if bad.count(True) == 1:  # one is contradicted by the data outright: that first
+            k = bad.index(False) if False in bad else 1 - bad.index(True)
+            return (f"{self.sources[k]} fits these data better: they contradict {self.sources[1 - k]} "
+                    f"({self.scores[1 - k].verdict()})")
         z, p = self.vuong
         k = 0 if self.better == self.sources[0] else 1
         how = ("significantly" if self.significant else "but not significantly")
