@@ -229,12 +229,14 @@ def _dataset_args(sub):
     new.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
-def build_parser():
-    from handeye.app.choices import ALPHA, CLASSIC_METHODS, METHODS
-    from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
+def _calibrate_args(sub):
+    from handeye.app.choices import ALPHA as alpha
+    from handeye.app.choices import CLASSIC_METHODS as classic
+    from handeye.app.choices import METHODS as methods
+    from handeye.model.names import CONVENTIONS as conventions
+    from handeye.model.names import KINDS as kinds
+    from handeye.model.names import ROTATIONS as rotations
 
-    parser = Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     cal = sub.add_parser("calibrate", help="calibrate the sensor pose on the flange from a dataset")
     cal.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder (default thesis-real)")
     cal.add_argument("--unknowns", default="sensor", metavar="PARTS",
@@ -249,25 +251,25 @@ def build_parser():
                           "it: held, the sphere centre fitted with it under --unknowns sensor+sphere, judged against the "
                           "data's own calibration (exit 0; the verdict says whether the data contradict it); --calibration "
                           "FILE with the sensor among --unknowns does the same")
-    cal.add_argument("--method", default=None, choices=list(METHODS) + list(CLASSIC_METHODS),
+    cal.add_argument("--method", default=None, choices=list(methods) + list(classic),
                      help="solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form "
                           "baseline: kim-cho (AX = XB, linear) or li-two-step (pure translations, then rotations; see "
                           "model/classics.py)")
-    cal.add_argument("--rotation", default=None, choices=list(ROTATIONS),
+    cal.add_argument("--rotation", default=None, choices=list(rotations),
                      help="rotation parametrisation (default: matrix for ipopt, local otherwise)")
     cal.add_argument("--start", default=None, metavar="X,Y,Z,A,B,C",
                      help="start sensor pose in --convention's columns (KUKA: mm and degrees; "
                           "write --start=-1,2,... for a leading minus)")
-    cal.add_argument("--convention", default=None, choices=list(CONVENTIONS),
+    cal.add_argument("--convention", default=None, choices=list(conventions),
                      help="robot convention of --start and of the reported pose (default: the dataset's)")
     cal.add_argument("--max-iter", type=int, default=None, help="iteration limit")
-    cal.add_argument("--model", default=None, choices=list(KINDS),
+    cal.add_argument("--model", default=None, choices=list(kinds),
                      help="residual: reconstructed centres, measured circles, or profile points "
                           "(default: measurement when every sample has a profile, else centre)")
     cal.add_argument("--keep-all", action="store_true",
                      help="fit every sample: no outlier detection (rows that contradict themselves are still excluded)")
     cal.add_argument("--alpha", type=float, default=None,
-                     help=f"family-wise level of the outlier tests (default {ALPHA:g})")
+                     help=f"family-wise level of the outlier tests (default {alpha:g})")
     cal.add_argument("--no-loo", action="store_true", help="skip the leave-one-out error (one refit per sample)")
     cal.add_argument("--no-clean", action="store_true",
                      help="fit every profile point: no profile cleaning (by default speckle and background points off "
@@ -285,7 +287,9 @@ def build_parser():
     cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
     cal.add_argument("--out", default=None, metavar="FILE",
                      help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
-    sub.add_parser("datasets", help="list the embedded datasets")
+
+
+def _simulate_args(sub, conventions):
     sim = sub.add_parser("simulate", help="write a simulated dataset with known truth (handeye.model.simulate)")
     sim.add_argument("--out", required=True, metavar="DIR", help="dataset folder to write (must be empty or new)")
     sim.add_argument("--seed", type=int, default=0)
@@ -305,36 +309,6 @@ def build_parser():
     sim.add_argument("--n-poses", type=int, default=36, help="poses of the thesis strategy (1-36)")
     sim.add_argument("--linearity", type=float, default=0.0,
                      help="sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)")
-    diag = sub.add_parser("diagnose", help="find, name and add the effects the model is missing")
-    diag.add_argument("dataset", nargs="?", default="thesis-real")
-    diag.add_argument("--alpha", type=float, default=ALPHA, help=f"family-wise level of the tests (default {ALPHA:g})")
-    diag.add_argument("--json", action="store_true")
-    diag.add_argument("--no-clean", action="store_true", help="fit every profile point: no profile cleaning")
-    diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
-    diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
-    diag.add_argument("--sigma", type=float, default=None, metavar="MM",
-                      help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
-    diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
-    diag.add_argument("--unknowns", default="sensor", choices=["sensor", "sensor+sphere"],
-                      help="sensor+sphere: the sphere centre estimated with the pose in every model (when setup.toml "
-                           "gives none); default sensor: effects tested against the setup's centre")
-    _plan_args(sub)
-    _compare_args(sub, ALPHA, KINDS)
-    _use_args(sub, list(CONVENTIONS))
-    _study_args(sub)
-    _dataset_args(sub)
-    bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
-    bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
-    bench.add_argument("--json", action="store_true")
-    bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
-    bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
-    bench.add_argument("--pipeline-sizes", default=None, metavar="N,N,...",
-                       help="measurements of the end-to-end `handeye calibrate` section (time and own peak memory "
-                            "each, log-log slopes); default 1000,10000,100000,1000000 (--quick: 10000,30000); 0: skip")
-    bench.add_argument("--solvers", action="store_true",
-                       help="instead: the solver-comparison bench (batched against single-start solvers, and the "
-                            "wall time of the full `handeye study testfunction`)")
-    bench.add_argument("--no-study", action="store_true", help="with --solvers: skip running the study")
     sim.add_argument("--motions", default="thesis", choices=["thesis", "about-sphere"],
                      help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same "
                           "orientations rotating about the sphere (seen at one sensor point)")
@@ -346,7 +320,7 @@ def build_parser():
     sim.add_argument("--diameter", type=float, default=None, metavar="MM", help="sphere diameter (default 59.94507)")
     sim.add_argument("--center", default=None, metavar="X,Y,Z",
                      help="sphere centre in its mount's frame (robot base, flange or table), mm")
-    sim.add_argument("--convention", default="kuka", choices=list(CONVENTIONS),
+    sim.add_argument("--convention", default="kuka", choices=list(conventions),
                      help="robot convention of the written dataset and of --truth (default kuka)")
     sim.add_argument("--max-tilt", type=float, default=90.0, metavar="DEG",
                      help="largest sensor tilt from straight down (default 90, the thesis's)")
@@ -361,4 +335,53 @@ def build_parser():
                           "(mm); default a KUKA KP1-V-like 2-axis positioner: e1:1500,0,600:0,1,0;e2:1500,0,800:0,0,1")
     sim.add_argument("--positioner-error", default=None, metavar="MM,DEG",
                      help="how far the true axes differ from the nominal ones written in setup.toml (default 1.0,0.2)")
+
+
+def _diagnose_args(sub, alpha):
+    diag = sub.add_parser("diagnose", help="find, name and add the effects the model is missing")
+    diag.add_argument("dataset", nargs="?", default="thesis-real")
+    diag.add_argument("--alpha", type=float, default=alpha, help=f"family-wise level of the tests (default {alpha:g})")
+    diag.add_argument("--json", action="store_true")
+    diag.add_argument("--no-clean", action="store_true", help="fit every profile point: no profile cleaning")
+    diag.add_argument("--figures", default=None, metavar="DIR", help="write residuals.png and gap.png here")
+    diag.add_argument("--plot", default=None, metavar="FILE", help="draw the gap shrinking step by step (PNG)")
+    diag.add_argument("--sigma", type=float, default=None, metavar="MM",
+                      help="nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)")
+    diag.add_argument("--out", default=None, metavar="FILE", help="also write the JSON result with provenance")
+    diag.add_argument("--unknowns", default="sensor", choices=["sensor", "sensor+sphere"],
+                      help="sensor+sphere: the sphere centre estimated with the pose in every model (when setup.toml "
+                           "gives none); default sensor: effects tested against the setup's centre")
+
+
+def _bench_args(sub):
+    bench = sub.add_parser("bench", help="time every method on the same calibrations, side by side")
+    bench.add_argument("--quick", action="store_true", help="fewer cases and repetitions")
+    bench.add_argument("--json", action="store_true")
+    bench.add_argument("--plot", default=None, metavar="FILE", help="log-log time against measurements (PNG)")
+    bench.add_argument("--no-startup", action="store_true", help="skip the cold/warm start-up measurement")
+    bench.add_argument("--pipeline-sizes", default=None, metavar="N,N,...",
+                       help="measurements of the end-to-end `handeye calibrate` section (time and own peak memory "
+                            "each, log-log slopes); default 1000,10000,100000,1000000 (--quick: 10000,30000); 0: skip")
+    bench.add_argument("--solvers", action="store_true",
+                       help="instead: the solver-comparison bench (batched against single-start solvers, and the "
+                            "wall time of the full `handeye study testfunction`)")
+    bench.add_argument("--no-study", action="store_true", help="with --solvers: skip running the study")
+
+
+def build_parser():
+    from handeye.app.choices import ALPHA
+    from handeye.model.names import CONVENTIONS, KINDS
+
+    parser = Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    _calibrate_args(sub)
+    sub.add_parser("datasets", help="list the embedded datasets")
+    _simulate_args(sub, CONVENTIONS)
+    _diagnose_args(sub, ALPHA)
+    _plan_args(sub)
+    _compare_args(sub, ALPHA, KINDS)
+    _use_args(sub, list(CONVENTIONS))
+    _study_args(sub)
+    _dataset_args(sub)
+    _bench_args(sub)
     return parser
