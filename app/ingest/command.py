@@ -154,7 +154,7 @@ def _from_setup(opts):
              "convention": robot.get("convention"), "robot": robot.get("model")}
     _check_setup_values(found, file)
     if opts["side"] is None and found["side"] is not None:
-        opts["side_from_setup"] = True  # a setup's side is in handeye's frame already
+        opts["_side_from_setup"] = True  # a setup's side is in handeye's frame already
     model = found["robot"]
     if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
         found["robot"] = str(pathlib.Path(file).parent / model)
@@ -169,7 +169,7 @@ def _check_options(out, opts):
 
     check_output_folder(out, "OUT", empty=True)
     _from_setup(opts)
-    opts["side_default"] = opts["side"] is None
+    opts["_side_default"] = opts["side"] is None
     opts["side"] = -1 if opts["side"] is None else opts["side"]
     if opts["poses"] is not None and opts["bag"] is not None:
         raise RequestError("--poses and --bag: give one of them (the bag's --pose-topic has the poses)")
@@ -355,9 +355,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
                                    "--profile-units" if bag is None else "the bag's profile topic")
     joint_values = _joints(opts, pose_ids, len(ids))
     inputs["profiles"] = sources.formats(per_pose)
-    side = opts["side"] if opts.get("side_from_setup") else mapping.side(opts["side"])
+    side = opts["side"] if opts.get("_side_from_setup") else mapping.side(opts["side"])
     if side != opts["side"]:
-        given = "the default --side" if opts.get("side_default") else "--side"
+        given = "the default --side" if opts.get("_side_default") else "--side"
         notes.append(f"{given} {opts['side']:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")
     result = NewDatasetResult(
         path=pathlib.Path(out), ids=tuple(ids), convention=conv, inputs=inputs, conversions=tuple(notes),
@@ -380,7 +380,8 @@ def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
         rels.append(rel)
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    options = {k: _option_value(v) for k, v in opts.items() if v is not None and not (isinstance(v, list) and not v)}
+    options = {k: _option_value(v) for k, v in opts.items()
+               if v is not None and not k.startswith("_") and not (isinstance(v, list) and not v)}  # _: internal marks
     sections = {"options": options, "inputs": dict(result.inputs), "conversions": {"made": list(result.conversions)},
                 "plane": {"mapping": result.plane, "rotation_handeye_from_file": None if result.rotation is None
                           else np.asarray(result.rotation).tolist()},
