@@ -233,3 +233,16 @@ def test_points_model_is_tested_on_its_circles(tmp_path):
     result = handeye.calibrate(folder, sensor_pose=truth, model="points", no_loo=True)
     assert result.model == "measurement" and result.f_test[1] > 1e-3 and not result.contradicted
     assert set(result.given.rms_mm) == {"centre", "measurement", "points"}
+
+
+def test_a_free_centre_starts_from_the_chain_not_a_failed_estimate(cell):
+    """The centre fitted with the given pose held starts from the unweighted centre model's own
+    least squares (the mean of the centres through the chain), so a failed estimate's NaN centre
+    does not reach the score."""
+    from handeye.app.engine.score import Scorer
+
+    data = handeye.load_dataset(cell)
+    scorer = Scorer(data, np.ones(len(data), bool), "centre", 0.025, centre_free=True)
+    pose = scorer.score(transform_from_pose(TRUTH), centre=np.full(3, np.nan))
+    np.testing.assert_allclose(pose.centre, [1534.0, -603.0, 1119.0], atol=0.1)
+    assert np.isfinite(pose.ssr)

@@ -114,7 +114,11 @@ class Scorer:
         """The sphere centre: the dataset's, or (free) the least squares of the model with the pose held."""
         if not self.centre_free:
             return np.asarray(self.dataset.sphere_centre, float)
-        c = np.asarray(self.dataset.sphere_centre if centre is None else centre, float)
+        c = None if centre is None else np.asarray(centre, float)
+        if c is None or not np.all(np.isfinite(c)):  # the unweighted centre model's own least squares: the mean
+            used = self.dataset.subset(self.mask)
+            xs = np.column_stack([used.centre_in_sensor, np.ones(len(used))])
+            c = np.mean((np.asarray(used.motions()) @ sensor2flange @ xs[..., None])[:, :3, 0], axis=0)
         for _ in range(CENTRE_STEPS):
             x = self.model.point_from(sensor2flange, c)
             r, jac = self.model.residual(x), self.model.jacobian(x)[:, 6:9]
