@@ -5,8 +5,11 @@
 
 Needs the ``notebooks`` extra (``pip install '.[notebooks]'``). Figures are inline PNGs at
 80 dpi; cell timings are not recorded, so a re-run changes a notebook only where its results
-change -- and in the saved widget state (new model ids each run), which lets JupyterLab show
-the interactive panels' last figure before a kernel runs. ``tests/test_notebooks.py``
+change. No widget state is saved: an interactive panel's output keeps only its static figure
+(the PNG it carries beside the widget view), and ``metadata.widgets`` is dropped, so that
+nbconvert, GitHub and JupyterLab before a kernel runs all show that figure (with the saved state
+nbconvert drew an empty widget where the figure should be, and the state stored every panel's
+image a second time); running the cell brings the live panel back. ``tests/test_notebooks.py``
 re-executes each notebook and fails when the committed outputs are stale.
 """
 import pathlib
@@ -32,10 +35,26 @@ def execute(path, cwd=None):
     return nb
 
 
+#: The widget view of an interactive panel's output (its static PNG sits beside it).
+WIDGET_VIEW = "application/vnd.jupyter.widget-view+json"
+
+
+def without_widget_state(nb):
+    """The notebook without saved widget state: ``metadata.widgets`` dropped, and each output
+    that carries a static figure beside a widget view keeps the figure only (module docstring)."""
+    nb.metadata.pop("widgets", None)
+    for cell in nb.cells:
+        for output in cell.get("outputs", []):
+            data = output.get("data", {})
+            if WIDGET_VIEW in data and "image/png" in data:
+                del data[WIDGET_VIEW]
+    return nb
+
+
 def main(argv):
     paths = [HERE / a for a in argv] if argv else sorted(HERE.glob("*.ipynb"))
     for path in paths:
-        nb = execute(path)
+        nb = without_widget_state(execute(path))
         nbformat.write(nb, path)
         images = sum("image/png" in o.get("data", {}) for c in nb.cells if c.cell_type == "code" for o in c.outputs)
         print(f"{path.name}: executed, {images} figures")
