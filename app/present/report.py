@@ -443,9 +443,12 @@ def diagnosis_figures(res, out):
     labels = [s.step for s in res.steps]
     ax.plot(labels, [s.rms_mm for s in res.steps], "o-", label="fitted")
     ax.plot(labels, [s.heldout_rms_mm for s in res.steps], "s--", label="held out (5-fold)")
-    ax.set(ylabel="RMS (mm)", yscale="log", title="the gap, step by step")
+    floor = np.sqrt(3.0) * res.nominal_sigma_mm  # RMS of |e| per centre when the noise is as stated
+    ax.axhline(floor, color="0.4", lw=1, ls=":", label=f"noise floor: stated {res.nominal_sigma_mm:g} mm x sqrt(3)")
+    ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
+    ax.set_ylim(bottom=min(floor, *(s.rms_mm for s in res.steps)) / 2)  # the floor in view, below the legend
     ax.tick_params(axis="x", rotation=20)
-    ax.legend()
+    ax.legend(loc="center left")
     fig.tight_layout()
     save_figure_atomically(fig, out / "gap.png", option="--figures")
     plt.close(fig)
