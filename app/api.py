@@ -79,7 +79,8 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         raise RequestError("give --calibration or --sensor-pose, not both")
     if sensor_pose is not None:
         values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
-        cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {sensor_pose}"
+        text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
+        cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
         if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
             cal = commands.own_pose(cal, data.own_axes)
             source += " (the sensor's own frame, turned by [profile] own_axes)"
@@ -227,8 +228,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     if scoring:
         _score_options(unknowns, method, effects, plot, data)
     convention = conventions.check(convention or data.convention)
-    given, source = _given_sensor(calibration, sensor_pose if sensor_pose is None or isinstance(sensor_pose, str)
-                                  else ",".join(map(repr, np.ravel(sensor_pose).tolist())), convention, data, scoring)
+    given, source = _given_sensor(calibration, sensor_pose, convention, data, scoring)
     held = None if given is None or scoring else pose_from_transform(given)
     inputs = input_files(data) if out is not None or plot is not None else ()
     for path, option in ((out, "--out"), (plot, "--plot")):

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from handeye.model.statistics import chi2_survival
+
 
 def skew(v):
     """Cross-product matrix ``[v]x``, shape (..., 3) -> (..., 3, 3)."""
@@ -87,3 +89,19 @@ def transform_distance(t_a, t_b):
     t_a, t_b = np.asarray(t_a), np.asarray(t_b)
     dt = np.linalg.norm(t_a[..., :3, 3] - t_b[..., :3, 3], axis=-1)
     return dt, rotation_angle_deg(t_a[..., :3, :3], t_b[..., :3, :3])
+
+
+def pose_distance(given, estimate, covariance=None, names=None):
+    """How far ``given`` (4x4) lies from ``estimate`` (4x4): translation (mm), rotation (deg) and,
+    with the estimate's covariance on the local chart (``names`` tx..wz), the Mahalanobis
+    distance in its sd and its chi^2_6 p-value."""
+    out = {"translation_mm": float(np.linalg.norm(given[:3, 3] - estimate[:3, 3])),
+           "rotation_deg": float(rotation_angle_deg(estimate[:3, :3], given[:3, :3])), "sd": None, "p_value": None}
+    if covariance is None or names is None:
+        return out
+    idx = [list(names).index(n) for n in ("tx", "ty", "tz", "wx", "wy", "wz")]
+    cov = np.asarray(covariance, float)[np.ix_(idx, idx)]
+    delta = np.concatenate([given[:3, 3] - estimate[:3, 3], rotvec_from_matrix(estimate[:3, :3].T @ given[:3, :3])])
+    d2 = float(delta @ np.linalg.pinv(cov) @ delta)
+    out.update(sd=float(np.sqrt(max(d2, 0.0))), p_value=float(chi2_survival(d2, 6)))
+    return out

@@ -15,8 +15,9 @@ from conftest import simulate
 
 import handeye
 from handeye.app.cli import main
-from handeye.app.engine.score import pose_distance, vuong
+from handeye.app.engine.score import vuong
 from handeye.model.pose import transform_from_pose
+from handeye.model.rotation import pose_distance
 
 TRUTH = (190.0, 100.0, 130.0, 178.0, -88.0, 0.5)
 

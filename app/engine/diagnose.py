@@ -436,7 +436,7 @@ def against_calibrate(result, own):
     """Whether the diagnosis's pose is calibrate's (``own``, the same unknowns) within 1 sd, and
     if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
     (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
-    from handeye.app.engine.score import pose_distance
+    from handeye.model.rotation import pose_distance
 
     if not own.converged:
         return f"calibrate did not converge on these data ({own.message}); nothing to compare"

@@ -39,8 +39,8 @@ import numpy as np
 from handeye.app.engine.cell_stage import HELD_FACTOR, P_HELD, mask_of
 from handeye.model import observations
 from handeye.model.calibration import CalibrationModel
-from handeye.model.rotation import rotation_angle_deg, rotvec_from_matrix
-from handeye.model.statistics import chi2_survival, f_survival
+from handeye.model.rotation import pose_distance
+from handeye.model.statistics import f_survival
 
 #: Gauss-Newton steps of the sphere centre with the pose held (linear for the centre model: one).
 CENTRE_STEPS = 30
@@ -149,22 +149,6 @@ class Scorer:
     def n_params(self):
         """Parameters of the estimate: the pose (6) and a free centre (3)."""
         return 6 + 3 * self.centre_free
-
-
-def pose_distance(given, estimate, covariance=None, names=None):
-    """How far ``given`` (4x4) lies from ``estimate`` (4x4): translation (mm), rotation (deg) and,
-    with the estimate's covariance on the local chart (``names`` tx..wz), the Mahalanobis
-    distance in its sd and its chi^2_6 p-value."""
-    out = {"translation_mm": float(np.linalg.norm(given[:3, 3] - estimate[:3, 3])),
-           "rotation_deg": float(rotation_angle_deg(estimate[:3, :3], given[:3, :3])), "sd": None, "p_value": None}
-    if covariance is None or names is None:
-        return out
-    idx = [list(names).index(n) for n in ("tx", "ty", "tz", "wx", "wy", "wz")]
-    cov = np.asarray(covariance, float)[np.ix_(idx, idx)]
-    delta = np.concatenate([given[:3, 3] - estimate[:3, 3], rotvec_from_matrix(estimate[:3, :3].T @ given[:3, :3])])
-    d2 = float(delta @ np.linalg.pinv(cov) @ delta)
-    out.update(sd=math.sqrt(max(d2, 0.0)), p_value=float(chi2_survival(d2, 6)))
-    return out
 
 
 def f_test(given, estimate, n_params):

@@ -490,7 +490,7 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
     """
     from handeye.model import extended, global_fit
-    from handeye.model.rotation import rotvec_from_matrix, transform_distance
+    from handeye.model.rotation import pose_distance
     from handeye.model.statistics import chi2_survival, f_survival
 
     if "sphere_radius" in effects or not any(dataset.reconstructed or ()) or unknowns not in ("sensor", "sensor+sphere"):
@@ -520,14 +520,12 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
         return
     jac = b.jac[mask].reshape(-1, b.p)
     cov = b.sigma2 * np.linalg.pinv(jac.T @ jac)
-    sa, sb = prob.transform(a.x), prob.transform(b.x)
-    delta = np.concatenate([sb[:3, 3] - sa[:3, 3], rotvec_from_matrix(sa[:3, :3].T @ sb[:3, :3])])
-    moved = float(np.sqrt(delta @ np.linalg.pinv(cov[:6, :6]) @ delta))
-    if moved <= SIDE_MOVE_SD:
+    moved = pose_distance(prob.transform(b.x), prob.transform(a.x), cov, b.names)
+    if moved["sd"] <= SIDE_MOVE_SD:
         return
     k = b.names.index("sphere_radius.dr")
     dr, sd = float(b.params["sphere_radius"][0]), float(np.sqrt(max(cov[k, k], 0.0)))
-    dt, da = transform_distance(sa, sb)
+    dt, da, moved = moved["translation_mm"], moved["rotation_deg"], moved["sd"]
     diameter = dataset.sphere_diameter
     raise CalibrationInputError(
         f"{dataset.path / 'setup.toml'}, column '[sphere] diameter': the profiles put the sphere's diameter at "
