@@ -35,6 +35,8 @@ _PUBLIC = {
     "calibrate": "handeye.app.api",
     "diagnose": "handeye.app.api",
     "compare": "handeye.app.api",
+    "report": "handeye.app.reporting",
+    "ReportResult": "handeye.app.present.web.write",
     "simulate": "handeye.app.api",
     "plan": "handeye.app.api",
     "new_dataset": "handeye.app.ingest.command",

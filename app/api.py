@@ -120,7 +120,7 @@ def _score_options(unknowns, method, effects, plot, data):
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
-              no_clean=False):
+              no_clean=False, report=None):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
     Parameters
@@ -184,6 +184,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         Fit every profile point: no profile cleaning (:mod:`handeye.model.profile_clean`; by
         default speckle and background points off the sphere's arc are dropped, and the result's
         ``cleaning`` says how many of which profile). Applies when ``dataset`` is a name or folder.
+    report : str or pathlib.Path, optional
+        Also write the one-file HTML report of the result (``handeye report``,
+        :mod:`handeye.app.reporting`), atomically.
 
     Returns
     -------
@@ -215,7 +218,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
                "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
                "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
                "calibration": None if calibration is None else str(calibration), "no_clean": bool(no_clean),
-               "sensor_pose": None if sensor_pose is None or isinstance(sensor_pose, str) else np.ravel(sensor_pose).tolist()}
+               "sensor_pose": None if sensor_pose is None or isinstance(sensor_pose, str) else np.ravel(sensor_pose).tolist(),
+               "report": None if report is None else str(report)}
     if isinstance(sensor_pose, str):
         options["sensor_pose"] = sensor_pose
     if method is not None and method not in METHODS + CLOSED_FORM:
@@ -230,8 +234,11 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     convention = conventions.check(convention or data.convention)
     given, source = _given_sensor(calibration, sensor_pose, convention, data, scoring)
     held = None if given is None or scoring else pose_from_transform(given)
-    inputs = input_files(data) if out is not None or plot is not None else ()
-    for path, option in ((out, "--out"), (plot, "--plot")):
+    if scoring and report is not None:
+        raise RequestError("--report: a scored pose has no report; report the data's own calibration (without "
+                           "--sensor-pose / --calibration), or compare the two with `handeye compare`")
+    inputs = input_files(data) if out is not None or plot is not None or report is not None else ()
+    for path, option in ((out, "--out"), (plot, "--plot"), (report, "--report")):
         if path is not None:  # before the work (never half a result), and never over an input
             check_output_path(path, option, inputs=inputs, plot=option == "--plot")
     level = _alpha(alpha)
@@ -265,6 +272,10 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         from handeye.app.present.report import calibration_plot
 
         calibration_plot(result, dataset_at(result, data), plot)
+    if report is not None:
+        from handeye.app.present.web.write import write_report
+
+        write_report(result.to_dict(), data, report, result_json=result.to_json(), option="--report")
     return result
 
 

@@ -2,9 +2,10 @@
 
 Exit codes
 ----------
-0  calibration converged; a given sensor pose scored (calibrate --sensor-pose: the verdict says
+0  calibration converged (report: the reported one); a given sensor pose scored (calibrate --sensor-pose: the verdict says
    whether the data contradict it); compare; dataset new
-1  calibration did not converge (the result is still printed, and flagged); a score without a
+1  calibration did not converge (the result is still printed, and flagged; a report still written,
+   saying so); a score without a
    verdict (the data's own calibration did not converge); validate: a maximum permissible error
    (--mpe) exceeded; plan: even every candidate misses --target. With --json the printed object
    says why in ``error`` (null on exit 0), on exit 2 too (``error``, ``exit_code``, ``command``,
@@ -49,6 +50,16 @@ def _compare(args):
                          sigma=args.sigma, robot_sigma=args.robot_sigma, keep_all=args.keep_all)
     print(dumps(result.to_dict()) if args.json else result.summary())
     return EXIT_OK
+
+
+def _report(args):
+    from handeye.app.reporting import report
+
+    result = report(args.dataset, html=args.html, calibration=args.calibration, diagnose=args.diagnose,
+                    unknowns=args.unknowns, model=args.model, convention=args.convention, keep_all=args.keep_all,
+                    no_clean=args.no_clean)
+    print(dumps(result.to_dict()) if args.json else result.summary())
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 
 
 def _dataset(args):
@@ -198,7 +209,8 @@ def _calibrate(args):
                            start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
                            keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
                            out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects,
-                           calibration=args.calibration, sensor_pose=args.sensor_pose, no_clean=args.no_clean)
+                           calibration=args.calibration, sensor_pose=args.sensor_pose, no_clean=args.no_clean,
+                           report=args.report)
     print(result.to_json() if args.json else result.summary())
     return EXIT_OK if getattr(result, "converged", True) else EXIT_NOT_CONVERGED  # a score (no converged) is exit 0
 
@@ -253,7 +265,8 @@ def _run(args):
         print("\n".join(embedded_names()))
         return EXIT_OK
     commands = {"simulate": _simulate, "diagnose": _diagnose, "bench": _bench, "export": _export, "cloud": _cloud,
-                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare, "dataset": _dataset}
+                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare, "dataset": _dataset,
+                "report": _report}
     return commands.get(args.command, _calibrate)(args)
 
 

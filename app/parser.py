@@ -94,6 +94,25 @@ def _compare_args(sub, alpha, kinds):
     co.add_argument("--json", action="store_true")
 
 
+def _report_args(sub, conventions, kinds):
+    rep = sub.add_parser("report", help="one self-contained HTML file of a calibration: the cell in 3-D, verdict, "
+                                        "residual table, figures")
+    rep.add_argument("dataset", nargs="?", default="thesis-real", help="embedded dataset name or folder")
+    rep.add_argument("--html", required=True, metavar="OUT.html", help="the report to write (atomically)")
+    rep.add_argument("--calibration", default=None, metavar="FILE",
+                     help="a calibrate --out file of this dataset (its SHA-256 is checked), reported as it is; "
+                          "default: calibrate now")
+    rep.add_argument("--diagnose", action="store_true",
+                     help="also run handeye diagnose and show its steps against the noise floor")
+    rep.add_argument("--unknowns", default="sensor", metavar="PARTS", help="as calibrate's (without --calibration)")
+    rep.add_argument("--model", default=None, choices=list(kinds), help="as calibrate's (without --calibration)")
+    rep.add_argument("--convention", default=None, choices=list(conventions),
+                     help="robot convention of the reported pose (default: the dataset's)")
+    rep.add_argument("--keep-all", action="store_true", help="as calibrate's (without --calibration)")
+    rep.add_argument("--no-clean", action="store_true", help="as calibrate's")
+    rep.add_argument("--json", action="store_true", help="print what was written as JSON")
+
+
 def _study_args(sub):
     from handeye.app.tools.registry import STUDIES  # names only: the studies are imported when one runs
 
@@ -285,6 +304,8 @@ def _calibrate_args(sub):
                           "(as handeye diagnose names them)")
     cal.add_argument("--json", action="store_true", help="print the result as JSON")
     cal.add_argument("--plot", default=None, metavar="FILE", help="draw residuals and sphere-centre scatter (PNG)")
+    cal.add_argument("--report", default=None, metavar="OUT.html",
+                     help="also write the one-file HTML report (handeye report): the cell in 3-D, verdict, residuals")
     cal.add_argument("--out", default=None, metavar="FILE",
                      help="also write the JSON result, with the dataset's hash, tool version and options, atomically")
 
@@ -380,6 +401,7 @@ def build_parser():
     _diagnose_args(sub, ALPHA)
     _plan_args(sub)
     _compare_args(sub, ALPHA, KINDS)
+    _report_args(sub, CONVENTIONS, KINDS)
     _use_args(sub, list(CONVENTIONS))
     _study_args(sub)
     _dataset_args(sub)

@@ -215,7 +215,12 @@ def _one_line(value):
 def load(path):
     """The :class:`Calibration` of a ``calibrate --out`` file (or of ``--json`` output saved)."""
     file = pathlib.Path(path)
-    doc = document(file)
+    return from_document(document(file), file)
+
+
+def from_document(doc, file):
+    """The :class:`Calibration` of a calibration's JSON object ``doc`` (what :func:`load` reads from
+    ``file``; ``file`` names it in messages)."""
     if not isinstance(doc, dict) or "sensor_matrix" not in doc:
         raise CalibrationFileError(file, "not a calibration result: no sensor_matrix (write one with handeye "
                                          "calibrate DATASET --out FILE)")

@@ -1,0 +1,141 @@
+"""The report's 2-D figures, as PNG bytes: residuals in the sensor frame against the pose angles,
+the unknowns' correlation matrix, and the discrepancy steps against the noise floor.
+
+One style (:data:`STYLE`): 120 dpi and at least 1000 px wide, text of at least 9 pt, a colour bar
+wherever colour encodes a value, Okabe and Ito's colour-blind-safe colours, and a point beyond the
+axes drawn at the edge as a triangle pointing to it (with its value written)."""
+from __future__ import annotations
+
+import functools
+import io
+
+import numpy as np
+
+#: Okabe-Ito: a palette people with any common colour-vision deficiency tell apart.
+OKABE_ITO = {"orange": "#E69F00", "sky": "#56B4E9", "green": "#009E73", "yellow": "#F0E442", "blue": "#0072B2",
+             "vermillion": "#D55E00", "purple": "#CC79A7", "black": "#000000"}
+#: Frame axes x, y, z.
+AXIS_COLOURS = (OKABE_ITO["vermillion"], OKABE_ITO["green"], OKABE_ITO["blue"])
+#: Every report figure's resolution (dots per inch) and smallest text (points).
+DPI, MIN_FONT_PT = 120, 9
+STYLE = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "xtick.labelsize": 10, "ytick.labelsize": 10,
+         "legend.fontsize": 10, "figure.dpi": DPI, "savefig.dpi": DPI}
+
+
+def styled(draw):
+    """Run ``draw`` with :data:`STYLE` in force (matplotlib's rc_context: nothing global changes)."""
+    @functools.wraps(draw)
+    def run(*args, **kwargs):
+        import matplotlib
+
+        with matplotlib.rc_context(STYLE):
+            return draw(*args, **kwargs)
+    return run
+
+
+def new_figure(figsize=(10, 5)):
+    """A matplotlib figure (Agg, no pyplot state); 10 in at 120 dpi is 1200 px. Call it from a
+    :func:`styled` function."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, dpi=DPI)
+
+
+def png_bytes(fig):
+    """The figure as PNG bytes at :data:`DPI`."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return buf.getvalue()
+
+
+def _limits(values):
+    """Axis limits around ``values`` (the used samples'), with 10 % room."""
+    lo, hi = (float(np.min(values)), float(np.max(values))) if len(values) else (-1.0, 1.0)
+    pad = 0.1 * (hi - lo or abs(hi) or 1.0)
+    return lo - pad, hi + pad
+
+
+@styled
+def residuals_against_angles(cell, poses, columns):
+    """Residual components in each sample's sensor frame (rows: x, y, z) against the flange pose's
+    three orientation angles (columns); excluded samples outside the axes drawn at the edge.
+
+    Parameters
+    ----------
+    cell : handeye.app.present.web.cell.CellGeometry
+    poses : ndarray, shape (N, 6)
+        Flange poses, KUKA (mm, deg): the angles A, B, C are columns 3..5.
+    columns : sequence of str
+        Names of the three angle columns.
+    """
+    fig = new_figure(figsize=(10, 7.5))
+    axes = fig.subplots(3, 3, sharex="col", sharey="row")
+    e, used = cell.residual_sensor, cell.used
+    for r in range(3):
+        lims = _limits(e[used, r])
+        for c in range(3):
+            ax = axes[r, c]
+            ang = poses[:, 3 + c]
+            ax.scatter(ang[used], e[used, r], s=18, color=OKABE_ITO["blue"], label="used")
+            _edge_points(ax, ang[~used], e[~used, r], lims)
+            ax.axhline(0.0, color="0.5", lw=0.8)
+            ax.set_ylim(*lims)
+            if r == 2:
+                ax.set_xlabel(f"flange {columns[c]} (deg)")
+            if c == 0:
+                ax.set_ylabel(f"e_{'xyz'[r]} sensor (mm)")
+    axes[0, 0].legend(loc="best")
+    fig.suptitle("residual in the sensor frame against the flange's orientation angles")
+    fig.tight_layout()
+    return png_bytes(fig)
+
+
+def _edge_points(ax, x, y, lims):
+    """Excluded samples: inside the limits as crosses, outside as triangles at the edge with the value."""
+    inside = (y >= lims[0]) & (y <= lims[1])
+    ax.scatter(x[inside], y[inside], s=40, marker="x", color=OKABE_ITO["purple"], label="excluded")
+    for xv, yv in zip(x[~inside], y[~inside]):
+        top = yv > lims[1]
+        edge = lims[1] if top else lims[0]
+        ax.scatter([xv], [edge], s=60, marker="^" if top else "v", color=OKABE_ITO["purple"], clip_on=False)
+        ax.annotate(f"{yv:.3g}", (xv, edge), textcoords="offset points", xytext=(4, -12 if top else 4), fontsize=9,
+                    color=OKABE_ITO["purple"])
+
+
+@styled
+def correlation_matrix(names, matrix):
+    """The unknowns' correlation matrix as a heat map with its values and a colour bar (PNG)."""
+    corr = np.asarray(matrix, float)
+    n = len(names)
+    fig = new_figure(figsize=(max(8.4, 0.75 * n + 3), max(6.5, 0.6 * n + 2.5)))
+    ax = fig.add_subplot()
+    im = ax.imshow(corr, cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.set_xticks(range(n), names, rotation=45, ha="right")
+    ax.set_yticks(range(n), names)
+    for i in range(n):
+        for j in range(n):
+            ax.text(j, i, f"{corr[i, j]:.2f}", ha="center", va="center", fontsize=9,
+                    color="white" if abs(corr[i, j]) > 0.6 else "black")
+    fig.colorbar(im, ax=ax, label="correlation")
+    ax.set_title("correlation of the unknowns (local chart: t mm, w rad about the sensor's axes)")
+    fig.tight_layout()
+    return png_bytes(fig)
+
+
+@styled
+def gap_steps(steps, sigma_mm):
+    """The discrepancy workflow's steps (``diagnose``): RMS fitted and held out per step against the
+    noise floor, the stated sigma as an RMS per centre (sqrt(3) sigma)."""
+    fig = new_figure(figsize=(10, 5))
+    ax = fig.add_subplot()
+    labels = [s["step"] for s in steps]
+    ax.plot(labels, [s["rms_mm"] for s in steps], "o-", color=OKABE_ITO["blue"], label="fitted")
+    ax.plot(labels, [s["heldout_rms_mm"] for s in steps], "s--", color=OKABE_ITO["orange"], label="held out (5-fold)")
+    floor = np.sqrt(3.0) * sigma_mm
+    ax.axhline(floor, color="0.3", lw=1.2, ls=":", label=f"noise floor: stated {sigma_mm:g} mm x sqrt(3)")
+    ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
+    ax.set_ylim(bottom=min(floor, *(s["rms_mm"] for s in steps)) / 2)
+    ax.tick_params(axis="x", rotation=15)
+    ax.legend(loc="best")
+    fig.tight_layout()
+    return png_bytes(fig)

@@ -1,0 +1,134 @@
+"""The report page: one HTML file, everything inlined (styles, script, figures as data URIs,
+plotly's JavaScript), so it opens offline in any browser and can be mailed as it is.
+
+Machines read it too: ``<script type="application/json" id="handeye-result">`` holds exactly the
+``handeye calibrate --json`` object (``sensor_matrix`` included), ``id="handeye-cell"`` the cell's
+geometry (:class:`handeye.app.present.web.cell.CellGeometry`) and, when diagnose ran,
+``id="handeye-diagnosis"`` the ``handeye diagnose --json`` object.
+"""
+from __future__ import annotations
+
+import base64
+import datetime
+import json
+import pathlib
+
+import numpy as np
+
+from handeye.app.present.jsonio import dumps
+from handeye.app.present.web import figures, parts, view
+
+HERE = pathlib.Path(__file__).parent
+
+
+def _asset(name):
+    return (HERE / name).read_text(encoding="utf-8")
+
+
+def embedded_json(element_id, text):
+    """A ``<script type="application/json">`` element holding ``text`` (JSON), safe inside HTML:
+    ``</`` written ``<\\/``, which JSON reads back as the same ``</``."""
+    safe = text.replace("</", "<\\/")
+    return f'<script type="application/json" id="{element_id}">{safe}</script>'
+
+
+def image(png, alt):
+    """A PNG as an ``<img>`` with a data URI (the page stays one file)."""
+    return f"<img class='figure' alt='{parts.esc(alt)}' src='data:image/png;base64,{base64.b64encode(png).decode()}'>"
+
+
+def snippets(result):
+    """The export formats' text of the result's pose (:mod:`handeye.app.outputs.formats`), in the
+    sensor's own frame when the profiles were turned (as ``handeye export`` writes it)."""
+    from handeye.app.outputs import formats, saved
+
+    if result.get("sensor_matrix") is None:
+        return {}
+    cal = saved.from_document(result, "the report's calibration").in_own_frame()
+    return {fmt: formats.text(cal, fmt) for fmt in parts.SNIPPETS}
+
+
+def cell_section(cell, title, interactive):
+    """The 3-D cell: plotly's scene with the residual slider, or the static picture; the cell's
+    numbers as JSON for the page's script. Returns (html, cell JSON dict)."""
+    if cell is None:
+        return "<section id='cell'><h2>The cell</h2><p>No calibrated chain to draw.</p></section>", None
+    payload = cell.to_dict()
+    payload["residual_drawn"] = np.round(view.capped_residuals(cell), 6).tolist()
+    if interactive:
+        fig, traces, scale = view.figure(cell, title)
+        payload.update(traces=traces, scale=scale)
+        lo, hi = np.log10(max(scale / 100, 0.1)), np.log10(scale * 10)
+        controls = (f"<div class='controls'><label for='residual-scale'>residual scale</label><input type='range' "
+                    f"id='residual-scale' min='{lo:.3f}' max='{hi:.3f}' step='0.01' value='{np.log10(scale):.3f}'>"
+                    f"<span id='residual-scale-value'>{view.scale_text(scale)}</span><span id='picked' class='hint'>pick a sample "
+                    f"in the table or the view</span></div>")
+        body = controls + view.html_div(fig)
+    else:
+        payload.update(traces=None, scale=view.default_scale(cell))
+        body = ("<p class='hint'>A picture: install the report extra (pip install 'handeye[report]') for the "
+                "interactive 3-D view.</p><span id='picked' class='hint'></span>" + image(view.static_png(cell, title),
+                                                                                           "the cell in 3-D"))
+    note = ("<p class='hint'>Frames: x vermillion, y green, z blue. Residual vectors (orange) start at the sphere "
+            "centre and end at the measured centre through the chain, magnified; excluded samples (purple crosses) "
+            "are drawn at most 3× the longest used residual, their true length is in the table.</p>")
+    return f"<section id='cell'><h2>The cell in 3-D</h2>{note}{body}</section>", payload
+
+
+def figures_section(result, cell, dataset):
+    """Residual components in the sensor frame against the pose angles; the correlation matrix."""
+    out = []
+    if cell is not None:
+        png = figures.residuals_against_angles(cell, np.asarray(dataset.flange_poses, float), ("A", "B", "C"))
+        out.append("<h3>Residuals in the sensor frame against the flange's angles</h3>" + image(png, "residuals"))
+    corr = result.get("correlation")
+    if corr and corr.get("names"):
+        out.append("<h3>Correlation of the unknowns</h3>" + image(
+            figures.correlation_matrix(corr["names"], corr["matrix"]), "correlation matrix"))
+    return f"<section id='figures'><h2>Figures</h2>{''.join(out)}</section>" if out else ""
+
+
+def diagnosis_section(diagnosis):
+    """The discrepancy workflow's steps and the gap against the noise floor (``handeye diagnose``)."""
+    if diagnosis is None:
+        return ""
+    rows = "".join(f"<tr><td>{parts.esc(s['step'])}</td><td>{s['rms_mm']:.4f}</td><td>{s['heldout_rms_mm']:.4f}</td>"
+                   f"<td>{s['chi2_dof']:.2f}</td></tr>" for s in diagnosis["steps"])
+    named = ", ".join(e["name"] for e in diagnosis.get("effects") or []) or "none"
+    return (f"<section id='diagnosis'><h2>Where model and data disagree (handeye diagnose)</h2>"
+            f"<p>effects named: {parts.esc(named)}. Unexplained: {parts.esc(diagnosis.get('unexplained'))}</p>"
+            f"<table class='pose'><tr><th>step</th><th>RMS mm</th><th>held out mm</th><th>χ²/dof</th></tr>{rows}</table>"
+            + image(figures.gap_steps(diagnosis["steps"], diagnosis["nominal_sigma_mm"]), "the gap, step by step")
+            + "</section>")
+
+
+def build(result, dataset, diagnosis=None, result_json=None):
+    """The report's HTML text.
+
+    Parameters
+    ----------
+    result : dict
+        ``handeye calibrate --json``'s object of a calibration of ``dataset``.
+    dataset : handeye.model.dataset.Dataset
+    diagnosis : dict, optional
+        ``handeye diagnose --json``'s object on the same dataset.
+    result_json : str, optional
+        The result's JSON text as ``calibrate --json`` prints it (default: ``result`` dumped).
+    """
+    from handeye.app.present.web.cell import cell_geometry
+
+    title = f"handeye calibration report: {result.get('dataset')}"
+    generated = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    cell = cell_geometry(result, dataset) if result.get("sensor_matrix") and result.get("sphere_center") else None
+    cell_html, payload = cell_section(cell, title, view.have_plotly())
+    body = [parts.header(result, title, generated), parts.verdict_strip(result), parts.result_card(result, snippets(result)),
+            cell_html, parts.residual_table(result, cell), figures_section(result, cell, dataset),
+            diagnosis_section(diagnosis),
+            embedded_json("handeye-result", result_json or dumps(result)),
+            embedded_json("handeye-cell", json.dumps(payload, allow_nan=False) if payload else "null")]
+    if diagnosis is not None:
+        body.append(embedded_json("handeye-diagnosis", dumps(diagnosis)))
+    return (f"<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'><meta name='viewport' "
+            f"content='width=device-width, initial-scale=1'><title>{parts.esc(title)}</title>"
+            f"<style>{_asset('page.css')}</style></head><body>{''.join(body)}<script>{_asset('page.js')}</script>"
+            f"</body></html>\n")

@@ -1,0 +1,149 @@
+"""The report's HTML parts, each from the calibration's JSON object: the header, the result card,
+the verdict strip and the residual table. Every value is escaped; nothing here computes a result."""
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+#: Export formats shown as snippets on the result card (``handeye export --format NAME``).
+SNIPPETS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix")
+
+
+def esc(value):
+    return html.escape(str(value), quote=True)
+
+
+def _num(value, digits=4):
+    if value is None:
+        return "–"
+    return f"{value:.{digits}f}" if isinstance(value, (int, float)) and np.isfinite(value) else esc(value)
+
+
+def header(result, title, generated):
+    """Title and provenance: dataset, its SHA-256 and path, the tool's version, the options, when."""
+    from handeye.app.files import tool_version
+    from handeye.model.mounts import CELLS
+
+    cell = CELLS.get((result.get("sensor_mount", "flange"), result.get("sphere_mount", "world")), "")
+    rows = [("dataset", f"{result.get('dataset')} ({result.get('dataset_path')})"),
+            ("dataset SHA-256", result.get("dataset_sha256")), ("cell", cell),
+            ("method", f"{result.get('method')}, rotation {result.get('rotation')}, unknowns {result.get('unknowns')}, "
+                       f"model {result.get('model')}"),
+            ("made by", f"handeye {tool_version()}, {generated}")]
+    prov = result.get("provenance") or {}
+    if prov.get("options"):
+        rows.append(("options", ", ".join(f"{k}={v}" for k, v in prov["options"].items() if v not in (None, False))))
+    body = "".join(f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in rows)
+    return f"<header><h1>{esc(title)}</h1><table class='prov'>{body}</table></header>"
+
+
+def result_card(result, snippets):
+    """The pose in the robot's convention with its 1-sd, the 4x4 with a copy button, the sphere
+    centre, and the export snippets (``snippets``: format -> text)."""
+    pose_as = result.get("sensor_pose_as") or {}
+    cols, pose = pose_as.get("columns") or [], pose_as.get("pose") or []
+    std = result.get("std") or {}
+    frame = "robot base" if result.get("sensor_mount") == "world" else "flange"
+    cells = "".join(f"<th>{esc(c)}</th>" for c in cols)
+    vals = "".join(f"<td>{_num(v)}</td>" for v in pose)
+    sd_t, sd_r = std.get("sensor_translation_mm"), std.get("sensor_rotation_deg")
+    sd_line = ("<p class='sd'>1 sd: translation " + " ".join(_num(v) for v in sd_t) + " mm (x, y, z in the "
+               f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + " deg (about the sensor's own "
+               "x, y, z)</p>") if sd_t and sd_r else "<p class='sd'>no uncertainty (the fit did not give one)</p>"
+    matrix = result.get("sensor_matrix")
+    mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
+    centre = result.get("sphere_center") or []
+    csd = result.get("sphere_center_sd")
+    ctext = " ".join(_num(v, 3) for v in centre) + (" ± " + " ".join(_num(v, 3) for v in csd) if csd else " (given)")
+    snips = "".join(f"<details><summary>{esc(k)}</summary><pre>{esc(v)}</pre></details>" for k, v in snippets.items())
+    return (f"<section id='card'><h2>Sensor pose in the {esc(frame)} frame ({esc(pose_as.get('convention'))})</h2>"
+            f"<table class='pose'><tr>{cells}</tr><tr>{vals}</tr></table>{sd_line}"
+            f"<h3>4×4 sensor matrix (mm) <button id='copy-matrix' type='button'>copy</button>"
+            f"<span id='copy-state'></span></h3><pre id='matrix'>{esc(mtext)}</pre>"
+            f"<p>sphere centre (mm, in its mount's frame): {ctext}</p>"
+            f"<h3>For the controller (handeye export)</h3>{snips}</section>")
+
+
+def _box(state, title, text):
+    mark = {"ok": "✓ pass", "warn": "! check", "fail": "✗ fail", "info": "i"}[state]
+    return (f"<div class='verdict {state}'><div class='vt'>{esc(title)}</div><div class='vs'>{esc(mark)}</div>"
+            f"<div class='vx'>{esc(text)}</div></div>")
+
+
+def verdict_strip(result):
+    """One box per check: convergence, RMS against the stated noise, chi^2, leave-one-out,
+    identifiability, the global check, exclusions; then the warnings in full."""
+    boxes = [_box("ok" if result.get("converged") else "fail", "convergence", result.get("message") or "")]
+    nt = result.get("noise_test")
+    if nt:
+        boxes.append(_box("ok" if nt.get("passed") else "fail", "RMS against stated noise",
+                          f"sd {_num(nt.get('ratio'), 2)} × the stated {nt.get('nominal')}; RMS "
+                          f"{_num(result.get('rms_mm'))} mm per centre"))
+        boxes.append(_box("ok" if nt.get("passed") else "fail", "χ² test",
+                          f"χ² = {nt.get('statistic'):.4g} on {nt.get('dof')} dof, p = {nt.get('p_value'):.3g}"))
+    if result.get("loo_error_mm") is not None:
+        boxes.append(_box("info", "leave-one-out", f"{_num(result['loo_error_mm'])} mm per centre (RMS of the "
+                          f"held-out errors) against {_num(result.get('rms_mm'))} mm fitted"))
+    ident = result.get("identifiability")
+    if ident:
+        bad = ident.get("not_identifiable") or []
+        boxes.append(_box("fail" if bad else "ok", "identifiability",
+                          f"rank {ident.get('rank')} of {ident.get('n')}, condition number "
+                          f"{_num(ident.get('condition_number'), 1)}" + (f"; not identifiable: {', '.join(bad)}" if bad
+                                                                         else "")))
+    glob = result.get("global")
+    if glob:
+        boxes.append(_box("ok" if glob.get("reached") == glob.get("starts") or glob.get("next_best_cost") is None
+                          else "warn", "global check", f"{glob.get('reached')} of {glob.get('starts')} starts reached "
+                          f"the minimum kept; {glob.get('method')}"))
+    n_ex = len(result.get("excluded") or [])
+    boxes.append(_box("warn" if n_ex else "ok", "excluded samples",
+                      f"{n_ex} of {len(result.get('residuals') or [])}: {', '.join(result.get('outliers') or []) or 'none'}"))
+    warns = result.get("warnings") or []
+    boxes.append(_box("warn" if warns else "ok", "warnings", f"{len(warns)}"))
+    items = "".join(f"<li>{esc(w)}</li>" for w in warns)
+    return (f"<section id='verdict'><h2>Verdict</h2><div class='strip'>{''.join(boxes)}</div>"
+            + (f"<ul class='warnings'>{items}</ul>" if items else "") + "</section>")
+
+
+#: The residual table's columns: (key, heading, numeric).
+COLUMNS = (("i", "#", True), ("id", "id", False), ("row", "row", True), ("used", "used", False),
+           ("norm", "|e| mm", True), ("ex", "e_x sensor mm", True), ("ey", "e_y sensor mm", True),
+           ("ez", "e_z sensor mm", True), ("loo", "leave-one-out mm", True), ("why", "why excluded", False))
+
+
+def residual_table(result, cell):
+    """One row per sample, named by its id, sortable by any column (the page's script) and linked to
+    the 3-D view: a click on a row picks the sample there (``data-i``: its index in the cell)."""
+    index = {sid: k for k, sid in enumerate(cell.ids)} if cell is not None else {}
+    why = {e["id"]: e.get("reason", "") for e in result.get("excluded") or []}
+    head = "".join(f"<th data-key='{k}' data-num='{int(num)}' tabindex='0'>{esc(t)}</th>" for k, t, num in COLUMNS)
+    rows = []
+    for r in result.get("residuals") or []:
+        k = index.get(r["id"], -1)
+        e = cell.residual_sensor[k] if k >= 0 else (None, None, None)
+        vals = {"i": k + 1, "id": r["id"], "row": r.get("row"), "used": "yes" if r.get("used") else "no",
+                "norm": r.get("norm"), "ex": e[0], "ey": e[1], "ez": e[2], "loo": r.get("loo_error_mm"),
+                "why": why.get(r["id"], "")}
+        tds = "".join(f"<td data-v='{esc(_sort_value(vals[key]))}'>{_cell_text(vals[key], key)}</td>"
+                      for key, _, _ in COLUMNS)
+        cls = "" if r.get("used") else " class='excluded'"
+        rows.append(f"<tr data-i='{k}' data-id='{esc(r['id'])}'{cls}>{tds}</tr>")
+    return (f"<section id='residuals'><h2>Residuals, one row per sample</h2><p class='hint'>Click a heading to sort, "
+            f"a row to pick the sample in the 3-D view.</p><div class='scroll'><table id='residual-table'><thead><tr>"
+            f"{head}</tr></thead><tbody>{''.join(rows)}</tbody></table></div></section>")
+
+
+def _sort_value(v):
+    if isinstance(v, (int, float, np.floating)) and not isinstance(v, bool):
+        return repr(float(v)) if np.isfinite(v) else ""
+    return "" if v is None else str(v)
+
+
+def _cell_text(v, key):
+    if key in ("i", "row"):
+        return esc(v)
+    if isinstance(v, (float, np.floating)):
+        return _num(float(v))
+    return esc("–" if v is None else v)

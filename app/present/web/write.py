@@ -1,0 +1,63 @@
+"""The report written: :func:`write_report` (the page of a calibration's JSON object, atomically)
+and what it wrote, :class:`ReportResult`."""
+from __future__ import annotations
+
+import dataclasses
+
+from handeye.app.present.protocol import ResultProtocol
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportResult(ResultProtocol):
+    """What ``handeye report`` wrote.
+
+    Attributes
+    ----------
+    path : str
+        The HTML file.
+    size_bytes : int
+    interactive : bool
+        True when the 3-D view is plotly's (the ``report`` extra), False for the static picture.
+    dataset : str
+    source : str
+        ``calibrated now`` or the saved calibration's file.
+    converged : bool
+        The reported calibration's own flag (the CLI exits 1 when False; the report says why).
+    samples, excluded : int
+    diagnosed : bool
+        The discrepancy workflow's steps are in the report.
+    """
+
+    path: str
+    size_bytes: int
+    interactive: bool
+    dataset: str
+    source: str
+    converged: bool
+    samples: int
+    excluded: int
+    diagnosed: bool
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+    def summary(self):
+        view = ("interactive 3-D view (plotly)" if self.interactive
+                else "static 3-D picture (pip install 'handeye[report]' for the interactive view)")
+        state = "converged" if self.converged else "NOT CONVERGED (the report says why)"
+        return (f"report written: {self.path} ({self.size_bytes / 1e6:.2f} MB, {view})\n"
+                f"calibration of {self.dataset} ({self.source}): {state}; {self.samples} samples, {self.excluded} excluded"
+                + ("; diagnose steps included" if self.diagnosed else ""))
+
+
+def write_report(result, dataset, html, diagnosis=None, result_json=None, source="calibrated now", option="--html"):
+    """Build the page of ``result`` (a calibration's JSON object) on ``dataset`` and write it to
+    ``html`` atomically; the :class:`ReportResult`."""
+    from handeye.app.files import write_text_atomically
+    from handeye.app.present.web import page, view
+
+    text = page.build(result, dataset, diagnosis, result_json)
+    write_text_atomically(html, text, option=option)
+    return ReportResult(str(html), len(text.encode("utf-8")), view.have_plotly(), str(result.get("dataset")), source,
+                        bool(result.get("converged")), len(result.get("residuals") or []),
+                        len(result.get("excluded") or []), diagnosis is not None)

@@ -1,0 +1,79 @@
+"""``handeye report DATASET [--calibration FILE] --html OUT.html`` and ``calibrate --report``.
+
+Stages: validate the request (output path, the saved calibration's kind and dataset) -> the
+calibration (run now, or read from ``calibrate --out``'s file) -> optionally the discrepancy
+workflow -> the page (:mod:`handeye.app.present.web.page`) -> written atomically. The page is
+built from the calibration's JSON object, the same one ``calibrate --json`` prints, so a report
+of a saved file and one of a fresh run are the same page.
+"""
+from __future__ import annotations
+
+import pathlib
+
+from handeye.app.errors import RequestError
+from handeye.app.present.web.write import ReportResult, write_report  # noqa: F401  (the command's result: public here)
+
+
+def saved_result(path, dataset):
+    """The JSON object of a ``calibrate --out`` file made from ``dataset`` (the same content hash),
+    or :class:`RequestError` naming the file and what does not match."""
+    from handeye.app.outputs.saved import CalibrationFileError, document
+
+    file = pathlib.Path(path)
+    doc = document(file)
+    if not isinstance(doc, dict) or not isinstance(doc.get("residuals"), list) or "sensor_matrix" not in doc:
+        raise CalibrationFileError(file, "not a whole calibration result (no residuals): give the file `handeye "
+                                         "calibrate DATASET --out FILE` wrote, or score a pose with `handeye calibrate "
+                                         "DATASET --calibration FILE`")
+    sha = dataset.content_hash()
+    if doc.get("dataset_sha256") != sha:
+        raise CalibrationFileError(file, f"was made from another dataset (SHA-256 {str(doc.get('dataset_sha256'))[:12]}..., "
+                                         f"{dataset.name} has {sha[:12]}...): report it on its own dataset, or score it "
+                                         f"on this one with `handeye calibrate {dataset.name} --calibration {file}`",
+                                   "dataset_sha256")
+    return doc
+
+
+def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unknowns="sensor", model=None,
+           convention=None, keep_all=False, no_clean=False):
+    """Write the one-file HTML report of a calibration (``handeye report``).
+
+    Parameters
+    ----------
+    dataset : str, pathlib.Path or Dataset
+        Embedded name or folder.
+    html : str or pathlib.Path
+        The HTML file to write (atomically; never over an input).
+    calibration : str or pathlib.Path, optional
+        A ``calibrate --out`` file of this dataset (its SHA-256 checked): reported as it is. Without
+        it the dataset is calibrated now with ``unknowns``, ``model``, ``convention``, ``keep_all``,
+        ``no_clean`` (as :func:`handeye.calibrate`).
+    diagnose : bool
+        Also run the discrepancy workflow (:func:`handeye.diagnose`, ``unknowns`` sensor or
+        sensor+sphere) and show its steps against the noise floor.
+
+    Returns
+    -------
+    ReportResult
+    """
+    from handeye.app import api
+    from handeye.app.files import check_output_path, input_files
+
+    data = api.load_dataset(dataset, clean=not no_clean)
+    check_output_path(html, "--html", inputs=input_files(data) | _input(calibration))
+    if calibration is not None:
+        result, source, text = saved_result(calibration, data), str(calibration), None
+    else:
+        res = api.calibrate(data, unknowns=unknowns, model=model, convention=convention, keep_all=keep_all)
+        result, source, text = res.to_dict(), "calibrated now", res.to_json()
+    diagnosis = None
+    if diagnose:
+        how = result.get("unknowns") or unknowns
+        if how not in ("sensor", "sensor+sphere"):
+            raise RequestError(f"--diagnose: diagnose takes --unknowns sensor or sensor+sphere, not {how}")
+        diagnosis = api.diagnose(data, unknowns=how).to_dict()
+    return write_report(result, data, html, diagnosis, text, source)
+
+
+def _input(calibration):
+    return set() if calibration is None else {pathlib.Path(calibration).resolve()}

@@ -1,0 +1,170 @@
+"""The one-file HTML report (handeye report, calibrate --report): what it holds, checked without a
+browser (tests/test_report_browser.py opens it in one).
+
+The page is built from the calibration's JSON object; these tests hold it to that object (the
+embedded copy is exactly ``calibrate --json``), to the chain (the drawn residuals are the result's,
+for every mount), and to the CLI's rules (exit codes, one line on bad input, never over an input)."""
+from __future__ import annotations
+
+import html.parser
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app.present.web import cell as cell_mod
+from handeye.app.present.web import page, view
+
+
+class _Scripts(html.parser.HTMLParser):
+    """The page's JSON script elements by id, its table rows, its external references."""
+
+    def __init__(self):
+        super().__init__()
+        self.json, self.rows, self.external, self._id, self.images, self.canvas_divs = {}, [], [], None, 0, 0
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "script" and a.get("type") == "application/json":
+            self._id = a["id"]
+        if tag == "script" and a.get("src") or tag == "link" and a.get("href"):
+            self.external.append(a)
+        if tag == "tr" and "data-id" in a:
+            self.rows.append(a["data-id"])
+        if tag == "img" and a.get("src", "").startswith("data:image/png;base64,"):
+            self.images += 1
+        if tag == "div" and a.get("id") == "cell3d":
+            self.canvas_divs += 1
+
+    def handle_data(self, data):
+        if self._id:
+            self.json[self._id] = self.json.get(self._id, "") + data
+
+    def handle_endtag(self, tag):
+        if tag == "script":
+            self._id = None
+
+
+def parse(path):
+    p = _Scripts()
+    p.feed(path.read_text(encoding="utf-8"))
+    return p
+
+
+@pytest.fixture(scope="module")
+def thesis_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "thesis.html"
+    result = handeye.calibrate("thesis-real", report=out)
+    return result, out
+
+
+def test_the_page_embeds_exactly_the_calibrate_json_object_and_one_row_per_sample(thesis_report):
+    result, out = thesis_report
+    p = parse(out)
+    assert json.loads(p.json["handeye-result"]) == json.loads(result.to_json())
+    assert p.rows == [r.id for r in result.residuals]  # one row per sample, named by its id, in the dataset's order
+    assert not p.external  # one file: no script or style fetched from anywhere
+    assert p.canvas_divs == 1 and p.images == 2  # the 3-D view; residuals against angles and correlation figures
+    text = out.read_text(encoding="utf-8")
+    for said in ("Verdict", "χ² test", "leave-one-out", "identifiability", "global check", "copy-matrix", "set_tcp",
+                 "TOOL_DATA", "static_transform_publisher"):
+        assert said in text
+
+
+def test_the_drawn_residuals_are_the_results_for_every_mount(tmp_path):
+    """The cell's residual in the base has the length of the result's residual, sample by sample:
+    the seed's cell, a sensor fixed in the cell (the result's vector lives in the flange frame
+    there), a sphere on a positioner whose axes were calibrated."""
+    cases = {"seed": ([], "sensor"), "eth": (["--sensor-mount", "world", "--sphere-mount", "flange"], "sensor+sphere"),
+             "pos": (["--sphere-mount", "positioner"], "sensor+sphere+positioner")}
+    for name, (args, unknowns) in cases.items():
+        folder = tmp_path / name
+        handeye.simulate(out=folder, seed=5, **_kw(args))
+        res = handeye.calibrate(folder, unknowns=unknowns, no_loo=True)
+        assert res.converged, (name, res.message)
+        data = handeye.load_dataset(folder)
+        geo = cell_mod.cell_geometry(res.to_dict(), data)
+        norms = np.linalg.norm(geo.residual_base, axis=1)
+        np.testing.assert_allclose(norms, [r.norm for r in res.residuals], atol=1e-6, err_msg=name)
+        np.testing.assert_allclose(np.linalg.norm(geo.residual_sensor, axis=1), norms, atol=1e-9)
+        assert geo.used.all() and len(geo.fans) == len(data)
+
+
+def _kw(args):
+    return {"sensor_mount": args[1], "sphere_mount": args[3]} if len(args) == 4 else (
+        {"sphere_mount": args[1]} if args else {})
+
+
+def test_excluded_samples_are_drawn_near_with_their_true_length_in_the_table(thesis_report):
+    result, out = thesis_report
+    data = handeye.load_dataset("thesis-real")
+    geo = cell_mod.cell_geometry(result.to_dict(), data)
+    drawn = np.linalg.norm(view.capped_residuals(geo), axis=1)
+    longest_used = np.linalg.norm(geo.residual_base[geo.used], axis=1).max()
+    assert (~geo.used).sum() == len(result.excluded) > 0
+    assert drawn.max() <= view.EXCLUDED_CAP * longest_used + 1e-9
+    row = next(r for r in result.residuals if r.id == "x+22.5")  # the 2 m gross error
+    assert row.norm > 1000 and f"data-v='{row.norm!r}'" in out.read_text(encoding="utf-8")
+
+
+def test_a_saved_calibration_of_another_dataset_is_refused_naming_the_key(tmp_path):
+    cal = tmp_path / "cal.json"
+    handeye.calibrate("thesis-real", out=cal, no_loo=True)
+    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--calibration", str(cal),
+                          "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
+    assert run.returncode == 2 and "dataset_sha256" in run.stderr and "another dataset" in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and not (tmp_path / "r.html").exists()
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps({"sensor_matrix": np.eye(4).tolist()}))
+    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-real", "--calibration", str(bare),
+                          "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
+    assert run.returncode == 2 and "not a whole calibration result" in run.stderr
+
+
+def test_a_saved_calibration_reports_as_the_run_that_made_it(tmp_path):
+    cal = tmp_path / "cal.json"
+    res = handeye.calibrate("thesis-real", out=cal, no_loo=True)
+    out = handeye.report("thesis-real", calibration=cal, html=tmp_path / "r.html")
+    assert out.converged and out.source == str(cal) and out.samples == len(res.residuals)
+    embedded = json.loads(parse(tmp_path / "r.html").json["handeye-result"])
+    assert embedded["sensor_matrix"] == json.loads(cal.read_text())["sensor_matrix"]
+
+
+def test_the_report_never_overwrites_an_input_and_scores_have_none(tmp_path):
+    data = handeye.load_dataset("thesis-sim")
+    target = data.path / "measurements.csv"
+    with pytest.raises(handeye.InputError, match="--html"):
+        handeye.report("thesis-sim", html=target)
+    with pytest.raises(handeye.InputError, match="--report"):
+        handeye.calibrate("thesis-sim", sensor_pose="0,0,100,0,0,0", report=tmp_path / "r.html")
+
+
+def test_without_plotly_the_cell_is_a_picture(monkeypatch, tmp_path):
+    monkeypatch.setattr(view, "have_plotly", lambda: False)
+    res = handeye.calibrate("thesis-sim", no_loo=True)
+    text = page.build(res.to_dict(), handeye.load_dataset("thesis-sim"))
+    p = _Scripts()
+    p.feed(text)
+    assert p.canvas_divs == 0 and p.images == 3 and "plotly.js" not in text and "handeye[report]" in text
+    assert json.loads(p.json["handeye-cell"])["traces"] is None
+
+
+def test_embedded_json_survives_html_in_its_strings():
+    text = json.dumps({"id": "</script><script>alert(1)</script>", "c": "<!-- x"})
+    el = page.embedded_json("x", text)
+    p = _Scripts()
+    p.feed(el)
+    assert json.loads(p.json["x"]) == json.loads(text)
+    assert el.count("</script>") == 1
+
+
+def test_the_report_command_prints_what_it_wrote_and_exits_as_the_calibration(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--html",
+                          str(tmp_path / "r.html"), "--json"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    out = json.loads(run.stdout)
+    assert out["converged"] and out["samples"] == len(handeye.load_dataset("thesis-sim"))
+    assert out["size_bytes"] == (tmp_path / "r.html").stat().st_size
