@@ -197,12 +197,14 @@ def static_png(cell, title):
     for frames in (cell.flange2base, cell.sensor2base):
         for k, xyz in enumerate(_triads(frames, length)):
             ax.plot(*(np.array(c, dtype=float) for c in xyz), color=AXIS_COLOURS[k], lw=1)
-    used, excl = residual_segments(cell, default_scale(cell))
-    ax.plot(*(np.array(c, dtype=float) for c in used), color=OKABE_ITO["orange"], lw=2, label="residuals (magnified)")
-    ax.scatter(*cell.measured[cell.used].T, color=OKABE_ITO["blue"], s=12, label="measured centres")
+    scale = default_scale(cell)
+    used, _ = residual_segments(cell, scale)
+    shown = cell.sphere + scale * capped_residuals(cell)  # as the interactive view: at the end of each drawn residual
+    ax.plot(*(np.array(c, dtype=float) for c in used), color=OKABE_ITO["orange"], lw=2,
+            label=f"residuals {scale_text(scale)}")
+    ax.scatter(*shown[cell.used].T, color=OKABE_ITO["blue"], s=12, label="measured centres")
     if (~cell.used).any():
-        shown = cell.sphere + capped_residuals(cell)
-        ax.scatter(*shown[~cell.used].T, color=OKABE_ITO["purple"], marker="x", s=40, label="excluded (drawn capped)")
+        ax.scatter(*shown[~cell.used].T, color=OKABE_ITO["purple"], marker="x", s=40, label="excluded (capped)")
     ax.scatter(*cell.sphere[cell.used].T, color="0.5", s=30, label="sphere centre")
     ax.set(xlabel="x base (mm)", ylabel="y base (mm)", zlabel="z base (mm)", title=title)
     ax.legend(loc="upper left")
