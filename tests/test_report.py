@@ -168,3 +168,15 @@ def test_the_report_command_prints_what_it_wrote_and_exits_as_the_calibration(tm
     out = json.loads(run.stdout)
     assert out["converged"] and out["samples"] == len(handeye.load_dataset("thesis-sim"))
     assert out["size_bytes"] == (tmp_path / "r.html").stat().st_size
+
+
+def test_a_fit_with_effects_says_the_view_draws_the_plain_chain(tmp_path):
+    out = tmp_path / "eff.html"
+    res = handeye.calibrate("thesis-real", effects="sensor_scale", no_loo=True, report=out)
+    assert res.effects and "Effects calibrated (sensor_scale)" in out.read_text(encoding="utf-8")
+
+
+def test_thousands_of_poses_draw_a_few_hundred_frames_and_every_centre():
+    some = view.drawn_poses(5000)
+    assert len(some) == view.MAX_DRAWN_POSES and some[0] == 0 and some[-1] == 4999
+    assert list(view.drawn_poses(7)) == list(range(7)) and len(view.drawn_poses(0)) == 0

@@ -48,7 +48,17 @@ def snippets(result):
     return {fmt: formats.text(cal, fmt) for fmt in parts.SNIPPETS}
 
 
-def cell_section(cell, title, interactive):
+def effects_note(result):
+    """What the view draws when the fit corrected the centres by effects: the plain chain."""
+    names = [e.get("name") for e in result.get("effects") or [] if isinstance(e, dict)]
+    if not names:
+        return ""
+    return (f"<p class='hint'><b>Effects calibrated ({parts.esc(', '.join(names))}):</b> the view and the sensor-frame "
+            "columns draw the plain chain (sensor pose and sphere centre, no effect applied); the table's |e| is the "
+            "result's, of the corrected centres.</p>")
+
+
+def cell_section(cell, title, interactive, result):
     """The 3-D cell: plotly's scene with the residual slider, or the static picture; the cell's
     numbers as JSON for the page's script. Returns (html, cell JSON dict)."""
     if cell is None:
@@ -71,7 +81,9 @@ def cell_section(cell, title, interactive):
                                                                                            "the cell in 3-D"))
     note = ("<p class='hint'>Frames: x vermillion, y green, z blue. Residual vectors (orange) start at the sphere "
             "centre and end at the measured centre through the chain, magnified; excluded samples (purple crosses) "
-            "are drawn at most 3× the longest used residual, their true length is in the table.</p>")
+            f"are drawn at most {view.EXCLUDED_CAP:g}× the longest used residual, their true length is in the table."
+            + (f" Frames and fans of {view.MAX_DRAWN_POSES} of the {len(cell.ids)} poses, evenly spaced; every centre."
+               if len(cell.ids) > view.MAX_DRAWN_POSES else "") + "</p>" + effects_note(result))
     return f"<section id='cell'><h2>The cell in 3-D</h2>{note}{body}</section>", payload
 
 
@@ -120,7 +132,7 @@ def build(result, dataset, diagnosis=None, result_json=None):
     title = f"handeye calibration report: {result.get('dataset')}"
     generated = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     cell = cell_geometry(result, dataset) if result.get("sensor_matrix") and result.get("sphere_center") else None
-    cell_html, payload = cell_section(cell, title, view.have_plotly())
+    cell_html, payload = cell_section(cell, title, view.have_plotly(), result)
     body = [parts.header(result, title, generated), parts.verdict_strip(result), parts.result_card(result, snippets(result)),
             cell_html, parts.residual_table(result, cell), figures_section(result, cell, dataset),
             diagnosis_section(diagnosis),

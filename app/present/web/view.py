@@ -16,6 +16,9 @@ import numpy as np
 
 from handeye.app.present.web.figures import AXIS_COLOURS, OKABE_ITO, new_figure, png_bytes, styled
 
+#: At most this many flange and sensor frames and laser fans are drawn (evenly spaced over the samples):
+#: a cell of thousands of poses stays a scene a browser turns smoothly; every centre is still drawn.
+MAX_DRAWN_POSES = 300
 #: Residual vectors of excluded samples are drawn at most this many times the longest used one
 #: (their direction is true; their length is in the table).
 EXCLUDED_CAP = 3.0
@@ -117,10 +120,17 @@ def figure(cell, title):
     return fig, index, scale
 
 
+def drawn_poses(n):
+    """Indices of the poses whose frames and fans are drawn (:data:`MAX_DRAWN_POSES`, evenly spaced)."""
+    return np.unique(np.linspace(0, n - 1, min(n, MAX_DRAWN_POSES)).round().astype(int)) if n else np.zeros(0, int)
+
+
 def _frames(add, go, cell, length):
+    some = drawn_poses(len(cell.ids))
     groups = (("base frame", np.eye(4)[None], 2.0 * length, 6),
-              ("flange frames", cell.flange2base, length, 3),
-              ("sensor frames", cell.sensor2base if cell.mounts.sensor == "flange" else cell.sensor2base[:1], length, 4))
+              ("flange frames", cell.flange2base[some], length, 3),
+              ("sensor frames", cell.sensor2base[some] if cell.mounts.sensor == "flange" else cell.sensor2base[:1],
+               length, 4))
     for name, frames, size, width in groups:
         for k, xyz in enumerate(_triads(frames, size)):
             add(f"{name} {'xyz'[k]}", go.Scatter3d(
@@ -130,6 +140,7 @@ def _frames(add, go, cell, length):
 
 def _laser(add, go, cell):
     near = np.linalg.norm(capped_residuals(cell) - cell.residual_base, axis=1) < 1e-9  # a gross error's fan: not drawn
+    near &= np.isin(np.arange(len(near)), drawn_poses(len(near)))
     tri = cell.fans[near].reshape(-1, 3)
     n = int(near.sum())
     add("fans", go.Mesh3d(x=tri[:, 0], y=tri[:, 1], z=tri[:, 2], i=3 * np.arange(n), j=3 * np.arange(n) + 1,
