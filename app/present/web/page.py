@@ -71,8 +71,8 @@ def cell_section(cell, title, interactive, result):
         lo, hi = np.log10(max(scale / 100, 0.1)), np.log10(scale * 10)
         controls = (f"<div class='controls'><label for='residual-scale'>residual scale</label><input type='range' "
                     f"id='residual-scale' min='{lo:.3f}' max='{hi:.3f}' step='0.01' value='{np.log10(scale):.3f}'>"
-                    f"<span id='residual-scale-value'>{view.scale_text(scale)}</span><span id='picked' class='hint'>pick a sample "
-                    f"in the table or the view</span></div>")
+                    f"<span id='residual-scale-value'>{view.scale_text(scale)}</span>"
+                    "<span id='picked' class='hint'>pick a sample in the table or the view</span></div>")
         body = controls + view.html_div(fig)
     else:
         payload.update(traces=None, scale=view.default_scale(cell))
