@@ -339,4 +339,4 @@ def binomial_interval(successes, n, level=0.95):
     p = np.divide(k, n, out=np.full_like(k, np.nan), where=n > 0)
     centre = (p + z**2 / (2 * n)) / (1 + z**2 / n)
     half = z * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / (1 + z**2 / n)
-    return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
+    return np.clip(np.minimum(centre - half, p), 0, 1), np.clip(np.maximum(centre + half, p), 0, 1)  # p inside, to round-off
