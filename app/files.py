@@ -191,7 +191,9 @@ def write_text_atomically(path, text, option="--out"):
 
 
 def save_figure_atomically(fig, path, option="--plot", dpi=120):
-    """``fig.savefig`` through a temporary file and a rename, as every output (:func:`_atomically`)."""
+    """``fig.savefig`` through a temporary file and a rename, as every output (:func:`_atomically`).
+    Figures are saved through :func:`handeye.app.present.figure_style.save`, which picks the dpi
+    and checks the style first."""
     fmt = pathlib.Path(path).suffix.lower().lstrip(".") or "png"
     _atomically(path, option, "wb", lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))
 

@@ -12,6 +12,7 @@ import json
 import pathlib
 
 from handeye.app.errors import RequestError
+from handeye.app.present import figure_style
 from handeye.app.present.plotting import figure  # noqa: F401 - the studies' figures
 from handeye.app.tools.registry import STUDIES, StudyClaimFailed
 
@@ -20,6 +21,11 @@ def claim(condition, text):
     """Assert a study's claim; the message says what was claimed."""
     if not condition:
         raise StudyClaimFailed(f"claim not supported by the data: {text}")
+
+
+def save(fig, path):
+    """Write a study's figure in the one style (:func:`handeye.app.present.figure_style.save`)."""
+    figure_style.save(fig, path, option="--out")
 
 
 def write_table(out, name, header, rows):

@@ -26,7 +26,7 @@ from handeye.model import bounds, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 KINDS = ("centre", "measurement", "points")
 NAMES = ["tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg"]
@@ -83,7 +83,7 @@ def run(out, quick=False):
     ax.set(ylabel="RMSE / CRLB", title=f"accuracy against the bound ({reps} noisy replicates, 36 poses)")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "accuracy.png", dpi=120)
+    save(fig, out / "accuracy.png")
     plt.close(fig)
     summary["accuracy_figure_mm"] = {"leave_one_out": float(np.mean(loo)), "held_out": float(np.mean(heldout))}
     best = min(KINDS, key=lambda k: max(summary["models"][k]["rmse_over_crlb"]))

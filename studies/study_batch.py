@@ -30,7 +30,7 @@ from handeye import solvers
 from handeye.app.engine.problems import testfunction_options as options_for
 from handeye.app.engine.problems import testfunction_problem, testfunction_starts
 from handeye.app.tools import sweep
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 from handeye.studies.study_testfunction import KINDS, METHODS, classify
 
 __all__ = ["Comparison", "compare", "run"]
@@ -145,7 +145,7 @@ def run(out, quick=False):
     ax.set(yscale="log", ylabel="single-start time / batch time",
            title=f"same ends from {n} starts per method; the batch's speed-up")
     fig.tight_layout()
-    fig.savefig(out / "batch_speedup.png", dpi=110)
+    save(fig, out / "batch_speedup.png")
     plt.close(fig)
     for c in results:
         d = c.to_dict()

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.model import circle
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 RADIUS = 25.0
 
@@ -55,7 +55,7 @@ def run(out, quick=False):
         ax.axhline(0, color="grey", lw=0.5)
         ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "circle_fits.png", dpi=120)
+    save(fig, out / "circle_fits.png")
     plt.close(fig)
     pick = {m: next(r for r in rows if r[0] == m and r[1] == 30 and r[2] == 0.05) for m in circle.FITS}
     summary = {m: {"bias_mm": r[3], "spread_mm": r[4], "se_mm": r[5]} for m, r in pick.items()}

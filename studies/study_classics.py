@@ -48,7 +48,7 @@ from handeye.model import bounds, classics, fast, motions, simulate
 from handeye.model.calibration import CalibrationModel
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 from handeye.studies.study_random_starts import random_start
 
 METHODS = ("nls", "kim-cho", "li-two-step")
@@ -252,11 +252,11 @@ def _plot(out, table):
     for ax in axes:
         ax.set_ylabel("RMS translation error (mm)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend()
     axes[1].set_yscale("log")
     axes[0].set_xticks(noise, [f"{k:g}" for k in noise])
     axes[0].minorticks_off()
     fig.suptitle("Closed-form baselines against nonlinear least squares")
     fig.tight_layout()
-    fig.savefig(out / "classics.png", dpi=120)
+    save(fig, out / "classics.png")
     plt.close(fig)

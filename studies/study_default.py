@@ -26,7 +26,7 @@ from handeye.app.tools import sweep
 from handeye.model import scratch
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 CONVENTIONS = ("kuka", "ur", "abb", "fanuc")
 DIAMETERS = (25.4, 50.8, 59.94507, 76.2)
@@ -96,7 +96,7 @@ def run(out, quick=False):
            title=f"no start pose, random mounts: {summary['converged_at_truth']}/{len(rows)} at the truth, exit 0")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(f"{out}/honest_default.png", dpi=110)
+    save(fig, f"{out}/honest_default.png")
     plt.close(fig)
     claim(summary["converged_at_truth"] == len(rows),
           f"every run converges at the truth ({summary['converged_at_truth']} of {len(rows)})")

@@ -39,7 +39,7 @@ from handeye.app.tools import sweep
 from handeye.model import conventions, scratch
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 from handeye.studies.study_default import errors_in_sd
 
 CONVENTIONS = ("kuka", "ur", "abb", "fanuc")
@@ -231,7 +231,7 @@ def run(out, quick=False):
     labels = ["correct", "CAD beyond margin"] + list(SLIPS)
     outcome = {0: "exit 0 at the truth", 1: "exit 1", 2: "exit 2 (slip named)", 3: "exit 0 WRONG"}
     left = np.zeros(len(labels))
-    for code, colour in zip(outcome, ("C2", "C1", "C0", "C3")):
+    for code, colour in zip(outcome, ("C2", "C3", "C0", "C1")):  # Okabe-Ito: green, orange, blue, vermillion
         counts = np.array([sum((3 if wrong(r) else r["exit"]) == code
                                for r in {"correct": clean, "CAD beyond margin": beyond}.get(
                                    label, [r for r in slipped if r["slip"] == label]))
@@ -239,9 +239,9 @@ def run(out, quick=False):
         ax.barh(labels, counts, left=left, color=colour, label=outcome[code])
         left += counts
     ax.set(xlabel="datasets", title=f"exit 0 at a wrong pose: {summary['clean_exit0_wrong'] + summary['slips_exit0_wrong']}")
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(loc="lower right")
     fig.tight_layout()
-    fig.savefig(f"{out}/guarantee.png", dpi=110)
+    save(fig, f"{out}/guarantee.png")
     plt.close(fig)
     claim(summary["clean_exit0_at_truth"] == len(clean),
           f"every correct dataset exits 0 at the truth ({summary['clean_exit0_at_truth']} of {len(clean)})")

@@ -18,11 +18,12 @@ from __future__ import annotations
 import numpy as np
 
 import handeye
+from handeye.app.present import figure_style
 from handeye.model import scratch
 from handeye.model.mounts import table2base
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 #: (label, sensor mount, sphere mount, unknowns)
 CELLS = (
@@ -91,7 +92,7 @@ def run(out, quick=False):
 
 
 def _frame(ax, t, size, alpha=1.0):
-    for k, colour in enumerate(("tab:red", "tab:green", "tab:blue")):
+    for k, colour in enumerate((figure_style.VERMILLION, figure_style.GREEN, figure_style.BLUE)):
         end = t[:3, 3] + size * t[:3, k]
         ax.plot(*np.c_[t[:3, 3], end], color=colour, alpha=alpha, lw=1.2)
 
@@ -102,7 +103,7 @@ def _fan(ax, sensor2base, z=(190.0, 290.0), half=50.0):
 
     corners = np.array([[-half, 0, z[0], 1], [half, 0, z[0], 1], [half, 0, z[1], 1], [-half, 0, z[1], 1]])
     pts = (sensor2base @ corners.T).T[:, :3]
-    ax.add_collection3d(Poly3DCollection([pts], alpha=0.15, color="tab:orange"))
+    ax.add_collection3d(Poly3DCollection([pts], alpha=0.15, color=figure_style.ORANGE))
 
 
 def _sphere_centres(data, res):
@@ -140,22 +141,22 @@ def draw(out, label, data, res, n_show=8):
     centres = _sphere_centres(data, res)
     _sphere(ax, centres[show[0]], data.sphere_diameter / 2)
     ax.scatter(*centres.T, color="k", s=10, label="sphere centre at each pose")
-    ax.scatter(*f2b[:, :3, 3].T, color="tab:purple", s=8, label="flange origins")
+    ax.scatter(*f2b[:, :3, 3].T, color=figure_style.PURPLE, s=8, label="flange origins")
     if res.positioner is not None:
         for axis in res.positioner.axes:
             line = axis.point + np.outer([-250.0, 250.0], axis.direction)
-            ax.plot(*line.T, color="tab:brown", lw=2.5)
+            ax.plot(*line.T, color=figure_style.BLACK, lw=2.5)
             ax.text(*(axis.point + 270 * axis.direction), f"axis {axis.name}", fontsize=9)
     every = np.vstack([f2b[:, :3, 3], centres, [s[:3, 3] for s in sensors]])
     mid, span = every.mean(axis=0), (every.max(axis=0) - every.min(axis=0)).max() / 2 + 60
     towards = -mid / np.linalg.norm(mid)  # the robot's base, as an arrow from the middle
     ax.quiver(*mid, *(0.8 * span * towards), color="0.3", lw=1.5, arrow_length_ratio=0.15)
-    ax.text(*(mid + 0.85 * span * towards), f"robot base ({np.linalg.norm(mid):.0f} mm)", fontsize=8)
+    ax.text(*(mid + 0.85 * span * towards), f"robot base ({np.linalg.norm(mid):.0f} mm)", fontsize=9)
     ax.set(xlim=(mid[0] - span, mid[0] + span), ylim=(mid[1] - span, mid[1] + span),
            zlim=(mid[2] - span, mid[2] + span), xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
-    ax.set_title(f"{label}: {data.mounts.describe()}\n(frames: x red, y green, z blue; laser window orange; "
+    ax.set_title(f"{label}: {data.mounts.describe()}\n(frames: x vermillion, y green, z blue; laser window orange; "
                  "robot base frame)", fontsize=10)
-    ax.legend(loc="upper left", fontsize=8)
+    ax.legend(loc="upper left")
     fig.tight_layout()
-    fig.savefig(out / f"cell_{label}.png", dpi=110)
+    save(fig, out / f"cell_{label}.png")
     plt.close(fig)

@@ -19,7 +19,7 @@ from handeye.model import bounds, planning, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 
 def _rmse(setup, ids, poses, reps):
@@ -85,9 +85,9 @@ def run(out, quick=False):
                     label="0.71R-0.97R (published zone)")
     axes[1].set(xlabel="distance of the laser plane from the centre (mm)", ylabel="largest sd bound",
                 title="36 thesis poses against the cut distance")
-    axes[1].legend(fontsize=7)
+    axes[1].legend()
     fig.tight_layout()
-    fig.savefig(out / "planning.png", dpi=120)
+    save(fig, out / "planning.png")
     plt.close(fig)
     write_summary(out, summary)
     ratio = observed / predicted

@@ -16,7 +16,7 @@ import numpy as np
 import handeye
 from handeye.model import scratch, simulate
 from handeye.model.dataset import load
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 GRIDS = {
     "sphere_center": [0.01, 0.02, 0.04, 0.08, 0.16],  # mm, along a fixed unit direction
@@ -49,20 +49,40 @@ def run(out, quick=False):
             detect = [s for s, r in zip(grid, rates) if r >= 0.9]
             summary["effects"][name] = {"sizes": grid, "rates": rates, "smallest_90": detect[0] if detect else None}
     write_table(out, "power", ["effect", "size", "detection_rate"], rows)
-    plt = figure()
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.5))
-    units = {"sphere_center": "offset (mm)", "sensor_scale": "scale error s", "sphere_radius": "dr (mm)"}
-    for ax, (name, s) in zip(axes, summary["effects"].items()):
-        ax.semilogx(s["sizes"], s["rates"], "o-")
-        ax.axhline(0.9, color="grey", lw=0.8, ls="--")
-        ax.set(xlabel=units[name], ylabel="detection rate", ylim=(-0.05, 1.05), title=name)
-    fig.suptitle(f"power of handeye diagnose ({seeds} datasets per size, 36 thesis poses)")
-    fig.tight_layout()
-    fig.savefig(out / "power.png", dpi=120)
-    plt.close(fig)
+    _draw(out, summary, seeds)
     write_summary(out, summary)
     for name, s in summary["effects"].items():
         claim(s["rates"][-1] >= 0.9, f"{name} at {s['sizes'][-1]} is detected in >= 90 % of datasets")
         claim(all(b >= a - 2 * np.sqrt(0.25 / seeds) for a, b in zip(s["rates"], s["rates"][1:])),
               f"{name}: detection does not fall with size")
     return summary
+
+
+#: axis label and tick scale per effect (the sensor scale in units of 1e-4, so that ticks stay short)
+UNITS = {"sphere_center": ("offset (mm)", 1.0), "sensor_scale": ("scale error s (x 1e-4)", 1e4),
+         "sphere_radius": ("radius error dr (mm)", 1.0)}
+
+
+def _draw(out, summary, seeds):
+    """Detection rate against size per effect, with Wilson 95 % intervals (n = seeds per size)."""
+    from handeye.app.present import figure_style
+
+    plt = figure()
+    effects = summary["effects"]
+    fig, axes = plt.subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)
+    for ax, (name, s) in zip(axes[0], effects.items()):
+        label, scale = UNITS[name]
+        sizes, rates = np.asarray(s["sizes"]) * scale, np.asarray(s["rates"])
+        low, high = figure_style.binomial_interval(np.round(rates * seeds), seeds)
+        ax.errorbar(sizes, rates, yerr=[rates - low, high - rates], fmt="o-", capsize=3)
+        ax.axhline(0.9, color="0.5", lw=0.8, ls="--")
+        ax.set_xscale("log")
+        ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
+        ax.minorticks_off()
+        ax.set(xlabel=label, ylim=(-0.04, 1.06), title=name)
+    axes[0, 0].set_ylabel("detection rate")
+    fig.suptitle(f"power of handeye diagnose ({seeds} datasets per size, 36 thesis poses; "
+                 "bars: Wilson 95 % intervals; dashed: 90 %)")
+    fig.tight_layout()
+    save(fig, out / "power.png")
+    plt.close(fig)

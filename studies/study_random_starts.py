@@ -27,18 +27,15 @@ import handeye
 from handeye import solvers
 from handeye.app.engine.problems import calibration_problem
 from handeye.app.engine.request import SUPPORTED
+from handeye.app.present import figure_style
 from handeye.app.tools import sweep
 from handeye.model import fast, observations, scratch, simulate
 from handeye.model.dataset import load
 from handeye.model.pose import pose_from_transform, transform_from_pose
 from handeye.model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 METHODS = ("lm", "gn", "dogleg", "tr", "newton", "ipopt")
-
-
-#: line style per parametrisation (the colour is the method's)
-STYLE = {"euler": "o-", "local": "s--", "matrix": "^:"}
 
 
 def random_start(truth, rng):
@@ -122,31 +119,12 @@ def run(out, quick=False):
                                        "plain_success", "with_closed_form_success"], rows)
     methods = sorted({r[1] for r in rows})
     summary = {"starts": n_starts, "methods": {}}
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(8, 4))
-    bins = np.linspace(0, 180, 7)
-    families = sorted({m.split("/")[0] for m in methods})
-    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    colours = {f: cycle[k % len(cycle)] for k, f in enumerate(families)}  # one colour per method (7 here)
     for method in methods:
         sel = [r for r in rows if r[1] == method]
-        plain = np.array([r[4] for r in sel])
         full = np.array([r[5] for r in sel if r[5] != ""], dtype=bool)
-        summary["methods"][method] = {"plain_success_rate": float(plain.mean()),
+        summary["methods"][method] = {"plain_success_rate": float(np.mean([r[4] for r in sel])),
                                       "success_rate": float(full.mean()) if full.size else None}
-        err = np.array([r[2] for r in sel])
-        idx = np.clip(np.digitize(err, bins) - 1, 0, len(bins) - 2)
-        rate = [plain[idx == b].mean() if np.any(idx == b) else np.nan for b in range(len(bins) - 1)]
-        family, rotation = method.split("/")
-        ax.plot(0.5 * (bins[1:] + bins[:-1]), rate, STYLE.get(rotation, "o-"), color=colours[family],
-                label=f"{method} (start alone)")
-    ax.axhline(1.0, color="k", lw=1, label="every method with closed-form restart")
-    ax.set(xlabel="initial rotation error (deg)", ylabel="success rate", ylim=(-0.05, 1.05),
-           title=f"convergence from {n_starts} random starts (translations 0-500 mm off)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "random_starts.png", dpi=120)
-    plt.close(fig)
+    _draw(out, rows, methods, n_starts)
     write_summary(out, summary)
     (out / "timing.json").write_text(json.dumps(seconds, indent=1) + "\n")  # not in summary.json: that one is reproducible
     for method, s in summary["methods"].items():
@@ -154,3 +132,60 @@ def run(out, quick=False):
             continue
         claim(s["success_rate"] == 1.0, f"{method} with the closed-form restart succeeds from every start")
     return summary
+
+
+#: colour and marker per parametrisation (Okabe-Ito; the panel is the method's)
+PARAM_STYLE = {"euler": (figure_style.BLUE, "o", -1), "local": (figure_style.VERMILLION, "s", 0),
+               "matrix": (figure_style.GREEN, "^", 1)}
+
+
+def _draw(out, rows, methods, n_starts):
+    """Small multiples: one panel per method, the success rate of each parametrisation against
+    the start's rotation error (Wilson 95 % intervals), beside the rate with the closed-form restart."""
+    plt = figure()
+    families = sorted({m.split("/")[0] for m in methods})
+    cols = min(4, len(families))
+    nrows = -(-len(families) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(3.4 * cols, 3.2 * nrows + 0.8), sharex=True, sharey=True,
+                             squeeze=False)
+    bins = np.linspace(0, 180, 7)
+    mid, width = 0.5 * (bins[1:] + bins[:-1]), bins[1] - bins[0]
+    for ax, family in zip(axes.flat, families):
+        restart = []
+        for method in (m for m in methods if m.split("/")[0] == family):
+            sel = [r for r in rows if r[1] == method]
+            idx = np.clip(np.digitize([r[2] for r in sel], bins) - 1, 0, len(mid) - 1)
+            plain = np.array([r[4] for r in sel], dtype=bool)
+            restart += [(b, bool(r[5])) for b, r in zip(idx, sel) if r[5] != ""]
+            colour, marker, shift = PARAM_STYLE.get(method.split("/")[1], ("0.3", "D", 0))
+            _rate(ax, mid + shift * 0.12 * width, idx, plain, len(mid), f"{method.split('/')[1]}, start alone",
+                  color=colour, marker=marker)
+        if restart:
+            b, ok = np.array(restart).T
+            _rate(ax, mid + 0.24 * width, b, ok.astype(bool), len(mid), "with closed-form restart", color="k",
+                  marker="*", ls=":")
+        ax.set_title(family)
+        ax.legend(loc="lower left", fontsize=9)
+    for ax in axes.flat[len(families):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("start's rotation error (deg)")
+        ax.set_xticks(bins[::2])
+    for ax in axes[:, 0]:
+        ax.set_ylabel("success rate")
+    axes[0, 0].set_ylim(-0.04, 1.06)
+    fig.suptitle(f"convergence from {n_starts} random starts (translations 0-500 mm off; "
+                 "bars: Wilson 95 % intervals)")
+    fig.tight_layout()
+    save(fig, out / "random_starts.png")
+    plt.close(fig)
+
+
+def _rate(ax, x, idx, ok, nbins, label, **style):
+    """Success rate per bin with its Wilson 95 % interval, as points with error bars."""
+    n = np.bincount(idx, minlength=nbins)
+    k = np.bincount(idx, weights=ok.astype(float), minlength=nbins)
+    has = n > 0
+    rate = k[has] / n[has]
+    low, high = figure_style.binomial_interval(k[has], n[has])
+    ax.errorbar(x[has], rate, yerr=[rate - low, high - rate], capsize=2, ms=5, lw=1, label=label, **style)

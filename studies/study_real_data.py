@@ -18,7 +18,7 @@ from handeye.app.engine.request import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 TABLE_7_4 = (189.69, 99.71, 130.36, -181.40, -89.24, 0.155)
 
@@ -52,11 +52,11 @@ def run(out, quick=False):
     for screened_flag, label in ((False, "every sample (as the thesis)"), (True, "gross errors screened")):
         res = results[(screened_flag, "ipopt", "matrix")][0]
         ax.semilogy([r.norm for r in res.residuals], "o-" if screened_flag else "s--", label=label, ms=4)
-    ax.set_xticks(range(len(d)), d.ids, rotation=90, fontsize=6)
+    ax.set_xticks(range(len(d)), d.ids, rotation=90)
     ax.set(ylabel="|e_i| (mm)", title="thesis-real: residual per measurement (IPOPT, matrix)")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "real_data.png", dpi=120)
+    save(fig, out / "real_data.png")
     plt.close(fig)
     write_summary(out, summary)
     claim(spread < 1e-4, f"every screened fit lands on the same transform (spread {spread:.1e})")

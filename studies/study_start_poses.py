@@ -19,7 +19,7 @@ from handeye.app.engine.request import SUPPORTED
 from handeye.model.dataset import load
 from handeye.model.pose import transform_from_pose
 from handeye.model.rotation import transform_distance
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 TABLE_7_2 = [
     (5, 0, 5, 0, -90, 0), (75, 0, 5, 0, -90, 0), (5, 60, 5, 0, -90, 0), (5, 0, 45, 0, -90, 0),
@@ -58,10 +58,10 @@ def run(out, quick=False):
     labels = list(summary)
     data = [summary[k]["iterations"] for k in labels]
     ax.boxplot(data)
-    ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, fontsize=7)
+    ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, ha="right", rotation_mode="anchor")
     ax.set(ylabel="iterations", title="thesis-sim from Table 7-2's ten starts")
     fig.tight_layout()
-    fig.savefig(out / "start_poses.png", dpi=120)
+    save(fig, out / "start_poses.png")
     plt.close(fig)
     write_summary(out, summary)
     for key, s in summary.items():

@@ -42,9 +42,10 @@ import numpy as np
 from handeye import solvers
 from handeye.app.engine.problems import testfunction_options as options_for
 from handeye.app.engine.problems import testfunction_problem
+from handeye.app.present import figure_style
 from handeye.app.tools import sweep
 from handeye.model import fast_starts, testfunction
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 KINDS = testfunction.END_KINDS
@@ -186,28 +187,7 @@ def run(out, quick=False):
                                                "our_iterations"), r)) for r in replay]
     write_table(out, "basins", ["method", "zoom_global", "zoom_local", "zoom_saddle", "zoom_none",
                                 "x0max_local", "x0max_global", "global_converges_beyond_x0max"], rows)
-    plt = figure()
-    from matplotlib.colors import ListedColormap
-
-    cmap = ListedColormap(["#1b9e77", "#7570b3", "#d95f02", "#dddddd"])
-    for label, data in maps.items():
-        fig, axes = plt.subplots(2, len(METHODS), figsize=(2.6 * len(METHODS), 5.6))
-        for col, method in enumerate(METHODS):
-            axis, kind, iters = data[method]
-            ext = [axis[0], axis[-1], axis[0], axis[-1]]
-            axes[0, col].imshow(kind, origin="lower", extent=ext, cmap=cmap, vmin=0, vmax=3, interpolation="nearest")
-            axes[0, col].set_title(f"{method} ({grids[method]})" if len(axis) != n else method, fontsize=9)
-            im = axes[1, col].imshow(np.where(kind < 3, iters, np.nan), origin="lower", extent=ext, cmap="viridis",
-                                     interpolation="nearest")
-            fig.colorbar(im, ax=axes[1, col], fraction=0.046)
-            for ax in axes[:, col]:
-                ax.tick_params(labelsize=6)
-        axes[0, 0].set_ylabel("where it ends\n(green global, purple local,\norange saddle, grey none)", fontsize=7)
-        axes[1, 0].set_ylabel("iterations", fontsize=8)
-        fig.suptitle(f"basins of attraction on (6-16), {n} x {n} starts over [{axis[0]:g}, {axis[-1]:g}]^2")
-        fig.tight_layout()
-        fig.savefig(out / f"basins_{label}.png", dpi=110)
-        plt.close(fig)
+    _draw(out, maps, grids, n)
     write_summary(out, summary)
     (out / "timing.json").write_text(json.dumps(seconds, indent=1) + "\n")  # not in summary.json: that one is reproducible
     newton_saddle = summary["methods"]["newton"]["zoom"]["saddle"]
@@ -216,3 +196,34 @@ def run(out, quick=False):
               for e in summary["methods"].values()),
           "some basin is not star-shaped along the diagonal: x0max misleads")
     return summary
+
+
+def _draw(out, maps, grids, n):
+    """One figure per window: where each method ends (categories: Okabe-Ito, named in the
+    legend) above its iterations (viridis, with a colour bar)."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    plt = figure()
+    colours = [figure_style.GREEN, figure_style.BLUE, figure_style.ORANGE, "#dddddd"]
+    cmap = ListedColormap(colours, name="okabe-ito-basins")
+    for label, data in maps.items():
+        fig, axes = plt.subplots(2, len(METHODS), figsize=(2.7 * len(METHODS), 6.4))
+        for col, method in enumerate(METHODS):
+            axis, kind, iters = data[method]
+            ext = [axis[0], axis[-1], axis[0], axis[-1]]
+            axes[0, col].imshow(kind, origin="lower", extent=ext, cmap=cmap, vmin=0, vmax=3, interpolation="nearest")
+            axes[0, col].set_title(f"{method} ({grids[method]})" if len(axis) != n else method)
+            im = axes[1, col].imshow(np.where(kind < 3, iters, np.nan), origin="lower", extent=ext, cmap="viridis",
+                                     interpolation="nearest")
+            fig.colorbar(im, ax=axes[1, col], fraction=0.046)
+        axes[0, 0].set_ylabel("where it ends")
+        axes[1, 0].set_ylabel("iterations")
+        fig.legend([Patch(color=c) for c in colours], [f"ends at the {k} minimum" if k in ("global", "local") else
+                                                       {"saddle": "ends at the saddle", "none": "no convergence"}[k]
+                                                       for k in KINDS],
+                   loc="lower center", ncol=4, frameon=False)
+        fig.suptitle(f"basins of attraction on (6-16), {n} x {n} starts over [{axis[0]:g}, {axis[-1]:g}]^2")
+        fig.tight_layout(rect=(0, 0.05, 1, 1))
+        save(fig, out / f"basins_{label}.png")
+        plt.close(fig)

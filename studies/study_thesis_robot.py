@@ -30,7 +30,7 @@ import numpy as np
 import handeye
 from handeye.model import robots, scratch
 from handeye.model import simulate_robot as sr
-from handeye.studies.study import claim, figure, write_summary, write_table
+from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 
 def _with_joints(src, folder, joints, keep):
@@ -92,10 +92,10 @@ def _draw(out, plain, with_joints):
     ax.bar(k + 0.2, [after[i] for i in ids], 0.4,
            label=f"with reconstructed joint angles: + joint_offsets (RMS {with_joints.rms_after_mm:.3f})")
     ax.axhline(with_joints.nominal_sigma_mm * np.sqrt(3), color="k", lw=0.8, ls="--", label="stated noise (3-D)")
-    ax.set_xticks(k, ids, rotation=90, fontsize=7)
+    ax.set_xticks(k, ids, rotation=90)
     ax.set(ylabel="|e_i| after diagnose (mm, log; the tall bars are the gross errors diagnose excludes)", yscale="log",
            title="thesis-real: what joint offsets can explain (angles reconstructed)")
-    ax.legend(fontsize=8)
+    ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "thesis_robot.png", dpi=110)
+    save(fig, out / "thesis_robot.png")
     plt.close(fig)

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+from test_figures import assert_readable
 
 from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from handeye.model import bounds, planning, simulate
@@ -49,6 +50,8 @@ def _check_quick_study(tmp_path, name, args=()):
     folder = tmp_path / name
     assert (folder / "summary.json").is_file()
     assert list(folder.glob("*.png")) and list(folder.glob("*.csv")) and list(folder.glob("*.md"))
+    for png in folder.glob("*.png"):  # one style (test_figures.py): at least 120 dpi and 1,000 px across
+        assert_readable(png)
     return json.loads((folder / "summary.json").read_text())
 
 

@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import base64
 import dataclasses
-import io
 from typing import Callable, Optional
 
-#: PNG resolution of the panels' figures (the notebooks' inline figures use the same).
-DPI = 80
+#: Smallest PNG resolution of the panels' figures (:func:`handeye.app.present.figure_style.png_bytes`
+#: raises it until the figure is 1,000 px wide).
+DPI = 120
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,10 +65,13 @@ def choice(options, value=None, description=None):
 
 
 def png_from_figure(fig):
-    """PNG bytes of a matplotlib figure at :data:`DPI`."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
-    return buf.getvalue()
+    """PNG bytes of a matplotlib figure in the one style (at least :data:`DPI` and 1,000 px wide;
+    :func:`handeye.app.present.figure_style.png_bytes`). The style rules are not checked here:
+    the notebook that draws the figure owns its text sizes."""
+    from handeye.app.present import figure_style
+
+    with figure_style.style():
+        return figure_style.png_bytes(fig, check=False)
 
 
 def _widget(name, control):
@@ -102,7 +105,7 @@ class Panel:
     def __init__(self, draw: Callable, controls: dict):
         self.draw = draw
         self.values = {name: c.value for name, c in controls.items()}
-        self.png = png_from_figure(draw(**self.values))
+        self.png = png_from_figure(self._drawn())
         self.widgets, self.box, self._image = None, None, None
         try:
             import ipywidgets
@@ -114,6 +117,10 @@ class Panel:
         for name, w in self.widgets.items():
             w.observe(self._changed(name), names="value")
 
+    def _drawn(self):
+        """The figure at the current values."""
+        return self.draw(**self.values)
+
     def _changed(self, name):
         def handler(change):
             self.update(**{name: change["new"]})
@@ -122,7 +129,7 @@ class Panel:
     def update(self, **values):
         """Redraw with some controls' values changed (what moving a slider does)."""
         self.values = {**self.values, **values}
-        self.png = png_from_figure(self.draw(**self.values))
+        self.png = png_from_figure(self._drawn())
         if self._image is not None:
             self._image.value = self.png
 

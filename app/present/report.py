@@ -214,7 +214,7 @@ def calibration_plot(res, dataset, path):
         :func:`handeye.app.engine.cell_stage.dataset_at`).
     path : str or pathlib.Path
     """
-    from handeye.app.files import save_figure_atomically
+    from handeye.app.present import figure_style as style
     from handeye.app.present.plotting import figure
 
     plt = figure()
@@ -222,33 +222,52 @@ def calibration_plot(res, dataset, path):
         fig, ax = plt.subplots(figsize=(6, 2))
         ax.axis("off")
         ax.text(0.5, 0.5, f"{res.dataset}: no finite solution ({res.message})", ha="center", va="center", wrap=True)
-        save_figure_atomically(fig, path)
+        style.save(fig, path)
         plt.close(fig)
         return
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
-    norms = np.array([r.norm for r in res.residuals])
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.7, 1]})
     used = np.array([r.used for r in res.residuals])
-    k = np.arange(len(norms))
-    axes[0].bar(k[used], norms[used], color="C0", label="used")
-    axes[0].bar(k[~used], norms[~used], color="C3", label="excluded")
-    axes[0].set_xticks(k, [r.id for r in res.residuals], rotation=90, fontsize=6)
-    rms = "n/a" if res.rms_mm is None else f"{res.rms_mm:.3f} mm"
-    axes[0].set(ylabel="|e_i| (mm)", yscale="log",
-                title=f"{res.dataset}: residuals ({res.method}, {res.rotation}, RMS {rms})")
-    axes[0].legend()
+    _residual_bars(axes[0], res, used)
     sensor = np.asarray(res.sensor2flange)
     seen = (dataset.motions() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
-    d = seen[:, :3, 0] - np.asarray(res.sphere_centre)
-    axes[1].scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="coolwarm", s=18, label="used (colour: dz)")
-    axes[1].scatter(d[~used, 0], d[~used, 1], marker="x", color="C3", label="excluded")
-    lim = max(3 * np.percentile(np.abs(d[used, :2]), 95), 1e-3)
-    frame = {"world": "base", "flange": "flange", "positioner": "table"}[getattr(res, "sphere_mount", "world")]
-    axes[1].set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel=f"dx (mm, {frame})", ylabel=f"dy (mm, {frame})",
-                title="sphere centres through the chain", aspect="equal")
-    axes[1].legend(fontsize=7)
+    _centres_seen(fig, axes[1], res, seen[:, :3, 0] - np.asarray(res.sphere_centre), used)
     fig.tight_layout()
-    save_figure_atomically(fig, path)
+    style.save(fig, path)
     plt.close(fig)
+
+
+def _residual_bars(ax, res, used):
+    """``calibration_plot``'s left panel: |e_i| per sample, used in blue, excluded in vermillion."""
+    from handeye.app.present import figure_style as style
+
+    norms = np.array([r.norm for r in res.residuals])
+    k = np.arange(len(norms))
+    ax.bar(k[used], norms[used], color=style.BLUE, label="used")
+    ax.bar(k[~used], norms[~used], color=style.VERMILLION, hatch="//", label="excluded")
+    ax.set_xticks(k, [r.id for r in res.residuals], rotation=90)
+    ax.set_xlim(-0.6, len(k) - 0.4)
+    ax.set(ylabel="|e_i| (mm)", yscale="log", title=f"{res.dataset}: residuals ({res.method}, {res.rotation}, "
+           f"RMS {res.rms_mm:.3f} mm of {int(used.sum())} used)")
+    ax.legend()
+
+
+def _centres_seen(fig, ax, res, d, used):
+    """``calibration_plot``'s right panel: the centres through the chain minus the calibrated one;
+    colour dz (with its bar); excluded samples as crosses, those beyond the view as edge arrows."""
+    from handeye.app.present import figure_style as style
+
+    dz = np.abs(d[used, 2]).max() if used.any() else 1.0
+    sc = ax.scatter(d[used, 0], d[used, 1], c=d[used, 2], cmap="cividis", vmin=-dz, vmax=dz, s=28,
+                    edgecolors="0.3", linewidths=0.4, label="used")
+    fig.colorbar(sc, ax=ax, label="dz (mm)", shrink=0.9)
+    ax.scatter(d[~used, 0], d[~used, 1], marker="x", s=40, color=style.VERMILLION, label="excluded")
+    lim = max(1.15 * np.abs(d[used, :2]).max() if used.any() else 0.0, 1e-3)
+    frame = {"world": "base", "flange": "flange", "positioner": "table"}[getattr(res, "sphere_mount", "world")]
+    ax.set(xlabel=f"dx (mm, {frame})", ylabel=f"dy (mm, {frame})", aspect="equal",
+           title="sphere centres through the chain")
+    ids = [r.id for r in res.residuals]
+    style.edge_arrows(ax, d[:, 0], d[:, 1], ids, xlim=(-lim, lim), ylim=(-lim, lim))
+    ax.legend(loc="best")
 
 
 def _pm(value, sd, prec=4):
@@ -300,7 +319,7 @@ def validation_text(res):
 def validation_figure(res, path, max_points=20_000):
     """Radial deviation of every point on the sphere (3-D scatter, diverging colours, mm) and
     their histogram; for centre validation the |epsilon| of each pose. Written to ``path``."""
-    from handeye.app.files import save_figure_atomically
+    from handeye.app.present import figure_style as style
     from handeye.app.present.plotting import figure
 
     plt = figure()
@@ -309,14 +328,14 @@ def validation_figure(res, path, max_points=20_000):
         fig, ax = plt.subplots(figsize=(10, 4))
         norms = np.linalg.norm(c.epsilon, axis=1)
         k = np.arange(len(norms))
-        ax.bar(k, norms, color="C0", label="|epsilon|")
+        ax.bar(k, norms, color=style.BLUE, label="|epsilon|")
         if c.predicted_sd_mm is not None:
             ax.plot(k, c.predicted_sd_mm, "k_", ms=12, label="1 sd (calibration)")
-        ax.set_xticks(k, c.ids, rotation=90, fontsize=6)
+        ax.set_xticks(k, c.ids, rotation=90)
         ax.set(ylabel="mm", yscale="log", title=f"{res.scan}: sphere centres through the calibration")
         ax.legend()
         fig.tight_layout()
-        save_figure_atomically(fig, path)
+        style.save(fig, path)
         plt.close(fig)
         return
     n = len(res.spheres)
@@ -329,21 +348,21 @@ def validation_figure(res, path, max_points=20_000):
             idx = np.sort(rng.choice(idx, max_points, replace=False))
         lim = float(np.max(np.abs(s.deviations))) or 1e-6
         p = s.points[idx] - s.centre
-        sc = ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=s.deviations[idx], cmap="RdBu_r", vmin=-lim, vmax=lim, s=2)
+        sc = ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=s.deviations[idx], cmap="cividis", vmin=-lim, vmax=lim, s=2)
         fig.colorbar(sc, ax=ax, shrink=0.7, pad=0.15, label="radial deviation (mm)")
         shown = f", {len(idx):,} of {len(s.points):,} drawn" if len(idx) < len(s.points) else ""
         ax.set(xlabel="x - cx (mm)", ylabel="y - cy (mm)", zlabel="z - cz (mm)",
                title=f"[{s.label}] PF {s.form_error_mm:.3f} mm, PS {s.size_error_mm:+.3f} mm{shown}")
-        ax.title.set_fontsize(9)
+        ax.title.set_fontsize(10)
         ah = fig.add_subplot(n, 2, 2 * k + 2)
-        ah.hist(s.deviations, bins=80, color="C0")
+        ah.hist(s.deviations, bins=80, color=style.BLUE)
         ah.axvline(0, color="k", lw=0.8)
         ah.set(xlabel="radial deviation (mm)", ylabel="points",
                title=f"RMS {s.rms_mm:.4f} mm over {s.n_points:,} points, {s.n_poses} poses")
     fig.suptitle(f"{res.scan}: radial deviations from the least-squares sphere (robot base, calibration "
-                 f"{res.calibration})", fontsize=10)
+                 f"{res.calibration})", fontsize=11)
     fig.tight_layout()
-    save_figure_atomically(fig, path)
+    style.save(fig, path)
     plt.close(fig)
 
 
@@ -419,7 +438,7 @@ def diagnosis_figures(res, out):
     """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
     import pathlib
 
-    from handeye.app.files import save_figure_atomically
+    from handeye.app.present import figure_style as style
     from handeye.app.present.plotting import figure
 
     out = pathlib.Path(out)
@@ -432,14 +451,17 @@ def diagnosis_figures(res, out):
     ax.bar(k + 0.2, [r.after_mm for r in res.residuals], 0.4, label="with named effects")
     for i, r in enumerate(res.residuals):
         if not r.used:
-            ax.annotate("excluded", (i, r.after_mm), rotation=90, fontsize=6, ha="center", va="bottom")
-    ax.set_xticks(k, ids, rotation=90, fontsize=6)
+            ax.annotate("excluded", (i + 0.2, r.after_mm), rotation=90, fontsize=style.MIN_FONT_PT, ha="center",
+                        va="bottom")
+    ax.set_xticks(k, ids, rotation=90)
+    ax.set_xlim(-0.7, len(k) - 0.3)
     ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res.dataset}: residuals per measurement")
+    ax.set_ylim(top=ax.get_ylim()[1] * 30)  # room for the labels above the tallest bars
     ax.legend()
     fig.tight_layout()
-    save_figure_atomically(fig, out / "residuals.png", option="--figures")
+    style.save(fig, out / "residuals.png", option="--figures")
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(8.4, 4.8))
     labels = [s.step for s in res.steps]
     ax.plot(labels, [s.rms_mm for s in res.steps], "o-", label="fitted")
     ax.plot(labels, [s.heldout_rms_mm for s in res.steps], "s--", label="held out (5-fold)")
@@ -448,9 +470,11 @@ def diagnosis_figures(res, out):
     ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
     ax.set_ylim(bottom=min(floor, *(s.rms_mm for s in res.steps)) / 2)  # the floor in view, below the legend
     ax.tick_params(axis="x", rotation=20)
+    for t in ax.get_xticklabels():  # the long step names end under their point, inside the figure
+        t.set(ha="right", rotation_mode="anchor")
     ax.legend(loc="center left")
     fig.tight_layout()
-    save_figure_atomically(fig, out / "gap.png", option="--figures")
+    style.save(fig, out / "gap.png", option="--figures")
     plt.close(fig)
     return [out / "residuals.png", out / "gap.png"]
 

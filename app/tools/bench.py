@@ -539,27 +539,26 @@ def text(res):
 
 def plot(res, path):
     """Log-log time against measurements for the fast path and every method of the table."""
-    import matplotlib
+    from handeye.app.present import figure_style as style
+    from handeye.app.present.plotting import figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    plt = figure()
+    fig, ax = plt.subplots(figsize=(8.4, 5.4))
     rows = res["scaling"]["rows"]
     ns = np.array([r["n"] for r in rows])
     ax.loglog(ns, [r["median_ms"] for r in rows], "o-", label="fast (compiled), scaling run")
     sizes = {int(c.split("-")[1]): t for c, t in res["cases"].items() if c.startswith("sim-")}
-    for method in ORDER[1:]:
+    for k, method in enumerate(ORDER[1:]):
         pts = sorted((n, t[method]["median_ms"]) for n, t in sizes.items() if method in t)
         if len(pts) > 1:
-            ax.loglog(*zip(*pts), "s--", label=method, alpha=0.8)
+            ax.loglog(*zip(*pts), style.MARKERS[(k + 1) % len(style.MARKERS)] + "--", label=method, alpha=0.8)
     ref = rows[-1]["median_ms"] * ns / ns[-1]
     ax.loglog(ns, ref, "k:", label="linear reference")
     ax.set_xlabel("measurements")
     ax.set_ylabel("time per calibration (ms)")
     ax.set_title(f"fast path slope {res['scaling']['slope']:.2f} per evaluation")
-    ax.legend(fontsize=8)
+    ax.legend()
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    style.save(fig, path)
     plt.close(fig)
