@@ -149,6 +149,11 @@ def png_bytes(fig, check=True, colours=256):
     return out.getvalue()
 
 
+def check(fig):
+    """Warn (:class:`FigureStyleWarning`) of every rule ``fig`` breaks (:func:`violations`)."""
+    _warn(violations(fig))
+
+
 def _warn(found):
     for text in found:
         warnings.warn(text, FigureStyleWarning, stacklevel=3)

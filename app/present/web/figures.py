@@ -1,9 +1,9 @@
 """The report's 2-D figures, as PNG bytes: residuals in the sensor frame against the pose angles,
 the unknowns' correlation matrix, and the discrepancy steps against the noise floor.
 
-One style (:data:`STYLE`): 120 dpi and at least 1000 px wide, text of at least 9 pt, a colour bar
-wherever colour encodes a value, Okabe and Ito's colour-blind-safe colours, and a point beyond the
-axes drawn at the edge as a triangle pointing to it (with its value written)."""
+The one style of every figure (:mod:`handeye.app.present.figure_style`): 120 dpi and 1200 px wide,
+text of at least 9 pt, a colour bar wherever colour encodes a value, Okabe and Ito's colour-blind-safe
+colours, and a point beyond the axes drawn at the edge as a triangle pointing to it (with its value)."""
 from __future__ import annotations
 
 import functools
@@ -11,24 +11,24 @@ import io
 
 import numpy as np
 
-#: Okabe-Ito: a palette people with any common colour-vision deficiency tell apart.
-OKABE_ITO = {"orange": "#E69F00", "sky": "#56B4E9", "green": "#009E73", "yellow": "#F0E442", "blue": "#0072B2",
-             "vermillion": "#D55E00", "purple": "#CC79A7", "black": "#000000"}
+from handeye.app.present import figure_style
+
+#: Okabe-Ito by name (:data:`handeye.app.present.figure_style.OKABE_ITO`).
+OKABE_ITO = {"orange": figure_style.ORANGE, "sky": figure_style.SKY, "green": figure_style.GREEN,
+             "yellow": figure_style.YELLOW, "blue": figure_style.BLUE, "vermillion": figure_style.VERMILLION,
+             "purple": figure_style.PURPLE, "black": figure_style.BLACK}
 #: Frame axes x, y, z.
 AXIS_COLOURS = (OKABE_ITO["vermillion"], OKABE_ITO["green"], OKABE_ITO["blue"])
-#: Every report figure's resolution (dots per inch) and smallest text (points).
-DPI, MIN_FONT_PT = 120, 9
-STYLE = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "xtick.labelsize": 10, "ytick.labelsize": 10,
-         "legend.fontsize": 10, "figure.dpi": DPI, "savefig.dpi": DPI}
+#: Every report figure's resolution (dots per inch).
+DPI = figure_style.MIN_DPI
 
 
 def styled(draw):
-    """Run ``draw`` with :data:`STYLE` in force (matplotlib's rc_context: nothing global changes)."""
+    """Run ``draw`` in the one figure style (:func:`handeye.app.present.figure_style.style`: nothing
+    global changes)."""
     @functools.wraps(draw)
     def run(*args, **kwargs):
-        import matplotlib
-
-        with matplotlib.rc_context(STYLE):
+        with figure_style.style():
             return draw(*args, **kwargs)
     return run
 
@@ -42,7 +42,9 @@ def new_figure(figsize=(10, 5)):
 
 
 def png_bytes(fig):
-    """The figure as PNG bytes at :data:`DPI`."""
+    """The figure as PNG bytes at :data:`DPI` (10 in wide: 1200 px), its style checked
+    (:func:`handeye.app.present.figure_style.violations`: a broken rule warns)."""
+    figure_style.check(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
     return buf.getvalue()
@@ -109,13 +111,13 @@ def correlation_matrix(names, matrix):
     n = len(names)
     fig = new_figure(figsize=(max(8.4, 0.75 * n + 3), max(6.5, 0.6 * n + 2.5)))
     ax = fig.add_subplot()
-    im = ax.imshow(corr, cmap="RdBu_r", vmin=-1, vmax=1)
+    im = ax.imshow(corr, cmap="cividis", vmin=-1, vmax=1)
     ax.set_xticks(range(n), names, rotation=45, ha="right")
     ax.set_yticks(range(n), names)
     for i in range(n):
         for j in range(n):
             ax.text(j, i, f"{corr[i, j]:.2f}", ha="center", va="center", fontsize=9,
-                    color="white" if abs(corr[i, j]) > 0.6 else "black")
+                    color="white" if corr[i, j] < 0.2 else "black")
     fig.colorbar(im, ax=ax, label="correlation")
     ax.set_title("correlation of the unknowns (local chart: t mm, w rad about the sensor's axes)")
     fig.tight_layout()
