@@ -26,7 +26,7 @@ import io
 from typing import Callable, Optional
 
 #: PNG resolution of the panels' figures (the notebooks' inline figures use the same).
-DPI = 80
+DPI = 120
 
 
 @dataclasses.dataclass(frozen=True)
