@@ -1,6 +1,6 @@
 """Write the student edition of the notebooks: the same course without its solutions.
 
-    python notebooks/student.py OUT_DIR              # every notebook, and README.md
+    python notebooks/student.py OUT_DIR              # every notebook, README.md and notation.md
     python notebooks/student.py OUT_DIR NAME.ipynb   # some of them
 
 Each copy keeps every teaching cell and its outputs, and each exercise's own cell (tagged
@@ -29,7 +29,8 @@ NOTE = ("*Student edition: the worked solutions are left out. Each exercise has 
 
 
 def is_solution(cell):
-    """Whether ``cell`` is part of a worked solution (module docstring)."""
+    """Whether ``cell`` (an ``nbformat`` cell) is part of a worked solution: tagged ``solution``, a
+    collapsed ``<details>`` explanation, or a solutions heading."""
     if "solution" in cell.get("metadata", {}).get("tags", []):
         return True
     source = "".join(cell.get("source", ""))
@@ -37,8 +38,19 @@ def is_solution(cell):
 
 
 def student_notebook(nb):
-    """A copy of the ``nbformat`` notebook ``nb`` without its solutions and with the exercise
-    cells' outputs cleared."""
+    """The student copy of a notebook.
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        The notebook as committed (left unchanged).
+
+    Returns
+    -------
+    nbformat.NotebookNode
+        A copy without the solution cells (:func:`is_solution`), with the exercise cells'
+        outputs cleared and a note under the title.
+    """
     nb = nbformat.from_dict(nb)
     nb.cells = [c for c in nb.cells if not is_solution(c)]
     for cell in nb.cells:
@@ -51,8 +63,21 @@ def student_notebook(nb):
 
 
 def student_edition(out_dir, names=None):
-    """Write the student edition of the notebooks (``names``: file names, default all) and the
-    course's README.md into ``out_dir``; returns the paths of the notebooks written."""
+    """Write the student edition of the notebooks.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        Folder to write into (created when missing); the course's README.md and notation.md are
+        copied beside the notebooks.
+    names : list of str, optional
+        Notebook file names (``"least_squares.ipynb"``); default all.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The notebooks written.
+    """
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = [HERE / n for n in names] if names else sorted(HERE.glob("*.ipynb"))
@@ -61,7 +86,8 @@ def student_edition(out_dir, names=None):
         target = out / path.name
         nbformat.write(student_notebook(nbformat.read(path, as_version=4)), target)
         written.append(target)
-    shutil.copyfile(HERE / "README.md", out / "README.md")
+    for page in ("README.md", "notation.md"):
+        shutil.copyfile(HERE / page, out / page)
     return written
 
 

@@ -110,7 +110,8 @@ def _student():
 def test_the_student_edition_has_no_solutions_and_clears_the_exercise_cells(tmp_path):
     pytest.importorskip("nbformat")
     written = _student().student_edition(tmp_path)
-    assert sorted(p.name for p in written) == [p.name for p in NOTEBOOKS] and (tmp_path / "README.md").exists()
+    assert sorted(p.name for p in written) == [p.name for p in NOTEBOOKS]
+    assert (tmp_path / "README.md").exists() and (tmp_path / "notation.md").exists()
     for path in NOTEBOOKS:
         original, student = _cells(path), _cells(tmp_path / path.name)
         text = "\n".join(_source(c) for c in student)

@@ -151,7 +151,23 @@ def check(notebook, number, answer):
 
 
 def checker(notebook):
-    """``check_exercise(number, answer)`` for one notebook (see :func:`check`)."""
+    """The check function of one notebook.
+
+    Parameters
+    ----------
+    notebook : str
+        The notebook's name without ``.ipynb``.
+
+    Returns
+    -------
+    callable
+        ``check_exercise(number, answer) -> Verdict`` (see :func:`check`).
+
+    Raises
+    ------
+    KeyError
+        When the notebook has no answer keys.
+    """
     if notebook not in EXERCISES:
         raise KeyError(f"no exercises for {notebook!r}; known: {', '.join(sorted(EXERCISES))}")
 
