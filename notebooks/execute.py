@@ -4,7 +4,8 @@
     python notebooks/execute.py NAME.ipynb
 
 Needs the ``notebooks`` extra (``pip install '.[notebooks]'``). Figures are inline PNGs at
-80 dpi; cell timings are not recorded, so a re-run changes a notebook only where its results
+120 dpi (each notebook's first cell sets it, with fonts of at least 9 pt and the
+Okabe-Ito palette); cell timings are not recorded, so a re-run changes a notebook only where its results
 change. No widget state is saved: an interactive panel's output keeps only its static figure
 (the PNG it carries beside the widget view), and ``metadata.widgets`` is dropped, so that
 nbconvert, GitHub and JupyterLab before a kernel runs all show that figure (with the saved state

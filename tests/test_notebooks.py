@@ -183,3 +183,19 @@ def test_output_comparison_ignores_rounding_level_digits_but_not_results():
     # a float at rounding level may come out exactly zero elsewhere; a count of zero is a result
     assert text("[3.5e-15 0.0e+00]") == text("[3.5e-15 1.2e-17]")
     assert text("0 outliers") != text("1 outliers")
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
+def test_figures_are_set_up_to_read(path):
+    """Issue 30: figures at 120 dpi or more, fonts of at least 9 pt, a colour-blind-safe palette
+    (Okabe-Ito for lines; no tab10 names, no rainbow maps), set in the notebook's first code cell."""
+    cells = _cells(path)
+    first = "".join(next(c for c in cells if c["cell_type"] == "code")["source"])
+    dpi = re.search(r'"figure\.dpi": (\d+)', first)
+    size = re.search(r'"font\.size": ([\d.]+)', first)
+    assert dpi and int(dpi.group(1)) >= 120 and size and float(size.group(1)) >= 9, path.name
+    assert '"#0072B2", "#E69F00", "#009E73"' in first  # the Okabe-Ito cycle
+    source = "".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+    assert all(float(s) >= 9 for s in re.findall(r"(?:fontsize|labelsize)=([\d.]+)", source)), path.name
+    assert all(int(d) >= 120 for d in re.findall(r"\bdpi=(\d+)", source)), path.name
+    assert not re.search(r'"tab:|cmap="(?:jet|rainbow|hsv|gist_rainbow)"', source), path.name
