@@ -104,7 +104,8 @@ def _report_args(sub, conventions, kinds):
                           "default: calibrate now")
     rep.add_argument("--diagnose", action="store_true",
                      help="also run handeye diagnose and show its steps against the noise floor")
-    rep.add_argument("--unknowns", default="sensor", metavar="PARTS", help="as calibrate's (without --calibration)")
+    rep.add_argument("--unknowns", default=None, metavar="PARTS",
+                     help="as calibrate's, default sensor (without --calibration)")
     rep.add_argument("--model", default=None, choices=list(kinds), help="as calibrate's (without --calibration)")
     rep.add_argument("--convention", default=None, choices=list(conventions),
                      help="robot convention of the reported pose (default: the dataset's)")

@@ -34,7 +34,7 @@ def saved_result(path, dataset):
     return doc
 
 
-def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unknowns="sensor", model=None,
+def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unknowns=None, model=None,
            convention=None, keep_all=False, no_clean=False):
     """Write the one-file HTML report of a calibration (``handeye report``).
 
@@ -48,6 +48,9 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
         A ``calibrate --out`` file of this dataset (its SHA-256 checked): reported as it is. Without
         it the dataset is calibrated now with ``unknowns``, ``model``, ``convention``, ``keep_all``,
         ``no_clean`` (as :func:`handeye.calibrate`).
+    unknowns, model, convention, keep_all, no_clean : optional
+        As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are
+        refused with ``calibration`` (the file is reported as it was made).
     diagnose : bool
         Also run the discrepancy workflow (:func:`handeye.diagnose`, ``unknowns`` sensor or
         sensor+sphere) and show its steps against the noise floor.
@@ -59,16 +62,22 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
     from handeye.app import api
     from handeye.app.files import check_output_path, input_files
 
+    if calibration is not None:
+        given = [o for o, v in (("--unknowns", unknowns), ("--model", model), ("--convention", convention),
+                                ("--keep-all", keep_all)) if v]
+        if given:
+            raise RequestError(f"{', '.join(given)}: options of a calibration made now; with --calibration the file is "
+                               "reported as it was made (calibrate again with them, or leave them out)")
     data = api.load_dataset(dataset, clean=not no_clean)
     check_output_path(html, "--html", inputs=input_files(data) | _input(calibration))
     if calibration is not None:
         result, source, text = saved_result(calibration, data), str(calibration), None
     else:
-        res = api.calibrate(data, unknowns=unknowns, model=model, convention=convention, keep_all=keep_all)
+        res = api.calibrate(data, unknowns=unknowns or "sensor", model=model, convention=convention, keep_all=keep_all)
         result, source, text = res.to_dict(), "calibrated now", res.to_json()
     diagnosis = None
     if diagnose:
-        how = result.get("unknowns") or unknowns
+        how = result.get("unknowns") or unknowns or "sensor"
         if how not in ("sensor", "sensor+sphere"):
             raise RequestError(f"--diagnose: diagnose takes --unknowns sensor or sensor+sphere, not {how}")
         diagnosis = api.diagnose(data, unknowns=how).to_dict()

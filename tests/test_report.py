@@ -180,3 +180,39 @@ def test_thousands_of_poses_draw_a_few_hundred_frames_and_every_centre():
     some = view.drawn_poses(5000)
     assert len(some) == view.MAX_DRAWN_POSES and some[0] == 0 and some[-1] == 4999
     assert list(view.drawn_poses(7)) == list(range(7)) and len(view.drawn_poses(0)) == 0
+
+
+def test_a_calibration_that_did_not_converge_offers_no_controller_code(tmp_path):
+    """The page says it is no calibration at the top, and offers no snippet to paste (as export
+    refuses it)."""
+    res = handeye.calibrate("thesis-sim", no_loo=True).to_dict()
+    res["converged"], res["message"] = False, "iteration limit reached"
+    text = page.build(res, handeye.load_dataset("thesis-sim"))
+    assert "Not a calibration" in text and "Not offered" in text
+    assert "set_tcp" not in text and "TOOL_DATA" not in text
+
+
+def test_the_card_shows_calibrated_positioner_axes_and_effects(tmp_path):
+    pos = tmp_path / "pos"
+    handeye.simulate(out=pos, sphere_mount="positioner", seed=2)
+    res = handeye.calibrate(pos, unknowns="sensor+sphere+positioner", no_loo=True)
+    text = page.build(res.to_dict(), handeye.load_dataset(pos))
+    assert "Positioner axes" in text and text.count("calibrated</td>") == len(res.positioner.axes)
+    eff = handeye.calibrate("thesis-real", effects="sensor_scale", no_loo=True)
+    text = page.build(eff.to_dict(), handeye.load_dataset("thesis-real"))
+    assert "Effects calibrated with the pose" in text and f"{eff.effects[0].parameters['s']:.6g}" in text
+
+
+def test_nearly_tied_unknowns_are_not_a_pass_and_the_headline_says_what_fails(thesis_report):
+    """thesis-real: ty-wx and tz-wy correlate at -1.00; the residuals are 67x the stated noise."""
+    result, out = thesis_report
+    text = out.read_text(encoding="utf-8")
+    assert "nearly tied" in text and "ty–wx" in text
+    assert "check(s) fail: RMS against stated noise, χ² test" in text
+
+
+def test_options_of_a_new_calibration_are_refused_with_a_saved_one(tmp_path):
+    cal = tmp_path / "cal.json"
+    handeye.calibrate("thesis-sim", out=cal, no_loo=True)
+    with pytest.raises(handeye.InputError, match="--unknowns"):
+        handeye.report("thesis-sim", calibration=cal, unknowns="sensor+sphere", html=tmp_path / "r.html")

@@ -80,7 +80,7 @@ def cell_section(cell, title, interactive, result):
                 "interactive 3-D view.</p><span id='picked' class='hint'></span>" + image(view.static_png(cell, title),
                                                                                            "the cell in 3-D"))
     note = ("<p class='hint'>Frames: x vermillion, y green, z blue. Residual vectors (orange) start at the sphere "
-            "centre and end at the measured centre through the chain, magnified; excluded samples (purple crosses) "
+            "centre and end at the measured centre through the chain, magnified; excluded samples (purple diamonds) "
             f"are drawn at most {view.EXCLUDED_CAP:g}× the longest used residual, their true length is in the table."
             + (f" Frames and fans of {view.MAX_DRAWN_POSES} of the {len(cell.ids)} poses, evenly spaced; every centre."
                if len(cell.ids) > view.MAX_DRAWN_POSES else "") + "</p>" + effects_note(result))
@@ -107,8 +107,13 @@ def diagnosis_section(diagnosis):
     rows = "".join(f"<tr><td>{parts.esc(s['step'])}</td><td>{s['rms_mm']:.4f}</td><td>{s['heldout_rms_mm']:.4f}</td>"
                    f"<td>{s['chi2_dof']:.2f}</td></tr>" for s in diagnosis["steps"])
     named = ", ".join(e["name"] for e in diagnosis.get("effects") or []) or "none"
-    return (f"<section id='diagnosis'><h2>Where model and data disagree (handeye diagnose)</h2>"
-            f"<p>effects named: {parts.esc(named)}. Unexplained: {parts.esc(diagnosis.get('unexplained'))}</p>"
+    pose = diagnosis.get("sensor_pose_as") or {}
+    said = (f"<p>effects named: {parts.esc(named)}. Unexplained: {parts.esc(diagnosis.get('unexplained'))}</p>"
+            f"<p>outliers diagnose excluded: {parts.esc(', '.join(diagnosis.get('outliers') or []) or 'none')}</p>"
+            f"<p>its sensor pose ({parts.esc(pose.get('convention'))}: {parts.esc(','.join(pose.get('columns') or []))}): "
+            + " ".join(f"{v:.4f}" for v in pose.get("pose") or []) + "</p>"
+            f"<p>against calibrate: {parts.esc(diagnosis.get('against_calibrate') or '–')}</p>")
+    return (f"<section id='diagnosis'><h2>Where model and data disagree (handeye diagnose)</h2>{said}"
             f"<table class='pose'><tr><th>step</th><th>RMS mm</th><th>held out mm</th><th>χ²/dof</th></tr>{rows}</table>"
             + image(figures.gap_steps(diagnosis["steps"], diagnosis["nominal_sigma_mm"]), "the gap, step by step")
             + "</section>")

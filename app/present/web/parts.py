@@ -56,19 +56,80 @@ def result_card(result, snippets):
     centre = result.get("sphere_center") or []
     csd = result.get("sphere_center_sd")
     ctext = " ".join(_num(v, 3) for v in centre) + (" ± " + " ".join(_num(v, 3) for v in csd) if csd else " (given)")
-    snips = "".join(f"<details><summary>{esc(k)}</summary><pre>{esc(v)}</pre></details>" for k, v in snippets.items())
+    if result.get("converged"):
+        snips = "".join(f"<details><summary>{esc(k)}</summary><pre>{esc(v)}</pre></details>" for k, v in snippets.items())
+    else:
+        snips = ("<p class='refused'>Not offered: the calibration did not converge, so it is no calibration "
+                 "(<code>handeye export</code> refuses it too, unless forced).</p>")
     return (f"<section id='card'><h2>Sensor pose in the {esc(frame)} frame ({esc(pose_as.get('convention'))})</h2>"
             f"<table class='pose'><tr>{cells}</tr><tr>{vals}</tr></table>{sd_line}"
             f"<h3>4×4 sensor matrix (mm) <button id='copy-matrix' type='button'>copy</button>"
             f"<span id='copy-state'></span></h3><pre id='matrix'>{esc(mtext)}</pre>"
-            f"<p>sphere centre (mm, in its mount's frame): {ctext}</p>"
+            f"<p>sphere centre (mm, in its mount's frame): {ctext}</p>{_effects(result)}{_positioner(result)}"
             f"<h3>For the controller (handeye export)</h3>{snips}</section>")
 
 
+def _effects(result):
+    """The catalogue effects calibrated with the pose (``--effects``), each value with its 1-sd."""
+    rows = []
+    for e in result.get("effects") or []:
+        std = e.get("std") or {}
+        for k, v in (e.get("parameters") or {}).items():
+            if isinstance(v, (int, float)):
+                rows.append(f"<tr><td>{esc(e.get('name'))}</td><td>{esc(k)}</td><td>{v:.6g}</td>"
+                            f"<td>{_num(std.get(k), 6) if std.get(k) is not None else '–'}</td></tr>")
+    if not rows:
+        return ""
+    return ("<h3>Effects calibrated with the pose</h3><table class='pose'><tr><th>effect</th><th>parameter</th>"
+            f"<th>value</th><th>1 sd</th></tr>{''.join(rows)}</table>")
+
+
+def _positioner(result):
+    """The positioner's axes (robot base, all angles zero): calibrated with their 1-sd, or as set up."""
+    axes = result.get("positioner") or []
+    if not axes:
+        return ""
+    def vec(v, d=4):
+        return "–" if v is None else " ".join(_num(x, d) for x in v)
+    rows = "".join(f"<tr><td>{esc(a.get('name'))}</td><td>{vec(a.get('point'), 3)}</td><td>{vec(a.get('point_sd'), 3)}</td>"
+                   f"<td>{vec(a.get('direction'), 6)}</td><td>{_num(a.get('tilt_sd_deg'), 4)}</td>"
+                   f"<td>{'calibrated' if a.get('calibrated') else 'as set up'}</td></tr>" for a in axes)
+    return ("<h3>Positioner axes (robot base, all axis angles zero)</h3><table class='pose'><tr><th>axis</th>"
+            "<th>point mm</th><th>1 sd mm</th><th>direction</th><th>tilt 1 sd deg</th><th></th></tr>"
+            f"{rows}</table>")
+
+
 def _box(state, title, text):
-    mark = {"ok": "✓ pass", "warn": "! check", "fail": "✗ fail", "info": "i"}[state]
+    mark = {"ok": "✓ pass", "warn": "! check", "fail": "✗ fail", "info": "for information"}[state]
     return (f"<div class='verdict {state}'><div class='vt'>{esc(title)}</div><div class='vs'>{esc(mark)}</div>"
-            f"<div class='vx'>{esc(text)}</div></div>")
+            f"<div class='vx'>{esc(text)}</div></div>", state, title)
+
+
+#: A correlation of two unknowns beyond this says the poses barely separate them.
+TIED = 0.99
+
+
+def tied_pairs(correlation):
+    """Pairs of unknowns whose |correlation| exceeds :data:`TIED`, as ``'ty-wx -1.00'``."""
+    if not correlation or not correlation.get("names"):
+        return []
+    names, c = correlation["names"], np.asarray(correlation["matrix"], float)
+    return [f"{names[i]}–{names[j]} {c[i, j]:+.2f}" for i in range(len(names)) for j in range(i + 1, len(names))
+            if abs(c[i, j]) > TIED]
+
+
+def headline(boxes_states, result):
+    """One sentence above the strip: can the pose be used, and if not, what to read."""
+    fails = [t for s, t in boxes_states if s == "fail"]
+    if not result.get("converged"):
+        return "fail", "Not a calibration: the fit did not converge (exit 1). Do not use this pose."
+    if fails:
+        return "warn", (f"Converged (exit 0), but {len(fails)} check(s) fail: {', '.join(fails)}. The pose is the best "
+                        "this model gets from these data; read the warnings before using it.")
+    look = [t for s, t in boxes_states if s == "warn"]
+    if look:
+        return "ok", f"Converged (exit 0) and no check fails; look at: {', '.join(look)}."
+    return "ok", "Converged (exit 0) and every check passes: the pose and its 1-sd can be used."
 
 
 def verdict_strip(result):
@@ -88,10 +149,14 @@ def verdict_strip(result):
     ident = result.get("identifiability")
     if ident:
         bad = ident.get("not_identifiable") or []
-        boxes.append(_box("fail" if bad else "ok", "identifiability",
+        tied = tied_pairs(result.get("correlation"))
+        state = "fail" if bad else "warn" if tied else "ok"
+        boxes.append(_box(state, "identifiability",
                           f"rank {ident.get('rank')} of {ident.get('n')}, condition number "
-                          f"{_num(ident.get('condition_number'), 1)}" + (f"; not identifiable: {', '.join(bad)}" if bad
-                                                                         else "")))
+                          f"{_num(ident.get('condition_number'), 1)} (columns scaled)"
+                          + (f"; not identifiable: {', '.join(bad)}" if bad else "")
+                          + (f"; nearly tied (|correlation| > {TIED}): {', '.join(tied)}: these poses barely "
+                             "separate them" if tied else "")))
     glob = result.get("global")
     if glob:
         boxes.append(_box("ok" if glob.get("reached") == glob.get("starts") or glob.get("next_best_cost") is None
@@ -103,7 +168,10 @@ def verdict_strip(result):
     warns = result.get("warnings") or []
     boxes.append(_box("warn" if warns else "ok", "warnings", f"{len(warns)}"))
     items = "".join(f"<li>{esc(w)}</li>" for w in warns)
-    return (f"<section id='verdict'><h2>Verdict</h2><div class='strip'>{''.join(boxes)}</div>"
+    state, sentence = headline([(b[1], b[2]) for b in boxes], result)
+    boxes = [b[0] for b in boxes]
+    return (f"<section id='verdict'><h2>Verdict</h2><p class='headline {state}'>{esc(sentence)}</p>"
+            f"<div class='strip'>{''.join(boxes)}</div>"
             + (f"<ul class='warnings'>{items}</ul>" if items else "") + "</section>")
 
 

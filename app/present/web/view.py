@@ -8,7 +8,8 @@ right; three.js needs a module loader and carries no axes, hover or legend. With
 report is complete but for interaction: the cell is a matplotlib 3-D picture (:func:`static_png`).
 
 Colours are Okabe and Ito's colour-blind-safe set: frame axes x, y, z vermillion, bluish green,
-blue; used centres blue; excluded samples reddish purple crosses; residual vectors orange.
+blue; used centres blue; excluded samples reddish purple diamonds; residual vectors orange. Flange frames
+are thin, sensor frames thick and shorter, the base frame long.
 """
 from __future__ import annotations
 
@@ -127,10 +128,10 @@ def drawn_poses(n):
 
 def _frames(add, go, cell, length):
     some = drawn_poses(len(cell.ids))
-    groups = (("base frame", np.eye(4)[None], 2.0 * length, 6),
-              ("flange frames", cell.flange2base[some], length, 3),
-              ("sensor frames", cell.sensor2base[some] if cell.mounts.sensor == "flange" else cell.sensor2base[:1],
-               length, 4))
+    groups = (("base frame (long)", np.eye(4)[None], 2.0 * length, 7),
+              ("flange frames (thin)", cell.flange2base[some], length, 2),
+              ("sensor frames (thick)", cell.sensor2base[some] if cell.mounts.sensor == "flange"
+               else cell.sensor2base[:1], 0.7 * length, 6))
     for name, frames, size, width in groups:
         for k, xyz in enumerate(_triads(frames, size)):
             add(f"{name} {'xyz'[k]}", go.Scatter3d(
@@ -172,7 +173,7 @@ def _points(add, go, cell, scale):
     norms = np.linalg.norm(cell.residual_base, axis=1)
     shown = cell.sphere + scale * capped_residuals(cell)  # at the end of its drawn residual; |e| in the text
     for name, mask, style in (("centres", cell.used, dict(size=4, color=OKABE_ITO["blue"], symbol="circle")),
-                              ("centres_excluded", ~cell.used, dict(size=6, color=OKABE_ITO["purple"], symbol="x"))):
+                              ("centres_excluded", ~cell.used, dict(size=5, color=OKABE_ITO["purple"], symbol="diamond"))):
         label = "measured centres" if name == "centres" else "excluded samples"
         add(name, go.Scatter3d(
             x=shown[mask, 0], y=shown[mask, 1], z=shown[mask, 2], mode="markers", name=label,
@@ -191,6 +192,9 @@ def _positioner(add, go, cell):
     xyz = _segments(start, end)
     add("positioner", go.Scatter3d(x=xyz[0], y=xyz[1], z=xyz[2], mode="lines", name="positioner axes",
                                    line=dict(color=OKABE_ITO["yellow"], width=6), hoverinfo="skip"))
+    add("positioner_names", go.Scatter3d(x=end[:, 0], y=end[:, 1], z=end[:, 2], mode="text", showlegend=False,
+                                         text=[a.name for a in cell.mounts.axes], textfont=dict(size=14),
+                                         hoverinfo="skip"))
 
 
 def html_div(fig, div_id="cell3d"):
