@@ -162,7 +162,7 @@ def test_the_test_functions_printed_saddle_and_the_true_one():
     grad = figure(r"The printed \*\*saddle point \(0\.105, −0\.205\) is not stationary\*\*: \|∇f\| = ([\d.]+) there")
     assert agrees(grad, np.linalg.norm(testfunction.gradient(np.array([0.105, -0.205]))))
     x1, x2, f, l1, l2 = figure(r"the saddle is \(([\d.]+), (−[\d.]+)\), f = (−[\d.]+), Hessian eigenvalues "
-                               r"(−[\d.]+) and ([\d.]+)")
+                               r"(−[\d.]+) and (\d+\.\d+)")
     x = np.array([float(x1), -float(x2[1:])])
     assert np.linalg.norm(testfunction.gradient(x)) < 1e-6
     assert agrees(f, testfunction.value(x))
