@@ -168,3 +168,115 @@ def test_the_test_functions_printed_saddle_and_the_true_one():
     assert agrees(f, testfunction.value(x))
     eig = np.linalg.eigvalsh(testfunction.hessian(x))
     assert agrees(l1, eig[0]) and agrees(l2, eig[1])
+
+
+# --- diagnose on the real data -------------------------------------------------------------------
+
+
+def test_what_diagnose_finds_in_the_real_data():
+    code, out = run_cli("diagnose", "thesis-real", "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert [e["name"] for e in d["effects"]] == ["sphere_center"]
+    printed_all = figure(r"It names one effect, `sphere_center`: \(([−+][\d.]+), ([−+][\d.]+), ([−+][\d.]+)\) ± "
+                           r"\(([\d.]+), ([\d.]+), ([\d.]+)\) mm")
+    e = d["effects"][0]
+    for printed, value in zip(printed_all, [*e["parameters"].values(), *e["std"].values()]):
+        assert agrees(printed, value), (printed, value)
+    rms = figure(r"RMS ([\d.]+) → ([\d.]+) mm, held-out ([\d.]+) → ([\d.]+) mm, after excluding (.*?)\. Base frame")
+    got = [d["rms_before_mm"], d["rms_after_mm"], d["heldout_rms_before_mm"], d["heldout_rms_after_mm"]]
+    for printed, value in zip(rms[:4], got):
+        assert agrees(printed, value), (printed, value)
+    listed = [x.strip().split(" ")[0] for x in rms[4].split(",")]
+    assert listed == d["outliers"]
+    sigma, times = figure(r"What remains: σ = ([\d.]+) mm per component, about (\d+)× the nominal noise")
+    assert agrees(sigma, d["sigma_after_mm"]) and agrees(times, d["sigma_after_mm"] / d["nominal_sigma_mm"])
+
+
+# --- Table 7-2's starts on thesis-sim (the cheap methods of `handeye study start-poses`) ---------
+
+
+def _start_poses_iterations(method, rotation):
+    import handeye
+    from handeye.model.dataset import load
+    from handeye.model.pose import transform_from_pose
+    from handeye.model.rotation import transform_distance
+    from handeye.studies.study_start_poses import TABLE_7_2
+
+    d = load("thesis-sim")
+    truth = transform_from_pose(d.truth["sensor_pose"])
+    iterations = []
+    for start in TABLE_7_2:  # as the study runs them
+        res = handeye.calibrate(d, method=method, rotation=rotation, start=start, keep_all=True, no_loo=True)
+        dt, dr = transform_distance(res.sensor2flange, truth)
+        assert res.converged and dt < 1e-6 and dr < 1e-6, (method, rotation, start)
+        iterations.append(int(res.iterations))
+    return iterations[1:]  # the README quotes starts 1-9
+
+
+@pytest.mark.parametrize("method,label", [("gn", "GN"), ("newton", "Newton")])
+def test_table_7_2_iterations_of_newton_and_gauss_newton(method, label):
+    text = figure(r"Iterations from starts 1–9 \(`handeye study start-poses`, `local` / `euler`\): (.*?)\[test_thesis")
+    lo_l, hi_l, lo_e, hi_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)", text).groups()
+    for rotation, lo, hi in (("local", lo_l, hi_l), ("euler", lo_e, hi_e)):
+        its = _start_poses_iterations(method, rotation)
+        assert (min(its), max(its)) == (int(lo), int(hi)), (method, rotation, its)
+
+
+# --- the printed real data with its misprint corrected -------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def corrected(tmp_path_factory):
+    """thesis-real with C17's zs = 2237.395 read as 237.395 (a copy)."""
+    import shutil
+
+    from handeye.model.dataset import load
+
+    folder = tmp_path_factory.mktemp("readme") / "thesis-real-fixed"
+    shutil.copytree(load("thesis-real").path, folder)
+    csv = folder / "measurements.csv"
+    csv.write_text(csv.read_text().replace("2237.395", "237.395"))
+    return load(folder)
+
+
+def _gn(dataset, **options):
+    from handeye.app.engine.calibrate import calibrate
+
+    return calibrate(dataset, method="gn", rotation="euler", options={"max_iter": 250, **options},
+                     outliers=False, loo=False).to_dict()
+
+
+def test_the_corrected_real_data_against_table_7_4(corrected):
+    from handeye.model.calibration import CalibrationModel
+    from handeye.model.pose import transform_from_pose
+    from handeye.model.rotation import transform_distance
+
+    res = _gn(corrected)
+    x, y, z, ac, b, its, rms = figure(r"every method converges to p2 = \(([\d.]+), ([\d.]+), ([\d.]+)\) mm, "
+                                      r"A \+ C = ([\d.]+)°, B = (−[\d.]+)° \(GN: (\d+) iterations\), RMS ([\d.]+) mm")
+    a, b_, c = res["sensor_pose"][3:]
+    got = [*res["sensor_pose"][:3], a + c, b_, res["iterations"], res["rms_mm"]]
+    for printed, value in zip((x, y, z, ac, b, its, rms), got):
+        assert agrees(printed, value), (printed, value)
+    end, mm, deg, rms74 = figure(r"Table 7-4's p2End = \(([^)]*)\) is ([\d.]+) mm and ([\d.]+)° away, and is not a minimum "
+                                 r"of the printed data: its RMS is ([\d.]+) mm")
+    thesis = transform_from_pose([float(v.replace("−", "-")) for v in end.split(", ")])
+    dt, dr = transform_distance(np.array(res["sensor_matrix"]), thesis)
+    assert agrees(mm, dt) and agrees(deg, dr)
+    m = CalibrationModel(corrected.flange2base(), corrected.centre_in_sensor, corrected.sphere_centre, "local")
+    assert agrees(rms74, np.sqrt(2 * m.cost(m.point_from(thesis)) / len(corrected)))
+
+
+def test_forward_differences_send_the_euler_angles_astray(corrected):
+    from handeye.model.dataset import load
+
+    fixed, printed = figure(r"the angles run off to ±([\d.]+·10\S+) degrees \(the misprint corrected, below\) or "
+                            r"±([\d.]+·10\S+) degrees \(as printed\)")
+    sup = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹", "0123456789")
+    for text, data in ((fixed, corrected), (printed, load("thesis-real"))):
+        mantissa, exponent = text.split("·10")
+        point = _gn(data, jacobian="forward", fd_step=5e-7)["solver_point"]
+        a, c = point[3], point[5]
+        assert np.sign(a) != np.sign(c)
+        assert agrees(mantissa, max(abs(a), abs(c)) / 10.0 ** int(exponent.translate(sup))), (text, a, c)
