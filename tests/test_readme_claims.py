@@ -280,3 +280,21 @@ def test_forward_differences_send_the_euler_angles_astray(corrected):
         a, c = point[3], point[5]
         assert np.sign(a) != np.sign(c)
         assert agrees(mantissa, max(abs(a), abs(c)) / 10.0 ** int(exponent.translate(sup))), (text, a, c)
+
+
+# --- Kim & Cho on thesis-real, as the commands run it --------------------------------------------
+
+
+def test_kim_and_cho_and_the_taught_centre_against_the_free_centre(calibration, free_centre):
+    from handeye.model.rotation import transform_distance
+
+    km, kd, tm, td = figure(r"`handeye calibrate thesis-real --method kim-cho` lands ([\d.]+) mm / ([\d.]+)° from that "
+                            r"fit, the default \(taught-centre\) calibration ([\d.]+) mm / ([\d.]+)°")
+    code, out = run_cli("calibrate", "thesis-real", "--method", "kim-cho", "--json")
+    assert code == 0
+    free = np.array(free_centre["sensor_matrix"])
+    assert free_centre["n_used"] == 24
+    dt, dr = transform_distance(np.array(json.loads(out)["sensor_matrix"]), free)
+    assert agrees(km, dt) and agrees(kd, dr), (dt, dr)
+    dt, dr = transform_distance(np.array(calibration["sensor_matrix"]), free)
+    assert agrees(tm, dt) and agrees(td, dr), (dt, dr)
