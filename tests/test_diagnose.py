@@ -88,7 +88,7 @@ def test_an_effect_beyond_the_catalogues_range_is_unexplained_not_the_nearest_ef
     res, _ = run(tmp_path, {"sensor_scale": 0.1}, seed)
     assert res["effects"] == [] and res["outliers"] == []
     assert re.search(r"sensor_scale would need s = 0\.(09|10)\d*, beyond", res["unexplained"])
-    assert "sphere_radius is only the nearest effect" in res["unexplained"]
+    assert re.search(r"sphere_radius \(dr = [\d.]+\) is only the nearest effect", res["unexplained"])
 
 
 def test_catalogue_is_open_and_documented():

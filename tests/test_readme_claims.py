@@ -298,3 +298,22 @@ def test_kim_and_cho_and_the_taught_centre_against_the_free_centre(calibration, 
     assert agrees(km, dt) and agrees(kd, dr), (dt, dr)
     dt, dr = transform_distance(np.array(calibration["sensor_matrix"]), free)
     assert agrees(tm, dt) and agrees(td, dr), (dt, dr)
+
+
+# --- an effect beyond the catalogue's range ----------------------------------------------------------
+
+
+def test_a_ten_percent_scale_error_is_left_unexplained(tmp_path):
+    command, dr, before, nearest, scaled = figure(
+        r"a 10 % sensor scale error \(`handeye simulate (--seed 1 --effect sensor_scale=0\.1)`\), which a radius error "
+        r"of ([\d.]+) mm absorbs in part \(RMS ([\d.]+) → ([\d.]+) mm, against ([\d.]+) mm with the scale\)")
+    code, _ = run_cli("simulate", "--out", str(tmp_path / "scale"), *command.split())
+    assert code == 0
+    code, out = run_cli("diagnose", str(tmp_path / "scale"), "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert d["effects"] == [] and agrees(before, d["rms_before_mm"])
+    got = re.search(r"sphere_radius \(dr = ([\d.]+)\) is only the nearest effect: sensor_scale beyond its range fits "
+                    r"significantly better \(RMS ([\d.]+) against ([\d.]+) mm", d["unexplained"]).groups()
+    for printed, value in zip((dr, nearest, scaled), got):
+        assert agrees(printed, float(value)), (printed, value)

@@ -297,7 +297,8 @@ def _only_nearest(run, base, name, new, beyond):
         f_stat = ((new.ssr - fit.ssr) / k) / (fit.ssr / dof)
         p_f = f_survival(f_stat, k, dof)
         if p_f < run.alpha:
-            return (f"{name} is only the nearest effect: {other} beyond its range fits significantly better "
+            values = ", ".join(f"{k} = {v:.4g}" for k, v in zip(run.prob.params_of(name), np.ravel(new.params.get(name, []))))
+            return (f"{name} ({values}) is only the nearest effect: {other} beyond its range fits significantly better "
                     f"(RMS {_rms(new, run.mask):.3g} against {_rms(fit, run.mask):.3g} mm, F = {f_stat:.3g}, "
                     f"p = {p_f:.2g}), so {name} is not named")
     return None
