@@ -317,3 +317,18 @@ def test_a_ten_percent_scale_error_is_left_unexplained(tmp_path):
                     r"significantly better \(RMS ([\d.]+) against ([\d.]+) mm", d["unexplained"]).groups()
     for printed, value in zip((dr, nearest, scaled), got):
         assert agrees(printed, float(value)), (printed, value)
+
+
+# --- limits ("What to know") ----------------------------------------------------------------------
+
+
+def test_the_limits_said_are_the_codes(tmp_path):
+    from handeye.app.engine import request, robust
+
+    most, exact, lm_above = figure(r"`simulate --n-poses` takes 1 to (\d+) .*? leave-one-out refits every sample exactly "
+                                   r"up to ([\d,]+) used samples \(`LOO_EXACT_UP_TO`\), .*? above ([\d,]+) measurements "
+                                   r"the default method is `lm`")
+    assert int(exact.replace(",", "")) == robust.LOO_EXACT_UP_TO
+    assert int(lm_above.replace(",", "")) == request.LARGE
+    code, _ = run_cli("simulate", "--out", str(tmp_path / "more"), "--n-poses", str(int(most) + 1))
+    assert code == cli.EXIT_BAD_INPUT and not (tmp_path / "more").exists()
