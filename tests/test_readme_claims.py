@@ -332,3 +332,89 @@ def test_the_limits_said_are_the_codes(tmp_path):
     assert int(lm_above.replace(",", "")) == request.LARGE
     code, _ = run_cli("simulate", "--out", str(tmp_path / "more"), "--n-poses", str(int(most) + 1))
     assert code == cli.EXIT_BAD_INPUT and not (tmp_path / "more").exists()
+
+
+# --- the long studies, through their saved summaries (tests/data/studies: command, machine, date) ----
+
+
+def saved(name):
+    """The ``summary.json`` of ``handeye study NAME`` as saved in tests/data/studies (the run the README quotes)."""
+    doc = json.loads((ROOT / "tests" / "data" / "studies" / f"{name}.json").read_text())
+    assert doc["command"] == f"handeye study {name} --out DIR" and doc["machine"]["date"]
+    return doc["summary"]
+
+
+def test_the_accuracy_study():
+    s = saved("accuracy")
+    assert s["replicates"] == int(figure(r"`handeye study accuracy`, (\d+) noisy replicates"))
+    lo, hi, plo, phi = figure(r"RMSE/CRLB per parameter is ([\d.]+)–([\d.]+) for the weighted `centre` and the "
+                              r"`measurement` models, ([\d.]+)–([\d.]+) for `points`")
+    ratios = {m: s["models"][m]["rmse_over_crlb"] for m in ("centre", "measurement", "points")}
+    assert agrees(lo, min(ratios["centre"] + ratios["measurement"]))
+    assert agrees(hi, max(ratios["centre"] + ratios["measurement"]))
+    assert agrees(plo, min(ratios["points"])) and agrees(phi, max(ratios["points"]))
+    within, pwithin = figure(r"deviations match the observed scatter within (\d+) % \(centre, measurement\) and (\d+) % \(points")
+
+    def worst(*models):
+        return 100 * max(abs(r / o - 1) for m in models
+                         for r, o in zip(s["models"][m]["reported_sd"], s["models"][m]["observed_sd"]))
+
+    assert agrees(within, worst("centre", "measurement")) and agrees(pwithin, worst("points"))
+    bound = figure(r"The bound itself: \(([\d.]+), ([\d.]+), ([\d.]+)\) mm, \(([\d.]+), ([\d.]+), ([\d.]+)\)°")
+    for printed, value in zip(bound, s["crlb_sd"].values()):
+        assert agrees(printed, value)
+    loo, held = figure(r"accuracy figure \(([\d.]+) mm here\) agrees with the error of sphere centres predicted for 12 "
+                       r"held-out poses per replicate \(([\d.]+) mm\)")
+    assert agrees(loo, s["accuracy_figure_mm"]["leave_one_out"]) and agrees(held, s["accuracy_figure_mm"]["held_out"])
+
+
+def test_the_classics_study():
+    s = saved("classics")
+    nominal, crlb = s["table"]["k=1,n=36"], s["table"]["k=1,n=36"]["crlb_mm"]
+    kc, kcx, li, lix, ls, lsx = figure(r"RMS translation error Kim & Cho ([\d.]+) mm \(([\d.]+)× the Cramér–Rao bound\), "
+                                       r"Li et al\. ([\d.]+) mm \(([\d.]+)×: .*?our least squares ([\d.]+) mm \(([\d.]+)×\)")
+    for printed, value in zip((kc, kcx, li, lix, ls, lsx),
+                              (nominal["kim-cho"]["rmse_mm"], nominal["kim-cho"]["rmse_mm"] / crlb,
+                               nominal["li-two-step"]["rmse_mm"], nominal["li-two-step"]["rmse_mm"] / crlb,
+                               nominal["nls"]["rmse_mm"], nominal["nls"]["rmse_mm"] / crlb)):
+        assert agrees(printed, value), (printed, value)
+    rot = figure(r"rotation ([\d.]+)°, ([\d.]+)°, ([\d.]+)°; the same ordering")
+    for printed, m in zip(rot, ("kim-cho", "li-two-step", "nls")):
+        assert agrees(printed, nominal[m]["rmse_deg"])
+    low = figure(r"the projected rotation is ([\d.]+)–180° off on every replicate")
+    assert agrees(low, min(v["li-printed"]["min_deg"] for v in s["table"].values()))
+    starts, random = figure(r"plain Newton in the right basin in (\d+) % of replicates, against (\d+) % from random starts")
+    assert agrees(starts, 100 * s["basin_newton"]["kim-cho"]) and agrees(starts, 100 * s["basin_newton"]["li-two-step"])
+    assert agrees(random, 100 * s["basin_newton"]["random"])
+    km, kd, tm, td = figure(r"lands ([\d.]+) mm / ([\d.]+)° from the least squares with the sphere centre free on the "
+                            r"same 27 samples, while the least squares with the plate-taught centre is ([\d.]+) mm / "
+                            r"([\d.]+)° from it")
+    dist = s["thesis_real"]["distances"]
+    assert s["thesis_real"]["n"] == 27
+    assert agrees(km, dist["kim-cho"]["to_sensor_sphere"][0]) and agrees(kd, dist["kim-cho"]["to_sensor_sphere"][1])
+    taught = dist["nls (taught centre)"]["to_sensor_sphere"]
+    assert agrees(tm, taught[0]) and agrees(td, taught[1])
+
+
+def test_the_circle_fits_honest_default_and_start_poses_studies():
+    kasa = figure(r"Kåsa fit makes the circle ([\d.]+) mm too small")
+    assert agrees(kasa, -saved("circle-fits")["arc30_noise005"]["kasa"]["bias_mm"])
+    h = saved("honest-default")
+    runs, at_truth, worst, polished = figure(r"(\d+) runs\): (\d+) converged at the truth \(largest error ([\d.]+) of the "
+                                             r"run's own sd\), 0 false alarms, 0 false successes; IPOPT stopped early next to "
+                                             r"the minimum in (\d+) of them")
+    assert int(runs) == h["runs"] and int(at_truth) == h["converged_at_truth"] and agrees(worst, h["max_error_in_sd"])
+    assert h["false_alarms"] == h["false_successes"] == 0 and int(polished) == h["polished"]
+    text = figure(r"Iterations from starts 1–9 \(`handeye study start-poses`, `local` / `euler`\): (.*?)\[test_thesis")
+    labels = {"GN": "gn", "LM": "lm", "dogleg": "dogleg", "trust region": "tr", "Newton": "newton"}
+    s = saved("start-poses")
+    for label, method in labels.items():
+        lo_l, hi_l, lo_e, hi_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)", text).groups()
+        for rotation, lo, hi in (("local", lo_l, hi_l), ("euler", lo_e, hi_e)):
+            its = s[f"{method}/{rotation}"]["iterations"][1:]
+            assert (min(its), max(its)) == (int(lo), int(hi)), (method, rotation, its)
+    lo_m, hi_m, lo_e, hi_e = re.search(r"IPOPT (\d+)–(\d+) \(`matrix`\) / (\d+)–(\d+)", text).groups()
+    for key, lo, hi in (("ipopt/matrix", lo_m, hi_m), ("ipopt/euler", lo_e, hi_e)):
+        its = s[key]["iterations"][1:]
+        assert (min(its), max(its)) == (int(lo), int(hi))
+    assert all(v["reached_truth"] == v["of"] == 10 for k, v in s.items() if isinstance(v, dict) and "of" in v)
