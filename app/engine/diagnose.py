@@ -19,7 +19,10 @@ the poses cannot separate):
    ``S = r^T A (A^T A)^-1 A^T r / sigma^2 ~ chi2_k`` with a Bonferroni correction over the
    candidates tested.
 4. The best candidate is confirmed by refitting the extended model: the F test of the
-   reduction in SSR, Delta BIC < 0 and a lower 5-fold held-out error must all agree.
+   reduction in SSR, Delta BIC < 0 and a lower 5-fold held-out error must all agree. A
+   candidate whose fitted values are beyond its physical range (:func:`handeye.model.effects.implausible`)
+   is not named, and neither is a later one that it fits significantly better
+   (:func:`_only_nearest`): a discrepancy beyond the catalogue's range stays unexplained.
 5. Repeat until nothing significant remains; every accepted effect is re-tested for removal.
 6. Final outlier test on the structured model: an excluded sample is named a ``sign_flip``
    when, with its y negated, every component of its residual returns within 3 sigma; it is
