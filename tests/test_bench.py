@@ -230,3 +230,13 @@ def test_a_childs_peak_memory_is_its_own_not_the_bench_processs():
     assert tiny["peak_mb"] < 100 < own / 3  # python -c pass: some 10 MB
     grows = bench.measure_python("import numpy as np; a = np.ones(50 * 2**20 // 8)", "int(a[-1]) - 1")
     assert grows["exit"] == 0 and 50 < grows["peak_mb"] - tiny["peak_mb"] < 150  # the child's own 50 MB seen
+
+
+def test_the_bench_says_which_machine_and_when():
+    """Times and memory mean little without the machine: both benches record it and print it first."""
+    from handeye.app.tools import peak
+
+    record = peak.machine()
+    assert {"host", "system", "cpus", "load", "python", "date"} <= set(record) and record["cpus"] >= 1
+    line = peak.machine_line(record)
+    assert line.startswith("machine: ") and record["date"] in line and f"{record['cpus']} cpus" in line

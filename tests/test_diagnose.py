@@ -1,5 +1,6 @@
 """The discrepancy workflow on data in which effects are hidden (the simulator's effects)."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -77,6 +78,17 @@ def test_a_base_frame_offset_is_absorbed_not_named(tmp_path):
     assert "base_frame" not in names and "base_frame" in res["not_identifiable"]
     assert set(res["absorbed_by"]["base_frame"]) <= {"cx", "cy", "cz"}
     assert names == {"sphere_center"}
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_an_effect_beyond_the_catalogues_range_is_unexplained_not_the_nearest_effect(tmp_path, seed):
+    """A 10 % sensor scale error (beyond ``sensor_scale``'s 5 %) used to be named ``sphere_radius``
+    (dr = 4.2-4.5 mm, within its 20 %), which explains only a part of it. Now nothing is named
+    and ``unexplained`` says both: the scale it would need, and that the radius is only the nearest."""
+    res, _ = run(tmp_path, {"sensor_scale": 0.1}, seed)
+    assert res["effects"] == [] and res["outliers"] == []
+    assert re.search(r"sensor_scale would need s = 0\.(09|10)\d*, beyond", res["unexplained"])
+    assert re.search(r"sphere_radius \(dr = [\d.]+\) is only the nearest effect", res["unexplained"])
 
 
 def test_catalogue_is_open_and_documented():

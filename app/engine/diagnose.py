@@ -19,7 +19,10 @@ the poses cannot separate):
    ``S = r^T A (A^T A)^-1 A^T r / sigma^2 ~ chi2_k`` with a Bonferroni correction over the
    candidates tested.
 4. The best candidate is confirmed by refitting the extended model: the F test of the
-   reduction in SSR, Delta BIC < 0 and a lower 5-fold held-out error must all agree.
+   reduction in SSR, Delta BIC < 0 and a lower 5-fold held-out error must all agree. A
+   candidate whose fitted values are beyond its physical range (:func:`handeye.model.effects.implausible`)
+   is not named, and neither is a later one that it fits significantly better
+   (:func:`_only_nearest`): a discrepancy beyond the catalogue's range stays unexplained.
 5. Repeat until nothing significant remains; every accepted effect is re-tested for removal.
 6. Final outlier test on the structured model: an excluded sample is named a ``sign_flip``
    when, with its y negated, every component of its residual returns within 3 sigma; it is
@@ -239,7 +242,7 @@ def _search(run, structure, fit):
         candidates.sort()
         tested.append([{"name": nm, "score": st, "p_bonferroni": min(p * m_tests, 1.0), "gate": fr}
                        for p, nm, st, fr in candidates])
-        accepted = None
+        accepted, beyond = None, []
         for p, name, _, _ in candidates:
             if p * m_tests >= alpha:
                 break
@@ -247,6 +250,11 @@ def _search(run, structure, fit):
             x0 = fit.x if name != "sphere_center" else np.concatenate([fit.x, prob.d.sphere_centre])
             new = prob.fit(trial, mask, x0, fit.params)
             why = effects.implausible(name, new.params.get(name, []), prob.radius, names=prob.params_of(name))
+            if why is not None:
+                implausible.append(why)
+                beyond.append((name, new))
+                continue
+            why = _only_nearest(run, fit, name, new, beyond)
             if why is not None:
                 implausible.append(why)
                 continue
@@ -259,6 +267,49 @@ def _search(run, structure, fit):
         structure, fit = _backward(prob, structure, fit, mask, alpha, run.centre_unknown)
         steps.append({"step": f"+ {name}", **_summaries(prob, structure, fit, mask)})
     return structure, fit
+
+
+def _only_nearest(run, base, name, new, beyond):
+    """Why candidate ``name`` (fit ``new``) is only the nearest effect to a discrepancy beyond the
+    catalogue's range, or None.
+
+    ``beyond`` holds ``(name, fit)`` of the candidates whose fitted values were implausible
+    (:func:`handeye.model.effects.implausible`). When one of them explains the data significantly
+    better than ``new`` -- the F statistic of the SSR that ``new`` leaves beyond it, on its own
+    parameters, at the run's level -- ``new`` absorbs part of an effect it does not describe
+    (a 10 % sensor scale error fitted as a radius error): the discrepancy is left unexplained.
+
+    Parameters
+    ----------
+    run : Procedure
+    base : Fit
+        The current model's fit, which both candidates extend.
+    name : str
+    new : Fit
+    beyond : list of (str, Fit)
+
+    Returns
+    -------
+    str or None
+    """
+    for other, fit in beyond:
+        k = max(fit.p - base.p, 1)
+        dof = fit.m - fit.p
+        if dof <= 0 or fit.ssr >= new.ssr:
+            continue
+        f_stat = ((new.ssr - fit.ssr) / k) / (fit.ssr / dof)
+        p_f = f_survival(f_stat, k, dof)
+        if p_f < run.alpha:
+            values = ", ".join(f"{k} = {v:.4g}" for k, v in zip(run.prob.params_of(name), np.ravel(new.params.get(name, []))))
+            return (f"{name} ({values}) is only the nearest effect: {other} beyond its range fits significantly better "
+                    f"(RMS {_rms(new, run.mask):.3g} against {_rms(fit, run.mask):.3g} mm, F = {f_stat:.3g}, "
+                    f"p = {p_f:.2g}), so {name} is not named")
+    return None
+
+
+def _rms(fit, mask):
+    """RMS per sphere centre of ``fit``'s residuals on the samples of ``mask``, mm."""
+    return float(np.sqrt(np.mean(np.sum(fit.e[mask] ** 2, axis=1))))
 
 
 def _outlier_step_label(dataset, previous, mask, flips):

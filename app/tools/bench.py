@@ -416,7 +416,10 @@ def peers(reps=20):
 def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None,
         pipeline_sizes=None, cloud_sizes=None):
     """Run the benchmark; returns the JSON-ready result."""
+    from handeye.app.tools.peak import machine
+
     reps = reps or (5 if quick else 20)
+    started = machine()
     cases = {"thesis-real": real_case()}
     for n in sizes if sizes is not None else (SIZES[:2] if quick else SIZES):
         cases[f"sim-{n}"] = simulated_case(n)
@@ -451,13 +454,17 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
         cloud_sizes = CLOUD[:2] if quick else CLOUD
     if cloud_sizes:
         result["use"] = use_scaling(cloud_sizes)
+    result["machine"] = {**started, "load_at_end": machine()["load"]}
     return result
 
 
 def text(res):
     """The report: one table with ratios to scipy-2point, then scaling, profile, throughput, start-up."""
-    lines = [f"{'case':<12} {'method':<13} {'median ms':>10} {'min ms':>9} {'x scipy':>8} {'iters':>6} {'evals':>6} "
-             f"{'cost':>12} agrees"]
+    from handeye.app.tools.peak import machine_line
+
+    lines = [machine_line(res["machine"]), ""] if "machine" in res else []
+    lines += [f"{'case':<12} {'method':<13} {'median ms':>10} {'min ms':>9} {'x scipy':>8} {'iters':>6} {'evals':>6} "
+              f"{'cost':>12} agrees"]
     for case, table in res["cases"].items():
         base = table["scipy-2point"]["median_ms"]
         for method, row in table.items():

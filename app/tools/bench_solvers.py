@@ -277,7 +277,9 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
 
 def run(quick=False, with_study=True):
     """Every section. ``quick``: the 15 x 15 study, 2000 batch starts, 40 single, N up to 3000."""
-    res = {"quick": quick}
+    from handeye.app.tools.peak import machine
+
+    res = {"quick": quick, "machine": machine()}
     rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
     res["per_start"] = rows
     res["calibration"] = calibration(n_batch=100 if quick else 400, n_single=20 if quick else 40)
@@ -292,7 +294,10 @@ def run(quick=False, with_study=True):
 
 def text(res):
     """The bench as plain-text tables."""
-    lines = ["solver-comparison bench (test function 6-16; one core unless said)", "",
+    from handeye.app.tools.peak import machine_line
+
+    lines = ["solver-comparison bench (test function 6-16; one core unless said)",
+             *([machine_line(res["machine"])] if "machine" in res else []), "",
              f"{'method':10s} {'single ms/start':>16s} {'batch ms/start':>15s} {'speed-up':>9s} {'same ends':>10s}"]
     for r in res["per_start"]:
         lines.append(f"{r['method']:10s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
