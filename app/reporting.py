@@ -25,12 +25,22 @@ def saved_result(path, dataset):
         raise CalibrationFileError(file, "not a whole calibration result (no residuals): give the file `handeye "
                                          "calibrate DATASET --out FILE` wrote, or score a pose with `handeye calibrate "
                                          "DATASET --calibration FILE`")
+    if not isinstance(doc.get("dataset_sha256"), str):
+        raise CalibrationFileError(file, "has no dataset_sha256: not a calibration of a dataset (a scored pose, or a "
+                                         "file made by hand); give the file `handeye calibrate DATASET --out FILE` wrote",
+                                   "dataset_sha256")
     sha = dataset.content_hash()
     if doc.get("dataset_sha256") != sha:
         raise CalibrationFileError(file, f"was made from another dataset (SHA-256 {str(doc.get('dataset_sha256'))[:12]}..., "
                                          f"{dataset.name} has {sha[:12]}...): report it on its own dataset, or score it "
                                          f"on this one with `handeye calibrate {dataset.name} --calibration {file}`",
                                    "dataset_sha256")
+    from handeye.app.outputs.saved import from_document
+
+    from_document(doc, file)  # the matrix, covariance, mount and axes as any use of the file checks them
+    centre = doc.get("sphere_center")
+    if not (isinstance(centre, list) and len(centre) == 3 and all(isinstance(v, (int, float)) for v in centre)):
+        raise CalibrationFileError(file, "needs three numbers (mm)", "sphere_center")
     return doc
 
 
@@ -72,6 +82,9 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
     check_output_path(html, "--html", inputs=input_files(data) | _input(calibration))
     if calibration is not None:
         result, source, text = saved_result(calibration, data), str(calibration), None
+        if diagnose and result.get("unknowns") not in ("sensor", "sensor+sphere"):
+            raise RequestError(f"--diagnose: diagnose takes --unknowns sensor or sensor+sphere; {calibration} was "
+                               f"calibrated with {result.get('unknowns')}")
     else:
         res = api.calibrate(data, unknowns=unknowns or "sensor", model=model, convention=convention, keep_all=keep_all)
         result, source, text = res.to_dict(), "calibrated now", res.to_json()

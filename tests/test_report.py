@@ -16,7 +16,7 @@ import pytest
 
 import handeye
 from handeye.app.present.web import cell as cell_mod
-from handeye.app.present.web import page, view
+from handeye.app.present.web import page, parts, view
 
 
 class _Scripts(html.parser.HTMLParser):
@@ -75,9 +75,13 @@ def test_the_page_embeds_exactly_the_calibrate_json_object_and_one_row_per_sampl
 
 
 def test_the_drawn_residuals_are_the_results_for_every_mount(tmp_path):
-    """The cell's residual in the base has the length of the result's residual, sample by sample:
-    the seed's cell, a sensor fixed in the cell (the result's vector lives in the flange frame
-    there), a sphere on a positioner whose axes were calibrated."""
+    """Whole vectors, not only lengths: the cell's residual in the base is the result's residual
+    vector, rotated into the base where the result's lives in another frame (a sensor fixed in the
+    cell: the flange frame), and its sensor-frame column is that vector in the drawn sensor frame;
+    the drawn sensor frame sits where the simulation put the sensor."""
+    from handeye.model import conventions
+    from handeye.model.mounts import table2base
+
     cases = {"seed": ([], "sensor"), "eth": (["--sensor-mount", "world", "--sphere-mount", "flange"], "sensor+sphere"),
              "pos": (["--sphere-mount", "positioner"], "sensor+sphere+positioner")}
     for name, (args, unknowns) in cases.items():
@@ -87,9 +91,18 @@ def test_the_drawn_residuals_are_the_results_for_every_mount(tmp_path):
         assert res.converged, (name, res.message)
         data = handeye.load_dataset(folder)
         geo = cell_mod.cell_geometry(res.to_dict(), data)
-        norms = np.linalg.norm(geo.residual_base, axis=1)
-        np.testing.assert_allclose(norms, [r.norm for r in res.residuals], atol=1e-6, err_msg=name)
-        np.testing.assert_allclose(np.linalg.norm(geo.residual_sensor, axis=1), norms, atol=1e-9)
+        vectors = np.array([r.vector for r in res.residuals])
+        if name == "eth":  # the result's residual is in the flange frame there (model/mounts.py)
+            vectors = np.einsum("nij,nj->ni", data.flange2base()[:, :3, :3], vectors)
+        if name == "pos":  # ... and in the table frame, at the calibrated axes
+            table = table2base(cell_mod.result_mounts(res.to_dict(), data).axes, data.axis_angles)
+            vectors = np.einsum("nij,nj->ni", table[:, :3, :3], vectors)
+        np.testing.assert_allclose(geo.residual_base, vectors, atol=1e-6, err_msg=name)
+        rot = geo.sensor2base[:, :3, :3]
+        np.testing.assert_allclose(np.einsum("nij,ni->nj", rot, geo.residual_base), geo.residual_sensor, atol=1e-9)
+        truth = conventions.transform_from(data.convention, data.truth["sensor_pose"])
+        expected = truth if name == "eth" else data.flange2base() @ truth
+        assert np.abs(geo.sensor2base[:, :3, 3] - np.reshape(expected, (-1, 4, 4))[:, :3, 3]).max() < 0.5, name
         assert geo.used.all() and len(geo.fans) == len(data)
 
 
@@ -216,3 +229,31 @@ def test_options_of_a_new_calibration_are_refused_with_a_saved_one(tmp_path):
     handeye.calibrate("thesis-sim", out=cal, no_loo=True)
     with pytest.raises(handeye.InputError, match="--unknowns"):
         handeye.report("thesis-sim", calibration=cal, unknowns="sensor+sphere", html=tmp_path / "r.html")
+
+
+def test_verdict_states_follow_the_result_not_the_layout():
+    base = handeye.calibrate("thesis-sim", no_loo=True).to_dict()
+    def state(result, title):
+        html_ = parts.verdict_strip(result)
+        box = html_.split(f"<div class='vt'>{title}</div>")[0].rsplit("<div class='verdict ", 1)[1]
+        return box.split("'", 1)[0]
+    assert state(base, "convergence") == "ok" and state(base, "global check") == "ok"
+    assert state({**base, "global": {**base["global"], "reached": 0}}, "global check") == "fail"
+    assert state({**base, "global": {**base["global"], "reached": 1, "starts": 2}}, "global check") == "warn"
+    assert state({**base, "noise_test": {**base["noise_test"], "passed": False}}, "χ² test") == "fail"
+    assert "Not a calibration" in parts.verdict_strip({**base, "converged": False})
+
+
+def test_a_hand_broken_saved_file_is_named_never_a_traceback(tmp_path):
+    cal = tmp_path / "cal.json"
+    handeye.calibrate("thesis-sim", out=cal, no_loo=True)
+    doc = json.loads(cal.read_text())
+    for key, value in (("sensor_matrix", [[1, 0, 0], [0, 1, 0]]), ("sphere_center", None),
+                       ("noise_test", {"statistic": None, "passed": False}), ("dataset_sha256", None)):
+        bad = tmp_path / f"bad_{key}.json"
+        bad.write_text(json.dumps({**doc, key: value}))
+        run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--calibration", str(bad),
+                              "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
+        assert run.returncode in (0, 2) and "Traceback" not in run.stderr, (key, run.stderr)
+        if run.returncode == 2:
+            assert str(bad) in run.stderr and len(run.stderr.strip().splitlines()) == 1, key

@@ -160,6 +160,7 @@ def _fan(s2b, points, xs, radius):
     """The laser fan of one sample: sensor origin and the arc's two ends (or the sphere's width)."""
     if len(points) >= 2:
         ends = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0])]]
-    else:
-        ends = np.array([[xs[0] - radius, 0.0, xs[2]], [xs[0] + radius, 0.0, xs[2]]])
+    else:  # the chord the laser plane (y = 0) cuts from the sphere, |y| = |ys| from its centre
+        half = np.sqrt(max(radius**2 - xs[1] ** 2, 0.0))
+        ends = np.array([[xs[0] - half, 0.0, xs[2]], [xs[0] + half, 0.0, xs[2]]])
     return _to_base(s2b, np.vstack([np.zeros(3), ends]))

@@ -14,9 +14,11 @@
   var pickedText = document.getElementById("picked");
   var scale = cell ? cell.scale : 1;
 
+  var picked = -1, pickedRow = null;
+
   function numeric(text) {
     var v = parseFloat(text);
-    return isNaN(v) ? Infinity : v;
+    return isNaN(v) ? null : v;
   }
 
   function sortBy(th) {
@@ -25,10 +27,11 @@
     var asc = th.getAttribute("aria-sort") !== "ascending";
     var body = table.tBodies[0];
     var rows = Array.prototype.slice.call(body.rows);
-    rows.sort(function (a, b) {
+    rows.sort(function (a, b) {  // empty cells last, whichever the direction
       var x = a.cells[col].getAttribute("data-v"), y = b.cells[col].getAttribute("data-v");
-      var d = num ? numeric(x) - numeric(y) : (x < y ? -1 : x > y ? 1 : 0);
-      if (d !== d) { d = 0; }
+      if (num) { x = numeric(x); y = numeric(y); } else { x = x || null; y = y || null; }
+      if (x === null || y === null) { return x === y ? 0 : x === null ? 1 : -1; }
+      var d = num ? x - y : (x < y ? -1 : x > y ? 1 : 0);
       return asc ? d : -d;
     });
     rows.forEach(function (r) { body.appendChild(r); });
@@ -45,13 +48,15 @@
     return [s[0] + scale * e[0], s[1] + scale * e[1], s[2] + scale * e[2]];
   }
 
-  function pick(i) {
+  function pick(i, quiet) {  // quiet: redraw only, the table does not scroll
     if (!table) { return; }
-    Array.prototype.forEach.call(table.tBodies[0].rows, function (r) {
-      var on = r.getAttribute("data-i") === String(i);
-      r.className = r.className.replace(/\s*picked/g, "") + (on ? " picked" : "");
-      if (on && r.scrollIntoView) { r.scrollIntoView({block: "nearest"}); }
-    });
+    if (pickedRow) { pickedRow.className = pickedRow.className.replace(/\s*picked/g, ""); }
+    pickedRow = table.querySelector("tbody tr[data-i='" + i + "']");
+    if (pickedRow) {
+      pickedRow.className += " picked";
+      if (!quiet && pickedRow.scrollIntoView) { pickedRow.scrollIntoView({block: "nearest"}); }
+    }
+    picked = i;
     if (!cell || i < 0) { return; }
     var f = cell.flange2base[i], s = cell.sensor2base[i], m = shifted(i);
     if (pickedText) {
@@ -95,6 +100,7 @@
     Plotly.restyle(view, {x: [u[0], x[0], mu[0], mx[0]], y: [u[1], x[1], mu[1], mx[1]], z: [u[2], x[2], mu[2], mx[2]]},
                    [t.residuals, t.residuals_excluded, t.centres, t.centres_excluded]);
     Plotly.restyle(view, {name: "residuals " + label}, [t.residuals]);
+    if (picked >= 0) { pick(picked, true); }  // the picked sample's chain ends where its centre is drawn now
   }
 
   function copyMatrix() {

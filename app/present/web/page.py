@@ -27,8 +27,10 @@ def _asset(name):
 
 def embedded_json(element_id, text):
     """A ``<script type="application/json">`` element holding ``text`` (JSON), safe inside HTML:
-    ``</`` written ``<\\/``, which JSON reads back as the same ``</``."""
-    safe = text.replace("</", "<\\/")
+    every ``<``, ``>`` and ``&`` written as JSON's ``\\u003c``, ``\\u003e``, ``\\u0026`` (inside strings,
+    the only place JSON text has them), so no ``</script>`` or ``<!--`` of a sample's id can end or
+    bend the element; JSON reads them back as the same characters."""
+    safe = text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
     return f'<script type="application/json" id="{element_id}">{safe}</script>'
 
 
@@ -37,14 +39,14 @@ def image(png, alt):
     return f"<img class='figure' alt='{parts.esc(alt)}' src='data:image/png;base64,{base64.b64encode(png).decode()}'>"
 
 
-def snippets(result):
+def snippets(result, source="the calibration"):
     """The export formats' text of the result's pose (:mod:`handeye.app.outputs.formats`), in the
     sensor's own frame when the profiles were turned (as ``handeye export`` writes it)."""
     from handeye.app.outputs import formats, saved
 
     if result.get("sensor_matrix") is None:
         return {}
-    cal = saved.from_document(result, "the report's calibration").in_own_frame()
+    cal = saved.from_document(result, source).in_own_frame()
     return {fmt: formats.text(cal, fmt) for fmt in parts.SNIPPETS}
 
 
@@ -119,7 +121,7 @@ def diagnosis_section(diagnosis):
             + "</section>")
 
 
-def build(result, dataset, diagnosis=None, result_json=None):
+def build(result, dataset, diagnosis=None, result_json=None, source="the calibration"):
     """The report's HTML text.
 
     Parameters
@@ -131,6 +133,8 @@ def build(result, dataset, diagnosis=None, result_json=None):
         ``handeye diagnose --json``'s object on the same dataset.
     result_json : str, optional
         The result's JSON text as ``calibrate --json`` prints it (default: ``result`` dumped).
+    source : str
+        Where ``result`` came from (a file's name), for messages.
     """
     from handeye.app.present.web.cell import cell_geometry
 
@@ -138,7 +142,8 @@ def build(result, dataset, diagnosis=None, result_json=None):
     generated = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     cell = cell_geometry(result, dataset) if result.get("sensor_matrix") and result.get("sphere_center") else None
     cell_html, payload = cell_section(cell, title, view.have_plotly(), result)
-    body = [parts.header(result, title, generated), parts.verdict_strip(result), parts.result_card(result, snippets(result)),
+    card = parts.result_card(result, snippets(result, source))
+    body = [parts.header(result, title, generated), parts.verdict_strip(result), card,
             cell_html, parts.residual_table(result, cell), figures_section(result, cell, dataset),
             diagnosis_section(diagnosis),
             embedded_json("handeye-result", result_json or dumps(result)),

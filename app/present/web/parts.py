@@ -11,10 +11,17 @@ SNIPPETS = ("ur", "ros2", "urdf", "kuka", "abb", "fanuc", "matrix")
 
 
 def esc(value):
+    """``value`` as HTML text (quotes too: safe in attributes)."""
     return html.escape(str(value), quote=True)
 
 
+def _p(value):
+    """A p-value as text (3 significant digits), or a dash."""
+    return f"{value:.3g}" if isinstance(value, (int, float)) and np.isfinite(value) else "–"
+
+
 def _num(value, digits=4):
+    """A number with ``digits`` decimals, or a dash for None; anything else escaped as text."""
     if value is None:
         return "–"
     return f"{value:.{digits}f}" if isinstance(value, (int, float)) and np.isfinite(value) else esc(value)
@@ -42,16 +49,23 @@ def result_card(result, snippets):
     """The pose in the robot's convention with its 1-sd, the 4x4 with a copy button, the sphere
     centre, and the export snippets (``snippets``: format -> text)."""
     pose_as = result.get("sensor_pose_as") or {}
-    cols, pose = pose_as.get("columns") or [], pose_as.get("pose") or []
+    own = result.get("sensor_matrix_own") is not None  # profiles turned by dataset new: the sensor's own frame
+    cols = pose_as.get("columns") or []
+    pose = (result.get("sensor_pose_own") if own else pose_as.get("pose")) or []
     std = result.get("std") or {}
     frame = "robot base" if result.get("sensor_mount") == "world" else "flange"
     cells = "".join(f"<th>{esc(c)}</th>" for c in cols)
     vals = "".join(f"<td>{_num(v)}</td>" for v in pose)
     sd_t, sd_r = std.get("sensor_translation_mm"), std.get("sensor_rotation_deg")
+    axes = "the profiles' x, y, z (laser plane y = 0)" if own else "the sensor's own x, y, z"
     sd_line = ("<p class='sd'>1 sd: translation " + " ".join(_num(v) for v in sd_t) + " mm (x, y, z in the "
-               f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + " deg (about the sensor's own "
-               "x, y, z)</p>") if sd_t and sd_r else "<p class='sd'>no uncertainty (the fit did not give one)</p>"
-    matrix = result.get("sensor_matrix")
+               f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + f" deg (about {axes})</p>"
+               ) if sd_t and sd_r else "<p class='sd'>no uncertainty (the fit did not give one)</p>"
+    if own:
+        sd_line += ("<p class='hint'>The sensor's own frame (its driver's points, what <code>handeye export</code> "
+                    "writes): the profiles were turned into the laser plane by <code>[profile] own_axes</code>; the "
+                    "residual columns below are in the profiles' frame.</p>")
+    matrix = result.get("sensor_matrix_own") if own else result.get("sensor_matrix")
     mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
     centre = result.get("sphere_center") or []
     csd = result.get("sphere_center_sd")
@@ -61,7 +75,8 @@ def result_card(result, snippets):
     else:
         snips = ("<p class='refused'>Not offered: the calibration did not converge, so it is no calibration "
                  "(<code>handeye export</code> refuses it too, unless forced).</p>")
-    return (f"<section id='card'><h2>Sensor pose in the {esc(frame)} frame ({esc(pose_as.get('convention'))})</h2>"
+    title = f"Sensor pose{' (its own frame)' if own else ''} in the {esc(frame)} frame ({esc(pose_as.get('convention'))})"
+    return (f"<section id='card'><h2>{title}</h2>"
             f"<table class='pose'><tr>{cells}</tr><tr>{vals}</tr></table>{sd_line}"
             f"<h3>4×4 sensor matrix (mm) <button id='copy-matrix' type='button'>copy</button>"
             f"<span id='copy-state'></span></h3><pre id='matrix'>{esc(mtext)}</pre>"
@@ -142,7 +157,7 @@ def verdict_strip(result):
                           f"sd {_num(nt.get('ratio'), 2)} × the stated {nt.get('nominal')}; RMS "
                           f"{_num(result.get('rms_mm'))} mm per centre"))
         boxes.append(_box("ok" if nt.get("passed") else "fail", "χ² test",
-                          f"χ² = {nt.get('statistic'):.4g} on {nt.get('dof')} dof, p = {nt.get('p_value'):.3g}"))
+                          f"χ² = {_num(nt.get('statistic'), 1)} on {nt.get('dof')} dof, p = {_p(nt.get('p_value'))}"))
     if result.get("loo_error_mm") is not None:
         boxes.append(_box("info", "leave-one-out", f"{_num(result['loo_error_mm'])} mm per centre (RMS of the "
                           f"held-out errors) against {_num(result.get('rms_mm'))} mm fitted"))
@@ -159,9 +174,10 @@ def verdict_strip(result):
                              "separate them" if tied else "")))
     glob = result.get("global")
     if glob:
-        boxes.append(_box("ok" if glob.get("reached") == glob.get("starts") or glob.get("next_best_cost") is None
-                          else "warn", "global check", f"{glob.get('reached')} of {glob.get('starts')} starts reached "
-                          f"the minimum kept; {glob.get('method')}"))
+        reached, starts = glob.get("reached"), glob.get("starts")
+        state = "fail" if not reached else "ok" if reached == starts else "warn"
+        boxes.append(_box(state, "global check", f"{reached} of {starts} starts reached the minimum kept; "
+                          f"{glob.get('method')}"))
     n_ex = len(result.get("excluded") or [])
     boxes.append(_box("warn" if n_ex else "ok", "excluded samples",
                       f"{n_ex} of {len(result.get('residuals') or [])}: {', '.join(result.get('outliers') or []) or 'none'}"))

@@ -93,6 +93,8 @@ def figure(cell, title):
     fig : plotly.graph_objects.Figure
     traces : dict
         ``residuals``, ``residuals_excluded``, ``centres``, ``selected``: trace indices.
+    scale : float
+        The residual magnification drawn (:func:`default_scale`).
     """
     import plotly.graph_objects as go
 

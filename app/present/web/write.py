@@ -56,7 +56,15 @@ def write_report(result, dataset, html, diagnosis=None, result_json=None, source
     from handeye.app.files import write_text_atomically
     from handeye.app.present.web import page, view
 
-    text = page.build(result, dataset, diagnosis, result_json)
+    if source == "calibrated now":
+        text = page.build(result, dataset, diagnosis, result_json)
+    else:  # a file: what its checks let through and the page still cannot read is named, never a traceback
+        from handeye.app.outputs.saved import CalibrationFileError
+
+        try:
+            text = page.build(result, dataset, diagnosis, result_json, source)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise CalibrationFileError(source, f"cannot be reported: {type(exc).__name__}: {str(exc)[:120]}") from None
     write_text_atomically(html, text, option=option)
     return ReportResult(str(html), len(text.encode("utf-8")), view.have_plotly(), str(result.get("dataset")), source,
                         bool(result.get("converged")), len(result.get("residuals") or []),
