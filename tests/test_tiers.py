@@ -82,6 +82,7 @@ def test_the_readme_names_both_tiers_and_ci_runs_its_command():
     section = readme.split("## Run the tests", 1)[1].split("\n## ", 1)[0]
     command = re.search(r"```bash\n(.*?)\n```", section, flags=re.S).group(1).strip()
     ci = [ln for ln in (ROOT / ".ci" / "run").read_text().splitlines() if ln.strip() and not ln.startswith(("#", "set ", "cd "))]
-    assert ci == [command]  # .ci/run runs the README's command, verbatim
+    assert ci == ["bash .ci/browser", command]  # headless Chromium when missing, then the README's command, verbatim
+    assert "bash .ci/browser" in section and "chromium-driver" in section  # and the README says so
     assert command.endswith("python -m pytest -q")  # the full suite
     assert 'python -m pytest -q -m "not slow"' in section  # the default tier
