@@ -12,6 +12,7 @@ import json
 import pathlib
 import re
 
+import notebook_scripts
 import numpy as np
 import pytest
 
@@ -101,10 +102,7 @@ def test_the_checks_compare_with_tolerances_and_forms():
 
 
 def _student():
-    spec = importlib.util.spec_from_file_location("notebook_student", ROOT / "notebooks" / "student.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return notebook_scripts.load("student")
 
 
 def test_the_student_edition_has_no_solutions_and_clears_the_exercise_cells(tmp_path):

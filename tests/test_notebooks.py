@@ -11,11 +11,11 @@ changes in its first digit or makes exactly 0.0 -- is compared only as "below 1e
 assertions check it.
 A stale notebook fails with the command that refreshes it: ``python notebooks/execute.py``.
 """
-import importlib.util
 import json
 import pathlib
 import re
 
+import notebook_scripts
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -25,10 +25,7 @@ NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
 
 def _executor():
-    spec = importlib.util.spec_from_file_location("notebook_execute", ROOT / "notebooks" / "execute.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return notebook_scripts.load("execute")
 
 
 def _round(match):

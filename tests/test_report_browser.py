@@ -8,15 +8,11 @@ here with that sentence rather than passing without having looked."""
 from __future__ import annotations
 
 import json
-import pathlib
-import sys
 
+import browser
 import pytest
 
 import handeye
-
-sys.path.insert(0, str(pathlib.Path(__file__).parent))
-import browser  # noqa: E402
 
 
 def _check(driver, path, n_samples, shot):

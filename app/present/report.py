@@ -434,6 +434,23 @@ def diagnosis_text(res):
     return "\n".join(lines)
 
 
+def draw_gap(ax, steps, sigma_mm):
+    """The discrepancy workflow's gap on ``ax``: RMS per sphere centre fitted and held out at each
+    step (``steps``: ``step``, ``rms_mm``, ``heldout_rms_mm`` as diagnose's JSON has them) against the
+    noise floor, the stated ``sigma_mm`` per component as an RMS per centre (sqrt(3) sigma)."""
+    labels = [s["step"] for s in steps]
+    ax.plot(labels, [s["rms_mm"] for s in steps], "o-", label="fitted")
+    ax.plot(labels, [s["heldout_rms_mm"] for s in steps], "s--", label="held out (5-fold)")
+    floor = np.sqrt(3.0) * sigma_mm  # RMS of |e| per centre when the noise is as stated
+    ax.axhline(floor, color="0.4", lw=1, ls=":", label=f"noise floor: stated {sigma_mm:g} mm x sqrt(3)")
+    ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
+    ax.set_ylim(bottom=min(floor, *(s["rms_mm"] for s in steps)) / 2)  # the floor in view, below the legend
+    ax.tick_params(axis="x", rotation=20)
+    for t in ax.get_xticklabels():  # the long step names end under their point, inside the figure
+        t.set(ha="right", rotation_mode="anchor")
+    ax.legend(loc="center left")
+
+
 def diagnosis_figures(res, out):
     """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
     import pathlib
@@ -462,17 +479,7 @@ def diagnosis_figures(res, out):
     style.save(fig, out / "residuals.png", option="--figures")
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(8.4, 4.8))
-    labels = [s.step for s in res.steps]
-    ax.plot(labels, [s.rms_mm for s in res.steps], "o-", label="fitted")
-    ax.plot(labels, [s.heldout_rms_mm for s in res.steps], "s--", label="held out (5-fold)")
-    floor = np.sqrt(3.0) * res.nominal_sigma_mm  # RMS of |e| per centre when the noise is as stated
-    ax.axhline(floor, color="0.4", lw=1, ls=":", label=f"noise floor: stated {res.nominal_sigma_mm:g} mm x sqrt(3)")
-    ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
-    ax.set_ylim(bottom=min(floor, *(s.rms_mm for s in res.steps)) / 2)  # the floor in view, below the legend
-    ax.tick_params(axis="x", rotation=20)
-    for t in ax.get_xticklabels():  # the long step names end under their point, inside the figure
-        t.set(ha="right", rotation_mode="anchor")
-    ax.legend(loc="center left")
+    draw_gap(ax, [s.to_dict() for s in res.steps], res.nominal_sigma_mm)
     fig.tight_layout()
     style.save(fig, out / "gap.png", option="--figures")
     plt.close(fig)

@@ -126,18 +126,11 @@ def correlation_matrix(names, matrix):
 
 @styled
 def gap_steps(steps, sigma_mm):
-    """The discrepancy workflow's steps (``diagnose``): RMS fitted and held out per step against the
-    noise floor, the stated sigma as an RMS per centre (sqrt(3) sigma)."""
+    """The discrepancy workflow's steps (``diagnose``'s JSON ``steps``) against the noise floor, as
+    ``diagnose --figures`` draws them (:func:`handeye.app.present.report.draw_gap`), PNG bytes."""
+    from handeye.app.present.report import draw_gap
+
     fig = new_figure(figsize=(10, 5))
-    ax = fig.add_subplot()
-    labels = [s["step"] for s in steps]
-    ax.plot(labels, [s["rms_mm"] for s in steps], "o-", color=OKABE_ITO["blue"], label="fitted")
-    ax.plot(labels, [s["heldout_rms_mm"] for s in steps], "s--", color=OKABE_ITO["orange"], label="held out (5-fold)")
-    floor = np.sqrt(3.0) * sigma_mm
-    ax.axhline(floor, color="0.3", lw=1.2, ls=":", label=f"noise floor: stated {sigma_mm:g} mm x sqrt(3)")
-    ax.set(ylabel="RMS per sphere centre (mm)", yscale="log", title="the gap, step by step")
-    ax.set_ylim(bottom=min(floor, *(s["rms_mm"] for s in steps)) / 2)
-    ax.tick_params(axis="x", rotation=15)
-    ax.legend(loc="best")
+    draw_gap(fig.add_subplot(), steps, sigma_mm)
     fig.tight_layout()
     return png_bytes(fig)
