@@ -297,10 +297,11 @@ class Samples:
                 residual=lambda z: self.residuals(structure, *split(z), mask, chunk)[mask].ravel(),
                 jacobian=lambda z: self.evaluate(structure, *split(z))[1][mask].reshape(-1, n),
                 normal=lambda z: self.normal_equations(structure, *split(z), mask, chunk))
+        at = solvers.last_point(lambda z: self.evaluate(structure, *split(z))[:2])  # a step's Jacobian at its residual's point
         return solvers.Problem(
             n=n, retract=retract,
-            residual=lambda z: self.evaluate(structure, *split(z))[0][mask].ravel(),
-            jacobian=lambda z: self.evaluate(structure, *split(z))[1][mask].reshape(-1, n))
+            residual=lambda z: at(z)[0][mask].ravel(),
+            jacobian=lambda z: at(z)[1][mask].reshape(-1, n))
 
     def _chart(self, centre_free):
         """A one-row local-chart model: the point layout and retraction of a structure."""
@@ -604,3 +605,4 @@ def _ranked(found):
 #: sphere centre and the parameters already chosen to be estimated (stricter than :data:`GATE`:
 #: one column).
 JOINT_GATE = 1e-2
+

@@ -101,11 +101,10 @@ def _chain(model, qc, origins, after):
     """Per joint ``(O_j Rot_j, A_j)`` and the prefix products ``P_j`` (before ``O_j``) and
     suffix products ``S_j`` (after ``A_j``, the flange included), each (N, 4, 4)."""
     n = len(qc)
-    links = []
-    for j in range(6):
-        turn = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-        turn[:, :3, :3] = matrix_from_rotvec(model.axes[j][None, :] * qc[:, j:j + 1])
-        links.append((turn, after[j]))
+    turns = np.zeros((n, 6, 4, 4))
+    turns[:, :, 3, 3] = 1.0
+    turns[:, :, :3, :3] = matrix_from_rotvec(model.axes[None, :, :] * qc[:, :, None])  # every joint at once
+    links = [(turns[:, j], after[j]) for j in range(6)]
     prefix = [np.broadcast_to(model.base, (n, 4, 4))]
     for j, (turn, aft) in enumerate(links):
         prefix.append(prefix[-1] @ origins[j] @ turn @ aft)

@@ -6,7 +6,7 @@ definitions (Nocedal & Wright), plus IPOPT through CasADi. Knows nothing of robo
 """
 from handeye.solvers.api import METHODS, solve, solve_many, supports
 from handeye.solvers.batch import BatchResult
-from handeye.solvers.problem import Options, Problem, UnsupportedProblem, forward_difference_jacobian
+from handeye.solvers.problem import Options, Problem, UnsupportedProblem, forward_difference_jacobian, last_point
 from handeye.solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult
 
 __all__ = [
@@ -19,6 +19,7 @@ __all__ = [
     "Problem",
     "UnsupportedProblem",
     "forward_difference_jacobian",
+    "last_point",
     "solve",
     "solve_many",
     "supports",

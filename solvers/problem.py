@@ -140,3 +140,18 @@ class Options:
         if unknown:
             raise UnsupportedProblem(f"unknown solver option(s) {unknown}; known: {sorted(names)}")
         return cls(**mapping)
+
+
+def last_point(evaluate):
+    """``evaluate(x)`` remembering its last point (one entry, compared by value): a least-squares
+    solver asks for the Jacobian at the point whose residual it has just accepted, and where one
+    evaluation gives both (``evaluate(x) -> (r, J)``) it is done once, not twice."""
+    last = {}
+
+    def at(x):
+        key = np.asarray(x, float).tobytes()
+        if last.get("key") != key:
+            last["key"], last["value"] = key, evaluate(x)
+        return last["value"]
+
+    return at

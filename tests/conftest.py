@@ -8,7 +8,9 @@ tests/test_tiers.py checks the marks from the record kept here."""
 from __future__ import annotations
 
 import builtins
+import os
 import pathlib
+import time
 
 import numpy as np
 import pytest
@@ -22,10 +24,45 @@ TIERS = {}
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Record every test's tier before ``-m "not slow"`` deselects the slow ones."""
+    """Record every test's tier before ``-m "not slow"`` deselects the slow ones, and run the
+    slow tests last (a stable sort: the default tier keeps its order), so that the time the last
+    default-tier test ends is the default tier's own wall time, measured inside the full run."""
     for item in items:
         mark = item.get_closest_marker("slow")
         TIERS[item.nodeid] = (item.nodeid.split("::")[0], mark.kwargs.get("sibling") if mark else None, mark is not None)
+    items.sort(key=lambda item: item.get_closest_marker("slow") is not None)
+
+
+#: The run's clock (on the controller, which every pytest-xdist worker reports to): when the
+#: session started, and per test its tier, its time (setup, call and teardown) and when it ended.
+CLOCK = {"start": None, "tests": {}}
+
+
+def pytest_sessionstart(session):
+    CLOCK["start"] = time.monotonic()
+
+
+def pytest_runtest_logreport(report):
+    slow, seconds, _ = CLOCK["tests"].get(report.nodeid, ("slow" in report.keywords, 0.0, None))
+    CLOCK["tests"][report.nodeid] = (slow, seconds + report.duration, time.monotonic())
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    """The tiers' times (README, "Run the tests"): wall time of the default tier (its last test's
+    end; the slow tests run after it) and of the whole run, and the test time in each tier."""
+    if not CLOCK["tests"] or CLOCK["start"] is None:
+        return
+    line = terminalreporter.write_line
+    workers = getattr(config.option, "numprocesses", None) or 1
+    for slow, name in ((False, "default tier"), (True, "slow tests")):
+        runs = [(s, end) for k, (is_slow, s, end) in CLOCK["tests"].items() if is_slow == slow]
+        if runs:
+            wall = max(end for _, end in runs) - CLOCK["start"]
+            line(f"tier time: {name}: {len(runs)} tests, {sum(s for s, _ in runs):.0f} s of test time, "
+                 f"done {wall:.0f} s ({wall / 60:.1f} min) after the start")
+    wall = time.monotonic() - CLOCK["start"]
+    line(f"tier time: this run: {len(CLOCK['tests'])} tests, {wall:.0f} s ({wall / 60:.1f} min) wall, "
+         f"{workers} worker(s)")
 
 
 def simulated_poses(rng, n):
@@ -85,13 +122,22 @@ def simulate(folder, seed=0, n=20, noise_mm=0.05, truth=(190.0, 100.0, 130.0, 17
     return write_dataset(folder, poses, xs, start, centre, truth=truth)
 
 
+def run_cache(tmp_path_factory):
+    """The generated-code cache of this test run: apart from the user's, built once per run and
+    shared by every pytest-xdist worker of the run (their temporary folders have one parent; the
+    cache writes each file atomically, so workers that derive the same function at once agree)."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    folder = root / "handeye-cache"
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _private_cache(tmp_path_factory):
-    """Keep the generated-code cache of the test run apart from the user's."""
-    import os
-
+    """Keep the generated-code cache of the test run apart from the user's (:func:`run_cache`)."""
     old = os.environ.get("HANDEYE_CACHE")
-    os.environ["HANDEYE_CACHE"] = str(tmp_path_factory.mktemp("handeye-cache"))
+    os.environ["HANDEYE_CACHE"] = str(run_cache(tmp_path_factory))
     yield
     if old is None:
         os.environ.pop("HANDEYE_CACHE", None)

@@ -95,11 +95,15 @@ HALF, STANDOFF = 30.0, (190.0, 290.0)
 # ----------------------------------------------------------------------------- rotations
 def rodrigues(axis, deg):
     """Rotation by ``deg`` degrees about ``axis`` (3, any length), Rodrigues' formula (3x3)."""
-    k = np.asarray(axis, float)
-    k = k / np.linalg.norm(k)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    x, y, z = (float(v) for v in axis)
+    norm = math.sqrt(x * x + y * y + z * z)
+    x, y, z = x / norm, y / norm, z / norm
     t = math.radians(deg)
-    return np.eye(3) + math.sin(t) * K + (1.0 - math.cos(t)) * K @ K
+    s, c = math.sin(t), math.cos(t)
+    v = 1.0 - c  # I + s K + v K^2, written out (K the cross-product matrix of the unit axis)
+    return np.array([[c + v * x * x, v * x * y - s * z, v * x * z + s * y],
+                     [v * x * y + s * z, c + v * y * y, v * y * z - s * x],
+                     [v * x * z - s * y, v * y * z + s * x, c + v * z * z]])
 
 
 def rot_x(deg):

@@ -98,7 +98,9 @@ def fit(dataset, free, sensor, centre, mask, axes=None):
     axes = dataset.mounts.axes if "positioner" in free else ()
     x0 = pack(sensor, centre, axes)
     check_determined(model, x0, dataset.path)
-    problem = solvers.Problem(n=model.n, residual=model.residual, jacobian=model.jacobian, retract=model.retract)
+    at = solvers.last_point(model.evaluate)  # the Jacobian at the residual's point: one evaluation
+    problem = solvers.Problem(n=model.n, residual=lambda x: at(x)[0].ravel(), retract=model.retract,
+                              jacobian=lambda x: at(x)[1][:, :, model.columns].reshape(-1, model.n))
     res = solvers.solve(problem, x0, "lm", {"max_iter": MAX_ITER})
     r, jac = model.residual(res.x), model.jacobian(res.x)
     dof = max(len(r) - model.n, 1)
