@@ -24,7 +24,10 @@
     (robot repeatability per axis, default 0.025), the noise model a calibration tests its
     fit against; optional ``[truth]`` with
     ``sensor_pose`` (in the dataset's convention) and optionally ``sphere_center`` -- for
-    simulated data, never read by a calibration.
+    simulated data, never read by a calibration. ``[profile] own_axes`` (R, ``p = R p_own``) and
+    ``poses = "own"``: the profiles were turned from the sensor's own frame by ``dataset new``,
+    and the ``[sensor]`` poses are of that own frame (:mod:`handeye.model.own_frame`); they are
+    turned into handeye's frame here, on load.
 
 Every problem found raises :class:`DatasetError`, whose text names file, row and column.
 """
@@ -168,6 +171,11 @@ class Dataset(FlangePoses):
     own_axes : ndarray, shape (3, 3), or None
         ``[profile] own_axes``: R with ``p = R p_own``, the sensor's own frame (its driver's points)
         in the frame of the profiles (laser plane y = 0) that the calibration is of; None: the same.
+        ``start_pose`` and ``sensor_pose`` are of handeye's frame (turned on load); the results
+        turn the calibrated pose back to the own frame (:mod:`handeye.model.own_frame`).
+    poses_read : str or None
+        How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
+        with ``own_axes`` and no ``poses = "own"``: in handeye's turned frame), else None.
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -202,6 +210,7 @@ class Dataset(FlangePoses):
     raw_profiles: tuple | None = None
     cleaning: tuple | None = None
     own_axes: np.ndarray | None = None
+    poses_read: str | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -512,4 +521,5 @@ def load(name_or_path, clean=True):
         joints=joints,
         robot_model=model,
         own_axes=st.own_axes,
+        poses_read=st.poses_read,
     )

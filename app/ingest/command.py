@@ -89,8 +89,8 @@ class NewDatasetResult(ResultProtocol):
                          + (", ..." if len(self.inputs["skipped"]) > 4 else "") + " (PROVENANCE.toml says why)")
         lines.append(f"  plane     {self.plane}")
         if self.rotation is not None:
-            lines.append("            kept as [profile] own_axes: calibrate reports, and export writes, your sensor's own "
-                         "frame too")
+            lines.append("            kept as [profile] own_axes: every sensor pose (--start, calibrate's, export's) is of "
+                         "your sensor's own frame")
         lines.append(f"  pairing   {self.pairing}")
         if self.conversions:
             lines.append(f"  converted {'; '.join(self.conversions)}")

@@ -137,18 +137,35 @@ class ResidualTable:
                                                     loo)]
 
 
-def own_frame_fields(sensor2flange, own_axes, convention):
-    """``own_axes``, ``sensor_matrix_own`` and ``sensor_pose_own`` (in ``convention``) of a result
-    whose profiles were turned from the sensor's own frame (``[profile] own_axes`` R, ``p = R p_own``:
-    the own frame is ``S [R 0; 0 1]``), else an empty dict."""
-    if own_axes is None or sensor2flange is None:
-        return {}
-    from handeye.model import conventions
+def user_poses(matrix, own_axes, convention):
+    """``(4x4, pose in convention, KUKA pose)`` of the sensor's own frame of a sensor pose ``matrix``
+    of handeye's frame (``[profile] own_axes``: :func:`handeye.model.own_frame.to_own`)."""
+    from handeye.model import conventions, own_frame
 
-    own = np.asarray(sensor2flange, float).copy()
-    own[:3, :3] = own[:3, :3] @ np.asarray(own_axes, float)
-    return {"own_axes": _list(own_axes), "sensor_matrix_own": _list(own),
-            "sensor_pose_own": _list(conventions.pose_from(convention, own))}
+    m = own_frame.to_own(matrix, own_axes)
+    return m, conventions.pose_from(convention, m), conventions.pose_from("kuka", m)
+
+
+def user_std(std, covariance, own_axes):
+    """The 1-sd :class:`Uncertainty` and the covariance (local chart) of a pose of handeye's frame
+    as the sensor's own frame's: the rotation block about the own axes (``dw_own = R^T dw``); the
+    sd from the turned covariance, or (without one) from the variances turned alone."""
+    from handeye.model import own_frame
+
+    cov = own_frame.covariance_to_own(covariance, own_axes)
+    if std is None or std.sensor_rotation_deg is None:
+        return std, cov
+    if cov is not None:
+        rot = np.degrees(np.sqrt(np.clip(np.diag(cov)[3:6], 0.0, None)))
+    else:
+        rot = np.sqrt(np.asarray(own_axes, float).T ** 2 @ np.asarray(std.sensor_rotation_deg, float) ** 2)
+    return dataclasses.replace(std, sensor_rotation_deg=rot), cov
+
+
+def frame_keys(own_axes):
+    """The JSON keys that say a result's poses are of the sensor's own frame (``own_axes``; none
+    without a turn): what a saved file is read back with (:mod:`handeye.app.outputs.saved`)."""
+    return {} if own_axes is None else {"own_axes": _list(own_axes), "sensor_frame": "own"}
 
 
 def residual_dicts(residuals):
@@ -356,6 +373,12 @@ class CalibrationResult(ResultProtocol):
         What profile cleaning dropped (:func:`handeye.app.present.result_parts.cleaning_summary`: totals, and
         per profile that lost points its id, row, counts and reasons); ``{'applied': False}``
         with ``--no-clean``; None without profiles.
+    own_axes : ndarray, shape (3, 3), or None
+        The dataset's ``[profile] own_axes`` (its profiles turned from the sensor's own frame).
+    pose_frame : {'handeye', 'own'}
+        The frame of the pose attributes: handeye's (the profiles', what the fit works in), or
+        the sensor's own (:meth:`in_user_frame`); the JSON and the text report are of the own
+        frame whenever there is one (JSON keys ``own_axes`` and ``sensor_frame`` "own" say so).
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
@@ -395,6 +418,7 @@ class CalibrationResult(ResultProtocol):
     robot_model: str | None = None
     cleaning: dict | None = None
     own_axes: np.ndarray | None = None
+    pose_frame: str = "handeye"
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -445,9 +469,44 @@ class CalibrationResult(ResultProtocol):
         return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
                 f"({diff:+.2g} mm): " + "; and ".join(parts))
 
+    def in_user_frame(self):
+        """The result with every pose the user reads in the frame of the user's files: the
+        sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.own_frame`):
+        ``sensor2flange``, ``sensor_pose`` (and KUKA), the start pose, the iterates, the closed
+        form's linear matrix, the covariance, correlation and 1-sd of the rotation (about the own
+        axes); ``pose_frame`` then ``"own"``. Itself without a turn or when turned already.
+        :meth:`to_dict`, :meth:`summary` and every saved or exported form are of this one."""
+        rot = self.own_axes
+        if rot is None or self.pose_frame == "own" or self.sensor2flange is None:
+            return self
+        from handeye.model import conventions, own_frame
+        from handeye.model.pose import transform_from_pose
+
+        matrix, pose, kuka = user_poses(self.sensor2flange, rot, self.convention)
+        history = None if self.history is None else np.array(
+            [user_poses(transform_from_pose(h), rot, "kuka")[2] for h in self.history]).reshape(-1, 6)
+        fit = dataclasses.replace(self.fit, sensor2flange=matrix, sensor_pose=pose, sensor_pose_kuka=kuka, history=history)
+        std, cov = user_std(self.std, self.covariance, rot)
+        corr = self.correlation
+        if cov is not None:
+            sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+            corr = cov / np.outer(sd, sd)
+        start = start_kuka = None
+        if self.start_pose_kuka is not None:
+            start_matrix = user_poses(transform_from_pose(self.start_pose_kuka), rot, "kuka")[0]
+            start, start_kuka = conventions.pose_from(self.convention, start_matrix), conventions.pose_from("kuka", start_matrix)
+        closed = self.closed_form if self.closed_form is None else dataclasses.replace(
+            self.closed_form, linear_matrix=own_frame.to_own(self.closed_form.linear_matrix, rot))
+        return dataclasses.replace(
+            self, fit=fit, uncertainty=dataclasses.replace(self.uncertainty, std=std, covariance=cov, correlation=corr),
+            start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, pose_frame="own")
+
     def to_dict(self, residuals=True):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without
-        ``residuals`` their entry is None (:meth:`to_json` writes them column-wise)."""
+        ``residuals`` their entry is None (:meth:`to_json` writes them column-wise). Its poses are
+        of the user's frame (:meth:`in_user_frame`)."""
+        if self.in_user_frame() is not self:
+            return self.in_user_frame().to_dict(residuals)
         out = {
             "dataset": self.dataset,
             "dataset_path": self.dataset_path,
@@ -467,7 +526,7 @@ class CalibrationResult(ResultProtocol):
             "sensor_mount": self.sensor_mount,
             "sphere_mount": self.sphere_mount,
             "sensor_matrix": _list(self.sensor2flange),
-            **self._own_frame(),
+            **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
             "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
             "positioner": None if self.positioner is None else self.positioner.to_dict(),
@@ -517,9 +576,6 @@ class CalibrationResult(ResultProtocol):
             out["provenance"] = self.provenance
         return out
 
-    def _own_frame(self):
-        return own_frame_fields(self.sensor2flange, self.own_axes, self.convention)
-
     def to_json(self, indent=1):
         """:meth:`to_dict` as strict JSON text (non-finite numbers as null); the residual rows
         compact, one a line."""
@@ -533,9 +589,10 @@ class CalibrationResult(ResultProtocol):
         """The CLI's text report."""
         from handeye.app.present import report
 
-        return report.calibration_text(self)
+        return report.calibration_text(self.in_user_frame())
 
     def _repr_html_(self):
+        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
             ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
@@ -560,6 +617,7 @@ class CalibrationResult(ResultProtocol):
         return f"<table><caption>handeye calibration</caption>{body}</table>"
 
     def __repr__(self):
+        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
         return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "
