@@ -317,7 +317,8 @@ def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, 
 
 def data(calibration, parent=None, child="sensor"):
     """Every format's numbers as one JSON-ready dict (``--format json``) of the user's frame (``own_axes``
-    and ``sensor_frame`` "own" when that is the sensor's own); a sensor fixed in the cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
+    and ``sensor_frame`` "own" when that is the sensor's own); a sensor fixed in the cell adds
+    ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
     parent = resolve_parent(calibration, parent)
     matrix = calibration.user_frame().sensor2flange
     rep = representations(matrix)
