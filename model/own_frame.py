@@ -41,13 +41,14 @@ def kuka_to_internal(pose, own_axes):
     return pose_from_transform(to_internal(transform_from_pose(pose), own_axes))
 
 
-def covariance_to_own(covariance, own_axes, forward=True):
-    """A covariance whose rows 3..5 are the sensor's rotation ``dw`` (handeye's axes) with those
-    rows and columns about the own frame's axes (``dw_own = R^T dw``); ``forward`` False the
-    inverse. The other parameters (translation, sphere, effects) are left as they are."""
-    if covariance is None or own_axes is None:
+def covariance_to_own(covariance, own_axes, forward=True, first=3):
+    """A covariance whose rows ``first`` .. ``first + 2`` are the sensor's rotation ``dw`` (handeye's
+    axes) with those rows and columns about the own frame's axes (``dw_own = R^T dw``); ``forward``
+    False the inverse; ``first`` None: no rotation among its parameters (unchanged). The other
+    parameters (translation, sphere, effects) are left as they are."""
+    if covariance is None or own_axes is None or first is None:
         return covariance
     cov = np.asarray(covariance, float)
     jac = np.eye(len(cov))
-    jac[3:6, 3:6] = np.asarray(own_axes, float).T if forward else np.asarray(own_axes, float)
+    jac[first:first + 3, first:first + 3] = np.asarray(own_axes, float).T if forward else np.asarray(own_axes, float)
     return jac @ cov @ jac.T

@@ -277,6 +277,32 @@ def test_own_axes_must_be_a_rotation(turned, tmp_path):
         handeye.load_dataset(folder)
 
 
+def test_a_setup_s_start_and_a_held_pose_are_of_the_own_frame(turned, cell, tmp_path):
+    """--setup takes the start pose of the own frame across (and an older setup's, of handeye's
+    turned frame, turned into the own); ``[sensor] pose`` held is of the own frame."""
+    _, _, truth_own, _ = turned
+    tmp, result, start = cell
+    older = tmp_path / "older.toml"
+    start_h = kuka_of(kuka(start) @ TURN.T)
+    setup = (tmp / "cell" / "setup.toml").read_text()
+    line = next(ln for ln in setup.splitlines() if ln.startswith("start_pose"))
+    older.write_text(setup.replace(line, "start_pose = [" + ", ".join(map(repr, start_h.tolist())) + "]")
+                     .replace('poses = "own"\n', ""))
+    for source in (tmp / "cell" / "setup.toml", older):
+        out = tmp_path / source.stem
+        assert _new(turned, out, "--setup", str(source)) == 0
+        written = numbers((out / "setup.toml").read_text().split("start_pose")[1].splitlines()[0])
+        np.testing.assert_allclose(kuka(written), kuka(start), atol=1e-9)
+    held = tmp_path / "held"
+    shutil.copytree(tmp / "cell", held)
+    own = kuka_of(truth_own)
+    (held / "setup.toml").write_text((held / "setup.toml").read_text().replace(
+        "[sensor]\n", "[sensor]\npose = [" + ", ".join(map(repr, own.tolist())) + "]\n"))
+    sphere = handeye.calibrate(held, unknowns="sphere", no_loo=True).to_dict()
+    np.testing.assert_allclose(sphere["sensor_matrix"], truth_own, atol=1e-9)
+    assert np.linalg.norm(np.array(sphere["sphere_center"]) - handeye.load_dataset(held).sphere_centre) < 0.2
+
+
 def test_a_setup_s_side_is_not_turned_twice(turned, tmp_path, capsys):
     """--setup takes [profile] side from a setup.toml, which is in handeye's frame already."""
     root, sim, _, _ = turned

@@ -146,17 +146,19 @@ def user_poses(matrix, own_axes, convention):
     return m, conventions.pose_from(convention, m), conventions.pose_from("kuka", m)
 
 
-def user_std(std, covariance, own_axes):
-    """The 1-sd :class:`Uncertainty` and the covariance (local chart) of a pose of handeye's frame
-    as the sensor's own frame's: the rotation block about the own axes (``dw_own = R^T dw``); the
-    sd from the turned covariance, or (without one) from the variances turned alone."""
+def user_std(std, covariance, own_axes, names=("tx", "ty", "tz", "wx", "wy", "wz")):
+    """The 1-sd :class:`Uncertainty` and the covariance (local chart, parameters ``names``) of a pose
+    of handeye's frame as the sensor's own frame's: the rotation block about the own axes
+    (``dw_own = R^T dw``); the sd from the turned covariance, or (without one) from the variances
+    turned alone."""
     from handeye.model import own_frame
 
-    cov = own_frame.covariance_to_own(covariance, own_axes)
+    first = list(names).index("wx") if "wx" in names else None
+    cov = own_frame.covariance_to_own(covariance, own_axes, first=first)
     if std is None or std.sensor_rotation_deg is None:
         return std, cov
-    if cov is not None:
-        rot = np.degrees(np.sqrt(np.clip(np.diag(cov)[3:6], 0.0, None)))
+    if cov is not None and first is not None:
+        rot = np.degrees(np.sqrt(np.clip(np.diag(cov)[first:first + 3], 0.0, None)))
     else:
         rot = np.sqrt(np.asarray(own_axes, float).T ** 2 @ np.asarray(std.sensor_rotation_deg, float) ** 2)
     return dataclasses.replace(std, sensor_rotation_deg=rot), cov
@@ -486,7 +488,7 @@ class CalibrationResult(ResultProtocol):
         history = None if self.history is None else np.array(
             [user_poses(transform_from_pose(h), rot, "kuka")[2] for h in self.history]).reshape(-1, 6)
         fit = dataclasses.replace(self.fit, sensor2flange=matrix, sensor_pose=pose, sensor_pose_kuka=kuka, history=history)
-        std, cov = user_std(self.std, self.covariance, rot)
+        std, cov = user_std(self.std, self.covariance, rot, self.parameter_names or ())
         corr = self.correlation
         if cov is not None:
             sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
