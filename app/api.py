@@ -82,7 +82,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
         if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
-            cal = commands.own_pose(cal, data.own_axes)
+            cal = cal.from_user_frame(data.own_axes)
             source += " (the sensor's own frame, turned by [profile] own_axes)"
     else:
         cal, source = saved.load(_path_argument(calibration)), str(calibration)

@@ -38,7 +38,7 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
                                "it from")
         values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         cal = saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
-        return own_pose(cal, own_axes)
+        return cal.from_user_frame(own_axes)
     cal = given_calibration(calibration, sensor_mount, own_axes)
     if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
         raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
@@ -47,12 +47,6 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
         raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
                            "calibrate, or pass --force to use it anyway)")
     return cal
-
-
-def own_pose(cal, own_axes):
-    """A pose typed in for a dataset whose profiles were turned (``own_axes``): of the sensor's own
-    frame (what export writes), returned in handeye's; unchanged without a turn."""
-    return cal.from_user_frame(own_axes)
 
 
 def given_calibration(calibration, sensor_mount=None, own_axes=None):
