@@ -171,8 +171,9 @@ class DiagnosisResult(ResultProtocol):
 
     def to_dict(self):
         """The ``handeye diagnose --json`` object (its pose of the user's frame: :meth:`in_user_frame`)."""
-        if self.in_user_frame() is not self:
-            return self.in_user_frame().to_dict()
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict()
         return {
             "dataset": self.dataset,
             "unknowns": self.unknowns,

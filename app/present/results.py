@@ -510,8 +510,9 @@ class CalibrationResult(ResultProtocol):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without
         ``residuals`` their entry is None (:meth:`to_json` writes them column-wise). Its poses are
         of the user's frame (:meth:`in_user_frame`)."""
-        if self.in_user_frame() is not self:
-            return self.in_user_frame().to_dict(residuals)
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict(residuals)
         out = {
             "dataset": self.dataset,
             "dataset_path": self.dataset_path,

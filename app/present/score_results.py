@@ -135,8 +135,9 @@ class ScoreResult(ResultProtocol):
         return f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg{sd}"
 
     def to_dict(self):
-        if self.in_user_frame() is not self:
-            return self.in_user_frame().to_dict()
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict()
         f, p, bad = self.f_test
         est = self.estimate
         out = {
@@ -168,8 +169,9 @@ class ScoreResult(ResultProtocol):
     def summary(self):
         from handeye.app.present.report import residual_lines
 
-        if self.in_user_frame() is not self:
-            return self.in_user_frame().summary()
+        user = self.in_user_frame()
+        if user is not self:
+            return user.summary()
         est = self.estimate
         n_used = int(np.sum([r.used for r in est.residuals]))
         lines = [f"handeye calibrate (score): dataset {self.dataset}, the sensor pose given by {self.source} held"
