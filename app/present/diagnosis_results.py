@@ -12,7 +12,7 @@ import numpy as np
 
 from handeye.app.present.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.results import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401  (shared JSON helpers)
+from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
 from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 

@@ -35,6 +35,9 @@ from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, Nois
     Uncertainty,
     UncertaintyRecord,
     _list,
+    frame_keys,
+    user_poses,
+    user_std,
 )
 
 
@@ -138,39 +141,6 @@ class ResidualTable:
         return [f'{{"id":{quote(i)},"row":{r},"vector":[{a},{b},{c}],"norm":{n},"used":{u},"loo_error_mm":{lo}}}'
                 for i, r, a, b, c, n, u, lo in zip(self.ids, self.rows.tolist(), x, y, z, numbers(self.norms), used,
                                                     loo)]
-
-
-def user_poses(matrix, own_axes, convention):
-    """``(4x4, pose in convention, KUKA pose)`` of the sensor's own frame of a sensor pose ``matrix``
-    of handeye's frame (``[profile] own_axes``: :func:`handeye.model.own_frame.to_own`)."""
-    from handeye.model import conventions, own_frame
-
-    m = own_frame.to_own(matrix, own_axes)
-    return m, conventions.pose_from(convention, m), conventions.pose_from("kuka", m)
-
-
-def user_std(std, covariance, own_axes, names=("tx", "ty", "tz", "wx", "wy", "wz")):
-    """The 1-sd :class:`Uncertainty` and the covariance (local chart, parameters ``names``) of a pose
-    of handeye's frame as the sensor's own frame's: the rotation block about the own axes
-    (``dw_own = R^T dw``); the sd from the turned covariance, or (without one) from the variances
-    turned alone."""
-    from handeye.model import own_frame
-
-    first = list(names).index("wx") if "wx" in names else None
-    cov = own_frame.covariance_to_own(covariance, own_axes, first=first)
-    if std is None or std.sensor_rotation_deg is None:
-        return std, cov
-    if cov is not None and first is not None:
-        rot = np.degrees(np.sqrt(np.clip(np.diag(cov)[first:first + 3], 0.0, None)))
-    else:
-        rot = np.sqrt(np.asarray(own_axes, float).T ** 2 @ np.asarray(std.sensor_rotation_deg, float) ** 2)
-    return dataclasses.replace(std, sensor_rotation_deg=rot), cov
-
-
-def frame_keys(own_axes):
-    """The JSON keys that say a result's poses are of the sensor's own frame (``own_axes``; none
-    without a turn): what a saved file is read back with (:mod:`handeye.app.outputs.saved`)."""
-    return {} if own_axes is None else {"own_axes": _list(own_axes), "sensor_frame": "own"}
 
 
 def residual_dicts(residuals):
@@ -484,7 +454,7 @@ class CalibrationResult(ResultProtocol):
         rot = self.own_axes
         if rot is None or self.pose_frame == "own" or self.sensor2flange is None:
             return self
-        from handeye.model import conventions, own_frame
+        from handeye.model import own_frame
         from handeye.model.pose import transform_from_pose
 
         matrix, pose, kuka = user_poses(self.sensor2flange, rot, self.convention)
@@ -496,10 +466,8 @@ class CalibrationResult(ResultProtocol):
         if cov is not None:
             sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
             corr = cov / np.outer(sd, sd)
-        start = start_kuka = None
-        if self.start_pose_kuka is not None:
-            start_matrix = user_poses(transform_from_pose(self.start_pose_kuka), rot, "kuka")[0]
-            start, start_kuka = conventions.pose_from(self.convention, start_matrix), conventions.pose_from("kuka", start_matrix)
+        _, start, start_kuka = (None,) * 3 if self.start_pose_kuka is None else user_poses(
+            transform_from_pose(self.start_pose_kuka), rot, self.convention)
         closed = self.closed_form if self.closed_form is None else dataclasses.replace(
             self.closed_form, linear_matrix=own_frame.to_own(self.closed_form.linear_matrix, rot))
         return dataclasses.replace(
