@@ -131,6 +131,8 @@ def test_calibrate_reports_the_own_frame(turned, cell):
     assert near(np.array(out["sensor_matrix"]), truth_own)
     assert near(kuka(out["sensor_pose"]), truth_own) and near(kuka(out["sensor_pose_kuka"]), truth_own)
     np.testing.assert_allclose(kuka(out["start_pose"]), kuka(start), atol=1e-6)  # the start as typed, own frame
+    gimbal = any("Euler singularity" in w for w in out["warnings"])  # of the angles reported, the own frame's
+    assert gimbal == (abs(abs(kuka_of(np.array(out["sensor_matrix"]))[4]) - 90) < 1.0)
     saved = json.loads((tmp / "cal.json").read_text())
     np.testing.assert_allclose(saved["sensor_matrix"], out["sensor_matrix"], atol=1e-12)
     # the sd of the rotation about the own axes: own x = x, own y = handeye z, own z = -handeye y
