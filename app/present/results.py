@@ -481,7 +481,14 @@ class CalibrationResult(ResultProtocol):
         user = self.in_user_frame()
         if user is not self:
             return user.to_dict(residuals)
-        out = {
+        out = {**self._request_keys(), **self._pose_keys(), **self._fit_keys(residuals), **self._uncertainty_keys()}
+        if self.provenance is not None:
+            out["provenance"] = self.provenance
+        return out
+
+    def _request_keys(self):
+        """The JSON keys of what was asked: the dataset, method, model and start."""
+        return {
             "dataset": self.dataset,
             "dataset_path": self.dataset_path,
             "dataset_sha256": self.dataset_sha256,
@@ -493,6 +500,11 @@ class CalibrationResult(ResultProtocol):
             "start_pose": _list(self.start_pose),
             "start_pose_kuka": _list(self.start_pose_kuka),
             "start_used": self.start_used,
+        }
+
+    def _pose_keys(self):
+        """The JSON keys of the calibrated pose, its mounts and frames."""
+        return {
             "sensor_pose": _list(self.sensor_pose),
             "sensor_pose_kuka": _list(self.sensor_pose_kuka),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
@@ -505,6 +517,11 @@ class CalibrationResult(ResultProtocol):
             "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
             "positioner": None if self.positioner is None else self.positioner.to_dict(),
             "robot_model": self.robot_model,
+        }
+
+    def _fit_keys(self, residuals):
+        """The JSON keys of the solver and the residuals."""
+        return {
             "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
@@ -525,6 +542,11 @@ class CalibrationResult(ResultProtocol):
             "residuals": residual_dicts(self.residuals) if residuals else None,
             "sigma_mm": self.sigma_mm,
             "sigma_scale": self.sigma_scale,
+        }
+
+    def _uncertainty_keys(self):
+        """The JSON keys of the uncertainty, the checks and the tests."""
+        return {
             "std": None if self.std is None else self.std.to_dict(),
             "correlation": None if self.correlation is None else {
                 "names": list(self.parameter_names), "matrix": np.round(self.correlation, 6).tolist()},
@@ -546,9 +568,6 @@ class CalibrationResult(ResultProtocol):
             "rms_note": self.rms_note,
             "cleaning": self.cleaning,
         }
-        if self.provenance is not None:
-            out["provenance"] = self.provenance
-        return out
 
     def to_json(self, indent=1):
         """:meth:`to_dict` as strict JSON text (non-finite numbers as null); the residual rows
