@@ -82,7 +82,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
         if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
-            cal = commands.own_pose(cal, data.own_axes)
+            cal = cal.from_user_frame(data.own_axes)
             source += " (the sensor's own frame, turned by [profile] own_axes)"
     else:
         cal, source = saved.load(_path_argument(calibration)), str(calibration)
@@ -256,14 +256,18 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         result = calibrate_classic(data, method, unknowns, outliers=not keep_all, alpha=level, convention=convention)
     else:
         solver_options = {} if max_iter is None else {"max_iter": _integer(max_iter, "--max-iter", 1, MAX_ITER)}
-        start_kuka = start_pose_from(start, convention) if start is not None else None
+        from handeye.model.own_frame import kuka_to_internal
+
+        start_kuka = kuka_to_internal(start_pose_from(start, convention), data.own_axes) if start is not None else None
         request = CalibrationRequest(
             unknowns=unknowns, method=method, rotation=rotation, start=start_kuka, options=solver_options,
             outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
             robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
         result = run_score(request, data, given, source) if scoring else run(request, data)
-    if data.own_axes is not None:  # profiles turned by dataset new: the sensor's own frame too (export writes it)
+    if data.own_axes is not None:  # profiles turned by dataset new: every pose out is of the sensor's own frame
         result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
+    if data.poses_read is not None and hasattr(result, "warnings"):  # an older setup.toml: how its poses were read
+        result = dataclasses.replace(result, warnings=[*result.warnings, data.poses_read])
     if out is not None:
         result = dataclasses.replace(result, provenance=provenance(data, options))
         result.save(out)
@@ -404,8 +408,8 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     _score_options(unknowns, None, None, None, data)
     poses, sources = [], []
     for given in (a, b):
-        cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given),
-                                  data, "compare")
+        cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given,
+                                                             own_axes=data.own_axes), data, "compare")
         poses.append(np.asarray(cal.sensor2flange, float))
         sources.append(cal.source + ("" if cal.converged else " (converged: false in the file)"))
     if sources[0] == sources[1]:
@@ -417,4 +421,6 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     request = CalibrationRequest(unknowns=unknowns, model=model, outliers=not keep_all, alpha=level, loo=False,
                                  convention=conventions.check(convention or data.convention), sigma=sigma,
                                  robot_sigma=robot_sigma).checked(data)
-    return score.compare(request, data, poses, sources, level)
+    result = score.compare(request, data, poses, sources, level)
+    return result if data.own_axes is None else dataclasses.replace(result, scores=tuple(
+        dataclasses.replace(s, own_axes=np.asarray(data.own_axes, float)) for s in result.scores))

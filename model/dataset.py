@@ -24,7 +24,10 @@
     (robot repeatability per axis, default 0.025), the noise model a calibration tests its
     fit against; optional ``[truth]`` with
     ``sensor_pose`` (in the dataset's convention) and optionally ``sphere_center`` -- for
-    simulated data, never read by a calibration.
+    simulated data, never read by a calibration. ``[profile] own_axes`` (R, ``p = R p_own``) and
+    ``poses = "own"``: the profiles were turned from the sensor's own frame by ``dataset new``,
+    and the ``[sensor]`` poses are of that own frame (:mod:`handeye.model.own_frame`); they are
+    turned into handeye's frame here, on load.
 
 Every problem found raises :class:`DatasetError`, whose text names file, row and column.
 """
@@ -168,6 +171,11 @@ class Dataset(FlangePoses):
     own_axes : ndarray, shape (3, 3), or None
         ``[profile] own_axes``: R with ``p = R p_own``, the sensor's own frame (its driver's points)
         in the frame of the profiles (laser plane y = 0) that the calibration is of; None: the same.
+        ``start_pose`` and ``sensor_pose`` are of handeye's frame (turned on load); the results
+        turn the calibrated pose back to the own frame (:mod:`handeye.model.own_frame`).
+    poses_read : str or None
+        How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
+        with ``own_axes`` and no ``poses = "own"``: in handeye's turned frame), else None.
     noise_centre_mm, noise_robot_mm : float
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
@@ -202,6 +210,7 @@ class Dataset(FlangePoses):
     raw_profiles: tuple | None = None
     cleaning: tuple | None = None
     own_axes: np.ndarray | None = None
+    poses_read: str | None = None
 
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
@@ -330,15 +339,30 @@ def load_setup(name_or_path):
     return CellSetup(folder, st.start, st.diameter, st.centre, st.side, st.convention, st.mounts)
 
 
-def _read_rows(folder, file, convention, limits, diam, side, axes=(), clean=True):
+def _read_rows(folder, st, limits, clean=True):
     """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
     lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw,
-    angles, raw_profiles, cleaning)`` as lists (``angles``: the positioner axis columns ``axes``,
-    degrees; ``profiles`` cleaned when ``clean``, ``raw_profiles`` as read). Raises DatasetError
+    angles, raw_profiles, cleaning)`` as lists (``angles``: the positioner axis columns of the setup
+    ``st``, degrees; ``profiles`` cleaned when ``clean``, ``raw_profiles`` as read). Raises DatasetError
     naming file, row and column."""
-    pose_columns = conventions.columns(convention)
-    required = ("id",) + pose_columns + ("xs", "ys", "zs") + tuple(axes)
+    file = folder / "measurements.csv"
     table = read_table(file)
+    reader = _RowReader(folder, file, st, limits, clean, *_header(table, file, st.convention, st.mounts.axis_names))
+    out = tuple([] for _ in range(11))
+    seen = {}
+    for line, fields in enumerate(table[1:], start=2):
+        if any(f.strip() for f in fields):
+            for column, value in zip(out, reader.row(line, fields, seen)):
+                column.append(value)
+    ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles, cleaning = out
+    return ids, rows, poses, centres, profiles, reconstructed, [f for f in profile_files if f is not None], raw, angles, \
+        raw_profiles, cleaning
+
+
+def _header(table, file, convention, axes):
+    """The header of ``measurements.csv`` checked: ``(column index by name, whether the rows have centre
+    columns, the joint columns)``."""
+    required = ("id",) + conventions.columns(convention) + ("xs", "ys", "zs") + tuple(axes)
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
@@ -356,49 +380,59 @@ def _read_rows(folder, file, convention, limits, diam, side, axes=(), clean=True
     for col in required:
         if col not in header:
             raise DatasetError(file, "missing column", 1, col)
-    idx = {c: header.index(c) for c in header}
-    ids, rows, poses, centres, profiles, reconstructed, profile_files, raw = [], [], [], [], [], [], [], []
-    angles, raw_profiles, cleaning = [], [], []
-    seen = {}
-    for line, fields in enumerate(table[1:], start=2):
-        if not any(f.strip() for f in fields):
-            continue
-        if len(fields) != len(header):
-            raise DatasetError(file, f"expected {len(header)} fields, got {len(fields)}", line)
+    return {c: header.index(c) for c in header}, centre_columns, joints
+
+
+@dataclasses.dataclass(frozen=True)
+class _RowReader:
+    """What reading one row of ``measurements.csv`` needs: the dataset's folder, the file, its setup and
+    limits, whether profiles are cleaned, and its checked header (:func:`_header`)."""
+
+    folder: pathlib.Path
+    file: pathlib.Path
+    st: object
+    limits: dict
+    clean: bool
+    idx: dict
+    centre_columns: bool
+    joints: tuple
+
+    def row(self, line, fields, seen):
+        """One row: ``(id, line, pose, centre, profile, reconstructed, profile file or None, raw pose, angles,
+        raw profile, cleaning record)``."""
+        file, idx, limits, convention = self.file, self.idx, self.limits, self.st.convention
+        if len(fields) != len(idx):
+            raise DatasetError(file, f"expected {len(idx)} fields, got {len(fields)}", line)
         ident = row_id(fields, idx["id"], seen, file, line)
         pose = read_pose(fields, idx, convention, file, line, limits["position_mm"])
-        raw.append([float(fields[idx[c]]) for c in pose_columns])  # read_pose checked them
-        cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")] if centre_columns else ["", "", ""]
+        raw = [float(fields[idx[c]]) for c in conventions.columns(convention)]  # read_pose checked them
+        cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")] if self.centre_columns else ["", "", ""]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
-        if not profile and not centre_columns:
+        if not profile and not self.centre_columns:
             raise DatasetError(file, "no profile: without xs,ys,zs columns every row needs one", line, "profile")
-        points = read_points(folder, profile, file, line, limits["sensor_mm"]) if profile else None
-        raw_profiles.append(points)
-        record = None
-        if profile:
-            profile_files.append((folder / profile).resolve())
-            if clean:
-                points, record = _clean_profile(points, diam / 2, profile, file, line)
-        cleaning.append(record)
+        points = read_points(self.folder, profile, file, line, limits["sensor_mm"]) if profile else None
+        raw_points, record = points, None
+        if profile and self.clean:
+            points, record = _clean_profile(points, self.st.diameter / 2, profile, file, line)
+        xs = self._centre(cells, profile, points, line)
+        angles = ([axis_angle(fields[idx[a]], file, line, a) for a in self.st.mounts.axis_names]
+                  + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints])
+        return (ident, line, pose, xs, points, bool(profile) and not all(cells),
+                (self.folder / profile).resolve() if profile else None, raw, angles, raw_points, record)
+
+    def _centre(self, cells, profile, points, line):
+        """The row's sphere centre in the sensor frame: its columns, else from its profile."""
+        file, limit = self.file, self.limits["sensor_mm"]
         if all(cells) or not profile:
             xs = [number(v, file, line, c) for v, c in zip(cells, ("xs", "ys", "zs"))]
             for v, c in zip(xs, ("xs", "ys", "zs")):
-                if abs(v) > limits["sensor_mm"]:
-                    raise DatasetError(file, f"{v:g} mm is beyond the sensor's plausible range +-{limits['sensor_mm']:g} mm "
+                if abs(v) > limit:
+                    raise DatasetError(file, f"{v:g} mm is beyond the sensor's plausible range +-{limit:g} mm "
                                              "([limits] sensor_mm in setup.toml sets it)", line, c)
-        elif any(cells):
+            return xs
+        if any(cells):
             raise DatasetError(file, "give all of xs, ys, zs or none (with a profile)", line, "xs")
-        else:
-            xs = _centre_from_profile(points, diam / 2, side, folder / profile)
-        angles.append([axis_angle(fields[idx[a]], file, line, a) for a in axes]
-                      + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in joints])
-        reconstructed.append(bool(profile) and not all(cells))
-        profiles.append(points)
-        ids.append(ident)
-        rows.append(line)
-        poses.append(pose)
-        centres.append(xs)
-    return ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles, cleaning
+        return _centre_from_profile(points, self.st.diameter / 2, self.st.side, self.folder / profile)
 
 
 #: Largest positioner axis angle a row may hold (degrees): beyond it, radians or a misprint are not
@@ -472,7 +506,7 @@ def load(name_or_path, clean=True):
     plain = read_plain_rows(file, pose_columns, convention, limits, axes)  # a large plain file: column-wise
     if plain is None:
         (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles,
-         cleaning) = _read_rows(folder, file, convention, limits, diam, side, axes, clean)
+         cleaning) = _read_rows(folder, st, limits, clean)
     else:
         ids, rows, poses, centres, raw, angles = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw", "extra"))
         profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
@@ -512,4 +546,5 @@ def load(name_or_path, clean=True):
         joints=joints,
         robot_model=model,
         own_axes=st.own_axes,
+        poses_read=st.poses_read,
     )

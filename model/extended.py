@@ -536,18 +536,27 @@ def score_by_sums(prob, structure, fit, mask, names, chunk=None):
     return found
 
 
-def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=(), chunk=None, robot=None, prob=None):
+@dataclasses.dataclass(frozen=True)
+class Calibrated:
+    """A calibration the effects are tested at.
+
+    ``mask`` (N,) bool: the samples it used; ``sensor2flange`` (4, 4); ``centre`` (3,): the sphere centre in
+    the base, mm; ``unknowns``: 'sensor' or 'sensor+sphere'.
+    """
+
+    mask: np.ndarray
+    sensor2flange: np.ndarray
+    centre: np.ndarray
+    unknowns: str = "sensor"
+
+
+def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
 
     Parameters
     ----------
     dataset : handeye.model.dataset.Dataset
-    mask : ndarray of bool, shape (N,)
-        The samples the calibration used.
-    sensor2flange : ndarray, shape (4, 4)
-    centre : ndarray, shape (3,)
-        Sphere centre in the base, mm.
-    unknowns : {'sensor', 'sensor+sphere'}
+    at : Calibrated
     skip : sequence of str
         Data effects already in the model: fitted with it, and the others tested given them.
     chunk : int, optional
@@ -567,10 +576,10 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
         the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
     """
-    prob, mask = prob or Samples(dataset), np.asarray(mask, bool)
-    structure = Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
+    prob, mask = prob or Samples(dataset), np.asarray(at.mask, bool)
+    structure = Structure(centre=at.unknowns == "sensor+sphere", data_effects=tuple(skip))
     with np.errstate(all="ignore"):
-        fit = prob.fit(structure, mask, prob.point(structure, sensor2flange, centre), chunk=chunk)
+        fit = prob.fit(structure, mask, prob.point(structure, at.sensor2flange, at.centre), chunk=chunk)
     if fit.jac is None:  # many samples: sums over chunks
         found = score_by_sums(prob, structure, fit, mask, _candidates(structure, skip), chunk)
         if found is not None:

@@ -424,10 +424,11 @@ def _worst(sd, names, targets, robot):
     return "; ".join(out)
 
 
-def _warnings(jac, chosen, names, sd, best, targets, needed, floor, sigma, score=False):
-    """What the plan misses: targets out of reach, a given n too small (for the targets, or for a
-    residual that can test the fit: ``floor``), parameters calibrate would not estimate on the
-    chosen poses alone."""
+def _warnings(made, jac, chosen, floor, score=False):
+    """What the plan ``made`` (a :class:`RobotPlan`) misses: targets out of reach, a given n too small (for the
+    targets, or for a residual that can test the fit: ``floor``), parameters calibrate would not estimate on
+    the chosen poses alone (``jac`` of every usable candidate, ``chosen`` their indices)."""
+    names, sd, best, targets, needed, sigma = made.names, made.sd, made.best_sd, made.targets, made.n_needed, made.sigma_mm
     robot = [k for k, n in enumerate(names) if "." in n]
     out = []
     if needed is None and score:
@@ -450,14 +451,22 @@ def _warnings(jac, chosen, names, sd, best, targets, needed, floor, sigma, score
     return tuple(out)
 
 
-def plan(ids, flange_poses, setup, centre, robot, effects, n=None, sigma=0.05, targets=None, joints=None, score=False):
-    """Choose poses (and joint configurations) that identify the robot effects (module docstring).
+@dataclasses.dataclass(frozen=True)
+class Candidates:
+    """Candidate poses: ``ids``; ``flange_poses`` (N, 6), KUKA (mm, degrees), robot base; ``joints`` (N, 6),
+    degrees, their joint angles instead of the inverse kinematics', or None."""
 
-    Parameters
+    ids: list
+    flange_poses: object
+    joints: object = None
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanAsk:
+    """What a robot plan is asked.
+
+    Attributes
     ----------
-    ids : list of str
-    flange_poses : ndarray, shape (N, 6)
-        Candidate flange poses, KUKA (mm, degrees), robot base.
     setup : handeye.model.simulate.Setup
         Nominal sensor pose on the flange, sphere diameter and laser side.
     centre : array_like, shape (3,)
@@ -472,15 +481,26 @@ def plan(ids, flange_poses, setup, centre, robot, effects, n=None, sigma=0.05, t
         Stated noise per component of a sphere centre, mm.
     targets : dict, optional
         Effect -> 1-sd aimed at (default :data:`DEFAULT_TARGETS`).
-    joints : ndarray, shape (N, 6), optional
-        The candidates' joint angles (degrees), instead of the inverse kinematics'.
     score : bool
         Take every usable pose as given (no other wrist, no choice): ``handeye plan --score``.
-
-    Returns
-    -------
-    RobotPlan
     """
+
+    setup: object
+    centre: object
+    robot: object
+    effects: tuple
+    n: int | None = None
+    sigma: float = 0.05
+    targets: dict | None = None
+    score: bool = False
+
+
+def plan(candidates, ask):
+    """Choose poses (and joint configurations) that identify the robot effects (module docstring):
+    of ``candidates`` (:class:`Candidates`), as ``ask`` (:class:`PlanAsk`) says. Returns a :class:`RobotPlan`."""
+    ids, flange_poses, joints = candidates.ids, candidates.flange_poses, candidates.joints
+    setup, centre, robot, effects, n, sigma, score = ask.setup, ask.centre, ask.robot, ask.effects, ask.n, ask.sigma, ask.score
+    targets = ask.targets
     targets = {e: DEFAULT_TARGETS[e] for e in effects} | dict(targets or {})
     flanges = transform_from_pose(np.asarray(flange_poses, float))
     seen, skipped = visible(ids, flanges, setup, centre)
@@ -507,10 +527,10 @@ def plan(ids, flange_poses, setup, centre, robot, effects, n=None, sigma=0.05, t
     count = len(info) if score else n if n is not None else needed if needed is not None else len(info)
     chosen, value = planning.select(info, count)
     sd, best = report_sd(info[chosen].sum(axis=0)), report_sd(info.sum(axis=0))
-    return RobotPlan(robot.model_key, tuple(effects), float(sigma), targets, [cand.ids[k] for k in chosen],
+    made = RobotPlan(robot.model_key, tuple(effects), float(sigma), targets, [cand.ids[k] for k in chosen],
                      pose_from_transform(cand.flanges[chosen]), cand.joints[chosen], value, names, sd, best, dropped,
-                     least, by_targets, needed, skipped + cand.unreachable, len(cand.unreachable), cand.flips, len(info),
-                     _warnings(jac, chosen, names, sd, best, targets, needed, floor, sigma, score))
+                     least, by_targets, needed, skipped + cand.unreachable, len(cand.unreachable), cand.flips, len(info), ())
+    return dataclasses.replace(made, warnings=_warnings(made, jac, chosen, floor, score))
 
 
 def cell_robot(robot=None, dataset=None):
@@ -584,5 +604,5 @@ def request(setup, centre, robot, effects=None, targets=None, n=None, sigma=0.05
         joints = None if joints is None else joints[inside]
     if not ids:
         raise PlanningError("no candidate pose is left to plan with (--workspace excludes them all)")
-    made = plan(ids, flange_poses, setup, centre, robot, effects, n, sigma, targets, joints, score)
+    made = plan(Candidates(ids, flange_poses, joints), PlanAsk(setup, centre, robot, effects, n, sigma, targets, score))
     return dataclasses.replace(made, skipped=skipped + made.skipped)

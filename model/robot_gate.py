@@ -124,4 +124,5 @@ def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=
     held = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
     if any(effects.get(n).KIND == "robot" for n in skip):
         gate_robot_effects(prob, held, mask, sensor2flange, centre if held.centre else None)
-    return extended.score_effects(dataset, mask, sensor2flange, centre, unknowns, skip, robot=robot_scores, prob=prob)
+    return extended.score_effects(dataset, extended.Calibrated(mask, sensor2flange, centre, unknowns), skip,
+                                  robot=robot_scores, prob=prob)

@@ -10,7 +10,7 @@ import tomllib
 
 import numpy as np
 
-from handeye.model import conventions, mount_setup
+from handeye.model import conventions, mount_setup, own_frame
 from handeye.model.mounts import Mounts
 from handeye.model.pose import transform_from_pose
 from handeye.model.tables import (
@@ -64,7 +64,7 @@ _ALLOWED = {
     "sphere": {"diameter", "center", "base_pose", "center_in_plate", "mount"},
     "positioner": {"axes"},
     "sphere2": {"diameter", "center", "base_pose", "center_in_plate"},
-    "profile": {"side", "own_axes"},
+    "profile": {"side", "own_axes", "poses"},
     "truth": {"sensor_pose", "sphere_center", "axes", "joint_offsets", "link_lengths", "joint_compliance"},
     "noise": {"centre_mm", "robot_mm"},
     "limits": {"position_mm", "sensor_mm"},
@@ -190,6 +190,7 @@ def read_setup(path, require_sphere=True):
     if side not in (1, -1) or isinstance(side, bool):
         raise DatasetError(file, f"must be 1 or -1, got {side!r}", column="[profile] side")
     own_axes = _own_axes(doc.get("profile", {}).get("own_axes"), file)
+    start, known, poses_read = _poses_frame(doc, file, own_axes, start, known)
     noise = _noise_and_limits(doc, file)
     vectors = [("[sensor] start_pose", start), ("[sensor] pose", known), ("[sphere] center", centre),
                ("[sphere] base_pose", plate_pose)]
@@ -201,7 +202,7 @@ def read_setup(path, require_sphere=True):
     if model is not None and (not isinstance(model, str) or not model.strip()):
         raise DatasetError(file, f"needs a built-in model's name or a model file, got {model!r}", column="[robot] model")
     return _SetupFile(start, diam, centre, plate_pose, centre_in_plate, int(side), _truth(doc, file, convention),
-                      convention, noise, sphere2, mounts, known, model, own_axes)
+                      convention, noise, sphere2, mounts, known, model, own_axes, poses_read)
 
 
 def _own_axes(value, file):
@@ -219,6 +220,23 @@ def _own_axes(value, file):
     if not (np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.linalg.det(rot) > 0):
         raise DatasetError(file, "is not a proper rotation (R R^T = I, det R = +1)", column="[profile] own_axes")
     return rot
+
+
+def _poses_frame(doc, file, own_axes, start, known):
+    """``[sensor] start_pose`` and ``pose`` in handeye's frame, and how they were read (a note, or
+    None). With ``own_axes`` they are of the sensor's own frame when ``[profile] poses = "own"``
+    (what ``dataset new`` writes), turned here once; a setup with ``own_axes`` and no ``poses``
+    (written before the key) gave them in handeye's turned frame, read as such and said."""
+    poses = doc.get("profile", {}).get("poses")
+    if poses is not None and (poses != "own" or own_axes is None):
+        raise DatasetError(file, f"must be \"own\" (the sensor poses of the sensor's own frame, with own_axes), got "
+                                 f"{str(poses)[:40]!r}", column="[profile] poses")
+    if own_axes is None or (start is None and known is None):
+        return start, known, None
+    if poses == "own":
+        return own_frame.kuka_to_internal(start, own_axes), own_frame.kuka_to_internal(known, own_axes), None
+    return start, known, (f"{file}: [profile] own_axes without poses = \"own\" (a setup written before the key): its "
+                          "[sensor] poses read in handeye's turned frame, as it was written")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -239,6 +257,7 @@ class _SetupFile:
     sensor_pose: np.ndarray | None = None  # [sensor] pose: the sensor pose known, KUKA
     robot_model: str | None = None  # [robot] model: a built-in name or a file (relative to the folder)
     own_axes: np.ndarray | None = None  # [profile] own_axes: p = R p_own (the sensor's own frame)
+    poses_read: str | None = None  # how [sensor] poses were read, when not as the key says (an older setup)
 
 
 def _read_sphere(doc, section, file, convention, required):

@@ -315,34 +315,55 @@ def centre_in_sensor(mounts, t_x, centre, flange, table=None):
     return np.linalg.solve(sensor2base, c)[:3]
 
 
-def _measure(setup, effects, rng, ident, k, in_sensor, radius_true):
-    """The centre the sensor reports for pose ``ident`` (number k from 0) whose true sphere
-    centre is at ``in_sensor`` (sensor frame, mm): ``(xs, profile points)``, or ``(None, reason)``
-    when no centre can be reconstructed (module docstring: ``sphere_radius``)."""
-    radius_setup = setup.diameter / 2
-    try:
-        pts = profile_points(in_sensor, radius_true, setup, rng) * (1.0 + effects.get("sensor_scale", 0.0))
-    except SimulationError as exc:
-        raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
-    side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
-    fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
-    if fitted.r >= radius_setup:
-        # a hidden radius effect makes the circle larger than the setup's sphere near the
-        # equator: no real y; a real pipeline loses such a sample, and so does this one
-        return None, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"
-    xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
-    if ident in effects.get("outlier", []):
-        direction = rng.normal(size=3)
-        xs = xs + 30.0 * direction / np.linalg.norm(direction)
-    return xs, pts
+@dataclasses.dataclass(frozen=True)
+class _Sensor:
+    """The simulated sensor: its ``setup``, the hidden ``effects``, the random generator and the true sphere radius."""
+
+    setup: Setup
+    effects: dict
+    rng: np.random.Generator
+    radius_true: float
+
+    def measure(self, ident, k, in_sensor):
+        """The centre the sensor reports for pose ``ident`` (number k from 0) whose true sphere
+        centre is at ``in_sensor`` (sensor frame, mm): ``(xs, profile points)``, or ``(None, reason)``
+        when no centre can be reconstructed (module docstring: ``sphere_radius``)."""
+        setup, effects, rng = self.setup, self.effects, self.rng
+        radius_setup = setup.diameter / 2
+        try:
+            pts = profile_points(in_sensor, self.radius_true, setup, rng) * (1.0 + effects.get("sensor_scale", 0.0))
+        except SimulationError as exc:
+            raise SimulationError(f"pose {ident} (number {k + 1}): {exc}") from None
+        side = -setup.side if ident in effects.get("sign_flip", []) else setup.side
+        fitted = circle.fit_circle(pts[:, 0], pts[:, 1], setup.circle_fit)
+        if fitted.r >= radius_setup:
+            # a hidden radius effect makes the circle larger than the setup's sphere near the
+            # equator: no real y; a real pipeline loses such a sample, and so does this one
+            return None, f"fitted circle radius {fitted.r:.3f} mm >= setup radius {radius_setup:.3f} mm"
+        xs = circle.sphere_centre_from_circle(fitted, radius_setup, side)
+        if ident in effects.get("outlier", []):
+            direction = rng.normal(size=3)
+            xs = xs + 30.0 * direction / np.linalg.norm(direction)
+        return xs, pts
 
 
-def _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles):
-    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation."""
-    if flange_poses is not None:
-        true_flanges = transform_from_pose(np.asarray(flange_poses, float))
-        out_ids = list(ids) if ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+@dataclasses.dataclass(frozen=True)
+class _Custom:
+    """Poses the caller gave: flange poses (N, 6), their ids or None, the positioner's axis angles or None."""
+
+    flange_poses: object
+    ids: object
+    axis_angles: object
+
+
+def _poses(setup, rng, centre, custom, n_poses, cell):
+    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation (``custom``: a :class:`_Custom`
+    or None)."""
+    if custom is not None:
+        true_flanges = transform_from_pose(np.asarray(custom.flange_poses, float))
+        out_ids = list(custom.ids) if custom.ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
         if cell is not None and cell.sphere == "positioner":
+            axis_angles = custom.axis_angles
             if axis_angles is None or np.shape(axis_angles) != (len(true_flanges), len(cell.true_axes)):
                 raise SimulationError(f"custom poses on a positioner need the axis angles ({', '.join(cell.axis_names)})"
                                       " of every pose")
@@ -394,7 +415,8 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     radius_setup = setup.diameter / 2
     radius_true = radius_setup + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
-    out_ids, true_flanges, angles = _poses(setup, rng, centre, flange_poses, n_poses, ids, cell, axis_angles)
+    custom = None if flange_poses is None else _Custom(flange_poses, ids, axis_angles)
+    out_ids, true_flanges, angles = _poses(setup, rng, centre, custom, n_poses, cell)
     reported, given, joints, unreached = true_flanges, joints, None, {}
     if robot is not None:
         errors = robot_errors(effects, robot.model)
@@ -412,12 +434,13 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         if unknown:
             raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
     recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
+    sensor = _Sensor(setup, effects, rng, radius_true)
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
         if k in unreached:
             dropped.append((ident, unreached[k]))
             continue
         in_sensor = centre_in_sensor(mounts, t_x, centre, flange, None if tables is None else tables[k])
-        xs, pts = _measure(setup, effects, rng, ident, k, in_sensor, radius_true)
+        xs, pts = sensor.measure(ident, k, in_sensor)
         if xs is None:
             dropped.append((ident, pts))
             continue

@@ -17,6 +17,9 @@ backtracking or its own bracketing and zooming, and stops on its own tests.
 """
 from __future__ import annotations
 
+import dataclasses
+from typing import Callable
+
 import numpy as np
 
 from handeye.solvers.batch import Runs
@@ -125,13 +128,21 @@ def wolfe(phi, dphi, f0, slope, alpha_max=1e6, max_steps=60):
     return s.alpha, s.value, s.phase == s.FOUND
 
 
-def _run(stacked, x0, opts, name, direction, search, update=None, trace=False):
-    """Generic line-search loop on stacks.
+@dataclasses.dataclass(frozen=True)
+class Method:
+    """A line-search method: its ``name``; ``direction(runs, rows) -> p`` for the running rows;
+    ``search`` 'armijo' or 'wolfe'; ``update(rows, s, y)`` after each accepted step (BFGS) or None."""
 
-    ``direction(runs, rows) -> p`` for the running rows; ``update(rows, s, y)`` after
-    each accepted step (BFGS); ``search`` 'armijo' or 'wolfe'.
-    """
-    runs = Runs(stacked, x0, name, trace)
+    name: str
+    direction: Callable
+    search: str
+    update: Callable | None = None
+
+
+def _run(stacked, x0, opts, method, trace=False):
+    """Generic line-search loop on stacks (``method``: a :class:`Method`)."""
+    direction, search, update = method.direction, method.search, method.update
+    runs = Runs(stacked, x0, method.name, trace)
     rows = runs.active()
     runs.f[rows] = runs.cost(runs.x, rows)
     runs.g[rows] = runs.grad(runs.x, rows)
@@ -188,12 +199,12 @@ def damped_newton(stacked, x0, opts, trace=False):
         p[~ok] = -g[~ok]
         return p
 
-    return _run(stacked, x0, opts, "newton-ls", direction, "armijo", trace=trace)
+    return _run(stacked, x0, opts, Method("newton-ls", direction, "armijo"), trace=trace)
 
 
 def steepest_descent(stacked, x0, opts, trace=False):
     """``p = -g`` with an Armijo line search (N&W 3.1): linear convergence at best."""
-    return _run(stacked, x0, opts, "sd", lambda runs, rows: -runs.g[rows], "armijo", trace=trace)
+    return _run(stacked, x0, opts, Method("sd", lambda runs, rows: -runs.g[rows], "armijo"), trace=trace)
 
 
 def bfgs(stacked, x0, opts, trace=False):
@@ -226,4 +237,4 @@ def bfgs(stacked, x0, opts, trace=False):
         h_inv[rows] = v @ h0 @ np.swapaxes(v, 1, 2) + rho * np.einsum("ki,kj->kij", s, s)
         has[rows] = True
 
-    return _run(stacked, x0, opts, "bfgs", direction, "wolfe", update, trace=trace)
+    return _run(stacked, x0, opts, Method("bfgs", direction, "wolfe", update), trace=trace)

@@ -204,36 +204,14 @@ def run(stacked, x0, opts, trace=False, model="newton"):
     subproblem = (subproblem_dogleg if model == "gauss-newton"
                   else subproblem_steihaug if opts.subproblem == "cg" else subproblem_exact)
 
-    def evaluate(x, rows):
-        if model == "gauss-newton":
-            r = runs.residual(x, rows)
-            j = runs.jacobian(x, rows)
-            return half_squares(r), transpose_times(j, r), gram(j)
-        return runs.cost(x, rows), runs.grad(x, rows), runs.hessian(x, rows)
-
-    def cost(x, rows):
-        if model == "gauss-newton":
-            r = runs.residual(x, rows)
-            return half_squares(r)
-        return runs.cost(x, rows)
-
-    def scale(b, previous):
-        if not opts.scaling:
-            return np.ones((len(b), stacked.n))
-        d = np.sqrt(np.abs(np.diagonal(b, axis1=1, axis2=2)))
-        if previous is not None:
-            d = np.maximum(previous, d)
-        return np.where(d > 0, d, 1.0)
-
     rows = runs.active()
-    runs.f[rows], runs.g[rows], b = evaluate(runs.x, rows)
-    diag = scale(b, None)
+    runs.f[rows], runs.g[rows], b = _evaluate(runs, model, runs.x, rows)
+    diag = _scale(b, None, opts, stacked.n)
     radius = (np.full(len(rows), float(opts.initial_radius)) if opts.initial_radius
               else _cauchy_length(runs.g / diag, b / (diag[:, :, None] * diag[:, None, :])))
     max_radius = opts.max_radius_factor * radius
     min_radius = 1e-14 * radius
     runs.note("radius", rows, radius)
-    noise_level = 100 * np.finfo(float).eps
     for k in range(opts.max_iter):
         rows = runs.active()
         rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows], b[rows]), -1, k)
@@ -245,12 +223,8 @@ def run(stacked, x0, opts, trace=False, model="newton"):
         p = ps / dk
         predicted = -(dot_rows(g, p) + 0.5 * quad_rows(p, bk))
         x_new = stacked.move(runs.x[rows], p)
-        f_new = cost(x_new, rows)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rho = np.where(predicted > 0, (f - f_new) / predicted, -1.0)
-        noise = noise_level * np.maximum(1.0, np.abs(f))
-        # reductions at rounding level: rho is noise; let the gradient decide
-        rho[(predicted >= 0) & (predicted <= noise) & np.isfinite(f_new) & (f_new <= f + noise)] = 1.0
+        f_new = _cost(runs, model, x_new, rows)
+        rho = _ratio(f, f_new, predicted)
         pnorm = norm_rows(ps)
         shrink = ~np.isfinite(f_new) | (rho < 0.25)
         grow = ~shrink & (rho > 0.75) & (pnorm >= 0.999 * radius[rows])
@@ -262,8 +236,8 @@ def run(stacked, x0, opts, trace=False, model="newton"):
         if acc.size:
             runs.x[acc] = x_new[accept]
             runs.record(acc, x_new[accept])
-            runs.f[acc], runs.g[acc], b[acc] = evaluate(x_new[accept], acc)
-            diag[acc] = scale(b[acc], diag[acc])
+            runs.f[acc], runs.g[acc], b[acc] = _evaluate(runs, model, x_new[accept], acc)
+            diag[acc] = _scale(b[acc], diag[acc], opts, stacked.n)
         small_step = step_small(p[accept], x_old, opts)
         runs.stop(acc, small_step, 3, k + 1)
         runs.stop(acc, ~small_step & reduction_small(f[accept], runs.f[acc], opts), 2, k + 1)
@@ -271,3 +245,39 @@ def run(stacked, x0, opts, trace=False, model="newton"):
         runs.stop(rej, radius[rej] < min_radius[rej], 4, k + 1)
     runs.stop(runs.active(), True, 0, opts.max_iter)
     return runs
+
+
+def _evaluate(runs, model, x, rows):
+    """Cost, gradient and the model's Hessian (exact, or Gauss-Newton's ``J^T J``) at ``x``."""
+    if model == "gauss-newton":
+        r = runs.residual(x, rows)
+        j = runs.jacobian(x, rows)
+        return half_squares(r), transpose_times(j, r), gram(j)
+    return runs.cost(x, rows), runs.grad(x, rows), runs.hessian(x, rows)
+
+
+def _cost(runs, model, x, rows):
+    if model == "gauss-newton":
+        r = runs.residual(x, rows)
+        return half_squares(r)
+    return runs.cost(x, rows)
+
+
+def _scale(b, previous, opts, n):
+    """The ellipsoidal region's scaling ``D`` from the Hessian's diagonal (never shrinking), or ones."""
+    if not opts.scaling:
+        return np.ones((len(b), n))
+    d = np.sqrt(np.abs(np.diagonal(b, axis1=1, axis2=2)))
+    if previous is not None:
+        d = np.maximum(previous, d)
+    return np.where(d > 0, d, 1.0)
+
+
+def _ratio(f, f_new, predicted):
+    """Actual over predicted reduction, ``rho``; 1 where both are at rounding level (-1 where none was predicted)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(predicted > 0, (f - f_new) / predicted, -1.0)
+    noise = 100 * np.finfo(float).eps * np.maximum(1.0, np.abs(f))
+    # reductions at rounding level: rho is noise; let the gradient decide
+    rho[(predicted >= 0) & (predicted <= noise) & np.isfinite(f_new) & (f_new <= f + noise)] = 1.0
+    return rho

@@ -36,9 +36,22 @@ def run(out, quick=False):
     reps = 30 if quick else 200
     setup = simulate.Setup(linearity=0.0)
     design = simulate.simulate(setup, seed=1000)
-    bound = bounds.crlb(design)
-    bound_sd = np.sqrt(np.diag(bound))
+    bound_sd = np.sqrt(np.diag(bounds.crlb(design)))
     bound_sd[3:] = np.degrees(bound_sd[3:])
+    errors, reported, loo, heldout = _replicates(setup, design, reps)
+    summary = _tabulate(out, errors, reported, bound_sd, reps)
+    _plot(out, summary, reps)
+    summary["accuracy_figure_mm"] = {"leave_one_out": float(np.mean(loo)), "held_out": float(np.mean(heldout))}
+    best = min(KINDS, key=lambda k: max(summary["models"][k]["rmse_over_crlb"]))
+    summary["best_model"] = best
+    write_summary(out, summary)
+    _claims(summary["models"][best], best, np.mean(loo) / np.mean(heldout), reps, quick)
+    return summary
+
+
+def _replicates(setup, design, reps):
+    """Each model calibrated on ``reps`` noisy replicates of the design: ``(errors, reported sd, leave-one-out
+    errors, held-out errors)``, the first two by model."""
     truth = transform_from_pose(setup.sensor_pose)
     errors = {k: [] for k in KINDS}
     reported = {k: [] for k in KINDS}
@@ -59,6 +72,11 @@ def run(out, quick=False):
                 errors[kind].append(np.concatenate([
                     est[:3, 3] - truth[:3, 3], np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
                 reported[kind].append([*res.std.sensor_translation_mm, *res.std.sensor_rotation_deg])
+    return errors, reported, loo, heldout
+
+
+def _tabulate(out, errors, reported, bound_sd, reps):
+    """RMSE against the bound, reported and observed sd per model and parameter: the table written, the summary."""
     rows, summary = [], {"replicates": reps, "crlb_sd": dict(zip(NAMES, bound_sd.tolist())), "models": {}}
     for kind in KINDS:
         e = np.array(errors[kind])
@@ -73,6 +91,10 @@ def run(out, quick=False):
                          float(obs_sd[k])))
     write_table(out, "accuracy", ["model", "parameter", "rmse", "crlb_sd", "rmse/crlb", "reported_sd", "observed_sd"],
                 rows)
+    return summary
+
+
+def _plot(out, summary, reps):
     plt = figure()
     fig, ax = plt.subplots(figsize=(8, 4))
     width = 0.25
@@ -85,16 +107,13 @@ def run(out, quick=False):
     fig.tight_layout()
     save(fig, out / "accuracy.png")
     plt.close(fig)
-    summary["accuracy_figure_mm"] = {"leave_one_out": float(np.mean(loo)), "held_out": float(np.mean(heldout))}
-    best = min(KINDS, key=lambda k: max(summary["models"][k]["rmse_over_crlb"]))
-    summary["best_model"] = best
-    write_summary(out, summary)
-    b = summary["models"][best]
+
+
+def _claims(b, best, fig_ratio, reps, quick):
+    """The study's claims on the best model ``b`` and the leave-one-out over held-out ratio."""
     slack = 1.1 * (1 + 2 / np.sqrt(2 * reps)) if quick else 1.1  # a quick run's RMSE has ~1/sqrt(2n) error
     claim(max(b["rmse_over_crlb"]) <= slack, f"best model ({best}) RMSE/CRLB <= 1.1 (got {max(b['rmse_over_crlb']):.3f})")
     agree = np.array(b["reported_sd"]) / np.array(b["observed_sd"])
     tol = 0.25 * (1 + 2 / np.sqrt(reps)) if quick else 0.25
     claim(np.all(np.abs(agree - 1) <= tol), f"reported sd matches observed scatter within 25 % (ratios {np.round(agree, 2)})")
-    fig_ratio = np.mean(loo) / np.mean(heldout)
     claim(abs(fig_ratio - 1) <= 0.25, f"leave-one-out error matches the held-out prediction error (ratio {fig_ratio:.2f})")
-    return summary

@@ -125,6 +125,28 @@ def _rms(values):
 def run(out, quick=False):
     reps = 8 if quick else 100
     settings = [(k, 36) for k in NOISE] + [(1.0, n) for n in POSES if n != 36]
+    results = _replicates(settings, reps)
+    table = _tabulate(out, settings, results)
+    nominal = results[(1.0, 36)]
+    basin = {s: float(np.mean([r["basin"][s] for r in nominal])) for s in ("kim-cho", "li-two-step", "random")}
+    write_table(out, "basins", ["newton_started_from", "success_rate"], [[s, v] for s, v in basin.items()])
+
+    t41 = _table_4_1(table["k=1,n=36"], basin)
+    write_table(out, "table_4_1_revisited", list(t41[0]), [list(r.values()) for r in t41])
+    _plot(out, table)
+
+    real = _real_data()
+    write_table(out, "thesis_real", ["estimate", "to_nls_sensor_mm", "to_nls_sensor_deg", "to_nls_sensor_sphere_mm",
+                                     "to_nls_sensor_sphere_deg"],
+                [[k, *v["to_sensor"], *v["to_sensor_sphere"]] for k, v in real["distances"].items()])
+    summary = {"replicates": reps, "table": table, "basin_newton": basin, "table_4_1": t41, "thesis_real": real}
+    write_summary(out, summary)
+    _claims(table, basin, real)
+    return summary
+
+
+def _replicates(settings, reps):
+    """Every method on ``reps`` replicates of each (noise factor, orientations) setting, in batches of about 25."""
     tasks, index = [], []
     for k, n in settings:
         for chunk in np.array_split(np.arange(reps), max(1, reps // 25)):
@@ -133,7 +155,11 @@ def run(out, quick=False):
     results = {}
     for key, part in zip(index, sweep.run(_batch, tasks, label="classics")):
         results.setdefault(key, []).extend(part)
+    return results
 
+
+def _tabulate(out, settings, results):
+    """RMSE and time of each method per setting against the bound: the table written, its entries by setting."""
     rows, table = [], {}
     for k, n in settings:
         reps_kn = results[(k, n)]
@@ -149,22 +175,11 @@ def run(out, quick=False):
         table[f"k={k:g},n={n}"] = entry
     write_table(out, "accuracy", ["noise_factor", "orientations", "method", "rmse_mm", "rmse_deg", "rmse_over_crlb",
                                   "median_ms"], rows)
+    return table
 
-    nominal = results[(1.0, 36)]
-    basin = {s: float(np.mean([r["basin"][s] for r in nominal])) for s in ("kim-cho", "li-two-step", "random")}
-    write_table(out, "basins", ["newton_started_from", "success_rate"], [[s, v] for s, v in basin.items()])
 
-    t41 = _table_4_1(table["k=1,n=36"], basin)
-    write_table(out, "table_4_1_revisited", list(t41[0]), [list(r.values()) for r in t41])
-    _plot(out, table)
-
-    real = _real_data()
-    write_table(out, "thesis_real", ["estimate", "to_nls_sensor_mm", "to_nls_sensor_deg", "to_nls_sensor_sphere_mm",
-                                     "to_nls_sensor_sphere_deg"],
-                [[k, *v["to_sensor"], *v["to_sensor_sphere"]] for k, v in real["distances"].items()])
-    summary = {"replicates": reps, "table": table, "basin_newton": basin, "table_4_1": t41, "thesis_real": real}
-    write_summary(out, summary)
-
+def _claims(table, basin, real):
+    """The study's claims on the table, the basins and thesis-real."""
     for key, entry in table.items():
         for m in ("kim-cho", "li-two-step"):
             for unit in ("rmse_mm", "rmse_deg"):
@@ -186,7 +201,6 @@ def run(out, quick=False):
     claim(kc["to_sensor_sphere"][0] < nls["to_sensor_sphere"][0],
           f"on thesis-real Kim & Cho (no sphere position needed) is closer to the fit with the centre free "
           f"({kc['to_sensor_sphere'][0]:.2f} mm) than the fit with the taught centre is ({nls['to_sensor_sphere'][0]:.2f} mm)")
-    return summary
 
 
 def _real_data():

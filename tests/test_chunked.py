@@ -124,7 +124,7 @@ def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
     mask[[2, 7]] = False
     prob = extended.Samples(dataset)
     sensor = fitted.sensor2flange
-    args = (dataset, mask, sensor, fitted.sphere_centre, unknowns, skip)
+    args = (dataset, extended.Calibrated(mask, sensor, fitted.sphere_centre, unknowns), skip)
     full, chunked = extended.score_effects(*args), extended.score_effects(*args, chunk=5)
     assert [t.name for t in chunked] == [t.name for t in full] and (full or unknowns != "sensor")
     for a, b in zip(full, chunked):

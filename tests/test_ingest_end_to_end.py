@@ -2,7 +2,8 @@
 
 The truth comes from :mod:`ingest_truth` (plain numpy, not handeye's simulator); the files are
 written by OpenCV (FileStorage), numpy and rosbags. The calibrated sensor pose must lie within a
-few of its own standard deviations of the truth, and both commands must exit 0.
+few of its own standard deviations of the truth, and both commands must exit 0; profiles in
+another frame than handeye's give a pose of their own frame.
 """
 import json
 
@@ -24,8 +25,15 @@ def _new_and_calibrate(tmp_path, capsys, args, unknowns=None):
     return out, summary, json.loads(result.read_text())
 
 
-def _assert_near_truth(cell, res, k=4.0):
-    dt, dr = pose_error(cell, np.array(res["sensor_matrix"]))
+def _assert_near_truth(cell, res, k=4.0, turn=None):
+    """``res``'s pose within k sd of the truth; ``turn`` (R, ``p_handeye = R p_file``, known to the
+    test) of profiles written in another frame: the result is of the files' frame, the truth's
+    ``S [R 0; 0 1]``, turned back here by numpy."""
+    matrix = np.array(res["sensor_matrix"])
+    assert (res.get("sensor_frame") == "own") == (turn is not None)
+    if turn is not None:
+        matrix[:3, :3] = matrix[:3, :3] @ np.asarray(turn, float).T
+    dt, dr = pose_error(cell, matrix)
     sd_t = float(np.linalg.norm(res["std"]["sensor_translation_mm"]))
     sd_r = float(np.linalg.norm(res["std"]["sensor_rotation_deg"]))
     assert dt < k * sd_t + 0.005, (dt, sd_t)
@@ -105,7 +113,7 @@ def test_ros2_bag_pose_stamped_and_pointcloud2(tmp_path, capsys):
 def test_ros2_bag_tf_chain_and_laserscan_turned_into_the_plane(tmp_path, capsys):
     """/tf (base_link -> link_6 -> tool0) and LaserScan profiles (scan plane z = 0, the scan's x the
     measuring direction) in an mcap bag: the plane's axes are found and turned (recorded), and the
-    calibrated frame is handeye's, here the truth's own."""
+    calibrated frame is the files' own (the truth's turned)."""
     pytest.importorskip("rosbags")
     from ingest_bags import write_bag
 
@@ -119,7 +127,7 @@ def test_ros2_bag_tf_chain_and_laserscan_turned_into_the_plane(tmp_path, capsys)
     assert "laser plane z = 0: handeye x = file y, y = file z, z = file x (R" in summary and "convention abb" in summary
     prov = (out / "PROVENANCE.toml").read_text()
     assert "rotation_handeye_from_file" in prov and "[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]" in prov
-    _assert_near_truth(cell, res)
+    _assert_near_truth(cell, res, turn=[[0, 1, 0], [0, 0, 1], [1, 0, 0]])
 
 
 def test_abb_csv_with_ply_profiles_whose_z_grows_towards_the_sensor(tmp_path, capsys):
@@ -146,4 +154,4 @@ def test_abb_csv_with_ply_profiles_whose_z_grows_towards_the_sensor(tmp_path, ca
     assert "faced +z in 14 of 14" in summary and "y = file -y, z = file -z" in summary
     assert "--side +1 (the profiles' y) is side -1 in handeye's y" in summary
     assert "side = -1" in (out / "setup.toml").read_text()
-    _assert_near_truth(cell, res)
+    _assert_near_truth(cell, res, turn=[[1, 0, 0], [0, -1, 0], [0, 0, -1]])

@@ -56,6 +56,7 @@ from handeye.app.engine.request import (  # noqa: F401  (the request's names: th
 )
 from handeye.app.present.result_parts import cleaning_summary
 from handeye.app.present.results import Before
+from handeye.model import own_frame
 from handeye.model.closed_form import ClosedFormError
 from handeye.model.pose import transform_from_pose
 
@@ -170,7 +171,7 @@ def verify(prep, screened, final, verdict, start_used):
         guarantee.cross_check(used, best, basin, request.sigma) if best.converged else None)
     refusal = refusal or guarantee.two_groups(prep.dataset, screened.mask, best, request.sigma)
     warnings = list(best.notes)
-    pose = describe.kuka_pose(best.sensor)
+    pose = describe.kuka_pose(own_frame.to_own(best.sensor, getattr(prep.dataset, "own_axes", None)))  # as reported
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:
         warnings.append(f"B = {pose[4]:.4f} deg is within {GIMBAL_WARN_DEG:g} deg of the Euler singularity: A and C "
                         "are nearly one rotation and are not separately meaningful; compare transforms, not angles")

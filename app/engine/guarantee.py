@@ -32,7 +32,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import global_fit
+from handeye.model import global_fit, own_frame
 from handeye.model.pose import pose_from_transform
 from handeye.model.rotation import transform_distance
 
@@ -217,7 +217,7 @@ def explains_nothing(dataset, basin, sigma):
                 "pose predicts them no better than their mean does")
     else:
         return None
-    pose = pose_from_transform(basin.best.sensor2flange)
+    pose = pose_from_transform(own_frame.to_own(basin.best.sensor2flange, getattr(dataset, "own_axes", None)))
     return (f"the fit explains nothing: even the best sensor pose of the centre model ({', '.join(f'{v:.1f}' for v in pose)}, "
             f"KUKA) leaves an RMS residual of {rms:.4g} mm, {than}: the poses, their convention, the sensor's centres "
             "or the sphere centre are wrong; not a calibration")

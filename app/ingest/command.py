@@ -11,7 +11,7 @@ from handeye.app.errors import RequestError
 from handeye.app.ingest import sources, writer
 from handeye.app.ingest.pairing import pair
 from handeye.app.present.protocol import ResultProtocol
-from handeye.model import conventions
+from handeye.model import conventions, own_frame
 from handeye.model.tables import DatasetError
 
 UNITS, ANGLES, SIDES, PAIRINGS = ("mm", "m"), ("deg", "rad"), (1, -1), ("auto", "id", "order")
@@ -89,8 +89,8 @@ class NewDatasetResult(ResultProtocol):
                          + (", ..." if len(self.inputs["skipped"]) > 4 else "") + " (PROVENANCE.toml says why)")
         lines.append(f"  plane     {self.plane}")
         if self.rotation is not None:
-            lines.append("            kept as [profile] own_axes: calibrate reports, and export writes, your sensor's own "
-                         "frame too")
+            lines.append("            kept as [profile] own_axes: every sensor pose (--start, calibrate's, export's) is of "
+                         "your sensor's own frame")
         lines.append(f"  pairing   {self.pairing}")
         if self.conversions:
             lines.append(f"  converted {'; '.join(self.conversions)}")
@@ -155,6 +155,11 @@ def _from_setup(opts):
     _check_setup_values(found, file)
     if opts["side"] is None and found["side"] is not None:
         opts["_side_from_setup"] = True  # a setup's side is in handeye's frame already
+    if opts["start"] is None and found["start"] is not None:  # of the setup's own frame when it says so, else handeye's
+        from handeye.model.setup_file import _own_axes
+
+        profile = doc.get("profile", {})
+        opts["_start_axes"] = _own_axes(profile.get("own_axes"), file) if profile.get("poses") == "own" else None
     model = found["robot"]
     if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
         found["robot"] = str(pathlib.Path(file).parent / model)
@@ -350,9 +355,12 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     _check_options(out, opts)
     centre = _vector(opts["center"], 3, "--center")
     ids, values, conv, per_pose, inputs, notes, how, roles, pose_ids = (_from_files if bag is None else _from_bag)(opts)
-    start_pose = _vector(opts["start"], len(conventions.columns(conv)), "--start")
     mapping = sources.map_to_plane(per_pose, opts["diameter"], profile_axes,
                                    "--profile-units" if bag is None else "the bag's profile topic")
+    start_pose = _vector(opts["start"], len(conventions.columns(conv)), "--start")
+    if start_pose is not None and "_start_axes" in opts:  # a --setup's start: of this dataset's frame (the own one)
+        matrix = own_frame.to_internal(conventions.transform_from(conv, start_pose), opts["_start_axes"])
+        start_pose = conventions.pose_from(conv, own_frame.to_own(matrix, None if mapping.identity else mapping.rotation))
     joint_values = _joints(opts, pose_ids, len(ids))
     inputs["profiles"] = sources.formats(per_pose)
     side = opts["side"] if opts.get("_side_from_setup") else mapping.side(opts["side"])

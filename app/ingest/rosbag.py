@@ -176,10 +176,22 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a broken bag) are bad input here
         raise DatasetError(file, f"cannot be read as a ROS 2 bag: {type(exc).__name__}: {exc}") from None
-    return _match(file, pstamps, poses, np.array(stamps), clouds, max_dt, (pconns[0].msgtype, sconns[0].msgtype))
+    return _match(file, _Stamped(pstamps, poses, pconns[0].msgtype), _Stamped(np.array(stamps), clouds, sconns[0].msgtype),
+                  max_dt)
 
 
-def _match(file, pstamps, poses, stamps, clouds, max_dt, types):
+@dataclasses.dataclass(frozen=True)
+class _Stamped:
+    """One topic's messages: their times (s), what each carried, the message type."""
+
+    stamps: np.ndarray
+    items: object
+    msgtype: str
+
+
+def _match(file, pose, profile, max_dt):
+    """Each profile with the pose nearest in time, within ``max_dt`` (a :class:`BagData`)."""
+    pstamps, poses, stamps, clouds = pose.stamps, pose.items, profile.stamps, profile.items
     if not len(pstamps):
         raise DatasetError(file, "no pose messages on the pose topic")
     order = np.argsort(pstamps)
@@ -197,4 +209,4 @@ def _match(file, pstamps, poses, stamps, clouds, max_dt, types):
                                  f"{len(pstamps)} poses)")
     counts = {"poses": int(len(pstamps)), "profiles": int(len(stamps)), "unmatched": int(len(stamps) - len(keep)),
               "max_dt_s": float(max_dt)}
-    return BagData(poses[chosen], [clouds[k] for k in keep], stamps[keep], counts, types)
+    return BagData(poses[chosen], [clouds[k] for k in keep], stamps[keep], counts, (pose.msgtype, profile.msgtype))

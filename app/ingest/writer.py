@@ -52,7 +52,7 @@ def _vec(v):
 def setup_text(convention, diameter, side, center=None, start=None, robot=None, own_axes=None):
     """``setup.toml`` of the assembled dataset (:mod:`handeye.model.dataset` has the format);
     ``own_axes``: the turn R (``p_handeye = R p_file``) of profiles not given in handeye's frame,
-    kept so that a calibration reports (and export writes) the sensor's own frame too."""
+    kept with ``poses = "own"``: ``start`` and every pose a calibration reports are of the sensor's own frame."""
     text = "# assembled by `handeye dataset new`; PROVENANCE.toml says from what\n"
     text += f"[robot]\nconvention = \"{convention}\"\n" + (f"model = {json.dumps(robot)}\n" if robot else "") + "\n"
     if start is not None:
@@ -61,8 +61,9 @@ def setup_text(convention, diameter, side, center=None, start=None, robot=None, 
     text += f"\n[profile]\nside = {int(side)}\n"
     if own_axes is not None:
         rows = ", ".join(_vec(np.round(np.asarray(r, float), 12) + 0.0) for r in own_axes)
-        text += ("# the profiles were turned from the sensor's own frame: p = R p_own (rows of R); calibrate also\n"
-                 f"# reports the pose of the sensor's own frame, and export writes that one\nown_axes = [{rows}]\n")
+        text += ("# the profiles were turned from the sensor's own frame: p = R p_own (rows of R); every sensor\n"
+                 "# pose (start_pose here, calibrate's, export's) is of the sensor's own frame\n"
+                 f"own_axes = [{rows}]\nposes = \"own\"\n")
     return text
 
 

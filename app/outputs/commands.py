@@ -29,7 +29,7 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
                  name="--calibration", sensor_mount=None, own_axes=None):
     """The :class:`saved.Calibration` to use; ``sensor_mount`` (None: flange, or the file's) is
     that of ``--sensor-pose``, or checked against the calibration's; ``own_axes`` (a dataset whose
-    profiles ``dataset new`` turned): a typed pose is of the sensor's own frame, turned back."""
+    profiles ``dataset new`` turned): a typed pose or 4x4 is of the sensor's own frame, turned back."""
     if sensor_pose is not None:
         if calibration is not None:
             raise RequestError(f"give {name} or --sensor-pose, not both")
@@ -38,8 +38,8 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
                                "it from")
         values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         cal = saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
-        return own_pose(cal, own_axes)
-    cal = given_calibration(calibration, sensor_mount)
+        return cal.from_user_frame(own_axes)
+    cal = given_calibration(calibration, sensor_mount, own_axes)
     if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
         raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
                            "calibration (the option is for --sensor-pose or a 4x4)")
@@ -49,24 +49,17 @@ def _calibration(calibration, sensor_pose=None, convention=None, force=False, da
     return cal
 
 
-def own_pose(cal, own_axes):
-    """A pose typed in for a dataset whose profiles were turned (``own_axes``): of the sensor's own
-    frame (what export writes), returned in the profiles' frame; unchanged without a turn."""
-    if own_axes is None:
-        return cal
-    return dataclasses.replace(cal, own_axes=np.asarray(own_axes, float), own_frame=True).in_profiles_frame()
-
-
-def given_calibration(calibration, sensor_mount=None):
-    """A calibration given as a file, a 4x4 (in ``sensor_mount``'s frame), a
-    :class:`saved.Calibration` or a CalibrationResult."""
+def given_calibration(calibration, sensor_mount=None, own_axes=None):
+    """A calibration given as a file, a 4x4 (in ``sensor_mount``'s frame; of the sensor's own frame
+    for a dataset whose profiles were turned, ``own_axes``), a :class:`saved.Calibration` or a
+    CalibrationResult."""
     if calibration is None:
         raise RequestError("a calibration is needed: --calibration RESULT.json (from handeye calibrate --out) or "
                            "--sensor-pose X,Y,Z,...")
     if isinstance(calibration, saved.Calibration):
         cal = calibration
     elif isinstance(calibration, np.ndarray) or isinstance(calibration, (list, tuple)):
-        cal = saved.from_matrix(calibration, sensor_mount=sensor_mount or "flange")
+        cal = saved.from_matrix(calibration, sensor_mount=sensor_mount or "flange").from_user_frame(own_axes)
     elif hasattr(calibration, "sensor2flange") and hasattr(calibration, "covariance"):  # a CalibrationResult
         if calibration.sensor2flange is None:
             raise RequestError(f"the calibration failed ({calibration.message}); nothing to use")
@@ -76,6 +69,8 @@ def given_calibration(calibration, sensor_mount=None):
                                 calibration.dataset_sha256, bool(calibration.converged),
                                 saved.check_mount(getattr(calibration, "sensor_mount", "flange"), "sensor_mount"),
                                 own_axes=getattr(calibration, "own_axes", None))
+        if getattr(calibration, "pose_frame", "handeye") == "own":  # a result turned for the user: back to handeye's
+            cal = dataclasses.replace(cal, own_axes=None).from_user_frame(cal.own_axes)
     else:
         cal = saved.load(calibration)
     return cal
@@ -137,7 +132,6 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
         text = robot_text(calibration, format, force)
     else:
         cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
-        cal = cal.in_own_frame()  # profiles turned by dataset new: the sensor's own frame, as its driver reports
         text = exports.text(cal, format, parent, child, tool, register, base)
     if out is not None:
         files.write_text_atomically(out, text)

@@ -284,7 +284,8 @@ def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, 
     Parameters
     ----------
     calibration : handeye.app.outputs.saved.Calibration
-        Its ``sensor_mount`` chooses a tool (flange) or a base / user frame (world).
+        Its ``sensor_mount`` chooses a tool (flange) or a base / user frame (world); written in the
+        user's frame (the sensor's own when the profiles were turned: ``Calibration.user_frame``).
     fmt : str
         One of :data:`FORMATS` except ``json`` (see :func:`data`).
     parent, child : str
@@ -309,19 +310,21 @@ def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, 
         from handeye.app.present.jsonio import dumps
 
         return dumps(data(calibration, parent, child)) + "\n"
-    job = _Job(calibration, representations(calibration.sensor2flange), parent, child, number, register)
+    user = calibration.user_frame()
+    job = _Job(user, representations(user.sensor2flange), parent, child, number, register)
     return _WRITERS[fmt](job)
 
 
 def data(calibration, parent=None, child="sensor"):
-    """Every format's numbers as one JSON-ready dict (``--format json``); a sensor fixed in the
-    cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
+    """Every format's numbers as one JSON-ready dict (``--format json``) of the user's frame (``own_axes``
+    and ``sensor_frame`` "own" when that is the sensor's own); a sensor fixed in the cell adds
+    ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
     parent = resolve_parent(calibration, parent)
-    rep = representations(calibration.sensor2flange)
+    matrix = calibration.user_frame().sensor2flange
+    rep = representations(matrix)
     mount = {"sensor_mount": "world"} if _world(calibration) else {}
-    own = {} if getattr(calibration, "own_axes", None) is None else {
-        "sensor_frame": "own" if calibration.own_frame else "profiles", "own_axes": np.asarray(calibration.own_axes).tolist()}
-    out = {**mount, **own, "parent": parent, "child": child, "sensor_matrix": calibration.sensor2flange.tolist()}
+    own = {} if calibration.own_axes is None else {"sensor_frame": "own", "own_axes": np.asarray(calibration.own_axes).tolist()}
+    out = {**mount, **own, "parent": parent, "child": child, "sensor_matrix": matrix.tolist()}
     out.update({k: v.tolist() for k, v in rep.items()})
     out["calibration"] = calibration.to_dict()
     return out

@@ -7,6 +7,11 @@ what the uses of a calibration need from it (``handeye export``, ``cloud``, ``va
 A pose typed in by hand (``--sensor-pose``, e.g. a TCP already in the controller) is a
 calibration without a covariance.
 
+A calibration of a dataset whose profiles ``dataset new`` turned from the sensor's own frame
+(``own_axes``) is written in that own frame with ``sensor_frame = "own"``; :class:`Calibration`
+holds it in handeye's frame (what the chain uses) and writes it back in the own one. A file
+with ``own_axes`` and ``sensor_frame`` "profiles" or none (written before) is of handeye's frame.
+
 The file's ``sensor_mount`` says where the sensor is: ``"flange"`` (on the robot flange; the
 matrix is sensor2flange; a file without the key is one) or ``"world"`` (fixed in the cell; the
 matrix is sensor2base, the sensor frame in the robot base frame).
@@ -24,7 +29,7 @@ import pathlib
 import numpy as np
 
 from handeye.app.errors import RequestError
-from handeye.model import conventions
+from handeye.model import conventions, own_frame
 from handeye.model.names import SENSOR_MOUNTS
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
@@ -77,30 +82,26 @@ class Calibration:
     sensor_mount: str = "flange"
     positioner_axes: tuple = ()
     own_axes: np.ndarray | None = None
-    own_frame: bool = False
 
-    def _turned(self, forward):
-        rot = np.asarray(self.own_axes, float) if forward else np.asarray(self.own_axes, float).T
-        turn = np.eye(4)
-        turn[:3, :3] = rot
-        cov = None
-        if self.covariance is not None:
-            jac = np.eye(6)
-            jac[3:, 3:] = rot.T
-            cov = jac @ self.covariance @ jac.T
-        return dataclasses.replace(self, sensor2flange=self.sensor2flange @ turn, covariance=cov, own_frame=forward)
+    def user_frame(self):
+        """The calibration of the frame the user's files are in, for writing it out: the sensor's
+        own frame when the dataset's profiles were turned into handeye's (``own_axes`` R,
+        ``p = R p_own``: the matrix ``S [R 0; 0 1]``, the covariance's rotation about the own axes;
+        :mod:`handeye.model.own_frame`), without ``own_axes`` then; itself without a turn."""
+        if self.own_axes is None:
+            return self
+        return dataclasses.replace(self, sensor2flange=own_frame.to_own(self.sensor2flange, self.own_axes),
+                                   covariance=own_frame.covariance_to_own(self.covariance, self.own_axes), own_axes=None)
 
-    def in_own_frame(self):
-        """The calibration of the sensor's own frame (its driver's points) when the dataset's
-        profiles were turned into handeye's (``own_axes`` R, ``p = R p_own``): the matrix
-        ``S [R 0; 0 1]``, the covariance's rotation block turned by R^T (``S exp(w) R = S R exp(R^T w)``);
-        ``own_frame`` then True. Itself without a turn, or when it is of the own frame already."""
-        return self if self.own_axes is None or self.own_frame else self._turned(True)
-
-    def in_profiles_frame(self):
-        """The inverse of :meth:`in_own_frame`: the frame of the turned profiles, what the
-        dataset's chain uses (``cloud``, ``validate``, a held or scored pose)."""
-        return self._turned(False) if self.own_axes is not None and self.own_frame else self
+    def from_user_frame(self, own_axes):
+        """A calibration typed in the user's frame (``--sensor-pose``, a 4x4) of a dataset whose
+        profiles were turned (``own_axes``; None: none), in handeye's frame, the inverse of
+        :meth:`user_frame`."""
+        if own_axes is None:
+            return self
+        return dataclasses.replace(self, sensor2flange=own_frame.to_internal(self.sensor2flange, own_axes),
+                                   covariance=own_frame.covariance_to_own(self.covariance, own_axes, forward=False),
+                                   own_axes=np.asarray(own_axes, float))
 
     @property
     def sensor_matrix(self):
@@ -120,16 +121,17 @@ class Calibration:
         return sd[:3], np.degrees(sd[3:6])
 
     def to_dict(self):
-        """The calibration as JSON-ready numbers (a world mount says so; a flange one as always)."""
-        sd = self.sd()
+        """The calibration as JSON-ready numbers of the user's frame (:meth:`user_frame`; ``own_axes`` and
+        ``sensor_frame`` "own" say it is the sensor's own), a world mount says so."""
+        user = self.user_frame()
+        sd = user.sd()
         mount = {} if self.sensor_mount == "flange" else {"sensor_mount": self.sensor_mount}
-        own = {} if self.own_axes is None else {"own_axes": np.asarray(self.own_axes).tolist(),
-                                                 "sensor_frame": "own" if self.own_frame else "profiles"}
+        own = {} if self.own_axes is None else {"own_axes": np.asarray(self.own_axes).tolist(), "sensor_frame": "own"}
         return {**mount, **own, "source": self.source, "dataset": self.dataset, "dataset_sha256": self.dataset_sha256,
-                "sensor_matrix": self.sensor2flange.tolist(),
+                "sensor_matrix": user.sensor2flange.tolist(),
                 "sd_translation_mm": None if sd is None else sd[0].tolist(),
                 "sd_rotation_deg": None if sd is None else sd[1].tolist(),
-                "covariance": None if self.covariance is None else self.covariance.tolist()}
+                "covariance": None if user.covariance is None else user.covariance.tolist()}
 
 
 def _matrix(value, shape, file, key):
@@ -237,8 +239,11 @@ def from_document(doc, file):
     if frame not in ("own", "profiles") or (frame == "own" and own is None):
         raise CalibrationFileError(file, f"must be \"own\" (with own_axes) or \"profiles\", got {str(frame)[:40]!r}",
                                    "sensor_frame")
-    return Calibration(m, _covariance(doc, file), str(file), doc.get("dataset"), sha if isinstance(sha, str) else None,
-                       converged, _mount(doc, file), _positioner(doc, file), own, frame == "own").in_profiles_frame()
+    source = str(file) + (" (handeye's turned frame, as files before sensor_frame \"own\" were written)"
+                          if own is not None and frame == "profiles" else "")
+    cal = Calibration(m, _covariance(doc, file), source, doc.get("dataset"), sha if isinstance(sha, str) else None,
+                      converged, _mount(doc, file), _positioner(doc, file))
+    return cal.from_user_frame(own) if frame == "own" else dataclasses.replace(cal, own_axes=own)
 
 
 def _own_axes(doc, file):

@@ -255,20 +255,27 @@ def _sources(fit, a_cal, cov_cal, g_robot, robot_sigma):
     return out
 
 
-def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclude=0.0):
+@dataclasses.dataclass(frozen=True)
+class SphereCloud:
+    """The points one sphere's poses saw.
+
+    ``points`` (M, 3): robot base, mm, grouped by pose (``index`` non-decreasing); ``xz`` (M, 2): the same
+    points in the sensor frame, mm; ``f2b`` (N, 4, 4): the flange poses, mm; ``index`` (M,): pose of each point.
+    """
+
+    points: np.ndarray
+    xz: np.ndarray
+    f2b: np.ndarray
+    index: np.ndarray
+
+
+def check_sphere(label, seen, calib, setup, robot_sigma, exclude=0.0):
     """Fit and assess one sphere (module docstring).
 
     Parameters
     ----------
     label : str
-    points : ndarray, shape (M, 3)
-        Robot base, mm; grouped by pose (``index`` non-decreasing).
-    xz : ndarray, shape (M, 2)
-        The same points in the sensor frame, mm.
-    f2b : ndarray, shape (N, 4, 4)
-        Flange poses, mm.
-    index : ndarray, shape (M,)
-        Pose of each point.
+    seen : SphereCloud
     calib : handeye.app.outputs.saved.Calibration
     setup : handeye.model.scan.Sphere
     robot_sigma : float
@@ -286,6 +293,7 @@ def check_sphere(label, points, xz, f2b, index, calib, setup, robot_sigma, exclu
     total : ndarray, shape (4, 4)
         Covariance of (centre, radius), all sources.
     """
+    points, xz, f2b, index = seen.points, seen.xz, seen.f2b, seen.index
     if np.any(np.diff(index) < 0):
         raise ValueError("points must be grouped by pose (index non-decreasing)")
     fit = sphere.fit(points)
@@ -408,8 +416,9 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
             raise RequestError(f"no pose of {scan.name} saw [{'sphere' if k == 0 else 'sphere2'}] (centre "
                                f"{_list(setup.centre)}): check the setup's centres and the calibration")
         try:
-            check, a_cal, info, total = check_sphere("sphere" if k == 0 else "sphere2", points[mask], xz[mask], f2b,
-                                                     index[mask], calib, setup, scan.robot_sigma_mm, exclude)
+            check, a_cal, info, total = check_sphere("sphere" if k == 0 else "sphere2",
+                                                     SphereCloud(points[mask], xz[mask], f2b, index[mask]), calib, setup,
+                                                     scan.robot_sigma_mm, exclude)
         except sphere.SphereFitError as exc:
             raise RequestError(f"{scan.path}: {exc}") from None
         checks.append(check)

@@ -12,7 +12,7 @@ import numpy as np
 
 from handeye.app.present.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.results import Uncertainty, _list, own_frame_fields  # noqa: F401  (shared JSON helpers)
+from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
 from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
@@ -146,6 +146,7 @@ class DiagnosisResult(ResultProtocol):
     against_calibrate: str | None = None
     own_axes: np.ndarray | None = None
     cleaning: dict | None = None
+    pose_frame: str = "handeye"
 
     @property
     def absorbed_explained(self):
@@ -158,8 +159,21 @@ class DiagnosisResult(ResultProtocol):
         """Names of the catalogue effects these poses cannot separate from the model."""
         return sorted(self.absorbed_by)
 
+    def in_user_frame(self):
+        """The diagnosis with its sensor pose (and the 1-sd of its rotation) of the sensor's own frame
+        when the profiles were turned (``own_axes``), as
+        :meth:`handeye.app.present.results.CalibrationResult.in_user_frame`."""
+        if self.own_axes is None or self.pose_frame == "own":
+            return self
+        matrix, pose, kuka = user_poses(self.sensor2flange, self.own_axes, self.convention)
+        return dataclasses.replace(self, sensor2flange=matrix, sensor_pose=kuka, sensor_pose_as=pose,
+                                   std=user_std(self.std, None, self.own_axes)[0], pose_frame="own")
+
     def to_dict(self):
-        """The ``handeye diagnose --json`` object."""
+        """The ``handeye diagnose --json`` object (its pose of the user's frame: :meth:`in_user_frame`)."""
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict()
         return {
             "dataset": self.dataset,
             "unknowns": self.unknowns,
@@ -179,7 +193,7 @@ class DiagnosisResult(ResultProtocol):
             "sigma_after_mm": self.sigma_after_mm,
             "sensor_pose": _list(self.sensor_pose),
             "sensor_matrix": _list(self.sensor2flange),
-            **own_frame_fields(self.sensor2flange, self.own_axes, self.convention),
+            **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
             "effect_correlations": self.effect_correlations,
             "steps": [s.to_dict() for s in self.steps],
@@ -201,7 +215,7 @@ class DiagnosisResult(ResultProtocol):
         """The CLI's text report."""
         from handeye.app.present import report
 
-        return report.diagnosis_text(self)
+        return report.diagnosis_text(self.in_user_frame())
 
     def figures(self, folder):
         """Write ``residuals.png`` and ``gap.png`` into ``folder``; returns their paths."""

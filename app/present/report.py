@@ -144,10 +144,8 @@ def calibration_text(res):
         lines += [f"start pose   ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.start_pose, 10, 6),
                   f"sensor pose  ({res.convention}: {','.join(res.columns)}; {units}): " + _fmt(res.sensor_pose, 10, 6),
                   "sensor pose  (as KUKA x y z mm, A B C deg): " + _fmt(res.sensor_pose_kuka)]
-    own = res.to_dict(residuals=False).get("sensor_pose_own") if res.own_axes is not None else None
-    if own is not None:
-        lines.append(f"sensor pose  (the sensor's own frame, its profiles turned by [profile] own_axes; {res.convention}): "
-                     + _fmt(own, 10, 6) + "  <- what export writes")
+    if res.own_axes is not None:
+        lines.append("poses of the sensor's own frame (its profiles turned into handeye's by [profile] own_axes)")
     lines += cell_lines(res)
     lines.append(f"start: {res.start_used}")
     if res.rms_mm is None:  # no finite solution: nothing more to describe

@@ -277,6 +277,39 @@ def cleaning_summary(dataset):
             "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped]}
 
 
+def user_poses(matrix, own_axes, convention):
+    """``(4x4, pose in convention, KUKA pose)`` of the sensor's own frame of a sensor pose ``matrix``
+    of handeye's frame (``[profile] own_axes``: :func:`handeye.model.own_frame.to_own`)."""
+    from handeye.model import conventions, own_frame
+
+    m = own_frame.to_own(matrix, own_axes)
+    return m, conventions.pose_from(convention, m), conventions.pose_from("kuka", m)
+
+
+def user_std(std, covariance, own_axes, names=("tx", "ty", "tz", "wx", "wy", "wz")):
+    """The 1-sd :class:`Uncertainty` and the covariance (local chart, parameters ``names``) of a pose
+    of handeye's frame as the sensor's own frame's: the rotation block about the own axes
+    (``dw_own = R^T dw``); the sd from the turned covariance, or (without one) from the variances
+    turned alone."""
+    from handeye.model import own_frame
+
+    first = list(names).index("wx") if "wx" in names else None
+    cov = own_frame.covariance_to_own(covariance, own_axes, first=first)
+    if std is None or std.sensor_rotation_deg is None:
+        return std, cov
+    if cov is not None and first is not None:
+        rot = np.degrees(np.sqrt(np.clip(np.diag(cov)[first:first + 3], 0.0, None)))
+    else:
+        rot = np.sqrt(np.asarray(own_axes, float).T ** 2 @ np.asarray(std.sensor_rotation_deg, float) ** 2)
+    return dataclasses.replace(std, sensor_rotation_deg=rot), cov
+
+
+def frame_keys(own_axes):
+    """The JSON keys that say a result's poses are of the sensor's own frame (``own_axes``; none
+    without a turn): what a saved file is read back with (:mod:`handeye.app.outputs.saved`)."""
+    return {} if own_axes is None else {"own_axes": _list(own_axes), "sensor_frame": "own"}
+
+
 #: Flat attribute of the result -> (part, attribute of the part).
 FLAT = {
     **{f.name: ("fit", f.name) for f in dataclasses.fields(FitRecord)},

@@ -10,7 +10,10 @@ the CLI's text report, and ``_repr_html_`` a compact table in Jupyter.
 
 Frames and units: ``sensor2flange`` is the sensor frame in the flange frame (4x4, mm);
 ``sphere_centre`` is in the robot base (mm); poses are ``x, y, z`` in mm and the orientation
-in the named robot convention (:mod:`handeye.model.conventions`).
+in the named robot convention (:mod:`handeye.model.conventions`). A dataset whose profiles
+``dataset new`` turned (``[profile] own_axes``) computes in handeye's frame (the attributes) and
+reports in the sensor's own (:meth:`CalibrationResult.in_user_frame`: the JSON, the text, every
+saved and exported form).
 """
 from __future__ import annotations
 
@@ -32,6 +35,9 @@ from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, Nois
     Uncertainty,
     UncertaintyRecord,
     _list,
+    frame_keys,
+    user_poses,
+    user_std,
 )
 
 
@@ -135,20 +141,6 @@ class ResidualTable:
         return [f'{{"id":{quote(i)},"row":{r},"vector":[{a},{b},{c}],"norm":{n},"used":{u},"loo_error_mm":{lo}}}'
                 for i, r, a, b, c, n, u, lo in zip(self.ids, self.rows.tolist(), x, y, z, numbers(self.norms), used,
                                                     loo)]
-
-
-def own_frame_fields(sensor2flange, own_axes, convention):
-    """``own_axes``, ``sensor_matrix_own`` and ``sensor_pose_own`` (in ``convention``) of a result
-    whose profiles were turned from the sensor's own frame (``[profile] own_axes`` R, ``p = R p_own``:
-    the own frame is ``S [R 0; 0 1]``), else an empty dict."""
-    if own_axes is None or sensor2flange is None:
-        return {}
-    from handeye.model import conventions
-
-    own = np.asarray(sensor2flange, float).copy()
-    own[:3, :3] = own[:3, :3] @ np.asarray(own_axes, float)
-    return {"own_axes": _list(own_axes), "sensor_matrix_own": _list(own),
-            "sensor_pose_own": _list(conventions.pose_from(convention, own))}
 
 
 def residual_dicts(residuals):
@@ -356,6 +348,12 @@ class CalibrationResult(ResultProtocol):
         What profile cleaning dropped (:func:`handeye.app.present.result_parts.cleaning_summary`: totals, and
         per profile that lost points its id, row, counts and reasons); ``{'applied': False}``
         with ``--no-clean``; None without profiles.
+    own_axes : ndarray, shape (3, 3), or None
+        The dataset's ``[profile] own_axes`` (its profiles turned from the sensor's own frame).
+    pose_frame : {'handeye', 'own'}
+        The frame of the pose attributes: handeye's (the profiles', what the fit works in), or
+        the sensor's own (:meth:`in_user_frame`); the JSON and the text report are of the own
+        frame whenever there is one (JSON keys ``own_axes`` and ``sensor_frame`` "own" say so).
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
@@ -395,6 +393,7 @@ class CalibrationResult(ResultProtocol):
     robot_model: str | None = None
     cleaning: dict | None = None
     own_axes: np.ndarray | None = None
+    pose_frame: str = "handeye"
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -445,10 +444,51 @@ class CalibrationResult(ResultProtocol):
         return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
                 f"({diff:+.2g} mm): " + "; and ".join(parts))
 
+    def in_user_frame(self):
+        """The result with every pose the user reads in the frame of the user's files: the
+        sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.own_frame`):
+        ``sensor2flange``, ``sensor_pose`` (and KUKA), the start pose, the iterates, the closed
+        form's linear matrix, the covariance, correlation and 1-sd of the rotation (about the own
+        axes); ``pose_frame`` then ``"own"``. Itself without a turn or when turned already.
+        :meth:`to_dict`, :meth:`summary` and every saved or exported form are of this one."""
+        rot = self.own_axes
+        if rot is None or self.pose_frame == "own" or self.sensor2flange is None:
+            return self
+        from handeye.model import own_frame
+        from handeye.model.pose import transform_from_pose
+
+        matrix, pose, kuka = user_poses(self.sensor2flange, rot, self.convention)
+        history = None if self.history is None else np.array(
+            [user_poses(transform_from_pose(h), rot, "kuka")[2] for h in self.history]).reshape(-1, 6)
+        fit = dataclasses.replace(self.fit, sensor2flange=matrix, sensor_pose=pose, sensor_pose_kuka=kuka, history=history)
+        std, cov = user_std(self.std, self.covariance, rot, self.parameter_names or ())
+        corr = self.correlation
+        if cov is not None:
+            sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+            corr = cov / np.outer(sd, sd)
+        _, start, start_kuka = (None,) * 3 if self.start_pose_kuka is None else user_poses(
+            transform_from_pose(self.start_pose_kuka), rot, self.convention)
+        closed = self.closed_form if self.closed_form is None else dataclasses.replace(
+            self.closed_form, linear_matrix=own_frame.to_own(self.closed_form.linear_matrix, rot))
+        return dataclasses.replace(
+            self, fit=fit, uncertainty=dataclasses.replace(self.uncertainty, std=std, covariance=cov, correlation=corr),
+            start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, pose_frame="own")
+
     def to_dict(self, residuals=True):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without
-        ``residuals`` their entry is None (:meth:`to_json` writes them column-wise)."""
-        out = {
+        ``residuals`` their entry is None (:meth:`to_json` writes them column-wise). Its poses are
+        of the user's frame (:meth:`in_user_frame`)."""
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict(residuals)
+        out = {**self._request_keys(), **self._pose_keys(), **self._fit_keys(residuals), **self._uncertainty_keys()}
+        if self.provenance is not None:
+            out["provenance"] = self.provenance
+        return out
+
+    def _request_keys(self):
+        """The JSON keys of what was asked: the dataset, method, model and start."""
+        return {
             "dataset": self.dataset,
             "dataset_path": self.dataset_path,
             "dataset_sha256": self.dataset_sha256,
@@ -460,6 +500,11 @@ class CalibrationResult(ResultProtocol):
             "start_pose": _list(self.start_pose),
             "start_pose_kuka": _list(self.start_pose_kuka),
             "start_used": self.start_used,
+        }
+
+    def _pose_keys(self):
+        """The JSON keys of the calibrated pose, its mounts and frames."""
+        return {
             "sensor_pose": _list(self.sensor_pose),
             "sensor_pose_kuka": _list(self.sensor_pose_kuka),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
@@ -467,11 +512,16 @@ class CalibrationResult(ResultProtocol):
             "sensor_mount": self.sensor_mount,
             "sphere_mount": self.sphere_mount,
             "sensor_matrix": _list(self.sensor2flange),
-            **self._own_frame(),
+            **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
             "sphere_center_sd": None if self.std is None else _list(self.std.sphere_center_mm),
             "positioner": None if self.positioner is None else self.positioner.to_dict(),
             "robot_model": self.robot_model,
+        }
+
+    def _fit_keys(self, residuals):
+        """The JSON keys of the solver and the residuals."""
+        return {
             "iterations": None if self.iterations is None else int(self.iterations),
             "evaluations": self.evaluations,
             "converged": bool(self.converged),
@@ -492,6 +542,11 @@ class CalibrationResult(ResultProtocol):
             "residuals": residual_dicts(self.residuals) if residuals else None,
             "sigma_mm": self.sigma_mm,
             "sigma_scale": self.sigma_scale,
+        }
+
+    def _uncertainty_keys(self):
+        """The JSON keys of the uncertainty, the checks and the tests."""
+        return {
             "std": None if self.std is None else self.std.to_dict(),
             "correlation": None if self.correlation is None else {
                 "names": list(self.parameter_names), "matrix": np.round(self.correlation, 6).tolist()},
@@ -513,12 +568,6 @@ class CalibrationResult(ResultProtocol):
             "rms_note": self.rms_note,
             "cleaning": self.cleaning,
         }
-        if self.provenance is not None:
-            out["provenance"] = self.provenance
-        return out
-
-    def _own_frame(self):
-        return own_frame_fields(self.sensor2flange, self.own_axes, self.convention)
 
     def to_json(self, indent=1):
         """:meth:`to_dict` as strict JSON text (non-finite numbers as null); the residual rows
@@ -533,9 +582,10 @@ class CalibrationResult(ResultProtocol):
         """The CLI's text report."""
         from handeye.app.present import report
 
-        return report.calibration_text(self)
+        return report.calibration_text(self.in_user_frame())
 
     def _repr_html_(self):
+        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
             ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
@@ -560,6 +610,7 @@ class CalibrationResult(ResultProtocol):
         return f"<table><caption>handeye calibration</caption>{body}</table>"
 
     def __repr__(self):
+        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
         return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "

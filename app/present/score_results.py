@@ -12,7 +12,8 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.results import ResidualTable, _list, own_frame_fields
+from handeye.app.present.result_parts import _list, frame_keys, user_poses
+from handeye.app.present.results import ResidualTable
 
 #: Residual model -> what one of its rows is.
 _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points": "profile point"}
@@ -73,6 +74,17 @@ class ScoreResult(ResultProtocol):
     centre_fitted: bool
     provenance: dict | None = None
     own_axes: np.ndarray | None = None
+    pose_frame: str = "handeye"
+
+    def in_user_frame(self):
+        """The score with the given pose and the data's own calibration of the sensor's own frame
+        when the profiles were turned (``own_axes``), as
+        :meth:`handeye.app.present.results.CalibrationResult.in_user_frame`."""
+        if self.own_axes is None or self.pose_frame == "own":
+            return self
+        matrix, pose, _ = user_poses(self.sensor2flange, self.own_axes, self.convention)
+        estimate = dataclasses.replace(self.estimate, own_axes=self.own_axes).in_user_frame()
+        return dataclasses.replace(self, sensor2flange=matrix, sensor_pose=pose, estimate=estimate, pose_frame="own")
 
     @property
     def contradicted(self):
@@ -124,6 +136,9 @@ class ScoreResult(ResultProtocol):
         return f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg{sd}"
 
     def to_dict(self):
+        user = self.in_user_frame()
+        if user is not self:
+            return user.to_dict()
         f, p, bad = self.f_test
         est = self.estimate
         out = {
@@ -133,7 +148,7 @@ class ScoreResult(ResultProtocol):
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose)},
             "sensor_matrix": _list(self.sensor2flange),
-            **own_frame_fields(self.sensor2flange, self.own_axes, self.convention),
+            **frame_keys(self.own_axes),
             "sphere_center": _list(self.given.centre),
             "centre_fitted": self.centre_fitted, "model": self.model, "rms_mm": _rms_dict(self.given),
             "ssr": self.given.ssr, "contradicted": self.contradicted, "verdict": self.verdict(),
@@ -155,16 +170,16 @@ class ScoreResult(ResultProtocol):
     def summary(self):
         from handeye.app.present.report import residual_lines
 
+        user = self.in_user_frame()
+        if user is not self:
+            return user.summary()
         est = self.estimate
         n_used = int(np.sum([r.used for r in est.residuals]))
         lines = [f"handeye calibrate (score): dataset {self.dataset}, the sensor pose given by {self.source} held"
                  + (", the sphere centre fitted" if self.centre_fitted else ", nothing fitted"),
                  f"verdict: {self.verdict()}", "",
                  f"given pose ({self.convention}: {','.join(self.columns)}): " + " ".join(f"{v:.4f}" for v in self.sensor_pose)
-                 + (" (the profiles' frame; in the sensor's own: "
-                    + " ".join(f"{v:.4f}" for v in own_frame_fields(self.sensor2flange, self.own_axes,
-                                                                    self.convention)["sensor_pose_own"]) + ")"
-                    if self.own_axes is not None else ""),
+                 + (" (the sensor's own frame, [profile] own_axes)" if self.own_axes is not None else ""),
                  f"data's own  ({self.convention}: {','.join(self.columns)}): " + " ".join(f"{v:.4f}" for v in est.sensor_pose)
                  + ("" if est.converged else "  (NOT converged)"),
                  "sphere centre (mm): " + " ".join(f"{v:.3f}" for v in self.given.centre)
@@ -250,7 +265,7 @@ class CompareResult(ResultProtocol):
     def summary(self):
         lines = [f"handeye compare: dataset {self.dataset}", f"verdict: {self.verdict()}", ""]
         for src, s in zip(self.sources, self.scores):
-            lines += [f"{src}: " + " ".join(f"{v:.4f}" for v in s.sensor_pose) + f" ({s.convention})",
+            lines += [f"{src}: " + " ".join(f"{v:.4f}" for v in s.in_user_frame().sensor_pose) + f" ({s.convention})",
                       f"  {s.verdict()}"]
         b = self.between
         sd = "" if b.get("sd") is None else f" ({b['sd']:.1f} sd of the data's own calibration)"

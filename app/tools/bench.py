@@ -460,11 +460,25 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
 
 def text(res):
     """The report: one table with ratios to scipy-2point, then scaling, profile, throughput, start-up."""
+    from handeye.app.tools import bench_guarantee, bench_peers, bench_pipeline, bench_points
     from handeye.app.tools.peak import machine_line
 
     lines = [machine_line(res["machine"]), ""] if "machine" in res else []
-    lines += [f"{'case':<12} {'method':<13} {'median ms':>10} {'min ms':>9} {'x scipy':>8} {'iters':>6} {'evals':>6} "
-              f"{'cost':>12} agrees"]
+    lines += [*_cases_text(res), "", *_scaling_text(res["scaling"]), "", *_profile_text(res["profile"]), "",
+              _throughput_text(res["throughput"])]
+    sections = (("guarantee", lambda g: ["", bench_guarantee.text(g)]), ("stages", lambda s: ["", *bench_pipeline.text(s)]),
+                ("peers", lambda r: ["", bench_peers.text(r)]), ("points", lambda r: ["", bench_points.text(r)]),
+                ("startup", _startup_text), ("pipeline", _pipeline_text), ("use", _use_text))
+    for key, show in sections:
+        if key in res:
+            lines += show(res[key])
+    return "\n".join(lines)
+
+
+def _cases_text(res):
+    """The table of every case and method, with its ratio to scipy-2point."""
+    lines = [f"{'case':<12} {'method':<13} {'median ms':>10} {'min ms':>9} {'x scipy':>8} {'iters':>6} {'evals':>6} "
+             f"{'cost':>12} agrees"]
     for case, table in res["cases"].items():
         base = table["scipy-2point"]["median_ms"]
         for method, row in table.items():
@@ -473,75 +487,71 @@ def text(res):
             lines.append(f"{case:<12} {method:<13} {row['median_ms']:10.3f} {row['min_ms']:9.3f} "
                          f"{base / row['median_ms']:8.1f} {its:>6} {row['evaluations']:6d} "
                          f"{row['cost']:12.6g} {agrees}")
-    lines += ["", f"fast path vs scipy-2point (thesis-real): {res['speedup_vs_scipy']:.0f}x"]
-    sc = res["scaling"]
-    lines += ["", "fast path against the number of measurements:",
-              "".join(f"  n={r['n']}: {r['median_ms']:.3f} ms ({r['per_evaluation_us']:.1f} us/evaluation)\n"
-                      for r in sc["rows"]).rstrip(),
-              f"  log-log slope of the compiled time per evaluation: {sc['slope']:.2f} (1 = linear)"]
-    p = res["profile"]
-    lines += ["", f"profile, thesis-real (n = {p['n']}, {p['evaluations']} evaluations): {p['total_us']:.1f} us median"]
-    if p["compiled"]:
-        lines += [f"  compiled iteration {p['compiled_loop_us']:.1f} us = {p['evaluations']} evaluations x "
-                  f"{p['one_evaluation_us']:.2f} us + {max(p['steps_us'], 0.0):.1f} us of 6 x 6 solves and updates "
-                  "(a difference of medians: 0 means below the timing's resolution)",
-                  f"  ctypes call {p['call_us']:.1f} us; Python around it (data layout, result) {p['python_us']:.1f} us",
-                  f"  generated model: {p['instructions_per_measurement']} instructions per measurement, "
-                  f"{p['instructions_executed']} executed, {p['ns_per_instruction']:.2f} ns each"]
-    else:
-        lines.append("  no C compiler: the CasADi virtual machine ran the model")
-    tp = res["throughput"]
-    lines += ["", f"Monte Carlo (31 measurements, {tp['calibrations']} calibrations, {tp['converged']} converged, "
-                  f"RMS translation error {tp['rms_translation_error_mm']:.3f} mm): {tp['all_cores_per_s']:.0f}/s on "
-                  f"{tp['jobs']} cores including simulation; calibration alone {tp['calibration_only_per_s_one_core']:.0f}/s "
-                  "per core"]
-    if "guarantee" in res:
-        from handeye.app.tools import bench_guarantee
+    return lines + ["", f"fast path vs scipy-2point (thesis-real): {res['speedup_vs_scipy']:.0f}x"]
 
-        lines += ["", bench_guarantee.text(res["guarantee"])]
-    if "stages" in res:
-        from handeye.app.tools import bench_pipeline
 
-        lines += ["", *bench_pipeline.text(res["stages"])]
-    from handeye.app.tools import bench_peers, bench_points
+def _scaling_text(sc):
+    return ["fast path against the number of measurements:",
+            "".join(f"  n={r['n']}: {r['median_ms']:.3f} ms ({r['per_evaluation_us']:.1f} us/evaluation)\n"
+                    for r in sc["rows"]).rstrip(),
+            f"  log-log slope of the compiled time per evaluation: {sc['slope']:.2f} (1 = linear)"]
 
-    for key, show in (("peers", bench_peers.text), ("points", bench_points.text)):
-        if key in res:
-            lines += ["", show(res[key])]
-    if "startup" in res:
-        s = res["startup"]
-        lines.append(f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "
-                     f"{s['warm again_s']:.2f} s (exit {s['cold_exit']}/{s['warm_exit']})")
-    if "pipeline" in res:
-        pl = res["pipeline"]
-        lines += ["", "handeye calibrate, default options (screening, fit, covariance, leave-one-out), by size:"]
-        for r in pl["rows"]:
-            if r["seconds"] is None:
-                lines.append(f"  {r['n']:>9} measurements: failed (exit {r['exit']})")
-            else:
-                lines.append(f"  {r['n']:>9} measurements: {r['seconds']:8.2f} s, peak {r['peak_mb']:8.0f} MB, "
-                             f"exit {r['exit']}")
-        if pl["time_slope"] is not None:
-            lines.append(f"  log-log slope above {pl['slope_above']} measurements (lm, deletion-formula leave-one-out): "
-                         f"time {pl['time_slope']:.2f}, peak memory {pl['memory_slope']:.2f} (1 = linear; below, "
-                         "the default is IPOPT with exact refits)")
-    if "use" in res:
-        u = res["use"]
-        lines += ["", "handeye cloud (binary PLY, per-point sd) and validate (sphere fit, PF/PS, 1-sd), by points:"]
-        for r in u["rows"]:
-            cells = []
-            for what in ("cloud", "validate"):
-                c = r[what]
-                cells.append(f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
-                             f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, "
-                             f"peak {c['peak_mb']:6.0f} MB")
-            lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
-        if "cloud_time_slope" in u:
-            lines.append(f"  log-log slopes from {u['slope_from']:,} points: cloud time {u['cloud_time_slope']:.2f}, "
-                         f"memory {u['cloud_memory_slope']:.2f}; "
-                         f"validate time {u['validate_time_slope']:.2f}, memory {u['validate_memory_slope']:.2f} "
-                         "(1 = linear)")
-    return "\n".join(lines)
+
+def _profile_text(p):
+    lines = [f"profile, thesis-real (n = {p['n']}, {p['evaluations']} evaluations): {p['total_us']:.1f} us median"]
+    if not p["compiled"]:
+        return lines + ["  no C compiler: the CasADi virtual machine ran the model"]
+    return lines + [f"  compiled iteration {p['compiled_loop_us']:.1f} us = {p['evaluations']} evaluations x "
+                    f"{p['one_evaluation_us']:.2f} us + {max(p['steps_us'], 0.0):.1f} us of 6 x 6 solves and updates "
+                    "(a difference of medians: 0 means below the timing's resolution)",
+                    f"  ctypes call {p['call_us']:.1f} us; Python around it (data layout, result) {p['python_us']:.1f} us",
+                    f"  generated model: {p['instructions_per_measurement']} instructions per measurement, "
+                    f"{p['instructions_executed']} executed, {p['ns_per_instruction']:.2f} ns each"]
+
+
+def _throughput_text(tp):
+    return (f"Monte Carlo (31 measurements, {tp['calibrations']} calibrations, {tp['converged']} converged, "
+            f"RMS translation error {tp['rms_translation_error_mm']:.3f} mm): {tp['all_cores_per_s']:.0f}/s on "
+            f"{tp['jobs']} cores including simulation; calibration alone {tp['calibration_only_per_s_one_core']:.0f}/s "
+            "per core")
+
+
+def _startup_text(s):
+    return [f"handeye calibrate start-to-finish: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s, "
+            f"{s['warm again_s']:.2f} s (exit {s['cold_exit']}/{s['warm_exit']})"]
+
+
+def _pipeline_text(pl):
+    lines = ["", "handeye calibrate, default options (screening, fit, covariance, leave-one-out), by size:"]
+    for r in pl["rows"]:
+        if r["seconds"] is None:
+            lines.append(f"  {r['n']:>9} measurements: failed (exit {r['exit']})")
+        else:
+            lines.append(f"  {r['n']:>9} measurements: {r['seconds']:8.2f} s, peak {r['peak_mb']:8.0f} MB, "
+                         f"exit {r['exit']}")
+    if pl["time_slope"] is not None:
+        lines.append(f"  log-log slope above {pl['slope_above']} measurements (lm, deletion-formula leave-one-out): "
+                     f"time {pl['time_slope']:.2f}, peak memory {pl['memory_slope']:.2f} (1 = linear; below, "
+                     "the default is IPOPT with exact refits)")
+    return lines
+
+
+def _use_text(u):
+    lines = ["", "handeye cloud (binary PLY, per-point sd) and validate (sphere fit, PF/PS, 1-sd), by points:"]
+    for r in u["rows"]:
+        cells = []
+        for what in ("cloud", "validate"):
+            c = r[what]
+            cells.append(f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
+                         f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, "
+                         f"peak {c['peak_mb']:6.0f} MB")
+        lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
+    if "cloud_time_slope" in u:
+        lines.append(f"  log-log slopes from {u['slope_from']:,} points: cloud time {u['cloud_time_slope']:.2f}, "
+                     f"memory {u['cloud_memory_slope']:.2f}; "
+                     f"validate time {u['validate_time_slope']:.2f}, memory {u['validate_memory_slope']:.2f} "
+                     "(1 = linear)")
+    return lines
 
 
 def plot(res, path):

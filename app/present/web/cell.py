@@ -23,6 +23,7 @@ import dataclasses
 
 import numpy as np
 
+from handeye.model import own_frame
 from handeye.model.mounts import Mounts, sphere_in_base
 
 #: At most this many profile points per sample are drawn (evenly spaced): the view of a cell with
@@ -117,6 +118,8 @@ def cell_geometry(result, dataset):
     mounts = result_mounts(result, dataset)
     f2b = np.asarray(dataset.flange2base(), float)
     x = np.asarray(result["sensor_matrix"], float)
+    if result.get("sensor_frame") == "own":  # the sensor's own frame, as the user reads it: the chain is handeye's
+        x = own_frame.to_internal(x, result["own_axes"])
     s2b = np.broadcast_to(x, f2b.shape).copy() if mounts.sensor == "world" else f2b @ x
     xs = np.asarray(dataset.centre_in_sensor, float)
     measured = np.einsum("nij,nj->ni", s2b[:, :3, :3], xs) + s2b[:, :3, 3]

@@ -46,7 +46,7 @@ def snippets(result, source="the calibration"):
 
     if result.get("sensor_matrix") is None:
         return {}
-    cal = saved.from_document(result, source).in_own_frame()
+    cal = saved.from_document(result, source)
     return {fmt: formats.text(cal, fmt) for fmt in parts.SNIPPETS}
 
 

@@ -49,23 +49,22 @@ def result_card(result, snippets):
     """The pose in the robot's convention with its 1-sd, the 4x4 with a copy button, the sphere
     centre, and the export snippets (``snippets``: format -> text)."""
     pose_as = result.get("sensor_pose_as") or {}
-    own = result.get("sensor_matrix_own") is not None  # profiles turned by dataset new: the sensor's own frame
+    own = result.get("sensor_frame") == "own"  # profiles turned by dataset new: the sensor's own frame
     cols = pose_as.get("columns") or []
-    pose = (result.get("sensor_pose_own") if own else pose_as.get("pose")) or []
+    pose = pose_as.get("pose") or []
     std = result.get("std") or {}
     frame = "robot base" if result.get("sensor_mount") == "world" else "flange"
     cells = "".join(f"<th>{esc(c)}</th>" for c in cols)
     vals = "".join(f"<td>{_num(v)}</td>" for v in pose)
     sd_t, sd_r = std.get("sensor_translation_mm"), std.get("sensor_rotation_deg")
-    axes = "the profiles' x, y, z (laser plane y = 0)" if own else "the sensor's own x, y, z"
     sd_line = ("<p class='sd'>1 sd: translation " + " ".join(_num(v) for v in sd_t) + " mm (x, y, z in the "
-               f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + f" deg (about {axes})</p>"
+               f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + " deg (about the sensor's own x, y, z)</p>"
                ) if sd_t and sd_r else "<p class='sd'>no uncertainty (the fit did not give one)</p>"
     if own:
         sd_line += ("<p class='hint'>The sensor's own frame (its driver's points, what <code>handeye export</code> "
                     "writes): the profiles were turned into the laser plane by <code>[profile] own_axes</code>; the "
                     "residual columns below are in the profiles' frame.</p>")
-    matrix = result.get("sensor_matrix_own") if own else result.get("sensor_matrix")
+    matrix = result.get("sensor_matrix")
     mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
     centre = result.get("sphere_center") or []
     csd = result.get("sphere_center_sd")
