@@ -130,6 +130,8 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
     """
+    if calibration is None and sensor_pose is None:
+        raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
     if out is not None:
         inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
         files.check_output_path(out, "--out", inputs)
