@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.app.errors import RequestError
+from handeye.app.options import MAX_ITER  # noqa: F401  (handeye.app.arguments.MAX_ITER, as before)
 
 
 def load_dataset(name_or_folder, clean=True):
@@ -65,10 +66,6 @@ def _number(value, option, low, high, low_open=False):
     if not ok or value > high or value < low or (low_open and value == low):
         raise RequestError(f"{option} must lie in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
     return float(value)
-
-
-#: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).
-MAX_ITER = 1_000_000
 
 
 def _integer(value, option, low, high=None):

@@ -128,14 +128,14 @@ def _held(flag):
 
 
 _CALIBRATE = (
-    Opt('dataset', 'thesis-real', nargs='?', help='embedded dataset name or folder (default thesis-real)'),
+    Opt('dataset', 'thesis-real', kind='path', nargs='?', help='embedded dataset name or folder (default thesis-real)'),
     Opt('--unknowns', 'sensor', metavar='PARTS',
         help='what to estimate, +-joined: sensor, sphere, positioner (default sensor; e.g. sensor+sphere, sphere+positioner,'
              ' sensor+sphere+positioner); a part not estimated comes from setup.toml or --calibration'),
-    Opt('--calibration', metavar='FILE',
+    Opt('--calibration', kind='path', metavar='FILE',
         help='a saved calibration (calibrate --out) whose sensor pose is held: calibrating the other parts when --unknowns '
              'has no sensor, else scored as --sensor-pose is'),
-    Opt('--sensor-pose', metavar='X,Y,Z,...',
+    Opt('--sensor-pose', kind='pose', metavar='X,Y,Z,...',
         help="score this sensor pose (e.g. the vendor's, in --convention's columns) instead of calibrating it: held, the "
              "sphere centre fitted with it under --unknowns sensor+sphere, judged against the data's own calibration (exit "
              "0; the verdict says whether the data contradict it); --calibration FILE with the sensor among --unknowns does "
@@ -145,32 +145,32 @@ _CALIBRATE = (
              '(AX = XB, linear) or li-two-step (pure translations, then rotations; see model/classics.py)'),
     Opt('--rotation', choices=ROTATIONS,
         help='rotation parametrisation (default: matrix for ipopt, local otherwise)'),
-    Opt('--start', metavar='X,Y,Z,A,B,C',
+    Opt('--start', kind='pose', metavar='X,Y,Z,A,B,C',
         help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)"),
     Opt('--convention', choices=tuple(CONVENTIONS),
         help="robot convention of --start and of the reported pose (default: the dataset's)"),
-    Opt('--max-iter', type='int', help='iteration limit'),
+    Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit'),
     Opt('--model', choices=tuple(KINDS),
         help='residual: reconstructed centres, measured circles, or profile points (default: measurement when every sample '
              'has a profile, else centre)'),
     Opt('--keep-all', action='store_true',
         help='fit every sample: no outlier detection (rows that contradict themselves are still excluded)'),
-    Opt('--alpha', type='float', help=f'family-wise level of the outlier tests (default {ALPHA:g})'),
+    Opt('--alpha', check=('level',), type='float', help=f'family-wise level of the outlier tests (default {ALPHA:g})'),
     Opt('--no-loo', action='store_true', help='skip the leave-one-out error (one refit per sample)'),
     Opt('--no-clean', action='store_true',
         help="fit every profile point: no profile cleaning (by default speckle and background points off the sphere's arc "
              "are dropped and reported)"),
-    Opt('--sigma', type='float', metavar='MM',
+    Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
         help="stated noise of a sphere centre (mm per component) the centre residual is tested against (default: setup.toml "
              "[noise] centre_mm, else 0.05); the profile models are tested against each circle fit's covariance and "
              "--robot-sigma instead"),
-    Opt('--robot-sigma', type='float', metavar='MM',
+    Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM',
         help='robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)'),
     Opt('--effects', metavar='NAME[,NAME]',
         help='calibrate with catalogue effects: sensor_scale, sphere_radius, sphere_center (as handeye diagnose names them)'),
     _json('print the result as JSON'),
-    Opt('--plot', metavar='FILE', help='draw residuals and sphere-centre scatter (PNG)'),
-    Opt('--report', metavar='OUT.html',
+    Opt('--plot', kind='path', metavar='FILE', help='draw residuals and sphere-centre scatter (PNG)'),
+    Opt('--report', kind='path', metavar='OUT.html',
         help='also write the one-file HTML report (handeye report): the cell in 3-D, verdict, residuals'),
     Opt('--out', metavar='FILE',
         help="also write the JSON result, with the dataset's hash, tool version and options, atomically"),
@@ -220,13 +220,13 @@ _SIMULATE = (
 )
 
 _DIAGNOSE = (
-    Opt('dataset', 'thesis-real', nargs='?'),
-    Opt('--alpha', ALPHA, type='float', help=f'family-wise level of the tests (default {ALPHA:g})'),
+    Opt('dataset', 'thesis-real', kind='path', nargs='?'),
+    Opt('--alpha', ALPHA, check=('level',), type='float', help=f'family-wise level of the tests (default {ALPHA:g})'),
     _json(),
     Opt('--no-clean', action='store_true', help='fit every profile point: no profile cleaning'),
-    Opt('--figures', metavar='DIR', help='write residuals.png and gap.png here'),
-    Opt('--plot', metavar='FILE', help='draw the gap shrinking step by step (PNG)'),
-    Opt('--sigma', type='float', metavar='MM',
+    Opt('--figures', kind='path', metavar='DIR', help='write residuals.png and gap.png here'),
+    Opt('--plot', kind='path', metavar='FILE', help='draw the gap shrinking step by step (PNG)'),
+    Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
         help='nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)'),
     Opt('--out', metavar='FILE', help='also write the JSON result with provenance'),
     Opt('--unknowns', 'sensor', choices=('sensor', 'sensor+sphere'),
@@ -278,10 +278,11 @@ _COMPARE = (
              'center, else sensor+sphere)'),
     Opt('--model', choices=tuple(KINDS),
         help='residual model both are scored with (default: as calibrate)'),
-    Opt('--alpha', type='float', help=f"level of 'significant' and of the screening (default {ALPHA:g})"),
+    Opt('--alpha', check=('level',), type='float', help=f"level of 'significant' and of the screening (default {ALPHA:g})"),
     Opt('--keep-all', action='store_true', help='score every sample: no outlier screening'),
-    Opt('--sigma', type='float', metavar='MM', help="stated noise, as calibrate's"),
-    Opt('--robot-sigma', type='float', metavar='MM', help="robot repeatability, as calibrate's"),
+    Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="stated noise, as calibrate's"),
+    Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="robot repeatability, as calibrate's"),
+    Opt('--convention', choices=tuple(CONVENTIONS), help="robot convention of the poses reported (default: the dataset's)"),
     _json(),
 )
 
