@@ -71,6 +71,10 @@ class Opt:
     check: tuple = ()
     kind: str = "value"
 
+    def __post_init__(self):
+        if self.action == "store_true":  # a flag is False until given
+            object.__setattr__(self, "default", False)
+
     @property
     def dest(self):
         """The argparse attribute (``max_iter``)."""
@@ -128,52 +132,96 @@ def _held(flag):
 
 
 _CALIBRATE = (
-    Opt('dataset', 'thesis-real', kind='path', nargs='?', help='embedded dataset name or folder (default thesis-real)'),
+    Opt('dataset', 'thesis-real', kind='path', nargs='?', help='embedded dataset name or folder (default thesis-real)',
+        doc='an embedded dataset (`handeye datasets`: `thesis-real`, `thesis-sim`) or a folder'),
     Opt('--unknowns', 'sensor', metavar='PARTS',
         help='what to estimate, +-joined: sensor, sphere, positioner (default sensor; e.g. sensor+sphere, sphere+positioner,'
-             ' sensor+sphere+positioner); a part not estimated comes from setup.toml or --calibration'),
+             ' sensor+sphere+positioner); a part not estimated comes from setup.toml or --calibration',
+        doc="what to estimate, `+`-joined in any order: `sensor` (6: the sensor frame in its mount's frame), `sphere` (3: the"
+            " centre in its mount's frame), `positioner` (4 per axis); e.g. `sensor+sphere`, `sphere+positioner`, "
+            "`sensor+sphere+positioner` ([Any "
+            "cell](#any-cell-a-sensor-fixed-in-the-cell-a-sphere-on-the-flange-or-on-a-positioner))"),
     Opt('--calibration', kind='path', metavar='FILE',
         help='a saved calibration (calibrate --out) whose sensor pose is held: calibrating the other parts when --unknowns '
-             'has no sensor, else scored as --sensor-pose is'),
+             'has no sensor, else scored as --sensor-pose is',
+        doc='a saved calibration (`calibrate --out`) whose sensor pose is held: the other parts calibrated when `--unknowns` '
+            'has no `sensor` (else `[sensor] pose`); with `sensor` among `--unknowns`, the pose is scored as `--sensor-pose` '
+            'is'),
     Opt('--sensor-pose', kind='pose', metavar='X,Y,Z,...',
         help="score this sensor pose (e.g. the vendor's, in --convention's columns) instead of calibrating it: held, the "
              "sphere centre fitted with it under --unknowns sensor+sphere, judged against the data's own calibration (exit "
              "0; the verdict says whether the data contradict it); --calibration FILE with the sensor among --unknowns does "
-             "the same"),
+             "the same",
+        doc="score a given sensor pose (the vendor's, last month's; `--convention`'s columns) instead of calibrating it: "
+            "[Score a given pose](#score-a-given-pose-and-compare-two-calibrations)"),
     Opt('--method', choices=METHODS + CLASSIC_METHODS,
         help='solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form baseline: kim-cho '
-             '(AX = XB, linear) or li-two-step (pure translations, then rotations; see model/classics.py)'),
+             '(AX = XB, linear) or li-two-step (pure translations, then rotations; see model/classics.py)',
+        doc="IPOPT (default; `lm` above 5,000 measurements, said in the warnings, so that time and memory stay linear in the "
+            "data), Gauss-Newton, Levenberg-Marquardt, trust region with exact Hessian, dogleg, local Newton (the solvers "
+            "package also has damped Newton, steepest descent and BFGS for the studies); `kim-cho`, `li-two-step`: the "
+            "thesis's state of the art as closed-form baselines (`model/classics.py`): Kim & Cho's linear AX = XB over every "
+            "pair of samples, Li et al.'s pure translations → rotation, then every pose → translation; gross errors are "
+            "screened first as for the least squares (`--keep-all` skips it); the report adds where the least squares goes "
+            "from there. Exit 2, naming the missing motions, when the data lack them (thesis-real has no pure translations)"),
     Opt('--rotation', choices=ROTATIONS,
-        help='rotation parametrisation (default: matrix for ipopt, local otherwise)'),
+        help='rotation parametrisation (default: matrix for ipopt, local otherwise)',
+        doc="default `matrix` (nine entries, RᵀR = I as constraints) for IPOPT, `local` (R·exp([δ]×)) otherwise; `euler` is "
+            "the thesis's A, B, C"),
     Opt('--start', kind='pose', metavar='X,Y,Z,A,B,C',
-        help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)"),
+        help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)",
+        doc="start sensor pose in the dataset's convention (`--convention`'s; KUKA `X,Y,Z,A,B,C` in mm and degrees, UR "
+            "`X,Y,Z,RX,RY,RZ` in mm and radians, ...; write `--start=` so that a leading minus is not read as an option), "
+            "overrides the setup's; without either, the closed-form estimate"),
     Opt('--convention', choices=tuple(CONVENTIONS),
-        help="robot convention of --start and of the reported pose (default: the dataset's)"),
-    Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit'),
+        help="robot convention of --start and of the reported pose (default: the dataset's)",
+        doc="robot convention of `--start` and of the reported pose (`sensor_pose_as`); default the dataset's"),
+    Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit',
+        doc='iteration limit (respected: no polish past it)'),
     Opt('--model', choices=tuple(KINDS),
         help='residual: reconstructed centres, measured circles, or profile points (default: measurement when every sample '
-             'has a profile, else centre)'),
+             'has a profile, else centre)',
+        doc="residual: reconstructed centres (the thesis's), the measured circles in the laser plane, or every profile point;"
+            " default `measurement` when every sample has a profile, else `centre`"),
     Opt('--keep-all', action='store_true',
-        help='fit every sample: no outlier detection (rows that contradict themselves are still excluded)'),
-    Opt('--alpha', check=('level',), type='float', help=f'family-wise level of the outlier tests (default {ALPHA:g})'),
-    Opt('--no-loo', action='store_true', help='skip the leave-one-out error (one refit per sample)'),
+        help='fit every sample: no outlier detection (rows that contradict themselves are still excluded)',
+        doc='no outlier screening (a row whose `xs,ys,zs` contradict its own profile is excluded all the same, named with its'
+            ' row: `model/consistency.py`)'),
+    Opt('--alpha', check=('level',), type='float', help=f'family-wise level of the outlier tests (default {ALPHA:g})',
+        doc='family-wise level of the outlier tests (default 0.01)'),
+    Opt('--no-loo', action='store_true', help='skip the leave-one-out error (one refit per sample)',
+        doc='skip the leave-one-out error (one exact refit per sample up to 2,000 used samples, the deletion formula above)'),
     Opt('--no-clean', action='store_true',
         help="fit every profile point: no profile cleaning (by default speckle and background points off the sphere's arc "
-             "are dropped and reported)"),
+             "are dropped and reported)",
+        doc="fit every profile point: no profile cleaning (by default the points off the sphere's arc -- speckle, background,"
+            " clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning))"),
     Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
         help="stated noise of a sphere centre (mm per component) the centre residual is tested against (default: setup.toml "
              "[noise] centre_mm, else 0.05); the profile models are tested against each circle fit's covariance and "
-             "--robot-sigma instead"),
+             "--robot-sigma instead",
+        doc='the stated noise the fit is tested against: per-component sd of a sphere centre through the chain, for the '
+            '`centre` residual (default `[noise] centre_mm`, else 0.05)'),
     Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM',
-        help='robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)'),
+        help='robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)',
+        doc="robot repeatability per axis (default `[noise] robot_mm`, else 0.025), which with each circle fit's own "
+            "covariance weights and tests the profile models"),
     Opt('--effects', metavar='NAME[,NAME]',
-        help='calibrate with catalogue effects: sensor_scale, sphere_radius, sphere_center (as handeye diagnose names them)'),
-    _json('print the result as JSON'),
-    Opt('--plot', kind='path', metavar='FILE', help='draw residuals and sphere-centre scatter (PNG)'),
+        help='calibrate with catalogue effects: sensor_scale, sphere_radius, sphere_center (as handeye diagnose names them)',
+        doc='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
+            '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
+            'angles and `[robot] model`); their parameters and 1-sd in `effects`'),
+    Opt('--json', action='store_true', help='print the result as JSON', keyword='',
+        doc='machine-readable output'),
+    Opt('--plot', kind='path', metavar='FILE', help='draw residuals and sphere-centre scatter (PNG)',
+        doc='residuals per measurement and the sphere centres through the chain (PNG)'),
     Opt('--report', kind='path', metavar='OUT.html',
-        help='also write the one-file HTML report (handeye report): the cell in 3-D, verdict, residuals'),
+        help='also write the one-file HTML report (handeye report): the cell in 3-D, verdict, residuals',
+        doc='also write the one-file HTML report ([`handeye report`](#a-report-to-look-at-handeye-report)): the cell in 3-D, '
+            'verdict, residual table'),
     Opt('--out', metavar='FILE',
-        help="also write the JSON result, with the dataset's hash, tool version and options, atomically"),
+        help="also write the JSON result, with the dataset's hash, tool version and options, atomically",
+        doc="the JSON also written atomically to FILE with the dataset's SHA-256, the tool's version and every option"),
 )
 
 _SIMULATE = (

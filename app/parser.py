@@ -37,15 +37,15 @@ class Parser(argparse.ArgumentParser):
 json_wanted = False
 
 
-def build_parser():
-    """The ``handeye`` parser: one subcommand per table of :data:`handeye.app.options.COMMANDS`,
-    one argument per option."""
+def build_parser(commands=None):
+    """The ``handeye`` parser: one subcommand per table of ``commands`` (default
+    :data:`handeye.app.options.COMMANDS`), one argument per option."""
     from handeye.app.options import COMMANDS, GROUPS
 
     parser = Parser(prog="handeye", description="Hand-eye calibration workbench (laser-line sensor, sphere).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     groups = {}
-    for name, command in COMMANDS.items():
+    for name, command in (commands or COMMANDS).items():
         group, _, action = name.partition(" ")
         if action and group not in groups:
             groups[group] = sub.add_parser(group, help=GROUPS[group]).add_subparsers(
