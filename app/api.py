@@ -20,6 +20,7 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app import options
 from handeye.app.arguments import (  # noqa: F401  (load_dataset and MAX_ITER: public names of the API too)
     MAX_ITER,
     _path_argument,
@@ -63,76 +64,14 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     return np.asarray(cal.sensor2flange, float), source
 
 
+@options.documented('calibrate')
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
               no_clean=False, report=None):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-        Embedded name or folder (:func:`load_dataset`); default ``'thesis-real'``.
-    unknowns : str
-        The parts estimated, ``+``-joined: ``sensor`` (6 unknowns: the sensor frame in its mount's
-        frame), ``sphere`` (3: the centre in its mount's frame), ``positioner`` (4 per axis); for
-        example ``sensor``, ``sensor+sphere``, ``sphere+positioner``, ``sensor+sphere+positioner``
-        (:mod:`handeye.app.engine.cell_stage`). A part not estimated comes from ``setup.toml``
-        (``[sensor] pose``, ``[sphere] center``, ``[positioner] axes``) or ``calibration``.
-    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
-        A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
-        and ``lm`` above :data:`handeye.app.engine.request.LARGE` measurements (time and memory
-        linear in the data; the result says so).
-    rotation : {'matrix', 'local', 'euler'}, optional
-        Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
-    start : str or array_like, optional
-        Start sensor pose in ``convention`` (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees);
-        default the setup's ``start_pose``, else the closed-form estimate.
-    convention : {'kuka', 'abb', 'ur', 'fanuc'}, optional
-        Robot convention of ``start`` and of the result's ``sensor_pose``; default the
-        dataset's.
-    max_iter : int, optional
-        Iteration limit of the solver.
-    model : {'centre', 'measurement', 'points'}, optional
-        Residual; default ``measurement`` when every sample has a profile, else ``centre``.
-    keep_all : bool
-        Fit every sample: no outlier screening (a row whose centre columns contradict its own
-        profile is still excluded, :mod:`handeye.model.consistency`).
-    alpha : float, optional
-        Family-wise level of the outlier tests (default 0.01).
-    no_loo : bool
-        Skip the leave-one-out error (one refit per sample).
-    plot : str or pathlib.Path, optional
-        Draw residuals and the sphere centres through the chain to this PNG.
-    out : str or pathlib.Path, optional
-        Also write the JSON result, with the dataset's hash, the tool's version and the
-        options (``provenance``), atomically.
-    sigma : float, optional
-        Stated noise of a sphere centre through the chain, mm per component, that the
-        ``centre`` residual is tested against; default the setup's ``[noise] centre_mm``
-        (0.05). The ``measurement`` residual is tested against each circle fit's covariance
-        (from its own points) plus ``robot_sigma`` instead.
-    robot_sigma : float, optional
-        Robot repeatability, mm per axis (weights of the profile models); default the setup's
-        ``[noise] robot_mm`` (0.025).
-    effects : str or sequence of str, optional
-        Catalogue effects to calibrate with the sensor pose: ``sensor_scale``,
-        ``sphere_radius``, ``sphere_center`` (``'a,b'`` or a list); as ``handeye diagnose``
-        names them.
-    calibration : str or pathlib.Path, optional
-        A saved calibration (``calibrate --out``) whose sensor pose is held: when ``unknowns``
-        has no ``sensor``, instead of ``[sensor] pose``; when it has, the pose is *scored*
-        (below).
-    sensor_pose : str or array_like, optional
-        A sensor pose typed in (``convention``'s columns, e.g. the vendor's), held as
-        ``calibration`` is.
-    no_clean : bool
-        Fit every profile point: no profile cleaning (:mod:`handeye.model.profile_clean`; by
-        default speckle and background points off the sphere's arc are dropped, and the result's
-        ``cleaning`` says how many of which profile). Applies when ``dataset`` is a name or folder.
-    report : str or pathlib.Path, optional
-        Also write the one-file HTML report of the result (``handeye report``,
-        :mod:`handeye.app.reporting`), atomically.
+    {parameters}
 
     Returns
     -------
@@ -189,30 +128,12 @@ def _written(result, data, options, out=None, plot=None, report=None):
     return result
 
 
+@options.documented('diagnose')
 def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor",
              no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-    alpha : float
-        Family-wise level of the tests (default 0.01).
-    figures : str or pathlib.Path, optional
-        Folder to write ``residuals.png`` and ``gap.png`` into.
-    plot : str or pathlib.Path, optional
-        Write the gap-shrinking figure to this PNG.
-    sigma : float, optional
-        Nominal noise per residual component (mm) that chi2/dof is stated against; default the
-        setup's ``[noise] centre_mm`` (0.05).
-    out : str or pathlib.Path, optional
-        Also write the JSON result with provenance, atomically.
-    unknowns : {'sensor', 'sensor+sphere'}
-        ``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when
-        the setup gives none; its start is :func:`calibrate`'s estimate); ``sensor`` tests the
-        effects against the setup's centre.
-    no_clean : bool
-        Fit every profile point: no profile cleaning (as :func:`calibrate`).
+    {parameters}
 
     Returns
     -------
@@ -275,22 +196,13 @@ def _diagnosis_figures(result, figures, plot):
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
 
 
+@options.documented('compare')
 def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None, robot_sigma=None, convention=None,
             keep_all=False):
     """Which of two calibrations fits a dataset better, and is the difference significant
     (``handeye compare DATASET A.json B.json``; :mod:`handeye.app.engine.score`).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-    a, b : str, pathlib.Path, CalibrationResult or array_like (4, 4)
-        The two calibrations (saved files, results, or sensor poses as 4x4 in the mount's frame, mm).
-    unknowns : {'sensor', 'sensor+sphere'}, optional
-        ``sensor+sphere`` fits the sphere centre with each pose held; default ``sensor`` when the
-        setup gives the centre, else ``sensor+sphere``.
-    model, alpha, sigma, robot_sigma, convention, keep_all
-        As :func:`calibrate` (the data's own calibration, whose screening and residual model both
-        poses are scored with; ``alpha`` is also the level of "significant").
+    {parameters}
 
     Returns
     -------

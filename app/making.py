@@ -7,6 +7,7 @@ import pathlib
 
 import numpy as np
 
+from handeye.app import options
 from handeye.app.arguments import _integer, _number, _path_argument, _pose_text, load_dataset
 from handeye.app.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
@@ -57,63 +58,14 @@ class SimulationResult(ResultProtocol):
         return "\n".join(lines)
 
 
+@options.documented('simulate')
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
              no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None,
              robot=None):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
-    Parameters
-    ----------
-    out : str or pathlib.Path
-        Dataset folder to write (must be new or empty).
-    seed : int
-    effect : str or sequence of str
-        Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
-        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot``
-        ``joint_offsets=j2:0.05,j3:-0.03`` (degrees), ``link_lengths=a2:0.3,d4:-0.2`` (mm, the
-        model's length names) and ``joint_compliance=j2:0.02,j3:0.01`` (degrees per metre).
-    profiles : bool
-        Also write the laser profiles.
-    poses : str or pathlib.Path, optional
-        A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns,
-        degrees) instead of the thesis strategy.
-    n_poses : int
-        Poses of the thesis strategy (1-36).
-    linearity : float
-        Sensor linearity error as a fraction of the 100 mm range, in [0, 0.1).
-    motions : {'thesis', 'about-sphere'}
-    translations : int
-        Pure flange translations (0-6) at each of two orientations.
-    truth : str or array_like, optional
-        True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the
-        thesis's (190, 100, 125, 180, -88, 0) in KUKA terms on the flange,
-        :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.
-    diameter : float, optional
-        Sphere diameter, mm; default the thesis's certified 59.94507.
-    center : str or array_like, optional
-        Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the
-        thesis's in the base, :mod:`handeye.model.simulate_mounts`' on the flange or the table.
-    convention : {'kuka', 'abb', 'ur', 'fanuc'}
-        Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
-    max_tilt : float
-        Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
-    no_start : bool
-        Write no ``start_pose``: a calibration then starts from the closed-form estimate.
-    sensor_mount, sphere_mount : str
-        ``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner``
-        (:mod:`handeye.model.simulate_mounts`).
-    positioner_axes : str, optional
-        Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first;
-        default a KUKA KP1-V-like two-axis positioner.
-    positioner_error : str or sequence of two floats, optional
-        ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
-    robot : str, optional
-        A nominal robot model (built-in name or model file, :mod:`handeye.model.robots`): the
-        poses are reached by its inverse kinematics and the dataset gets ``j1..j6`` and
-        ``[robot] model`` (:mod:`handeye.model.simulate_robot`); without ``center`` the sphere
-        is placed in its workspace (:data:`handeye.model.simulate_robot.CENTRES`). The sensor on
-        the flange and the sphere in the world only.
+    {parameters}
 
     Returns
     -------
@@ -386,54 +338,12 @@ def _floats(text, option, count):
     return out
 
 
+@options.documented('plan')
 def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
          sensor_mount="flange", sphere_mount="world", robot=None, effects=None, target=None, sigma=None):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
-    Parameters
-    ----------
-    n : int, optional
-        Number of poses to choose; default 12, with a robot the number its ``target`` takes.
-    candidates : str or pathlib.Path, optional
-        Candidate flange poses (a pose list in any convention, told by its header; with a robot
-        optionally followed by j1..j6, degrees: those configurations); default the thesis
-        strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
-    dataset : str, pathlib.Path or Dataset, optional
-        Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
-        robot convention from it (only its ``setup.toml`` is read: a cell can be planned before
-        it is measured); default the thesis's cell.
-    out : str or pathlib.Path, optional
-        Write the chosen poses as a pose list in the dataset's convention.
-    max_tilt : float
-        Largest tilt of the sensor from straight down of the default candidates, degrees.
-    margin : str or sequence of two floats, optional
-        ``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps
-        the sphere inside the laser line and the measuring range even then.
-    workspace : str or sequence of six floats, optional
-        ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
-    score : str or pathlib.Path, optional
-        A pose list to score (predicted accuracy) instead of choosing.
-    sensor_mount, sphere_mount : str
-        The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world``
-        (the thesis's cell), ``world``/``flange`` or ``flange``/``positioner``, with ``handeye
-        simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
-        lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
-        (degrees), and each default candidate has its own axis angles.
-    robot : str, optional
-        Plan for the robot's own errors too (:mod:`handeye.model.planning_robot`): a built-in
-        nominal model or a model file (default the dataset's ``[robot] model``, which turns this
-        on as well). Each candidate is reached by the nominal inverse kinematics (unreachable ones
-        skipped), the other wrist offered as a candidate of its own; the parameters no candidate
-        separates from the sensor pose and the sphere centre are named and left out; ``out``
-        gets j1..j6. Without a dataset the sphere is at :data:`handeye.model.simulate_robot.CENTRES`.
-    effects : str or sequence of str, optional
-        With a robot: ``joint_offsets`` (default), ``link_lengths``, ``joint_compliance``.
-    target : str or dict, optional
-        With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach
-        (default 0.01 deg, 0.05 mm, 0.005 deg/m): the number of poses it takes is the plan's ``n``.
-    sigma : float, optional
-        With a robot: the stated noise per component of a sphere centre, mm (default the
-        dataset's ``[noise] centre_mm``, else 0.05).
+    {parameters}
 
     Returns
     -------
