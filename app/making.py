@@ -8,7 +8,7 @@ import pathlib
 import numpy as np
 
 from handeye.app import options
-from handeye.app.arguments import _integer, _number, _path_argument, _pose_text, load_dataset
+from handeye.app.arguments import _path_argument, _pose_text, load_dataset
 from handeye.app.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
 
@@ -71,28 +71,27 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     -------
     SimulationResult
     """
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.engine.request import parse_pose
+    from handeye.app.files import check_output_folder
     from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim
     from handeye.model.pose import pose_from_transform
 
+    v = checked_values("simulate", options.given("simulate", locals()))
+    seed, n_poses, translations = v["seed"], v["n_poses"], v["translations"]
     conventions.check(convention)
-    from handeye.app.files import check_output_folder
-
     folder = check_output_folder(out, "--out", empty=True)
     if isinstance(linearity, bool) or not isinstance(linearity, (int, float)) or not 0 <= linearity < 0.1:
         raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
-    seed = _integer(seed, "--seed", 0)
-    n_poses = _integer(n_poses, "--n-poses", 1)
-    translations = _integer(translations, "--translations", 0)
-    setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    setup = sim.Setup(linearity=linearity, max_tilt_deg=v["max_tilt"])
     cell, setup = _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error)
     if truth is not None:
         pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
         setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
     if diameter is not None:
-        setup = dataclasses.replace(setup, diameter=_number(diameter, "--diameter", 0.0, 10_000.0, low_open=True))
+        setup = dataclasses.replace(setup, diameter=v["diameter"])
     if center is not None:
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
@@ -349,17 +348,18 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
     -------
     PlanResult
     """
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.files import check_output_path, write_text_atomically
     from handeye.model import planning, planning_robot, simulate_robot
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
-    n = None if n is None else _integer(n, "--n", 1)
-
+    v = checked_values("plan", options.given("plan", locals()))
+    n, sigma = v["n"], v["sigma"]
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
-    setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    setup = sim.Setup(linearity=0.0, max_tilt_deg=v["max_tilt"])
     if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
         raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
     cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
@@ -388,7 +388,7 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
         if dataset is None:
             centre = np.asarray(simulate_robot.CENTRES.get(str(robot), centre), float)
         rp = planning_robot.request(
-            setup, centre, arm, effects, target, n, stated if sigma is None else _number(sigma, "--sigma", 0.0, 1e3, True),
+            setup, centre, arm, effects, target, n, stated if sigma is None else sigma,
             score if score is not None else candidates, score is not None,
             None if workspace is None else _floats(workspace, "--workspace", 6), margin)
         result = PlanResult(len(rp.ids), list(rp.ids), rp.poses, rp.logdet, rp.sd[:6], rp.skipped, rp.usable,

@@ -1,123 +1,39 @@
 """Every command's options, declared once: one table per command (:data:`COMMANDS`).
 
-Each option is a frozen :class:`Opt` (flag, keyword, type, unit, default, choices, metavar,
-help, check). From the tables are made the argparse parser
+Each option is a frozen :class:`~handeye.app.option_record.Opt` (flag, keyword, type, unit,
+default, choices, metavar, help, check). From the tables are made the argparse parser
 (:func:`handeye.app.parser.build_parser`), the command line's call of the public function
 (:func:`keywords`), the values a public function was given (:func:`given`; tests check that its
-keywords and defaults are the table's), what the request validates (:attr:`Opt.check`, applied
-by :mod:`handeye.app.engine.command_request`), the options saved with ``--out`` (:func:`record`)
-and the README's option tables (:func:`markdown`).
+keywords and defaults are the table's), its docstring's ``Parameters`` (:func:`documented`),
+what the request validates (``Opt.check``, applied by
+:mod:`handeye.app.engine.command_request`), the options saved with ``--out`` (:func:`record`)
+and the README's option tables (:func:`markdown`); :mod:`handeye.app.option_record` makes them.
 
 Imports only the standard library and the names of the options (:mod:`handeye.app.choices`,
 :mod:`handeye.model.names`): ``handeye --help`` never loads numpy.
 """
 from __future__ import annotations
 
-import dataclasses
-
 from handeye.app.choices import ALPHA, CLASSIC_METHODS, CLOUD_FORMATS, FORMATS, METHODS, ROBOT_FORMATS
+from handeye.app.option_record import (  # noqa: F401  (what the tables make, named with them)
+    Command,
+    Opt,
+    defaults,
+    documented,
+    given,
+    keywords,
+    markdown,
+    parameters,
+    record,
+)
 from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
 
 #: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).
 MAX_ITER = 1_000_000
 #: The bounds of a stated noise (``--sigma``, ``--robot-sigma``), mm.
 NOISE = ("number", 1e-6, 1e3)
-
-
-@dataclasses.dataclass(frozen=True)
-class Opt:
-    """One option of one command, as the parser, the public function, the request, the
-    provenance record and the README see it.
-
-    Attributes
-    ----------
-    flag : str
-        ``--max-iter``, or a positional's name (``dataset``).
-    default : object
-        The default of the command line and of the public function's keyword (immutable).
-    type : {'int', 'float'} or None
-        How the command line reads the text (None: kept as text).
-    unit : str or None
-        Unit of the value (``mm``, ``deg``), shown in the docs.
-    choices : tuple, callable or None
-        The values allowed (a callable gives them when the parser is built).
-    metavar, help, nargs, required
-        As argparse's.
-    action : {'store_true', 'append'} or None
-    doc : str or None
-        The README's text of the option (default ``help``).
-    keyword : str or None
-        The public function's keyword; None: the flag's name (``max_iter``); ``''``: none
-        (``--json`` is the command line's own).
-    check : tuple
-        What the request validates: ``('number', low, high)``, ``('integer', low, high)``.
-    kind : {'value', 'path', 'pose'}
-        How the provenance record saves it: as given, as text (a path, a dataset's folder), or
-        as text or a flat list of numbers (a pose).
-    pytype : str or None
-        The keyword's type in the function's docstring, where :meth:`python_type`'s guess is not it.
-    """
-
-    flag: str
-    default: object = None
-    type: str | None = None
-    unit: str | None = None
-    choices: object = None
-    metavar: str | None = None
-    help: str | None = None
-    nargs: str | None = None
-    action: str | None = None
-    required: bool = False
-    doc: str | None = None
-    keyword: str | None = None
-    check: tuple = ()
-    kind: str = "value"
-    pytype: str | None = None
-
-    def __post_init__(self):
-        if self.action == "store_true":  # a flag is False until given
-            object.__setattr__(self, "default", False)
-
-    @property
-    def dest(self):
-        """The argparse attribute (``max_iter``)."""
-        return self.flag.lstrip("-").replace("-", "_")
-
-    @property
-    def name(self):
-        """The public function's keyword, or ``''`` for an option of the command line's own."""
-        return self.dest if self.keyword is None else self.keyword
-
-    def python_type(self):
-        """The keyword's type as the docstring states it (``float, optional``)."""
-        choices = None if callable(self.choices) else self.choices
-        guess = ("bool" if self.action == "store_true" else "str or sequence of str" if self.action == "append"
-                 else "{" + ", ".join(map(repr, choices)) + "}" if choices else {"int": "int", "float": "float"}.get(
-                     self.type, {"path": "str or pathlib.Path", "pose": "str or array_like"}.get(self.kind, "str")))
-        optional = self.default is None and not self.required and self.flag.startswith("-")
-        return self.pytype or guess + (", optional" if optional else "")
-
-    def argument(self):
-        """``(flags, keywords)`` of :meth:`argparse.ArgumentParser.add_argument`."""
-        given = {"action": self.action, "help": self.help, "metavar": self.metavar, "nargs": self.nargs,
-                 "type": {"int": int, "float": float}.get(self.type),
-                 "choices": self.choices() if callable(self.choices) else self.choices,
-                 "default": list(self.default) if self.action == "append" else self.default}
-        if self.required:
-            given["required"] = True
-        if self.action == "store_true":
-            given = {"action": "store_true", "help": self.help}
-        return (self.flag,), {key: value for key, value in given.items() if value is not None}
-
-
-@dataclasses.dataclass(frozen=True)
-class Command:
-    """A command's help line, its options and the public function they are the keywords of
-    (``'module:name'``, imported when the command runs; None: the command line's own)."""
-
-    help: str
-    options: tuple
-    function: str | None = None
+#: The bounds of a largest sensor tilt from straight down (``--max-tilt``), degrees: (0, 90].
+TILT = ("number", 0.0, 90.0, True)
 
 
 def _studies():
@@ -241,7 +157,7 @@ _CALIBRATE = (
 _SIMULATE = (
     Opt('--out', metavar='DIR', required=True, help='dataset folder to write (must be empty or new)',
         kind='path'),
-    Opt('--seed', 0, type='int'),
+    Opt('--seed', 0, check=('integer', 0), type='int'),
     Opt('--effect', (), action='append', metavar='NAME=VALUE',
         help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | sign_flip=ID,ID | outlier=ID,ID | "
              "with --robot: joint_offsets=j2:0.05,j3:-0.03 (degrees), link_lengths=a2:0.3,d4:-0.2 (mm, the model's length "
@@ -264,12 +180,12 @@ _SIMULATE = (
         doc='A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns, degrees) instead of '
             'the thesis strategy.',
         kind='path'),
-    Opt('--n-poses', 36, type='int', help='poses of the thesis strategy (1-36)'),
+    Opt('--n-poses', 36, check=('integer', 1), type='int', help='poses of the thesis strategy (1-36)'),
     Opt('--linearity', 0.0, type='float', help='sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)'),
     Opt('--motions', 'thesis', choices=('thesis', 'about-sphere'),
         help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same orientations rotating "
              "about the sphere (seen at one sensor point)"),
-    Opt('--translations', 0, type='int', metavar='K',
+    Opt('--translations', 0, check=('integer', 0), type='int', metavar='K',
         help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)",
         doc='Pure flange translations (0-6) at each of two orientations.'),
     Opt('--truth', metavar='POSE',
@@ -278,7 +194,8 @@ _SIMULATE = (
         doc="True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the thesis's (190, 100, 125,"
             " 180, -88, 0) in KUKA terms on the flange, :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.",
         pytype='str or array_like, optional'),
-    Opt('--diameter', type='float', metavar='MM', help='sphere diameter (default 59.94507)',
+    Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
+        help='sphere diameter (default 59.94507)',
         doc="Sphere diameter, mm; default the thesis's certified 59.94507."),
     Opt('--center', metavar='X,Y,Z', help="sphere centre in its mount's frame (robot base, flange or table), mm",
         doc="Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the thesis's in the base, "
@@ -287,7 +204,7 @@ _SIMULATE = (
     Opt('--convention', 'kuka', choices=tuple(CONVENTIONS),
         help='robot convention of the written dataset and of --truth (default kuka)',
         doc='Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.'),
-    Opt('--max-tilt', 90.0, type='float', metavar='DEG',
+    Opt('--max-tilt', 90.0, check=TILT, type='float', metavar='DEG',
         help="largest sensor tilt from straight down (default 90, the thesis's)",
         doc='Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).'),
     Opt('--no-start', action='store_true', help='write no start pose (calibrate starts from the closed form)'),
@@ -334,7 +251,8 @@ _DIAGNOSE = (
 )
 
 _PLAN = (
-    Opt('--n', type='int', help='number of poses to choose (default 12; with a robot the number its --target takes)'),
+    Opt('--n', check=('integer', 1), type='int',
+        help='number of poses to choose (default 12; with a robot the number its --target takes)'),
     Opt('--candidates', metavar='CSV',
         help="candidate flange poses (a pose list in any convention, told by its header); default: the thesis strategy's 36 "
              "orientations x 3 cuts scaled to the sphere (108 poses)",
@@ -348,7 +266,7 @@ _PLAN = (
     Opt('--out', metavar='CSV',
         help="write the chosen poses as a pose list in the dataset's convention (KUKA without --dataset)",
         kind='path'),
-    Opt('--max-tilt', 90.0, type='float', metavar='DEG',
+    Opt('--max-tilt', 90.0, check=TILT, type='float', metavar='DEG',
         help="largest sensor tilt from straight down of the candidates (default 90, the thesis's)",
         doc='Largest tilt of the sensor from straight down of the default candidates, degrees.'),
     Opt('--margin', metavar='MM,DEG',
@@ -393,7 +311,7 @@ _PLAN = (
         doc="With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach (default 0.01 deg, 0.05 mm, "
             "0.005 deg/m): the number of poses it takes is the plan's ``n``.",
         pytype='str or dict, optional'),
-    Opt('--sigma', type='float', metavar='MM',
+    Opt('--sigma', check=('number', 0.0, 1e3, True), type='float', metavar='MM',
         help='with a robot: stated noise per component of a sphere centre (default [noise] centre_mm, else 0.05)'),
     _json(),
 )
@@ -638,96 +556,3 @@ COMMANDS = {
 }
 #: a command whose actions are commands of their own -> its help line
 GROUPS = {"dataset": "make a dataset folder: `handeye dataset new OUT` from loose files or a ROS 2 bag"}
-
-
-def keywords(command, values, table=None):
-    """The public function's keywords of ``command`` from ``values`` (the parsed arguments by
-    their argparse name, ``vars(args)``); ``table`` instead of the command's own options."""
-    return {opt.name: values[opt.dest] for opt in table or COMMANDS[command].options if opt.name}
-
-
-def defaults(command):
-    """``{keyword: default}`` of ``command``'s public function, as the table declares them."""
-    return {opt.name: opt.default for opt in COMMANDS[command].options if opt.name}
-
-
-def given(command, scope, table=None):
-    """The values a public function of ``command`` was called with: its keywords picked from
-    ``scope`` (its ``locals()``), in the table's order."""
-    return {opt.name: scope[opt.name] for opt in table or COMMANDS[command].options if opt.name}
-
-
-def _saved(opt, value):
-    """``value`` of ``opt`` as the provenance record keeps it (plain JSON types)."""
-    if opt.action == "store_true":
-        return bool(value)
-    if value is None or isinstance(value, str) or opt.kind == "value":
-        return value
-    if opt.kind == "path":
-        return str(getattr(value, "path", value))  # a Dataset given instead of its name: its folder
-    value = value.tolist() if hasattr(value, "tolist") else value  # a pose as numbers: a flat list
-    return [x for v in value for x in _saved(opt, v)] if isinstance(value, (list, tuple)) else [value]
-
-
-def record(command, values, table=None):
-    """The options saved with ``--out`` (``provenance['options']``): every keyword of the
-    command but ``out`` itself, as JSON values."""
-    return {opt.name: _saved(opt, values[opt.name]) for opt in table or COMMANDS[command].options
-            if opt.name and opt.name != "out"}
-
-
-def _rst(text):
-    """Markdown to the docstring's reST: code in double backquotes, links as their text."""
-    import re
-
-    return re.sub(r"\[([^]]+)\]\(#[^)]+\)", r"\1", re.sub(r"(?<![`:])`([^`]+)`(?!`)", r"``\1``", text))
-
-
-def parameters(command):
-    """The numpydoc ``Parameters`` section of ``command``'s public function, from its table
-    (options in a row with the same text and type share an entry)."""
-    import textwrap
-
-    entries = []
-    for opt in (opt for opt in COMMANDS[command].options if opt.name):
-        text, kind = _rst(opt.doc or opt.help or ""), opt.python_type()
-        if entries and entries[-1][1:] == [text, kind] and text:
-            entries[-1][0] += f", {opt.name}"
-        else:
-            entries.append([opt.name, text, kind])
-    lines = ["Parameters", "----------"]
-    for names, text, kind in entries:
-        lines += [f"{names} : {kind}"] + textwrap.wrap(text, 92, initial_indent="    ", subsequent_indent="    ")
-    return "\n    ".join(lines)
-
-
-def documented(command):
-    """Decorator: the ``{parameters}`` line of a public function's docstring becomes the
-    ``Parameters`` section of ``command``'s table (:func:`parameters`)."""
-    def document(function):
-        function.__doc__ = function.__doc__.replace("{parameters}", parameters(command))
-        return function
-
-    return document
-
-
-def _cell(opt):
-    """The option column of the docs: ``--method ipopt|gn|...``, ``--sigma MM``, ``DATASET``."""
-    choices = opt.choices() if callable(opt.choices) else opt.choices
-    if not opt.flag.startswith("-"):
-        return f"`{opt.metavar or opt.flag.upper()}`"
-    if opt.action == "store_true":
-        return f"`{opt.flag}`"
-    value = "|".join(map(str, choices)) if choices else opt.metavar or opt.dest.upper()
-    return f"`{opt.flag} {value}`" + (" (repeatable)" if opt.action == "append" else "")
-
-
-def markdown(command, table=None):
-    """``command``'s options as the README's markdown table: option, default, meaning (the
-    README's tables are this text; tests/test_options.py checks that they are)."""
-    rows = ["| option | default | meaning |", "|---|---|---|"]
-    for opt in table or COMMANDS[command].options:
-        default = "" if opt.default in (None, ()) or opt.default is False else f"`{opt.default}`"
-        cells = (_cell(opt), default, (opt.doc or opt.help or "") + (f" ({opt.unit})" if opt.unit else ""))
-        rows.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
-    return "\n".join(rows)
