@@ -64,7 +64,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     return np.asarray(cal.sensor2flange, float), source
 
 
-@options.documented('calibrate')
+@options.COMMANDS['calibrate'].documented
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
@@ -93,7 +93,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     from handeye.app.engine.command_request import CalibrateRequest
     from handeye.app.engine.score import run_score
 
-    values = options.given("calibrate", locals())
+    values = options.COMMANDS["calibrate"].given(locals())
     data = load_dataset(dataset, clean=not no_clean)
     asked = CalibrateRequest.from_options(values, data)
     request, free = asked.request, asked.free
@@ -128,7 +128,7 @@ def _written(result, data, options, out=None, plot=None, report=None):
     return result
 
 
-@options.documented('diagnose')
+@options.COMMANDS['diagnose'].documented
 def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor",
              no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
@@ -145,7 +145,7 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     from handeye.app import options
     from handeye.app.engine.command_request import diagnose_request
 
-    values = options.given("diagnose", locals())
+    values = options.COMMANDS["diagnose"].given(locals())
     data = load_dataset(dataset, clean=not no_clean)
     checked, parts, record = diagnose_request(values, data)
     result, data = _diagnosed(data, parts, checked["alpha"], sigma)
@@ -196,7 +196,7 @@ def _diagnosis_figures(result, figures, plot):
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
 
 
-@options.documented('compare')
+@options.COMMANDS['compare'].documented
 def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None, robot_sigma=None, convention=None,
             keep_all=False):
     """Which of two calibrations fits a dataset better, and is the difference significant
@@ -213,7 +213,7 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     from handeye.app.engine.command_request import compare_request
     from handeye.app.outputs import commands
 
-    values = options.given("compare", locals())
+    values = options.COMMANDS["compare"].given(locals())
     data = load_dataset(dataset)
     request, level = compare_request(values, data)
     poses, sources = [], []

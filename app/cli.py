@@ -117,7 +117,7 @@ def _result(args):
 
     name = args.command + (f" {args.action}" if args.command == "dataset" else "")
     module, _, function = options.COMMANDS[name].function.partition(":")
-    return getattr(importlib.import_module(module), function)(**options.keywords(name, vars(args)))
+    return getattr(importlib.import_module(module), function)(**options.COMMANDS[name].keywords(vars(args)))
 
 
 #: command -> its exit code from its result (the others: 0)

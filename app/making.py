@@ -58,7 +58,7 @@ class SimulationResult(ResultProtocol):
         return "\n".join(lines)
 
 
-@options.documented('simulate')
+@options.COMMANDS['simulate'].documented
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
              no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None,
@@ -79,7 +79,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     from handeye.model import simulate as sim
     from handeye.model.pose import pose_from_transform
 
-    v = checked_values("simulate", options.given("simulate", locals()))
+    v = checked_values("simulate", options.COMMANDS["simulate"].given(locals()))
     seed, n_poses, translations = v["seed"], v["n_poses"], v["translations"]
     conventions.check(convention)
     folder = check_output_folder(out, "--out", empty=True)
@@ -337,7 +337,7 @@ def _floats(text, option, count):
     return out
 
 
-@options.documented('plan')
+@options.COMMANDS['plan'].documented
 def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
          sensor_mount="flange", sphere_mount="world", robot=None, effects=None, target=None, sigma=None):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
@@ -354,7 +354,7 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
     from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
-    v = checked_values("plan", options.given("plan", locals()))
+    v = checked_values("plan", options.COMMANDS["plan"].given(locals()))
     n, sigma = v["n"], v["sigma"]
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:

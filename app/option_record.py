@@ -96,40 +96,6 @@ class Opt:
         return (self.flag,), {key: value for key, value in given.items() if value is not None}
 
 
-@dataclasses.dataclass(frozen=True)
-class Command:
-    """A command's help line, its options and the public function they are the keywords of
-    (``'module:name'``, imported when the command runs; None: the command line's own)."""
-
-    help: str
-    options: tuple
-    function: str | None = None
-
-
-def _options(command, table):
-    """``table``, or ``command``'s own options."""
-    from handeye.app.options import COMMANDS
-
-    return table or COMMANDS[command].options
-
-
-def keywords(command, values, table=None):
-    """The public function's keywords of ``command`` from ``values`` (the parsed arguments by
-    their argparse name, ``vars(args)``); ``table`` instead of the command's own options."""
-    return {opt.name: values[opt.dest] for opt in _options(command, table) if opt.name}
-
-
-def defaults(command):
-    """``{keyword: default}`` of ``command``'s public function, as the table declares them."""
-    return {opt.name: opt.default for opt in _options(command, None) if opt.name}
-
-
-def given(command, scope, table=None):
-    """The values a public function of ``command`` was called with: its keywords picked from
-    ``scope`` (its ``locals()``), in the table's order."""
-    return {opt.name: scope[opt.name] for opt in _options(command, table) if opt.name}
-
-
 def _saved(opt, value):
     """``value`` of ``opt`` as the provenance record keeps it (plain JSON types)."""
     if opt.action == "store_true":
@@ -142,42 +108,9 @@ def _saved(opt, value):
     return [x for v in value for x in _saved(opt, v)] if isinstance(value, (list, tuple)) else [value]
 
 
-def record(command, values, table=None):
-    """The options saved with ``--out`` (``provenance['options']``): every keyword of the
-    command but ``out`` itself, as JSON values."""
-    return {opt.name: _saved(opt, values[opt.name]) for opt in _options(command, table)
-            if opt.name and opt.name != "out"}
-
-
 def _rst(text):
     """Markdown to the docstring's reST: code in double backquotes, links as their text."""
     return re.sub(r"\[([^]]+)\]\(#[^)]+\)", r"\1", re.sub(r"(?<![`:])`([^`]+)`(?!`)", r"``\1``", text))
-
-
-def parameters(command):
-    """The numpydoc ``Parameters`` section of ``command``'s public function, from its table
-    (options in a row with the same text and type share an entry)."""
-    entries = []
-    for opt in (opt for opt in _options(command, None) if opt.name):
-        text, kind = _rst(opt.doc or opt.help or ""), opt.python_type()
-        if entries and entries[-1][1:] == [text, kind] and text:
-            entries[-1][0] += f", {opt.name}"
-        else:
-            entries.append([opt.name, text, kind])
-    lines = ["Parameters", "----------"]
-    for names, text, kind in entries:
-        lines += [f"{names} : {kind}"] + textwrap.wrap(text, 92, initial_indent="    ", subsequent_indent="    ")
-    return "\n    ".join(lines)
-
-
-def documented(command):
-    """Decorator: the ``{parameters}`` line of a public function's docstring becomes the
-    ``Parameters`` section of ``command``'s table (:func:`parameters`)."""
-    def document(function):
-        function.__doc__ = function.__doc__.replace("{parameters}", parameters(command))
-        return function
-
-    return document
 
 
 def _cell(opt):
@@ -191,12 +124,66 @@ def _cell(opt):
     return f"`{opt.flag} {value}`" + (" (repeatable)" if opt.action == "append" else "")
 
 
-def markdown(command, table=None):
-    """``command``'s options as the README's markdown table: option, default, meaning (the
-    README's tables are this text; tests/test_options.py checks that they are)."""
-    rows = ["| option | default | meaning |", "|---|---|---|"]
-    for opt in _options(command, table):
-        default = "" if opt.default in (None, ()) or opt.default is False else f"`{opt.default}`"
-        cells = (_cell(opt), default, (opt.doc or opt.help or "") + (f" ({opt.unit})" if opt.unit else ""))
-        rows.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
-    return "\n".join(rows)
+@dataclasses.dataclass(frozen=True)
+class Command:
+    """A command's help line, its options (its table) and the public function they are the
+    keywords of (``'module:name'``, imported when the command runs; None: the command line's
+    own); what is made from the table is made by its methods."""
+
+    help: str
+    options: tuple
+    function: str | None = None
+
+    @property
+    def keyword_options(self):
+        """The options that are keywords of the public function (not ``--json``)."""
+        return tuple(opt for opt in self.options if opt.name)
+
+    def keywords(self, values):
+        """The public function's keywords from ``values``, the parsed arguments (``vars(args)``)."""
+        return {opt.name: values[opt.dest] for opt in self.keyword_options}
+
+    def defaults(self):
+        """``{keyword: default}`` of the public function, as the table declares them."""
+        return {opt.name: opt.default for opt in self.keyword_options}
+
+    def given(self, scope):
+        """The values the public function was called with: its keywords picked from ``scope``
+        (its ``locals()``), in the table's order."""
+        return {opt.name: scope[opt.name] for opt in self.keyword_options}
+
+    def record(self, values):
+        """The options saved with ``--out`` (``provenance['options']``): every keyword but
+        ``out`` itself, as JSON values."""
+        return {opt.name: _saved(opt, values[opt.name]) for opt in self.keyword_options if opt.name != "out"}
+
+    def parameters(self):
+        """The numpydoc ``Parameters`` section of the public function (options in a row with the
+        same text and type share an entry)."""
+        entries = []
+        for opt in self.keyword_options:
+            text, kind = _rst(opt.doc or opt.help or ""), opt.python_type()
+            if entries and entries[-1][1:] == [text, kind] and text:
+                entries[-1][0] += f", {opt.name}"
+            else:
+                entries.append([opt.name, text, kind])
+        lines = ["Parameters", "----------"]
+        for names, text, kind in entries:
+            lines += [f"{names} : {kind}"] + textwrap.wrap(text, 92, initial_indent="    ", subsequent_indent="    ")
+        return "\n    ".join(lines)
+
+    def documented(self, function):
+        """Decorator: the ``{parameters}`` line of the public function's docstring becomes its
+        ``Parameters`` section (:meth:`parameters`)."""
+        function.__doc__ = function.__doc__.replace("{parameters}", self.parameters())
+        return function
+
+    def markdown(self):
+        """The options as the README's markdown table: option, default, meaning (the README's
+        tables are this text; tests/test_options.py checks that they are)."""
+        rows = ["| option | default | meaning |", "|---|---|---|"]
+        for opt in self.options:
+            default = "" if opt.default in (None, ()) or opt.default is False else f"`{opt.default}`"
+            cells = (_cell(opt), default, (opt.doc or opt.help or "") + (f" ({opt.unit})" if opt.unit else ""))
+            rows.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
+        return "\n".join(rows)

@@ -2,12 +2,12 @@
 
 Each option is a frozen :class:`~handeye.app.option_record.Opt` (flag, keyword, type, unit,
 default, choices, metavar, help, check). From the tables are made the argparse parser
-(:func:`handeye.app.parser.build_parser`), the command line's call of the public function
-(:func:`keywords`), the values a public function was given (:func:`given`; tests check that its
-keywords and defaults are the table's), its docstring's ``Parameters`` (:func:`documented`),
-what the request validates (``Opt.check``, applied by
-:mod:`handeye.app.engine.command_request`), the options saved with ``--out`` (:func:`record`)
-and the README's option tables (:func:`markdown`); :mod:`handeye.app.option_record` makes them.
+(:func:`handeye.app.parser.build_parser`) and, by the methods of
+:class:`~handeye.app.option_record.Command`, the command line's call of the public function
+(``keywords``), the values a public function was given (``given``; tests check that its keywords
+and defaults are the table's), its docstring's ``Parameters`` (``documented``), the options saved
+with ``--out`` (``record``) and the README's option tables (``markdown``); what the request
+validates is the options' ``check`` (applied by :mod:`handeye.app.engine.command_request`).
 
 Imports only the standard library and the names of the options (:mod:`handeye.app.choices`,
 :mod:`handeye.model.names`): ``handeye --help`` never loads numpy.
@@ -15,17 +15,7 @@ Imports only the standard library and the names of the options (:mod:`handeye.ap
 from __future__ import annotations
 
 from handeye.app.choices import ALPHA, CLASSIC_METHODS, CLOUD_FORMATS, FORMATS, METHODS, ROBOT_FORMATS
-from handeye.app.option_record import (  # noqa: F401  (what the tables make, named with them)
-    Command,
-    Opt,
-    defaults,
-    documented,
-    given,
-    keywords,
-    markdown,
-    parameters,
-    record,
-)
+from handeye.app.option_record import Command, Opt
 from handeye.model.names import CONVENTIONS, KINDS, ROTATIONS
 
 #: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).

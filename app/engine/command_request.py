@@ -3,7 +3,7 @@
 Each command reads its dataset, then turns its options into a request here, then runs, then
 writes: ``load -> *_request(options, data) -> run -> write`` (as scipy's ``least_squares``
 checks its arguments in one block and its back-ends never check them again). The options come
-as the public function was given them (:func:`handeye.app.options.given`); the checks of the
+as the public function was given them (``COMMANDS[name].given``); the checks of the
 option tables (:attr:`handeye.app.options.Opt.check`) run first, then what only a command knows
 (a closed-form method takes no start, a score no effects), then what only the dataset can tell
 (a sensor held needs a pose, a file to write must not be one read). What is free and what is
@@ -18,7 +18,7 @@ from handeye.app.arguments import _integer, _number, _pose_text
 from handeye.app.choices import ALPHA, CLASSIC_METHODS
 from handeye.app.engine.request import UNKNOWNS, CalibrationRequest, Free, parse_pose, unknown_parts
 from handeye.app.errors import RequestError
-from handeye.app.options import COMMANDS, record
+from handeye.app.options import COMMANDS
 from handeye.model import conventions
 
 
@@ -33,11 +33,12 @@ def _level(value, option):
 CHECKS = {"number": _number, "integer": _integer, "level": _level}
 
 
-def checked_values(command, values, table=None):
-    """``values`` with every option of ``command``'s table that declares a ``check`` validated
-    (a new dict; None stays None except for a ``level``, whose None is :data:`ALPHA`)."""
+def checked_values(command, values):
+    """``values`` with every option of ``command``'s table (a name, or a
+    :class:`~handeye.app.option_record.Command`) that declares a ``check`` validated (a new
+    dict; None stays None except for a ``level``, whose None is :data:`ALPHA`)."""
     out = dict(values)
-    for opt in table or COMMANDS[command].options:
+    for opt in (COMMANDS[command] if isinstance(command, str) else command).options:
         if opt.check and (values.get(opt.name) is not None or opt.check[0] == "level"):
             out[opt.name] = CHECKS[opt.check[0]](values.get(opt.name), opt.flag, *opt.check[1:])
     return out
@@ -137,7 +138,7 @@ class CalibrateRequest:
             options={} if v["max_iter"] is None else {"max_iter": v["max_iter"]}, outliers=not v["keep_all"],
             alpha=v["alpha"], loo=not v["no_loo"], model=v["model"], convention=convention, sigma=v["sigma"],
             robot_sigma=v["robot_sigma"], effects=free.effects)
-        return cls(request, free, closed_form, record("calibrate", values))
+        return cls(request, free, closed_form, COMMANDS["calibrate"].record(values))
 
     def holding(self, sensor2flange, data):
         """The least-squares request with the given sensor pose (4x4, None: none given), checked
@@ -162,7 +163,7 @@ def diagnose_request(values, data):
         raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': no sphere centre given; estimate it "
                            f"with the pose: `handeye diagnose {values['dataset']} --unknowns sensor+sphere`")
     outputs_checked(data, {"--figures": v["figures"], "--plot": v["plot"]})
-    return v, parts, record("diagnose", {**values, "unknowns": parts})
+    return v, parts, COMMANDS["diagnose"].record({**values, "unknowns": parts})
 
 
 def compare_request(values, data):
