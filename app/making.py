@@ -351,7 +351,6 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
     from handeye.app.engine.command_request import checked_values
     from handeye.app.files import check_output_path, write_text_atomically
     from handeye.model import planning, planning_robot, simulate_robot
-    from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
     v = checked_values("plan", options.COMMANDS["plan"].given(locals()))
@@ -359,33 +358,17 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
-    setup = sim.Setup(linearity=0.0, max_tilt_deg=v["max_tilt"])
-    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
-        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
-    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
-                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
-    mounts = cell.mounts
-    centre, convention = np.asarray(setup.sphere_centre), "kuka"
-    if dataset is not None:
-        from handeye.model.dataset import Dataset, load_setup
-
-        d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
-        if d.start_pose is None or d.sphere_centre is None:
-            raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
-                               "a sphere center to plan around")
-        setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
-        centre, convention, mounts = d.sphere_centre, d.convention, d.mounts
+    setup, centre, convention, mounts, d = _planned_cell(dataset, sensor_mount, sphere_mount, v["max_tilt"])
     if out is not None:  # before the work, and never over a file this command reads or of the dataset
         inputs = [p for p in (candidates, score) if p is not None]
-        if dataset is not None:
-            inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
+        inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()] if d is not None else []
         check_output_path(out, "--out", inputs=inputs)
     # the dataset's [robot] model plans for the robot in the cell that has one (the sensor on its flange)
-    arm, stated = planning_robot.cell_robot(robot, d if dataset is not None and (robot or mounts.default) else None)
+    arm, stated = planning_robot.cell_robot(robot, d if d is not None and (robot or mounts.default) else None)
     if arm is not None:
         if not mounts.default:
             raise RequestError("--robot plans the sensor on the flange and the sphere in the world, not these mounts")
-        if dataset is None:
+        if d is None:
             centre = np.asarray(simulate_robot.CENTRES.get(str(robot), centre), float)
         rp = planning_robot.request(
             setup, centre, arm, effects, target, n, stated if sigma is None else sigma,
@@ -393,20 +376,58 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
             None if workspace is None else _floats(workspace, "--workspace", 6), margin)
         result = PlanResult(len(rp.ids), list(rp.ids), rp.poses, rp.logdet, rp.sd[:6], rp.skipped, rp.usable,
                             convention, score is not None, margin, rp.warnings, robot=rp)
-        if out is not None:
-            write_text_atomically(out, result.pose_list(), option="--out")
-        return result
-    if any(v is not None for v in (effects, target, sigma)):
-        raise RequestError("--effects, --target and --sigma plan for a robot's own errors: give --robot MODEL (or a "
-                           "--dataset whose setup.toml has [robot] model)")
-    n = 12 if n is None else n
-    cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
-    if score is not None:
-        ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
-        angles = angles[0] if angles else None
-        sd, value = planning.score(poses, setup, centre, mounts, angles)
-        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
-                          tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+    else:
+        if any(v is not None for v in (effects, target, sigma)):
+            raise RequestError("--effects, --target and --sigma plan for a robot's own errors: give --robot MODEL (or a "
+                               "--dataset whose setup.toml has [robot] model)")
+        n = 12 if n is None else n
+        cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
+        if score is not None:
+            ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
+            angles = angles[0] if angles else None
+            sd, value = planning.score(poses, setup, centre, mounts, angles)
+            return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
+                              tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+        ids, poses, angles, warnings, skipped = _candidates(setup, centre, mounts, candidates, margin, workspace)
+        chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
+        warnings += planning.few_angles(chosen.angles, mounts.axis_names)
+        result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
+                            np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
+                            len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
+                            axis_angles=chosen.angles, **cell_keys)
+    if out is not None:
+        write_text_atomically(out, result.pose_list(), option="--out")
+    return result
+
+
+def _planned_cell(dataset, sensor_mount, sphere_mount, max_tilt):
+    """The cell planned for: its setup, sphere centre, convention and mounts, and the dataset's
+    setup (None without ``--dataset``: ``handeye simulate``'s nominal cell of the mounts)."""
+    from handeye.model import simulate as sim
+
+    setup = sim.Setup(linearity=0.0, max_tilt_deg=max_tilt)
+    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
+        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
+    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
+                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
+    if dataset is None:
+        return setup, np.asarray(setup.sphere_centre), "kuka", cell.mounts, None
+    from handeye.model.dataset import Dataset, load_setup
+
+    d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
+    if d.start_pose is None or d.sphere_centre is None:
+        raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
+                           "a sphere center to plan around")
+    setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
+    return setup, d.sphere_centre, d.convention, d.mounts, d
+
+
+def _candidates(setup, centre, mounts, candidates, margin, workspace):
+    """The candidate poses to plan with: ids, poses, axis angles (or None), warnings, and the
+    poses skipped outside ``--workspace`` with why."""
+    from handeye.model import planning
+    from handeye.model.dataset import read_pose_list
+
     warnings, angles = [], None
     if candidates is not None:
         ids, poses, *angles = read_pose_list(candidates, axes=mounts.axis_names)
@@ -430,12 +451,4 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
         angles = None if angles is None else angles[inside]
     if not ids:
         raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
-    chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
-    warnings += planning.few_angles(chosen.angles, mounts.axis_names)
-    result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
-                        np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
-                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
-                        axis_angles=chosen.angles, **cell_keys)
-    if out is not None:
-        write_text_atomically(out, result.pose_list(), option="--out")
-    return result
+    return ids, poses, angles, warnings, skipped
