@@ -27,11 +27,12 @@ class Opt:
         Unit of the value (``mm``, ``deg``), shown in the docs.
     choices : tuple, callable or None
         The values allowed (a callable gives them when the parser is built).
-    metavar, help, nargs, required
+    help : str or None
+        What it does: the command line's help (plain text), the docstring's (reST) and the
+        README's (markdown) alike; ``code`` is written in double backquotes.
+    metavar, nargs, required
         As argparse's.
     action : {'store_true', 'append'} or None
-    doc : str or None
-        The README's text of the option (default ``help``).
     keyword : str or None
         The public function's keyword; None: the flag's name (``max_iter``); ``''``: none
         (``--json`` is the command line's own).
@@ -54,7 +55,6 @@ class Opt:
     nargs: str | None = None
     action: str | None = None
     required: bool = False
-    doc: str | None = None
     keyword: str | None = None
     check: tuple = ()
     kind: str = "value"
@@ -85,14 +85,14 @@ class Opt:
 
     def argument(self):
         """``(flags, keywords)`` of :meth:`argparse.ArgumentParser.add_argument`."""
-        given = {"action": self.action, "help": self.help, "metavar": self.metavar, "nargs": self.nargs,
+        given = {"action": self.action, "help": _plain(self.help), "metavar": self.metavar, "nargs": self.nargs,
                  "type": {"int": int, "float": float}.get(self.type),
                  "choices": self.choices() if callable(self.choices) else self.choices,
                  "default": list(self.default) if self.action == "append" else self.default}
         if self.required:
             given["required"] = True
         if self.action == "store_true":
-            given = {"action": "store_true", "help": self.help}
+            given = {"action": "store_true", "help": _plain(self.help)}
         return (self.flag,), {key: value for key, value in given.items() if value is not None}
 
 
@@ -109,8 +109,20 @@ def _saved(opt, value):
 
 
 def _rst(text):
-    """Markdown to the docstring's reST: code in double backquotes, links as their text."""
-    return re.sub(r"\[([^]]+)\]\(#[^)]+\)", r"\1", re.sub(r"(?<![`:])`([^`]+)`(?!`)", r"``\1``", text))
+    """A help text as the docstring's reST: code in double backquotes, links as their text."""
+    return re.sub(r"\[([^]]+)\]\(#[^)]+\)", r"\1", re.sub(r"(?<![`:])`([^`]+)`(?!`)", r"``\1``", text or ""))
+
+
+def _plain(text):
+    """A help text as the command line prints it: no markup (argparse's ``%`` escaped)."""
+    if text is None:
+        return None
+    return re.sub(r":\w+:`~?([^`]+)`", r"\1", _rst(text)).replace("``", "").replace("%", "%%")
+
+
+def _markdown(text):
+    """A help text as the README's markdown: a reST role as code."""
+    return re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text or "")
 
 
 def _cell(opt):
@@ -162,7 +174,7 @@ class Command:
         same text and type share an entry)."""
         entries = []
         for opt in self.keyword_options:
-            text, kind = _rst(opt.doc or opt.help or ""), opt.python_type()
+            text, kind = _rst(opt.help), opt.python_type()
             if entries and entries[-1][1:] == [text, kind] and text:
                 entries[-1][0] += f", {opt.name}"
             else:
@@ -184,6 +196,6 @@ class Command:
         rows = ["| option | default | meaning |", "|---|---|---|"]
         for opt in self.options:
             default = "" if opt.default in (None, ()) or opt.default is False else f"`{opt.default}`"
-            cells = (_cell(opt), default, (opt.doc or opt.help or "") + (f" ({opt.unit})" if opt.unit else ""))
+            cells = (_cell(opt), default, _markdown(opt.help) + (f" ({opt.unit})" if opt.unit else ""))
             rows.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
         return "\n".join(rows)

@@ -24,6 +24,8 @@ MAX_ITER = 1_000_000
 NOISE = ("number", 1e-6, 1e3)
 #: The bounds of a largest sensor tilt from straight down (``--max-tilt``), degrees: (0, 90].
 TILT = ("number", 0.0, 90.0, True)
+#: What compare takes as a calibration (the docstring's type).
+_GIVEN_POSE = "str, pathlib.Path, CalibrationResult or array_like (4, 4)"
 
 
 def _studies():
@@ -50,97 +52,70 @@ def _held(flag):
 
 
 _CALIBRATE = (
-    Opt('dataset', 'thesis-real', kind='path', nargs='?', help='embedded dataset name or folder (default thesis-real)',
-        doc='an embedded dataset (`handeye datasets`: `thesis-real`, `thesis-sim`) or a folder',
+    Opt('dataset', 'thesis-real', kind='path', nargs='?',
+        help='an embedded dataset (`handeye datasets`: `thesis-real`, `thesis-sim`) or a folder',
         pytype='str, pathlib.Path or Dataset'),
     Opt('--unknowns', 'sensor', metavar='PARTS',
-        help='what to estimate, +-joined: sensor, sphere, positioner (default sensor; e.g. sensor+sphere, sphere+positioner, '
-             'sensor+sphere+positioner); a part not estimated comes from setup.toml or --calibration',
-        doc="what to estimate, `+`-joined in any order: `sensor` (6: the sensor frame in its mount's frame), `sphere` (3: the "
-            "centre in its mount's frame), `positioner` (4 per axis); e.g. `sensor+sphere`, `sphere+positioner`, "
-            "`sensor+sphere+positioner` ([Any "
-            "cell](#any-cell-a-sensor-fixed-in-the-cell-a-sphere-on-the-flange-or-on-a-positioner))"),
+        help="what to estimate, `+`-joined in any order: `sensor` (6: the sensor frame in its mount's frame), `sphere` (3: the"
+             " centre in its mount's frame), `positioner` (4 per axis); e.g. `sensor+sphere`, `sphere+positioner`, "
+             "`sensor+sphere+positioner` ([Any "
+             "cell](#any-cell-a-sensor-fixed-in-the-cell-a-sphere-on-the-flange-or-on-a-positioner))"),
     Opt('--calibration', kind='path', metavar='FILE',
-        help='a saved calibration (calibrate --out) whose sensor pose is held: calibrating the other parts when --unknowns has '
-             'no sensor, else scored as --sensor-pose is',
-        doc='a saved calibration (`calibrate --out`) whose sensor pose is held: the other parts calibrated when `--unknowns` '
-            'has no `sensor` (else `[sensor] pose`); with `sensor` among `--unknowns`, the pose is scored as `--sensor-pose` '
-            'is'),
+        help='a saved calibration (`calibrate --out`) whose sensor pose is held: the other parts calibrated when `--unknowns` '
+             'has no `sensor` (else `[sensor] pose`); with `sensor` among `--unknowns`, the pose is scored as `--sensor-pose` '
+             'is'),
     Opt('--sensor-pose', kind='pose', metavar='X,Y,Z,...',
-        help="score this sensor pose (e.g. the vendor's, in --convention's columns) instead of calibrating it: held, the sphere"
-             " centre fitted with it under --unknowns sensor+sphere, judged against the data's own calibration (exit 0; the "
-             "verdict says whether the data contradict it); --calibration FILE with the sensor among --unknowns does the same",
-        doc="score a given sensor pose (the vendor's, last month's; `--convention`'s columns) instead of calibrating it: "
-            "[Score a given pose](#score-a-given-pose-and-compare-two-calibrations)"),
+        help="score a given sensor pose (the vendor's, last month's; `--convention`'s columns) instead of calibrating it: "
+             "[Score a given pose](#score-a-given-pose-and-compare-two-calibrations)"),
     Opt('--method', choices=METHODS + CLASSIC_METHODS,
-        help='solver of the least squares (default ipopt; lm above 5,000 measurements), or a closed-form baseline: kim-cho (AX '
-             '= XB, linear) or li-two-step (pure translations, then rotations; see model/classics.py)',
-        doc="IPOPT (default; `lm` above 5,000 measurements, said in the warnings, so that time and memory stay linear in the "
-            "data), Gauss-Newton, Levenberg-Marquardt, trust region with exact Hessian, dogleg, local Newton (the solvers "
-            "package also has damped Newton, steepest descent and BFGS for the studies); `kim-cho`, `li-two-step`: the "
-            "thesis's state of the art as closed-form baselines (`model/classics.py`): Kim & Cho's linear AX = XB over every "
-            "pair of samples, Li et al.'s pure translations → rotation, then every pose → translation; gross errors are "
-            "screened first as for the least squares (`--keep-all` skips it); the report adds where the least squares goes "
-            "from there. Exit 2, naming the missing motions, when the data lack them (thesis-real has no pure translations)"),
+        help="IPOPT (default; `lm` above 5,000 measurements, said in the warnings, so that time and memory stay linear in the "
+             "data), Gauss-Newton, Levenberg-Marquardt, trust region with exact Hessian, dogleg, local Newton (the solvers "
+             "package also has damped Newton, steepest descent and BFGS for the studies); `kim-cho`, `li-two-step`: the "
+             "thesis's state of the art as closed-form baselines (`model/classics.py`): Kim & Cho's linear AX = XB over every "
+             "pair of samples, Li et al.'s pure translations → rotation, then every pose → translation; gross errors are "
+             "screened first as for the least squares (`--keep-all` skips it); the report adds where the least squares goes "
+             "from there. Exit 2, naming the missing motions, when the data lack them (thesis-real has no pure translations)"),
     Opt('--rotation', choices=ROTATIONS,
-        help='rotation parametrisation (default: matrix for ipopt, local otherwise)',
-        doc="default `matrix` (nine entries, RᵀR = I as constraints) for IPOPT, `local` (R·exp([δ]×)) otherwise; `euler` is "
-            "the thesis's A, B, C"),
+        help="default `matrix` (nine entries, RᵀR = I as constraints) for IPOPT, `local` (R·exp([δ]×)) otherwise; `euler` is "
+             "the thesis's A, B, C"),
     Opt('--start', kind='pose', metavar='X,Y,Z,A,B,C',
-        help="start sensor pose in --convention's columns (KUKA: mm and degrees; write --start=-1,2,... for a leading minus)",
-        doc="start sensor pose in the dataset's convention (`--convention`'s; KUKA `X,Y,Z,A,B,C` in mm and degrees, UR "
-            "`X,Y,Z,RX,RY,RZ` in mm and radians, ...; write `--start=` so that a leading minus is not read as an option), "
-            "overrides the setup's; without either, the closed-form estimate"),
+        help="start sensor pose in the dataset's convention (`--convention`'s; KUKA `X,Y,Z,A,B,C` in mm and degrees, UR "
+             "`X,Y,Z,RX,RY,RZ` in mm and radians, ...; write `--start=` so that a leading minus is not read as an option), "
+             "overrides the setup's; without either, the closed-form estimate"),
     Opt('--convention', choices=tuple(CONVENTIONS),
-        help="robot convention of --start and of the reported pose (default: the dataset's)",
-        doc="robot convention of `--start` and of the reported pose (`sensor_pose_as`); default the dataset's"),
-    Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit',
-        doc='iteration limit (respected: no polish past it)'),
+        help="robot convention of `--start` and of the reported pose (`sensor_pose_as`); default the dataset's"),
+    Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit (respected: no polish past it)'),
     Opt('--model', choices=tuple(KINDS),
-        help='residual: reconstructed centres, measured circles, or profile points (default: measurement when every sample has '
-             'a profile, else centre)',
-        doc="residual: reconstructed centres (the thesis's), the measured circles in the laser plane, or every profile point; "
-            "default `measurement` when every sample has a profile, else `centre`"),
+        help="residual: reconstructed centres (the thesis's), the measured circles in the laser plane, or every profile point;"
+             " default `measurement` when every sample has a profile, else `centre`"),
     Opt('--keep-all', action='store_true',
-        help='fit every sample: no outlier detection (rows that contradict themselves are still excluded)',
-        doc='no outlier screening (a row whose `xs,ys,zs` contradict its own profile is excluded all the same, named with its '
-            'row: `model/consistency.py`)'),
-    Opt('--alpha', check=('level',), type='float', help=f'family-wise level of the outlier tests (default {ALPHA:g})',
-        doc='family-wise level of the outlier tests (default 0.01)'),
-    Opt('--no-loo', action='store_true', help='skip the leave-one-out error (one refit per sample)',
-        doc='skip the leave-one-out error (one exact refit per sample up to 2,000 used samples, the deletion formula above)'),
+        help='no outlier screening (a row whose `xs,ys,zs` contradict its own profile is excluded all the same, named with its'
+             ' row: `model/consistency.py`)'),
+    Opt('--alpha', check=('level',), type='float', help='family-wise level of the outlier tests (default 0.01)'),
+    Opt('--no-loo', action='store_true',
+        help='skip the leave-one-out error (one exact refit per sample up to 2,000 used samples, the deletion formula above)'),
     Opt('--no-clean', action='store_true',
-        help="fit every profile point: no profile cleaning (by default speckle and background points off the sphere's arc are "
-             "dropped and reported)",
-        doc="fit every profile point: no profile cleaning (by default the points off the sphere's arc -- speckle, background, "
-            "clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning))"),
+        help="fit every profile point: no profile cleaning (by default the points off the sphere's arc -- speckle, background,"
+             " clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning))"),
     Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
-        help="stated noise of a sphere centre (mm per component) the centre residual is tested against (default: setup.toml "
-             "[noise] centre_mm, else 0.05); the profile models are tested against each circle fit's covariance and "
-             "--robot-sigma instead",
-        doc='the stated noise the fit is tested against: per-component sd of a sphere centre through the chain, for the '
-            '`centre` residual (default `[noise] centre_mm`, else 0.05)'),
+        help='the stated noise the fit is tested against: per-component sd of a sphere centre through the chain, for the '
+             '`centre` residual (default `[noise] centre_mm`, else 0.05)'),
     Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM',
-        help='robot repeatability, mm per axis (default: [noise] robot_mm, else 0.025)',
-        doc="robot repeatability per axis (default `[noise] robot_mm`, else 0.025), which with each circle fit's own "
-            "covariance weights and tests the profile models"),
+        help="robot repeatability per axis (default `[noise] robot_mm`, else 0.025), which with each circle fit's own "
+             "covariance weights and tests the profile models"),
     Opt('--effects', metavar='NAME[,NAME]',
-        help='calibrate with catalogue effects: sensor_scale, sphere_radius, sphere_center (as handeye diagnose names them)',
-        doc='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
-            '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
-            'angles and `[robot] model`); their parameters and 1-sd in `effects`',
+        help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
+             '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
+             'angles and `[robot] model`); their parameters and 1-sd in `effects`',
         pytype='str or sequence of str, optional'),
-    Opt('--json', action='store_true', help='print the result as JSON', keyword='',
-        doc='machine-readable output'),
-    Opt('--plot', kind='path', metavar='FILE', help='draw residuals and sphere-centre scatter (PNG)',
-        doc='residuals per measurement and the sphere centres through the chain (PNG)'),
+    Opt('--json', action='store_true', keyword='',
+        help='machine-readable output'),
+    Opt('--plot', kind='path', metavar='FILE', help='residuals per measurement and the sphere centres through the chain (PNG)'),
     Opt('--report', kind='path', metavar='OUT.html',
-        help='also write the one-file HTML report (handeye report): the cell in 3-D, verdict, residuals',
-        doc='also write the one-file HTML report ([`handeye report`](#a-report-to-look-at-handeye-report)): the cell in 3-D, '
-            'verdict, residual table'),
+        help='also write the one-file HTML report ([`handeye report`](#a-report-to-look-at-handeye-report)): the cell in 3-D, '
+             'verdict, residual table'),
     Opt('--out', metavar='FILE',
-        help="also write the JSON result, with the dataset's hash, tool version and options, atomically",
-        doc="the JSON also written atomically to FILE with the dataset's SHA-256, the tool's version and every option",
+        help="the JSON also written atomically to FILE with the dataset's SHA-256, the tool's version and every option",
         kind='path'),
 )
 
@@ -149,26 +124,19 @@ _SIMULATE = (
         kind='path'),
     Opt('--seed', 0, check=('integer', 0), type='int'),
     Opt('--effect', (), action='append', metavar='NAME=VALUE',
-        help="hidden effect: sphere_center=dx,dy,dz | sensor_scale=s | sphere_radius=dr | sign_flip=ID,ID | outlier=ID,ID | "
-             "with --robot: joint_offsets=j2:0.05,j3:-0.03 (degrees), link_lengths=a2:0.3,d4:-0.2 (mm, the model's length "
-             "names), joint_compliance=j2:0.02,j3:0.01 (degrees per metre of lever) (repeatable)",
-        doc="Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``, ``sphere_radius=dr``, "
-            "``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot`` ``joint_offsets=j2:0.05,j3:-0.03`` (degrees), "
-            "``link_lengths=a2:0.3,d4:-0.2`` (mm, the model's length names) and ``joint_compliance=j2:0.02,j3:0.01`` (degrees "
-            "per metre)."),
+        help="Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``, ``sphere_radius=dr``, "
+             "``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot`` ``joint_offsets=j2:0.05,j3:-0.03`` (degrees), "
+             "``link_lengths=a2:0.3,d4:-0.2`` (mm, the model's length names) and ``joint_compliance=j2:0.02,j3:0.01`` (degrees"
+             " per metre)."),
     Opt('--robot', metavar='MODEL',
-        help='simulate a robot with joints: a nominal model (irb4600, kr60ha, m20ia, ur10e, ur5e or a model file) reaches the '
-             'poses by inverse kinematics; writes j1..j6 and [robot] model (default sphere centre inside its workspace)',
-        doc='A nominal robot model (built-in name or model file, :mod:`handeye.model.robots`): the poses are reached by its '
-            'inverse kinematics and the dataset gets ``j1..j6`` and ``[robot] model`` (:mod:`handeye.model.simulate_robot`); '
-            'without ``center`` the sphere is placed in its workspace (:data:`handeye.model.simulate_robot.CENTRES`). The '
-            'sensor on the flange and the sphere in the world only.'),
+        help='A nominal robot model (built-in name or model file, :mod:`handeye.model.robots`): the poses are reached by its '
+             'inverse kinematics and the dataset gets ``j1..j6`` and ``[robot] model`` (:mod:`handeye.model.simulate_robot`); '
+             'without ``center`` the sphere is placed in its workspace (:data:`handeye.model.simulate_robot.CENTRES`). The '
+             'sensor on the flange and the sphere in the world only.'),
     Opt('--profiles', action='store_true', help='also write the laser profiles'),
     Opt('--poses', metavar='CSV',
-        help='flange poses (a pose list in any convention: id,x,y,z,a,b,c is KUKA, id,x,y,z,rx,ry,rz UR, ...) instead of the '
-             'thesis strategy',
-        doc='A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns, degrees) instead of '
-            'the thesis strategy.',
+        help='A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns, degrees) instead of '
+             'the thesis strategy.',
         kind='path'),
     Opt('--n-poses', 36, check=('integer', 1), type='int', help='poses of the thesis strategy (1-36)'),
     Opt('--linearity', 0.0, type='float', help='sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)'),
@@ -176,42 +144,30 @@ _SIMULATE = (
         help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same orientations rotating "
              "about the sphere (seen at one sensor point)"),
     Opt('--translations', 0, check=('integer', 0), type='int', metavar='K',
-        help="add K pure flange translations (0..6) at each of two orientations (Li et al.'s first step)",
-        doc='Pure flange translations (0-6) at each of two orientations.'),
+        help='Pure flange translations (0-6) at each of two orientations.'),
     Opt('--truth', metavar='POSE',
-        help="true sensor pose in its mount's frame, in --convention's columns (default KUKA 190,100,125,180,-88,0 on the "
-             "flange; 1750,-50,1000,90,0,-110 in the cell)",
-        doc="True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the thesis's (190, 100, 125,"
-            " 180, -88, 0) in KUKA terms on the flange, :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.",
+        help="True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the thesis's (190, 100, "
+             "125, 180, -88, 0) in KUKA terms on the flange, :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.",
         pytype='str or array_like, optional'),
     Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
-        help='sphere diameter (default 59.94507)',
-        doc="Sphere diameter, mm; default the thesis's certified 59.94507."),
-    Opt('--center', metavar='X,Y,Z', help="sphere centre in its mount's frame (robot base, flange or table), mm",
-        doc="Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the thesis's in the base, "
-            ":mod:`handeye.model.simulate_mounts`' on the flange or the table.",
+        help="Sphere diameter, mm; default the thesis's certified 59.94507."),
+    Opt('--center', metavar='X,Y,Z',
+        help="Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the thesis's in the base, "
+             ":mod:`handeye.model.simulate_mounts`' on the flange or the table.",
         pytype='str or array_like, optional'),
     Opt('--convention', 'kuka', choices=tuple(CONVENTIONS),
-        help='robot convention of the written dataset and of --truth (default kuka)',
-        doc='Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.'),
+        help='Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.'),
     Opt('--max-tilt', 90.0, check=TILT, type='float', metavar='DEG',
-        help="largest sensor tilt from straight down (default 90, the thesis's)",
-        doc='Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).'),
+        help='Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).'),
     Opt('--no-start', action='store_true', help='write no start pose (calibrate starts from the closed form)'),
     Opt('--sensor-mount', 'flange', choices=('flange', 'world'),
-        help='where the sensor is: on the flange (default) or fixed in the cell (robot base frame)',
-        doc="``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner`` "
-            "(:mod:`handeye.model.simulate_mounts`)."),
+        help='where the sensor is: on the flange (default) or fixed in the cell (robot base frame)'),
     Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'),
         help="where the sphere is: fixed in the cell (default), on the flange or on a positioner's table; observable pairs: "
-             "flange/world, world/flange, flange/positioner",
-        doc="``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner`` "
-            "(:mod:`handeye.model.simulate_mounts`)."),
+             "flange/world, world/flange, flange/positioner"),
     Opt('--positioner-axes', metavar='NAME:PX,PY,PZ:DX,DY,DZ;...',
-        help='nominal positioner axes, base first: point and direction in the robot base at zero angles (mm); default a KUKA '
-             'KP1-V-like 2-axis positioner: e1:1500,0,600:0,1,0;e2:1500,0,800:0,0,1',
-        doc="Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first; default a KUKA "
-            "KP1-V-like two-axis positioner."),
+        help="Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first; default a KUKA "
+             "KP1-V-like two-axis positioner."),
     Opt('--positioner-error', metavar='MM,DEG',
         help='how far the true axes differ from the nominal ones written in setup.toml (default 1.0,0.2)',
         pytype='str or sequence of two floats, optional'),
@@ -223,21 +179,16 @@ _DIAGNOSE = (
     Opt('--alpha', ALPHA, check=('level',), type='float', help=f'family-wise level of the tests (default {ALPHA:g})'),
     _json(),
     Opt('--no-clean', action='store_true', help='fit every profile point: no profile cleaning'),
-    Opt('--figures', kind='path', metavar='DIR', help='write residuals.png and gap.png here',
-        doc='Folder to write ``residuals.png`` and ``gap.png`` into.'),
-    Opt('--plot', kind='path', metavar='FILE', help='draw the gap shrinking step by step (PNG)',
-        doc='Write the gap-shrinking figure to this PNG.'),
+    Opt('--figures', kind='path', metavar='DIR', help='Folder to write ``residuals.png`` and ``gap.png`` into.'),
+    Opt('--plot', kind='path', metavar='FILE', help='Write the gap-shrinking figure to this PNG.'),
     Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
-        help='nominal noise per residual component for chi2/dof (default: [noise] centre_mm, else 0.05)',
-        doc="Nominal noise per residual component (mm) that chi2/dof is stated against; default the setup's ``[noise] "
-            "centre_mm`` (0.05)."),
+        help="Nominal noise per residual component (mm) that chi2/dof is stated against; default the setup's ``[noise] "
+             "centre_mm`` (0.05)."),
     Opt('--out', metavar='FILE', help='also write the JSON result with provenance',
         kind='path'),
     Opt('--unknowns', 'sensor', choices=('sensor', 'sensor+sphere'),
-        help="sensor+sphere: the sphere centre estimated with the pose in every model (when setup.toml gives none); default "
-             "sensor: effects tested against the setup's centre",
-        doc="``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when the setup gives none; its"
-            " start is :func:`calibrate`'s estimate); ``sensor`` tests the effects against the setup's centre."),
+        help="``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when the setup gives none; "
+             "its start is :func:`calibrate`'s estimate); ``sensor`` tests the effects against the setup's centre."),
 )
 
 _PLAN = (
@@ -248,58 +199,39 @@ _PLAN = (
              "orientations x 3 cuts scaled to the sphere (108 poses)",
         kind='path'),
     Opt('--dataset',
-        help='take the nominal sensor pose (start_pose), sphere centre and diameter, laser side and robot convention from this '
-             'dataset',
-        doc="Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and robot convention from it "
-            "(only its ``setup.toml`` is read: a cell can be planned before it is measured); default the thesis's cell.",
+        help="Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and robot convention from it "
+             "(only its ``setup.toml`` is read: a cell can be planned before it is measured); default the thesis's cell.",
         pytype='str, pathlib.Path or Dataset, optional'),
     Opt('--out', metavar='CSV',
         help="write the chosen poses as a pose list in the dataset's convention (KUKA without --dataset)",
         kind='path'),
     Opt('--max-tilt', 90.0, check=TILT, type='float', metavar='DEG',
-        help="largest sensor tilt from straight down of the candidates (default 90, the thesis's)",
-        doc='Largest tilt of the sensor from straight down of the default candidates, degrees.'),
+        help='Largest tilt of the sensor from straight down of the default candidates, degrees.'),
     Opt('--margin', metavar='MM,DEG',
-        help='the nominal sensor pose may be off by this much: every planned pose still sees the sphere',
-        doc="``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps the sphere inside the laser "
-            "line and the measuring range even then.",
+        help="``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps the sphere inside the laser "
+             "line and the measuring range even then.",
         pytype='str or sequence of two floats, optional'),
     Opt('--workspace', metavar='XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX',
-        help='flange positions allowed (robot base, mm); candidates outside are skipped',
-        doc="``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).",
+        help="``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).",
         pytype='str or sequence of six floats, optional'),
-    Opt('--score', metavar='CSV', help='predict the accuracy of this pose list instead of choosing poses',
-        doc='A pose list to score (predicted accuracy) instead of choosing.',
+    Opt('--score', metavar='CSV', help='A pose list to score (predicted accuracy) instead of choosing.',
         kind='path'),
     Opt('--sensor-mount', 'flange', choices=('flange', 'world'),
-        help="without --dataset: plan for `handeye simulate`'s nominal cell of these mounts",
-        doc="The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world`` (the thesis's cell), "
-            "``world``/``flange`` or ``flange``/``positioner``, with ``handeye simulate``'s nominal cell "
-            "(:mod:`handeye.model.simulate_mounts`). On a positioner the pose lists (``candidates``, ``score``, ``out``) carry"
-            " one column per axis after the pose's (degrees), and each default candidate has its own axis angles."),
+        help="without --dataset: plan for `handeye simulate`'s nominal cell of these mounts"),
     Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'),
-        help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list carries one column per axis"
-             " (degrees) after the pose's, and the plan chooses axis angles",
-        doc="The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world`` (the thesis's cell), "
-            "``world``/``flange`` or ``flange``/``positioner``, with ``handeye simulate``'s nominal cell "
-            "(:mod:`handeye.model.simulate_mounts`). On a positioner the pose lists (``candidates``, ``score``, ``out``) carry"
-            " one column per axis after the pose's (degrees), and each default candidate has its own axis angles."),
+        help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list carries one column per "
+             "axis (degrees) after the pose's, and the plan chooses axis angles"),
     Opt('--robot', metavar='MODEL',
-        help="plan for the robot's own errors too (default with a --dataset that has [robot] model): a built-in nominal model "
-             "(kr60ha, ur5e, ur10e, irb4600, m20ia) or a model file; poses reached by its inverse kinematics, the other wrist a"
-             " candidate of its own, j1..j6 in --out",
-        doc="Plan for the robot's own errors too (:mod:`handeye.model.planning_robot`): a built-in nominal model or a model "
-            "file (default the dataset's ``[robot] model``, which turns this on as well). Each candidate is reached by the "
-            "nominal inverse kinematics (unreachable ones skipped), the other wrist offered as a candidate of its own; the "
-            "parameters no candidate separates from the sensor pose and the sphere centre are named and left out; ``out`` gets"
-            " j1..j6. Without a dataset the sphere is at :data:`handeye.model.simulate_robot.CENTRES`."),
+        help="Plan for the robot's own errors too (:mod:`handeye.model.planning_robot`): a built-in nominal model or a model "
+             "file (default the dataset's ``[robot] model``, which turns this on as well). Each candidate is reached by the "
+             "nominal inverse kinematics (unreachable ones skipped), the other wrist offered as a candidate of its own; the "
+             "parameters no candidate separates from the sensor pose and the sphere centre are named and left out; ``out`` "
+             "gets j1..j6. Without a dataset the sphere is at :data:`handeye.model.simulate_robot.CENTRES`."),
     Opt('--effects', metavar='NAME[,NAME]', help='with a robot: joint_offsets (default), link_lengths, joint_compliance',
         pytype='str or sequence of str, optional'),
     Opt('--target', metavar='EFFECT=SD[,EFFECT=SD]',
-        help='with a robot: the 1-sd to reach, which sets how many poses (default joint_offsets=0.01 deg, link_lengths=0.05 mm,'
-             ' joint_compliance=0.005 deg/m)',
-        doc="With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach (default 0.01 deg, 0.05 mm, "
-            "0.005 deg/m): the number of poses it takes is the plan's ``n``.",
+        help="With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach (default 0.01 deg, 0.05 mm, "
+             "0.005 deg/m): the number of poses it takes is the plan's ``n``.",
         pytype='str or dict, optional'),
     Opt('--sigma', check=('number', 0.0, 1e3, True), type='float', metavar='MM',
         help='with a robot: stated noise per component of a sphere centre (default [noise] centre_mm, else 0.05)'),
@@ -307,70 +239,35 @@ _PLAN = (
 )
 
 _COMPARE = (
-    Opt('dataset', help='embedded dataset name or folder',
-        pytype='str, pathlib.Path or Dataset'),
-    Opt('a', metavar='A.json', help='a saved calibration (calibrate --out)',
-        doc="The two calibrations (saved files, results, or sensor poses as 4x4 in the mount's frame, mm).",
-        pytype='str, pathlib.Path, CalibrationResult or array_like (4, 4)'),
-    Opt('b', metavar='B.json', help='another saved calibration',
-        doc="The two calibrations (saved files, results, or sensor poses as 4x4 in the mount's frame, mm).",
-        pytype='str, pathlib.Path, CalibrationResult or array_like (4, 4)'),
+    Opt('dataset', help='embedded dataset name or folder', pytype='str, pathlib.Path or Dataset'),
+    Opt('a', metavar='A.json', help='a saved calibration (calibrate --out)', pytype=_GIVEN_POSE),
+    Opt('b', metavar='B.json', help='another saved calibration', pytype=_GIVEN_POSE),
     Opt('--unknowns', choices=('sensor', 'sensor+sphere'),
         help='sensor+sphere fits the sphere centre with each pose held (default: sensor when setup.toml gives [sphere] center,'
              ' else sensor+sphere)'),
-    Opt('--model', choices=tuple(KINDS),
-        help='residual model both are scored with (default: as calibrate)',
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
-    Opt('--alpha', check=('level',), type='float', help=f"level of 'significant' and of the screening (default {ALPHA:g})",
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
-    Opt('--keep-all', action='store_true', help='score every sample: no outlier screening',
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
-    Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="stated noise, as calibrate's",
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
-    Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="robot repeatability, as calibrate's",
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
-    Opt('--convention', choices=tuple(CONVENTIONS), help="robot convention of the poses reported (default: the dataset's)",
-        doc="As :func:`calibrate` (the data's own calibration, whose screening and residual model both poses are scored "
-            "with; ``alpha`` is also the level of \"significant\")."),
+    Opt('--model', choices=tuple(KINDS), help='residual model both are scored with (default: as calibrate)'),
+    Opt('--alpha', check=('level',), type='float', help=f"level of 'significant' and of the screening (default {ALPHA:g})"),
+    Opt('--keep-all', action='store_true', help='score every sample: no outlier screening'),
+    Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="stated noise, as calibrate's"),
+    Opt('--robot-sigma', unit='mm', check=NOISE, type='float', metavar='MM', help="robot repeatability, as calibrate's"),
+    Opt('--convention', choices=tuple(CONVENTIONS), help="robot convention of the poses reported (default: the dataset's)"),
     _json(),
 )
-
 _REPORT = (
     Opt('dataset', 'thesis-real', nargs='?', help='embedded dataset name or folder',
         pytype='str, pathlib.Path or Dataset'),
-    Opt('--html', metavar='OUT.html', required=True, help='the report to write (atomically)',
-        doc='The HTML file to write (atomically; never over an input).',
+    Opt('--html', metavar='OUT.html', required=True, help='The HTML file to write (atomically; never over an input).',
         kind='path'),
-    Opt('--calibration', metavar='FILE',
-        help='a calibrate --out file of this dataset (its SHA-256 is checked), reported as it is; default: calibrate now',
-        doc='A ``calibrate --out`` file of this dataset (its SHA-256 checked): reported as it is. Without it the dataset is '
-            'calibrated now with ``unknowns``, ``model``, ``convention``, ``keep_all``, ``no_clean`` (as '
-            ':func:`handeye.calibrate`).',
-        kind='path'),
-    Opt('--diagnose', action='store_true', help='also run handeye diagnose and show its steps against the noise floor',
-        doc='Also run the discrepancy workflow (:func:`handeye.diagnose`, ``unknowns`` sensor or sensor+sphere) and show its '
-            'steps against the noise floor.'),
-    Opt('--unknowns', metavar='PARTS', help="as calibrate's, default sensor (without --calibration)",
-        doc="As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are refused with "
-            "``calibration`` (the file is reported as it was made)."),
-    Opt('--model', choices=tuple(KINDS), help="as calibrate's (without --calibration)",
-        doc="As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are refused with "
-            "``calibration`` (the file is reported as it was made)."),
-    Opt('--convention', choices=tuple(CONVENTIONS),
-        help="robot convention of the reported pose (default: the dataset's)",
-        doc="As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are refused with "
-            "``calibration`` (the file is reported as it was made)."),
-    Opt('--keep-all', action='store_true', help="as calibrate's (without --calibration)",
-        doc="As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are refused with "
-            "``calibration`` (the file is reported as it was made)."),
-    Opt('--no-clean', action='store_true', help="as calibrate's",
-        doc="As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are refused with "
-            "``calibration`` (the file is reported as it was made)."),
+    Opt('--calibration', metavar='FILE', kind='path',
+        help='a calibrate --out file of this dataset (its SHA-256 is checked), reported as it is; default: calibrate now'),
+    Opt('--diagnose', action='store_true',
+        help='Also run the discrepancy workflow (:func:`handeye.diagnose`, ``unknowns`` sensor or sensor+sphere) and show its '
+             'steps against the noise floor.'),
+    Opt('--unknowns', metavar='PARTS', help="as calibrate's, default sensor (without --calibration)"),
+    Opt('--model', choices=tuple(KINDS), help="as calibrate's (without --calibration)"),
+    Opt('--convention', choices=tuple(CONVENTIONS), help="robot convention of the reported pose (default: the dataset's)"),
+    Opt('--keep-all', action='store_true', help="as calibrate's (without --calibration)"),
+    Opt('--no-clean', action='store_true', help="as calibrate's"),
     _json('print what was written as JSON'),
 )
 
@@ -393,19 +290,14 @@ _EXPORT = (
 
 _CLOUD = (
     Opt('dataset',
-        help="a scan or dataset folder with profiles (no sphere needed); every profile point, not cleaned (calibrate's profile "
-             "cleaning does not apply)",
-        doc='A scan or dataset folder with profiles (:mod:`handeye.model.scan`); no sphere needed.',
+        help='A scan or dataset folder with profiles (:mod:`handeye.model.scan`); no sphere needed.',
         kind='path'),
     *_held('--calibration'),
-    Opt('--out', metavar='FILE', required=True, help='the point cloud to write',
-        doc='Where to write the cloud.',
+    Opt('--out', metavar='FILE', required=True, help='Where to write the cloud.',
         kind='path'),
     Opt('--format', choices=CLOUD_FORMATS,
-        help="ply: binary little-endian, x y z double, pose int, sd float; csv (default: from --out's extension, .csv is CSV, "
-             "else PLY)",
-        doc='``ply`` binary little-endian, or ``csv``; default: from the extension of ``out`` (``.csv`` is CSV, anything else '
-            'PLY).'),
+        help='``ply`` binary little-endian, or ``csv``; default: from the extension of ``out`` (``.csv`` is CSV, anything else'
+             ' PLY).'),
     _json('print the summary as JSON'),
 )
 
@@ -432,73 +324,57 @@ _STUDY = (
 )
 
 _DATASET_NEW = (
-    Opt('out', metavar='OUT', help='dataset folder to write (new or empty)',
-        doc='The dataset folder to write (new or empty); written atomically (a temporary folder renamed).',
+    Opt('out', metavar='OUT', help='The dataset folder to write (new or empty); written atomically (a temporary folder renamed).',
         kind='path'),
     Opt('--poses', metavar='FILE',
-        help='flange poses in the robot base: CSV, whitespace text or JSON (told by the content); header optional',
-        doc='Flange poses in the robot base: CSV, whitespace-separated text or JSON (:mod:`handeye.app.ingest.poses`).',
+        help='Flange poses in the robot base: CSV, whitespace-separated text or JSON (:mod:`handeye.app.ingest.poses`).',
         kind='path'),
     Opt('--profiles', (), action='append', metavar='FILES|GLOB|DIR',
-        help='laser profiles, one per pose (repeatable): OpenCV FileStorage YAML/XML/JSON, CSV/TXT with 2 (x,z) or 3 (x,y,z) '
-             'columns, .npy/.npz, PLY, PCD',
-        doc='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
+        help='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
     Opt('--convention', choices=('kuka', 'abb', 'ur', 'fanuc'),
-        help="the poses' convention (a headerless file's columns in order, optional leading id); the dataset is written in it "
-             "(named columns of another convention are converted; default: the file's, abb for a bag)",
-        doc="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a "
-            "bag."),
+        help="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a"
+             " bag."),
     Opt('--columns', metavar='NAMES', help="the pose file's columns, e.g. id,x,y,z,qx,qy,qz,qw; - skips one"),
-    Opt('--units', 'mm', choices=('mm', 'm'), help='units of the pose positions (default mm)',
-        doc='Positions of the pose file.'),
+    Opt('--units', 'mm', choices=('mm', 'm'), help='Positions of the pose file.'),
     Opt('--angles', choices=('deg', 'rad'),
         help="units of the pose angles (default the convention's: degrees, radians for ur)"),
-    Opt('--profile-units', choices=('mm', 'm'), help='units of the profiles (default mm)',
-        doc="Profile coordinates (default mm; a bag's are metres)."),
+    Opt('--profile-units', choices=('mm', 'm'), help="Profile coordinates (default mm; a bag's are metres)."),
     Opt('--profile-axes', metavar='X,Z',
-        help="the profile files' axes that are handeye's sensor x and z (e.g. y,-x); default found from the data",
-        doc="``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default found from the data "
-            "(:mod:`handeye.app.ingest.plane`)."),
+        help="``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default found from the data "
+             "(:mod:`handeye.app.ingest.plane`)."),
     Opt('--diameter', type='float', metavar='MM', help='sphere diameter, mm (required unless --setup gives it)'),
     Opt('--setup', metavar='SETUP.toml',
-        help='an existing setup.toml: its sphere diameter and centre, side, start pose, convention and robot model fill the '
-             'options not given',
-        doc='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] start_pose``'
-            ' and ``[robot] convention`` and ``model`` fill the options not given.',
+        help='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] '
+             'start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.',
         kind='path'),
     Opt('--side', type='int', choices=(1, -1),
-        help="sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y; "
-             "default -1); written in handeye's frame",
-        doc="Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y for "
-            "2-column profiles; default -1); written as ``[profile] side`` in handeye's frame "
-            "(:meth:`~handeye.app.ingest.plane.PlaneMapping.side`)."),
+        help="Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y for "
+             "2-column profiles; default -1); written as ``[profile] side`` in handeye's frame "
+             "(:meth:`~handeye.app.ingest.plane.PlaneMapping.side`)."),
     Opt('--center', metavar='X,Y,Z',
         help='sphere centre in the robot base, mm (without it: calibrate with --unknowns sensor+sphere)',
         pytype='str or sequence of 3 floats, optional'),
-    Opt('--start', metavar='X,Y,Z,...', help="start sensor pose on the flange, in the convention's columns",
-        doc="Start sensor pose on the flange in the dataset's convention (``[sensor] start_pose``).",
+    Opt('--start', metavar='X,Y,Z,...',
+        help="Start sensor pose on the flange in the dataset's convention (``[sensor] start_pose``).",
         pytype='str or sequence, optional'),
     Opt('--joints', metavar='FILE', help='joint angles j1..j6 per pose, degrees (needs --robot)',
         kind='path'),
-    Opt('--robot', metavar='MODEL', help='[robot] model: a built-in nominal model or a model file',
-        doc='``[robot] model``: a built-in model name (``handeye.model.robots``) or a model file.'),
+    Opt('--robot', metavar='MODEL', help='``[robot] model``: a built-in model name (``handeye.model.robots``) or a model file.'),
     Opt('--pair', 'auto', choices=('auto', 'id', 'order'),
-        help='pair profiles with poses by a number in the file name (id), by order, or auto (default)',
-        doc='How profiles are paired with poses (:mod:`handeye.app.ingest.pairing`).'),
+        help='How profiles are paired with poses (:mod:`handeye.app.ingest.pairing`).'),
     Opt('--match', metavar='REGEX',
         help="regex with one group: the pose id in a profile's file name (default: the last digits)"),
     Opt('--bag', metavar='PATH',
-        help="a ROS 2 bag (sqlite3 or mcap) instead of --poses/--profiles (pip install 'handeye[ros]')",
-        doc="A ROS 2 bag instead of ``poses`` and ``profiles`` (needs ``pip install 'handeye[ros]'``).",
+        help="A ROS 2 bag instead of ``poses`` and ``profiles`` (needs ``pip install 'handeye[ros]'``).",
         kind='path'),
-    Opt('--pose-topic', metavar='TOPIC', help='geometry_msgs/PoseStamped, or /tf with --base-frame and --flange-frame',
-        doc="The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`)."),
-    Opt('--profile-topic', metavar='TOPIC', help='sensor_msgs/PointCloud2 or sensor_msgs/LaserScan',
-        doc="The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`)."),
-    Opt('--base-frame', metavar='FRAME', help='with /tf: the robot base frame',
-        doc="The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`)."),
-    Opt('--flange-frame', metavar='FRAME', help='with /tf: the flange frame',
-        doc="The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`)."),
+    Opt('--pose-topic', metavar='TOPIC',
+        help='geometry_msgs/PoseStamped, or /tf with --base-frame and --flange-frame'),
+    Opt('--profile-topic', metavar='TOPIC',
+        help='sensor_msgs/PointCloud2 or sensor_msgs/LaserScan'),
+    Opt('--base-frame', metavar='FRAME',
+        help='with /tf: the robot base frame'),
+    Opt('--flange-frame', metavar='FRAME',
+        help='with /tf: the flange frame'),
     Opt('--max-dt', 0.05, type='float', metavar='SECONDS', help='largest time between a profile and its pose (default 0.05)'),
     _json('print the summary as JSON'),
 )
