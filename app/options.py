@@ -24,6 +24,8 @@ MAX_ITER = 1_000_000
 NOISE = ("number", 1e-6, 1e3)
 #: The bounds of a largest sensor tilt from straight down (``--max-tilt``), degrees: (0, 90].
 TILT = ("number", 0.0, 90.0, True)
+#: A value among the option's choices (checked for the Python caller; the command line's parser checks it too).
+ONE_OF = ("one_of",)
 #: What compare takes as a calibration (the docstring's type).
 _GIVEN_POSE = "str, pathlib.Path, CalibrationResult or array_like (4, 4)"
 
@@ -331,14 +333,14 @@ _DATASET_NEW = (
         kind='path'),
     Opt('--profiles', (), action='append', metavar='FILES|GLOB|DIR',
         help='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
-    Opt('--convention', choices=('kuka', 'abb', 'ur', 'fanuc'),
+    Opt('--convention', check=ONE_OF, choices=tuple(CONVENTIONS),
         help="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a"
              " bag."),
     Opt('--columns', metavar='NAMES', help="the pose file's columns, e.g. id,x,y,z,qx,qy,qz,qw; - skips one"),
-    Opt('--units', 'mm', choices=('mm', 'm'), help='Positions of the pose file.'),
-    Opt('--angles', choices=('deg', 'rad'),
+    Opt('--units', 'mm', check=ONE_OF, choices=('mm', 'm'), help='Positions of the pose file.'),
+    Opt('--angles', check=ONE_OF, choices=('deg', 'rad'),
         help="units of the pose angles (default the convention's: degrees, radians for ur)"),
-    Opt('--profile-units', choices=('mm', 'm'), help="Profile coordinates (default mm; a bag's are metres)."),
+    Opt('--profile-units', check=ONE_OF, choices=('mm', 'm'), help="Profile coordinates (default mm; a bag's are metres)."),
     Opt('--profile-axes', metavar='X,Z',
         help="``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default found from the data "
              "(:mod:`handeye.app.ingest.plane`)."),
@@ -347,7 +349,7 @@ _DATASET_NEW = (
         help='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] '
              'start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.',
         kind='path'),
-    Opt('--side', type='int', choices=(1, -1),
+    Opt('--side', check=ONE_OF, type='int', choices=(1, -1),
         help="Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y for "
              "2-column profiles; default -1); written as ``[profile] side`` in handeye's frame "
              "(:meth:`~handeye.app.ingest.plane.PlaneMapping.side`)."),
@@ -360,7 +362,7 @@ _DATASET_NEW = (
     Opt('--joints', metavar='FILE', help='joint angles j1..j6 per pose, degrees (needs --robot)',
         kind='path'),
     Opt('--robot', metavar='MODEL', help='``[robot] model``: a built-in model name (``handeye.model.robots``) or a model file.'),
-    Opt('--pair', 'auto', choices=('auto', 'id', 'order'),
+    Opt('--pair', 'auto', check=ONE_OF, choices=('auto', 'id', 'order'),
         help='How profiles are paired with poses (:mod:`handeye.app.ingest.pairing`).'),
     Opt('--match', metavar='REGEX',
         help="regex with one group: the pose id in a profile's file name (default: the last digits)"),

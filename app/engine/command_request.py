@@ -29,8 +29,14 @@ def _level(value, option):
     return float(value)
 
 
+def _one_of(value, option, allowed):
+    if value not in allowed:
+        raise RequestError(f"{option} must be one of {', '.join(map(str, allowed))}, got {value!r}")
+    return value
+
+
 #: the validators an option's ``check`` names: (value, option, *bounds) -> the value checked
-CHECKS = {"number": _number, "integer": _integer, "level": _level}
+CHECKS = {"number": _number, "integer": _integer, "level": _level, "one_of": _one_of}
 
 
 def checked_values(command, values):
@@ -40,7 +46,8 @@ def checked_values(command, values):
     out = dict(values)
     for opt in (COMMANDS[command] if isinstance(command, str) else command).options:
         if opt.check and (values.get(opt.name) is not None or opt.check[0] == "level"):
-            out[opt.name] = CHECKS[opt.check[0]](values.get(opt.name), opt.flag, *opt.check[1:])
+            bounds = (opt.choices,) if opt.check[0] == "one_of" else opt.check[1:]
+            out[opt.name] = CHECKS[opt.check[0]](values.get(opt.name), opt.flag, *bounds)
     return out
 
 

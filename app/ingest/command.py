@@ -15,8 +15,6 @@ from handeye.app.present.protocol import ResultProtocol
 from handeye.model import conventions
 from handeye.model.tables import DatasetError
 
-UNITS, ANGLES, SIDES, PAIRINGS = ("mm", "m"), ("deg", "rad"), (1, -1), ("auto", "id", "order")
-
 
 @dataclasses.dataclass(frozen=True)
 class NewDatasetResult(ResultProtocol):
@@ -166,6 +164,7 @@ def _from_setup(opts):
 
 def _check_options(out, opts):
     """Options checked before anything is read; raises RequestError naming the option."""
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.files import check_output_folder
 
     check_output_folder(out, "OUT", empty=True)
@@ -190,13 +189,7 @@ def _check_options(out, opts):
     if not ok:
         raise RequestError(f"--diameter must be a number of mm in (0, 10000), got {diameter!r}")
     opts["diameter"] = float(diameter)
-    for key, allowed in (("units", UNITS), ("profile_units", UNITS + (None,)), ("angles", ANGLES + (None,)),
-                         ("side", SIDES), ("pair", PAIRINGS)):
-        if opts[key] not in allowed:
-            raise RequestError(f"--{key.replace('_', '-')} must be one of {', '.join(map(str, allowed))}, "
-                               f"got {opts[key]!r}")
-    if opts["convention"] is not None and opts["convention"] not in conventions.CONVENTIONS:
-        raise RequestError(f"--convention must be one of {', '.join(conventions.CONVENTIONS)}, got {opts['convention']!r}")
+    checked_values("dataset new", opts)  # units, angles, side, pairing and convention among their choices
     if opts["profile_axes"] is not None:
         from handeye.app.ingest.plane import parse_axes
 
@@ -295,11 +288,8 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
         Bad input (:class:`~handeye.model.tables.DatasetError` naming file, row, column;
         :class:`~handeye.app.errors.RequestError` naming the option).
     """
-    opts = dict(poses=poses, profiles=[profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ()),
-                convention=convention, columns=columns, units=units, angles=angles, profile_units=profile_units,
-                profile_axes=profile_axes, diameter=diameter, side=side, center=center, start=start, joints=joints,
-                robot=robot, pair=pair, match=match, bag=bag, pose_topic=pose_topic, profile_topic=profile_topic,
-                base_frame=base_frame, flange_frame=flange_frame, max_dt=max_dt, setup=setup)
+    opts = {**{k: v for k, v in options.COMMANDS["dataset new"].given(locals()).items() if k != "out"},
+            "profiles": [profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ())}
     _check_options(out, opts)
     centre = _vector(opts["center"], 3, "--center")
     ids, values, conv, per_pose, inputs, notes, how, roles, pose_ids = (_from_files if bag is None else _from_bag)(opts)
