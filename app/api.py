@@ -64,7 +64,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     return np.asarray(cal.sensor2flange, float), source
 
 
-@options.COMMANDS['calibrate'].documented
+@options.COMMANDS["calibrate"].documented
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
@@ -87,7 +87,6 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     handeye.InputError
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
-    from handeye.app import options
     from handeye.app.engine.calibrate import run
     from handeye.app.engine.classic import calibrate_classic
     from handeye.app.engine.command_request import CalibrateRequest
@@ -107,14 +106,14 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     return _written(result, data, asked.options, out=out, plot=plot, report=report)
 
 
-def _written(result, data, options, out=None, plot=None, report=None):
+def _written(result, data, record, out=None, plot=None, report=None):
     """``result`` (the sensor's own frame added where the profiles were turned) written where asked."""
     from handeye.app.files import provenance
 
     if data.own_axes is not None:  # profiles turned by dataset new: the sensor's own frame too (export writes it)
         result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
     if out is not None:
-        result = dataclasses.replace(result, provenance=provenance(data, options))
+        result = dataclasses.replace(result, provenance=provenance(data, record))
         result.save(out)
     if plot is not None:
         from handeye.app.engine.cell_stage import dataset_at
@@ -128,7 +127,7 @@ def _written(result, data, options, out=None, plot=None, report=None):
     return result
 
 
-@options.COMMANDS['diagnose'].documented
+@options.COMMANDS["diagnose"].documented
 def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor",
              no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
@@ -142,7 +141,6 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         unknowns (within 1 sd) and, if not, why (effects named, another residual model, other
         samples excluded).
     """
-    from handeye.app import options
     from handeye.app.engine.command_request import diagnose_request
 
     values = options.COMMANDS["diagnose"].given(locals())
@@ -196,7 +194,7 @@ def _diagnosis_figures(result, figures, plot):
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
 
 
-@options.COMMANDS['compare'].documented
+@options.COMMANDS["compare"].documented
 def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None, robot_sigma=None, convention=None,
             keep_all=False):
     """Which of two calibrations fits a dataset better, and is the difference significant
@@ -208,7 +206,6 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     -------
     handeye.app.present.score_results.CompareResult
     """
-    from handeye.app import options
     from handeye.app.engine import score
     from handeye.app.engine.command_request import compare_request
     from handeye.app.outputs import commands

@@ -58,7 +58,7 @@ class SimulationResult(ResultProtocol):
         return "\n".join(lines)
 
 
-@options.COMMANDS['simulate'].documented
+@options.COMMANDS["simulate"].documented
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
              no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None,
@@ -337,7 +337,7 @@ def _floats(text, option, count):
     return out
 
 
-@options.COMMANDS['plan'].documented
+@options.COMMANDS["plan"].documented
 def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
          sensor_mount="flange", sphere_mount="world", robot=None, effects=None, target=None, sigma=None):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.

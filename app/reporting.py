@@ -45,7 +45,7 @@ def saved_result(path, dataset):
     return doc
 
 
-@options.COMMANDS['report'].documented
+@options.COMMANDS["report"].documented
 def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unknowns=None, model=None,
            convention=None, keep_all=False, no_clean=False):
     """Write the one-file HTML report of a calibration (``handeye report``).

@@ -269,7 +269,7 @@ def _joints(opts, pose_ids, n):
     return values
 
 
-@options.COMMANDS['dataset new'].documented
+@options.COMMANDS["dataset new"].documented
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
                 profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,

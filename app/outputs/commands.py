@@ -119,7 +119,7 @@ class ExportResult(ResultProtocol):
         return dataclasses.asdict(self)
 
 
-@options.COMMANDS['export'].documented
+@options.COMMANDS["export"].documented
 def export(calibration=None, *, format="json", parent=None, child="sensor", tool=None, register=99, out=None,
            sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
@@ -306,7 +306,7 @@ def _scan_inputs(path):
     return [folder / "measurements.csv", folder / "setup.toml"]
 
 
-@options.COMMANDS['cloud'].documented
+@options.COMMANDS["cloud"].documented
 def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
 
@@ -346,7 +346,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     return result
 
 
-@options.COMMANDS['validate'].documented
+@options.COMMANDS["validate"].documented
 def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
              mpe=None):
     """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.outputs.validate`).
