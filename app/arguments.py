@@ -32,15 +32,11 @@ def load_dataset(name_or_folder, clean=True):
         A :class:`handeye.model.dataset.DatasetError` naming file, row and column of the first
         problem found.
     """
-    import os
-
     from handeye.model.dataset import Dataset, load
 
     if isinstance(name_or_folder, Dataset):
         return name_or_folder
-    if not isinstance(name_or_folder, (str, os.PathLike)):
-        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {name_or_folder!r}")
-    return load(name_or_folder, clean=bool(clean))
+    return load(_path_argument(name_or_folder), clean=bool(clean))
 
 
 def _path_argument(value):

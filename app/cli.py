@@ -18,7 +18,7 @@ Exit codes
 4  a study's data did not support its claim (``handeye study``)
 130 interrupted (SIGINT, Ctrl-C); 143 terminated (SIGTERM): one line, no temporary file left
 
-Start-up is light: this module and :mod:`handeye.app.parser` (every subcommand's options)
+Start-up is light: this module and :mod:`handeye.app.parser` (the parser of every command's options)
 import only the standard library and the names of the options (:mod:`handeye.app.choices`,
 :mod:`handeye.model.names`), so ``handeye --help`` never loads numpy, and the signal handlers
 are in place before anything heavy is imported.
@@ -29,19 +29,11 @@ import os
 import sys
 
 from handeye.app import parser as arguments
-from handeye.app.parser import build_parser  # noqa: F401  (cli.build_parser: the parser, as before)
+from handeye.app.parser import build_parser, dumps  # noqa: F401  (cli.build_parser: the parser, as before)
 from handeye.model import scratch
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
-
-
-def dumps(data):
-    """JSON text of a result (:func:`handeye.app.present.results.dumps`, imported when needed)."""
-    from handeye.app.present.results import dumps as to_json
-
-    return to_json(data)
-
 
 
 def _sizes(text, option):
@@ -135,7 +127,7 @@ def _public(args):
     if args.command == "export":
         print(f"written: {args.out} ({args.format})" if args.out else result.text, end="\n" if args.out else "")
     elif getattr(args, "json", False):
-        print(result.to_json() if args.command in ("calibrate", "diagnose") else dumps(result.to_dict()))
+        print(result.to_json())
     else:
         print(result.summary())
     return _EXITS.get(args.command, lambda result: EXIT_OK)(result)

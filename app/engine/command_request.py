@@ -4,7 +4,7 @@ Each command reads its dataset, then turns its options into a request here, then
 writes: ``load -> *_request(options, data) -> run -> write`` (as scipy's ``least_squares``
 checks its arguments in one block and its back-ends never check them again). The options come
 as the public function was given them (``COMMANDS[name].given``); the checks of the
-option tables (:attr:`handeye.app.options.Opt.check`) run first, then what only a command knows
+option tables (:attr:`handeye.app.option_record.Opt.check`) run first, then what only a command knows
 (a closed-form method takes no start, a score no effects), then what only the dataset can tell
 (a sensor held needs a pose, a file to write must not be one read). What is free and what is
 held is one record, :class:`~handeye.app.engine.request.Free`.
