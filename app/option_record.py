@@ -86,13 +86,9 @@ class Opt:
     def argument(self):
         """``(flags, keywords)`` of :meth:`argparse.ArgumentParser.add_argument`."""
         given = {"action": self.action, "help": _plain(self.help), "metavar": self.metavar, "nargs": self.nargs,
-                 "type": {"int": int, "float": float}.get(self.type),
+                 "type": {"int": int, "float": float}.get(self.type), "required": self.required or None,
                  "choices": self.choices() if callable(self.choices) else self.choices,
                  "default": list(self.default) if self.action == "append" else self.default}
-        if self.required:
-            given["required"] = True
-        if self.action == "store_true":
-            given = {"action": "store_true", "help": _plain(self.help)}
         return (self.flag,), {key: value for key, value in given.items() if value is not None}
 
 
@@ -154,10 +150,6 @@ class Command:
     def keywords(self, values):
         """The public function's keywords from ``values``, the parsed arguments (``vars(args)``)."""
         return {opt.name: values[opt.dest] for opt in self.keyword_options}
-
-    def defaults(self):
-        """``{keyword: default}`` of the public function, as the table declares them."""
-        return {opt.name: opt.default for opt in self.keyword_options}
 
     def given(self, scope):
         """The values the public function was called with: its keywords picked from ``scope``

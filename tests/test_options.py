@@ -56,7 +56,8 @@ def test_readme_option_tables_are_the_rendering(command):
 
 
 def test_provenance_options_are_those_saved_before():
-    given = COMMANDS["calibrate"].given({**COMMANDS["calibrate"].defaults(), "start": (1, 2.5, 3, 0, 0, 0)})
+    given = COMMANDS["calibrate"].given({**{opt.name: opt.default for opt in COMMANDS["calibrate"].options},
+                                        "start": (1, 2.5, 3, 0, 0, 0)})
     assert COMMANDS["calibrate"].record(given) == {
         "dataset": "thesis-real", "unknowns": "sensor", "calibration": None, "sensor_pose": None, "method": None,
         "rotation": None, "start": [1, 2.5, 3, 0, 0, 0], "convention": None, "max_iter": None, "model": None,
