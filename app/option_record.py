@@ -173,7 +173,8 @@ class Command:
                 entries.append([opt.name, text, kind])
         lines = ["Parameters", "----------"]
         for names, text, kind in entries:
-            lines += [f"{names} : {kind}"] + textwrap.wrap(text, 92, initial_indent="    ", subsequent_indent="    ")
+            lines += [f"{names} : {kind}"] + textwrap.wrap(text, 92, initial_indent="    ", subsequent_indent="    ",
+                                                             break_on_hyphens=False)
         return "\n    ".join(lines)
 
     def documented(self, function):
