@@ -17,53 +17,19 @@ file, row and column or the option; the CLI turns exactly that class into exit c
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 
 import numpy as np
 
+from handeye.app import options
 from handeye.app.arguments import (  # noqa: F401  (load_dataset and MAX_ITER: public names of the API too)
     MAX_ITER,
-    _integer,
-    _number,
     _path_argument,
-    _pose_text,
     load_dataset,
 )
 from handeye.app.engine.robust import ALPHA
 from handeye.app.errors import RequestError
 from handeye.app.making import PlanResult, SimulationResult, plan, simulate  # noqa: F401  (the API's)
 from handeye.model.errors import InputError
-
-
-def _alpha(alpha):
-    alpha = ALPHA if alpha is None else alpha
-    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
-        raise RequestError(f"--alpha must lie in (0, 1), got {alpha}")
-    return float(alpha)
-
-
-def start_pose_from(start, convention):
-    """A start pose given as ``'X,Y,Z,...'`` text or numbers, in ``convention``, as KUKA (6,).
-
-    Parameters
-    ----------
-    start : str or array_like
-        The columns of ``convention`` (:func:`handeye.model.conventions.columns`): mm, then
-        degrees (KUKA, FANUC), a quaternion w, x, y, z (ABB) or a rotation vector in radians
-        (UR).
-    convention : str
-    """
-    from handeye.app.engine.request import parse_pose
-
-    return parse_pose(_pose_text(start, "--start"), "--start", convention=convention)
-
-
-def _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo):
-    ignored = [name for name, given in (("--start", start), ("--rotation", rotation), ("--max-iter", max_iter),
-                                        ("--model", model), ("--plot", plot), ("--no-loo", no_loo or None))
-               if given is not None]
-    if ignored:
-        raise RequestError(f"--method {method} is closed form; these options do not apply to it: {', '.join(ignored)}")
 
 
 def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
@@ -98,95 +64,14 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     return np.asarray(cal.sensor2flange, float), source
 
 
-def _score_options(unknowns, method, effects, plot, data):
-    """The options (and cells) a score (a given sensor pose among --unknowns) refuses."""
-    if data.mounts.sphere == "positioner":
-        raise RequestError(f"{data.path / 'setup.toml'}: the sphere is on a positioner; a given sensor pose is not scored "
-                           "there (the set-up axes' errors would be blamed on it): hold it while the axes are calibrated, "
-                           "--unknowns sphere+positioner with --sensor-pose or --calibration")
-    if unknowns not in ("sensor", "sensor+sphere"):
-        raise RequestError(f"a sensor pose given with --unknowns {unknowns}: leave out sensor (--unknowns "
-                           f"{unknowns.replace('sensor+', '')}) to hold it while the others are calibrated")
-    for given, option in ((effects, "--effects"), (plot, "--plot")):
-        if given:
-            raise RequestError(f"{option} does not apply to a score of a given sensor pose")
-    from handeye.app.engine.classic import METHODS as CLOSED_FORM
-
-    if method in CLOSED_FORM:
-        raise RequestError(f"--method {method} is closed form: a given sensor pose is scored with a least-squares "
-                           "method")
-
-
+@options.COMMANDS["calibrate"].documented
 def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation=None, start=None,
               convention=None, max_iter=None, model=None, keep_all=False, alpha=None, no_loo=False, plot=None,
               out=None, sigma=None, robot_sigma=None, effects=None, calibration=None, sensor_pose=None,
               no_clean=False, report=None):
     """Calibrate the sensor pose (and the sphere, the positioner) of a cell (``handeye calibrate``).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-        Embedded name or folder (:func:`load_dataset`); default ``'thesis-real'``.
-    unknowns : str
-        The parts estimated, ``+``-joined: ``sensor`` (6 unknowns: the sensor frame in its mount's
-        frame), ``sphere`` (3: the centre in its mount's frame), ``positioner`` (4 per axis); for
-        example ``sensor``, ``sensor+sphere``, ``sphere+positioner``, ``sensor+sphere+positioner``
-        (:mod:`handeye.app.engine.cell_stage`). A part not estimated comes from ``setup.toml``
-        (``[sensor] pose``, ``[sphere] center``, ``[positioner] axes``) or ``calibration``.
-    method : {'ipopt', 'gn', 'lm', 'tr', 'dogleg', 'newton', 'kim-cho', 'li-two-step'}, optional
-        A least-squares solver, or a closed-form baseline (the last two). Default ``ipopt``,
-        and ``lm`` above :data:`handeye.app.engine.request.LARGE` measurements (time and memory
-        linear in the data; the result says so).
-    rotation : {'matrix', 'local', 'euler'}, optional
-        Rotation parametrisation; default ``matrix`` for IPOPT, ``local`` otherwise.
-    start : str or array_like, optional
-        Start sensor pose in ``convention`` (``'X,Y,Z,A,B,C'`` for KUKA: mm, degrees);
-        default the setup's ``start_pose``, else the closed-form estimate.
-    convention : {'kuka', 'abb', 'ur', 'fanuc'}, optional
-        Robot convention of ``start`` and of the result's ``sensor_pose``; default the
-        dataset's.
-    max_iter : int, optional
-        Iteration limit of the solver.
-    model : {'centre', 'measurement', 'points'}, optional
-        Residual; default ``measurement`` when every sample has a profile, else ``centre``.
-    keep_all : bool
-        Fit every sample: no outlier screening (a row whose centre columns contradict its own
-        profile is still excluded, :mod:`handeye.model.consistency`).
-    alpha : float, optional
-        Family-wise level of the outlier tests (default 0.01).
-    no_loo : bool
-        Skip the leave-one-out error (one refit per sample).
-    plot : str or pathlib.Path, optional
-        Draw residuals and the sphere centres through the chain to this PNG.
-    out : str or pathlib.Path, optional
-        Also write the JSON result, with the dataset's hash, the tool's version and the
-        options (``provenance``), atomically.
-    sigma : float, optional
-        Stated noise of a sphere centre through the chain, mm per component, that the
-        ``centre`` residual is tested against; default the setup's ``[noise] centre_mm``
-        (0.05). The ``measurement`` residual is tested against each circle fit's covariance
-        (from its own points) plus ``robot_sigma`` instead.
-    robot_sigma : float, optional
-        Robot repeatability, mm per axis (weights of the profile models); default the setup's
-        ``[noise] robot_mm`` (0.025).
-    effects : str or sequence of str, optional
-        Catalogue effects to calibrate with the sensor pose: ``sensor_scale``,
-        ``sphere_radius``, ``sphere_center`` (``'a,b'`` or a list); as ``handeye diagnose``
-        names them.
-    calibration : str or pathlib.Path, optional
-        A saved calibration (``calibrate --out``) whose sensor pose is held: when ``unknowns``
-        has no ``sensor``, instead of ``[sensor] pose``; when it has, the pose is *scored*
-        (below).
-    sensor_pose : str or array_like, optional
-        A sensor pose typed in (``convention``'s columns, e.g. the vendor's), held as
-        ``calibration`` is.
-    no_clean : bool
-        Fit every profile point: no profile cleaning (:mod:`handeye.model.profile_clean`; by
-        default speckle and background points off the sphere's arc are dropped, and the result's
-        ``cleaning`` says how many of which profile). Applies when ``dataset`` is a name or folder.
-    report : str or pathlib.Path, optional
-        Also write the one-file HTML report of the result (``handeye report``,
-        :mod:`handeye.app.reporting`), atomically.
+    {parameters}
 
     Returns
     -------
@@ -203,73 +88,34 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
     from handeye.app.engine.calibrate import run
-    from handeye.app.engine.classic import METHODS as CLOSED_FORM
     from handeye.app.engine.classic import calibrate_classic
-    from handeye.app.engine.request import METHODS, UNKNOWNS, CalibrationRequest, unknown_parts
+    from handeye.app.engine.command_request import CalibrateRequest
     from handeye.app.engine.score import run_score
-    from handeye.app.files import check_output_path, input_files, provenance
-    from handeye.model import conventions
-    from handeye.model.pose import pose_from_transform
 
-    options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path),
-               "unknowns": unknowns, "method": method, "rotation": rotation,
-               "start": start if start is None or isinstance(start, str) else np.ravel(start).tolist(),
-               "convention": convention, "max_iter": max_iter, "model": model, "keep_all": bool(keep_all),
-               "alpha": alpha, "no_loo": bool(no_loo), "plot": None if plot is None else str(plot),
-               "sigma": sigma, "robot_sigma": robot_sigma, "effects": effects,
-               "calibration": None if calibration is None else str(calibration), "no_clean": bool(no_clean),
-               "sensor_pose": None if sensor_pose is None or isinstance(sensor_pose, str) else np.ravel(sensor_pose).tolist(),
-               "report": None if report is None else str(report)}
-    if isinstance(sensor_pose, str):
-        options["sensor_pose"] = sensor_pose
-    if method is not None and method not in METHODS + CLOSED_FORM:
-        raise RequestError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLOSED_FORM)}")
-    unknowns = unknown_parts(unknowns)
-    if method in CLOSED_FORM and unknowns not in UNKNOWNS:
-        raise RequestError(f"--method {method} is closed form: --unknowns {' or '.join(UNKNOWNS)}")
+    values = options.COMMANDS["calibrate"].given(locals())
     data = load_dataset(dataset, clean=not no_clean)
-    scoring = (calibration is not None or sensor_pose is not None) and "sensor" in unknowns.split("+")
-    if scoring:
-        _score_options(unknowns, method, effects, plot, data)
-    convention = conventions.check(convention or data.convention)
-    given, source = _given_sensor(calibration, sensor_pose, convention, data, scoring)
-    held = None if given is None or scoring else pose_from_transform(given)
-    if scoring and report is not None:
-        raise RequestError("--report: a scored pose has no report; report the data's own calibration (without "
-                           "--sensor-pose / --calibration), or compare the two with `handeye compare`")
-    inputs = input_files(data) if out is not None or plot is not None or report is not None else ()
-    for path, option in ((out, "--out"), (plot, "--plot"), (report, "--report")):
-        if path is not None:  # before the work (never half a result), and never over an input
-            check_output_path(path, option, inputs=inputs, plot=option == "--plot")
-    level = _alpha(alpha)
-    for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
-        if value is not None:
-            _number(value, option, 1e-6, 1e3)
-    if effects is not None and not [n for n in str(effects if isinstance(effects, str) else ",".join(effects)).split(",")
-                                    if n.strip()]:
-        raise RequestError("--effects: give one or more effect names (sensor_scale, sphere_radius, sphere_center, "
-                           "joint_offsets)")
-    if method in CLOSED_FORM:
-        _closed_form_options(method, start, rotation, max_iter, model, plot, no_loo)
-        if effects:
-            raise RequestError(f"--method {method} is closed form; --effects does not apply to it")
-        result = calibrate_classic(data, method, unknowns, outliers=not keep_all, alpha=level, convention=convention)
+    asked = CalibrateRequest.from_options(values, data)
+    request, free = asked.request, asked.free
+    given, source = _given_sensor(calibration, sensor_pose, request.convention, data, free.scored)
+    if asked.closed_form:
+        result = calibrate_classic(data, method, free.parts, outliers=request.outliers, alpha=request.alpha,
+                                   convention=request.convention)
     else:
-        solver_options = {} if max_iter is None else {"max_iter": _integer(max_iter, "--max-iter", 1, MAX_ITER)}
-        from handeye.model.own_frame import kuka_to_internal
+        request = asked.holding(given, data)
+        result = run_score(request, data, given, source) if free.scored else run(request, data)
+    return _written(result, data, asked.options, out=out, plot=plot, report=report)
 
-        start_kuka = kuka_to_internal(start_pose_from(start, convention), data.own_axes) if start is not None else None
-        request = CalibrationRequest(
-            unknowns=unknowns, method=method, rotation=rotation, start=start_kuka, options=solver_options,
-            outliers=not keep_all, alpha=level, loo=not no_loo, model=model, convention=convention, sigma=sigma,
-            robot_sigma=robot_sigma, effects=effects or (), sensor_pose=held).checked(data)
-        result = run_score(request, data, given, source) if scoring else run(request, data)
+
+def _written(result, data, record, out=None, plot=None, report=None):
+    """``result`` (of the sensor's own frame where the profiles were turned) written where asked."""
+    from handeye.app.files import provenance
+
     if data.own_axes is not None:  # profiles turned by dataset new: every pose out is of the sensor's own frame
         result = dataclasses.replace(result, own_axes=np.asarray(data.own_axes, float))
     if data.poses_read is not None and hasattr(result, "warnings"):  # an older setup.toml: how its poses were read
         result = dataclasses.replace(result, warnings=[*result.warnings, data.poses_read])
     if out is not None:
-        result = dataclasses.replace(result, provenance=provenance(data, options))
+        result = dataclasses.replace(result, provenance=provenance(data, record))
         result.save(out)
     if plot is not None:
         from handeye.app.engine.cell_stage import dataset_at
@@ -283,30 +129,12 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     return result
 
 
+@options.COMMANDS["diagnose"].documented
 def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sigma=None, out=None, unknowns="sensor",
              no_clean=False):
     """Find, name and add the effects the model is missing (``handeye diagnose``).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-    alpha : float
-        Family-wise level of the tests (default 0.01).
-    figures : str or pathlib.Path, optional
-        Folder to write ``residuals.png`` and ``gap.png`` into.
-    plot : str or pathlib.Path, optional
-        Write the gap-shrinking figure to this PNG.
-    sigma : float, optional
-        Nominal noise per residual component (mm) that chi2/dof is stated against; default the
-        setup's ``[noise] centre_mm`` (0.05).
-    out : str or pathlib.Path, optional
-        Also write the JSON result with provenance, atomically.
-    unknowns : {'sensor', 'sensor+sphere'}
-        ``sensor+sphere`` estimates the sphere centre with the pose in every model (needed when
-        the setup gives none; its start is :func:`calibrate`'s estimate); ``sensor`` tests the
-        effects against the setup's centre.
-    no_clean : bool
-        Fit every profile point: no profile cleaning (as :func:`calibrate`).
+    {parameters}
 
     Returns
     -------
@@ -315,33 +143,26 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
         unknowns (within 1 sd) and, if not, why (effects named, another residual model, other
         samples excluded).
     """
-    from handeye.app.engine import diagnose as procedure
-    from handeye.app.files import check_output_folder, check_output_path, input_files, provenance
-    from handeye.app.present.report import diagnosis_figures
+    from handeye.app.engine.command_request import diagnose_request
 
-    level = _alpha(alpha)
-    if sigma is not None:
-        _number(sigma, "--sigma", 1e-6, 1e3)
-    from handeye.app.engine.request import unknown_parts
-
-    parts = unknown_parts(unknowns)
-    if parts not in ("sensor", "sensor+sphere"):
-        raise RequestError(f"--unknowns {parts}: diagnose estimates sensor or sensor+sphere (a positioner's axes are "
-                           "tested as its first effect)")
+    values = options.COMMANDS["diagnose"].given(locals())
     data = load_dataset(dataset, clean=not no_clean)
-    inputs = input_files(data) if (out, figures, plot) != (None, None, None) else ()
+    checked, parts, record = diagnose_request(values, data)
+    result, data = _diagnosed(data, parts, checked["alpha"], sigma)
     if out is not None:
-        check_output_path(out, "--out", inputs=inputs)
-    if data.sphere_centre is None and parts == "sensor":
-        raise RequestError(f"{data.path / 'setup.toml'}, column '[sphere] center': no sphere centre given; estimate it "
-                           f"with the pose: `handeye diagnose {dataset} --unknowns sensor+sphere`")
-    if figures is not None:
-        check_output_folder(figures, "--figures")
-        if pathlib.Path(figures).is_dir():  # the two files it will write: never over an input
-            for name in ("residuals.png", "gap.png"):
-                check_output_path(pathlib.Path(figures) / name, "--figures", inputs=inputs)
-    if plot is not None:
-        check_output_path(plot, "--plot", inputs=inputs, plot=True)
+        from handeye.app.files import provenance
+
+        result = dataclasses.replace(result, provenance=provenance(data, record))
+        result.save(out)
+    if figures is not None or plot is not None:
+        _diagnosis_figures(result, figures, plot)
+    return result
+
+
+def _diagnosed(data, parts, level, sigma):
+    """The diagnosis of ``data`` with ``parts`` free, beside calibrate's own pose; and the data
+    (with the centre a free centre's calibration found)."""
+    from handeye.app.engine import diagnose as procedure
     from handeye.app.engine import slips
     from handeye.app.engine.prepare import gate, with_sphere_centre
 
@@ -357,15 +178,14 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
     against = (f"calibrate refuses these data: {own}" if isinstance(own, Exception)
                else procedure.against_calibrate(result, own))
-    result = dataclasses.replace(result, unknowns=parts, against_calibrate=against,
-                                 own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float))
-    if out is not None:
-        options = {"dataset": str(dataset) if not hasattr(dataset, "path") else str(dataset.path), "alpha": alpha,
-                   "unknowns": parts,
-                   "sigma": sigma, "figures": None if figures is None else str(figures),
-                   "plot": None if plot is None else str(plot), "no_clean": bool(no_clean)}
-        result = dataclasses.replace(result, provenance=provenance(data, options))
-        result.save(out)
+    return dataclasses.replace(result, unknowns=parts, against_calibrate=against,
+                               own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float)), data
+
+
+def _diagnosis_figures(result, figures, plot):
+    """``residuals.png`` and ``gap.png`` into the folder ``figures``, the gap figure to ``plot``."""
+    from handeye.app.present.report import diagnosis_figures
+
     if figures is not None:
         diagnosis_figures(result, figures)
     if plot is not None:
@@ -374,38 +194,27 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 
         with scratch.temporary_folder() as tmp:
             write_bytes_atomically(plot, diagnosis_figures(result, tmp)[1].read_bytes(), option="--plot")
-    return result
 
 
+@options.COMMANDS["compare"].documented
 def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None, robot_sigma=None, convention=None,
             keep_all=False):
     """Which of two calibrations fits a dataset better, and is the difference significant
     (``handeye compare DATASET A.json B.json``; :mod:`handeye.app.engine.score`).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-    a, b : str, pathlib.Path, CalibrationResult or array_like (4, 4)
-        The two calibrations (saved files, results, or sensor poses as 4x4 in the mount's frame, mm).
-    unknowns : {'sensor', 'sensor+sphere'}, optional
-        ``sensor+sphere`` fits the sphere centre with each pose held; default ``sensor`` when the
-        setup gives the centre, else ``sensor+sphere``.
-    model, alpha, sigma, robot_sigma, convention, keep_all
-        As :func:`calibrate` (the data's own calibration, whose screening and residual model both
-        poses are scored with; ``alpha`` is also the level of "significant").
+    {parameters}
 
     Returns
     -------
     handeye.app.present.score_results.CompareResult
     """
     from handeye.app.engine import score
-    from handeye.app.engine.request import CalibrationRequest, unknown_parts
+    from handeye.app.engine.command_request import compare_request
     from handeye.app.outputs import commands
-    from handeye.model import conventions
 
+    values = options.COMMANDS["compare"].given(locals())
     data = load_dataset(dataset)
-    unknowns = unknown_parts(unknowns or ("sensor" if data.sphere_centre is not None else "sensor+sphere"))
-    _score_options(unknowns, None, None, None, data)
+    request, level = compare_request(values, data)
     poses, sources = [], []
     for given in (a, b):
         cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given,
@@ -414,13 +223,6 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
         sources.append(cal.source + ("" if cal.converged else " (converged: false in the file)"))
     if sources[0] == sources[1]:
         sources = [f"A ({sources[0]})", f"B ({sources[1]})"]
-    level = _alpha(alpha)
-    for value, option in ((sigma, "--sigma"), (robot_sigma, "--robot-sigma")):
-        if value is not None:
-            _number(value, option, 1e-6, 1e3)
-    request = CalibrationRequest(unknowns=unknowns, model=model, outliers=not keep_all, alpha=level, loo=False,
-                                 convention=conventions.check(convention or data.convention), sigma=sigma,
-                                 robot_sigma=robot_sigma).checked(data)
     result = score.compare(request, data, poses, sources, level)
     return result if data.own_axes is None else dataclasses.replace(result, scores=tuple(
         dataclasses.replace(s, own_axes=np.asarray(data.own_axes, float)) for s in result.scores))

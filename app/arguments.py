@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.app.errors import RequestError
+from handeye.app.options import MAX_ITER  # noqa: F401  (handeye.app.arguments.MAX_ITER, as before)
 
 
 def load_dataset(name_or_folder, clean=True):
@@ -31,15 +32,11 @@ def load_dataset(name_or_folder, clean=True):
         A :class:`handeye.model.dataset.DatasetError` naming file, row and column of the first
         problem found.
     """
-    import os
-
     from handeye.model.dataset import Dataset, load
 
     if isinstance(name_or_folder, Dataset):
         return name_or_folder
-    if not isinstance(name_or_folder, (str, os.PathLike)):
-        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {name_or_folder!r}")
-    return load(name_or_folder, clean=bool(clean))
+    return load(_path_argument(name_or_folder), clean=bool(clean))
 
 
 def _path_argument(value):
@@ -65,10 +62,6 @@ def _number(value, option, low, high, low_open=False):
     if not ok or value > high or value < low or (low_open and value == low):
         raise RequestError(f"{option} must lie in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
     return float(value)
-
-
-#: Largest iteration limit accepted (a C int, IPOPT's, must hold it; no calibration needs more).
-MAX_ITER = 1_000_000
 
 
 def _integer(value, option, low, high=None):

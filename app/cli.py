@@ -18,7 +18,7 @@ Exit codes
 4  a study's data did not support its claim (``handeye study``)
 130 interrupted (SIGINT, Ctrl-C); 143 terminated (SIGTERM): one line, no temporary file left
 
-Start-up is light: this module and :mod:`handeye.app.parser` (every subcommand's options)
+Start-up is light: this module and :mod:`handeye.app.parser` (the parser of every command's options)
 import only the standard library and the names of the options (:mod:`handeye.app.choices`,
 :mod:`handeye.model.names`), so ``handeye --help`` never loads numpy, and the signal handlers
 are in place before anything heavy is imported.
@@ -29,70 +29,11 @@ import os
 import sys
 
 from handeye.app import parser as arguments
-from handeye.app.parser import build_parser  # noqa: F401  (cli.build_parser: the parser, as before)
+from handeye.app.parser import build_parser, dumps  # noqa: F401  (cli.build_parser: the parser, as before)
 from handeye.model import scratch
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_CLAIM_FAILED = 0, 1, 2, 3, 4
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
-
-
-def dumps(data):
-    """JSON text of a result (:func:`handeye.app.present.results.dumps`, imported when needed)."""
-    from handeye.app.present.results import dumps as to_json
-
-    return to_json(data)
-
-
-def _compare(args):
-    from handeye.app import api
-
-    result = api.compare(args.dataset, args.a, args.b, unknowns=args.unknowns, model=args.model, alpha=args.alpha,
-                         sigma=args.sigma, robot_sigma=args.robot_sigma, keep_all=args.keep_all)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK
-
-
-def _report(args):
-    from handeye.app.reporting import report
-
-    result = report(args.dataset, html=args.html, calibration=args.calibration, diagnose=args.diagnose,
-                    unknowns=args.unknowns, model=args.model, convention=args.convention, keep_all=args.keep_all,
-                    no_clean=args.no_clean)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
-
-
-def _dataset(args):
-    from handeye.app.ingest.command import new_dataset
-
-    result = new_dataset(args.out, poses=args.poses, profiles=args.profiles, convention=args.convention,
-                         columns=args.columns, units=args.units, angles=args.angles, profile_units=args.profile_units,
-                         profile_axes=args.profile_axes, diameter=args.diameter, side=args.side, center=args.center,
-                         start=args.start, joints=args.joints, robot=args.robot, pair=args.pair, match=args.match,
-                         bag=args.bag, pose_topic=args.pose_topic, profile_topic=args.profile_topic,
-                         base_frame=args.base_frame, flange_frame=args.flange_frame, max_dt=args.max_dt, setup=args.setup)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK
-
-
-def _plan(args):
-    from handeye.app import api
-
-    result = api.plan(n=args.n, candidates=args.candidates, dataset=args.dataset, out=args.out, max_tilt=args.max_tilt,
-                      margin=args.margin, workspace=args.workspace, score=args.score, sensor_mount=args.sensor_mount,
-                      sphere_mount=args.sphere_mount, robot=args.robot, effects=args.effects, target=args.target,
-                      sigma=args.sigma)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_NOT_CONVERGED if result.robot is not None and result.robot.n_needed is None else EXIT_OK
-
-
-def _diagnose(args):
-    from handeye.app import api
-
-    result = api.diagnose(args.dataset, alpha=args.alpha, figures=args.figures, plot=args.plot, sigma=args.sigma,
-                          out=args.out, unknowns=args.unknowns, no_clean=args.no_clean)
-    print(result.to_json() if args.json else result.summary())
-    return EXIT_OK
 
 
 def _sizes(text, option):
@@ -156,63 +97,40 @@ def _study(args):
     return EXIT_OK
 
 
-def _simulate(args):
-    from handeye.app import api
-
-    result = api.simulate(args.out, seed=args.seed, effect=args.effect, profiles=args.profiles, poses=args.poses,
-                          n_poses=args.n_poses, linearity=args.linearity, motions=args.motions,
-                          translations=args.translations, truth=args.truth, diameter=args.diameter,
-                          center=args.center, convention=args.convention, max_tilt=args.max_tilt,
-                          no_start=args.no_start, sensor_mount=args.sensor_mount, sphere_mount=args.sphere_mount,
-                          positioner_axes=args.positioner_axes, positioner_error=args.positioner_error,
-                          robot=args.robot)
-    print(result.summary())
-    return EXIT_OK
 
 
-def _export(args):
-    from handeye.app.errors import RequestError
-    from handeye.app.outputs import commands as use
 
-    if args.result is None and args.sensor_pose is None:
-        raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
-    result = use.export(args.result, format=args.format, parent=args.parent, child=args.child, tool=args.tool,
-                        register=args.register, out=args.out, sensor_pose=args.sensor_pose,
-                        convention=args.convention, force=args.force, base=args.base,
-                        sensor_mount=args.sensor_mount)
-    print(f"written: {args.out} ({args.format})" if args.out else result.text, end="\n" if args.out else "")
-    return EXIT_OK
+def _result(args):
+    """Call the command's public function with its keywords, read from the parsed arguments by
+    the command's option table (:mod:`handeye.app.options`)."""
+    import importlib
 
+    from handeye.app import options
 
-def _cloud(args):
-    from handeye.app.outputs import commands as use
-
-    result = use.cloud(args.dataset, args.calibration, out=args.out, format=args.format, sensor_pose=args.sensor_pose,
-                       convention=args.convention, force=args.force)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_OK
+    name = args.command + (f" {args.action}" if args.command == "dataset" else "")
+    module, _, function = options.COMMANDS[name].function.partition(":")
+    return getattr(importlib.import_module(module), function)(**options.COMMANDS[name].keywords(vars(args)))
 
 
-def _validate(args):
-    from handeye.app.outputs import commands as use
+#: command -> its exit code from its result (the others: 0)
+_EXITS = {
+    "calibrate": lambda r: EXIT_OK if getattr(r, "converged", True) else EXIT_NOT_CONVERGED,  # a score: exit 0
+    "report": lambda r: EXIT_OK if r.converged else EXIT_NOT_CONVERGED,
+    "plan": lambda r: EXIT_NOT_CONVERGED if r.robot is not None and r.robot.n_needed is None else EXIT_OK,
+    "validate": lambda r: EXIT_NOT_CONVERGED if r.passed is False else EXIT_OK,
+}
 
-    result = use.validate(args.dataset, args.calibration, plot=args.plot, exclude=args.exclude,
-                          sensor_pose=args.sensor_pose, convention=args.convention, force=args.force, mpe=args.mpe)
-    print(dumps(result.to_dict()) if args.json else result.summary())
-    return EXIT_NOT_CONVERGED if result.passed is False else EXIT_OK
 
-
-def _calibrate(args):
-    from handeye.app import api
-
-    result = api.calibrate(args.dataset, unknowns=args.unknowns, method=args.method, rotation=args.rotation,
-                           start=args.start, convention=args.convention, max_iter=args.max_iter, model=args.model,
-                           keep_all=args.keep_all, alpha=args.alpha, no_loo=args.no_loo, plot=args.plot,
-                           out=args.out, sigma=args.sigma, robot_sigma=args.robot_sigma, effects=args.effects,
-                           calibration=args.calibration, sensor_pose=args.sensor_pose, no_clean=args.no_clean,
-                           report=args.report)
-    print(result.to_json() if args.json else result.summary())
-    return EXIT_OK if getattr(result, "converged", True) else EXIT_NOT_CONVERGED  # a score (no converged) is exit 0
+def _public(args):
+    """A command of the public API: its result printed (``--json``: as JSON), its exit code."""
+    result = _result(args)
+    if args.command == "export":
+        print(f"written: {args.out} ({args.format})" if args.out else result.text, end="\n" if args.out else "")
+    elif getattr(args, "json", False):
+        print(result.to_json())
+    else:
+        print(result.summary())
+    return _EXITS.get(args.command, lambda result: EXIT_OK)(result)
 
 
 #: signal -> (what stderr says, exit code): the shell's 128 + signal number
@@ -264,10 +182,7 @@ def _run(args):
 
         print("\n".join(embedded_names()))
         return EXIT_OK
-    commands = {"simulate": _simulate, "diagnose": _diagnose, "bench": _bench, "export": _export, "cloud": _cloud,
-                "validate": _validate, "plan": _plan, "study": _study, "compare": _compare, "dataset": _dataset,
-                "report": _report}
-    return commands.get(args.command, _calibrate)(args)
+    return {"bench": _bench, "study": _study}.get(args.command, _public)(args)
 
 
 def _cannot_write(exc):

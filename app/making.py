@@ -7,7 +7,8 @@ import pathlib
 
 import numpy as np
 
-from handeye.app.arguments import _integer, _number, _path_argument, _pose_text, load_dataset
+from handeye.app import options
+from handeye.app.arguments import _path_argument, _pose_text, load_dataset
 from handeye.app.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
 
@@ -57,90 +58,40 @@ class SimulationResult(ResultProtocol):
         return "\n".join(lines)
 
 
+@options.COMMANDS["simulate"].documented
 def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, linearity=0.0, motions="thesis",
              translations=0, truth=None, diameter=None, center=None, convention="kuka", max_tilt=90.0,
              no_start=False, sensor_mount="flange", sphere_mount="world", positioner_axes=None, positioner_error=None,
              robot=None):
     """Write a simulated dataset with known truth (``handeye simulate``; :mod:`handeye.model.simulate`).
 
-    Parameters
-    ----------
-    out : str or pathlib.Path
-        Dataset folder to write (must be new or empty).
-    seed : int
-    effect : str or sequence of str
-        Hidden effects ``'NAME=VALUE'``: ``sphere_center=dx,dy,dz``, ``sensor_scale=s``,
-        ``sphere_radius=dr``, ``sign_flip=ID,ID``, ``outlier=ID,ID``, with ``robot``
-        ``joint_offsets=j2:0.05,j3:-0.03`` (degrees), ``link_lengths=a2:0.3,d4:-0.2`` (mm, the
-        model's length names) and ``joint_compliance=j2:0.02,j3:0.01`` (degrees per metre).
-    profiles : bool
-        Also write the laser profiles.
-    poses : str or pathlib.Path, optional
-        A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns,
-        degrees) instead of the thesis strategy.
-    n_poses : int
-        Poses of the thesis strategy (1-36).
-    linearity : float
-        Sensor linearity error as a fraction of the 100 mm range, in [0, 0.1).
-    motions : {'thesis', 'about-sphere'}
-    translations : int
-        Pure flange translations (0-6) at each of two orientations.
-    truth : str or array_like, optional
-        True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the
-        thesis's (190, 100, 125, 180, -88, 0) in KUKA terms on the flange,
-        :data:`handeye.model.simulate_mounts.WORLD_SENSOR` in the cell.
-    diameter : float, optional
-        Sphere diameter, mm; default the thesis's certified 59.94507.
-    center : str or array_like, optional
-        Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the
-        thesis's in the base, :mod:`handeye.model.simulate_mounts`' on the flange or the table.
-    convention : {'kuka', 'abb', 'ur', 'fanuc'}
-        Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.
-    max_tilt : float
-        Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).
-    no_start : bool
-        Write no ``start_pose``: a calibration then starts from the closed-form estimate.
-    sensor_mount, sphere_mount : str
-        ``flange``/``world`` (the seed's cell), ``world``/``flange`` or ``flange``/``positioner``
-        (:mod:`handeye.model.simulate_mounts`).
-    positioner_axes : str, optional
-        Nominal axes ``'NAME:px,py,pz:dx,dy,dz;...'`` (robot base at zero angles, mm), base first;
-        default a KUKA KP1-V-like two-axis positioner.
-    positioner_error : str or sequence of two floats, optional
-        ``'MM,DEG'``: how far the true axes differ from the nominal ones (default 1.0, 0.2).
-    robot : str, optional
-        A nominal robot model (built-in name or model file, :mod:`handeye.model.robots`): the
-        poses are reached by its inverse kinematics and the dataset gets ``j1..j6`` and
-        ``[robot] model`` (:mod:`handeye.model.simulate_robot`); without ``center`` the sphere
-        is placed in its workspace (:data:`handeye.model.simulate_robot.CENTRES`). The sensor on
-        the flange and the sphere in the world only.
+    {parameters}
 
     Returns
     -------
     SimulationResult
     """
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.engine.request import parse_pose
+    from handeye.app.files import check_output_folder
     from handeye.model import conventions
     from handeye.model import motions as motion_strategies
     from handeye.model import simulate as sim
     from handeye.model.pose import pose_from_transform
 
+    v = checked_values("simulate", options.COMMANDS["simulate"].given(locals()))
+    seed, n_poses, translations = v["seed"], v["n_poses"], v["translations"]
     conventions.check(convention)
-    from handeye.app.files import check_output_folder
-
     folder = check_output_folder(out, "--out", empty=True)
     if isinstance(linearity, bool) or not isinstance(linearity, (int, float)) or not 0 <= linearity < 0.1:
         raise RequestError(f"--linearity must lie in [0, 0.1), got {linearity}")
-    seed = _integer(seed, "--seed", 0)
-    n_poses = _integer(n_poses, "--n-poses", 1)
-    translations = _integer(translations, "--translations", 0)
-    setup = sim.Setup(linearity=linearity, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
+    setup = sim.Setup(linearity=linearity, max_tilt_deg=v["max_tilt"])
     cell, setup = _simulated_cell(setup, seed, sensor_mount, sphere_mount, positioner_axes, positioner_error)
     if truth is not None:
         pose = parse_pose(_pose_text(truth, "--truth"), "--truth", convention=convention)
         setup = dataclasses.replace(setup, sensor_pose=tuple(pose))
     if diameter is not None:
-        setup = dataclasses.replace(setup, diameter=_number(diameter, "--diameter", 0.0, 10_000.0, low_open=True))
+        setup = dataclasses.replace(setup, diameter=v["diameter"])
     if center is not None:
         setup = dataclasses.replace(setup, sphere_centre=tuple(_floats(center, "--center", 3)))
     effects = sim.parse_effects([effect] if isinstance(effect, str) else list(effect))
@@ -386,117 +337,97 @@ def _floats(text, option, count):
     return out
 
 
+@options.COMMANDS["plan"].documented
 def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, margin=None, workspace=None, score=None,
          sensor_mount="flange", sphere_mount="world", robot=None, effects=None, target=None, sigma=None):
     """Choose the ``n`` most informative poses, D-optimal (``handeye plan``), or score a given list.
 
-    Parameters
-    ----------
-    n : int, optional
-        Number of poses to choose; default 12, with a robot the number its ``target`` takes.
-    candidates : str or pathlib.Path, optional
-        Candidate flange poses (a pose list in any convention, told by its header; with a robot
-        optionally followed by j1..j6, degrees: those configurations); default the thesis
-        strategy's 36 orientations x three cuts scaled to the sphere (108 poses).
-    dataset : str, pathlib.Path or Dataset, optional
-        Take the nominal sensor pose (``start_pose``), sphere centre, diameter, laser side and
-        robot convention from it (only its ``setup.toml`` is read: a cell can be planned before
-        it is measured); default the thesis's cell.
-    out : str or pathlib.Path, optional
-        Write the chosen poses as a pose list in the dataset's convention.
-    max_tilt : float
-        Largest tilt of the sensor from straight down of the default candidates, degrees.
-    margin : str or sequence of two floats, optional
-        ``'MM,DEG'``: the nominal sensor pose may be off by this much; every candidate keeps
-        the sphere inside the laser line and the measuring range even then.
-    workspace : str or sequence of six floats, optional
-        ``'XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX'``: allowed flange positions (robot base, mm).
-    score : str or pathlib.Path, optional
-        A pose list to score (predicted accuracy) instead of choosing.
-    sensor_mount, sphere_mount : str
-        The cell without ``dataset`` (with it, its ``setup.toml``'s mounts): ``flange``/``world``
-        (the thesis's cell), ``world``/``flange`` or ``flange``/``positioner``, with ``handeye
-        simulate``'s nominal cell (:mod:`handeye.model.simulate_mounts`). On a positioner the pose
-        lists (``candidates``, ``score``, ``out``) carry one column per axis after the pose's
-        (degrees), and each default candidate has its own axis angles.
-    robot : str, optional
-        Plan for the robot's own errors too (:mod:`handeye.model.planning_robot`): a built-in
-        nominal model or a model file (default the dataset's ``[robot] model``, which turns this
-        on as well). Each candidate is reached by the nominal inverse kinematics (unreachable ones
-        skipped), the other wrist offered as a candidate of its own; the parameters no candidate
-        separates from the sensor pose and the sphere centre are named and left out; ``out``
-        gets j1..j6. Without a dataset the sphere is at :data:`handeye.model.simulate_robot.CENTRES`.
-    effects : str or sequence of str, optional
-        With a robot: ``joint_offsets`` (default), ``link_lengths``, ``joint_compliance``.
-    target : str or dict, optional
-        With a robot: ``'EFFECT=SD,...'``, the 1-sd each effect's parameters should reach
-        (default 0.01 deg, 0.05 mm, 0.005 deg/m): the number of poses it takes is the plan's ``n``.
-    sigma : float, optional
-        With a robot: the stated noise per component of a sphere centre, mm (default the
-        dataset's ``[noise] centre_mm``, else 0.05).
+    {parameters}
 
     Returns
     -------
     PlanResult
     """
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.files import check_output_path, write_text_atomically
     from handeye.model import planning, planning_robot, simulate_robot
-    from handeye.model import simulate as sim
     from handeye.model.dataset import read_pose_list
 
-    n = None if n is None else _integer(n, "--n", 1)
-
+    v = checked_values("plan", options.COMMANDS["plan"].given(locals()))
+    n, sigma = v["n"], v["sigma"]
     margin = (0.0, 0.0) if margin is None else tuple(_floats(margin, "--margin", 2))
     if min(margin) < 0:
         raise RequestError(f"--margin must not be negative, got {margin}")
-    setup = sim.Setup(linearity=0.0, max_tilt_deg=_number(max_tilt, "--max-tilt", 0.0, 90.0, low_open=True))
-    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
-        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
-    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
-                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
-    mounts = cell.mounts
-    centre, convention = np.asarray(setup.sphere_centre), "kuka"
-    if dataset is not None:
-        from handeye.model.dataset import Dataset, load_setup
-
-        d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
-        if d.start_pose is None or d.sphere_centre is None:
-            raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
-                               "a sphere center to plan around")
-        setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
-        centre, convention, mounts = d.sphere_centre, d.convention, d.mounts
+    setup, centre, convention, mounts, d = _planned_cell(dataset, sensor_mount, sphere_mount, v["max_tilt"])
     if out is not None:  # before the work, and never over a file this command reads or of the dataset
         inputs = [p for p in (candidates, score) if p is not None]
-        if dataset is not None:
-            inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()]
+        inputs += [f for f in pathlib.Path(d.path).rglob("*") if f.is_file()] if d is not None else []
         check_output_path(out, "--out", inputs=inputs)
     # the dataset's [robot] model plans for the robot in the cell that has one (the sensor on its flange)
-    arm, stated = planning_robot.cell_robot(robot, d if dataset is not None and (robot or mounts.default) else None)
+    arm, stated = planning_robot.cell_robot(robot, d if d is not None and (robot or mounts.default) else None)
     if arm is not None:
         if not mounts.default:
             raise RequestError("--robot plans the sensor on the flange and the sphere in the world, not these mounts")
-        if dataset is None:
+        if d is None:
             centre = np.asarray(simulate_robot.CENTRES.get(str(robot), centre), float)
         rp = planning_robot.request(
-            setup, centre, arm, effects, target, n, stated if sigma is None else _number(sigma, "--sigma", 0.0, 1e3, True),
+            setup, centre, arm, effects, target, n, stated if sigma is None else sigma,
             score if score is not None else candidates, score is not None,
             None if workspace is None else _floats(workspace, "--workspace", 6), margin)
         result = PlanResult(len(rp.ids), list(rp.ids), rp.poses, rp.logdet, rp.sd[:6], rp.skipped, rp.usable,
                             convention, score is not None, margin, rp.warnings, robot=rp)
-        if out is not None:
-            write_text_atomically(out, result.pose_list(), option="--out")
-        return result
-    if any(v is not None for v in (effects, target, sigma)):
-        raise RequestError("--effects, --target and --sigma plan for a robot's own errors: give --robot MODEL (or a "
-                           "--dataset whose setup.toml has [robot] model)")
-    n = 12 if n is None else n
-    cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
-    if score is not None:
-        ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
-        angles = angles[0] if angles else None
-        sd, value = planning.score(poses, setup, centre, mounts, angles)
-        return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
-                          tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+    else:
+        if any(v is not None for v in (effects, target, sigma)):
+            raise RequestError("--effects, --target and --sigma plan for a robot's own errors: give --robot MODEL (or a "
+                               "--dataset whose setup.toml has [robot] model)")
+        n = 12 if n is None else n
+        cell_keys = {"axis_names": mounts.axis_names, "mounts": (mounts.sensor, mounts.sphere)}
+        if score is not None:
+            ids, poses, *angles = read_pose_list(score, axes=mounts.axis_names)
+            angles = angles[0] if angles else None
+            sd, value = planning.score(poses, setup, centre, mounts, angles)
+            return PlanResult(len(ids), list(ids), np.asarray(poses), value, sd, [], len(ids), convention, True, margin,
+                              tuple(planning.few_angles(angles, mounts.axis_names)), axis_angles=angles, **cell_keys)
+        ids, poses, angles, warnings, skipped = _candidates(setup, centre, mounts, candidates, margin, workspace)
+        chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
+        warnings += planning.few_angles(chosen.angles, mounts.axis_names)
+        result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
+                            np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
+                            len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
+                            axis_angles=chosen.angles, **cell_keys)
+    if out is not None:
+        write_text_atomically(out, result.pose_list(), option="--out")
+    return result
+
+
+def _planned_cell(dataset, sensor_mount, sphere_mount, max_tilt):
+    """The cell planned for: its setup, sphere centre, convention and mounts, and the dataset's
+    setup (None without ``--dataset``: ``handeye simulate``'s nominal cell of the mounts)."""
+    from handeye.model import simulate as sim
+
+    setup = sim.Setup(linearity=0.0, max_tilt_deg=max_tilt)
+    if dataset is not None and (sensor_mount, sphere_mount) != ("flange", "world"):
+        raise RequestError("--dataset gives the mounts (its setup.toml): --sensor-mount and --sphere-mount do not apply")
+    cell, setup = _simulated_cell(setup, 0, sensor_mount, sphere_mount, None,
+                                  (0.0, 0.0) if sphere_mount == "positioner" else None)
+    if dataset is None:
+        return setup, np.asarray(setup.sphere_centre), "kuka", cell.mounts, None
+    from handeye.model.dataset import Dataset, load_setup
+
+    d = dataset if isinstance(dataset, Dataset) else load_setup(_path_argument(dataset))
+    if d.start_pose is None or d.sphere_centre is None:
+        raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
+                           "a sphere center to plan around")
+    setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
+    return setup, d.sphere_centre, d.convention, d.mounts, d
+
+
+def _candidates(setup, centre, mounts, candidates, margin, workspace):
+    """The candidate poses to plan with: ids, poses, axis angles (or None), warnings, and the
+    poses skipped outside ``--workspace`` with why."""
+    from handeye.model import planning
+    from handeye.model.dataset import read_pose_list
+
     warnings, angles = [], None
     if candidates is not None:
         ids, poses, *angles = read_pose_list(candidates, axes=mounts.axis_names)
@@ -520,12 +451,4 @@ def plan(*, n=None, candidates=None, dataset=None, out=None, max_tilt=90.0, marg
         angles = None if angles is None else angles[inside]
     if not ids:
         raise RequestError("no candidate pose is left to plan with (--workspace excludes them all)")
-    chosen = planning.plan(ids, poses, n, setup, centre, mounts, angles)
-    warnings += planning.few_angles(chosen.angles, mounts.axis_names)
-    result = PlanResult(n, list(chosen.ids), np.asarray(chosen.poses), float(chosen.logdet),
-                        np.asarray(chosen.predicted_sd), skipped + list(chosen.skipped),
-                        len(ids) - len(chosen.skipped), convention, False, margin, tuple(warnings),
-                        axis_angles=chosen.angles, **cell_keys)
-    if out is not None:
-        write_text_atomically(out, result.pose_list(), option="--out")
-    return result
+    return ids, poses, angles, warnings, skipped

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import pathlib
 
+from handeye.app import options
 from handeye.app.errors import RequestError
 from handeye.app.present.web.write import ReportResult, write_report  # noqa: F401  (the command's result: public here)
 
@@ -44,26 +45,12 @@ def saved_result(path, dataset):
     return doc
 
 
+@options.COMMANDS["report"].documented
 def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unknowns=None, model=None,
            convention=None, keep_all=False, no_clean=False):
     """Write the one-file HTML report of a calibration (``handeye report``).
 
-    Parameters
-    ----------
-    dataset : str, pathlib.Path or Dataset
-        Embedded name or folder.
-    html : str or pathlib.Path
-        The HTML file to write (atomically; never over an input).
-    calibration : str or pathlib.Path, optional
-        A ``calibrate --out`` file of this dataset (its SHA-256 checked): reported as it is. Without
-        it the dataset is calibrated now with ``unknowns``, ``model``, ``convention``, ``keep_all``,
-        ``no_clean`` (as :func:`handeye.calibrate`).
-    unknowns, model, convention, keep_all, no_clean : optional
-        As :func:`handeye.calibrate`'s (``unknowns`` default ``'sensor'``); all but ``no_clean`` are
-        refused with ``calibration`` (the file is reported as it was made).
-    diagnose : bool
-        Also run the discrepancy workflow (:func:`handeye.diagnose`, ``unknowns`` sensor or
-        sensor+sphere) and show its steps against the noise floor.
+    {parameters}
 
     Returns
     -------

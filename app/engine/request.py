@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app.choices import METHODS
+from handeye.app.choices import CLASSIC_METHODS, METHODS
 from handeye.app.errors import CalibrationInputError
 from handeye.model import conventions
 from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
@@ -56,8 +56,6 @@ def min_measurements(unknowns, n_axes=2):
     return n // 3 + 1
 
 
-
-
 def unknown_parts(text):
     """``--unknowns`` as its canonical ``+``-joined parts (``'sphere+sensor'`` -> ``'sensor+sphere'``)."""
     names = [p.strip() for p in str(text).split("+")]
@@ -66,6 +64,59 @@ def unknown_parts(text):
         raise CalibrationInputError(f"--unknowns: {text!r} is not a +-joined set of {', '.join(PARTS)} "
                                     "(for example sensor+sphere, sphere+positioner, sensor+sphere+positioner)")
     return "+".join(p for p in PARTS if p in names)
+
+
+def effect_names(effects):
+    """``--effects`` (``'a,b'`` or a sequence) as its names, each checked against :data:`EFFECTS`;
+    given but naming none is bad input (None and ``()``: no effects)."""
+    names = [effects] if isinstance(effects, str) else list(effects or ())
+    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
+    if not names and effects is not None and effects != ():
+        raise CalibrationInputError("--effects: give one or more effect names (sensor_scale, sphere_radius, "
+                                    "sphere_center, joint_offsets)")
+    for name in names:
+        if name not in EFFECTS:
+            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
+                                        "(handeye diagnose names the effect a dataset needs)")
+    return tuple(names)
+
+
+@dataclasses.dataclass(frozen=True)
+class Free:
+    """What a calibration estimates and what it holds: ``--unknowns``, ``--effects`` and a given
+    sensor pose (``--calibration``, ``--sensor-pose``) as one record.
+
+    Attributes
+    ----------
+    parts : str
+        The parts estimated, canonical and ``+``-joined (:func:`unknown_parts`).
+    effects : tuple of str
+        The catalogue effects estimated with them (:func:`effect_names`).
+    given : str or None
+        The option that gives a sensor pose (``'--calibration'`` or ``'--sensor-pose'``), else None.
+    """
+
+    parts: str = "sensor"
+    effects: tuple = ()
+    given: str | None = None
+
+    @classmethod
+    def from_options(cls, unknowns="sensor", effects=None, calibration=None, sensor_pose=None):
+        """The record of the options as given; raises CalibrationInputError naming the option."""
+        if calibration is not None and sensor_pose is not None:
+            raise CalibrationInputError("give --calibration or --sensor-pose, not both")
+        given = "--calibration" if calibration is not None else "--sensor-pose" if sensor_pose is not None else None
+        return cls(unknown_parts(unknowns), effect_names(effects), given)
+
+    @property
+    def held_sensor(self):
+        """A given sensor pose held while the other parts are estimated (no sensor among the parts)."""
+        return self.given is not None and "sensor" not in self.parts.split("+")
+
+    @property
+    def scored(self):
+        """A given sensor pose scored, not calibrated (the sensor among the parts)."""
+        return self.given is not None and "sensor" in self.parts.split("+")
 
 
 def _conditional(parts, dataset, sensor_pose, effects):
@@ -199,7 +250,7 @@ def _method(method, rotation, n):
         return "lm", (f"{n} measurements: the default method is lm (Levenberg-Marquardt on the local chart, linear "
                       f"in the data) above {LARGE}; ask for --method ipopt to use IPOPT")
     if method not in METHODS:
-        raise CalibrationInputError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS)}")
+        raise CalibrationInputError(f"--method: unknown {method!r}; choose one of {', '.join(METHODS + CLASSIC_METHODS)}")
     return method, None
 
 
@@ -218,14 +269,7 @@ def _rotation(method, rotation):
 
 def _effects(effects, unknowns, model):
     """Validated effect names; ``sphere_center`` is the free centre (``unknowns='sensor+sphere'``)."""
-    if unknowns not in UNKNOWNS:
-        raise CalibrationInputError(f"--unknowns: unknown {unknowns!r}; choose one of {', '.join(UNKNOWNS)}")
-    names = [effects] if isinstance(effects, str) else list(effects or ())
-    names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
-    for name in names:
-        if name not in EFFECTS:
-            raise CalibrationInputError(f"--effects: unknown {name!r}; calibrate can add {', '.join(EFFECTS)} "
-                                        "(handeye diagnose names the effect a dataset needs)")
+    names = effect_names(effects or ())
     if not names:
         return (), unknowns, model
     if model not in (None, "centre"):

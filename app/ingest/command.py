@@ -7,14 +7,13 @@ import pathlib
 
 import numpy as np
 
+from handeye.app import options
 from handeye.app.errors import RequestError
 from handeye.app.ingest import sources, writer
 from handeye.app.ingest.pairing import pair
 from handeye.app.present.protocol import ResultProtocol
 from handeye.model import conventions, own_frame
 from handeye.model.tables import DatasetError
-
-UNITS, ANGLES, SIDES, PAIRINGS = ("mm", "m"), ("deg", "rad"), (1, -1), ("auto", "id", "order")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,6 +169,7 @@ def _from_setup(opts):
 
 def _check_options(out, opts):
     """Options checked before anything is read; raises RequestError naming the option."""
+    from handeye.app.engine.command_request import checked_values
     from handeye.app.files import check_output_folder
 
     check_output_folder(out, "OUT", empty=True)
@@ -194,13 +194,7 @@ def _check_options(out, opts):
     if not ok:
         raise RequestError(f"--diameter must be a number of mm in (0, 10000), got {diameter!r}")
     opts["diameter"] = float(diameter)
-    for key, allowed in (("units", UNITS), ("profile_units", UNITS + (None,)), ("angles", ANGLES + (None,)),
-                         ("side", SIDES), ("pair", PAIRINGS)):
-        if opts[key] not in allowed:
-            raise RequestError(f"--{key.replace('_', '-')} must be one of {', '.join(map(str, allowed))}, "
-                               f"got {opts[key]!r}")
-    if opts["convention"] is not None and opts["convention"] not in conventions.CONVENTIONS:
-        raise RequestError(f"--convention must be one of {', '.join(conventions.CONVENTIONS)}, got {opts['convention']!r}")
+    checked_values("dataset new", opts)  # units, angles, side, pairing and convention among their choices
     if opts["profile_axes"] is not None:
         from handeye.app.ingest.plane import parse_axes
 
@@ -280,62 +274,14 @@ def _joints(opts, pose_ids, n):
     return values
 
 
+@options.COMMANDS["dataset new"].documented
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
                 profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
                 flange_frame=None, max_dt=0.05, setup=None):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
 
-    Parameters
-    ----------
-    out : path-like
-        The dataset folder to write (new or empty); written atomically (a temporary folder renamed).
-    poses : path-like, optional
-        Flange poses in the robot base: CSV, whitespace-separated text or JSON
-        (:mod:`handeye.app.ingest.poses`).
-    profiles : str or sequence of str
-        Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.
-    convention : {'kuka', 'abb', 'ur', 'fanuc'}, optional
-        Of a headerless pose file, and of the dataset (named columns are converted to it); default
-        the file's, abb for a bag.
-    columns : str, optional
-        The pose file's column names, comma-separated (``id,x,y,z,qx,qy,qz,qw``; ``-`` skips one).
-    units : {'mm', 'm'}
-        Positions of the pose file.
-    angles : {'deg', 'rad'}, optional
-        Angles of the pose file (default: the convention's own: degrees, radians for ur).
-    profile_units : {'mm', 'm'}, optional
-        Profile coordinates (default mm; a bag's are metres).
-    profile_axes : str, optional
-        ``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default
-        found from the data (:mod:`handeye.app.ingest.plane`).
-    diameter : float
-        Sphere diameter, mm (required, unless ``setup`` gives it).
-    side : {-1, 1}, optional
-        Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own
-        frame (their y for 2-column profiles; default -1); written as ``[profile] side`` in
-        handeye's frame (:meth:`~handeye.app.ingest.plane.PlaneMapping.side`).
-    center : str or sequence of 3 floats, optional
-        Sphere centre in the robot base, mm; without it, calibrate with ``--unknowns sensor+sphere``.
-    start : str or sequence, optional
-        Start sensor pose on the flange in the dataset's convention (``[sensor] start_pose``).
-    joints : path-like, optional
-        Joint angles j1..j6 per pose, degrees (needs ``robot``).
-    robot : str, optional
-        ``[robot] model``: a built-in model name (``handeye.model.robots``) or a model file.
-    pair : {'auto', 'id', 'order'}
-        How profiles are paired with poses (:mod:`handeye.app.ingest.pairing`).
-    match : str, optional
-        Regex with one group: the pose id in a profile's file name.
-    bag : path-like, optional
-        A ROS 2 bag instead of ``poses`` and ``profiles`` (needs ``pip install 'handeye[ros]'``).
-    pose_topic, profile_topic, base_frame, flange_frame : str, optional
-        The bag's topics and, for ``/tf``, the frames (:mod:`handeye.app.ingest.rosbag`).
-    max_dt : float
-        Largest time between a bag's profile and its pose, s.
-    setup : path-like, optional
-        An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``,
-        ``[sensor] start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.
+    {parameters}
 
     Returns
     -------
@@ -347,11 +293,8 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
         Bad input (:class:`~handeye.model.tables.DatasetError` naming file, row, column;
         :class:`~handeye.app.errors.RequestError` naming the option).
     """
-    opts = dict(poses=poses, profiles=[profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ()),
-                convention=convention, columns=columns, units=units, angles=angles, profile_units=profile_units,
-                profile_axes=profile_axes, diameter=diameter, side=side, center=center, start=start, joints=joints,
-                robot=robot, pair=pair, match=match, bag=bag, pose_topic=pose_topic, profile_topic=profile_topic,
-                base_frame=base_frame, flange_frame=flange_frame, max_dt=max_dt, setup=setup)
+    opts = {**{k: v for k, v in options.COMMANDS["dataset new"].given(locals()).items() if k != "out"},
+            "profiles": [profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ())}
     _check_options(out, opts)
     centre = _vector(opts["center"], 3, "--center")
     ids, values, conv, per_pose, inputs, notes, how, roles, pose_ids = (_from_files if bag is None else _from_bag)(opts)

@@ -16,7 +16,7 @@ import pathlib
 
 import numpy as np
 
-from handeye.app import files
+from handeye.app import files, options
 from handeye.app.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.errors import RequestError
 from handeye.app.outputs import formats as exports
@@ -114,6 +114,7 @@ class ExportResult(ResultProtocol):
         return dataclasses.asdict(self)
 
 
+@options.COMMANDS["export"].documented
 def export(calibration=None, *, format="json", parent=None, child="sensor", tool=None, register=99, out=None,
            sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
@@ -124,7 +125,11 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
     ``sensor_mount`` ("flange" or "world"; default flange) is where a ``sensor_pose`` is given.
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
+
+    {parameters}
     """
+    if calibration is None and sensor_pose is None:
+        raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
     if out is not None:
         inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
         files.check_output_path(out, "--out", inputs)
@@ -295,19 +300,11 @@ def _scan_inputs(path):
     return [folder / "measurements.csv", folder / "setup.toml"]
 
 
+@options.COMMANDS["cloud"].documented
 def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
 
-    Parameters
-    ----------
-    dataset : str or path
-        A scan or dataset folder with profiles (:mod:`handeye.model.scan`); no sphere needed.
-    calibration : path, CalibrationResult or Calibration
-    out : path, optional
-        Where to write the cloud.
-    format : {'ply', 'csv'}, optional
-        ``ply`` binary little-endian, or ``csv``; default: from the extension of ``out``
-        (``.csv`` is CSV, anything else PLY).
+    {parameters}
 
     Returns
     -------
@@ -343,6 +340,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     return result
 
 
+@options.COMMANDS["validate"].documented
 def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=None, convention=None, force=False,
              mpe=None):
     """Measure the setup's sphere(s) through the calibration (:mod:`handeye.app.outputs.validate`).
@@ -353,6 +351,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     allows up to 0.003). ``mpe``: maximum permissible errors ``"PF,PS[,SD]"`` (mm) for a
     verdict (``result.passed``; the CLI exits 1 when one is exceeded). Returns
     :class:`handeye.app.outputs.validate.ValidationResult`.
+
+    {parameters}
     """
     from handeye.app.outputs import validate as validation
     from handeye.model import dataset as datasets
