@@ -33,7 +33,6 @@ ALLOWED = {
     "model/calibration.py::CalibrationModel.__init__": _PUBLIC + " (README: calibration_problem(CalibrationModel(...)))",
     "model/calibration.py::CalibrationModel.from_circles": _PUBLIC + " (CalibrationModel's documented constructor)",
     # private helpers of the files under rewrite
-    "app/api.py::_closed_form_options": _REWRITE,
     "app/ingest/command.py::_files": _REWRITE,
     "app/outputs/commands.py::_calibration": _REWRITE,
     # the signature a file under rewrite calls

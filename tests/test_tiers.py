@@ -29,7 +29,8 @@ def _tiers():
     if files <= {f for f, _, _ in conftest.TIERS.values()}:
         return dict(conftest.TIERS)
     # this run collected part of the suite: collect all of it in a fresh process
-    code = ("import json, sys, pytest; code = pytest.main(['--collect-only', '-q', '-p', 'no:cacheprovider', '-n', '0', 'tests']); "
+    code = ("import json, sys, pytest; "
+            "code = pytest.main(['--collect-only', '-q', '-p', 'no:cacheprovider', '-n', '0', 'tests']); "
             "import conftest; print('TIERS=' + json.dumps(conftest.TIERS)); sys.exit(code)")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
