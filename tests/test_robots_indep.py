@@ -23,6 +23,7 @@ import pathlib
 import indep_robots as ir
 import numpy as np
 import pytest
+import shards as sh
 
 import handeye
 
@@ -163,34 +164,50 @@ def _score_offsets(result, offsets):
     return named == set(offsets), inside, len(effect.parameters)
 
 
+def _offset_cells():
+    """The 90 cells of the rates below, each ``(kind, model, seed, offsets)``: 50 clean (25 per robot),
+    40 with offsets (20 per robot, drawn in this order from one seeded generator)."""
+    cells = [("clean", model, 1000 + seed, {}) for model in ("kr60ha", "ur10e") for seed in range(25)]
+    rng = np.random.default_rng(7)
+    cells += [("offsets", model, 2000 + seed, _draw_offsets(rng)) for model in ("kr60ha", "ur10e") for seed in range(20)]
+    return cells
+
+
+OFFSET_SHARDS = 6
+
+
 @pytest.mark.slow(sibling="test_diagnose_names_nothing_on_clean_data")
-def test_joint_offset_rates_over_seeds(tmp_path):
+@pytest.mark.parametrize("shard", range(OFFSET_SHARDS))
+def test_joint_offset_rates_over_seeds(tmp_path, tmp_path_factory, shard):
     """50 clean datasets (25 per robot): a robot effect (any of joint_offsets, link_lengths,
     joint_compliance) named on <= 5 (the false-positive rate of the whole robot catalogue, measured
     once here for both rate tests); 40 with offsets (20 per robot): exactly the offset joints named in
-    >= 90 %, >= 95 % of the values within 3 sd."""
-    false_positives = clean = 0
-    hits = []
-    for model in ("kr60ha", "ur10e"):
-        for seed in range(25):
-            ir.make(tmp_path / f"c-{model}-{seed}", model, seed=1000 + seed)
-            named = robot_effects(handeye.diagnose(tmp_path / f"c-{model}-{seed}"))
-            false_positives += bool(named)
-            clean += 1
-            if named:
-                hits.append((model, seed, sorted(named)))
-    rng = np.random.default_rng(7)
-    right = inside = estimated = runs = 0
-    for model in ("kr60ha", "ur10e"):
-        for seed in range(20):
-            offsets = _draw_offsets(rng)
-            ir.make(tmp_path / f"o-{model}-{seed}", model, seed=2000 + seed, offsets=offsets)
-            ok, k, m = _score_offsets(handeye.diagnose(tmp_path / f"o-{model}-{seed}"), offsets)
-            right, inside, estimated, runs = right + ok, inside + k, estimated + m, runs + 1
-    print(f"\nrobot effects named on clean data {false_positives}/{clean} {hits}; joint_offsets: right joints named "
-          f"{right}/{runs}; values within 3 sd {inside}/{estimated}")
-    assert false_positives <= 0.10 * clean
-    assert right >= 0.90 * runs
+    >= 90 %, >= 95 % of the values within 3 sd. Run in shards (tests/shards.py): the shard that
+    completes the set asserts the rates over all 90 cells."""
+    rows = []
+    for k in sh.shards(len(_offset_cells()), OFFSET_SHARDS)[shard]:
+        kind, model, seed, offsets = _offset_cells()[k]
+        folder = tmp_path / f"{kind}-{model}-{seed}"
+        ir.make(folder, model, seed=seed, offsets=offsets or None)
+        result = handeye.diagnose(folder)
+        assert np.isfinite(result.rms_after_mm), (kind, model, seed, _report(result))  # every cell is diagnosed
+        if kind == "clean":
+            rows.append([kind, model, seed, sorted(robot_effects(result))])
+        else:
+            rows.append([kind, model, seed, list(_score_offsets(result, offsets))])
+    pooled = sh.pool(tmp_path_factory, "joint-offset-rates", shard, OFFSET_SHARDS, rows)
+    if pooled is None:
+        return  # the rates are asserted by the shard that completes the set
+    rows = [row for part in pooled for row in part]
+    hits = [(m, s, named) for kind, m, s, named in rows if kind == "clean" and named]
+    clean = sum(kind == "clean" for kind, *_ in rows)
+    scored = [r[3] for r in rows if r[0] == "offsets"]
+    right, inside, estimated = (sum(s[i] for s in scored) for i in range(3))
+    print(f"\nrobot effects named on clean data {len(hits)}/{clean} {hits}; joint_offsets: right joints named "
+          f"{right}/{len(scored)}; values within 3 sd {inside}/{estimated}")
+    assert clean == 50 and len(scored) == 40
+    assert len(hits) <= 0.10 * clean
+    assert right >= 0.90 * len(scored)
     assert inside >= 0.95 * estimated
 
 
@@ -522,46 +539,62 @@ def _run(folder, truth, plants):
     return not got["missed"] and not got["lost"] and not got["outside"], got, worst
 
 
+def _error_cells():
+    """The 32 cells of the rate below, ``(effect, model, seed, plants, generator keywords)``, drawn in
+    this order from one seeded generator."""
+    rng, cells = np.random.default_rng(17), []
+    for effect in ("link_lengths", "joint_compliance", "all three"):
+        for model in ("kr60ha", "ur10e"):
+            for seed in range(4 if effect == "all three" else 6):
+                if effect == "link_lengths":
+                    plants = {effect: _draw_lengths(rng, model)}
+                    kw = dict(seed=4000 + seed, lengths=plants[effect], noise=0.02)
+                elif effect == "joint_compliance":
+                    plants = {effect: _draw_compliance(rng)}
+                    kw = dict(seed=5000 + seed, compliance=plants[effect], noise=0.015)
+                else:
+                    plants = {"joint_offsets": _draw_offsets(rng), "link_lengths": _draw_lengths(rng, model),
+                              "joint_compliance": _draw_compliance(rng)}
+                    kw = dict(seed=6000 + seed, offsets=plants["joint_offsets"], lengths=plants["link_lengths"],
+                              compliance=plants["joint_compliance"], noise=0.015, tilt=COMBINED_TILT)
+                cells.append((effect, model, seed, plants, kw))
+    return cells
+
+
+ERROR_SHARDS = 8
+
+
 @pytest.mark.slow(sibling="test_diagnose_names_no_robot_effect_on_clean_data")
-def test_robot_error_rates_over_seeds(tmp_path):
+@pytest.mark.parametrize("shard", range(ERROR_SHARDS))
+def test_robot_error_rates_over_seeds(tmp_path, tmp_path_factory, shard):
     """(The false-positive rate on clean data: test_joint_offset_rates_over_seeds.) Per planted effect 12
     datasets (6 per robot; lengths 0.1-0.5 mm at noise 0.02 mm, compliance 0.01-0.05 deg/m at 0.015 mm;
     20 each once measured: 20/20 and 20/20) and 8 with all three hidden (4 per robot, the
     wider spread): recovered -- named, the visible parameters estimated, every estimated robot parameter
     within 3 sd of the truth -- in >= 80 %; >= 90 % of all estimated values within 3 sd; wherever handeye's
-    model is the same problem, its values the generator's own fit's to 0.1 sd."""
-    lines = []
-    rng = np.random.default_rng(17)
-    rates, worst = {}, 0.0
+    model is the same problem, its values the generator's own fit's to 0.1 sd. Run in shards
+    (tests/shards.py): the shard that completes the set asserts the rates over all 32 cells."""
+    rows = []
+    for k in sh.shards(len(_error_cells()), ERROR_SHARDS)[shard]:
+        effect, model, seed, plants, kw = _error_cells()[k]
+        folder = tmp_path / f"{effect}-{model}-{seed}".replace(" ", "-")
+        ok, got, far = _run(folder, ir.make(folder, model, **kw), plants)
+        miss = None if ok else str((model, seed, plants, sorted(got["named"]), got["lost"],
+                                    [(e, p, round(v, 4), round(s, 4), round(t, 4)) for e, p, v, s, t in got["outside"]]))
+        rows.append([effect, bool(ok), len(got["rows"]), len(got["outside"]), float(far or 0.0), miss])
+    pooled = sh.pool(tmp_path_factory, "robot-error-rates", shard, ERROR_SHARDS, rows)
+    if pooled is None:
+        return  # the rates are asserted by the shard that completes the set
+    rows = [row for part in pooled for row in part]
+    assert len(rows) == len(_error_cells())
+    lines, rates = [], {}
     for effect in ("link_lengths", "joint_compliance", "all three"):
-        right = runs = inside = estimated = 0
-        misses = []
-        for model in ("kr60ha", "ur10e"):
-            for seed in range(4 if effect == "all three" else 6):
-                folder = tmp_path / f"{effect}-{model}-{seed}".replace(" ", "-")
-                if effect == "link_lengths":
-                    plants = {effect: _draw_lengths(rng, model)}
-                    truth = ir.make(folder, model, seed=4000 + seed, lengths=plants[effect], noise=0.02)
-                elif effect == "joint_compliance":
-                    plants = {effect: _draw_compliance(rng)}
-                    truth = ir.make(folder, model, seed=5000 + seed, compliance=plants[effect], noise=0.015)
-                else:
-                    plants = {"joint_offsets": _draw_offsets(rng), "link_lengths": _draw_lengths(rng, model),
-                              "joint_compliance": _draw_compliance(rng)}
-                    truth = ir.make(folder, model, seed=6000 + seed, offsets=plants["joint_offsets"],
-                                    lengths=plants["link_lengths"], compliance=plants["joint_compliance"], noise=0.015,
-                                    tilt=COMBINED_TILT)
-                ok, got, far = _run(folder, truth, plants)
-                right, runs = right + ok, runs + 1
-                inside += len(got["rows"]) - len(got["outside"])
-                estimated += len(got["rows"])
-                worst = max(worst, far or 0.0)
-                if not ok:
-                    misses.append((model, seed, plants, sorted(got["named"]), got["lost"],
-                                   [(e, p, round(v, 4), round(s, 4), round(t, 4)) for e, p, v, s, t in got["outside"]]))
-        rates[effect] = (right, runs, inside, estimated)
-        lines.append(f"{effect}: recovered {right}/{runs}; estimated robot parameters within 3 sd {inside}/{estimated}; "
-                     f"misses {misses}")
+        mine = [r for r in rows if r[0] == effect]
+        right, inside, estimated = sum(r[1] for r in mine), sum(r[2] - r[3] for r in mine), sum(r[2] for r in mine)
+        rates[effect] = (right, len(mine), inside, estimated)
+        lines.append(f"{effect}: recovered {right}/{len(mine)}; estimated robot parameters within 3 sd {inside}/{estimated}; "
+                     f"misses {[r[5] for r in mine if r[5]]}")
+    worst = max(r[4] for r in rows)
     lines.append(f"largest difference between handeye and the generator's own fit: {worst:.3f} sd")
     print("\n" + "\n".join(lines))
     for effect, (right, runs, inside, estimated) in rates.items():
