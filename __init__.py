@@ -19,7 +19,7 @@ The public API (the ``handeye`` command's functions, with its options as keyword
 For solver studies and teaching: ``handeye.testfunction_problem()`` and
 ``handeye.calibration_problem(model)`` are :class:`handeye.solvers.Problem` objects that
 ``handeye.solvers.solve(problem, x0, method)`` minimises (``model``: a
-:class:`handeye.model.calibration.CalibrationModel`).
+:class:`handeye.model.fit.calibration.CalibrationModel`).
 
 Bad input raises :class:`InputError` (a ``ValueError``), naming file, row and column or the
 option. The layers: :mod:`handeye.solvers` (knows nothing of robots) <- :mod:`handeye.model`
@@ -31,14 +31,14 @@ import importlib
 #: public name -> module that defines it; imported on first use (PEP 562), so that importing a
 #: lower layer (``import handeye.solvers``) loads nothing of the application.
 _PUBLIC = {
-    "load_dataset": "handeye.app.api",
-    "calibrate": "handeye.app.api",
-    "diagnose": "handeye.app.api",
-    "compare": "handeye.app.api",
-    "report": "handeye.app.reporting",
+    "load_dataset": "handeye.app.public.api",
+    "calibrate": "handeye.app.public.api",
+    "diagnose": "handeye.app.public.api",
+    "compare": "handeye.app.public.api",
+    "report": "handeye.app.public.reporting",
     "ReportResult": "handeye.app.present.web.write",
-    "simulate": "handeye.app.api",
-    "plan": "handeye.app.api",
+    "simulate": "handeye.app.public.api",
+    "plan": "handeye.app.public.api",
     "new_dataset": "handeye.app.ingest.command",
     "NewDatasetResult": "handeye.app.ingest.command",
     "export": "handeye.app.outputs.commands",
@@ -47,13 +47,13 @@ _PUBLIC = {
     "ExportResult": "handeye.app.outputs.commands",
     "CloudResult": "handeye.app.outputs.commands",
     "ValidationResult": "handeye.app.outputs.validate",
-    "PlanResult": "handeye.app.api",
-    "SimulationResult": "handeye.app.api",
+    "PlanResult": "handeye.app.public.api",
+    "SimulationResult": "handeye.app.public.api",
     "CalibrationResult": "handeye.app.present.results",
     "DiagnosisResult": "handeye.app.present.diagnosis_results",
     "ScoreResult": "handeye.app.present.score_results",
     "CompareResult": "handeye.app.present.score_results",
-    "InputError": "handeye.model.errors",
+    "InputError": "handeye.model.common.errors",
     "testfunction_problem": "handeye.app.engine.problems",
     "calibration_problem": "handeye.app.engine.problems",
 }

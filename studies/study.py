@@ -11,10 +11,10 @@ import importlib
 import json
 import pathlib
 
-from handeye.app.errors import RequestError
+from handeye.app.common.errors import RequestError
+from handeye.app.common.registry import STUDIES, StudyClaimFailed
 from handeye.app.present import figure_style
 from handeye.app.present.plotting import figure  # noqa: F401 - the studies' figures
-from handeye.app.tools.registry import STUDIES, StudyClaimFailed
 
 
 def claim(condition, text):

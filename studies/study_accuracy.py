@@ -4,7 +4,7 @@ Story. One measurement design (the thesis strategy, 36 poses, simulated once) is
 again and again with fresh noise (robot repeatability 0.025 mm, profile points 0.01 mm). Each
 replicate is calibrated with the ``centre``, ``measurement`` and ``points`` residuals. The root
 mean square error of each pose parameter is compared with the bound of
-:func:`handeye.model.bounds.crlb`, and the standard deviations the tool reports with the observed
+:func:`handeye.model.design.bounds.crlb`, and the standard deviations the tool reports with the observed
 scatter.
 
 The accuracy figure the tool reports for real data, the leave-one-out error of the sphere
@@ -22,10 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 import handeye
-from handeye.model import bounds, scratch, simulate
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import rotvec_from_matrix
+from handeye.model.datasets.dataset import load
+from handeye.model.design import bounds
+from handeye.model.simulation import simulate
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 KINDS = ("centre", "measurement", "points")

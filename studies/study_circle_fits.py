@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.model import circle
+from handeye.model.geometry import circle
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 RADIUS = 25.0

@@ -4,16 +4,16 @@ Story. The seed reviews two published closed-form hand-eye methods (2.6, Appendi
 rates them on paper (Table 4-1: Kim & Cho 22/50, Li et al. 26/50). Here they run on the same
 simulated data as the nonlinear least squares (NLS).
 
-Model. :func:`handeye.model.classics.kim_cho` (every pair of samples of the fixed sphere is a motion
-pair; the sphere position is not used), :func:`handeye.model.classics.li_two_step` (pure
+Model. :func:`handeye.model.fit.classics.kim_cho` (every pair of samples of the fixed sphere is a motion
+pair; the sphere position is not used), :func:`handeye.model.fit.classics.li_two_step` (pure
 translations -> rotation; every pose -> translation with the known sphere centre), and the NLS
-of the ``centre`` residual (:func:`handeye.model.fast.calibrate_fast`, started at the nominal pose).
+of the ``centre`` residual (:func:`handeye.model.compiled.fast.calibrate_fast`, started at the nominal pose).
 
 Data. The thesis strategy (n orientations, the sphere seen at random points of the working
 range) plus, at two orientations, four pure flange translations of 10-20 mm and their base
 pose (10 samples: what Li et al. need). Robot repeatability 0.025 mm and profile-point noise
 0.01 mm, both scaled by a factor k. Sweeps: k = 0.5 ... 8 at 36 orientations, and n = 9 ... 36
-at k = 1, with R replicates each. The Cramer-Rao bound (:func:`handeye.model.bounds.crlb`) of each
+at k = 1, with R replicates each. The Cramer-Rao bound (:func:`handeye.model.design.bounds.crlb`) of each
 design is the floor.
 
 Basins. For each replicate at k = 1 the plain local Newton method (exact Hessian, no
@@ -44,10 +44,13 @@ import numpy as np
 from handeye import solvers
 from handeye.app.engine.problems import calibration_problem
 from handeye.app.tools import sweep
-from handeye.model import bounds, classics, fast, motions, simulate
-from handeye.model.calibration import CalibrationModel
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import transform_distance
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import transform_distance
+from handeye.model.compiled import fast
+from handeye.model.design import bounds
+from handeye.model.fit import classics
+from handeye.model.fit.calibration import CalibrationModel
+from handeye.model.simulation import motions, simulate
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 from handeye.studies.study_random_starts import random_start
 
@@ -208,7 +211,6 @@ def _real_data():
     taught sphere centre and with the centre free (Li et al. has no pure translations there)."""
     from handeye.app.engine import robust
     from handeye.app.tools import bench
-    from handeye.model.calibration import CalibrationModel
 
     f2b, xs, c, start = bench.real_case()
     kc = classics.kim_cho(f2b, xs).sensor2flange

@@ -23,9 +23,9 @@ import numpy as np
 
 import handeye
 from handeye.app.tools import sweep
-from handeye.model import scratch
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import rotvec_from_matrix
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 CONVENTIONS = ("kuka", "ur", "abb", "fanuc")
@@ -55,7 +55,7 @@ def errors_in_sd(result, truth):
 
 def one(seed, unknowns):
     """Simulate the cell of ``seed`` and calibrate it with the defaults; one table row."""
-    from handeye.model import conventions
+    from handeye.model.chain import conventions
 
     c = cell(seed)
     truth = transform_from_pose(c["truth_kuka"])

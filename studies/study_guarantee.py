@@ -36,9 +36,10 @@ import numpy as np
 
 import handeye
 from handeye.app.tools import sweep
-from handeye.model import conventions, scratch
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import matrix_from_rotvec
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 from handeye.studies.study_default import errors_in_sd
 

@@ -1,7 +1,7 @@
 """Study: every cell is one chain -- a sensor on the flange or fixed in the cell, a sphere fixed,
 on the flange or on a 2-axis positioner.
 
-Story. For each of the three observable cells (:mod:`handeye.model.mounts`) ``handeye simulate``
+Story. For each of the three observable cells (:mod:`handeye.model.chain.mounts`) ``handeye simulate``
 makes datasets with known truth (the sphere centre left to be estimated; for the positioner, set-up
 axes 1 mm and 0.2 deg off the true ones, calibrated with ``--unknowns sensor+sphere+positioner``),
 and ``handeye calibrate`` estimates them. Over the replicates we compare the errors with the 1-sd
@@ -19,10 +19,10 @@ import numpy as np
 
 import handeye
 from handeye.app.present import figure_style
-from handeye.model import scratch
-from handeye.model.mounts import table2base
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.chain.mounts import table2base
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import rotvec_from_matrix
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 #: (label, sensor mount, sphere mount, unknowns)

@@ -15,10 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 import handeye
-from handeye.model import bounds, planning, scratch, simulate
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import rotvec_from_matrix
+from handeye.model.datasets.dataset import load
+from handeye.model.design import bounds, planning
+from handeye.model.simulation import simulate
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 

@@ -14,8 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 import handeye
-from handeye.model import scratch, simulate
-from handeye.model.dataset import load
+from handeye.app.present import figure_style
+from handeye.model.common import scratch
+from handeye.model.datasets.dataset import load
+from handeye.model.simulation import simulate
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 GRIDS = {
@@ -65,8 +67,6 @@ UNITS = {"sphere_center": ("offset (mm)", 1.0), "sensor_scale": ("scale error s 
 
 def _draw(out, summary, seeds):
     """Detection rate against size per effect, with Wilson 95 % intervals (n = seeds per size)."""
-    from handeye.app.present import figure_style
-
     plt = figure()
     effects = summary["effects"]
     fig, axes = plt.subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)

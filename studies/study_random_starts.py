@@ -10,7 +10,7 @@ rotation parametrisation it supports (Euler angles among them).
 Solve. The plain runs of each method and parametrisation go through the batched solvers
 (:func:`handeye.solvers.solve_many`, every start of a chunk at once; the calibration model
 evaluates stacks of points; IPOPT, which has no batch form, loops over one solver object); the
-compiled fast path's Levenberg-Marquardt (``lm-fast/local``, :func:`handeye.model.fast.calibrate_many`)
+compiled fast path's Levenberg-Marquardt (``lm-fast/local``, :func:`handeye.model.compiled.fast.calibrate_many`)
 runs every start in one call, plain only: it has no closed-form restart. ``calibrate`` runs
 start by start (screening, restart and polish are per dataset), spread over the sweep's workers.
 
@@ -29,10 +29,13 @@ from handeye.app.engine.problems import calibration_problem
 from handeye.app.engine.request import SUPPORTED
 from handeye.app.present import figure_style
 from handeye.app.tools import sweep
-from handeye.model import fast, observations, scratch, simulate
-from handeye.model.dataset import load
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import matrix_from_rotvec, nearest_transform, rotation_angle_deg, transform_distance
+from handeye.model.compiled import fast
+from handeye.model.datasets import observations
+from handeye.model.datasets.dataset import load
+from handeye.model.simulation import simulate
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 METHODS = ("lm", "gn", "dogleg", "tr", "newton", "ipopt")

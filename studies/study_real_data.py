@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import handeye
 from handeye.app.engine.request import SUPPORTED
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import transform_distance
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import transform_distance
+from handeye.model.datasets.dataset import load
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 TABLE_7_4 = (189.69, 99.71, 130.36, -181.40, -89.24, 0.155)

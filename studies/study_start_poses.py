@@ -17,9 +17,9 @@ import time
 
 import handeye
 from handeye.app.engine.request import SUPPORTED
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import transform_distance
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import transform_distance
+from handeye.model.datasets.dataset import load
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 TABLE_7_2 = [

@@ -14,7 +14,7 @@ trust-region Newton, IPOPT. Grids: 301 x 301 over [-50, 50]^2 (covering the thes
 to 45) and over [-4, 4]^2; ``--quick`` uses 15 x 15 grids.
 
 Solve. Every iterative method runs the whole grid in chunks spread over the sweep's workers,
-each chunk through the compiled per-start loop (:mod:`handeye.model.fast_starts`: CasADi-generated
+each chunk through the compiled per-start loop (:mod:`handeye.model.compiled.fast_starts`: CasADi-generated
 C of the test function and a C driver of each method's iteration, rule for rule), or, without a
 C compiler, through the numpy batch (:func:`handeye.solvers.solve_many`), with a warning; the
 summary names the engine of each method. Both end at the same stationary points: on the full
@@ -44,7 +44,8 @@ from handeye.app.engine.problems import testfunction_options as options_for
 from handeye.app.engine.problems import testfunction_problem
 from handeye.app.present import figure_style
 from handeye.app.tools import sweep
-from handeye.model import fast_starts, testfunction
+from handeye.model.chain import testfunction
+from handeye.model.compiled import fast_starts
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
@@ -65,7 +66,7 @@ def engine(method):
 def _ends(method, points, compiled=True):
     """Where ``method`` ends from each of ``points`` (N, 2): rows (x1, x2, converged, iterations).
 
-    The compiled per-start loop (:mod:`handeye.model.fast_starts`) where it has ``method`` and a
+    The compiled per-start loop (:mod:`handeye.model.compiled.fast_starts`) where it has ``method`` and a
     C compiler is present (``compiled``), else :func:`handeye.solvers.solve_many`.
     """
     points = np.asarray(points, float).reshape(-1, 2)

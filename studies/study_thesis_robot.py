@@ -3,7 +3,7 @@
 Story. The seed blames what remains after its calibration on "systematic robot errors" (7.3,
 Table 7-5), but its data hold only the flange poses the KR 60 HA reported, not its joint angles.
 Here the angles are *reconstructed*: the inverse kinematics of the KR 60 HA's nominal model
-(:mod:`handeye.model.simulate_robot`) for each printed pose. Then ``handeye diagnose`` runs twice on
+(:mod:`handeye.model.simulation.simulate_robot`) for each printed pose. Then ``handeye diagnose`` runs twice on
 the same samples -- without the angles, and with them (so that the robot's errors,
 ``joint_offsets``, ``link_lengths`` and ``joint_compliance``, are in the catalogue, compared as
 alternatives by :mod:`handeye.app.engine.robot_choice`) -- and the gap each leaves is compared.
@@ -28,8 +28,9 @@ import shutil
 import numpy as np
 
 import handeye
-from handeye.model import robots, scratch
-from handeye.model import simulate_robot as sr
+from handeye.model.common import scratch
+from handeye.model.robot import robots
+from handeye.model.simulation import simulate_robot as sr
 from handeye.studies.study import claim, figure, save, write_summary, write_table
 
 

@@ -65,7 +65,7 @@ def console_errors(driver):
 
 def _reports(folder):
     """The three README cells: the thesis's, a simulated UR10e with two gross errors, one on a positioner."""
-    run = [sys.executable, "-m", "handeye.app.cli"]
+    run = [sys.executable, "-m", "handeye.app.command.cli"]
     sim = folder / "ur10e-sim"
     pos = folder / "positioner-sim"
     if not sim.exists():

@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 
 #: Every collected test (before ``-m``/``-k`` deselect any): node id -> (file, the ``slow``
 #: mark's sibling or None when not slow, whether slow). Filled by the hook below.

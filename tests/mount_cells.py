@@ -1,4 +1,4 @@
-"""Small cells of every mount for the unit tests of model/mounts.py and the cell stage (handeye's own
+"""Small cells of every mount for the unit tests of model/chain/mounts.py and the cell stage (handeye's own
 pose functions; the independent generator is tests/indep_mounts.py)."""
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import pathlib
 
 import numpy as np
 
-from handeye.model.mounts import Axis, table2base
-from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.chain.mounts import Axis, table2base
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 
 #: A KP1-V-like positioner: a tilt axis along x, the table's axis along z above it.
 AXES = (Axis("e1", np.array([1200.0, 0.0, 200.0]), np.array([1.0, 0.0, 0.0])),

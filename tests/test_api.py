@@ -7,12 +7,18 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import api, cli
+from handeye.app.command import cli
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import calibrate as engine
-from handeye.app.errors import CalibrationInputError
 from handeye.app.present.diagnosis_results import DiagnosisResult
 from handeye.app.present.results import CalibrationResult
-from handeye.model import circle, classics, closed_form, conventions, dataset, observations, planning, simulate
+from handeye.app.public import api
+from handeye.model.chain import conventions
+from handeye.model.datasets import dataset, observations
+from handeye.model.design import planning
+from handeye.model.fit import classics, closed_form
+from handeye.model.geometry import circle
+from handeye.model.simulation import simulate
 
 
 def _cli_json(capsys, *argv):
@@ -178,7 +184,7 @@ def test_arguments_of_the_wrong_kind_are_input_errors(tmp_path):
 def test_screening_never_speaks_of_a_negative_count():
     """With fewer samples than the screening's minimum, it keeps them all and says so sensibly."""
     from handeye.app.engine import robust
-    from handeye.model.pose import transform_from_pose
+    from handeye.model.chain.pose import transform_from_pose
 
     d = handeye.load_dataset("thesis-real").subset(np.arange(31) < 3)
     s = robust.screen(d, "sensor", transform_from_pose(handeye.load_dataset("thesis-real").start_pose))

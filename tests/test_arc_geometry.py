@@ -1,4 +1,4 @@
-"""The geometric cause of an exclusion (model/arc_geometry.py): a profile cut by the measuring
+"""The geometric cause of an exclusion (model/geometry/arc_geometry.py): a profile cut by the measuring
 window -- a short, one-sided arc near the sphere's equator -- is named beside the statistical
 reason; a good profile excluded for another reason (a robot pose error) is not."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.model import arc_geometry, circle
+from handeye.model.geometry import arc_geometry, circle
 
 
 def _rewrite(folder, change=None):

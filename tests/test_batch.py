@@ -13,9 +13,9 @@ from handeye import solvers
 from handeye.app.engine import problems
 from handeye.app.engine.problems import calibration_problem
 from handeye.app.engine.problems import testfunction_problem as potential_problem
-from handeye.model.calibration import CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.calibration import CalibrationModel
 from handeye.solvers import Problem, UnsupportedProblem, solve, solve_many, stacks
 from handeye.studies import study_batch
 from handeye.studies.study_testfunction import METHODS

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from handeye.app.tools import bench
-from handeye.model import fast
-from handeye.model.calibration import CalibrationModel
-from handeye.model.rotation import transform_distance
+from handeye.model.common.rotation import transform_distance
+from handeye.model.compiled import fast
+from handeye.model.fit.calibration import CalibrationModel
 
 
 def _newton_polished(f2b, xs, centre, sensor2flange, steps=4):
@@ -149,14 +149,14 @@ def test_solver_bench_reports_both_paths_and_the_study_run_in_process(monkeypatc
     """The same, the study's command run in this process (no interpreter start-up)."""
     import subprocess
 
-    from handeye.app.cli import main
+    from handeye.app.command.cli import main
 
     class Done:
         def __init__(self, returncode):
             self.returncode, self.stderr = returncode, ""
 
     def run(cmd, **kwargs):
-        assert cmd[1:3] == ["-m", "handeye.app.cli"]
+        assert cmd[1:3] == ["-m", "handeye.app.command.cli"]
         return Done(main(cmd[3:]))
 
     monkeypatch.setattr(subprocess, "run", run)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.command import cli
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix
 
 
 def _errors_in_sd(r, truth):

@@ -3,10 +3,11 @@ what the data can and cannot determine (the seed's 12 unknowns)."""
 import numpy as np
 import pytest
 
-from handeye.model import identifiability, symbolic
-from handeye.model.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain import symbolic
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets.dataset import load
+from handeye.model.design import identifiability
+from handeye.model.fit.calibration import ROTATIONS, UNKNOWNS, CalibrationModel
 
 CASES = [(r, u) for r in ROTATIONS for u in UNKNOWNS]
 KIND_CASES = [(r, k) for r in ROTATIONS for k in ("measurement", "points")]
@@ -34,7 +35,7 @@ def start_point(m, seed=1):
 
 
 def test_rotation_names_agree_with_the_symbolic_source():
-    from handeye.model.calibration import KINDS
+    from handeye.model.fit.calibration import KINDS
 
     assert ROTATIONS == symbolic.ROTATIONS
     assert KINDS == symbolic.KINDS

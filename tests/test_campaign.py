@@ -11,9 +11,10 @@ import sys
 import pytest
 
 import handeye
-from handeye.app import cli
-from handeye.model import codegen, fast
-from handeye.model.statistics import chi2_survival, f_survival
+from handeye.app.command import cli
+from handeye.model.chain import codegen
+from handeye.model.common.statistics import chi2_survival, f_survival
+from handeye.model.compiled import fast
 
 SIM = pathlib.Path(handeye.load_dataset("thesis-sim").path)
 
@@ -119,7 +120,7 @@ def test_output_paths_are_checked_before_the_work(tmp_path, capsys, where):
 
 
 def test_a_failed_rename_leaves_no_temporary_file(tmp_path, monkeypatch):
-    from handeye.app import files
+    from handeye.app.common import files
 
     def refuse(src, dst):
         raise PermissionError(13, "Permission denied")
@@ -149,7 +150,7 @@ def test_diagnose_refuses_what_calibrate_refuses(tmp_path, capsys):
 
 def _calibrate_in_subprocess(cache, env_extra=None):
     env = dict(os.environ, HANDEYE_CACHE=str(cache), **(env_extra or {}))
-    code = ("import sys, handeye; from handeye.model import fast; "
+    code = ("import sys, handeye; from handeye.model.compiled import fast; "
             "r = handeye.calibrate('thesis-sim', method='lm', no_loo=True); "
             "print('OK', r.converged, fast.library() is not None)")
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
@@ -229,7 +230,7 @@ def test_profile_paths_stay_in_the_dataset_and_a_collinear_profile_is_named(tmp_
 
 
 def test_ctrl_c_exits_130_with_one_line(capsys, monkeypatch):
-    from handeye.app import api
+    from handeye.app.public import api
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
@@ -327,7 +328,7 @@ def test_a_truncated_library_is_never_loaded(tmp_path):
 
 def test_output_that_cannot_be_written_is_one_line(tmp_path):
     with open("/dev/full", "w") as full:
-        out = subprocess.run([sys.executable, "-m", "handeye.app.cli", "calibrate", "thesis-sim", "--no-loo"],
+        out = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "calibrate", "thesis-sim", "--no-loo"],
                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
     assert out.returncode == cli.EXIT_BAD_INPUT and "cannot write the output" in out.stderr
 
@@ -336,7 +337,7 @@ def test_ctrl_c_ends_a_running_study_at_once(tmp_path):
     import signal
     import time
 
-    proc = subprocess.Popen([sys.executable, "-c", "import sys; from handeye.app.cli import main; sys.exit(main())",
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from handeye.app.command.cli import main; sys.exit(main())",
                              "study", "random-starts", "--out", str(tmp_path / "x"), "--jobs", "1"],
                             stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     time.sleep(3.0)

@@ -8,8 +8,9 @@ import pytest
 from handeye import solvers
 from handeye.app.engine import robust
 from handeye.app.engine.problems import calibration_problem
-from handeye.model import calibration, identifiability
-from handeye.model.statistics import covariance, covariance_normal
+from handeye.model.common.statistics import covariance, covariance_normal
+from handeye.model.design import identifiability
+from handeye.model.fit import calibration
 from tests.test_calibration_model import random_model, start_point
 
 KINDS = [("centre", "sensor"), ("centre", "sensor+sphere"), ("measurement", "sensor"), ("points", "sensor+sphere")]
@@ -113,10 +114,10 @@ def test_levenberg_marquardt_on_normal_equations_ends_where_on_the_jacobian():
 @pytest.mark.parametrize("unknowns, skip", [("sensor", ()), ("sensor+sphere", ()), ("sensor", ("sphere_radius",))])
 def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
     """The effect tests' own fit on normal equations and their two chunked passes
-    (:func:`handeye.model.extended.score_by_sums`) give the full arrays' scores and gates."""
+    (:func:`handeye.model.fit.extended.score_by_sums`) give the full arrays' scores and gates."""
     import handeye
-    from handeye.app.api import load_dataset
-    from handeye.model import extended
+    from handeye.app.public.api import load_dataset
+    from handeye.model.fit import extended
 
     dataset = load_dataset("thesis-real")
     fitted = handeye.calibrate("thesis-real", unknowns=unknowns, no_loo=True).fit
@@ -145,7 +146,7 @@ def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
 def test_deletion_statistics_by_chunks_equal_the_full_arrays():
     """The screening's deletion statistics in two chunked passes (information and SSR, then
     per-sample statistics) give the full arrays' statistics, p-values and residuals."""
-    from handeye.model.statistics import deletion_statistics, deletion_statistics_chunked
+    from handeye.model.common.statistics import deletion_statistics, deletion_statistics_chunked
 
     model = random_model("local", "sensor+sphere", n=29)
     x = start_point(model)

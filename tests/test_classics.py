@@ -1,4 +1,4 @@
-"""Kim & Cho's AX = XB and Li et al.'s two-step method (handeye.model.classics): derivation against
+"""Kim & Cho's AX = XB and Li et al.'s two-step method (handeye.model.fit.classics): derivation against
 Appendix A, exactness on noise-free data, the seed's sign typo in (2-41), refusal of data
 without the motions a method needs, and the CLI."""
 import json
@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from handeye.app import cli
-from handeye.model import classics, motions, simulate, symbolic
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec, transform_distance
+from handeye.app.command import cli
+from handeye.model.chain import symbolic
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.fit import classics
+from handeye.model.simulation import motions, simulate
 
 
 def _noise_free(name="thesis", translations=0, n=36, seed=0):
@@ -146,7 +148,7 @@ def test_equation_2_41_as_printed_has_the_wrong_sign():
 
 
 def test_noisy_estimates_are_close_and_least_squares_is_closer():
-    from handeye.model import fast
+    from handeye.model.compiled import fast
 
     setup = simulate.Setup()
     ids, flanges = motions.strategy(setup, np.random.default_rng(2), "thesis", 36, 4)
@@ -187,7 +189,7 @@ def test_kim_cho_refuses_rotations_about_the_sphere_alone():
 def test_kim_cho_refuses_poses_that_share_one_flange_position():
     """thesis-sim rotates the flange about its own origin only: the linear method has a null
     direction there (module docstring), while the nonlinear least squares is well posed."""
-    from handeye.model.dataset import load
+    from handeye.model.datasets.dataset import load
 
     d = load("thesis-sim")
     with pytest.raises(classics.MissingMotions, match="same flange position"):
@@ -261,7 +263,7 @@ def test_cli_about_sphere_data_are_refused_by_the_least_squares_too(tmp_path, ca
 def test_the_null_direction_at_one_flange_position_is_a_scaling_of_x():
     """The docstring's claim, numerically: with one flange position the relative motions have no
     translation, so F = 0, and every multiple s X of the true top rows solves D U = 0."""
-    from handeye.model.dataset import load
+    from handeye.model.datasets.dataset import load
 
     d = load("thesis-sim")
     t = d.flange2base()

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import simulate, write_dataset
 
-from handeye.app.cli import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, main
+from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -128,7 +128,7 @@ def test_datasets_command(capsys):
 def test_console_script_warm_start_needs_no_sympy(tmp_path):
     """Generated functions are cached: after one run, a new process never imports sympy."""
     env = dict(os.environ, HANDEYE_CACHE=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
-    probe = ("import sys; from handeye.app.cli import main; code = main(['calibrate', 'thesis-sim', '--json']);"
+    probe = ("import sys; from handeye.app.command.cli import main; code = main(['calibrate', 'thesis-sim', '--json']);"
              "print('SYMPY', 'sympy' in sys.modules, 'MPMATH', 'mpmath' in sys.modules); sys.exit(code)")
     cold = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=300)
     assert cold.returncode == 0 and "SYMPY True" in cold.stdout

@@ -5,10 +5,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handeye.model import conventions as cv
-from handeye.model import symbolic
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec
+from handeye.model.chain import conventions as cv
+from handeye.model.chain import symbolic
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import matrix_from_rotvec
 
 NAMES = list(cv.CONVENTIONS)
 

@@ -5,8 +5,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from handeye.model.dataset import DatasetError, embedded_names, load
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets.dataset import DatasetError, embedded_names, load
 
 # C10 as printed: (rotation axis, angle) -> x_s (2 decimals, truncated)
 C10_XS = {
@@ -162,7 +162,7 @@ def test_random_bytes_in_setup_raise_only_dataset_errors(tmp_path, blob):
 @pytest.mark.parametrize("convention", ["kuka", "abb", "ur", "fanuc"])
 def test_datasets_in_every_robot_convention_read_the_same(tmp_path, convention):
     """thesis-sim rewritten in another brand's convention reads back to the same transforms."""
-    from handeye.model import conventions
+    from handeye.model.chain import conventions
 
     d = load("thesis-sim")
     cols = conventions.columns(convention)

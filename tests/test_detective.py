@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
+from handeye.app.command import cli
 from handeye.app.engine import detective
-from handeye.model import conventions
+from handeye.model.chain import conventions
 
 
 def _rewrite(path, fn):
@@ -161,9 +161,9 @@ def test_large_noise_that_is_stated_is_not_refused(tmp_path):
 
 def test_the_batched_linear_closed_form_equals_the_closed_form_module():
     """The detective scores every reading at once (normal equations); each equals
-    handeye.model.closed_form's estimate of that reading, or is inf where it is singular."""
-    from handeye.model import global_fit
-    from handeye.model.closed_form import ClosedFormError, closed_form_estimate
+    handeye.model.fit.closed_form's estimate of that reading, or is inf where it is singular."""
+    from handeye.model.fit import global_fit
+    from handeye.model.fit.closed_form import ClosedFormError, closed_form_estimate
 
     data = handeye.load_dataset("thesis-real")
     stack = np.array([c.flange2base for c in detective.candidates(data)])

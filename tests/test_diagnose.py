@@ -5,11 +5,12 @@ import re
 import numpy as np
 import pytest
 
-from handeye.app.cli import EXIT_OK, main
+from handeye.app.command.cli import EXIT_OK, main
 from handeye.app.engine.diagnose import diagnose
-from handeye.model import effects, simulate
-from handeye.model.dataset import load
-from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model import effects
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.datasets.dataset import load
+from handeye.model.simulation import simulate
 
 SETUP = simulate.Setup()
 STRUCTURAL = {"base_frame", "flange_frame", "laser_plane"}

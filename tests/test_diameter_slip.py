@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 DIAMETER = 59.94507  # the simulator's sphere
 

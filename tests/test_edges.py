@@ -15,12 +15,12 @@ import time
 
 import pytest
 
-from handeye.app.cli import EXIT_BAD_INPUT, main
+from handeye.app.command.cli import EXIT_BAD_INPUT, main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 _SCRIPT = pathlib.Path(sys.executable).with_name("handeye")
 #: the console script of this environment, else the same entry point through the interpreter
-HANDEYE = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "handeye.app.cli"]
+HANDEYE = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "handeye.app.command.cli"]
 
 
 def handeye(*argv, **kwargs):
@@ -36,10 +36,10 @@ HEAVY = ("numpy", "sympy", "casadi", "mpmath", "matplotlib", "scipy")
 
 def test_help_imports_no_numpy_sympy_or_casadi():
     """``handeye --help`` and every ``handeye SUBCOMMAND --help`` build the parser from the
-    options' names alone (handeye.app.choices, handeye.model.names): no numerical library."""
+    options' names alone (handeye.app.common.choices, handeye.model.chain.names): no numerical library."""
     code = (
         "import sys\n"
-        "from handeye.app.cli import build_parser, main\n"
+        "from handeye.app.command.cli import build_parser, main\n"
         "subs = [a for a in build_parser()._subparsers._group_actions[0].choices]\n"
         "for argv in [['--help']] + [[s, '--help'] for s in subs]:\n"
         "    try:\n"
@@ -56,11 +56,12 @@ def test_help_imports_no_numpy_sympy_or_casadi():
 
 def test_choices_are_the_implementations_own():
     """The light names the parser offers are the very objects the implementing modules use."""
-    from handeye.app import choices
+    from handeye.app.common import choices
     from handeye.app.engine import calibrate, classic, robust
     from handeye.app.outputs import commands as use
     from handeye.app.outputs import formats as export
-    from handeye.model import calibration, conventions, names
+    from handeye.model.chain import conventions, names
+    from handeye.model.fit import calibration
 
     assert calibrate.METHODS is choices.METHODS and classic.METHODS is choices.CLASSIC_METHODS
     assert robust.ALPHA == choices.ALPHA and export.FORMATS is choices.FORMATS and use.CLOUD_FORMATS is choices.CLOUD_FORMATS
@@ -111,7 +112,7 @@ def test_outputs_get_the_mode_the_umask_gives(tmp_path, mask, mode):
 
 def test_a_file_written_over_keeps_its_mode(tmp_path):
     """As the shell's ``>`` does: an existing output that was made private stays private."""
-    from handeye.app.files import write_text_atomically
+    from handeye.app.common.files import write_text_atomically
 
     old = os.umask(0o022)
     try:
@@ -208,7 +209,7 @@ def test_a_signal_while_the_output_is_written_removes_the_temporary_file(tmp_pat
     signal comes (sent by the writer itself, so the moment is certain)."""
     code = (
         "import os, sys, time\n"
-        "from handeye.app import cli, files\n"
+        "from handeye.app.command import cli; from handeye.app.common import files\n"
         "cli.install_signal_handlers()\n"
         "def write(fh):\n"
         "    fh.write(b'{\"half\": ')\n"
@@ -239,7 +240,7 @@ def _unwritable(tmp_path):
     return ro / "cache"
 
 
-_PROBE = ("import sys; from handeye.app.cli import main; code = main(); "
+_PROBE = ("import sys; from handeye.app.command.cli import main; code = main(); "
           "print('SYMPY', 'sympy' in sys.modules, file=sys.stderr); sys.exit(code)")
 
 
@@ -301,7 +302,7 @@ def test_suggested_commands_are_complete_and_run(tmp_path, capsys, name):
     a folder by its path, quoted), with calibrate's dataset argument; pasted, each runs."""
     import shutil
 
-    from handeye.model.dataset import DATA_DIR
+    from handeye.model.datasets.dataset import DATA_DIR
 
     dataset = "thesis-real"
     if name != "thesis-real":
@@ -325,7 +326,7 @@ def test_a_read_only_filled_cache_is_read_without_deriving(tmp_path, monkeypatch
     the user's cache comes after it, and a hit derives nothing and writes nothing."""
     import sympy as sp
 
-    from handeye.model import codegen
+    from handeye.model.chain import codegen
 
     filled, xdg = tmp_path / "filled", tmp_path / "xdg"
     monkeypatch.setenv("HANDEYE_CACHE", str(filled))

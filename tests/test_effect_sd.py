@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.model import effects, extended
-from handeye.model import simulate as sim
-from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model import effects
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.fit import extended
+from handeye.model.simulation import simulate as sim
 
 DIAMETER = 25.4
 RADIUS_STRUCTURE = extended.Structure(centre=False, data_effects=("sphere_radius",))

@@ -15,8 +15,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.app import cli
-from handeye.app.errors import RequestError
+from handeye.app.command import cli
+from handeye.app.common.errors import RequestError
 from handeye.app.outputs import formats as export
 from handeye.app.outputs import saved
 

@@ -11,7 +11,8 @@ import pytest
 from handeye import solvers
 from handeye.app.engine.problems import testfunction_options as options_for
 from handeye.app.engine.problems import testfunction_problem as potential_problem
-from handeye.model import ccompile, fast_starts, testfunction
+from handeye.model.chain import testfunction
+from handeye.model.compiled import ccompile, fast_starts
 from handeye.studies import study_testfunction
 
 METHODS = fast_starts.METHODS

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from handeye.app import cli
+from handeye.app.command import cli
 from handeye.app.present import figure_style as style
 
 

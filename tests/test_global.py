@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
+from handeye.app.command import cli
 from handeye.app.engine import guarantee
-from handeye.model import global_fit
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.fit import global_fit
 
 
 def _chain(seed, n=15, noise=0.05):

@@ -176,7 +176,7 @@ def test_a_row_that_contradicts_itself_is_named(tmp_path):
 
 def _cli(folder):
     exe = pathlib.Path(sys.executable).with_name("handeye")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "import sys; from handeye.app.cli import main; "
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "import sys; from handeye.app.command.cli import main; "
                                                                    "sys.exit(main())"]
     p = subprocess.run(cmd + ["calibrate", str(folder), "--json", "--no-loo"], capture_output=True, text=True,
                        timeout=300, env={**os.environ})

@@ -7,7 +7,7 @@ import pytest
 from ingest_truth import make_cell, zyx_angles
 
 import handeye
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 
 def test_python_api_npz_of_all_profiles(tmp_path):
@@ -41,7 +41,7 @@ def test_json_summary_and_joints_with_a_robot(tmp_path, capsys, robot):
     """--joints (a whitespace file with a header) with --robot (a built-in name, or a model file,
     copied into the dataset): j1..j6 and [robot] model written, the poses the nominal model's
     forward kinematics (the loader checks them)."""
-    from handeye.model import robots
+    from handeye.model.robot import robots
 
     model = robots.load("kr60ha")
     if robot == "file":
@@ -74,7 +74,7 @@ def test_the_cli_module_still_imports_only_the_standard_library():
     import subprocess
     import sys
 
-    code = ("import sys, handeye.app.cli as c; c.build_parser(); "
+    code = ("import sys, handeye.app.command.cli as c; c.build_parser(); "
             "print(any(m.startswith(('numpy', 'handeye.app.ingest')) for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from ingest_truth import make_cell, pose_error
 
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 
 def _new_and_calibrate(tmp_path, capsys, args, unknowns=None):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from ingest_truth import make_cell
 
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 CELL = make_cell(n=4, seed=11)
 
@@ -144,7 +144,7 @@ def test_missing_diameter_and_non_empty_out(tmp_path, capsys):
 def test_truncated_and_corrupt_files_are_bad_input(tmp_path):
     """Cut or damaged files of every binary format: a DatasetError naming the file, never a traceback."""
     from handeye.app.ingest import clouds
-    from handeye.model.errors import InputError
+    from handeye.model.common.errors import InputError
 
     pts = np.column_stack([np.arange(20.0), np.zeros(20), 240 + np.arange(20.0)])
     np.save(tmp_path / "a.npy", pts)

@@ -9,7 +9,7 @@ import pytest
 
 from handeye.app.ingest import clouds, plane, poses
 from handeye.app.ingest.pairing import natural_key, pair
-from handeye.model.tables import DatasetError
+from handeye.model.readers.tables import DatasetError
 
 RNG = np.random.default_rng(0)
 POINTS = np.column_stack([RNG.uniform(-20, 20, 30), np.zeros(30), RNG.uniform(220, 260, 30)])

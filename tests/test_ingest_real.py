@@ -7,7 +7,7 @@ headerless whitespace file (``--convention fanuc``); OpenCV FileStorage YAML who
 ``scan_line: [x, y, z, ...]`` with ``.Nan``; z a height towards the sensor (turned half a turn
 about x, so ``--side`` in the files' y becomes the converter's side); ``1_3C_line.yml`` paired by
 its first number; the folder's ``calibration.sec`` skipped. The ball's speckle needs the loader's
-profile cleaning (``handeye.model.profile_clean``); without it that case is skipped.
+profile cleaning (``handeye.model.geometry.profile_clean``); without it that case is skipped.
 """
 import pathlib
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 DATA = pathlib.Path(__file__).resolve().parent / "data"
 RAW, CONVERTED = DATA / "robcalibrator-raw", DATA / "robcalibrator"
@@ -34,7 +34,7 @@ def _angle_deg(r1, r2):
 @pytest.mark.parametrize("name", list(CASES))
 def test_dataset_new_alone_calibrates_as_the_converter(name, tmp_path, capsys):
     if name == "ball":
-        pytest.importorskip("handeye.model.profile_clean", reason="the ball's speckle needs the loader's cleaning")
+        pytest.importorskip("handeye.model.geometry.profile_clean", reason="the ball's speckle needs the loader's cleaning")
     poses, diameter, side, converted = CASES[name]
     out = tmp_path / name
     code = main(["dataset", "new", str(out), "--poses", str(RAW / name / poses), "--convention", "fanuc",

@@ -14,7 +14,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: folder -> (layer name, rank); a module may import its own rank or lower ones
 LAYERS = {"solvers": 0, "model": 1, "app": 2, "studies": 3}
 #: the one allowed upward import: the CLI runs a study only when asked (``handeye study``)
-ALLOWED_UPWARD = {("app/cli.py", "_study", "handeye.studies")}
+ALLOWED_UPWARD = {("app/command/cli.py", "_study", "handeye.studies")}
 
 
 def _modules():
@@ -97,13 +97,13 @@ def test_importing_handeye_imports_no_study_and_no_sympy():
 
 def test_importing_a_lower_layer_loads_nothing_above_it():
     """The package root is lazy (PEP 562): ``import handeye.solvers`` loads no model and no app,
-    ``import handeye.model.calibration`` no app."""
+    ``import handeye.model.fit.calibration`` no app."""
     import subprocess
     import sys
 
     code = ("import sys, importlib; importlib.import_module(sys.argv[1]); "
             "print(','.join(sorted({m.split('.')[1] for m in sys.modules if m.startswith('handeye.')})))")
-    for module, allowed in (("handeye.solvers", {"solvers"}), ("handeye.model.calibration", {"solvers", "model"})):
+    for module, allowed in (("handeye.solvers", {"solvers"}), ("handeye.model.fit.calibration", {"solvers", "model"})):
         out = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True, cwd="/")
         assert set(filter(None, out.stdout.strip().split(","))) <= allowed, (module, out.stdout)
 
@@ -176,4 +176,411 @@ def test_no_import_circles():
 def test_the_circle_finder_sees_a_circle():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
     assert _cycles(graph) == [["a", "b", "c"]]
-    assert "handeye.app.engine.calibrate" in _import_graph()["handeye.app.api"]
+    assert "handeye.app.engine.calibrate" in _import_graph()["handeye.app.public.api"]
+
+
+# --- rooms and local imports (written by the rooms migration, issue 38; keep up to date by hand) ---
+
+#: layer -> room (a subpackage, dotted below the layer) -> the rooms of the same layer it may import.
+#: The rooms import one way (no cycle between them: test below); every module lives in a room.
+ROOMS = {
+    "model": {
+        "chain": {"common"},
+        "common": set(),
+        "compiled": {"chain", "common", "fit"},
+        "data": set(),
+        "datasets": {"chain", "common", "fit", "geometry", "readers", "robot"},
+        "design": {"chain", "common", "datasets", "effects", "fit", "geometry", "readers", "robot", "simulation"},
+        "effects": {"chain", "robot"},
+        "fit": {"chain", "common", "effects", "robot"},
+        "geometry": {"common"},
+        "readers": {"chain", "common"},
+        "robot": {"chain", "common", "readers"},
+        "simulation": {"chain", "common", "geometry", "readers", "robot"},
+    },
+    "app": {
+        "command": {"common", "present", "tools"},
+        "common": set(),
+        "engine": {"common", "present"},
+        "ingest": {"common", "engine", "present"},
+        "outputs": {"common", "present"},
+        "present": {"common"},
+        "present.web": {"common", "outputs", "present"},
+        "public": {"common", "engine", "outputs", "present", "present.web"},
+        "tools": {"common", "engine", "present", "public"},
+    },
+}
+
+#: every import inside a function body, (file, function, module) grouped by why it is not at module
+#: level (anything else is imported at module level; test below)
+LOCAL_IMPORTS = {
+    "a test patches the imported name (monkeypatch): looked up at call time": [
+        ("app/engine/problems.py", "chunked", "handeye.model.fit.calibration"),
+        ("app/tools/bench.py", "pipeline", "handeye.app.engine.request"),
+        ("app/tools/bench_points.py", "measure", "handeye.app.public.api"),
+    ],
+    "import cycle at load: what it imports imports this module (through a package's __init__)": [
+        ("solvers/ipopt.py", "minimize_many", "handeye.solvers.batch"),
+    ],
+    "layers: the one upward import (ALLOWED_UPWARD), only when a study runs": [
+        ("app/command/cli.py", "_study", "handeye.studies.study"),
+    ],
+    "optional dependency: imported where it is used, its absence handled there": [
+        ("app/command/cli.py", "_bench", "scipy.optimize"),
+        ("app/ingest/rosbag.py", "_reader_class", "rosbags.highlevel"),
+        ("app/present/interactive.py", "__init__", "ipywidgets"),
+        ("app/present/interactive.py", "_widget", "ipywidgets"),
+        ("app/present/web/view.py", "figure", "plotly.graph_objects"),
+        ("app/present/web/view.py", "have_plotly", "plotly.graph_objects"),
+        ("app/tools/bench.py", "scipy_fit", "scipy.optimize"),
+        ("app/tools/bench_peers.py", "_ceres", "pyceres"),
+        ("app/tools/bench_peers.py", "_gtsam_align", "gtsam"),
+        ("app/tools/sweep.py", "_dask_client", "distributed"),
+        ("app/tools/sweep.py", "run", "distributed"),
+    ],
+    "start-up: `handeye --help` loads no module it does not need (no numpy)": [
+        ("app/command/cli.py", "_bench", "handeye.app.common.errors"),
+        ("app/command/cli.py", "_bench", "handeye.app.tools.bench"),
+        ("app/command/cli.py", "_bench", "handeye.app.tools.bench_solvers"),
+        ("app/command/cli.py", "_guarded", "handeye.app.common.registry"),
+        ("app/command/cli.py", "_guarded", "handeye.model.common.errors"),
+        ("app/command/cli.py", "_result", "handeye.app.common.options"),
+        ("app/command/cli.py", "_run", "handeye.model.datasets.dataset"),
+        ("app/command/cli.py", "_sizes", "handeye.app.common.errors"),
+        ("app/command/cli.py", "_study", "handeye.app.common.errors"),
+        ("app/command/cli.py", "_study", "handeye.app.tools.sweep"),
+        ("app/command/parser.py", "build_parser", "handeye.app.common.options"),
+        ("app/command/parser.py", "dumps", "handeye.app.present.results"),
+    ],
+    "start-up: would load PIL at import, which the module does not load yet": [
+        ("app/present/figure_style.py", "png_bytes", "PIL"),
+    ],
+    "start-up: would load casadi at import, which the module does not load yet": [
+        ("app/engine/problems.py", "testfunction_nlp", "casadi"),
+        ("model/chain/codegen.py", "casadi_function", "casadi"),
+        ("model/chain/pose.py", "transform_from_pose_casadi", "casadi"),
+        ("model/chain/testfunction.py", "casadi_function", "casadi"),
+        ("model/compiled/fast.py", "_calibrate_python", "casadi"),
+        ("model/compiled/fast.py", "_per_measurement", "casadi"),
+        ("model/compiled/fast.py", "library", "casadi"),
+        ("model/compiled/fast.py", "normal_equations", "casadi"),
+        ("model/compiled/fast_starts.py", "_generated", "casadi"),
+        ("model/fit/nlp_callback.py", "_callback_class", "casadi"),
+        ("model/fit/nlp_problem.py", "_graph", "casadi"),
+        ("model/fit/nlp_problem.py", "nlp", "casadi"),
+        ("solvers/ipopt.py", "__init__", "casadi"),
+        ("solvers/ipopt.py", "_recorder", "casadi"),
+    ],
+    "start-up: would load cycler at import, which the module does not load yet": [
+        ("app/present/figure_style.py", "rc", "cycler"),
+    ],
+    "start-up: would load handeye modules at import that the module does not load yet": [
+        ("app/common/arguments.py", "load_dataset", "handeye.model.datasets.dataset"),
+        ("app/common/options.py", "_studies", "handeye.app.common.registry"),
+        ("app/engine/cell_stage.py", "_other_mount_fits_better", "handeye.model.fit.global_fit"),
+        ("app/engine/cell_stage.py", "compose", "handeye.app.present.results"),
+        ("app/engine/cell_stage.py", "final_residuals", "handeye.app.present.results"),
+        ("app/engine/cell_stage.py", "held_contradicted", "handeye.app.engine.describe"),
+        ("app/engine/command_request.py", "outputs_checked", "handeye.app.common.files"),
+        ("app/engine/request.py", "_robot_effects_possible", "handeye.model.effects"),
+        ("app/engine/robust.py", "_contradiction_error", "handeye.app.common.errors"),
+        ("app/engine/robust.py", "_contradiction_error", "handeye.app.engine.request"),
+        ("app/engine/robust.py", "exclude_inconsistent", "handeye.app.engine.request"),
+        ("app/engine/robust.py", "exclude_inconsistent", "handeye.model.datasets.consistency"),
+        ("app/engine/robust.py", "with_geometry", "handeye.model.geometry.arc_geometry"),
+        ("app/engine/score.py", "compare", "handeye.app.engine.calibrate"),
+        ("app/engine/score.py", "compare", "handeye.app.present.score_results"),
+        ("app/engine/score.py", "run_score", "handeye.app.engine.calibrate"),
+        ("app/engine/score.py", "score_against", "handeye.app.engine.describe"),
+        ("app/engine/score.py", "score_against", "handeye.app.present.score_results"),
+        ("app/engine/slips.py", "_check_conventions", "handeye.app.engine.detective"),
+        ("app/engine/slips.py", "_effects_keep_centre", "handeye.model.design.robot_gate"),
+        ("app/engine/slips.py", "_effects_keep_centre", "handeye.model.fit.extended"),
+        ("app/engine/slips.py", "_robot_alternative", "handeye.model.effects"),
+        ("app/engine/slips.py", "check_diameter", "handeye.model.geometry.circle"),
+        ("app/engine/slips.py", "check_radius", "handeye.model.fit.extended"),
+        ("app/engine/slips.py", "check_radius", "handeye.model.fit.global_fit"),
+        ("app/engine/slips.py", "free_axes_rms", "handeye.app.engine.cell_stage"),
+        ("app/ingest/command.py", "_check_options", "handeye.app.common.files"),
+        ("app/ingest/command.py", "_check_options", "handeye.app.engine.command_request"),
+        ("app/ingest/command.py", "_files", "handeye.app.common.files"),
+        ("app/ingest/command.py", "_from_bag", "handeye.app.ingest.rosbag"),
+        ("app/ingest/command.py", "_from_setup", "handeye.model.readers.setup_file"),
+        ("app/ingest/command.py", "_write_checked", "handeye.app.common.files"),
+        ("app/ingest/command.py", "_write_checked", "handeye.model.datasets.dataset"),
+        ("app/outputs/commands.py", "_robot_values", "handeye.model.robot.robot_errors"),
+        ("app/outputs/commands.py", "_scan_inputs", "handeye.model.datasets.dataset"),
+        ("app/outputs/commands.py", "cloud", "handeye.model.datasets.scan"),
+        ("app/outputs/commands.py", "cloud", "handeye.model.geometry.cloud"),
+        ("app/outputs/commands.py", "robot_text", "handeye.model.robot.robot_errors"),
+        ("app/outputs/commands.py", "robot_text", "handeye.model.robot.robots"),
+        ("app/outputs/commands.py", "validate", "handeye.app.outputs.validate"),
+        ("app/outputs/commands.py", "validate", "handeye.app.present.report"),
+        ("app/outputs/commands.py", "validate", "handeye.model.datasets.dataset"),
+        ("app/outputs/commands.py", "validate", "handeye.model.datasets.scan"),
+        ("app/outputs/commands.py", "validate", "handeye.model.readers.tables"),
+        ("app/outputs/formats.py", "text", "handeye.app.common.jsonio"),
+        ("app/outputs/saved.py", "_positioner", "handeye.model.chain.mounts"),
+        ("app/outputs/saved.py", "_positioner", "handeye.model.readers.tables"),
+        ("app/outputs/validate.py", "summary", "handeye.app.present.report"),
+        ("app/present/diagnosis_results.py", "figures", "handeye.app.present.report"),
+        ("app/present/diagnosis_results.py", "summary", "handeye.app.present.report"),
+        ("app/present/figure_style.py", "save", "handeye.app.common.files"),
+        ("app/present/protocol.py", "save", "handeye.app.common.files"),
+        ("app/present/report.py", "_centres_seen", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "_effect_lines", "handeye.model.effects"),
+        ("app/present/report.py", "_residual_bars", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "calibration_plot", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "calibration_plot", "handeye.app.present.plotting"),
+        ("app/present/report.py", "diagnosis_figures", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "diagnosis_figures", "handeye.app.present.plotting"),
+        ("app/present/report.py", "validation_figure", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "validation_figure", "handeye.app.present.plotting"),
+        ("app/present/result_parts.py", "user_poses", "handeye.model.chain.conventions"),
+        ("app/present/result_parts.py", "user_poses", "handeye.model.chain.own_frame"),
+        ("app/present/result_parts.py", "user_std", "handeye.model.chain.own_frame"),
+        ("app/present/results.py", "in_user_frame", "handeye.model.chain.own_frame"),
+        ("app/present/results.py", "in_user_frame", "handeye.model.chain.pose"),
+        ("app/present/results.py", "summary", "handeye.app.present.report"),
+        ("app/present/score_results.py", "summary", "handeye.app.present.report"),
+        ("app/present/web/figures.py", "gap_steps", "handeye.app.present.report"),
+        ("app/present/web/page.py", "build", "handeye.app.present.web.cell"),
+        ("app/present/web/page.py", "snippets", "handeye.app.outputs.formats"),
+        ("app/present/web/page.py", "snippets", "handeye.app.outputs.saved"),
+        ("app/present/web/parts.py", "header", "handeye.app.common.files"),
+        ("app/present/web/parts.py", "header", "handeye.model.chain.mounts"),
+        ("app/present/web/write.py", "write_report", "handeye.app.common.files"),
+        ("app/present/web/write.py", "write_report", "handeye.app.outputs.saved"),
+        ("app/present/web/write.py", "write_report", "handeye.app.present.web.page"),
+        ("app/present/web/write.py", "write_report", "handeye.app.present.web.view"),
+        ("app/public/api.py", "_diagnosed", "handeye.app.engine.diagnose"),
+        ("app/public/api.py", "_diagnosed", "handeye.app.engine.prepare"),
+        ("app/public/api.py", "_diagnosed", "handeye.app.engine.slips"),
+        ("app/public/api.py", "_diagnosis_figures", "handeye.app.common.files"),
+        ("app/public/api.py", "_diagnosis_figures", "handeye.app.present.report"),
+        ("app/public/api.py", "_given_sensor", "handeye.app.outputs.commands"),
+        ("app/public/api.py", "_given_sensor", "handeye.app.outputs.saved"),
+        ("app/public/api.py", "_written", "handeye.app.common.files"),
+        ("app/public/api.py", "_written", "handeye.app.engine.cell_stage"),
+        ("app/public/api.py", "_written", "handeye.app.present.report"),
+        ("app/public/api.py", "_written", "handeye.app.present.web.write"),
+        ("app/public/api.py", "calibrate", "handeye.app.engine.calibrate"),
+        ("app/public/api.py", "calibrate", "handeye.app.engine.classic"),
+        ("app/public/api.py", "calibrate", "handeye.app.engine.command_request"),
+        ("app/public/api.py", "calibrate", "handeye.app.engine.score"),
+        ("app/public/api.py", "compare", "handeye.app.engine.command_request"),
+        ("app/public/api.py", "compare", "handeye.app.engine.score"),
+        ("app/public/api.py", "compare", "handeye.app.outputs.commands"),
+        ("app/public/api.py", "diagnose", "handeye.app.common.files"),
+        ("app/public/api.py", "diagnose", "handeye.app.engine.command_request"),
+        ("app/public/making.py", "_candidates", "handeye.model.datasets.dataset"),
+        ("app/public/making.py", "_candidates", "handeye.model.design.planning"),
+        ("app/public/making.py", "_planned_cell", "handeye.model.datasets.dataset"),
+        ("app/public/making.py", "_planned_cell", "handeye.model.simulation.simulate"),
+        ("app/public/making.py", "_pose_list", "handeye.model.readers.tables"),
+        ("app/public/making.py", "_pose_list", "handeye.model.robot.robots"),
+        ("app/public/making.py", "_robot_summary", "handeye.model.chain.conventions"),
+        ("app/public/making.py", "_robot_summary", "handeye.model.design.planning_robot"),
+        ("app/public/making.py", "_simulated_cell", "handeye.model.simulation.simulate_mounts"),
+        ("app/public/making.py", "_simulated_robot", "handeye.model.readers.tables"),
+        ("app/public/making.py", "_simulated_robot", "handeye.model.simulation.simulate_robot"),
+        ("app/public/making.py", "plan", "handeye.app.common.files"),
+        ("app/public/making.py", "plan", "handeye.app.engine.command_request"),
+        ("app/public/making.py", "plan", "handeye.model.datasets.dataset"),
+        ("app/public/making.py", "plan", "handeye.model.design.planning"),
+        ("app/public/making.py", "plan", "handeye.model.design.planning_robot"),
+        ("app/public/making.py", "plan", "handeye.model.simulation.simulate_robot"),
+        ("app/public/making.py", "pose_list", "handeye.model.datasets.dataset"),
+        ("app/public/making.py", "poses_in_convention", "handeye.model.chain.conventions"),
+        ("app/public/making.py", "simulate", "handeye.app.common.files"),
+        ("app/public/making.py", "simulate", "handeye.app.engine.command_request"),
+        ("app/public/making.py", "simulate", "handeye.app.engine.request"),
+        ("app/public/making.py", "simulate", "handeye.model.chain.conventions"),
+        ("app/public/making.py", "simulate", "handeye.model.chain.pose"),
+        ("app/public/making.py", "simulate", "handeye.model.simulation.motions"),
+        ("app/public/making.py", "simulate", "handeye.model.simulation.simulate"),
+        ("app/public/making.py", "summary", "handeye.model.chain.conventions"),
+        ("app/public/making.py", "to_dict", "handeye.model.chain.conventions"),
+        ("app/public/reporting.py", "report", "handeye.app.common.files"),
+        ("app/public/reporting.py", "report", "handeye.app.public.api"),
+        ("app/public/reporting.py", "saved_result", "handeye.app.outputs.saved"),
+        ("app/tools/bench.py", "peers", "handeye.app.tools.bench_peers"),
+        ("app/tools/bench.py", "plot", "handeye.app.present.figure_style"),
+        ("app/tools/bench.py", "plot", "handeye.app.present.plotting"),
+        ("app/tools/bench.py", "run", "handeye.app.tools.bench_guarantee"),
+        ("app/tools/bench.py", "run", "handeye.app.tools.bench_pipeline"),
+        ("app/tools/bench.py", "run", "handeye.app.tools.bench_points"),
+        ("app/tools/bench.py", "run", "handeye.app.tools.peak"),
+        ("app/tools/bench.py", "text", "handeye.app.tools.bench_guarantee"),
+        ("app/tools/bench.py", "text", "handeye.app.tools.bench_peers"),
+        ("app/tools/bench.py", "text", "handeye.app.tools.bench_pipeline"),
+        ("app/tools/bench.py", "text", "handeye.app.tools.bench_points"),
+        ("app/tools/bench.py", "text", "handeye.app.tools.peak"),
+        ("app/tools/bench.py", "throughput", "handeye.app.tools.sweep"),
+        ("app/tools/bench_guarantee.py", "_without_guarantee", "handeye.app.engine.guarantee"),
+        ("app/tools/bench_guarantee.py", "_without_guarantee", "handeye.app.engine.slips"),
+        ("app/tools/bench_guarantee.py", "measure", "handeye.app.engine.detective"),
+        ("app/tools/bench_guarantee.py", "measure", "handeye.app.engine.guarantee"),
+        ("app/tools/bench_pipeline.py", "_ipopt_from_scratch", "handeye.app.engine.problems"),
+        ("app/tools/bench_pipeline.py", "_ipopt_from_scratch", "handeye.model.datasets.observations"),
+        ("app/tools/bench_pipeline.py", "_ipopt_from_scratch", "handeye.solvers"),
+        ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.calibrate"),
+        ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.describe"),
+        ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.request"),
+        ("app/tools/bench_pipeline.py", "pipeline_vs_solve", "handeye.app.public.api"),
+        ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.chain.pose"),
+        ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.common.rotation"),
+        ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.fit.calibration"),
+        ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.simulation.simulate"),
+        ("app/tools/bench_solvers.py", "calibration", "handeye.model.compiled.fast"),
+        ("app/tools/bench_solvers.py", "run", "handeye.app.tools.peak"),
+        ("app/tools/bench_solvers.py", "text", "handeye.app.tools.peak"),
+        ("app/tools/sweep.py", "_dask_client", "handeye.app.common.errors"),
+        ("app/tools/sweep.py", "_worker_end", "handeye.model.common.scratch"),
+        ("model/datasets/dataset.py", "_centre_from_profile", "handeye.model.geometry.circle"),
+        ("model/datasets/dataset.py", "_check_truth_params", "handeye.model.robot.robot_errors"),
+        ("model/datasets/dataset.py", "_clean_profile", "handeye.model.geometry.profile_clean"),
+        ("model/design/bounds.py", "information", "handeye.model.simulation.simulate"),
+        ("model/design/identifiability.py", "plate_pose_analysis", "handeye.model.fit.calibration"),
+        ("model/design/identifiability.py", "structural", "handeye.model.fit.calibration"),
+        ("model/design/planning.py", "cell_candidates", "handeye.model.simulation.simulate_mounts"),
+        ("model/design/planning.py", "cell_information", "handeye.model.fit.cell"),
+        ("model/fit/calibration.py", "nlp", "handeye.model.fit.nlp_problem"),
+        ("model/fit/extended.py", "robot_motion", "handeye.model.chain.mounts"),
+        ("model/fit/extended.py", "robot_motion", "handeye.model.robot.robot_errors"),
+        ("model/fit/nlp_problem.py", "nlp", "handeye.model.fit.nlp_callback"),
+        ("model/geometry/circle.py", "geometric", "handeye.solvers"),
+        ("model/robot/robots.py", "offset_derivatives", "handeye.model.robot.robot_errors"),
+        ("model/simulation/simulate.py", "_robot_section", "handeye.model.robot.robots"),
+        ("model/simulation/simulate.py", "robot_errors", "handeye.model.robot.robot_errors"),
+        ("model/simulation/simulate.py", "simulate", "handeye.model.chain.mounts"),
+        ("model/simulation/simulate.py", "write", "handeye.model.chain.conventions"),
+        ("studies/study_classics.py", "_real_data", "handeye.app.engine.robust"),
+        ("studies/study_classics.py", "_real_data", "handeye.app.tools.bench"),
+        ("studies/study_default.py", "one", "handeye.model.chain.conventions"),
+    ],
+    "start-up: would load joblib at import, which the module does not load yet": [
+        ("app/tools/sweep.py", "run", "joblib"),
+    ],
+    "start-up: would load matplotlib at import, which the module does not load yet": [
+        ("app/present/figure_style.py", "_colour_ok", "matplotlib.colors"),
+        ("app/present/figure_style.py", "_mappables", "matplotlib.cm"),
+        ("app/present/figure_style.py", "_name", "matplotlib.colors"),
+        ("app/present/figure_style.py", "_off_palette", "matplotlib.collections"),
+        ("app/present/figure_style.py", "_off_palette", "matplotlib.lines"),
+        ("app/present/figure_style.py", "_off_palette", "matplotlib.patches"),
+        ("app/present/figure_style.py", "_points", "matplotlib.collections"),
+        ("app/present/figure_style.py", "_points", "matplotlib.container"),
+        ("app/present/figure_style.py", "_points", "matplotlib.lines"),
+        ("app/present/figure_style.py", "_small_text", "matplotlib.text"),
+        ("app/present/figure_style.py", "_unlabelled_maps", "matplotlib.cm"),
+        ("app/present/figure_style.py", "apply", "matplotlib"),
+        ("app/present/figure_style.py", "style", "matplotlib"),
+        ("app/present/plotting.py", "figure", "matplotlib"),
+        ("app/present/plotting.py", "figure", "matplotlib.pyplot"),
+        ("app/present/web/figures.py", "new_figure", "matplotlib.figure"),
+        ("studies/study_testfunction.py", "_draw", "matplotlib.colors"),
+        ("studies/study_testfunction.py", "_draw", "matplotlib.patches"),
+    ],
+    "start-up: would load mpl_toolkits at import, which the module does not load yet": [
+        ("studies/study_mounts.py", "_fan", "mpl_toolkits.mplot3d.art3d"),
+    ],
+    "start-up: would load numpy at import, which the module does not load yet": [
+        ("app/common/files.py", "write_json_atomically", "handeye.app.common.jsonio"),
+        ("app/present/interactive.py", "png_from_figure", "handeye.app.present.figure_style"),
+        ("app/present/plotting.py", "figure", "handeye.app.present.figure_style"),
+    ],
+    "start-up: would load sympy at import, which the module does not load yet": [
+        ("app/engine/problems.py", "testfunction_nlp", "handeye.model.chain.codegen"),
+        ("app/engine/problems.py", "testfunction_nlp", "handeye.model.chain.symbolic"),
+        ("model/chain/codegen.py", "_print_function", "sympy"),
+        ("model/chain/conventions.py", "build", "handeye.model.chain.symbolic"),
+        ("model/chain/pose.py", "build", "handeye.model.chain.symbolic"),
+        ("model/chain/testfunction.py", "build", "handeye.model.chain.symbolic"),
+        ("model/chain/testfunction.py", "stationary_points", "sympy"),
+        ("model/design/identifiability.py", "plate_pose_analysis", "handeye.model.chain.codegen"),
+        ("model/design/identifiability.py", "plate_pose_analysis", "handeye.model.chain.symbolic"),
+        ("model/effects/__init__.py", "build", "sympy"),
+        ("model/effects/sensor_scale.py", "correction", "sympy"),
+        ("model/effects/sphere_radius.py", "correction", "sympy"),
+        ("model/fit/calibration.py", "build_hess", "handeye.model.chain.symbolic"),
+        ("model/fit/calibration.py", "build_res", "handeye.model.chain.symbolic"),
+        ("model/fit/calibration.py", "build_resjac", "handeye.model.chain.symbolic"),
+        ("model/fit/cell.py", "build", "handeye.model.chain.symbolic"),
+        ("model/fit/classics.py", "build", "handeye.model.chain.symbolic"),
+    ],
+    "the module looks for it in sys.modules (used only when something else loaded it)": [
+        ("app/command/cli.py", "_stop_workers", "multiprocessing"),
+    ],
+}
+
+def _room(path):
+    """(layer, room) of a module's file; room '' is the layer's own __init__.py."""
+    parts = path.relative_to(ROOT).parts
+    return parts[0], ".".join(parts[1:-1])
+
+
+def test_every_module_lives_in_a_room():
+    for layer in ROOMS:
+        for path in sorted((ROOT / layer).rglob("*.py")):
+            lay, room = _room(path)
+            if room == "":
+                assert path.name == "__init__.py", f"{path.relative_to(ROOT)}: loose in {layer}/, put it in a room"
+            else:
+                assert room in ROOMS[layer], f"{path.relative_to(ROOT)}: room {room!r} is not in ROOMS"
+
+
+def test_rooms_import_one_way():
+    """Within a layer, a room imports only the rooms ROOMS lets it (module level and in functions)."""
+    modules = {_module_name(p): p for p in _modules()}
+    for name, deps in _import_graph().items():
+        lay, room = _room(modules[name]) if modules[name].parent != ROOT else (None, None)
+        if lay not in ROOMS:
+            continue
+        for dep in deps:
+            dlay, droom = _room(modules[dep]) if modules[dep].parent != ROOT else (None, None)
+            if dlay != lay or droom in ("", room):
+                continue
+            assert droom in ROOMS[lay].get(room, ()), (
+                f"{modules[name].relative_to(ROOT)} imports {dep}: room {room!r} may not import room {droom!r}")
+
+
+def test_the_rooms_have_no_cycle():
+    for layer, rooms in ROOMS.items():
+        assert _cycles({r: set(d) for r, d in rooms.items()}) == [], layer
+
+
+def _function_imports(tree, modules):
+    """(function, module) of every import inside a function body; ``from a import b`` imports the
+    module ``a.b`` when that is one of handeye's modules, else ``a``."""
+    found = []
+
+    def visit(node, function):
+        for child in ast.iter_child_nodes(node):
+            name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+            if function is not None and isinstance(child, ast.Import):
+                found.extend((function, a.name) for a in child.names)
+            elif function is not None and isinstance(child, ast.ImportFrom):
+                subs = [f"{child.module}.{a.name}" for a in child.names]
+                found.extend((function, sub if sub in modules else child.module) for sub in subs)
+            visit(child, name)
+
+    visit(tree, None)
+    return found
+
+
+def test_function_level_imports_are_listed_with_their_reason():
+    """An import sits at module level unless LOCAL_IMPORTS gives it a reason; the list has no stale entry."""
+    listed = {entry: reason for reason, entries in LOCAL_IMPORTS.items() for entry in entries}
+    found = set()
+    modules = {_module_name(p) for p in _modules()}
+    for path in _modules():
+        rel = path.relative_to(ROOT).as_posix()
+        for fn, name in _function_imports(ast.parse(path.read_text(), rel), modules):
+            found.add((rel, fn, name))
+    assert not sorted(found - set(listed)), (
+        f"imports inside functions without a reason in LOCAL_IMPORTS (hoist them): {sorted(found - set(listed))}")
+    assert not sorted(set(listed) - found), f"LOCAL_IMPORTS lists imports that are gone: {sorted(set(listed) - found)}"
+
+
+# --- end of rooms and local imports ---

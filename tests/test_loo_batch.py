@@ -9,10 +9,10 @@ from scipy.optimize import least_squares as scipy_least_squares
 
 import handeye
 from handeye.app.engine import loo, robust
-from handeye.model import observations
-from handeye.model.calibration import CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets import observations
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.calibration import CalibrationModel
 
 
 def _newton(model, z):

@@ -5,8 +5,8 @@ import pytest
 
 import handeye
 from handeye.app.engine import robust
-from handeye.model import observations
-from handeye.model.calibration import CalibrationModel
+from handeye.model.datasets import observations
+from handeye.model.fit.calibration import CalibrationModel
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +72,7 @@ def test_the_deletion_formula_refits_the_same_model(profiled, monkeypatch):
     with the exact refits to the linearisation's error."""
     dataset = handeye.load_dataset(profiled)
     truth = handeye.load_dataset(profiled).truth["sensor_pose"]
-    from handeye.model.pose import transform_from_pose
+    from handeye.model.chain.pose import transform_from_pose
 
     predictor = CalibrationModel.from_dataset(dataset, "local", "sensor")
     for kind in ("points", "centre"):

@@ -1,4 +1,4 @@
-"""Mounts (model/mounts.py, model/mount_setup.py) and the cell stage (app/engine/cell_stage.py):
+"""Mounts (model/chain/mounts.py, model/readers/mount_setup.py) and the cell stage (app/engine/cell_stage.py):
 every cell reduces to the seed's chain, the positioner's axes are calibrated with exact
 derivatives, and what the data cannot separate is named instead of solved."""
 from __future__ import annotations
@@ -9,10 +9,12 @@ from mount_cells import AXES, write
 from mount_cells import cell as make_cell
 
 import handeye
-from handeye.app.errors import CalibrationInputError
-from handeye.model import cell, dataset, mounts
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.tables import DatasetError
+from handeye.app.common.errors import CalibrationInputError
+from handeye.model.chain import mounts
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.datasets import dataset
+from handeye.model.fit import cell
+from handeye.model.readers.tables import DatasetError
 
 
 def _moved_axes(dp=(2.0, -1.5), tilt=(0.004, -0.003)):
@@ -252,7 +254,7 @@ def test_positioner_angles_in_radians_are_named(tmp_path):
 def test_a_convention_slip_is_found_through_the_mount(tmp_path):
     """The detective re-reads the flange poses and scores each reading through the cell's chain:
     FANUC W, P, R written under KUKA's columns is named for a sensor fixed in the cell too."""
-    from handeye.model import conventions
+    from handeye.model.chain import conventions
 
     rows, truth = make_cell("eye_to_hand", seed=13, n=30)
     fanuc = conventions.convert(np.array([p for p, _, _ in rows]), "kuka", "fanuc")

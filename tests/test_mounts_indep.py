@@ -281,7 +281,7 @@ def test_cli_truth_within_3_sd(tmp_path, mount, centre_known, start, explicit, f
     within 3 sd of the truth, per component (sensor translation, sphere centre, positioner axes)."""
     truth = im.make(tmp_path / "cell", mount, seed, centre_known=centre_known, start=start, explicit=explicit)
     unknowns = _unknowns(mount, centre_known)
-    p = subprocess.run([sys.executable, "-m", "handeye.app.cli", "calibrate", str(truth["folder"]), "--unknowns",
+    p = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "calibrate", str(truth["folder"]), "--unknowns",
                         unknowns, "--json"], capture_output=True, text=True, timeout=600)
     block = needs_mounts(f"{mount} (seed {seed}, --unknowns {unknowns})") if feature else contextlib.nullcontext()
     with block:

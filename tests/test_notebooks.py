@@ -129,7 +129,7 @@ def test_notebooks_state_what_they_teach_and_use_the_public_api(path):
         assert part in head
     source = "".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
     assert "import handeye" in source
-    for internal in ("handeye.app.engine.problems", "handeye.model.dataset", "handeye.app.api"):
+    for internal in ("handeye.app.engine.problems", "handeye.model.datasets.dataset", "handeye.app.public.api"):
         assert internal not in source, f"{path.name} reaches into {internal}; use the public handeye API"
 
 

@@ -1,4 +1,4 @@
-"""Options declared once (issue 38): each command's option table (handeye.app.options) makes
+"""Options declared once (issue 38): each command's option table (handeye.app.common.options) makes
 its parser, its request's checks, its provenance record and its README table, and its public
 function's keywords are the table's."""
 import dataclasses
@@ -8,10 +8,10 @@ import pathlib
 
 import pytest
 
+from handeye.app.command.parser import build_parser
+from handeye.app.common.options import COMMANDS, Opt
 from handeye.app.engine.command_request import checked_values
-from handeye.app.options import COMMANDS, Opt
-from handeye.app.parser import build_parser
-from handeye.model.errors import InputError
+from handeye.model.common.errors import InputError
 
 README = (pathlib.Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
 

@@ -19,7 +19,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 import handeye
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 
 #: the files' frame in handeye's: p_h = R p_file with (x, y, z)_file = (x_h, z_h, -y_h)
 ROT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])

@@ -59,7 +59,7 @@ def test_every_source_package_is_installed():
 
 def test_package_data_is_installed():
     installed = _installed_files()
-    for pattern in ("model/data/*/*.csv", "model/data/*/*.toml", "model/*.c", "app/present/web/*.js",
+    for pattern in ("model/data/*/*.csv", "model/data/*/*.toml", "model/compiled/*.c", "app/present/web/*.js",
                     "app/present/web/*.css"):
         paths = list(ROOT.glob(pattern))
         assert paths, pattern

@@ -1,5 +1,5 @@
 """``handeye plan --robot``: poses and joint configurations that identify the robot's own errors,
-and how many it takes (:mod:`handeye.model.planning_robot`)."""
+and how many it takes (:mod:`handeye.model.design.planning_robot`)."""
 import dataclasses
 import json
 
@@ -7,12 +7,15 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
-from handeye.model import dataset as datasets
-from handeye.model import extended, planning, planning_robot, robot_errors, robot_gate, robots, simulate_robot
-from handeye.model import simulate as sim
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.command import cli
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix
+from handeye.model.datasets import dataset as datasets
+from handeye.model.design import planning, planning_robot, robot_gate
+from handeye.model.fit import extended
+from handeye.model.robot import robot_errors, robots
+from handeye.model.simulation import simulate as sim
+from handeye.model.simulation import simulate_robot
 
 
 @dataclasses.dataclass(frozen=True)
@@ -205,7 +208,7 @@ def test_a_plan_replays_in_simulate_with_its_joints_and_identifies_the_offsets(t
     """plan --robot writes j1..j6; simulate --poses takes those angles (the other wrist stays the
     other wrist, no inverse kinematics) and diagnose names the hidden offsets on them within 3 sd.
     Angles that do not reach their pose, or j1..j6 without --robot, exit 2 naming it."""
-    from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+    from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
 
     plan_csv = tmp_path / "plan.csv"
     assert main(["plan", "--robot", "ur10e", "--out", str(plan_csv)]) == EXIT_OK

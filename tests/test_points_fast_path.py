@@ -9,9 +9,11 @@ import pytest
 import handeye
 from handeye.app.engine import robust
 from handeye.app.tools import bench, bench_peers, bench_points
-from handeye.model import calibration, observations, simulate
-from handeye.model.calibration import CalibrationModel
-from handeye.model.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.common.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.datasets import observations
+from handeye.model.fit import calibration
+from handeye.model.fit.calibration import CalibrationModel
+from handeye.model.simulation import simulate
 
 
 @pytest.fixture(scope="module")

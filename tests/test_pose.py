@@ -4,14 +4,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handeye.model import rotation
-from handeye.model.pose import (
+from handeye.model.chain.pose import (
     kuka_from_matrix,
     matrix_from_kuka,
     pose_from_transform,
     transform_from_pose,
     transform_from_pose_casadi,
 )
+from handeye.model.common import rotation
 
 
 def elementary(a, b, c):

@@ -1,4 +1,4 @@
-"""Profile cleaning (model/profile_clean.py): speckle, background and clusters off the sphere's arc
+"""Profile cleaning (model/geometry/profile_clean.py): speckle, background and clusters off the sphere's arc
 are dropped and reported; clean profiles lose nothing; --no-clean fits every point.
 
 The corruption is written here with plain numpy, not with handeye's simulator: half of each
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
-from handeye.model import profile_clean
-from handeye.model.dataset import DatasetError, load
+from handeye.app.command import cli
+from handeye.model.datasets.dataset import DatasetError, load
+from handeye.model.geometry import profile_clean
 
 
 def corrupt(points, rng, fraction=0.5):
@@ -78,7 +78,7 @@ def simulated(tmp_path_factory):
 def test_clean_profiles_lose_nothing():
     """40 simulated profiles (the simulator's sensor: 1,280 points over 100 mm, 0.01 mm noise) lose
     no point."""
-    from handeye.model import simulate
+    from handeye.model.simulation import simulate
 
     rng = np.random.default_rng(7)
     setup = simulate.Setup()
@@ -96,7 +96,7 @@ def test_clean_profiles_lose_nothing():
 
 
 def test_the_full_path_drops_nothing_on_clean_profiles(monkeypatch):
-    from handeye.model import simulate
+    from handeye.model.simulation import simulate
 
     monkeypatch.setattr(profile_clean, "_fast", lambda *a: None)  # RANSAC and the M-estimator on every profile
     rng = np.random.default_rng(8)
@@ -109,7 +109,8 @@ def test_the_full_path_drops_nothing_on_clean_profiles(monkeypatch):
 
 
 def test_half_speckle_is_dropped_and_the_arc_kept():
-    from handeye.model import circle, simulate
+    from handeye.model.geometry import circle
+    from handeye.model.simulation import simulate
 
     rng = np.random.default_rng(9)
     setup = simulate.Setup()
@@ -135,8 +136,8 @@ def test_speckled_dataset_calibrates_within_one_sd_of_the_clean_one(simulated, c
     assert ref.converged and got.converged, got.summary()
     assert not ref.excluded and not got.excluded, got.summary()
     sd = np.r_[ref.std.sensor_translation_mm, ref.std.sensor_rotation_deg]
-    from handeye.model.pose import pose_from_transform
-    from handeye.model.rotation import transform_distance
+    from handeye.model.chain.pose import pose_from_transform
+    from handeye.model.common.rotation import transform_distance
 
     dt = np.abs(got.sensor2flange[:3, 3] - ref.sensor2flange[:3, 3])
     assert np.all(dt < sd[:3]), (dt, sd)

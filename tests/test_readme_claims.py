@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye.app import cli
-from handeye.model import testfunction
+from handeye.app.command import cli
+from handeye.model.chain import testfunction
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -198,9 +198,9 @@ def test_what_diagnose_finds_in_the_real_data():
 
 def _start_poses_iterations(method, rotation):
     import handeye
-    from handeye.model.dataset import load
-    from handeye.model.pose import transform_from_pose
-    from handeye.model.rotation import transform_distance
+    from handeye.model.chain.pose import transform_from_pose
+    from handeye.model.common.rotation import transform_distance
+    from handeye.model.datasets.dataset import load
     from handeye.studies.study_start_poses import TABLE_7_2
 
     d = load("thesis-sim")
@@ -231,7 +231,7 @@ def corrected(tmp_path_factory):
     """thesis-real with C17's zs = 2237.395 read as 237.395 (a copy)."""
     import shutil
 
-    from handeye.model.dataset import load
+    from handeye.model.datasets.dataset import load
 
     folder = tmp_path_factory.mktemp("readme") / "thesis-real-fixed"
     shutil.copytree(load("thesis-real").path, folder)
@@ -248,9 +248,9 @@ def _gn(dataset, **options):
 
 
 def test_the_corrected_real_data_against_table_7_4(corrected):
-    from handeye.model.calibration import CalibrationModel
-    from handeye.model.pose import transform_from_pose
-    from handeye.model.rotation import transform_distance
+    from handeye.model.chain.pose import transform_from_pose
+    from handeye.model.common.rotation import transform_distance
+    from handeye.model.fit.calibration import CalibrationModel
 
     res = _gn(corrected)
     x, y, z, ac, b, its, rms = figure(r"every method converges to p2 = \(([\d.]+), ([\d.]+), ([\d.]+)\) mm, "
@@ -269,7 +269,7 @@ def test_the_corrected_real_data_against_table_7_4(corrected):
 
 
 def test_forward_differences_send_the_euler_angles_astray(corrected):
-    from handeye.model.dataset import load
+    from handeye.model.datasets.dataset import load
 
     fixed, printed = figure(r"the angles run off to ±([\d.]+·10\S+) degrees \(the misprint corrected, below\) or "
                             r"±([\d.]+·10\S+) degrees \(as printed\)")
@@ -286,7 +286,7 @@ def test_forward_differences_send_the_euler_angles_astray(corrected):
 
 
 def test_kim_and_cho_and_the_taught_centre_against_the_free_centre(calibration, free_centre):
-    from handeye.model.rotation import transform_distance
+    from handeye.model.common.rotation import transform_distance
 
     km, kd, tm, td = figure(r"`handeye calibrate thesis-real --method kim-cho` lands ([\d.]+) mm / ([\d.]+)° from that "
                             r"fit, the default \(taught-centre\) calibration ([\d.]+) mm / ([\d.]+)°")

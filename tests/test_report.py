@@ -79,8 +79,8 @@ def test_the_drawn_residuals_are_the_results_for_every_mount(tmp_path):
     vector, rotated into the base where the result's lives in another frame (a sensor fixed in the
     cell: the flange frame), and its sensor-frame column is that vector in the drawn sensor frame;
     the drawn sensor frame sits where the simulation put the sensor."""
-    from handeye.model import conventions
-    from handeye.model.mounts import table2base
+    from handeye.model.chain import conventions
+    from handeye.model.chain.mounts import table2base
 
     cases = {"seed": ([], "sensor"), "eth": (["--sensor-mount", "world", "--sphere-mount", "flange"], "sensor+sphere"),
              "pos": (["--sphere-mount", "positioner"], "sensor+sphere+positioner")}
@@ -92,7 +92,7 @@ def test_the_drawn_residuals_are_the_results_for_every_mount(tmp_path):
         data = handeye.load_dataset(folder)
         geo = cell_mod.cell_geometry(res.to_dict(), data)
         vectors = np.array([r.vector for r in res.residuals])
-        if name == "eth":  # the result's residual is in the flange frame there (model/mounts.py)
+        if name == "eth":  # the result's residual is in the flange frame there (model/chain/mounts.py)
             vectors = np.einsum("nij,nj->ni", data.flange2base()[:, :3, :3], vectors)
         if name == "pos":  # ... and in the table frame, at the calibrated axes
             table = table2base(cell_mod.result_mounts(res.to_dict(), data).axes, data.axis_angles)
@@ -126,13 +126,13 @@ def test_excluded_samples_are_drawn_near_with_their_true_length_in_the_table(the
 def test_a_saved_calibration_of_another_dataset_is_refused_naming_the_key(tmp_path):
     cal = tmp_path / "cal.json"
     handeye.calibrate("thesis-real", out=cal, no_loo=True)
-    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--calibration", str(cal),
+    run = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "report", "thesis-sim", "--calibration", str(cal),
                           "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
     assert run.returncode == 2 and "dataset_sha256" in run.stderr and "another dataset" in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1 and not (tmp_path / "r.html").exists()
     bare = tmp_path / "bare.json"
     bare.write_text(json.dumps({"sensor_matrix": np.eye(4).tolist()}))
-    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-real", "--calibration", str(bare),
+    run = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "report", "thesis-real", "--calibration", str(bare),
                           "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
     assert run.returncode == 2 and "not a whole calibration result" in run.stderr
 
@@ -175,7 +175,7 @@ def test_embedded_json_survives_html_in_its_strings():
 
 
 def test_the_report_command_prints_what_it_wrote_and_exits_as_the_calibration(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--html",
+    run = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "report", "thesis-sim", "--html",
                           str(tmp_path / "r.html"), "--json"], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     out = json.loads(run.stdout)
@@ -252,7 +252,7 @@ def test_a_hand_broken_saved_file_is_named_never_a_traceback(tmp_path):
                        ("noise_test", {"statistic": None, "passed": False}), ("dataset_sha256", None)):
         bad = tmp_path / f"bad_{key}.json"
         bad.write_text(json.dumps({**doc, key: value}))
-        run = subprocess.run([sys.executable, "-m", "handeye.app.cli", "report", "thesis-sim", "--calibration", str(bad),
+        run = subprocess.run([sys.executable, "-m", "handeye.app.command.cli", "report", "thesis-sim", "--calibration", str(bad),
                               "--html", str(tmp_path / "r.html")], capture_output=True, text=True)
         assert run.returncode in (0, 2) and "Traceback" not in run.stderr, (key, run.stderr)
         if run.returncode == 2:

@@ -8,7 +8,7 @@ from scipy.optimize import least_squares as scipy_least_squares
 from scipy.spatial.transform import Rotation
 
 from handeye.app.engine import robust
-from handeye.model.calibration import CalibrationModel
+from handeye.model.fit.calibration import CalibrationModel
 
 
 def _centre_problem(rng, n=15, noise=0.05, gross=()):

@@ -10,7 +10,7 @@ from conftest import simulate
 
 from handeye.app.engine.calibrate import calibrate
 from handeye.app.present.result_parts import FLAT
-from handeye.model.dataset import load
+from handeye.model.datasets.dataset import load
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The robot's own errors beyond joint offsets (model/robot_errors.py; effects ``link_lengths`` and
+"""The robot's own errors beyond joint offsets (model/robot/robot_errors.py; effects ``link_lengths`` and
 ``joint_compliance``): exact derivatives, the effects' geometry checked by hand, simulate writes
 them, diagnose names them with their values on the right parameters, calibrate --effects reports
 them with 1 sd, export folds lengths into the model, and a clean robot names none."""
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import api
-from handeye.app.cli import EXIT_BAD_INPUT, main
-from handeye.model import robot_errors, robots
+from handeye.app.command.cli import EXIT_BAD_INPUT, main
+from handeye.app.public import api
+from handeye.model.robot import robot_errors, robots
 
 
 def _values(model, rng, scale=0.3):

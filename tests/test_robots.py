@@ -1,4 +1,4 @@
-"""Nominal robot kinematics (model/robots.py) and joint angles in datasets (issue 28, first part):
+"""Nominal robot kinematics (model/robot/robots.py) and joint angles in datasets (issue 28, first part):
 the built-in models' forward kinematics against values worked out by hand from their sources,
 and the load check that names radians, a TCP and a wrong model."""
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.model import robots
-from handeye.model.pose import pose_from_transform
-from handeye.model.tables import DatasetError
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.readers.tables import DatasetError
+from handeye.model.robot import robots
 
 
 @pytest.mark.parametrize("name, joints, pose", [
@@ -93,7 +93,7 @@ def _offset_cell(folder, offsets, seed=0, n=40, noise=0.02):
     """A KR 60 HA cell whose joints are off by ``offsets`` (degrees): the flange poses written are the
     nominal model's of the joint angles (what the controller reports), the sensor sees the sphere
     through the true ones."""
-    from handeye.model.pose import transform_from_pose
+    from handeye.model.chain.pose import transform_from_pose
 
     rng = np.random.default_rng(seed)
     m = robots.load("kr60ha")

@@ -109,7 +109,7 @@ def test_handeye_loads_and_its_nominal_kinematics_agree(tmp_path, model, convent
     truth = ir.make(tmp_path / model, model, seed=2, n=20, convention=convention)
     data = handeye.load_dataset(tmp_path / model)
     assert np.allclose(data.joints, truth["joints"])
-    from handeye.model import robots  # the kinematics under test (not public API; the load above is)
+    from handeye.model.robot import robots  # the kinematics under test (not public API; the load above is)
 
     q = np.random.default_rng(0).uniform(-180, 180, (500, 6))
     theirs = robots.load(model).flange2base(q)

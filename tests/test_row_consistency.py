@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import cli
-from handeye.model import consistency
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix, transform_distance
+from handeye.app.command import cli
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix, transform_distance
+from handeye.model.datasets import consistency
 
 
 def _swap_profiles(path, i, j):

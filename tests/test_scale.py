@@ -6,7 +6,7 @@ import handeye
 from handeye.app.engine import request as request_module
 from handeye.app.engine import robust
 from handeye.app.tools import bench
-from handeye.model.calibration import CalibrationModel
+from handeye.model.fit.calibration import CalibrationModel
 
 
 def test_deletion_formula_leave_one_out_matches_exact_refits(monkeypatch):
@@ -24,7 +24,7 @@ def test_deletion_formula_leave_one_out_matches_exact_refits(monkeypatch):
 
 def test_the_callback_problem_for_ipopt_agrees_with_the_sx_one(monkeypatch):
     from handeye import solvers
-    from handeye.model import calibration
+    from handeye.model.fit import calibration
 
     f2b, xs, centre, start = bench.simulated_case(60, seed=1)
     model = CalibrationModel(f2b, xs, centre, "matrix")
@@ -49,7 +49,7 @@ def test_large_datasets_default_to_lm_and_say_so(tmp_path, monkeypatch):
 @pytest.mark.parametrize("many", [False, True])
 def test_screening_finds_the_same_gross_errors_one_at_a_time_or_together(monkeypatch, many):
     d = handeye.load_dataset("thesis-real")
-    from handeye.model.pose import transform_from_pose
+    from handeye.model.chain.pose import transform_from_pose
 
     if many:
         monkeypatch.setattr(robust, "LOO_EXACT_UP_TO", 5)
@@ -60,7 +60,7 @@ def test_screening_finds_the_same_gross_errors_one_at_a_time_or_together(monkeyp
 def test_text_report_summarises_beyond_fifty_rows_and_the_json_keeps_them_all(tmp_path, capsys):
     import json
 
-    from handeye.app.cli import main
+    from handeye.app.command.cli import main
     from handeye.app.present import report
 
     folder = bench.write_dataset(tmp_path / "d", 6_000, seed=4)
@@ -84,7 +84,8 @@ def test_text_report_summarises_beyond_fifty_rows_and_the_json_keeps_them_all(tm
 
 
 def test_a_plain_csv_reads_column_wise_as_row_by_row(tmp_path, monkeypatch):
-    from handeye.model import dataset, tables
+    from handeye.model.datasets import dataset
+    from handeye.model.readers import tables
 
     folder = bench.write_dataset(tmp_path / "d", 300, seed=5)
     monkeypatch.setattr(tables, "PLAIN_ABOVE_BYTES", 1 << 40)

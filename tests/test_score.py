@@ -14,10 +14,10 @@ import pytest
 from conftest import simulate
 
 import handeye
-from handeye.app.cli import main
+from handeye.app.command.cli import main
 from handeye.app.engine.score import vuong
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import pose_distance
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import pose_distance
 
 TRUTH = (190.0, 100.0, 130.0, 178.0, -88.0, 0.5)
 

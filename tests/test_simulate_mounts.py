@@ -6,12 +6,12 @@ import re
 import numpy as np
 import pytest
 
-from handeye.app import api
-from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from handeye.model import mounts as mount_model
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.app.public import api
+from handeye.model.chain import mounts as mount_model
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix
+from handeye.model.datasets.dataset import load
 
 #: sha256 of the default outputs (``handeye simulate --out D --seed 3`` and with ``--profiles``)
 #: made before the mounts were added: the seed's cell must stay byte for byte what it was.

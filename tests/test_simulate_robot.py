@@ -1,4 +1,4 @@
-"""``handeye simulate --robot MODEL`` (model/simulate_robot.py): the nominal inverse kinematics
+"""``handeye simulate --robot MODEL`` (model/simulation/simulate_robot.py): the nominal inverse kinematics
 round trip for every built-in model, joint angles that pass the load check, hidden joint offsets
 that diagnose names with their values, and a clean robot dataset that calibrates at the truth."""
 from __future__ import annotations
@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.app import api
-from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from handeye.model import robots, simulate_robot
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix
+from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.app.public import api
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix
+from handeye.model.robot import robots
+from handeye.model.simulation import simulate_robot
 
 
 @pytest.mark.parametrize("name", robots.builtin_names())
@@ -115,7 +116,7 @@ def test_a_clean_robot_dataset_calibrates_at_the_truth(tmp_path, capsys):
 def test_unreachable_poses_are_dropped_with_a_reason(tmp_path):
     """The UR5e's 850 mm reach misses a pose of the thesis strategy (the thesis's sensor sits 250 mm
     off the flange); a sphere out of reach drops every pose, which is refused with the reason."""
-    from handeye.model.simulate import SimulationError
+    from handeye.model.simulation.simulate import SimulationError
 
     made = api.simulate(tmp_path / "near", robot="ur5e", seed=0)
     assert len(made.ids) >= 30 and len(made.dropped) >= 1

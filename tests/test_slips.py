@@ -5,7 +5,7 @@ import math
 import pytest
 
 import handeye
-from handeye.app import cli
+from handeye.app.command import cli
 
 
 def _rewrite(path, column_fn):
@@ -93,7 +93,7 @@ def test_sensor_centres_and_profiles_that_disagree_on_the_diameter_are_named(tmp
     wrong (50 for 50.8). Before, calibrate fitted the profiles with 50 mm but screened and
     reported leave-one-out on the sensor's centres (0.046 mm, against an RMS of 1.9 mm)."""
     import handeye
-    from handeye.app import cli
+    from handeye.app.command import cli
 
     handeye.simulate(tmp_path / "cell", seed=1, profiles=True, convention="ur", diameter=50.8, no_start=True)
     assert cli.main(["calibrate", str(tmp_path / "cell")]) == 0

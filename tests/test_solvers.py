@@ -10,11 +10,11 @@ import pytest
 from handeye import solvers
 from handeye.app.engine.problems import calibration_problem
 from handeye.app.engine.problems import testfunction_problem as potential_problem
-from handeye.model import testfunction
-from handeye.model.calibration import CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import transform_distance
+from handeye.model.chain import testfunction
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import transform_distance
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.calibration import CalibrationModel
 from handeye.solvers import Options, Problem, UnsupportedProblem, line_search, solve
 
 ALL_METHODS = sorted(solvers.METHODS)

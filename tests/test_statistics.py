@@ -6,7 +6,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from handeye.model.statistics import chi2_survival, chi2_survival_array, f_survival, f_survival_array
+from handeye.model.common.statistics import chi2_survival, chi2_survival_array, f_survival, f_survival_array
 
 
 def _f_reference(x, d1, d2):
@@ -50,7 +50,7 @@ def test_gamma_tail_against_scipy_from_the_bulk_to_the_far_tail(a):
     """Q(a, x) over x from 1e-6 a to 20 a and a +- 37 sqrt(a) (tails down to 1e-290), a up to
     1.5e6 (chi-square with 3 million degrees of freedom: a million measurements)."""
     special = pytest.importorskip("scipy.special")
-    from handeye.model.statistics import _gammainc_upper
+    from handeye.model.common.statistics import _gammainc_upper
 
     xs = np.concatenate([a * np.array([1e-6, 0.01, 0.5, 0.9, 0.99, 1.0, 1.01, 1.1, 2.0, 5.0, 20.0]),
                          a + np.sqrt(a) * np.array([-8, -3, -1, -0.1, 0.1, 1, 3, 8, 20, 37])])
@@ -66,7 +66,7 @@ def test_tails_of_a_million_statistics_against_scipy():
     """The whole-array path (tiny p included): chi-square 3 and F(3, d2) for d2 on both sides of
     F_AS_CHI2_ABOVE, and the Bonferroni-adjusted tails computed only where they can matter."""
     stats = pytest.importorskip("scipy.stats")
-    from handeye.model.statistics import bonferroni_survival
+    from handeye.model.common.statistics import bonferroni_survival
 
     rng = np.random.default_rng(7)
     x = np.concatenate([rng.chisquare(3, 200_000), [1e-12, 40.0, 80.0, 150.0, 600.0, 1400.0]])
@@ -95,7 +95,7 @@ def test_chi2_tail_with_millions_of_degrees_of_freedom_against_scipy():
 @pytest.mark.parametrize("k", [1, 2, 3, 6, 30])
 def test_chi_median_against_mpmath(k):
     """The median of chi_k (the robust scale's denominator) needs no mpmath at run time."""
-    from handeye.model.statistics import chi_median
+    from handeye.model.common.statistics import chi_median
 
     def below_half(x):
         return mpmath.gammainc(k / 2.0, 0, x / 2.0, regularized=True) - 0.5

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from test_figures import assert_readable
 
-from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from handeye.model import bounds, planning, simulate
+from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.model.design import bounds, planning
+from handeye.model.simulation import simulate
 from handeye.studies.study import STUDIES
 
 #: The slowest quick studies (15-60 s here) run whole in the full suite only; the default tier

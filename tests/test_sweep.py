@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from handeye.app import cli
+from handeye.app.command import cli
 from handeye.app.tools import sweep
 
 
@@ -57,7 +57,7 @@ def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path, monk
 
 def test_bad_dask_requests_are_request_errors():
     pytest.importorskip("distributed")
-    from handeye.app.errors import RequestError
+    from handeye.app.common.errors import RequestError
 
     with pytest.raises(RequestError, match="--jobs"):
         with sweep.using(jobs=2, dask="tcp://127.0.0.1:1"):
@@ -69,7 +69,7 @@ def test_bad_dask_requests_are_request_errors():
 
 def test_dask_without_distributed_installed_is_a_clear_request_error(without_package):
     without_package("distributed")
-    from handeye.app.errors import RequestError
+    from handeye.app.common.errors import RequestError
 
     with pytest.raises(RequestError, match=r"handeye\[dask\]"):
         with sweep.using(dask="local"):

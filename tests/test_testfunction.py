@@ -3,7 +3,7 @@ the seed's printed Hessian (C7, typos) against its code (C9, right)."""
 import numpy as np
 import pytest
 
-from handeye.model import testfunction as tf
+from handeye.model.chain import testfunction as tf
 
 RNG_POINTS = np.random.default_rng(10).uniform(-4, 4, (40, 2))
 
@@ -46,7 +46,7 @@ def test_shifted_function_is_a_sum_of_squares():
 def test_sum_of_squares_identity_symbolically():
     import sympy as sp
 
-    from handeye.model import symbolic
+    from handeye.model.chain import symbolic
 
     s = symbolic.test_function()
     assert sp.simplify((s["r"].T * s["r"])[0] - (s["f"] + 300)) == 0

@@ -11,10 +11,10 @@ import pytest
 from conftest import simulate
 
 from handeye.app.engine.calibrate import SUPPORTED, calibrate
-from handeye.model.calibration import CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import rotvec_from_matrix, transform_distance
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import rotvec_from_matrix, transform_distance
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.calibration import CalibrationModel
 
 TABLE_7_2 = [
     (5, 0, 5, 0, -90, 0), (75, 0, 5, 0, -90, 0), (5, 60, 5, 0, -90, 0), (5, 0, 45, 0, -90, 0),

@@ -5,13 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from handeye.app.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from handeye.app.engine.calibrate import calibrate
-from handeye.model import circle, simulate
-from handeye.model.closed_form import ClosedFormError, closed_form_estimate
-from handeye.model.dataset import load
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.closed_form import ClosedFormError, closed_form_estimate
+from handeye.model.geometry import circle
+from handeye.model.simulation import simulate
 
 IDEAL = simulate.Setup(linearity=0.0)
 
@@ -97,7 +98,7 @@ def test_profile_models_need_profiles(tmp_path):
     assert d.profiles is None
     res = calibrate(d, method="lm", loo=False).to_dict()
     assert res["model"] == "centre"
-    from handeye.model.observations import ObservationError
+    from handeye.model.datasets.observations import ObservationError
 
     with pytest.raises(ObservationError, match="needs a profile for every sample"):
         calibrate(d, method="lm", model="points").to_dict()
@@ -133,7 +134,7 @@ def test_random_starts_all_converge_with_the_closed_form_restart(tmp_path, metho
         start[:3, :3] = rot
         offset = rng.normal(size=3)
         start[:3, 3] = truth[:3, 3] + rng.uniform(0, 500) * offset / np.linalg.norm(offset)
-        from handeye.model.pose import pose_from_transform
+        from handeye.model.chain.pose import pose_from_transform
 
         res = calibrate(d, method=method, start=pose_from_transform(start), loo=False, outliers=False).to_dict()
         assert res["converged"]
@@ -228,7 +229,7 @@ def test_plain_fit_of_every_sample_converges_despite_the_misprint():
     iterations to its tolerance); the fit hands over to exact-Hessian trust region and
     converges, and so does every leave-one-out refit of the unscreened data."""
     from handeye.app.engine import robust
-    from handeye.model.calibration import CalibrationModel
+    from handeye.model.fit.calibration import CalibrationModel
 
     d = load("thesis-real")
     model = CalibrationModel(d.flange2base(), d.centre_in_sensor, d.sphere_centre, "local")

@@ -13,10 +13,11 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.app import cli
+from handeye.app.command import cli
 from handeye.app.outputs import formats as export
 from handeye.app.outputs import saved
-from handeye.model import cloud, conventions, sphere
+from handeye.model.chain import conventions
+from handeye.model.geometry import cloud, sphere
 
 TOL_MM, TOL_DEG = 1e-6, 1e-6
 
@@ -245,8 +246,8 @@ def test_cloud_needs_profiles_not_a_sphere(tmp_path, capsys):
 
 
 def test_profile_reader_fast_and_careful_paths_agree(tmp_path):
-    from handeye.model import tables
-    from handeye.model.tables import DatasetError
+    from handeye.model.readers import tables
+    from handeye.model.readers.tables import DatasetError
 
     rng = np.random.default_rng(0)
     pts = rng.uniform(-40, 40, (200, 2))
@@ -265,7 +266,7 @@ def test_profile_reader_fast_and_careful_paths_agree(tmp_path):
 def _scan(folder, sensor2flange, spheres, n_poses=24, noise=0.0, seed=0, diameters=None):
     """Write a scan: for each pose the laser plane (sensor y = 0) cuts one of ``spheres``
     ((centre, radius) in the base) at a random height; the flange pose follows from the sensor
-    pose. Independent of handeye.model.simulate."""
+    pose. Independent of handeye.model.simulation.simulate."""
     rng = np.random.default_rng(seed)
     (folder / "p").mkdir(parents=True)
     rows = ["id,x,y,z,a,b,c,profile"]

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.model import conventions
-from handeye.model.pose import transform_from_pose
-from handeye.model.rotation import matrix_from_rotvec, rotvec_from_matrix
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import matrix_from_rotvec, rotvec_from_matrix
 
 
 def _off_by(nominal_kuka, mm, deg, rng):

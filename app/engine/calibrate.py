@@ -56,9 +56,9 @@ from handeye.app.engine.request import (  # noqa: F401  (the request's names: th
 )
 from handeye.app.present.result_parts import cleaning_summary
 from handeye.app.present.results import Before
-from handeye.model import own_frame
-from handeye.model.closed_form import ClosedFormError
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain import own_frame
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.fit.closed_form import ClosedFormError
 
 #: Within this many degrees of B = +-90 the Euler angles A and C are nearly one rotation.
 GIMBAL_WARN_DEG = 1.0
@@ -75,7 +75,7 @@ class Screened:
     mask : ndarray of bool, shape (N,)
         Samples kept.
     excluded : list of handeye.app.present.results.ExcludedSample
-    used : handeye.model.dataset.Dataset
+    used : handeye.model.datasets.dataset.Dataset
         The samples kept.
     warnings : tuple of str
     """
@@ -185,7 +185,7 @@ def run(request, dataset):
     ----------
     request : handeye.app.engine.request.CalibrationRequest
         Checked (:meth:`~handeye.app.engine.request.CalibrationRequest.checked`).
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
 
     Returns
     -------
@@ -220,7 +220,7 @@ def calibrate(dataset, **keywords):
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     **keywords
         Fields of :class:`~handeye.app.engine.request.CalibrationRequest`.
 

@@ -7,7 +7,7 @@
 1. The stages run on the *conditional* problem: the positioner at its current axes (nominal
    first), the sensor estimated even when it is known (so that screening, the global check and
    leave-one-out see the data as they are).
-2. :class:`handeye.model.cell.CellModel` fits the requested parts together on the samples kept,
+2. :class:`handeye.model.fit.cell.CellModel` fits the requested parts together on the samples kept,
    holding the others (a known sensor from ``[sensor] pose`` or ``--calibration``; a known
    centre from ``[sphere] center``), after checking that the poses and axis angles determine every
    requested parameter (else :class:`CalibrationInputError` names what they cannot separate).
@@ -29,11 +29,14 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app.errors import CalibrationInputError
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.present.result_parts import PositionerRecord
-from handeye.model import conventions, identifiability
-from handeye.model.cell import PARTS, CellModel, pack, unpack
-from handeye.model.pose import pose_from_transform, transform_from_pose
+from handeye.model.chain import conventions
+from handeye.model.chain.mounts import inverse_transforms
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.statistics import f_survival
+from handeye.model.design import identifiability
+from handeye.model.fit.cell import PARTS, CellModel, normals, pack, unpack
 
 #: Iteration limit of the cell fit (Levenberg-Marquardt from the conditional fit: a few steps).
 MAX_ITER = 200
@@ -122,9 +125,7 @@ def _block_sd(fitted, part_names):
 
 
 def positioner_record(fitted, nominal, calibrated):
-    """The axes with their 1-sd from the cell fit's covariance (module docstring of model/cell.py)."""
-    from handeye.model.cell import normals
-
+    """The axes with their 1-sd from the cell fit's covariance (module docstring of model/fit/cell.py)."""
     axes = fitted.axes or nominal
     if not calibrated or fitted.covariance is None:
         return PositionerRecord(axes, nominal, calibrated=calibrated)
@@ -228,7 +229,6 @@ def held_contradicted(dataset, request, fitted, free, mask):
     contradicted when the same cell model with it estimated fits significantly and clearly better
     (F test below :data:`P_HELD`, RMS lower by :data:`HELD_FACTOR`): the pose at it is wrong."""
     from handeye.app.engine.describe import noise_test
-    from handeye.model.statistics import f_survival
 
     r = fitted.model.residual(fitted.x)
     test = noise_test(float(r @ r), len(r) - fitted.model.n, request.sigma, False, [], "")
@@ -306,8 +306,7 @@ def _other_mount_fits_better(dataset):
     model's global minimum, centre free, RMS not above :data:`HELD_FACTOR` times this cell's. A
     long-stand-off sensor really on the flange (a real FANUC cell: 874 mm) fits clearly worse the
     other way (1.04 against 0.18 mm)."""
-    from handeye.model import global_fit
-    from handeye.model.mounts import inverse_transforms
+    from handeye.model.fit import global_fit
 
     if dataset.mounts.sphere == "positioner":
         return True  # no simple other cell to compare: keep the warning

@@ -2,7 +2,7 @@
 
 Gross errors are screened first, exactly as ``calibrate`` does (robust pass and deletion
 tests, :func:`handeye.app.engine.robust.screen`; ``--keep-all`` skips it), then the closed-form method of
-:mod:`handeye.model.classics` runs on the samples kept. The estimate is reported beside what the
+:mod:`handeye.model.fit.classics` runs on the samples kept. The estimate is reported beside what the
 nonlinear least squares makes of the same samples when started from it (distance,
 iterations), so a user sees at once how far the linear method is from the least-squares
 optimum. No uncertainty: these are baselines, and the report says so.
@@ -13,17 +13,18 @@ import time
 
 import numpy as np
 
-from handeye.app.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
+from handeye.app.common.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robust, slips
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
-from handeye.app.errors import CalibrationInputError
 from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleaning_summary
 from handeye.app.present.results import CalibrationResult, ClosedFormDetails, SampleResidual
-from handeye.model import classics, conventions
-from handeye.model.calibration import CalibrationModel
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import transform_distance
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import transform_distance
+from handeye.model.fit import classics
+from handeye.model.fit.calibration import CalibrationModel
 
 
 def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):

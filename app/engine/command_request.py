@@ -4,7 +4,7 @@ Each command reads its dataset, then turns its options into a request here, then
 writes: ``load -> *_request(options, data) -> run -> write`` (as scipy's ``least_squares``
 checks its arguments in one block and its back-ends never check them again). The options come
 as the public function was given them (``COMMANDS[name].given``); the checks of the
-option tables (:attr:`handeye.app.option_record.Opt.check`) run first, then what only a command knows
+option tables (:attr:`handeye.app.common.option_record.Opt.check`) run first, then what only a command knows
 (a closed-form method takes no start, a score no effects), then what only the dataset can tell
 (a sensor held needs a pose, a file to write must not be one read). What is free and what is
 held is one record, :class:`~handeye.app.engine.request.Free`.
@@ -14,13 +14,14 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 
-from handeye.app.arguments import _integer, _number, _pose_text
-from handeye.app.choices import ALPHA, CLASSIC_METHODS
+from handeye.app.common.arguments import _integer, _number, _pose_text
+from handeye.app.common.choices import ALPHA, CLASSIC_METHODS
+from handeye.app.common.errors import RequestError
+from handeye.app.common.options import COMMANDS
 from handeye.app.engine.request import UNKNOWNS, CalibrationRequest, Free, parse_pose, unknown_parts
-from handeye.app.errors import RequestError
-from handeye.app.options import COMMANDS
-from handeye.model import conventions
-from handeye.model.own_frame import kuka_to_internal
+from handeye.model.chain import conventions
+from handeye.model.chain.own_frame import kuka_to_internal
+from handeye.model.chain.pose import pose_from_transform
 
 
 def _level(value, option):
@@ -42,7 +43,7 @@ CHECKS = {"number": _number, "integer": _integer, "level": _level, "one_of": _on
 
 def checked_values(command, values):
     """``values`` with every option of ``command``'s table (a name, or a
-    :class:`~handeye.app.option_record.Command`) that declares a ``check`` validated (a new
+    :class:`~handeye.app.common.option_record.Command`) that declares a ``check`` validated (a new
     dict; None stays None except for a ``level``, whose None is :data:`ALPHA`)."""
     out = dict(values)
     for opt in (COMMANDS[command] if isinstance(command, str) else command).options:
@@ -55,7 +56,7 @@ def checked_values(command, values):
 def outputs_checked(data, paths):
     """Every output (``{option: path}``, None: not written) checked before the work: never half
     a result, never over an input of ``data``."""
-    from handeye.app.files import check_output_folder, check_output_path, input_files
+    from handeye.app.common.files import check_output_folder, check_output_path, input_files
 
     inputs = input_files(data) if any(path is not None for path in paths.values()) else ()
     for option, path in paths.items():
@@ -152,8 +153,6 @@ class CalibrateRequest:
     def holding(self, sensor2flange, data):
         """The least-squares request with the given sensor pose (4x4, None: none given), checked
         against ``data``: every default resolved."""
-        from handeye.model.pose import pose_from_transform
-
         held = None if sensor2flange is None or self.free.scored else pose_from_transform(sensor2flange)
         return dataclasses.replace(self.request, sensor_pose=held).checked(data)
 

@@ -12,15 +12,29 @@ import shlex
 
 import numpy as np
 
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robot_choice, robust
-from handeye.app.errors import CalibrationInputError
-from handeye.app.present.result_parts import EffectsRecord, FitRecord, ScreeningRecord, UncertaintyRecord
-from handeye.app.present.results import RMS_PER_CENTRE, ResidualTable, SampleResidual, Uncertainty
-from handeye.model import conventions, extended, identifiability, observations, robot_gate
-from handeye.model.calibration import CalibrationModel
-from handeye.model.pose import pose_from_transform
-from handeye.model.rotation import nearest_transform
-from handeye.model.statistics import covariance, covariance_normal
+from handeye.app.present.result_parts import EffectsRecord, FitRecord, PositionerRecord, ScreeningRecord, UncertaintyRecord
+from handeye.app.present.results import (
+    RMS_PER_CENTRE,
+    CalibrationResult,
+    NamedEffect,
+    NoiseTest,
+    ResidualTable,
+    SampleResidual,
+    Uncertainty,
+)
+from handeye.model import effects as catalogue
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.common.rotation import nearest_transform
+from handeye.model.common.statistics import chi2_survival, covariance, covariance_normal
+from handeye.model.datasets import observations
+from handeye.model.datasets.dataset import DATA_DIR
+from handeye.model.design import identifiability, robot_gate
+from handeye.model.fit import extended
+from handeye.model.fit.calibration import CalibrationModel
+from handeye.model.geometry import circle
 
 #: A residual this many robust standard deviations above the median is flagged.
 GROSS_ERROR_Z = 10.0
@@ -75,8 +89,6 @@ def command_argument(dataset):
     An embedded name shadowed by a folder of that name in the current directory (which the
     command would read instead) is given by its full path.
     """
-    from handeye.model.dataset import DATA_DIR
-
     path = pathlib.Path(dataset.path)
     if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists():
         return shlex.quote(dataset.name)
@@ -92,9 +104,6 @@ def diagnose_advice(dataset, centre_given=True):
 def noise_test(ssr, dof, sigma, whitened, warnings, advice):
     """The fit against the stated noise (chi-square); a warning giving ``advice`` (the diagnose
     command, :func:`diagnose_advice`) when it fails."""
-    from handeye.app.present.results import NoiseTest
-    from handeye.model.statistics import chi2_survival
-
     if dof <= 0:
         return None
     statistic = float(ssr if whitened else ssr / sigma**2)
@@ -119,7 +128,7 @@ class Described:
 
     Attributes
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     mask : ndarray of bool, shape (N,)
         Samples used.
     fit : handeye.app.engine.fitting.Verdict
@@ -156,7 +165,7 @@ def effect_tests(final):
 
 
 def with_effects(final, base):
-    """The final fit with catalogue effects (the extended model, :mod:`handeye.model.extended`).
+    """The final fit with catalogue effects (the extended model, :mod:`handeye.model.fit.extended`).
 
     ``final`` is the :class:`Described` (its request names the effects, the stated noise and the
     convention); ``base`` is the :class:`~handeye.app.present.result_parts.FitRecord` of the fit
@@ -193,7 +202,7 @@ def with_effects(final, base):
 def _choose_joints(final, prob, structure):
     """With robot effects (``joint_offsets``, ``link_lengths``, ``joint_compliance``): the
     parameters these poses separate from the sensor pose, the centre and the effects before it
-    (:func:`handeye.model.robot_gate.gate_robot_effects`); the others are said in a warning; an
+    (:func:`handeye.model.design.robot_gate.gate_robot_effects`); the others are said in a warning; an
     effect with none: CalibrationInputError."""
     left = robot_gate.gate_robot_effects(prob, structure, final.mask, final.fit.sensor, final.fit.centre)
     for name, left_out in left.items():
@@ -224,8 +233,6 @@ def _fit_with_effects(final, prob, structure):
 def _named_effects(final, efit, std, stuck, centre_named):
     """The fitted effects as NamedEffect (with their 1 sd ``std``), the sphere centre's offset first
     when ``centre_named``."""
-    from handeye.app.present.results import NamedEffect
-
     dataset, mask, radius = final.dataset, final.mask, final.dataset.sphere_diameter / 2
     index = {n: k for k, n in enumerate(efit.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n, efit), efit.params[n].tolist())),
@@ -241,8 +248,6 @@ def _named_effects(final, efit, std, stuck, centre_named):
 def _effects_verdict(final, efit, base, stuck):
     """(converged, message) of the fit with effects: not converged when an effect is implausible
     (appended to the warnings: an official-looking calibration it is not) or the fit did not converge."""
-    from handeye.model import effects as catalogue
-
     names, radius = final.request.effects, final.dataset.sphere_diameter / 2
     circles = circles_shown(final.dataset, final.mask) if "sphere_radius" in names else None
     implausible = [why for n in names
@@ -296,8 +301,6 @@ def circles_shown(dataset, mask):
     centre without a profile ``sqrt(R^2 - ys^2)``, sd 0) -- ``(ids, r, sd)`` for
     :func:`handeye.model.effects.implausible`. Every profile counts, excluded or not (a gross
     error of the robot pose leaves its circle a circle of the sphere)."""
-    from handeye.model import circle
-
     radius = dataset.sphere_diameter / 2
     ids, r, sd = [], [], []
     profiles = dataset.profiles or (None,) * len(dataset)
@@ -317,8 +320,6 @@ def circles_shown(dataset, mask):
 
 def _corrected_y(dataset, mask, extended, radius):
     """|y| of each used sample's centre corrected by the fitted data effects, and their ids."""
-    from handeye.model import effects as catalogue
-
     xs = dataset.centre_in_sensor[mask]
     with np.errstate(all="ignore"):
         for name, params in extended.params.items():
@@ -423,7 +424,7 @@ def _all_residuals(dataset, unknowns, sensor, centre):
 
 def _fit_statistics(local, final):
     """Identifiability, covariance and sum of squares of the final model ``local`` at ``final``:
-    above :data:`~handeye.model.identifiability.TALL` rows (independent ones) from the
+    above :data:`~handeye.model.design.identifiability.TALL` rows (independent ones) from the
     Jacobian's triangular factor and the normal equations, summed chunk by chunk."""
     if local.groups is None and local.n_meas > identifiability.TALL:
         rows = local.n_meas * local.m
@@ -521,15 +522,12 @@ def _nominal_positioner(dataset):
     """The positioner's axes as set up (held: the stages work at these axes), or None."""
     if dataset.mounts.sphere != "positioner":
         return None
-    from handeye.app.present.result_parts import PositionerRecord
 
     return PositionerRecord(dataset.mounts.axes, dataset.mounts.axes)
 
 
 def result(prep, screened, verified, warnings):
     """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.engine.calibrate`)."""
-    from handeye.app.present.results import CalibrationResult
-
     request, dataset, mask = prep.request, prep.dataset, screened.mask
     warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
     base = _fit_record(prep, verified)

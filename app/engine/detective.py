@@ -15,7 +15,7 @@ extrinsic reading of the same sequence), in degrees or radians, or as a rotation
 (radians or degrees); four columns as a quaternion w-first or w-last; each with the poses
 as written or inverted, and the positions in mm or m. :func:`closed_form_rms` scores each by
 the exact global minimum of the centre model (with the sphere centre known, one SVD per
-candidate, all candidates at once: :mod:`handeye.model.global_fit`), or by the linear closed
+candidate, all candidates at once: :mod:`handeye.model.fit.global_fit`), or by the linear closed
 form with the centre free (the best few then by the reduced-form search). The caller names
 the best when it fits clearly and significantly better than the data as declared.
 """
@@ -26,8 +26,9 @@ import itertools
 
 import numpy as np
 
-from handeye.model import conventions, global_fit, mounts
-from handeye.model.rotation import matrix_from_rotvec, nearest_rotation
+from handeye.model.chain import conventions, mounts
+from handeye.model.common.rotation import matrix_from_rotvec, nearest_rotation
+from handeye.model.fit import global_fit
 
 #: Position scales tried (mm per unit) and what they look like.
 UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
@@ -105,7 +106,7 @@ def readings(k, columns):
 @dataclasses.dataclass(frozen=True)
 class Candidate:
     """The flange poses under one reading, inverted or not, in mm or m. ``flange2base`` holds the
-    chain's carrier motions of those poses (:meth:`handeye.model.dataset.Dataset.motions`): the
+    chain's carrier motions of those poses (:meth:`handeye.model.datasets.dataset.Dataset.motions`): the
     poses themselves for the seed's cell, through the mount otherwise, so every mount is scored by
     the same centre model."""
 
@@ -142,7 +143,7 @@ def _transforms(rot, pos, inverted):
 
 
 def _chain(dataset, flange2base):
-    """The carrier motions of a reading's flange poses in the dataset's cell (:mod:`handeye.model.mounts`)."""
+    """The carrier motions of a reading's flange poses in the dataset's cell (:mod:`handeye.model.chain.mounts`)."""
     if dataset.mounts.default:
         return flange2base
     with np.errstate(all="ignore"):
@@ -208,7 +209,7 @@ def closed_form_rms(flange2base, centre_in_sensor, sphere_centre=None):
 
 
 def _linear_rms(f2b, p):
-    """RMS (mm) of the linear closed form (:mod:`handeye.model.closed_form`) with the centre
+    """RMS (mm) of the linear closed form (:mod:`handeye.model.fit.closed_form`) with the centre
     free, for every candidate at once: normal equations of ``(vec R, t, c)``, the rotation
     block projected onto SO(3), ``(t, c)`` re-solved; inf where the system is singular."""
     c_n, n = f2b.shape[0], p.shape[0]
@@ -306,7 +307,7 @@ def fix(candidate, dataset):
     elif conv is None:
         cols = ",".join(conventions.columns(dataset.convention)[3:])
         steps.append(f"convert the orientation columns of {measurements} from {candidate.reading.name} to "
-                     f"{dataset.convention} {cols} (handeye reads kuka, fanuc, abb and ur; see model/conventions.py)")
+                     f"{dataset.convention} {cols} (handeye reads kuka, fanuc, abb and ur; see model/chain/conventions.py)")
     if candidate.inverted and dataset.mounts.default:
         steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
                      "flange, as a tf lookup of base in flange gives it) -- unless the sensor is fixed in the cell and "

@@ -40,9 +40,15 @@ import numpy as np
 from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
-from handeye.app.present.results import NamedEffect
+from handeye.app.present.result_parts import cleaning_summary
+from handeye.app.present.results import NamedEffect, Uncertainty
 from handeye.model import effects
-from handeye.model.extended import (
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common.rotation import pose_distance
+from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
+from handeye.model.design.robot_gate import robot_free
+from handeye.model.fit.extended import (
     GATE,
     Samples,
     ScoreTest,
@@ -51,9 +57,6 @@ from handeye.model.extended import (
     gate,
     score_test,
 )
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.robot_gate import robot_free
-from handeye.model.statistics import deletion_statistics, f_survival, prediction_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA
@@ -112,7 +115,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     alpha : float
         Family-wise level of the effect and outlier tests.
     start : array_like, shape (6,), optional
@@ -436,9 +439,6 @@ def _report(run, structure, fit, flips, outliers):
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     after_norms = np.linalg.norm(fit.e, axis=1)
-    from handeye.app.present.result_parts import cleaning_summary
-    from handeye.app.present.results import Uncertainty
-    from handeye.model import conventions
 
     return DiagnosisResult(
         centre_fitted=bool(structure.centre),
@@ -487,8 +487,6 @@ def against_calibrate(result, own):
     """Whether the diagnosis's pose is calibrate's (``own``, the same unknowns) within 1 sd, and
     if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
     (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
-    from handeye.model.rotation import pose_distance
-
     if not own.converged:
         return f"calibrate did not converge on these data ({own.message}); nothing to compare"
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,

@@ -1,7 +1,7 @@
 """Screening with catalogue effects (``calibrate --effects``): judge each sample against the
 model *with* the effects, so that an effect the plain centre model lacks does not make clean
 samples look like gross errors. A robust preliminary fit of the extended model
-(:mod:`handeye.model.extended`) estimates the effects; the measured centres corrected by them
+(:mod:`handeye.model.fit.extended`) estimates the effects; the measured centres corrected by them
 are screened as usual (:func:`handeye.app.engine.robust.screen`)."""
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import numpy as np
 
 from handeye.app.engine import robust
 from handeye.model import effects as catalogue
-from handeye.model import extended
-from handeye.model.calibration import ROW_CHUNK, CalibrationModel
-from handeye.model.statistics import chi_median
+from handeye.model.common.statistics import chi_median
+from handeye.model.fit import extended
+from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
 
 
 def robust_effects(dataset, unknowns, start, effects, max_rounds=50):
@@ -21,11 +21,11 @@ def robust_effects(dataset, unknowns, start, effects, max_rounds=50):
 
     Cauchy IRLS as :func:`robust_fit`, started from the robust fit of the centre model (its
     point and weights, so that a gross error cannot pull the first round), on at most
-    :data:`~handeye.model.calibration.ROW_CHUNK` evenly spread samples.
+    :data:`~handeye.model.fit.calibration.ROW_CHUNK` evenly spread samples.
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     start : ndarray, shape (4, 4)
         Start sensor pose (sensor in flange, mm).
@@ -81,7 +81,7 @@ def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, m
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     start : ndarray, shape (4, 4)
     effects : sequence of str
@@ -92,8 +92,6 @@ def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, m
     -------
     Screening
     """
-    from handeye.model import effects as catalogue
-
     effects = [e for e in effects if catalogue.get(e).KIND == "data"]  # a robot effect moves poses, not centres
     fixed = corrected(dataset, robust_effects(dataset, unknowns, start, effects)) if effects else None
     return robust.screen(dataset if fixed is None else fixed, unknowns, start, alpha=alpha, min_keep=min_keep)

@@ -16,9 +16,9 @@ import numpy as np
 from handeye import solvers
 from handeye.app.engine import guarantee
 from handeye.app.engine.problems import calibration_problem
-from handeye.model.closed_form import ClosedFormError, closed_form_estimate
-from handeye.model.pose import pose_from_transform
-from handeye.model.rotation import nearest_transform, transform_distance
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.common.rotation import nearest_transform, transform_distance
+from handeye.model.fit.closed_form import ClosedFormError, closed_form_estimate
 
 #: A converged point must be stationary on the local chart too: |grad| <= LOCAL_GTOL max(1, f).
 LOCAL_GTOL = 1e-4
@@ -36,7 +36,7 @@ class Verdict:
 
     Attributes
     ----------
-    model : handeye.model.calibration.CalibrationModel
+    model : handeye.model.fit.calibration.CalibrationModel
         The model solved (the request's parametrisation).
     result : handeye.solvers.OptimizeResult
     sensor : ndarray, shape (4, 4)
@@ -137,10 +137,10 @@ class FinalFit:
 
     Parameters
     ----------
-    used : handeye.model.dataset.Dataset
+    used : handeye.model.datasets.dataset.Dataset
         The samples kept after screening (with a sphere centre: the known one, or the start
         value of a free one).
-    model : handeye.model.calibration.CalibrationModel
+    model : handeye.model.fit.calibration.CalibrationModel
         The final residual model of those samples (the request's parametrisation and weights).
     request : handeye.app.engine.request.CalibrationRequest
         Checked (:meth:`~handeye.app.engine.request.CalibrationRequest.checked`).

@@ -3,7 +3,7 @@
 A local solver ends in the basin it starts in. From a CAD start 5 mm / 1 deg off, the
 measurement model of a planned 12-pose set has a second minimum 16 mm / 35 deg from the
 truth (RMS 11 mm against 0.04 mm) that IPOPT reaches and reports as optimal. The centre
-model's global minimum is known in closed form (:mod:`handeye.model.global_fit`: one SVD
+model's global minimum is known in closed form (:mod:`handeye.model.fit.global_fit`: one SVD
 with the sphere centre known; a quadratic form in vec R, searched over a cover of SO(3),
 with it free), and every residual model's minimum lies next to it on good data (they differ
 by the noise). So:
@@ -32,9 +32,11 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import global_fit, own_frame
-from handeye.model.pose import pose_from_transform
-from handeye.model.rotation import transform_distance
+from handeye.model.chain import own_frame
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.common.rotation import transform_distance
+from handeye.model.common.statistics import chi2_survival
+from handeye.model.fit import global_fit
 
 #: Two ends within this distance (mm, deg) or relative cost are the same minimum.
 SAME_MM, SAME_DEG, SAME_COST = 1e-3, 1e-3, 1e-9
@@ -116,7 +118,7 @@ def lowest(fit, basin, solve, exact_centre_model=False):
     ----------
     fit : handeye.app.engine.fitting.Verdict
         The final fit from the user's (or the closed-form) start.
-    basin : handeye.model.global_fit.CentreMinima or None
+    basin : handeye.model.fit.global_fit.CentreMinima or None
     solve : callable
         ``solve(sensor2flange, centre) -> Verdict``: the final fit from a start.
     exact_centre_model : bool
@@ -198,8 +200,6 @@ def explains_nothing(dataset, basin, sigma):
     :data:`EXPLAINS_NOTHING` of the robot's motion (or above the spread of the sensor's
     centres) *and* above the stated noise ``sigma`` (mm per component; chi-square at
     :data:`NOISE_P`: a cell whose large noise is stated is not refused), else None."""
-    from handeye.model.statistics import chi2_survival
-
     if basin is None:
         return None
     rms = float(np.sqrt(2 * basin.best.cost / len(dataset)))

@@ -6,7 +6,7 @@ Problem k is the fit without sample k,
 
 on the local chart (a point moves by ``retract(z, delta)``). The G problems are iterated
 together: their points are a stack Z (G, d), and one call of
-:meth:`handeye.model.calibration.CalibrationModel.cost_derivatives` evaluates every row at every
+:meth:`handeye.model.fit.calibration.CalibrationModel.cost_derivatives` evaluates every row at every
 point with the problems' row weights (whitened as the model whitens them), giving ``f_k``, the
 gradient ``g_k`` and the exact cost Hessian
 
@@ -81,7 +81,7 @@ def refits(fitted, x, rows, xtol, safety, rate=None):
 
     Parameters
     ----------
-    fitted : handeye.model.calibration.CalibrationModel
+    fitted : handeye.model.fit.calibration.CalibrationModel
         The model of the samples fitted at ``x`` (``local`` rotation).
     x : ndarray, shape (d,)
         Its fit: the start of every problem.

@@ -5,7 +5,7 @@ lacked (chapter 4.3). For a sphere on a positioner, :func:`handeye.app.engine.di
 asks first whether the set-up axes are that missing effect:
 
 1. The base model: the sensor pose and the sphere centre, the axes as set up
-   (:class:`handeye.model.cell.CellModel`), on the screened samples. The centre is free here so
+   (:class:`handeye.model.fit.cell.CellModel`), on the screened samples. The centre is free here so
    that a centre given wrong is left to the catalogue's ``sphere_center``, not taken for the axes.
 2. The extended model: the sensor, the centre and the axes (4 parameters per axis: two tilts of the direction,
    two shifts of the point normal to it), when the axis angles determine them (else the effect
@@ -21,11 +21,11 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import cell_stage
-from handeye.app.errors import CalibrationInputError
 from handeye.app.present.results import NamedEffect
-from handeye.model.cell import normals
-from handeye.model.statistics import f_survival
+from handeye.model.common.statistics import f_survival
+from handeye.model.fit.cell import normals
 
 #: Folds of the held-out prediction error (as the catalogue's).
 FOLDS = 5

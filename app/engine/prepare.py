@@ -7,14 +7,15 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import guarantee
 from handeye.app.engine.fitting import closed_form_pose
 from handeye.app.engine.request import enough
-from handeye.app.errors import CalibrationInputError
-from handeye.model import identifiability, observations
-from handeye.model.calibration import CalibrationModel
-from handeye.model.closed_form import ClosedFormError, closed_form_estimate
-from handeye.model.pose import transform_from_pose
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets import observations
+from handeye.model.design import identifiability
+from handeye.model.fit.calibration import CalibrationModel
+from handeye.model.fit.closed_form import ClosedFormError, closed_form_estimate
 
 
 @dataclasses.dataclass(frozen=True)
@@ -25,16 +26,16 @@ class Prepared:
     ----------
     request : handeye.app.engine.request.CalibrationRequest
         Checked.
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
         Every sample, with a sphere centre (the known one, or the closed-form start value).
     kind : {'centre', 'measurement', 'points'}
         The final fit's residual.
-    observed : handeye.model.calibration.CalibrationModel
+    observed : handeye.model.fit.calibration.CalibrationModel
         The final fit's model of every sample (``kind``, the request's parametrisation and
         weights), built once; the final fit takes its rows of the samples kept.
-    everything : handeye.model.calibration.CalibrationModel
+    everything : handeye.model.fit.calibration.CalibrationModel
         The unweighted centre model of every sample on the local chart (plain fit, probes).
-    basin : handeye.model.global_fit.CentreMinima or None
+    basin : handeye.model.fit.global_fit.CentreMinima or None
         The centre model's minima on every sample.
     start_pose : ndarray, shape (6,)
         KUKA (mm, deg).

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.model import testfunction
+from handeye.model.chain import testfunction
 from handeye.solvers import Problem
 
 
 def calibration_problem(model):
-    """A :class:`handeye.solvers.Problem` of a :class:`handeye.model.calibration.CalibrationModel`.
+    """A :class:`handeye.solvers.Problem` of a :class:`handeye.model.fit.calibration.CalibrationModel`.
 
     Least-squares callables and the exact Hessian for every parametrisation; the CasADi NLP
     for ``euler`` and ``matrix``; the retraction for ``local``. The callables take stacks of
@@ -31,9 +31,9 @@ def calibration_problem(model):
 
 def chunked(model):
     """Whether least squares on ``model`` sums its normal equations chunk by chunk
-    (:meth:`~handeye.model.calibration.CalibrationModel.normal_equations`) rather than holding
+    (:meth:`~handeye.model.fit.calibration.CalibrationModel.normal_equations`) rather than holding
     its Jacobian: more rows than one chunk."""
-    from handeye.model.calibration import ROW_CHUNK
+    from handeye.model.fit.calibration import ROW_CHUNK
 
     return model.n_meas > ROW_CHUNK
 
@@ -42,7 +42,7 @@ def testfunction_nlp():
     """The test function (6-16) as a CasADi NLP dict, generated from the same source."""
     import casadi as ca
 
-    from handeye.model import codegen, symbolic
+    from handeye.model.chain import codegen, symbolic
 
     def build():
         s = symbolic.test_function()

@@ -14,11 +14,11 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app.choices import CLASSIC_METHODS, METHODS
-from handeye.app.errors import CalibrationInputError
-from handeye.model import conventions
-from handeye.model.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
-from handeye.model.names import PARTS, ROTATIONS, UNKNOWNS
+from handeye.app.common.choices import CLASSIC_METHODS, METHODS
+from handeye.app.common.errors import CalibrationInputError
+from handeye.model.chain import conventions
+from handeye.model.chain.names import PARTS, ROTATIONS, UNKNOWNS
+from handeye.model.datasets.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
 
 # METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 

@@ -5,7 +5,7 @@ narrow range of configurations their columns are nearly parallel, and the forwar
 :mod:`handeye.app.engine.diagnose`, which takes the most significant candidate first, can name
 one for another. Once the search has named any robot effect, every non-empty combination of the
 robot effects the dataset can show is fitted in its place (each with its parameters chosen by the
-identifiability gate, :func:`handeye.model.robot_gate.gate_robot_effects`), with and without a
+identifiability gate, :func:`handeye.model.design.robot_gate.gate_robot_effects`), with and without a
 ``sphere_center`` the search named before them (a centre offset named first may be a robot error
 seen from poses that do not yet have the robot in the model), and scored by BIC
 ``m ln(SSR / m) + p ln m`` (Schwarz 1978). The searched model is kept unless another scores
@@ -26,9 +26,9 @@ import itertools
 import numpy as np
 
 from handeye.model import effects
-from handeye.model.robot_gate import gate_robot_effects
-from handeye.model.rotation import transform_distance
-from handeye.model.statistics import f_survival
+from handeye.model.common.rotation import transform_distance
+from handeye.model.common.statistics import f_survival
+from handeye.model.design.robot_gate import gate_robot_effects
 
 #: BIC difference below which another combination of robot effects is an alternative (Kass & Raftery).
 AMBIGUOUS = 10.0
@@ -101,10 +101,10 @@ def compare(prob, structure, fit, mask, alpha, centre_unknown=False):
 
     Parameters
     ----------
-    prob : handeye.model.extended.Samples
-    structure : handeye.model.extended.Structure
+    prob : handeye.model.fit.extended.Samples
+    structure : handeye.model.fit.extended.Structure
         The searched model; unchanged without a robot effect.
-    fit : handeye.model.extended.Fit
+    fit : handeye.model.fit.extended.Fit
     mask : ndarray of bool, shape (N,)
     alpha : float
         Level of the F test a combination holding the searched one must pass (diagnose's).

@@ -7,7 +7,7 @@
 2. **Screening.** A sample whose robust residual is improbable under ``|e|^2 / sigma^2 ~
    chi^2_3`` after a Bonferroni correction over the N samples starts out excluded.
 3. **Test on the fit.** Least squares on the remaining samples; externally studentised
-   deletion statistics for every sample (:func:`handeye.model.statistics.deletion_statistics`),
+   deletion statistics for every sample (:func:`handeye.model.common.statistics.deletion_statistics`),
    Bonferroni-adjusted. The worst significant fitted sample is excluded, or the most
    plausible excluded sample reinstated, one at a time, until no change is called for.
 
@@ -22,7 +22,7 @@ import dataclasses
 import numpy as np
 
 from handeye import solvers
-from handeye.app.choices import ALPHA  # noqa: F401 - the level, defined without numpy
+from handeye.app.common.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.engine import loo
 from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers are robust's names too
     LOO_GN_ITER,
@@ -38,9 +38,9 @@ from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers 
 )
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
-from handeye.model import global_fit
-from handeye.model.calibration import CalibrationModel
-from handeye.model.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
+from handeye.model.common.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
+from handeye.model.fit import global_fit
+from handeye.model.fit.calibration import CalibrationModel
 
 CAUCHY_K = 2.385 * np.sqrt(3.0)
 
@@ -101,7 +101,7 @@ def least_squares(model, x0, max_iter=200, lm_iter=50):
 
 def _procrustes(model):
     """True when ``model``'s weighted fit is an absolute orientation, solved exactly by one SVD
-    (:func:`handeye.model.global_fit.absolute_orientation`): the unweighted centre residual with
+    (:func:`handeye.model.fit.global_fit.absolute_orientation`): the unweighted centre residual with
     the sphere centre known (``|R_i (X p_i) + t_i - c| = |X p_i - q_i|``), on a chart of SO(3)
     (not ``matrix``: its free entries, not held to a rotation, have another minimum)."""
     return (model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
@@ -167,7 +167,7 @@ def _subset_rows(model, rows):
 
 def exclude_inconsistent(dataset, unknowns, mask, excluded):
     """Exclude the rows whose centre columns contradict their own profile
-    (:func:`handeye.model.consistency.check_rows`); calibrate, its closed-form baselines and
+    (:func:`handeye.model.datasets.consistency.check_rows`); calibrate, its closed-form baselines and
     diagnose call this one function, so that they fit the same observations.
 
     Such a row is excluded whatever the statistical screening (and ``--keep-all``) says: its
@@ -177,7 +177,7 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     mask : ndarray of bool, shape (N,)
         Samples used so far.
@@ -200,7 +200,7 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
         the unknowns.
     """
     from handeye.app.engine.request import min_measurements
-    from handeye.model import consistency
+    from handeye.model.datasets import consistency
 
     check = consistency.check_rows(dataset)
     if not check.inconsistent:
@@ -213,13 +213,13 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
 
 def with_geometry(dataset, excluded):
     """The records ``excluded`` with the geometric cause of each whose profile explains a poorly
-    determined centre (:func:`handeye.model.arc_geometry.causes`: a short or one-sided arc, near
+    determined centre (:func:`handeye.model.geometry.arc_geometry.causes`: a short or one-sided arc, near
     the equator, few points; named only when its centre's sd along an axis exceeds five times
     the other profiles' median and accounts for its prediction error): in ``geometry`` and
     after the statistical reason."""
     if not excluded or dataset.profiles is None:
         return excluded
-    from handeye.model import arc_geometry
+    from handeye.model.geometry import arc_geometry
 
     index = {int(r): k for k, r in enumerate(dataset.rows)}
     records = [e for e in excluded if e.row in index and dataset.profiles[index[e.row]] is not None]
@@ -233,8 +233,8 @@ def with_geometry(dataset, excluded):
 def _contradiction_error(dataset, check, keep, unknowns):
     """The CalibrationInputError of :func:`exclude_inconsistent` when too many rows contradict
     themselves (``check`` the consistency check, ``keep`` the rows that would remain)."""
+    from handeye.app.common.errors import CalibrationInputError
     from handeye.app.engine.request import min_measurements
-    from handeye.app.errors import CalibrationInputError
 
     bad, n, need = check.inconsistent, len(dataset), min_measurements(unknowns)
     named = "; ".join(f"row {c.row} ({c.id!r}: {c.disagreement_mm:.3g} mm, {c.sd:.3g} sd)" for c in bad[:12])
@@ -279,7 +279,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
         Every sample (ids and rows name them in the report).
     unknowns : {'sensor', 'sensor+sphere'}
     start : ndarray, shape (4, 4)

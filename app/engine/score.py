@@ -37,10 +37,11 @@ import math
 import numpy as np
 
 from handeye.app.engine.cell_stage import HELD_FACTOR, P_HELD, mask_of
-from handeye.model import observations
-from handeye.model.calibration import CalibrationModel
-from handeye.model.rotation import pose_distance
-from handeye.model.statistics import f_survival
+from handeye.model.chain import conventions
+from handeye.model.common.rotation import pose_distance
+from handeye.model.common.statistics import f_survival
+from handeye.model.datasets import observations
+from handeye.model.fit.calibration import CalibrationModel
 
 #: Gauss-Newton steps of the sphere centre with the pose held (linear for the centre model: one).
 CENTRE_STEPS = 30
@@ -82,7 +83,7 @@ class Scorer:
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     mask : ndarray of bool, shape (N,)
         Samples used (the data's own calibration's).
     kind : {'centre', 'measurement', 'points'}
@@ -194,7 +195,6 @@ def score_against(estimate, dataset, request, sensor2flange, source, scorer=None
     calibration ``estimate`` (``scorer``: built once for several poses)."""
     from handeye.app.engine.describe import noise_test
     from handeye.app.present.score_results import ScoreResult
-    from handeye.model import conventions
 
     scorer = scorer or scorer_for(estimate, dataset, request)
     s = np.asarray(sensor2flange, float)

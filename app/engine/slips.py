@@ -32,10 +32,13 @@ import itertools
 
 import numpy as np
 
-from handeye.app.errors import CalibrationInputError
-from handeye.model import global_fit
-from handeye.model.calibration import CalibrationModel
-from handeye.model.pose import pose_from_transform
+from handeye.app.common.errors import CalibrationInputError
+from handeye.model.chain import conventions
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.common.rotation import pose_distance, rotvec_from_matrix, transform_distance
+from handeye.model.common.statistics import chi2_survival, covariance, f_survival
+from handeye.model.fit import global_fit
+from handeye.model.fit.calibration import CalibrationModel
 
 #: A plain fit with a larger RMS (mm), or residuals above the stated noise, is checked for slips.
 SUSPECT_RMS_MM = 1.0
@@ -98,8 +101,6 @@ def _candidates(dataset):
                         dataclasses.replace(d, flange_poses=poses, sphere_centre=d.sphere_centre * 1000.0),
                         f"write the flange positions and the [sphere] center of {setup} in millimetres (x 1000)"))
     if d.convention in ("kuka", "fanuc") and np.all(np.abs(d.flange_poses[:, 3:]) <= 2 * np.pi + 1e-9):
-        from handeye.model import conventions
-
         degrees = d.flange_poses.copy()
         if d.convention == "fanuc":  # the file's W, P, R read as radians, then as KUKA again
             fanuc = conventions.convert(d.flange_poses, "kuka", "fanuc")
@@ -124,7 +125,7 @@ def _candidates(dataset):
 
 def plain_rms(dataset, unknowns):
     """RMS (mm) of the plain least-squares fit of every sample: the unweighted centre model's
-    global minimum (:mod:`handeye.model.global_fit`: one SVD with the centre known), or None
+    global minimum (:mod:`handeye.model.fit.global_fit`: one SVD with the centre known), or None
     when the data do not determine it."""
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
@@ -161,8 +162,6 @@ def free_axes_rms(dataset, unknowns):
 
 
 def _suspect(dataset, unknowns, rms_given):
-    from handeye.model.statistics import chi2_survival
-
     n, p = len(dataset), 6 if unknowns == "sensor" else 9
     dof = 3 * n - p
     if not np.isfinite(rms_given) or dof <= 0:
@@ -185,7 +184,7 @@ def check_diameter(dataset):
     Without this the centre residual (screening, leave-one-out) would use the sensor's centres
     and the profile models the setup's diameter: two calibrations reported as one.
     """
-    from handeye.model import circle
+    from handeye.model.geometry import circle
 
     if dataset.profiles is None or dataset.reconstructed is None:
         return
@@ -217,7 +216,7 @@ def check(dataset, unknowns, rms_given):
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     unknowns : {'sensor', 'sensor+sphere'}
     rms_given : float
         RMS (mm, of |e_i|) of the plain fit of every sample as the dataset is (with a positioner
@@ -235,8 +234,6 @@ def check(dataset, unknowns, rms_given):
 def _check_slips(dataset, unknowns, rms_given, dof):
     """Raise :class:`CalibrationInputError` naming the first-setup slip (:func:`_candidates`)
     whose undoing explains the data clearly and significantly better (module docstring)."""
-    from handeye.model.statistics import f_survival
-
     best = None
     for slip in _candidates(dataset):
         if slip.dataset.sphere_centre is None and unknowns == "sensor":
@@ -260,8 +257,6 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
     the stated noise (a reading that still leaves centimetres is not named: following it would
     not help)."""
     from handeye.app.engine import detective
-    from handeye.model import conventions
-    from handeye.model.statistics import chi2_survival, f_survival
 
     found = detective.best(dataset, unknowns)
     if found is None:
@@ -298,8 +293,6 @@ SIDE_MOVE_MM, SIDE_MOVE_DEG, SIDE_MOVE_SD = 1.0, 0.5, 3.0
 def _pose_covariance(dataset, unknowns, minimum):
     """Covariance (6 x 6: t mm in the flange, w rad about the sensor's axes) of the centre
     model's pose at a minimum, sigma estimated from its residuals."""
-    from handeye.model.statistics import covariance
-
     model = CalibrationModel.from_dataset(dataset, "local", unknowns, sphere_centre=minimum.centre)
     x = model.point_from(minimum.sensor2flange, minimum.centre)
     return np.asarray(covariance(model.residual(x), model.jacobian(x)).matrix)[:6, :6]
@@ -308,8 +301,6 @@ def _pose_covariance(dataset, unknowns, minimum):
 def _mahalanobis(dataset, given, other):
     """Distance of the pose of ``other`` from that of ``given`` (centre-model minima) in the
     standard deviations of ``given``'s pose (:func:`_pose_covariance`)."""
-    from handeye.model.rotation import rotvec_from_matrix
-
     a, b = given.sensor2flange, other.sensor2flange
     delta = np.concatenate([b[:3, 3] - a[:3, 3], rotvec_from_matrix(a[:3, :3].T @ b[:3, :3])])  # chart: t, w
     return float(np.sqrt(delta @ np.linalg.solve(_pose_covariance(dataset, "sensor", given), delta)))
@@ -340,10 +331,6 @@ def check_equator(dataset, unknowns="sensor"):
     calibration. Rows on both sides (a sensor that measures y itself) and
     rows whose side the rest of the data settle pass.
     """
-    from handeye.model import global_fit
-    from handeye.model.rotation import transform_distance
-    from handeye.model.statistics import f_survival
-
     p = dataset.centre_in_sensor
     y = p[:, 1]
     radius = dataset.sphere_diameter / 2
@@ -385,8 +372,8 @@ def _effects_keep_centre(dataset, effects, given, sigma):
     the extended model with it fits within the stated noise (chi-square at :data:`P_SUSPECT`), and
     freeing the centre beside the effects gains nothing significant (F test at :data:`P_SLIP`).
     A robot's length error or gravity sag can look like a centre offset to the centre model."""
-    from handeye.model import extended, robot_gate
-    from handeye.model.statistics import chi2_survival, f_survival
+    from handeye.model.design import robot_gate
+    from handeye.model.fit import extended
 
     prob, mask = extended.Samples(dataset, sigma), np.ones(len(dataset), bool)
     held = extended.Structure(centre=False, data_effects=tuple(effects))
@@ -435,10 +422,6 @@ def check_centre(dataset, sigma=None, effects=()):
     centre is not named when the model with them explains the misfit at the given centre
     (:func:`_effects_keep_centre`).
     """
-    from handeye.model import global_fit
-    from handeye.model.rotation import transform_distance
-    from handeye.model.statistics import chi2_survival, f_survival
-
     n = len(dataset)
     sigma = dataset.noise_centre_mm if sigma is None else float(sigma)  # the stated noise (--sigma)
     if dataset.sphere_centre is None or 3 * n - 9 <= 3:
@@ -489,9 +472,7 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
     depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
     """
-    from handeye.model import extended, global_fit
-    from handeye.model.rotation import pose_distance
-    from handeye.model.statistics import chi2_survival, f_survival
+    from handeye.model.fit import extended, global_fit
 
     if "sphere_radius" in effects or not any(dataset.reconstructed or ()) or unknowns not in ("sensor", "sensor+sphere"):
         return

@@ -5,7 +5,7 @@ JSON export, the profiles an OpenCV FileStorage file, a NumPy array, a PLY or PC
 or everything is in a ROS 2 bag. :func:`handeye.app.ingest.command.new_dataset` reads them (the
 format told by each file's content, not its extension), checks them, pairs poses with profiles
 and writes ``measurements.csv``, ``setup.toml``, ``profiles/*.csv`` and ``PROVENANCE.toml``
-(:mod:`handeye.model.dataset` documents the format) atomically.
+(:mod:`handeye.model.datasets.dataset` documents the format) atomically.
 
 Modules: :mod:`~handeye.app.ingest.tables` (text and JSON tables), :mod:`~handeye.app.ingest.poses`
 (pose columns, units, plausibility), :mod:`~handeye.app.ingest.opencv_storage` (FileStorage

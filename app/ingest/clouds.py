@@ -24,7 +24,7 @@ import numpy as np
 from handeye.app.ingest import opencv_storage
 from handeye.app.ingest.poses import canonical
 from handeye.app.ingest.tables import Table, is_number, read_bytes, read_table
-from handeye.model.tables import DatasetError
+from handeye.model.readers.tables import DatasetError
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
               "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4",

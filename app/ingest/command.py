@@ -4,16 +4,20 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import pathlib
+import tomllib
 
 import numpy as np
 
-from handeye.app import options
-from handeye.app.errors import RequestError
+from handeye.app.common import options
+from handeye.app.common.errors import RequestError
 from handeye.app.ingest import sources, writer
 from handeye.app.ingest.pairing import pair
+from handeye.app.ingest.plane import parse_axes
+from handeye.app.ingest.poses import read_joints, read_poses
 from handeye.app.present.protocol import ResultProtocol
-from handeye.model import conventions, own_frame
-from handeye.model.tables import DatasetError
+from handeye.model.chain import conventions, own_frame
+from handeye.model.readers.tables import DatasetError
+from handeye.model.robot import robots
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,8 +137,6 @@ def _check_setup_values(found, file):
 def _from_setup(opts):
     """``--setup FILE``: an existing setup.toml fills the options not given (diameter, center, side,
     start pose, convention, robot model)."""
-    import tomllib
-
     file = opts["setup"]
     if file is None:
         return
@@ -155,7 +157,7 @@ def _from_setup(opts):
     if opts["side"] is None and found["side"] is not None:
         opts["_side_from_setup"] = True  # a setup's side is in handeye's frame already
     if opts["start"] is None and found["start"] is not None:  # of the setup's own frame when it says so, else handeye's
-        from handeye.model.setup_file import _own_axes
+        from handeye.model.readers.setup_file import _own_axes
 
         profile = doc.get("profile", {})
         opts["_start_axes"] = _own_axes(profile.get("own_axes"), file) if profile.get("poses") == "own" else None
@@ -169,8 +171,8 @@ def _from_setup(opts):
 
 def _check_options(out, opts):
     """Options checked before anything is read; raises RequestError naming the option."""
+    from handeye.app.common.files import check_output_folder
     from handeye.app.engine.command_request import checked_values
-    from handeye.app.files import check_output_folder
 
     check_output_folder(out, "OUT", empty=True)
     _from_setup(opts)
@@ -196,8 +198,6 @@ def _check_options(out, opts):
     opts["diameter"] = float(diameter)
     checked_values("dataset new", opts)  # units, angles, side, pairing and convention among their choices
     if opts["profile_axes"] is not None:
-        from handeye.app.ingest.plane import parse_axes
-
         parse_axes(opts["profile_axes"])
     if opts["joints"] is not None and opts["bag"] is not None:
         raise RequestError("--joints with --bag: a bag's joint states are not read; give --poses and --profiles files")
@@ -210,8 +210,6 @@ def _check_options(out, opts):
 def _from_files(opts):
     """Poses and profiles from loose files: ``(ids, values (N, 3 + k) in the convention, convention, Profile per
     pose, inputs, notes, pairing, source roles [(role, file, format)], (the pose file's ids or None, its lines))``."""
-    from handeye.app.ingest.poses import read_poses
-
     table = read_poses(opts["poses"], opts["convention"], opts["columns"], opts["units"], opts["angles"])
     profiles, skipped = sources.read_profiles(opts["profiles"], opts["profile_units"] or "mm",
                                               exclude=[opts[k] for k in ("poses", "joints", "setup")])
@@ -258,8 +256,6 @@ def _from_bag(opts):
 
 def _joints(opts, pose_ids, n):
     """Joint angles (n, 6) in the poses' order (by id when both files have ids, else by order)."""
-    from handeye.app.ingest.poses import read_joints
-
     if opts["joints"] is None:
         return None
     ids, values, lines = read_joints(opts["joints"])
@@ -290,8 +286,8 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     Raises
     ------
     handeye.InputError
-        Bad input (:class:`~handeye.model.tables.DatasetError` naming file, row, column;
-        :class:`~handeye.app.errors.RequestError` naming the option).
+        Bad input (:class:`~handeye.model.readers.tables.DatasetError` naming file, row, column;
+        :class:`~handeye.app.common.errors.RequestError` naming the option).
     """
     opts = {**{k: v for k, v in options.COMMANDS["dataset new"].given(locals()).items() if k != "out"},
             "profiles": [profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ())}
@@ -322,7 +318,7 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
 
 def _files(result, values, per_pose, joints, opts, centre, start_pose, roles):
     """Relative path -> text of every file of the dataset."""
-    from handeye.app.files import tool_version
+    from handeye.app.common.files import tool_version
 
     taken, profile_files, rels = set(), {}, []
     for ident, p in zip(result.ids, per_pose):
@@ -358,8 +354,6 @@ MODEL_FILE = "robot_model.toml"
 def _robot_model(robot, files):
     """``[robot] model``: a built-in name as it is; a model file copied into the dataset as
     :data:`MODEL_FILE` (a path in setup.toml is the dataset folder's)."""
-    from handeye.model import robots
-
     if robot is None or str(robot) in robots.builtin_names():
         return robot
     path = pathlib.Path(robot)
@@ -392,9 +386,9 @@ def _unique(roles):
 
 def _write_checked(out, files):
     """Write the files into a temporary folder, load it as a dataset (every check of
-    :func:`handeye.model.dataset.load`), then rename it to ``out``: never a half-written folder."""
-    from handeye.app.files import write_folder_atomically
-    from handeye.model.dataset import load
+    :func:`handeye.model.datasets.dataset.load`), then rename it to ``out``: never a half-written folder."""
+    from handeye.app.common.files import write_folder_atomically
+    from handeye.model.datasets.dataset import load
 
     def write(tmp):
         (tmp / "profiles").mkdir()

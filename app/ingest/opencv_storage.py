@@ -16,7 +16,7 @@ import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 
-from handeye.model.tables import DatasetError
+from handeye.model.readers.tables import DatasetError
 
 _SPECIAL = {".nan": np.nan, ".inf": np.inf, "-.inf": -np.inf, "+.inf": np.inf}
 

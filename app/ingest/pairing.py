@@ -15,8 +15,8 @@ import glob
 import pathlib
 import re
 
-from handeye.app.errors import RequestError
-from handeye.model.tables import DatasetError
+from handeye.app.common.errors import RequestError
+from handeye.model.readers.tables import DatasetError
 
 DEFAULT_MATCH = r"(\d+)(?!.*\d)"
 

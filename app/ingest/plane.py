@@ -19,8 +19,8 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.errors import RequestError
-from handeye.model.tables import DatasetError
+from handeye.app.common.errors import RequestError
+from handeye.model.readers.tables import DatasetError
 
 AXES = "xyz"
 #: the normal's spread may be at most this fraction of the profile's size (plus 1e-9 mm)

@@ -16,10 +16,10 @@ import re
 
 import numpy as np
 
-from handeye.app.errors import RequestError
+from handeye.app.common.errors import RequestError
 from handeye.app.ingest.tables import read_table
-from handeye.model import conventions
-from handeye.model.tables import DatasetError
+from handeye.model.chain import conventions
+from handeye.model.readers.tables import DatasetError
 
 #: orientation columns (canonical names) of each convention; abb: quaternion, w first
 KINDS = {"kuka": ("a", "b", "c"), "fanuc": ("w", "p", "r"), "ur": ("rx", "ry", "rz"), "abb": ("qw", "qx", "qy", "qz")}

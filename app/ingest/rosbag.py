@@ -16,9 +16,9 @@ import pathlib
 
 import numpy as np
 
-from handeye.app.errors import RequestError
-from handeye.model.conventions import matrix_from
-from handeye.model.tables import DatasetError
+from handeye.app.common.errors import RequestError
+from handeye.model.chain.conventions import matrix_from
+from handeye.model.readers.tables import DatasetError
 
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage")
 PROFILE_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan")

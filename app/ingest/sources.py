@@ -13,7 +13,7 @@ import numpy as np
 
 from handeye.app.ingest import clouds, plane
 from handeye.app.ingest.pairing import expand
-from handeye.model.tables import DatasetError
+from handeye.model.readers.tables import DatasetError
 
 
 @dataclasses.dataclass

@@ -12,7 +12,7 @@ import math
 import pathlib
 import re
 
-from handeye.model.tables import MAX_FILE_BYTES, DatasetError
+from handeye.model.readers.tables import MAX_FILE_BYTES, DatasetError
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 

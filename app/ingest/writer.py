@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from handeye.model import conventions
-from handeye.model.robots import JOINTS
+from handeye.model.chain import conventions
+from handeye.model.robot.robots import JOINTS
 
 
 def safe_name(ident, taken):
@@ -50,7 +50,7 @@ def _vec(v):
 
 
 def setup_text(convention, diameter, side, center=None, start=None, robot=None, own_axes=None):
-    """``setup.toml`` of the assembled dataset (:mod:`handeye.model.dataset` has the format);
+    """``setup.toml`` of the assembled dataset (:mod:`handeye.model.datasets.dataset` has the format);
     ``own_axes``: the turn R (``p_handeye = R p_file``) of profiles not given in handeye's frame,
     kept with ``poses = "own"``: ``start`` and every pose a calibration reports are of the sensor's own frame."""
     text = "# assembled by `handeye dataset new`; PROVENANCE.toml says from what\n"

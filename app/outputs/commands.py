@@ -11,18 +11,20 @@ the controller; then no uncertainty is known), and the CLI's options as keyword 
 """
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import pathlib
 
 import numpy as np
 
-from handeye.app import files, options
-from handeye.app.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
-from handeye.app.errors import RequestError
+from handeye.app.common import files, options
+from handeye.app.common.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
+from handeye.app.common.errors import RequestError
 from handeye.app.outputs import formats as exports
 from handeye.app.outputs import saved
 from handeye.app.present.protocol import ResultProtocol
-from handeye.model.mounts import FRAME
+from handeye.model.chain.mounts import FRAME
 
 
 def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
@@ -145,9 +147,9 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
 
 def _robot_values(doc, model):
     """The calibrated robot effects of a saved calibration ``doc`` as full parameter vectors of
-    ``model`` (:func:`handeye.model.robot_errors.corrected_model`), and what they are, said (the
+    ``model`` (:func:`handeye.model.robot.robot_errors.corrected_model`), and what they are, said (the
     gravity gains, which no kinematic model holds, as a note)."""
-    from handeye.model import robot_errors
+    from handeye.model.robot import robot_errors
 
     values, said = {}, []
     for effect in doc.get("effects") or []:
@@ -171,8 +173,8 @@ def _robot_values(doc, model):
 def robot_text(calibration, format, force=False):
     """The robot's nominal model corrected by the calibrated ``joint_offsets`` and ``link_lengths``
     of a saved calibration, as the model TOML (``robot-toml``) or a URDF (``robot-urdf``);
-    :mod:`handeye.model.robots`. ``joint_compliance`` depends on the pose: said in a comment."""
-    from handeye.model import robot_errors, robots
+    :mod:`handeye.model.robot.robots`. ``joint_compliance`` depends on the pose: said in a comment."""
+    from handeye.model.robot import robot_errors, robots
 
     if not isinstance(calibration, (str, pathlib.Path)):
         raise RequestError(f"--format {format}: give a saved calibration file (calibrate --effects joint_offsets --out)")
@@ -204,7 +206,7 @@ class CloudResult(ResultProtocol):
     pose_index : ndarray, shape (M,)
         Index into ``ids`` of each point's pose.
     sd : ndarray, shape (M,), or None
-        3-D 1-sd of each point from the calibration's covariance, mm (:mod:`handeye.model.cloud`).
+        3-D 1-sd of each point from the calibration's covariance, mm (:mod:`handeye.model.geometry.cloud`).
     ids : tuple of str
     skipped : tuple of str
         Poses without a profile.
@@ -279,8 +281,6 @@ def _write_cloud(result, out, fmt):
 
         files.write_stream_atomically(out, write)
         return
-    import csv
-    import io
 
     ids = np.asarray(result.ids, dtype=object)[result.pose_index]
     buf = io.StringIO()
@@ -294,7 +294,7 @@ def _write_cloud(result, out, fmt):
 
 
 def _scan_inputs(path):
-    from handeye.model import dataset
+    from handeye.model.datasets import dataset
 
     folder = dataset.resolve(path)
     return [folder / "measurements.csv", folder / "setup.toml"]
@@ -302,7 +302,7 @@ def _scan_inputs(path):
 
 @options.COMMANDS["cloud"].documented
 def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
-    """Every profile point of every pose in the robot base (:mod:`handeye.model.cloud`).
+    """Every profile point of every pose in the robot base (:mod:`handeye.model.geometry.cloud`).
 
     {parameters}
 
@@ -310,8 +310,8 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     -------
     CloudResult
     """
-    from handeye.model import cloud as clouds
-    from handeye.model import scan as scans
+    from handeye.model.datasets import scan as scans
+    from handeye.model.geometry import cloud as clouds
 
     suffix = "" if out is None else pathlib.Path(out).suffix.lower().lstrip(".")
     if format is None:
@@ -355,9 +355,9 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     {parameters}
     """
     from handeye.app.outputs import validate as validation
-    from handeye.model import dataset as datasets
-    from handeye.model import scan as scans
-    from handeye.model import tables
+    from handeye.model.datasets import dataset as datasets
+    from handeye.model.datasets import scan as scans
+    from handeye.model.readers import tables
 
     limits = _mpe(mpe)
     try:

@@ -1,7 +1,7 @@
 """A calibration written for the robot controller, ROS 2 or URDF (``handeye export``).
 
 Every format is computed from the one 4x4 sensor matrix (mm) through
-:mod:`handeye.model.conventions`, never from another format's numbers. The calibration's
+:mod:`handeye.model.chain.conventions`, never from another format's numbers. The calibration's
 ``sensor_mount`` decides what is written: a sensor on the flange (``sensor2flange``) is a TOOL,
 a sensor fixed in the cell (``"world"``: ``sensor2base``, the sensor frame in the robot base)
 a BASE / user frame:
@@ -47,9 +47,9 @@ import re
 
 import numpy as np
 
-from handeye.app.choices import FORMATS  # noqa: F401 - the names, defined without numpy
-from handeye.app.errors import RequestError
-from handeye.model import conventions
+from handeye.app.common.choices import FORMATS  # noqa: F401 - the names, defined without numpy
+from handeye.app.common.errors import RequestError
+from handeye.model.chain import conventions
 
 #: Frame names: what ROS, URDF and the controllers accept as an identifier.
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_/.-]{0,63}$")
@@ -307,7 +307,7 @@ def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, 
     _check_name("--child", child)
     number = resolve_numbers(calibration, tool, base)
     if fmt == "json":
-        from handeye.app.present.jsonio import dumps
+        from handeye.app.common.jsonio import dumps
 
         return dumps(data(calibration, parent, child)) + "\n"
     user = calibration.user_frame()

@@ -28,16 +28,16 @@ import pathlib
 
 import numpy as np
 
-from handeye.app.errors import RequestError
-from handeye.model import conventions, own_frame
-from handeye.model.names import SENSOR_MOUNTS
+from handeye.app.common.errors import RequestError
+from handeye.model.chain import conventions, own_frame
+from handeye.model.chain.names import SENSOR_MOUNTS
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
 ORTHONORMAL_TOLERANCE = 1e-6
 #: A saved result larger than this is not a calibration result.
 MAX_RESULT_BYTES = 256 * 1024**2
 #: The frame the sensor matrix is given in, by mount (on the robot flange, or fixed in the cell:
-#: the matrix in the robot base; the mounts' names: :data:`handeye.model.names.SENSOR_MOUNTS`).
+#: the matrix in the robot base; the mounts' names: :data:`handeye.model.chain.names.SENSOR_MOUNTS`).
 MOUNT_FRAME = {"flange": "flange", "world": "base"}
 
 
@@ -68,7 +68,7 @@ class Calibration:
     converged : bool
     sensor_mount : {'flange', 'world'}
         On the robot flange, or fixed in the cell.
-    positioner_axes : tuple of handeye.model.mounts.Axis
+    positioner_axes : tuple of handeye.model.chain.mounts.Axis
         The positioner's axes the calibration estimated (robot base, all angles zero); empty when
         it held them as set up (or has no positioner).
     """
@@ -87,7 +87,7 @@ class Calibration:
         """The calibration of the frame the user's files are in, for writing it out: the sensor's
         own frame when the dataset's profiles were turned into handeye's (``own_axes`` R,
         ``p = R p_own``: the matrix ``S [R 0; 0 1]``, the covariance's rotation about the own axes;
-        :mod:`handeye.model.own_frame`), without ``own_axes`` then; itself without a turn."""
+        :mod:`handeye.model.chain.own_frame`), without ``own_axes`` then; itself without a turn."""
         if self.own_axes is None:
             return self
         return dataclasses.replace(self, sensor2flange=own_frame.to_own(self.sensor2flange, self.own_axes),
@@ -258,8 +258,8 @@ def _own_axes(doc, file):
 
 def _positioner(doc, file):
     """The calibrated positioner axes of the file (``positioner`` entries with ``calibrated``), or ()."""
-    from handeye.model.mounts import Axis
-    from handeye.model.tables import LIMIT_POSITION_MM
+    from handeye.model.chain.mounts import Axis
+    from handeye.model.readers.tables import LIMIT_POSITION_MM
 
     entries = doc.get("positioner")
     if entries is None:

@@ -8,11 +8,11 @@ calibrated sphere and reports, on the least-squares (geometric) sphere of the po
 - sphere-spacing error ``SD``: measured minus calibrated distance of two sphere centres.
 
 Here the points are the scan's profiles put into the robot base through the flange poses and
-the calibration (:mod:`handeye.model.cloud`), the fit is :func:`handeye.model.sphere.fit`, and
+the calibration (:mod:`handeye.model.geometry.cloud`), the fit is :func:`handeye.model.geometry.sphere.fit`, and
 the centre is also compared with the setup's centre.
 
 Uncertainty (1 sd) of the fitted centre and radius, from three independent sources, each
-propagated through the fit's sensitivity ``-(J^T J)^-1 J^T`` (:mod:`handeye.model.sphere`):
+propagated through the fit's sensitivity ``-(J^T J)^-1 J^T`` (:mod:`handeye.model.geometry.sphere`):
 
 1. the calibration's covariance (every point moves with the one sensor pose);
 2. the robot's repeatability ``[noise] robot_mm`` (each pose's points move together);
@@ -30,9 +30,9 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.errors import RequestError
+from handeye.app.common.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
-from handeye.model import cloud, sphere
+from handeye.model.geometry import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
 #: no sphere of the setup (with two spheres: the pose cannot be assigned).
@@ -277,7 +277,7 @@ def check_sphere(label, seen, calib, setup, robot_sigma, exclude=0.0):
     label : str
     seen : SphereCloud
     calib : handeye.app.outputs.saved.Calibration
-    setup : handeye.model.scan.Sphere
+    setup : handeye.model.datasets.scan.Sphere
     robot_sigma : float
         Robot repeatability per axis, mm.
     exclude : float
@@ -334,7 +334,7 @@ def assign(points, index, spheres, ids):
         Robot base, mm.
     index : ndarray, shape (M,)
         Pose of each point.
-    spheres : sequence of handeye.model.scan.Sphere
+    spheres : sequence of handeye.model.datasets.scan.Sphere
     ids : sequence of str
 
     Returns

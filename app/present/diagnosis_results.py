@@ -10,10 +10,11 @@ import html
 
 import numpy as np
 
-from handeye.app.present.jsonio import dumps  # noqa: F401  (shared JSON helpers)
+from handeye.app.common.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
-from handeye.model.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
+from handeye.model import effects
+from handeye.model.fit.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,8 +47,6 @@ class DiagnosisResidual:
 def absorbed_sentence(name, by, centre_fitted=True, always=False):
     """Why an effect is "absorbed": the poses cannot tell it from the sensor pose or the centre
     (``always``: no pose set could, as for the catalogue's structural effects)."""
-    from handeye.model import effects
-
     if len(by) == 1 and by[0].startswith("1 sd "):  # a robot parameter the poses barely move
         return (f"{name}: too weakly seen here to estimate -- {by[0]} at the stated noise on these poses "
                 "(beside the sensor pose and the centre); poses that move it more could separate it")
@@ -77,7 +76,7 @@ class DiagnosisResult(ResultProtocol):
         Ids excluded as outliers at the end (the rows in ``inconsistent`` among them).
     inconsistent : list of ExcludedSample
         Rows whose centre columns contradict their own profile, excluded for good, with the
-        reason (the same records as calibrate's ``excluded``; :mod:`handeye.model.consistency`).
+        reason (the same records as calibrate's ``excluded``; :mod:`handeye.model.datasets.consistency`).
     absorbed_by : dict
         Effect name -> the parameters that reproduce it (not identifiable from these poses).
     rms_before_mm, rms_after_mm, heldout_rms_before_mm, heldout_rms_after_mm : float

@@ -13,7 +13,7 @@ The rules, each checked by :func:`violations` on the drawn figure and enforced b
   which draws those arrows).
 
 :func:`style` applies the rcParams (sizes, palette, colour map) for a block; :func:`save`
-draws, checks and writes a figure through :func:`handeye.app.files.save_figure_atomically`.
+draws, checks and writes a figure through :func:`handeye.app.common.files.save_figure_atomically`.
 A figure that breaks a rule is still written (a cosmetic slip must not cost a user their
 calibration's output), with a :class:`FigureStyleWarning` naming the rule; the test suite turns
 that warning into an error.
@@ -21,8 +21,10 @@ that warning into an error.
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import warnings
+from statistics import NormalDist
 
 import numpy as np
 
@@ -107,7 +109,7 @@ def save(fig, path, option="--plot", check=True):
     int
         The dpi written.
     """
-    from handeye.app.files import save_figure_atomically
+    from handeye.app.common.files import save_figure_atomically
 
     dpi = dpi_for(fig.get_figwidth())
     if check:
@@ -130,8 +132,6 @@ def png_bytes(fig, check=True, colours=256):
         inside the notebooks, and at 1,000 px a 6.5-inch contour panel is 370 kB in full colour,
         112 kB in 256 colours (142 kB at the old 80 dpi). None keeps full colour.
     """
-    import io
-
     if check:
         _warn(violations(fig))
     fig.draw_without_rendering()
@@ -356,8 +356,6 @@ def binomial_interval(successes, n, level=0.95):
     level : float
         Two-sided coverage.
     """
-    from statistics import NormalDist
-
     k, n = np.asarray(successes, float), np.asarray(n, float)
     z = NormalDist().inv_cdf(0.5 + level / 2)
     p = np.divide(k, n, out=np.full_like(k, np.nan), where=n > 0)

@@ -3,14 +3,14 @@
 Each result type (calibration, diagnosis, simulation, plan, export, cloud, validation) writes
 its own ``to_dict`` (the command's ``--json`` object) and, where it has one, its own
 ``summary`` (the command's text report); this mixin gives every one of them the rest, the same
-way: strict JSON (:func:`handeye.app.present.jsonio.dumps`), an atomic save, and a compact table in
+way: strict JSON (:func:`handeye.app.common.jsonio.dumps`), an atomic save, and a compact table in
 Jupyter made from the summary's ``name: value`` lines.
 """
 from __future__ import annotations
 
 import html
 
-from handeye.app.present.jsonio import dumps
+from handeye.app.common.jsonio import dumps
 
 
 class ResultProtocol:
@@ -28,7 +28,7 @@ class ResultProtocol:
 
     def save(self, path):
         """Write :meth:`to_json` atomically to ``path``."""
-        from handeye.app.files import write_text_atomically
+        from handeye.app.common.files import write_text_atomically
 
         write_text_atomically(path, self.to_json(), option="--out")
 

@@ -1,6 +1,8 @@
 """Plain-text and figure presentation of a calibration result (the CLI prints what this returns)."""
 from __future__ import annotations
 
+import pathlib
+
 import numpy as np
 
 #: What the orientation columns of each convention hold.
@@ -207,7 +209,7 @@ def calibration_plot(res, dataset, path):
     Parameters
     ----------
     res : handeye.app.present.results.CalibrationResult
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
         The dataset ``res`` was calibrated on (with a positioner: at the axes ``res`` holds,
         :func:`handeye.app.engine.cell_stage.dataset_at`).
     path : str or pathlib.Path
@@ -451,8 +453,6 @@ def draw_gap(ax, steps, sigma_mm):
 
 def diagnosis_figures(res, out):
     """Residuals before/after per sample, the gap shrinking step by step (PNG files in ``out``)."""
-    import pathlib
-
     from handeye.app.present import figure_style as style
     from handeye.app.present.plotting import figure
 

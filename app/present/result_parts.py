@@ -3,7 +3,7 @@
 A calibration hands its stages' outcomes to the result as these records: the fit (pose, solver,
 residuals), its uncertainty, the screening, the effects of the catalogue; the global check and
 the identifiability analysis are records of their own modules
-(:class:`handeye.app.engine.guarantee.GlobalCheck`, :class:`handeye.model.identifiability.Identifiability`).
+(:class:`handeye.app.engine.guarantee.GlobalCheck`, :class:`handeye.model.design.identifiability.Identifiability`).
 Every attribute of a part is also an attribute of the result (``result.rms_mm`` is
 ``result.fit.rms_mm``), and the JSON keys are the attributes' names, flat, as before the parts.
 """
@@ -117,7 +117,7 @@ class EffectsRecord:
 
     Attributes
     ----------
-    tests : list of handeye.model.extended.ScoreTest or None
+    tests : list of handeye.model.fit.extended.ScoreTest or None
         The result's ``effect_tests``.
     calibrated : list of handeye.app.present.results.NamedEffect or None
         The result's ``effects``.
@@ -133,8 +133,8 @@ class PositionerRecord:
 
     Attributes
     ----------
-    axes : tuple of handeye.model.mounts.Axis
-    nominal : tuple of handeye.model.mounts.Axis
+    axes : tuple of handeye.model.chain.mounts.Axis
+    nominal : tuple of handeye.model.chain.mounts.Axis
         The axes of ``setup.toml``.
     point_sd : ndarray, shape (k, 3) or None
         1-sd of each axis's point, mm (it moves normal to the axis; along it is no parameter).
@@ -248,12 +248,12 @@ class NamedEffect:
 
 
 def cleaning_summary(dataset):
-    """What profile cleaning (:mod:`handeye.model.profile_clean`) did to a dataset's profiles,
+    """What profile cleaning (:mod:`handeye.model.geometry.profile_clean`) did to a dataset's profiles,
     JSON-ready (the calibration result's ``cleaning``).
 
     Parameters
     ----------
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
 
     Returns
     -------
@@ -279,8 +279,8 @@ def cleaning_summary(dataset):
 
 def user_poses(matrix, own_axes, convention):
     """``(4x4, pose in convention, KUKA pose)`` of the sensor's own frame of a sensor pose ``matrix``
-    of handeye's frame (``[profile] own_axes``: :func:`handeye.model.own_frame.to_own`)."""
-    from handeye.model import conventions, own_frame
+    of handeye's frame (``[profile] own_axes``: :func:`handeye.model.chain.own_frame.to_own`)."""
+    from handeye.model.chain import conventions, own_frame
 
     m = own_frame.to_own(matrix, own_axes)
     return m, conventions.pose_from(convention, m), conventions.pose_from("kuka", m)
@@ -291,7 +291,7 @@ def user_std(std, covariance, own_axes, names=("tx", "ty", "tz", "wx", "wy", "wz
     of handeye's frame as the sensor's own frame's: the rotation block about the own axes
     (``dw_own = R^T dw``); the sd from the turned covariance, or (without one) from the variances
     turned alone."""
-    from handeye.model import own_frame
+    from handeye.model.chain import own_frame
 
     first = list(names).index("wx") if "wx" in names else None
     cov = own_frame.covariance_to_own(covariance, own_axes, first=first)

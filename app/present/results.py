@@ -10,7 +10,7 @@ the CLI's text report, and ``_repr_html_`` a compact table in Jupyter.
 
 Frames and units: ``sensor2flange`` is the sensor frame in the flange frame (4x4, mm);
 ``sphere_centre`` is in the robot base (mm); poses are ``x, y, z`` in mm and the orientation
-in the named robot convention (:mod:`handeye.model.conventions`). A dataset whose profiles
+in the named robot convention (:mod:`handeye.model.chain.conventions`). A dataset whose profiles
 ``dataset new`` turned (``[profile] own_axes``) computes in handeye's frame (the attributes) and
 reports in the sensor's own (:meth:`CalibrationResult.in_user_frame`: the JSON, the text, every
 saved and exported form).
@@ -20,10 +20,11 @@ from __future__ import annotations
 import dataclasses
 import html
 import json
+from json.encoder import encode_basestring_ascii as quote
 
 import numpy as np
 
-from handeye.app.present.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
+from handeye.app.common.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, NoiseTest, Uncertainty: public here too)
     FLAT,
@@ -127,8 +128,6 @@ class ResidualTable:
     def json_rows(self):
         """Strict compact JSON of each row's dict (same keys and numbers as :meth:`to_dicts`; non-finite
         numbers as null), formatted column-wise: a list of N strings."""
-        from json.encoder import encode_basestring_ascii as quote
-
         def numbers(a):  # repr: the shortest text that parses to the same float; one finiteness test per column
             out = list(map(float.__repr__, a.tolist()))
             for k in np.flatnonzero(~np.isfinite(a)).tolist():
@@ -180,7 +179,7 @@ class ExcludedSample:
         The statistical reason, and the geometric one after it when there is one.
     geometry : str or None
         The profile's geometry when it explains a poorly determined centre (a short, one-sided
-        arc near the equator ...: :mod:`handeye.model.arc_geometry`), else None.
+        arc near the equator ...: :mod:`handeye.model.geometry.arc_geometry`), else None.
     """
 
     id: str
@@ -279,7 +278,7 @@ class CalibrationResult(ResultProtocol):
         Sensor frame in its mount's frame (mm): the flange, or the robot base for a sensor fixed in
         the cell (``sensor_mount``). JSON key ``sensor_matrix``.
     sensor_mount, sphere_mount : str
-        ``flange`` or ``world``; ``world``, ``flange`` or ``positioner`` (:mod:`handeye.model.mounts`).
+        ``flange`` or ``world``; ``world``, ``flange`` or ``positioner`` (:mod:`handeye.model.chain.mounts`).
     robot_model : str or None
         The dataset's ``[robot] model`` (a built-in name or the model file's path), which
         ``export --format robot-toml|robot-urdf`` corrects by the calibrated ``joint_offsets``.
@@ -328,7 +327,7 @@ class CalibrationResult(ResultProtocol):
     excluded : list of ExcludedSample
         Gross errors excluded, with statistic and reason (``outliers`` in the JSON: their ids).
     std : Uncertainty or None
-    identifiability : handeye.model.identifiability.Identifiability or None
+    identifiability : handeye.model.design.identifiability.Identifiability or None
         Rank, singular values and observability of the final Jacobian.
     warnings : list of str
     before : Before or None
@@ -338,7 +337,7 @@ class CalibrationResult(ResultProtocol):
     noise_test : NoiseTest or None
         The fit against the stated noise model (None for the ``points`` model and closed form).
     effect_tests : list of ScoreTest or None
-        Score tests of the catalogue's effects at the fit (:func:`handeye.model.extended.score_effects`):
+        Score tests of the catalogue's effects at the fit (:func:`handeye.model.fit.extended.score_effects`):
         a significant one is named in a warning that points to ``handeye diagnose``.
     effects : list of NamedEffect or None
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
@@ -446,7 +445,7 @@ class CalibrationResult(ResultProtocol):
 
     def in_user_frame(self):
         """The result with every pose the user reads in the frame of the user's files: the
-        sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.own_frame`):
+        sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.chain.own_frame`):
         ``sensor2flange``, ``sensor_pose`` (and KUKA), the start pose, the iterates, the closed
         form's linear matrix, the covariance, correlation and 1-sd of the rotation (about the own
         axes); ``pose_frame`` then ``"own"``. Itself without a turn or when turned already.
@@ -454,8 +453,8 @@ class CalibrationResult(ResultProtocol):
         rot = self.own_axes
         if rot is None or self.pose_frame == "own" or self.sensor2flange is None:
             return self
-        from handeye.model import own_frame
-        from handeye.model.pose import transform_from_pose
+        from handeye.model.chain import own_frame
+        from handeye.model.chain.pose import transform_from_pose
 
         matrix, pose, kuka = user_poses(self.sensor2flange, rot, self.convention)
         history = None if self.history is None else np.array(

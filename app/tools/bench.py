@@ -11,7 +11,7 @@ Methods, each from the same start (the dataset's; for simulations 40 mm and a fe
   with tolerances 1e-15 so that it gets as close to the minimum as it can;
 * ``scipy-exact`` -- the same with our exact Jacobian;
 * ``ipopt-matrix`` -- CasADi IPOPT on the rotation-matrix parametrisation (up to 3,000);
-* ``fast-vm`` -- :mod:`handeye.model.fast`'s Levenberg-Marquardt in Python, normal equations from the
+* ``fast-vm`` -- :mod:`handeye.model.compiled.fast`'s Levenberg-Marquardt in Python, normal equations from the
   CasADi virtual machine (up to 3,000);
 * ``fast`` -- the same iteration compiled: generated C for the model, C driver, one call.
 
@@ -24,7 +24,9 @@ here, never in tests.
 """
 from __future__ import annotations
 
+import json
 import os
+import pathlib
 import subprocess
 import sys
 import time
@@ -33,11 +35,13 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.engine import robust
-from handeye.model import fast, scratch, simulate
-from handeye.model.calibration import CalibrationModel
-from handeye.model.dataset import load
-from handeye.model.pose import pose_from_transform, transform_from_pose
-from handeye.model.rotation import nearest_transform, transform_distance
+from handeye.model.chain.pose import pose_from_transform, transform_from_pose
+from handeye.model.common import scratch
+from handeye.model.common.rotation import nearest_transform, transform_distance
+from handeye.model.compiled import fast
+from handeye.model.datasets.dataset import load
+from handeye.model.fit.calibration import CalibrationModel
+from handeye.model.simulation import simulate
 
 SIZES = (30, 300, 3000, 30000)
 SCALING = (30, 100, 300, 1000, 3000, 10000, 30000)
@@ -254,7 +258,7 @@ def throughput(quick=False, n=None, chunk=1000):
 def startup():
     """Wall time of ``handeye calibrate`` (default options, thesis-real) with an empty
     generated-code cache (cold: sympy derives and CasADi builds) and then with it filled (warm)."""
-    cmd = [sys.executable, "-m", "handeye.app.cli", "calibrate", "--json"]
+    cmd = [sys.executable, "-m", "handeye.app.command.cli", "calibrate", "--json"]
     out = {}
     with scratch.temporary_folder() as cache:
         env = dict(os.environ, HANDEYE_CACHE=cache)
@@ -272,8 +276,6 @@ PIPELINE = (1_000, 10_000, 100_000, 1_000_000)
 
 def write_dataset(folder, n, seed=0):
     """A simulated dataset of ``n`` measurements (thesis orientations, 0.02 mm noise) in ``folder``."""
-    import pathlib
-
     flanges, xs, centre, start, _ = simulated_batch(1, n, seed)
     poses = pose_from_transform(flanges[0])
     folder = pathlib.Path(folder)
@@ -315,7 +317,7 @@ def measure_python(setup="pass", call="0", args=()):
 def measure_cli(args):
     """``{'seconds', 'peak_mb', 'exit'}`` of ``handeye ARGS`` in a fresh process (seconds and
     peak None when it died before reporting; :func:`measure_python`)."""
-    return measure_python("from handeye.app.cli import main", "main(sys.argv[1:])", args)
+    return measure_python("from handeye.app.command.cli import main", "main(sys.argv[1:])", args)
 
 
 def pipeline(sizes=PIPELINE):
@@ -344,9 +346,6 @@ CLOUD = (10_240, 102_400, 1_024_000, 3_072_000)
 def write_scan(folder, n_points, per_profile=1280, seed=0):
     """A scan of a 30 mm-radius sphere at (1500, -600, 1100) with ``n_points`` points in
     1,280-point profiles (0.01 mm noise), and a calibration file with a covariance beside it."""
-    import json
-    import pathlib
-
     rng = np.random.default_rng(seed)
     folder = pathlib.Path(folder)
     (folder / "p").mkdir(parents=True, exist_ok=True)
@@ -381,8 +380,6 @@ SLOPE_FROM = 100_000
 def use_scaling(sizes=CLOUD):
     """Wall time and peak memory of ``handeye cloud`` (binary PLY with per-point sd) and
     ``handeye validate`` against the number of points, each in a fresh process."""
-    import pathlib
-
     rows = []
     with scratch.temporary_folder() as tmp:
         for n in sizes:

@@ -13,6 +13,8 @@ import time
 
 import numpy as np
 
+import handeye
+
 
 @contextlib.contextmanager
 def _without_guarantee():
@@ -47,7 +49,6 @@ def measure(dataset="thesis-real", reps=7, unknowns="sensor"):
         ``with_ms``, ``without_ms``, ``overhead`` (with / without - 1), ``centre_search_ms``,
         ``detective_ms`` (every reading of the poses scored), ``dataset``, ``reps``.
     """
-    import handeye
     from handeye.app.engine import detective, guarantee
 
     data = handeye.load_dataset(dataset)

@@ -7,7 +7,7 @@ unweighted ``centre`` model with the sphere centre known, six unknowns. In one r
   the compiled Levenberg-Marquardt and ``scipy.optimize.least_squares`` with our exact Jacobian;
 * ``ceres`` -- Ceres' Levenberg-Marquardt (``pyceres``) on the same residual: one residual
   block of all rows over the six Euler-angle unknowns, its values and Jacobian from the same
-  generated code as scipy's (:class:`handeye.model.calibration.CalibrationModel`, ``euler``);
+  generated code as scipy's (:class:`handeye.model.fit.calibration.CalibrationModel`, ``euler``);
 * ``gtsam-align`` -- GTSAM's closed form ``Pose3.Align``: with the centre known, the residual
   ``R1_i (R2 xs_i + t2) + t1_i - c`` has the length of ``R2 xs_i + t2 - q_i`` (``q_i`` the
   sphere centre in flange i's frame), so the least-squares pose is the point-set alignment of
@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from handeye.model.calibration import CalibrationModel
-from handeye.model.pose import pose_from_transform
-from handeye.model.rotation import transform_distance
+from handeye.model.chain.pose import pose_from_transform
+from handeye.model.common.rotation import transform_distance
+from handeye.model.fit.calibration import CalibrationModel
 
 #: peers in report order: name -> the Python package it needs
 PEERS = {"ceres": "pyceres", "gtsam-align": "gtsam"}

@@ -4,7 +4,7 @@ against one IPOPT solve of its final problem built and solved from scratch (``ha
 The stages are :mod:`handeye.app.engine.calibrate`'s (request, prepare, screen, fit, verify,
 describe), timed in process after a warm-up (generated code loaded, nothing cached between
 runs but the code), median of ``reps`` runs; the reference is the final residual model of the
-samples the pipeline kept, built (:func:`handeye.model.observations.build`), turned into a
+samples the pipeline kept, built (:func:`handeye.model.datasets.observations.build`), turned into a
 CasADi NLP and solved by IPOPT from the same start, also median of ``reps``.
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _stage_times(dataset, loo):
 def _ipopt_from_scratch(prep, screened):
     from handeye import solvers
     from handeye.app.engine.problems import calibration_problem
-    from handeye.model import observations
+    from handeye.model.datasets import observations
 
     t = time.perf_counter()
     model = observations.build(screened.used, prep.kind, "matrix", prep.request.unknowns, prep.request.robot_sigma)
@@ -58,7 +58,7 @@ def pipeline_vs_solve(dataset="thesis-real", reps=5):
         ``total_no_loo``, ``ipopt`` (s), ``ratio`` and ``ratio_no_loo`` (pipeline / solve),
         ``dataset``, ``kind``, ``reps``.
     """
-    from handeye.app.api import load_dataset
+    from handeye.app.public.api import load_dataset
 
     data = load_dataset(dataset)
     _stage_times(data, True)  # warm-up: generated code loaded

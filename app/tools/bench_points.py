@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from handeye.model import simulate
+from handeye.model.simulation import simulate
 
 POSES = 15
 #: points along the simulated laser line: about 2,200 of them see the sphere (some 33,000 per scan)
@@ -50,7 +50,7 @@ def measure(quick=False, reps=None, seed=0):
         ``poses``, ``points``, ``default_s``, ``points_s`` (medians), ``ratio``, ``target``,
         ``converged`` (both), ``models`` (the default's residual name), ``reps``.
     """
-    from handeye.app.api import calibrate
+    from handeye.app.public.api import calibrate
 
     reps = reps or (3 if quick else 5)
     times = {"default": [], "points": []}

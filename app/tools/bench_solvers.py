@@ -13,7 +13,7 @@ Sections, in one process and one run:
 * ``extrapolated`` -- the study's solve counts at the two paths' per-start times: what its
   solves cost on one core without the batch (an estimate, labelled as one), and with it.
 * ``compiled`` -- per batchable method, the numpy batch against the compiled per-start loop
-  (:mod:`handeye.model.fast_starts`, C) over the same seeded starts, both on one core, the
+  (:mod:`handeye.model.compiled.fast_starts`, C) over the same seeded starts, both on one core, the
   ratio, and the share of starts that end alike (at the same stationary point, or at none,
   as the basin study classifies them); a total line over all of them.
 * ``scaling`` -- the batch's time and peak memory (``tracemalloc``, numpy's buffers included)
@@ -33,8 +33,10 @@ import tracemalloc
 import numpy as np
 
 from handeye import solvers
-from handeye.app.engine.problems import testfunction_options, testfunction_problem, testfunction_starts
-from handeye.model import fast_starts, scratch, testfunction
+from handeye.app.engine.problems import calibration_problem, testfunction_options, testfunction_problem, testfunction_starts
+from handeye.model.chain import testfunction
+from handeye.model.common import scratch
+from handeye.model.compiled import fast_starts
 
 METHODS = ("newton", "newton-ls", "sd", "bfgs", "gn", "lm", "tr", "ipopt")
 SCALING = (10, 100, 1000, 10000, 30000)
@@ -51,7 +53,8 @@ def study(quick=False):
         ``solves`` (per method, from its summary.json), ``grids``, ``exit_code``.
     """
     with scratch.temporary_folder() as tmp:
-        cmd = [sys.executable, "-m", "handeye.app.cli", "study", "testfunction", "--out", tmp] + (["--quick"] if quick else [])
+        cmd = [sys.executable, "-m", "handeye.app.command.cli", "study", "testfunction", "--out",
+               tmp] + (["--quick"] if quick else [])
         t0 = time.perf_counter()
         done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
         seconds = time.perf_counter() - t0
@@ -207,10 +210,10 @@ CALIBRATION_METHODS = (("lm", "local"), ("gn", "euler"), ("newton", "local"), ("
 def _calibration_starts(n, seed):
     """A simulated calibration (thesis strategy, 36 poses) and ``n`` starts: rotations up to
     90 deg and translations up to 200 mm off the truth (seeded)."""
-    from handeye.model import simulate
-    from handeye.model.calibration import CalibrationModel
-    from handeye.model.pose import transform_from_pose
-    from handeye.model.rotation import matrix_from_rotvec
+    from handeye.model.chain.pose import transform_from_pose
+    from handeye.model.common.rotation import matrix_from_rotvec
+    from handeye.model.fit.calibration import CalibrationModel
+    from handeye.model.simulation import simulate
 
     setup = simulate.Setup()
     sim = simulate.simulate(setup, seed=3)
@@ -240,8 +243,7 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
         ``speedup``, ``same_ends`` (sample's single and batch ends within 1e-8), ``converged``
         (fraction of the batch).
     """
-    from handeye.app.engine.problems import calibration_problem
-    from handeye.model import fast
+    from handeye.model.compiled import fast
 
     models, f2b, xs, centre, starts = _calibration_starts(n_batch, seed)
     rows = []

@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import signal
 import sys
 from typing import Optional
 
@@ -88,7 +89,7 @@ def _dask_client(b):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        from handeye.app.errors import RequestError
+        from handeye.app.common.errors import RequestError
 
         raise RequestError("--dask needs Dask's distributed scheduler: pip install 'handeye[dask]'") from None
     if b.dask == "local":
@@ -97,7 +98,7 @@ def _dask_client(b):
             with Client(cluster) as client:
                 yield client
     else:
-        from handeye.app.errors import RequestError
+        from handeye.app.common.errors import RequestError
 
         if b.jobs is not None:
             raise RequestError("--jobs applies to --dask local only; a cluster has the workers it was started with")
@@ -134,8 +135,6 @@ def _in_worker(parent, function, *args):
     it to the whole process group): the parent ends the run with one line and stops the workers
     (SIGTERM, :func:`_worker_end`); a worker's IPOPT would only add its own warning."""
     if os.getpid() != parent:
-        import signal
-
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, _worker_end)
     return function(*args)
@@ -144,7 +143,7 @@ def _in_worker(parent, function, *args):
 def _worker_end(signum, frame):
     """SIGTERM in a worker (the parent's handler sends it on its way out): its temporary files
     go, and it ends at once, silently (the parent says the one line)."""
-    from handeye.model import scratch
+    from handeye.model.common import scratch
 
     try:
         scratch.remove_all()

@@ -10,7 +10,7 @@ Every effect's parameters are zero when it is absent, so models nest. Three kind
 * ``discrete`` -- ``sign_flip`` and ``outlier``: per-sample, decided by the final outlier test.
 * ``robot`` -- ``joint_offsets``, ``link_lengths``, ``joint_compliance``: the robot did not reach
   the pose it reported; the flange pose of each sample is corrected through the robot's nominal
-  kinematics (:mod:`handeye.model.robot_errors`), with only the parameters the poses can separate
+  kinematics (:mod:`handeye.model.robot.robot_errors`), with only the parameters the poses can separate
   from the sensor pose and the sphere centre; their names depend on the robot model
   (``params(model)``).
 * ``structural`` -- effects the poses can never separate from the sensor pose and the sphere
@@ -28,7 +28,7 @@ import importlib
 
 import numpy as np
 
-from handeye.model import codegen
+from handeye.model.chain import codegen
 
 MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier",
            "base_frame", "flange_frame", "laser_plane", "joint_offsets", "link_lengths", "joint_compliance")

@@ -3,14 +3,14 @@ proportional to the load torque -- the error that makes a heavy arm's absolute a
 how far it reaches out.
 
 Each joint turns by ``k_j l_j(q)`` degrees with ``l_j`` the flange's horizontal lever about the
-joint's axis in metres (:mod:`handeye.model.robot_errors`: gravity along the robot base's -z, a
+joint's axis in metres (:mod:`handeye.model.robot.robot_errors`: gravity along the robot base's -z, a
 floor-mounted robot); parameters ``j2``, ``j3`` in degrees per metre (compliance times the load's
 weight; positive sags the load). Unlike a zero offset, which turns the joint by the same angle
 everywhere, the deflection grows with the reach: poses at one reach cannot tell the two apart
 (the identifiability gate then masks it and says so).
 """
-from handeye.model import robot_errors
 from handeye.model.effects.joint_offsets import available  # noqa: F401 (the same data make it visible)
+from handeye.model.robot import robot_errors
 
 KIND = "robot"
 NAME = "joint_compliance"

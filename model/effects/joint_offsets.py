@@ -2,9 +2,9 @@
 of an industrial arm (its encoders' zero positions, mastering).
 
 The flange the robot really reached is ``F_rep T(q)^-1 T(q + delta)``: the reported pose moved by
-the nominal model's (:mod:`handeye.model.robots`) change for the offsets ``delta``, so what the
+the nominal model's (:mod:`handeye.model.robot.robots`) change for the offsets ``delta``, so what the
 controller's own, calibrated model knows stays in. Its derivative is the chain's, exact
-(:func:`handeye.model.robots.offset_derivatives`). Needs the joint angles ``j1..j6`` and
+(:func:`handeye.model.robot.robots.offset_derivatives`). Needs the joint angles ``j1..j6`` and
 ``[robot] model``. Not every joint is measurable: a first-joint offset turns the whole robot
 about the base axis (the sphere centre absorbs it), a last-joint offset turns the flange about
 its axis (the sensor's rotation absorbs it); only the joints this pose set separates from the

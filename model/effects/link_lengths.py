@@ -3,7 +3,7 @@ link lengths the controller's model uses, which a real arm misses by a few tenth
 millimetre (machining, assembly, thermal growth).
 
 The translation of each joint's fixed transform (a chain model's joint origin, a DH model's
-``(a, 0, d)``) moved in its nonzero components (:mod:`handeye.model.robot_errors`); parameters
+``(a, 0, d)``) moved in its nonzero components (:mod:`handeye.model.robot.robot_errors`); parameters
 ``j<k>_<x|y|z>`` (chain) or ``a<k>``, ``d<k>`` (DH), in mm. The flange the robot really reached
 is ``F_rep T(q)^-1 T*(q)``, exact derivatives by the chain's product rule. Not every length is
 measurable from one fixed sphere: a length before the first joint's rotation moves the whole arm
@@ -11,8 +11,8 @@ measurable from one fixed sphere: a length before the first joint's rotation mov
 frame (the sensor translation absorbs it); only the lengths this pose set separates are
 estimated, the others reported as absorbed.
 """
-from handeye.model import robot_errors
 from handeye.model.effects.joint_offsets import available  # noqa: F401 (the same data make it visible)
+from handeye.model.robot import robot_errors
 
 KIND = "robot"
 NAME = "link_lengths"

@@ -2,7 +2,7 @@
 
 Built from what a calibration's JSON object holds (``sensor_matrix``, ``sphere_center``, the mounts,
 the positioner's axes) and the dataset it was made from (flange poses, measured centres, profiles):
-the chain of :mod:`handeye.model.mounts`, ``M_i . X . xs_i = c``, read in the robot base.
+the chain of :mod:`handeye.model.chain.mounts`, ``M_i . X . xs_i = c``, read in the robot base.
 
 ==============  ==========================================  ==========================================
 mount           sensor frame in the base, sample i          sphere centre in the base, sample i
@@ -23,8 +23,8 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model import own_frame
-from handeye.model.mounts import Mounts, sphere_in_base
+from handeye.model.chain import own_frame
+from handeye.model.chain.mounts import Mounts, sphere_in_base
 
 #: At most this many profile points per sample are drawn (evenly spaced): the view of a cell with
 #: dense profiles stays light; every point still counts in the fit.
@@ -58,7 +58,7 @@ class CellGeometry:
         :data:`MAX_PROFILE_POINTS`; empty arrays without profiles.
     radius : float
         Sphere radius, mm.
-    mounts : handeye.model.mounts.Mounts
+    mounts : handeye.model.chain.mounts.Mounts
         The mounts, with the positioner's axes the result used.
     """
 
@@ -112,7 +112,7 @@ def cell_geometry(result, dataset):
     result : dict
         ``handeye calibrate --json``'s object: ``sensor_matrix`` (4x4, mm, the sensor in its mount's
         frame), ``sphere_center`` (mm, in its mount's frame), ``residuals`` (``used`` per sample).
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
         The dataset the result was made from (same ids, in order).
     """
     mounts = result_mounts(result, dataset)

@@ -15,7 +15,7 @@ import pathlib
 
 import numpy as np
 
-from handeye.app.present.jsonio import dumps
+from handeye.app.common.jsonio import dumps
 from handeye.app.present.web import figures, parts, view
 
 HERE = pathlib.Path(__file__).parent
@@ -128,7 +128,7 @@ def build(result, dataset, diagnosis=None, result_json=None, source="the calibra
     ----------
     result : dict
         ``handeye calibrate --json``'s object of a calibration of ``dataset``.
-    dataset : handeye.model.dataset.Dataset
+    dataset : handeye.model.datasets.dataset.Dataset
     diagnosis : dict, optional
         ``handeye diagnose --json``'s object on the same dataset.
     result_json : str, optional

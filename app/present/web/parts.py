@@ -29,8 +29,8 @@ def _num(value, digits=4):
 
 def header(result, title, generated):
     """Title and provenance: dataset, its SHA-256 and path, the tool's version, the options, when."""
-    from handeye.app.files import tool_version
-    from handeye.model.mounts import CELLS
+    from handeye.app.common.files import tool_version
+    from handeye.model.chain.mounts import CELLS
 
     cell = CELLS.get((result.get("sensor_mount", "flange"), result.get("sphere_mount", "world")), "")
     rows = [("dataset", f"{result.get('dataset')} ({result.get('dataset_path')})"),

@@ -53,7 +53,7 @@ class ReportResult(ResultProtocol):
 def write_report(result, dataset, html, diagnosis=None, result_json=None, source="calibrated now", option="--html"):
     """Build the page of ``result`` (a calibration's JSON object) on ``dataset`` and write it to
     ``html`` atomically; the :class:`ReportResult`."""
-    from handeye.app.files import write_text_atomically
+    from handeye.app.common.files import write_text_atomically
     from handeye.app.present.web import page, view
 
     if source == "calibrated now":

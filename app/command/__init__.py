@@ -1,0 +1,3 @@
+"""The ``handeye`` command line: the parser of every subcommand's options (standard library only, so
+``handeye --help`` never loads numpy) and the handlers, signals and exit codes.
+"""

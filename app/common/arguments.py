@@ -1,0 +1,72 @@
+"""The checks every command's arguments share: a dataset named or given, numbers in their ranges,
+poses as text or numbers (:mod:`handeye.app.public.api` and :mod:`handeye.app.public.making` use them; one
+place, one message for each slip)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from handeye.app.common.errors import RequestError
+from handeye.app.common.options import MAX_ITER  # noqa: F401  (handeye.app.common.arguments.MAX_ITER, as before)
+
+
+def load_dataset(name_or_folder, clean=True):
+    """Read and check a dataset.
+
+    Parameters
+    ----------
+    name_or_folder : str, pathlib.Path or Dataset
+        An embedded dataset (``'thesis-real'``, ``'thesis-sim'``; see
+        :func:`handeye.model.datasets.dataset.embedded_names`) or a folder holding ``measurements.csv``
+        and ``setup.toml``. A Dataset is returned as it is (cleaned or not as it was loaded).
+    clean : bool
+        Clean every profile (:mod:`handeye.model.geometry.profile_clean`: speckle and background points
+        dropped, what was dropped recorded in ``cleaning``); False keeps every point (``--no-clean``).
+
+    Returns
+    -------
+    handeye.model.datasets.dataset.Dataset
+
+    Raises
+    ------
+    handeye.InputError
+        A :class:`handeye.model.datasets.dataset.DatasetError` naming file, row and column of the first
+        problem found.
+    """
+    from handeye.model.datasets.dataset import Dataset, load
+
+    if isinstance(name_or_folder, Dataset):
+        return name_or_folder
+    return load(_path_argument(name_or_folder), clean=bool(clean))
+
+
+def _path_argument(value):
+    if not isinstance(value, (str, os.PathLike)):
+        raise RequestError(f"dataset: give an embedded dataset's name or a folder, got {value!r}")
+    return value
+
+
+def _pose_text(pose, option):
+    """A pose given as text or numbers, as text (numbers that are not numbers are bad input)."""
+    if isinstance(pose, str):
+        return pose
+    try:
+        return ",".join(repr(float(v)) for v in np.ravel(np.asarray(pose, dtype=object)))
+    except (TypeError, ValueError):
+        raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
+
+
+def _number(value, option, low, high, low_open=False):
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) and np.isfinite(value)
+    if not ok or value > high or value < low or (low_open and value == low):
+        raise RequestError(f"{option} must lie in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+def _integer(value, option, low, high=None):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
+            high is not None and value > high):
+        bound = f"at least {low}" if high is None else f"at least {low} and at most {high}"
+        raise RequestError(f"{option} must be an integer {bound}, got {value!r}")
+    return int(value)

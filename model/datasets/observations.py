@@ -1,0 +1,98 @@
+"""From a dataset to a calibration model: which residual, which weights.
+
+Three residual models (:mod:`handeye.model.fit.calibration`):
+
+* ``centre`` -- the seed's: the sphere centre reconstructed in the sensor frame. Without
+  profiles every component gets the same weight. With profiles each sample is whitened by
+  its covariance: the circle fit's, propagated through ``y = side sqrt(R^2 - r^2)`` (y's error
+  grows like ``(r/|y|) sigma_r`` near the equator), plus the robot's repeatability.
+* ``measurement`` -- the circle (centre ``xc, zc`` and radius r in the laser plane) that the
+  sensor actually measured, whitened by the circle fit's covariance plus the robot's
+  repeatability propagated into it. The side of the laser plane no longer matters.
+* ``points`` -- every profile point lies on the sphere. Equal weights.
+
+The robot's repeatability (``robot_sigma``, mm per axis, default 0.025 mm: the KR 60 HA's
++-0.05 mm read as 2 sigma) is an assumption, stated in every result that uses it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from handeye.model.common.errors import InputError
+from handeye.model.datasets.dataset import NOISE_ROBOT_MM as ROBOT_SIGMA  # the default of [noise] robot_mm
+from handeye.model.fit.calibration import KINDS, CalibrationModel
+from handeye.model.geometry import circle
+
+MODEL_KINDS = tuple(KINDS)  # the residual kinds, defined once in handeye.model.fit.calibration
+CIRCLE_FIT = "geometric"
+
+
+class ObservationError(InputError):
+    """The dataset lacks what the residual model needs (profiles)."""
+
+
+def default_kind(dataset):
+    """``measurement`` when every sample has a profile, else ``centre``."""
+    if dataset.profiles is not None and all(p is not None for p in dataset.profiles):
+        return "measurement"
+    return "centre"
+
+
+def _require_profiles(dataset, kind):
+    if dataset.profiles is None or any(p is None for p in dataset.profiles):
+        missing = [i for i, p in zip(dataset.ids, dataset.profiles or [None] * len(dataset)) if p is None]
+        raise ObservationError(
+            f"{dataset.path / 'measurements.csv'}: --model {kind} needs a profile for every sample; "
+            f"missing for {', '.join(missing[:8])}{' ...' if len(missing) > 8 else ''}"
+        )
+
+
+def circles(dataset, fit=CIRCLE_FIT):
+    """Circles fitted to every profile and their covariances: (N, 3) and (N, 3, 3)."""
+    _require_profiles(dataset, "measurement")
+    out, covs = [], []
+    for ident, row, pts in zip(dataset.ids, dataset.rows, dataset.profiles):
+        try:
+            c = circle.fit_circle(pts[:, 0], pts[:, 1], fit)
+        except circle.CircleFitError as exc:
+            raise ObservationError(f"{dataset.path / 'measurements.csv'}, row {row}, column 'profile': the profile of "
+                                   f"sample {ident!r}: {exc}") from None
+        out.append([c.x, c.z, c.r])
+        covs.append(circle.circle_covariance(pts[:, 0], pts[:, 1], c))
+    return np.array(out), np.array(covs)
+
+
+def circle_noise(cov_circle, r, radius, robot_sigma):
+    """Covariance of a measured circle ``(xc, zc, r)`` as the measurement residual sees it:
+    the circle fit's plus the robot's repeatability, which moves the predicted centre
+    isotropically and so the radius residual by ``-(p_y / r) dp_y``."""
+    y_squared = max(radius**2 - r**2, 1e-12)
+    return cov_circle + robot_sigma**2 * np.diag([1.0, 1.0, y_squared / r**2])
+
+
+def whitening(cov):
+    """Matrices W (N, m, m) with ``W^T W = cov^-1`` (inverse Cholesky factors)."""
+    return np.linalg.inv(np.linalg.cholesky(cov))
+
+
+def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_SIGMA, sphere_centre=None):
+    """The calibration model of ``dataset`` with residual ``kind`` (module docstring)."""
+    if kind not in MODEL_KINDS:
+        raise ObservationError(f"--model: unknown {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
+    centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
+    radius = dataset.sphere_diameter / 2
+    f2b = dataset.motions()
+    if kind == "points":
+        _require_profiles(dataset, kind)
+        return CalibrationModel.from_profiles(f2b, list(dataset.profiles), radius, centre, rotation, unknowns)
+    has_profiles = dataset.profiles is not None and all(p is not None for p in dataset.profiles)
+    if kind == "centre":
+        whiten = None
+        if has_profiles:
+            circ, covs = circles(dataset)
+            cov = np.array([circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)])
+            whiten = whitening(cov + robot_sigma**2 * np.eye(3))
+        return CalibrationModel(f2b, dataset.centre_in_sensor, centre, rotation, unknowns, whiten=whiten)
+    circ, covs = circles(dataset)
+    total = np.array([circle_noise(cov, r, radius, robot_sigma) for cov, r in zip(covs, circ[:, 2])])
+    return CalibrationModel.from_circles(f2b, circ, radius, centre, rotation, unknowns, whiten=whitening(total))

@@ -1,0 +1,617 @@
+"""The extended model: the sensor pose with named effects of the catalogue, fitted and tested.
+
+What :func:`handeye.diagnose` searches with and :func:`handeye.calibrate` tests and
+calibrates with (``--effects``): a structure (the centre free or not, the data effects of
+:mod:`handeye.model.effects` in the model, sign flips), its residuals and exact Jacobian
+(the chain's, :class:`~handeye.model.fit.calibration.CalibrationModel`, times each effect's
+derivative), its least-squares fit, and the score (Lagrange multiplier) test of a candidate
+effect at a fit, with the identifiability gate that refuses what the poses cannot separate.
+The application's workflow around it lives in :mod:`handeye.app.engine.diagnose`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from handeye import solvers
+from handeye.model import effects
+from handeye.model.common.statistics import chi2_survival
+from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
+
+
+@dataclasses.dataclass(frozen=True)
+class ScoreTest:
+    """A candidate effect's score test in one round (Bonferroni over the round's candidates)."""
+
+    name: str
+    score: float
+    p_bonferroni: float
+    gate: float
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
+#: Fraction of an effect's columns that must lie outside the current model's span.
+GATE = 1e-3
+#: Nominal noise per residual component (mm) for chi2/dof when the dataset states none
+#: (``[noise] centre_mm``; ``--sigma``): the tests themselves use the estimated sigma.
+NOMINAL_SIGMA = 0.05
+FOLDS = 5
+
+
+@dataclasses.dataclass
+class Structure:
+    """What the model contains besides the sensor pose."""
+
+    centre: bool = False
+    data_effects: tuple = ()
+    flips: frozenset = frozenset()
+
+
+@dataclasses.dataclass
+class Fit:
+    x: np.ndarray  # local point: t2, R2 (9), [c]
+    params: dict  # effect name -> array of parameters
+    e: np.ndarray  # (N, 3) residuals of all samples
+    jac: np.ndarray  # (N, 3, p) Jacobian of all samples: theta then effect parameters; None when chunked
+    names: list
+    ssr: float
+    m: int
+    p: int
+    converged: bool = True
+    message: str = ""
+
+    @property
+    def sigma2(self):
+        return self.ssr / max(self.m - self.p, 1)
+
+    def uncertainty(self, mask):
+        """1-sd (step units: mm, rad, effect units) and correlation of every parameter, from
+        ``sigma^2 (J^T J)^+`` over the samples in ``mask``."""
+        jac = self.jac[mask].reshape(-1, self.p)
+        cov = self.sigma2 * np.linalg.pinv(jac.T @ jac)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        scale = np.where(std > 0, std, 1.0)
+        return std, cov / np.outer(scale, scale)
+
+
+def sample_chunks(mask, chunk=None):
+    """The indices of the samples in ``mask`` (bool (N,)), at most ``chunk`` (default
+    :data:`~handeye.model.fit.calibration.ROW_CHUNK`) at a time."""
+    idx, step = np.flatnonzero(mask), chunk or ROW_CHUNK
+    for a in range(0, len(idx), step):
+        yield idx[a : a + step]
+
+
+class Samples:
+    """The dataset's samples with a structure: residuals, Jacobians, fits."""
+
+    def __init__(self, dataset, sigma=None):
+        self.d = dataset
+        self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
+        self.f2b = dataset.motions()
+        self.radius = dataset.sphere_diameter / 2
+        self.n = len(dataset)
+        #: per robot effect (:mod:`handeye.model.robot.robot_errors`) the indices of the parameters it
+        #: estimates, chosen by the identifiability gate (:func:`handeye.model.design.robot_gate.robot_free`); all until then
+        self.robot_free = {}
+        #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
+        self.robot_always = set()
+
+    def params_of(self, name):
+        """The parameter names an effect has on these samples (a robot effect: those it estimates)."""
+        effect = effects.get(name)
+        if effect.KIND != "robot":
+            return effect.PARAMS
+        names = effect.params(self.d.robot_model)
+        return tuple(names[k] for k in self.robot_free.get(name, range(len(names))))
+
+    def _free(self, name):
+        return list(self.robot_free.get(name, range(len(effects.get(name).params(self.d.robot_model)))))
+
+    def robot_motion(self, params, rows=None):
+        """The carrier motions with the flange poses corrected by the robot effects ``params`` (name
+        -> the estimated parameters) (N, 4, 4), and per effect their derivatives (N, k, 4, 4) with
+        respect to its estimated parameters. The flange is ``F' = F_rep T(q)^-1 T*(q)``
+        (:mod:`handeye.model.robot.robot_errors`); the motion is ``F'`` (sensor on the flange), its
+        inverse (sensor fixed, sphere on the flange: ``d inv(F') = -inv(F') dF' inv(F')``), as
+        :func:`handeye.model.chain.mounts.motions`; not with the sphere on a positioner (the robot effects'
+        ``available`` says why)."""
+        from handeye.model.chain.mounts import inverse_transforms
+        from handeye.model.robot.robot_errors import perturbed
+
+        model, mounts = self.d.robot_model, self.d.mounts
+        values = {}
+        for name, p in params.items():
+            full = np.zeros(len(effects.get(name).params(model)))
+            full[self._free(name)] = p
+            values[name] = full
+        take = (lambda a: a) if rows is None else (lambda a: a[rows])
+        fk, derivatives = perturbed(model, take(self.d.joints), values)
+        moved = take(self._reported_over_nominal)
+        corrected = moved @ fk
+        d = {name: moved[:, None] @ dfk[:, self._free(name)] for name, dfk in derivatives.items()}
+        if mounts.default:
+            return corrected, d
+        if mounts.sensor != "world":
+            raise ValueError("robot effects with the sphere on a positioner are not modelled")
+        inv = inverse_transforms(corrected)
+        return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
+
+    @functools.cached_property
+    def _reported_over_nominal(self):
+        """``F_rep T(q)^-1`` of every sample (N, 4, 4), the same at every evaluation."""
+        return self.d.flange2base() @ np.linalg.inv(self.d.robot_model.flange2base(self.d.joints))
+
+    def measured(self, structure, rows=None):
+        """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
+        an index array, only, when given)."""
+        if rows is None:
+            xs = self.d.centre_in_sensor.copy()
+            for i in structure.flips:
+                xs[i, 1] = -xs[i, 1]
+            return xs
+        xs = self.d.centre_in_sensor[rows]
+        if structure.flips:
+            flip = np.isin(rows, np.fromiter(structure.flips, int))
+            xs[flip, 1] = -xs[flip, 1]
+        return xs
+
+    def evaluate(self, structure, x, params, rows=None):
+        """Residuals (N, 3) and Jacobian (N, 3, p) at point x with effect parameters (of the
+        samples ``rows``, an index array, only, when given)."""
+        xs = self.measured(structure, rows)
+        f2b = self.f2b if rows is None else self.f2b[rows]
+        robot_names = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
+        robot = {}
+        if robot_names:
+            f2b, robot = self.robot_motion({n: params[n] for n in robot_names}, rows)
+        cols = []
+        for name in structure.data_effects:
+            if name in robot:
+                cols.append(name)
+                continue
+            with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
+                xs, dxs = effects.correct(name, xs, self.radius, params[name])
+            cols.append(dxs)
+        unknowns = "sensor+sphere" if structure.centre else "sensor"
+        model = CalibrationModel(f2b, xs, self.d.sphere_centre, "local", unknowns)
+        e, j = model.residual_and_jacobian(x)
+        r2 = model.sensor_rotation(x)
+        r12 = f2b[:, :3, :3] @ r2
+        in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
+        extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
+                 for c in cols]
+        return e, np.concatenate([j] + extra, axis=2) if extra else j, model
+
+    def names(self, structure):
+        base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
+        for name in structure.data_effects:
+            base += [f"{name}.{p}" for p in self.params_of(name)]
+        return base
+
+    def normal_equations(self, structure, x, params, mask, chunk=None):
+        """``(J^T J, J^T r, r^T r)`` over the samples in ``mask``, summed over chunks of at most
+        ``chunk`` (default :data:`~handeye.model.fit.calibration.ROW_CHUNK`) samples."""
+        jtj, jtr, rtr = 0.0, 0.0, 0.0
+        for rows in sample_chunks(mask, chunk):
+            e, jac, _ = self.evaluate(structure, x, params, rows)
+            flat, r = jac.reshape(-1, jac.shape[2]), e.ravel()
+            jtj, jtr, rtr = jtj + flat.T @ flat, jtr + flat.T @ r, rtr + r @ r
+        return jtj, jtr, rtr
+
+    def residuals(self, structure, x, params, mask=None, chunk=None):
+        """Residuals (N, 3) of the samples in ``mask`` (default all), chunk by chunk: the
+        Jacobian of every sample is never held."""
+        mask = np.ones(self.n, bool) if mask is None else mask
+        out = np.full((self.n, 3), np.nan)
+        for rows in sample_chunks(mask, chunk):
+            out[rows] = self.evaluate(structure, x, params, rows)[0]
+        return out
+
+    def fit(self, structure, mask, x0, params0=None, chunk=None):
+        """Least squares of the structure on the samples in ``mask``. Above
+        :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples (or with ``chunk``) on normal
+        equations summed chunk by chunk: the Fit then holds no Jacobian (``jac`` None)."""
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in structure.data_effects} | (params0 or {})
+        keys = list(structure.data_effects)
+        sizes = [len(self.params_of(n)) for n in keys]
+        n_pt, n_theta = len(x0), self._chart(structure.centre).n
+        big = chunk is not None or int(np.count_nonzero(mask)) > ROW_CHUNK
+
+        def split(z):
+            x, params, k = z[:n_pt], {}, n_pt
+            for key, size in zip(keys, sizes):
+                params[key] = z[k : k + size]
+                k += size
+            return x, params
+
+        z0 = np.concatenate([x0] + [params0[k] for k in keys])
+        problem = self._problem(structure, mask, split, (n_pt, n_theta, n_theta + sum(sizes)), chunk, big)
+        solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
+        x, params = split(solved.x)
+        if big:
+            e, jac = self.residuals(structure, x, params, None, chunk), None
+        else:
+            e, jac, _ = self.evaluate(structure, x, params)
+        ssr = float(np.sum(e[mask] ** 2))
+        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n_theta + sum(sizes),
+                   bool(solved.converged), solved.message)
+
+    def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
+        """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
+
+        Parameters
+        ----------
+        structure : Structure
+        rows : ndarray of int
+            The samples fitted (evaluated on these alone: a subsample of a large dataset).
+        weights : ndarray, shape (len(rows),)
+        x0 : ndarray
+            Start point (local chart).
+        params0 : dict, optional
+            Start effect parameters (default zero).
+        max_iter : int
+
+        Returns
+        -------
+        x : ndarray
+        params : dict
+            Effect name -> parameters.
+        e : ndarray, shape (len(rows), 3)
+            Residuals of the samples ``rows`` at the fit.
+        """
+        keys = list(structure.data_effects)
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
+        chart, n_pt = self._chart(structure.centre), len(x0)
+        n = chart.n + sum(len(params0[k]) for k in keys)
+        sw = np.sqrt(np.repeat(np.asarray(weights, float), 3))
+
+        def split(z):
+            ends = np.cumsum([n_pt] + [len(params0[k]) for k in keys])
+            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
+
+        problem = solvers.Problem(
+            n=n,
+            retract=lambda z, d: np.concatenate([chart.retract(z[:n_pt], d[:chart.n]), z[n_pt:] + d[chart.n:]]),
+            residual=lambda z: sw * self.evaluate(structure, *split(z), rows)[0].ravel(),
+            jacobian=lambda z: sw[:, None] * self.evaluate(structure, *split(z), rows)[1].reshape(-1, n))
+        z0 = np.concatenate([x0] + [params0[k] for k in keys])
+        x, params = split(solvers.solve(problem, z0, "lm", {"max_iter": max_iter}).x)
+        return x, params, self.evaluate(structure, x, params, rows)[0]
+
+    def _problem(self, structure, mask, split, sizes, chunk, big):
+        """The solvers' Problem of :meth:`fit` (``sizes``: point, chart step and step lengths):
+        on normal equations when ``big``."""
+        retract_model, (n_pt, n_theta, n) = self._chart(structure.centre), sizes
+
+        def retract(z, delta):
+            return np.concatenate([retract_model.retract(z[:n_pt], delta[:n_theta]), z[n_pt:] + delta[n_theta:]])
+
+        if big:
+            return solvers.Problem(
+                n=n, retract=retract,
+                residual=lambda z: self.residuals(structure, *split(z), mask, chunk)[mask].ravel(),
+                jacobian=lambda z: self.evaluate(structure, *split(z))[1][mask].reshape(-1, n),
+                normal=lambda z: self.normal_equations(structure, *split(z), mask, chunk))
+        at = solvers.last_point(lambda z: self.evaluate(structure, *split(z))[:2])  # a step's Jacobian at its residual's point
+        return solvers.Problem(
+            n=n, retract=retract,
+            residual=lambda z: at(z)[0][mask].ravel(),
+            jacobian=lambda z: at(z)[1][mask].reshape(-1, n))
+
+    def _chart(self, centre_free):
+        """A one-row local-chart model: the point layout and retraction of a structure."""
+        return CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local",
+                                "sensor+sphere" if centre_free else "sensor")
+
+    def point(self, structure, sensor2flange, centre=None):
+        return self._chart(structure.centre).point_from(sensor2flange, self.d.sphere_centre if centre is None else centre)
+
+    def heldout_rms(self, structure, mask, fit):
+        """RMS prediction error (mm) of held-out samples, 5-fold cross-validation over ``mask``."""
+        idx = np.where(mask)[0]
+        folds = np.array_split(np.random.default_rng(0).permutation(idx), min(FOLDS, len(idx)))
+        errs = []
+        for fold in folds:
+            train = mask.copy()
+            train[fold] = False
+            f = self.fit(structure, train, fit.x, fit.params)
+            errs.append(np.sum(f.e[fold] ** 2, axis=1))
+        return float(np.sqrt(np.mean(np.concatenate(errs))))
+
+    def transform(self, x):
+        return self._chart(False).sensor2flange(x[:12])
+
+    def centre(self, structure, x):
+        return x[12:15] if structure.centre else self.d.sphere_centre
+
+
+#: Above this many rows the orthonormal basis of the Jacobian's columns is CholeskyQR2 (two
+#: Cholesky passes of the normal equations: matrix products, several times faster than
+#: Householder QR on (3 million, p), and as orthogonal for a condition number below ~1e7).
+CHOLESKY_QR_ABOVE = 30_000
+
+
+def _times(tall, small):
+    """``tall @ small`` for a tall (m, p) and a small (p, k) matrix, as ``(small^T tall^T)^T``:
+    the same products, several times faster (numpy's matmul of a tall matrix by a small one
+    does not reach BLAS's speed; the transposed product does)."""
+    return (small.T @ tall.T).T
+
+
+def _projection(jac_cur):
+    """Orthonormal basis (m, p) of the columns of ``jac_cur`` (m, p)."""
+    if len(jac_cur) <= CHOLESKY_QR_ABOVE:
+        return np.linalg.qr(jac_cur)[0]
+    q = jac_cur
+    for _ in range(2):
+        try:
+            r = np.linalg.cholesky(q.T @ q).T
+        except np.linalg.LinAlgError:
+            return np.linalg.qr(jac_cur)[0]
+        d = np.abs(np.diag(r))
+        if not np.all(np.isfinite(r)) or d.min() <= 1e-7 * d.max():  # ill-conditioned: Householder
+            return np.linalg.qr(jac_cur)[0]
+        q = _times(q, np.linalg.inv(r))
+    return q
+
+
+def gate(jac_cur, cand, names, q=None, absorbers=True):
+    """Fraction of the candidate's columns outside the current span, and who absorbs it
+    (``q``: :func:`_projection` of ``jac_cur`` when already computed; without ``absorbers``
+    the list is empty and its least-squares solve skipped)."""
+    norms = np.linalg.norm(cand, axis=0)
+    scaled = cand / np.where(norms > 0, norms, 1.0)
+    q = _projection(jac_cur) if q is None else q
+    perp = scaled - _times(q, q.T @ scaled)
+    s_perp = np.linalg.svd(perp, compute_uv=False)
+    s_full = np.linalg.svd(scaled, compute_uv=False)
+    frac = float(s_perp[-1] / max(s_full[-1], 1e-300))
+    if not absorbers:
+        return frac, []
+    coef, *_ = np.linalg.lstsq(jac_cur, scaled, rcond=None)
+    weight = np.abs(coef) * np.linalg.norm(jac_cur, axis=0)[:, None]
+    # strongest first; weights equal to 6 digits (a frame shift absorbed by cx, cy, cz alike)
+    # keep the parameters' order, so the list does not follow the last bits of the solve
+    strength = np.round(weight.max(axis=1) / max(weight.max(), 1e-300), 6)
+    top = np.argsort(-strength, kind="stable")
+    absorbers = [names[k] for k in top if strength[k] > 0.1][:6]
+    return frac, absorbers
+
+
+def _moved_centre(dfk, in_flange):
+    """Derivatives (N, 3, k) of the centre ``F p`` seen from flanges whose derivatives are ``dfk``
+    (N, k, 4, 4), ``in_flange`` (N, 3) the centre in the flange frame."""
+    return np.einsum("nkij,nj->nik", dfk[..., :3, :3], in_flange) + np.swapaxes(dfk[..., :3, 3], 1, 2)
+
+
+def candidate_columns(prob, structure, fit, mask, name):
+    """Jacobian columns (rows of the samples in mask) of a candidate effect at the fit."""
+    cols = candidate_rows(prob, structure, fit, None, name)
+    return cols[mask].reshape(-1, cols.shape[2])
+
+
+def candidate_rows(prob, structure, fit, rows, name):
+    """Jacobian columns (k, 3, q) of a candidate effect at the fit, of the samples ``rows`` (an
+    index array; None: every sample)."""
+    effect = effects.get(name)
+    xs = prob.measured(structure, rows)
+    f2b = prob.f2b if rows is None else prob.f2b[rows]
+    robot = {n: fit.params[n] for n in structure.data_effects if effects.get(n).KIND == "robot"}
+    if robot or effect.KIND == "robot":
+        trial = robot | ({name: np.zeros(len(prob.params_of(name)))} if effect.KIND == "robot" else {})
+        f2b, derivatives = prob.robot_motion(trial, rows)
+    for eff in structure.data_effects:
+        if eff not in robot:
+            xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
+    if effect.KIND == "robot":
+        r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
+    r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+    r12 = f2b[:, :3, :3] @ r2
+    if effect.KIND == "centre":
+        return -np.broadcast_to(np.eye(3), (len(xs), 3, 3))
+    if effect.KIND == "data":
+        with np.errstate(invalid="ignore", divide="ignore"):
+            _, dxs = effects.correct(name, xs, prob.radius, np.zeros(len(effect.PARAMS)))
+        return np.einsum("nij,njk->nik", r12, dxs)
+    t2 = fit.x[:3]
+    u = np.einsum("ij,nj->ni", r2, xs) + t2
+    q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
+    return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
+
+
+def score_test(fit, mask, cand):
+    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    r = fit.e[mask].ravel()
+    q = _projection(jac_cur)
+    a = cand - _times(q, q.T @ cand)
+    g = a.T @ r
+    stat = float(g @ np.linalg.lstsq(a.T @ a, g, rcond=None)[0]) / fit.sigma2
+    return stat, chi2_survival(stat, cand.shape[1])
+
+
+def score_test_robust(fit, mask, cand, q=None):
+    """The score test with a variance robust to unequal noise between samples (a reconstructed
+    centre's y is noisier where the laser plane passes near the sphere's centre): the score's
+    variance is summed over the samples (cluster-robust), with the small-sample factor m / (m - p).
+    ``q``: :func:`_projection` of the fit's Jacobian on ``mask`` when already computed."""
+    r = fit.e[mask].ravel()
+    q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
+    a = cand - _times(q, q.T @ cand)
+    g = a.T @ r
+    per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
+    m = len(r)
+    v = per_sample.T @ per_sample * m / max(m - fit.p, 1)
+    stat = float(g @ np.linalg.lstsq(v, g, rcond=None)[0])
+    return stat, chi2_survival(stat, cand.shape[1])
+
+
+def _candidates(structure, skip):
+    """The catalogue's effects the score tests try, in the catalogue's order."""
+    return [effect.NAME for effect in effects.catalogue() if effect.KIND in ("data", "centre")
+            and effect.NAME not in skip and not (effect.NAME == "sphere_center" and structure.centre)]
+
+
+def _chunk_columns(prob, structure, fit, rows, names):
+    """The fit's Jacobian (3k, p), residual (3k,) and the candidates' columns (3k, q) of the
+    samples ``rows``."""
+    _, jac, _ = prob.evaluate(structure, fit.x, fit.params, rows)
+    cols = {}
+    for name in names:
+        c = candidate_rows(prob, structure, fit, rows, name)
+        cols[name] = c.reshape(-1, c.shape[2])
+    return jac.reshape(-1, fit.p), fit.e[rows].ravel(), cols
+
+
+def _first_pass(prob, structure, fit, mask, names, chunk):
+    """Sums over the samples in ``mask``: ``J^T J``, ``J^T r``, whether J and r are finite, and
+    per candidate ``(C^T J, C^T C, C^T r, finite)``."""
+    p = fit.p
+    jtj, jtr, finite = np.zeros((p, p)), np.zeros(p), True
+    sums = {name: [0.0, 0.0, 0.0, True] for name in names}
+    for rows in sample_chunks(mask, chunk):
+        j, r, cols = _chunk_columns(prob, structure, fit, rows, names)
+        finite = finite and bool(np.all(np.isfinite(j)) and np.all(np.isfinite(r)))
+        jtj += j.T @ j
+        jtr += j.T @ r
+        for name, c in cols.items():
+            s = sums[name]
+            s[0], s[1], s[2] = s[0] + c.T @ j, s[1] + c.T @ c, s[2] + c.T @ r
+            s[3] = s[3] and bool(np.all(np.isfinite(c)))
+    return jtj, jtr, finite, sums
+
+
+def _gate_from_sums(chol, cj, cc):
+    """:func:`gate`'s fraction from sums: the candidate's scaled columns' Gram matrix less its
+    part in the span of J (``chol``: the lower Cholesky factor of ``J^T J``)."""
+    norms = np.sqrt(np.diag(cc))
+    norms = np.where(norms > 0, norms, 1.0)
+    full = cc / np.outer(norms, norms)
+    w = np.linalg.solve(chol, (cj / norms[:, None]).T)
+    perp = full - w.T @ w
+    s_perp = np.sqrt(max(float(np.linalg.eigvalsh(perp)[0]), 0.0))
+    s_full = np.sqrt(max(float(np.linalg.eigvalsh(full)[0]), 0.0))
+    return float(s_perp / max(s_full, 1e-300))
+
+
+def score_by_sums(prob, structure, fit, mask, names, chunk=None):
+    """The robust score tests (:func:`score_test_robust`) of the candidates ``names`` in two
+    passes over chunks of the samples in ``mask``, never holding the Jacobian of every sample:
+    the first sums the normal equations and the candidates' cross products (gate, score), the
+    second each sample's score for the variance. Returns ``[(p, name, statistic, gate)]``,
+    ``[]`` when the fit has no finite derivative, or None when ``J^T J`` is too ill-conditioned
+    for its Cholesky factor (then the full arrays' Householder QR is needed)."""
+    jtj, jtr, finite, sums = _first_pass(prob, structure, fit, mask, names, chunk)
+    if not finite:
+        return []
+    try:
+        chol = np.linalg.cholesky(jtj)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.abs(np.diag(chol))
+    if not np.all(np.isfinite(chol)) or d.min() <= 1e-7 * d.max():
+        return None
+    tested = {}
+    for name, (cj, cc, cr, ok) in sums.items():
+        frac = _gate_from_sums(chol, cj, cc) if ok else 0.0
+        if ok and frac >= GATE:
+            b = np.linalg.solve(jtj, cj.T)  # projection coefficients G^-1 J^T C
+            tested[name] = (b, cr - b.T @ jtr, frac, 0.0)
+    for rows in sample_chunks(mask, chunk) if tested else ():
+        j, r, cols = _chunk_columns(prob, structure, fit, rows, list(tested))
+        for name, (b, g, frac, v) in tested.items():
+            a = cols[name] - j @ b
+            per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
+            tested[name] = (b, g, frac, v + per_sample.T @ per_sample)
+    m = fit.m
+    found = []
+    for name, (b, g, frac, v) in tested.items():
+        stat = float(g @ np.linalg.lstsq(v * m / max(m - fit.p, 1), g, rcond=None)[0])
+        found.append((chi2_survival(stat, len(g)), name, stat, frac))
+    return found
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibrated:
+    """A calibration the effects are tested at.
+
+    ``mask`` (N,) bool: the samples it used; ``sensor2flange`` (4, 4); ``centre`` (3,): the sphere centre in
+    the base, mm; ``unknowns``: 'sensor' or 'sensor+sphere'.
+    """
+
+    mask: np.ndarray
+    sensor2flange: np.ndarray
+    centre: np.ndarray
+    unknowns: str = "sensor"
+
+
+def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
+    """Score tests of the catalogue's continuous effects at a calibration (step 3 alone).
+
+    Parameters
+    ----------
+    dataset : handeye.model.datasets.dataset.Dataset
+    at : Calibrated
+    skip : sequence of str
+        Data effects already in the model: fitted with it, and the others tested given them.
+    chunk : int, optional
+        Samples per chunk of the sums (:func:`score_by_sums`); default the full arrays up to
+        :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples used, chunks of that many above.
+    robot : callable, optional
+        ``robot(prob, structure, fit, mask) -> [(p, name, statistic, gate)]``: the robot effects'
+        tests (:func:`handeye.model.design.robot_gate.robot_scores`, which gates their parameters), taken
+        into the same Bonferroni family; not on the chunked path.
+    prob : Samples, optional
+        The dataset's samples with the robot effects of ``skip`` already gated
+        (:func:`handeye.model.design.robot_gate.score_effects`); default new ones.
+
+    Returns
+    -------
+    list of ScoreTest
+        Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
+        the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
+    """
+    prob, mask = prob or Samples(dataset), np.asarray(at.mask, bool)
+    structure = Structure(centre=at.unknowns == "sensor+sphere", data_effects=tuple(skip))
+    with np.errstate(all="ignore"):
+        fit = prob.fit(structure, mask, prob.point(structure, at.sensor2flange, at.centre), chunk=chunk)
+    if fit.jac is None:  # many samples: sums over chunks
+        found = score_by_sums(prob, structure, fit, mask, _candidates(structure, skip), chunk)
+        if found is not None:
+            return _ranked(found)
+        fit = dataclasses.replace(fit, jac=prob.evaluate(structure, fit.x, fit.params)[1])
+    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+    if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
+        return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
+    found, q = [], _projection(jac_cur)  # one basis for every candidate
+    for effect in effects.catalogue():
+        name = effect.NAME
+        if effect.KIND not in ("data", "centre") or name in skip or (name == "sphere_center" and structure.centre):
+            continue
+        cols = candidate_columns(prob, structure, fit, mask, name)
+        if not np.all(np.isfinite(cols)):
+            continue
+        frac, _ = gate(jac_cur, cols, fit.names, q=q, absorbers=False)
+        if frac < GATE:
+            continue
+        stat, p = score_test_robust(fit, mask, cols, q=q)
+        found.append((p, name, stat, frac))
+    return _ranked(found + (robot(prob, structure, fit, mask) if robot is not None else []))
+
+
+def _ranked(found):
+    """ScoreTests of ``[(p, name, statistic, gate)]``, Bonferroni-adjusted, most significant first."""
+    found = sorted(found)
+    return [ScoreTest(name, stat, min(p * len(found), 1.0), frac) for p, name, stat, frac in found]
+
+
+#: A robot parameter's column must keep this fraction outside the span of the sensor pose, the
+#: sphere centre and the parameters already chosen to be estimated (stricter than :data:`GATE`:
+#: one column).
+JOINT_GATE = 1e-2
+
