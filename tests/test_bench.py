@@ -69,8 +69,9 @@ def test_degenerate_data_are_not_a_calibration(compiled):
 
 @pytest.mark.slow(sibling="test_quick_bench_reports_every_section_and_plots")
 def test_bench_reports_every_method():
-    """The whole benchmark but for the start-up: the guarantee's nine repetitions, the point
-    clouds up to 3 million points (two minutes here)."""
+    """The whole benchmark but for the start-up, every section at its full size (the point clouds up
+    to 3 million points), each timed once (``reps=1``: every section's repetitions are capped by it;
+    repetitions sharpen the timing, which is the benchmark's printout, not a test's assertion)."""
     res = bench.run(reps=1, sizes=(30,), throughput_n=8, with_startup=False, scaling_sizes=(30, 60, 120, 240),
                     pipeline_sizes=(6_000, 12_000))
     table = res["cases"]["thesis-real"]

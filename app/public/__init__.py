@@ -1,3 +1,3 @@
 """The public functions: the command line's commands as Python (what ``import handeye`` gives),
-simulate and plan, the report's command, and the argument checks they share.
+simulate and plan, and the report's command.
 """

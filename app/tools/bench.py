@@ -432,11 +432,11 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     result["throughput_per_s"] = tp["all_cores_per_s"]
     from handeye.app.tools import bench_guarantee
 
-    result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=3 if quick else 9, unknowns=u)
+    result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=min(reps, 3 if quick else 9), unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
     from handeye.app.tools import bench_pipeline
 
-    result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=3 if quick else 9)
+    result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=min(reps, 3 if quick else 9))
     from handeye.app.tools import bench_points
 
     result["peers"] = peers(reps)
