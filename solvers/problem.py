@@ -151,7 +151,11 @@ def last_point(evaluate):
     def at(x):
         key = np.asarray(x, float).tobytes()
         if last.get("key") != key:
-            last["key"], last["value"] = key, evaluate(x)
+            value = evaluate(x)
+            for a in value if isinstance(value, tuple) else (value,):  # shared by the calls at this point:
+                if isinstance(a, np.ndarray):  # read-only, so that no caller changes another's
+                    a.setflags(write=False)
+            last["key"], last["value"] = key, value
         return last["value"]
 
     return at

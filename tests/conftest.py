@@ -47,12 +47,28 @@ def pytest_runtest_logreport(report):
     CLOCK["tests"][report.nodeid] = (slow, seconds + report.duration, time.monotonic())
 
 
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session, exitstatus):
+    """A rate check run in shards (tests/shards.py) whose rate no shard asserted fails the run."""
+    factory = getattr(session.config, "_tmp_path_factory", None)
+    if os.environ.get("PYTEST_XDIST_WORKER") or factory is None or factory._basetemp is None:
+        return
+    import shards
+
+    CLOCK["unasserted"] = shards.unasserted(factory.getbasetemp())
+    if CLOCK["unasserted"] and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
 def pytest_terminal_summary(terminalreporter, config):
     """The tiers' times (README, "Run the tests"): wall time of the default tier (its last test's
     end; the slow tests run after it) and of the whole run, and the test time in each tier."""
+    line = terminalreporter.write_line
+    for name, stored, expected in CLOCK.get("unasserted", ()):
+        line(f"rate check {name}: {stored} of {expected} shards stored their part: its rate was NOT asserted "
+             "(run every shard: tests/shards.py)", red=True)
     if not CLOCK["tests"] or CLOCK["start"] is None:
         return
-    line = terminalreporter.write_line
     workers = getattr(config.option, "numprocesses", None) or 1
     for slow, name in ((False, "default tier"), (True, "slow tests")):
         runs = [(s, end) for k, (is_slow, s, end) in CLOCK["tests"].items() if is_slow == slow]

@@ -6,8 +6,9 @@ Split into shards (``@pytest.mark.parametrize("shard", range(K))``), each comput
 checks what holds cell by cell; :func:`pool` stores the part in the run's shared folder (the one
 parent of every pytest-xdist worker's temporary folder) and, once every shard of the check has
 stored its part, returns all of them, in shard order, to the shard that completed the set, which
-asserts the rate over the whole. Shards run in any order, on any worker; a run that selects only
-some shards (``-k``) checks those cell by cell and leaves the rate unasserted, saying so.
+asserts the rate over the whole. Shards run in any order, on any worker. A run that ran only some
+shards of a check (``-k``, ``--lf``, a shard that failed) has not asserted its rate: the run fails,
+naming the check (:func:`unasserted`, called by tests/conftest.py at the end of the session).
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ def pool(tmp_path_factory, name, shard, n_shards, part):
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
+        (folder / ".expected").write_text(str(n_shards))
         (folder / f"{shard}.json").write_text(json.dumps(part))
         stored = sorted(folder.glob("*.json"), key=lambda p: int(p.stem))
         if len(stored) < n_shards:
@@ -44,3 +46,14 @@ def pool(tmp_path_factory, name, shard, n_shards, part):
             return None
         done.touch()
         return [json.loads(p.read_text()) for p in stored]
+
+
+def unasserted(root):
+    """``[(check, shards stored, shards expected)]`` of the checks in the run folder ``root`` whose
+    rate no shard asserted (not every shard ran, or one failed before storing its part)."""
+    out = []
+    for folder in sorted((root / "shards").glob("*")):
+        if folder.is_dir() and not (folder / ".asserted").exists():
+            expected = (folder / ".expected").read_text() if (folder / ".expected").exists() else "?"
+            out.append((folder.name, len(list(folder.glob("*.json"))), expected))
+    return out

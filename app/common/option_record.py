@@ -180,7 +180,8 @@ class Command:
     def documented(self, function):
         """Decorator: the ``{parameters}`` line of the public function's docstring becomes its
         ``Parameters`` section (:meth:`parameters`)."""
-        function.__doc__ = function.__doc__.replace("{parameters}", self.parameters())
+        if function.__doc__:  # None under python -OO, which strips docstrings
+            function.__doc__ = function.__doc__.replace("{parameters}", self.parameters())
         return function
 
     def markdown(self):

@@ -82,7 +82,9 @@ _CALIBRATE = (
         help="default `matrix` (nine entries, RᵀR = I as constraints) for IPOPT, `local` (R·exp([δ]×)) otherwise; `euler` is "
              "the thesis's A, B, C"),
     Opt('--start', kind='pose', metavar='X,Y,Z,A,B,C',
-        help="start sensor pose in the dataset's convention (`--convention`'s; KUKA `X,Y,Z,A,B,C` in mm and degrees, UR "
+        help="start sensor pose in the dataset's convention and in the frame of your sensor's own files (its own "
+             "frame when `dataset new` turned the profiles: `[profile] own_axes`) (`--convention`'s; KUKA `X,Y,Z,A,B,C` "
+             "in mm and degrees, UR "
              "`X,Y,Z,RX,RY,RZ` in mm and radians, ...; write `--start=` so that a leading minus is not read as an option), "
              "overrides the setup's; without either, the closed-form estimate"),
     Opt('--convention', choices=tuple(CONVENTIONS),
@@ -363,7 +365,8 @@ _DATASET_NEW = (
         help='sphere centre in the robot base, mm (without it: calibrate with --unknowns sensor+sphere)',
         pytype='str or sequence of 3 floats, optional'),
     Opt('--start', metavar='X,Y,Z,...',
-        help="Start sensor pose on the flange in the dataset's convention (``[sensor] start_pose``).",
+        help="Start sensor pose on the flange in the dataset's convention and the sensor's own frame (the frame of "
+             "the profile files; ``[sensor] start_pose``).",
         pytype='str or sequence, optional'),
     Opt('--joints', metavar='FILE', help='joint angles j1..j6 per pose, degrees (needs --robot)',
         kind='path'),

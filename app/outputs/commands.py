@@ -74,7 +74,7 @@ def given_calibration(calibration, sensor_mount=None, own_axes=None):
         if getattr(calibration, "pose_frame", "handeye") == "own":  # a result turned for the user: back to handeye's
             cal = dataclasses.replace(cal, own_axes=None).from_user_frame(cal.own_axes)
     else:
-        cal = saved.load(calibration)
+        cal = saved.load(calibration).for_dataset(own_axes)
     return cal
 
 

@@ -103,6 +103,19 @@ class Calibration:
                                    covariance=own_frame.covariance_to_own(self.covariance, own_axes, forward=False),
                                    own_axes=np.asarray(own_axes, float))
 
+    def for_dataset(self, own_axes):
+        """This calibration (a file read, in handeye's frame) for a dataset whose profiles were
+        turned by ``own_axes`` (None: not turned): a file that names no sensor frame is of the user's
+        own, as a 4x4 typed in is; a file of another sensor's own frame is refused."""
+        if own_axes is None:
+            return self
+        if self.own_axes is None:
+            return self.from_user_frame(own_axes)
+        if not np.allclose(self.own_axes, own_axes, atol=1e-9):
+            raise CalibrationFileError(self.source, "is of a sensor whose own frame is not this dataset's (its "
+                                                    "own_axes differ from [profile] own_axes)", "own_axes")
+        return self
+
     @property
     def sensor_matrix(self):
         """The 4x4 sensor frame in :attr:`frame` (mm): sensor2flange or sensor2base."""

@@ -42,8 +42,6 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
         return None, None
     from handeye.app.outputs import commands, saved
 
-    if calibration is not None and sensor_pose is not None:
-        raise RequestError("give --calibration or --sensor-pose, not both")
     if sensor_pose is not None:
         values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
         text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
@@ -52,7 +50,7 @@ def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
             cal = cal.from_user_frame(data.own_axes)
             source += " (the sensor's own frame, turned by [profile] own_axes)"
     else:
-        cal, source = saved.load(_path_argument(calibration)), str(calibration)
+        cal, source = saved.load(_path_argument(calibration)).for_dataset(data.own_axes), str(calibration)
         source += "" if cal.converged else " (a calibration that did not converge)"
         if not cal.converged and not scoring:
             raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
@@ -108,7 +106,8 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
 
 
 def _written(result, data, record, out=None, plot=None, report=None):
-    """``result`` (of the sensor's own frame where the profiles were turned) written where asked."""
+    """``result`` written where asked, and returned with every pose of the user's frame (the sensor's
+    own frame where the profiles were turned: its attributes too, as its JSON)."""
     from handeye.app.common.files import provenance
 
     if data.own_axes is not None:  # profiles turned by dataset new: every pose out is of the sensor's own frame
@@ -127,7 +126,7 @@ def _written(result, data, record, out=None, plot=None, report=None):
         from handeye.app.present.web.write import write_report
 
         write_report(result.to_dict(), data, report, result_json=result.to_json(), option="--report")
-    return result
+    return result.in_user_frame()  # its attributes too: every pose in the frame of the user's files
 
 
 @options.COMMANDS["diagnose"].documented
@@ -177,10 +176,12 @@ def _diagnosed(data, parts, level, sigma):
     if parts == "sensor+sphere" and not isinstance(own, Exception) and np.all(np.isfinite(own.sphere_centre)):
         data = dataclasses.replace(data, sphere_centre=np.asarray(own.sphere_centre, float))
     result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
+    result = dataclasses.replace(result, unknowns=parts,
+                                 own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float))
+    result = result.in_user_frame()  # calibrate's pose (own) is of the user's frame too
     against = (f"calibrate refuses these data: {own}" if isinstance(own, Exception)
                else procedure.against_calibrate(result, own))
-    return dataclasses.replace(result, unknowns=parts, against_calibrate=against,
-                               own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float)), data
+    return dataclasses.replace(result, against_calibrate=against), data
 
 
 def _diagnosis_figures(result, figures, plot):

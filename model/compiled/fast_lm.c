@@ -1,10 +1,10 @@
 /* Levenberg-Marquardt for the hand-eye calibration on the local rotation chart, in C.
  *
  * The model is not written here: every derivative comes from the CasADi function
- * `normal_one` generated (model/fast.py) from the one symbolic source (model/symbolic.py).
+ * `normal_one` generated (model/compiled/fast.py) from the one symbolic source (model/chain/symbolic.py).
  * For one measurement i it returns H_i = J_i^T J_i (6 x 6), g_i = J_i^T e_i (6) and
  * f_i = |e_i|^2 / 2, with e_i = R1_i (R2 exp([d]x) xs_i + t2 + dt) + t1_i - c at d = 0, dt = 0.
- * This file sums them over the measurements and runs the iteration of model/fast.py's
+ * This file sums them over the measurements and runs the iteration of model/compiled/fast.py's
  * Python fallback line for line (Marquardt's scaled damping, Nocedal & Wright 10.3):
  *
  *   solve (H + mu diag H) p = -g;   trial  t2 + p[0:3],  R2 exp([p[3:6]]x);
@@ -15,7 +15,7 @@
  * Large-residual data (thesis-real: RMS 5.6 mm) make Gauss-Newton converge linearly, so
  * stopping on the cost alone would end some 1e-6 mm short of the minimum.
  *
- * Compiled together with the generated source by model/fast.py (gcc -O3); called via ctypes.
+ * Compiled together with the generated source by model/compiled/fast.py (gcc -O3); called via ctypes.
  */
 #include <math.h>
 #include <string.h>

@@ -2,7 +2,7 @@
  *
  * No function or derivative is written here: he_f (f), he_g (grad f), he_h (Hessian of f,
  * row-major), he_r (residual) and he_j (its Jacobian, row-major) are CasADi functions generated
- * (model/fast_starts.py) from the one symbolic source (model/symbolic.py, via model/codegen.py).
+ * (model/compiled/fast_starts.py) from the one symbolic source (model/chain/symbolic.py, via model/chain/codegen.py).
  * This file is the iteration of each method of solvers/ (newton.py, line_search.py,
  * gauss_newton.py, levenberg_marquardt.py, trust_region.py) for one row of the batch, rule for
  * rule, with the same stopping tests and counters; comments name the Python it follows. Points

@@ -49,7 +49,8 @@ class CellGeometry:
     residual_base : ndarray, shape (N, 3)
         ``measured - sphere``, robot base, mm.
     residual_sensor : ndarray, shape (N, 3)
-        The same vector in each sample's sensor frame (x along the laser line, z the stand-off), mm.
+        The same vector in each sample's sensor frame (x along the laser line, z the stand-off; the
+        sensor's own frame, as ``sensor2base``, where the profiles were turned: ``own_axes``), mm.
     fans : ndarray, shape (N, 3, 3)
         The laser fan of each sample as a triangle: the sensor origin and the two ends of the arc
         it measured (or of the sphere's width at the measured centre), robot base, mm.
@@ -131,6 +132,9 @@ def cell_geometry(result, dataset):
     profiles = [_to_base(s2b[i], p) for i, p in enumerate(local)]
     fans = np.stack([_fan(s2b[i], local[i], xs[i], radius) for i in range(len(xs))])
     used = _used(result, dataset)
+    if result.get("sensor_frame") == "own":  # drawn and tabled in the frame the user reads: the sensor's own
+        rot = np.asarray(result["own_axes"], float)
+        s2b, e_sensor = s2b @ own_frame.to_own(np.eye(4), rot), e_sensor @ rot
     return CellGeometry(list(dataset.ids), used, f2b, s2b, measured, sphere, e_base, e_sensor, fans, profiles,
                         radius, mounts)
 

@@ -63,7 +63,7 @@ def result_card(result, snippets):
     if own:
         sd_line += ("<p class='hint'>The sensor's own frame (its driver's points, what <code>handeye export</code> "
                     "writes): the profiles were turned into the laser plane by <code>[profile] own_axes</code>; the "
-                    "residual columns below are in the profiles' frame.</p>")
+                    "drawn sensor frames and the residual columns below are of the sensor's own frame too.</p>")
     matrix = result.get("sensor_matrix")
     mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
     centre = result.get("sphere_center") or []
