@@ -52,7 +52,9 @@ def test_public_keywords_and_defaults_are_the_tables(command):
 @pytest.mark.parametrize("command", ["calibrate"])
 def test_readme_option_tables_are_the_rendering(command):
     block = README.split(f"<!-- options: {command} -->\n", 1)[1].split("\n<!-- end options -->", 1)[0]
-    assert block == COMMANDS[command].markdown()
+    assert block == COMMANDS[command].markdown(), (  # the table is made, not written
+        f"README's {command} table is not the rendering of app/common/options.py: replace the block between its "
+        f"markers by COMMANDS[{command!r}].markdown()")
 
 
 def test_provenance_options_are_those_saved_before():
@@ -63,3 +65,13 @@ def test_provenance_options_are_those_saved_before():
         "rotation": None, "start": [1, 2.5, 3, 0, 0, 0], "convention": None, "max_iter": None, "model": None,
         "keep_all": False, "alpha": None, "no_loo": False, "no_clean": False, "sigma": None, "robot_sigma": None,
         "effects": None, "plot": None, "report": None}
+
+
+def test_the_package_imports_and_runs_under_python_oo(tmp_path):
+    """``python -OO`` strips docstrings: the tables' docstring sections are skipped, every command still runs."""
+    import subprocess
+    import sys
+
+    code = "import handeye; from handeye.app.command.cli import main; raise SystemExit(main(['datasets']))"
+    p = subprocess.run([sys.executable, "-OO", "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and "thesis-real" in p.stdout, p.stderr[-1000:]

@@ -135,9 +135,9 @@ def test_calibrate_reports_the_own_frame(turned, cell):
     assert gimbal == (abs(abs(kuka_of(np.array(out["sensor_matrix"]))[4]) - 90) < 1.0)
     saved = json.loads((tmp / "cal.json").read_text())
     np.testing.assert_allclose(saved["sensor_matrix"], out["sensor_matrix"], atol=1e-12)
-    # the sd of the rotation about the own axes: own x = x, own y = handeye z, own z = -handeye y
-    sd_h = result.std.sensor_rotation_deg  # the Python attributes are of handeye's frame
-    np.testing.assert_allclose(out["std"]["sensor_rotation_deg"], np.abs(sd_h)[[0, 2, 1]], rtol=1e-9)
+    # the Python attributes are of the own frame too: what a caller passes on (cloud, compare) is what it read
+    assert result.pose_frame == "own" and near(np.asarray(result.sensor2flange), truth_own)
+    np.testing.assert_allclose(result.std.sensor_rotation_deg, out["std"]["sensor_rotation_deg"], rtol=1e-12)
     cov = np.array(out["covariance"]["matrix"])
     np.testing.assert_allclose(np.degrees(np.sqrt(np.diag(cov)[3:6])), out["std"]["sensor_rotation_deg"], rtol=1e-9)
     text = result.summary()
@@ -209,6 +209,17 @@ def test_typed_poses_are_of_the_own_frame(turned, cell):
     assert back.between["translation_mm"] < 1e-6 and back.between["rotation_deg"] < 1e-6
     typed4 = handeye.compare(tmp / "cell", own, tmp / "cal.json")
     assert typed4.between["translation_mm"] < 1e-6 and typed4.between["rotation_deg"] < 1e-6
+    # a file that names no frame (the matrix copied from --json) is of the user's own frame, as a typed 4x4
+    bare = tmp / "bare.json"
+    bare.write_text(json.dumps({"sensor_matrix": own.tolist()}))
+    np.testing.assert_allclose(handeye.cloud(tmp / "cell", bare).points, by_file.points, atol=1e-6)
+    assert handeye.compare(tmp / "cell", bare, tmp / "cal.json").between["translation_mm"] < 1e-6
+    # the result's own attributes, passed on, are what its JSON says: of the own frame
+    np.testing.assert_allclose(handeye.cloud(tmp / "cell", result.sensor2flange).points, by_file.points, atol=1e-6)
+    other = tmp / "other.json"  # a file of another sensor's own frame is refused, never turned by the wrong axes
+    other.write_text(json.dumps({**json.loads((tmp / "cal.json").read_text()), "own_axes": np.eye(3).tolist()}))
+    with pytest.raises(handeye.InputError, match="own_axes"):
+        handeye.cloud(tmp / "cell", other)
     for entry in typed4.to_dict()["scores"].values():
         np.testing.assert_allclose(entry["sensor_matrix"], own, atol=1e-6)
     assert numbers(typed4.summary().splitlines()[3])[:3] == pytest.approx(kuka_of(own)[:3], abs=1e-3)

@@ -87,3 +87,20 @@ def test_the_readme_names_both_tiers_and_ci_runs_its_command():
     assert "bash .ci/browser" in section and "chromium-driver" in section  # and the README says so
     assert command.endswith("python -m pytest -q")  # the full suite
     assert 'python -m pytest -q -m "not slow"' in section  # the default tier
+
+
+def test_a_rate_check_in_shards_is_asserted_once_and_only_when_every_shard_ran(tmp_path):
+    """tests/shards.py: the shard that completes the set gets every part, in shard order, once; until
+    then the check is listed as unasserted (which fails the run, conftest.pytest_sessionfinish)."""
+    import shards
+
+    class Factory:  # where the run's folder is: a test's own, not this run's (whose checks must all be asserted)
+        def getbasetemp(self):
+            return tmp_path / "worker"
+
+    root = shards.run_root(Factory())
+    assert [len(s) for s in shards.shards(10, 3)] == [3, 4, 3] and sum(map(len, shards.shards(7, 7))) == 7
+    assert shards.pool(Factory(), "rate", 1, 2, ["b"]) is None
+    assert shards.unasserted(root) == [("rate", 1, "2")]
+    assert shards.pool(Factory(), "rate", 0, 2, ["a"]) == [["a"], ["b"]]
+    assert shards.unasserted(root) == [] and shards.pool(Factory(), "rate", 0, 2, ["a"]) is None
