@@ -200,7 +200,12 @@ def _betainc(a, b, x):
         lbeta = (_lgamma(a + b) - _lgamma(a) - _lgamma(b))
         front = np.exp(lbeta + a * np.log(x) + b * np.log1p(-x))
         direct = x < (a + 1.0) / (a + b + 2.0)
-        out = np.where(direct, front * _betacf(a, b, x) / a, 1.0 - front * _betacf(b, a, 1.0 - x) / b)
+        a1, b1, x1, f1, d1 = (np.ravel(v) for v in (a, b, x, front, direct))
+        out = np.empty(x1.shape)
+        # each element's continued fraction on its own side only (the other side's is not needed)
+        out[d1] = f1[d1] * _betacf(a1[d1], b1[d1], x1[d1]) / a1[d1]
+        out[~d1] = 1.0 - f1[~d1] * _betacf(b1[~d1], a1[~d1], 1.0 - x1[~d1]) / b1[~d1]
+        out = out.reshape(x.shape)
     out = np.where(x <= 0, 0.0, np.where(x >= 1, 1.0, out))
     return np.clip(out, 0.0, 1.0)
 
