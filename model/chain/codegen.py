@@ -17,6 +17,8 @@ derived again on every run, and a :class:`CacheWarning` says so, once per proces
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import hashlib
 import math
@@ -132,12 +134,35 @@ def generated_source(name, build):
         cached = _read_checked(folder / file)
         if cached is not None:
             return cached
-    inputs, outputs = build()
-    text = _print_function(inputs, outputs)
     folder = cache_dir()
-    if folder is not None:
-        _store(folder / file, text)
+    with _deriving(folder, file):  # processes that miss the same file at once: one derives, the others read it
+        cached = None if folder is None else _read_checked(folder / file)
+        if cached is not None:
+            return cached
+        inputs, outputs = build()
+        text = _print_function(inputs, outputs)
+        if folder is not None:
+            _store(folder / file, text)
     return text
+
+
+@contextlib.contextmanager
+def _deriving(folder, file):
+    """An exclusive lock on ``file``'s derivation in ``folder`` (a sweep's workers or a test run's
+    processes starting on an empty cache derive each function once, not once each); no lock
+    where the folder cannot be written or locked."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle = open(folder / f".{file}.lock", "w")
+    except (OSError, AttributeError):  # no folder (None), or one that cannot be written
+        yield
+        return
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
 
 
 def _store(path, text):
