@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import pytest
+import shards
 
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 
@@ -53,8 +54,6 @@ def pytest_sessionfinish(session, exitstatus):
     factory = getattr(session.config, "_tmp_path_factory", None)
     if os.environ.get("PYTEST_XDIST_WORKER") or factory is None or factory._basetemp is None:
         return
-    import shards
-
     CLOCK["unasserted"] = shards.unasserted(factory.getbasetemp())
     if CLOCK["unasserted"] and session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
@@ -140,11 +139,9 @@ def simulate(folder, seed=0, n=20, noise_mm=0.05, truth=(190.0, 100.0, 130.0, 17
 
 def run_cache(tmp_path_factory):
     """The generated-code cache of this test run: apart from the user's, built once per run and
-    shared by every pytest-xdist worker of the run (their temporary folders have one parent; the
-    cache writes each file atomically, so workers that derive the same function at once agree)."""
-    base = tmp_path_factory.getbasetemp()
-    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    folder = root / "handeye-cache"
+    shared by every pytest-xdist worker of the run (in the folder they share,
+    :func:`shards.run_root`; one derivation per file, each written atomically)."""
+    folder = shards.run_root(tmp_path_factory) / "handeye-cache"
     folder.mkdir(exist_ok=True)
     return folder
 

@@ -113,8 +113,7 @@ _CALIBRATE = (
              '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
              'angles and `[robot] model`); their parameters and 1-sd in `effects`',
         pytype='str or sequence of str, optional'),
-    Opt('--json', action='store_true', keyword='',
-        help='machine-readable output'),
+    _json('machine-readable output'),
     Opt('--plot', kind='path', metavar='FILE', help='residuals per measurement and the sphere centres through the chain (PNG)'),
     Opt('--report', kind='path', metavar='OUT.html',
         help='also write the one-file HTML report ([`handeye report`](#a-report-to-look-at-handeye-report)): the cell in 3-D, '

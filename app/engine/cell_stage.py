@@ -105,7 +105,7 @@ def fit(dataset, free, sensor, centre, mask, axes=None):
     problem = solvers.Problem(n=model.n, residual=lambda x: at(x)[0].ravel(), retract=model.retract,
                               jacobian=lambda x: at(x)[1][:, :, model.columns].reshape(-1, model.n))
     res = solvers.solve(problem, x0, "lm", {"max_iter": MAX_ITER})
-    r, jac = model.residual(res.x), model.jacobian(res.x)
+    r, jac = problem.residual(res.x), problem.jacobian(res.x)  # one evaluation at the end point
     dof = max(len(r) - model.n, 1)
     sigma = float(np.sqrt(r @ r / dof))
     ident = identifiability.analyse(jac, model.names)

@@ -11,9 +11,10 @@ the CLI's text report, and ``_repr_html_`` a compact table in Jupyter.
 Frames and units: ``sensor2flange`` is the sensor frame in the flange frame (4x4, mm);
 ``sphere_centre`` is in the robot base (mm); poses are ``x, y, z`` in mm and the orientation
 in the named robot convention (:mod:`handeye.model.chain.conventions`). A dataset whose profiles
-``dataset new`` turned (``[profile] own_axes``) computes in handeye's frame (the attributes) and
-reports in the sensor's own (:meth:`CalibrationResult.in_user_frame`: the JSON, the text, every
-saved and exported form).
+``dataset new`` turned (``[profile] own_axes``) computes in handeye's frame and reports in the
+sensor's own (:meth:`CalibrationResult.in_user_frame`: the JSON, the text, every saved and
+exported form, and the attributes of what :func:`handeye.calibrate` returns; ``pose_frame`` says
+which).
 """
 from __future__ import annotations
 
