@@ -204,8 +204,8 @@ def calibration_residual(rotation, kind="centre"):
     hess = [sp.hessian(e[k], theta) for k in range(e.shape[0])]
     if rotation == "local":
         at0 = {d: 0 for d in q}
-        e, jac = e.subs(at0), jac.subs(at0)
-        hess = [h.subs(at0) for h in hess]
+        e, jac = e.xreplace(at0), jac.xreplace(at0)
+        hess = [h.xreplace(at0) for h in hess]
     return {
         "theta": theta,
         "data": tuple(r1) + tuple(t1) + tuple(row),
@@ -381,4 +381,4 @@ def cell_residual(n_axes):
     jac = e.jacobian(theta)
     at0 = {s: 0 for s in list(dt) + list(dr) + [s for s in theta[9:]]}
     return {"theta": tuple(theta), "extra": tuple(extra), "data": tuple(m_r) + tuple(m_t) + tuple(xs) + tuple(angles),
-            "e": e.subs(at0), "jac": jac.subs(at0)}
+            "e": e.xreplace(at0), "jac": jac.xreplace(at0)}
