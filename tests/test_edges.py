@@ -187,8 +187,10 @@ def test_a_signal_at_start_up_or_in_the_solve_is_one_line(tmp_path, sig, moment)
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 @pytest.mark.parametrize("delay", [0.3, 0.8, 1.5, 2.5])
 def test_a_signal_at_any_moment_leaves_no_temporary_file(tmp_path, sig, delay):
-    """Whenever it comes: the signal's code and its one line, or (too late) the run's own ending;
-    never a temporary file, never a half-written --out."""
+    """Whenever it comes: the signal's code and its one line, or (too late) the run's own ending, or
+    (too early: on a loaded machine 0.3 s may fall before the interpreter reaches handeye's handler)
+    the signal's default death with nothing said and nothing written; never a temporary file, never
+    a half-written --out."""
     out = tmp_path / "x.json"
     proc = subprocess.Popen(HANDEYE + ["calibrate", "thesis-real", "--no-loo", "--out", str(out)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -197,7 +199,7 @@ def test_a_signal_at_any_moment_leaves_no_temporary_file(tmp_path, sig, delay):
     err = proc.stderr.read()
     code, line = ENDINGS[sig]
     rc = proc.wait(timeout=60)
-    assert (rc, err) == (code, line) or (rc in (0, 1) and "Traceback" not in err), (rc, err)
+    assert (rc, err) in ((code, line), (-sig, "")) or (rc in (0, 1) and "Traceback" not in err), (rc, err)
     assert _leftovers(tmp_path) == []
     if out.exists():
         assert json.loads(out.read_text())["dataset"] == "thesis-real"
