@@ -34,11 +34,8 @@ ALLOWED = {
     "model/fit/calibration.py::CalibrationModel.__init__": _PUBLIC + " (README: calibration_problem(CalibrationModel(...)))",
     "model/fit/calibration.py::CalibrationModel.from_circles": _PUBLIC + " (CalibrationModel's documented constructor)",
     # private helpers of the files under rewrite
-    "app/ingest/command.py::_files": _REWRITE,
     "app/outputs/commands.py::_calibration": _REWRITE,
     # the signature a file under rewrite calls
-    "app/ingest/pairing.py::pair": _PINNED + " (ingest/command.py)",
-    "app/ingest/writer.py::setup_text": _PINNED + " (ingest/command.py)",
     "app/outputs/formats.py::text": _PINNED + " (outputs/commands.py)",
     "app/present/web/write.py::write_report": _PINNED + " (reporting.py, api.py)",
     "model/design/planning.py::plan": _PINNED + " (making.py)",

@@ -115,6 +115,7 @@ def test_rosbags_missing(tmp_path, capsys, monkeypatch):
     (["--columns", "id,x,y"], ["--columns", "3 columns"]),
     (["--columns", "id,x,y,z,a,b,foo"], ["--columns", "'foo'"]),
     (["--match", "p\\d+"], ["--match", "one group"]),
+    (["--match", "("], ["--match", "not a regular expression"]),
     (["--center", "1,2"], ["--center"]),
     (["--joints", "j.csv"], ["--joints needs --robot"]),
     (["--profile-axes", "x,q"], ["--profile-axes"]),

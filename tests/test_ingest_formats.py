@@ -102,7 +102,7 @@ def test_plane_found_and_turned_properly():
     assert np.isclose(np.linalg.det(mapping.rotation), 1.0)
     np.testing.assert_allclose(plane.to_xz(xy0, mapping), POINTS[:, [0, 2]])
     assert plane.decide([("f", POINTS)]).identity
-    turned = plane.decide([("f", xy0)], axes="-x,y")
+    turned = plane.decide([("f", xy0)], axes=((0, -1.0), (1, 1.0)))  # --profile-axes -x,y
     np.testing.assert_allclose(plane.to_xz(xy0, turned)[:, 0], -POINTS[:, 0])
 
 
@@ -126,7 +126,7 @@ def test_pose_files_csv_whitespace_json(tmp_path):
     (tmp_path / "c.json").write_text(json.dumps(kuka.tolist()))
     t = poses.read_poses(tmp_path / "c.json", convention="kuka")
     assert t.format == "JSON list of lists" and t.ids is None
-    fanuc = poses.read_poses(tmp_path / "c.json", columns="x,y,z,a,b,c", convention="fanuc")
+    fanuc = poses.read_poses(tmp_path / "c.json", columns=("x", "y", "z", "a", "b", "c"), convention="fanuc")
     assert fanuc.convention == "fanuc" and "poses converted kuka -> fanuc" in fanuc.notes
 
 

@@ -227,7 +227,7 @@ LOCAL_IMPORTS = {
     ],
     "optional dependency: imported where it is used, its absence handled there": [
         ("app/command/cli.py", "_bench", "scipy.optimize"),
-        ("app/ingest/rosbag.py", "_reader_class", "rosbags.highlevel"),
+        ("app/ingest/command.py", "_from_bag", "handeye.app.ingest.rosbag"),  # it imports rosbags; the request checks it is there
         ("app/present/interactive.py", "__init__", "ipywidgets"),
         ("app/present/interactive.py", "_widget", "ipywidgets"),
         ("app/present/web/view.py", "figure", "plotly.graph_objects"),
@@ -301,13 +301,6 @@ LOCAL_IMPORTS = {
         ("app/engine/slips.py", "check_radius", "handeye.model.fit.extended"),
         ("app/engine/slips.py", "check_radius", "handeye.model.fit.global_fit"),
         ("app/engine/slips.py", "free_axes_rms", "handeye.app.engine.cell_stage"),
-        ("app/ingest/command.py", "_check_options", "handeye.app.common.files"),
-        ("app/ingest/command.py", "_check_options", "handeye.app.engine.command_request"),
-        ("app/ingest/command.py", "_files", "handeye.app.common.files"),
-        ("app/ingest/command.py", "_from_bag", "handeye.app.ingest.rosbag"),
-        ("app/ingest/command.py", "_from_setup", "handeye.model.readers.setup_file"),
-        ("app/ingest/command.py", "_write_checked", "handeye.app.common.files"),
-        ("app/ingest/command.py", "_write_checked", "handeye.model.datasets.dataset"),
         ("app/outputs/commands.py", "_robot_values", "handeye.model.robot.robot_errors"),
         ("app/outputs/commands.py", "_scan_inputs", "handeye.model.datasets.dataset"),
         ("app/outputs/commands.py", "cloud", "handeye.model.datasets.scan"),

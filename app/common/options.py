@@ -351,7 +351,8 @@ _DATASET_NEW = (
     Opt('--profile-axes', metavar='X,Z',
         help="``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default found from the data "
              "(:mod:`handeye.app.ingest.plane`)."),
-    Opt('--diameter', type='float', metavar='MM', help='sphere diameter, mm (required unless --setup gives it)'),
+    Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
+        help='sphere diameter, mm (required unless --setup gives it)'),
     Opt('--setup', metavar='SETUP.toml',
         help='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] '
              'start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.',
@@ -386,7 +387,8 @@ _DATASET_NEW = (
         help='with /tf: the robot base frame'),
     Opt('--flange-frame', metavar='FRAME',
         help='with /tf: the flange frame'),
-    Opt('--max-dt', 0.05, type='float', metavar='SECONDS', help='largest time between a profile and its pose (default 0.05)'),
+    Opt('--max-dt', 0.05, check=('number', 0.0, float('inf'), True), type='float', metavar='SECONDS',
+        help='largest time between a profile and its pose (default 0.05)'),
     _json('print the summary as JSON'),
 )
 

@@ -7,7 +7,8 @@ format told by each file's content, not its extension), checks them, pairs poses
 and writes ``measurements.csv``, ``setup.toml``, ``profiles/*.csv`` and ``PROVENANCE.toml``
 (:mod:`handeye.model.datasets.dataset` documents the format) atomically.
 
-Modules: :mod:`~handeye.app.ingest.tables` (text and JSON tables), :mod:`~handeye.app.ingest.poses`
+Modules: :mod:`~handeye.app.ingest.request` (the options, checked in one place before anything is
+read), :mod:`~handeye.app.ingest.tables` (text and JSON tables), :mod:`~handeye.app.ingest.poses`
 (pose columns, units, plausibility), :mod:`~handeye.app.ingest.opencv_storage` (FileStorage
 YAML/XML/JSON), :mod:`~handeye.app.ingest.clouds` (CSV/TXT, .npy/.npz, PLY, PCD),
 :mod:`~handeye.app.ingest.plane` (NaN rows, the laser plane's axes), :mod:`~handeye.app.ingest.sources`

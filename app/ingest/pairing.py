@@ -11,14 +11,25 @@ partial match is an error (a missing or extra file).
 """
 from __future__ import annotations
 
-import glob
-import pathlib
+import dataclasses
 import re
 
-from handeye.app.common.errors import RequestError
 from handeye.model.readers.tables import DatasetError
 
 DEFAULT_MATCH = r"(\d+)(?!.*\d)"
+
+
+@dataclasses.dataclass(frozen=True)
+class Pairing:
+    """How profiles are paired with poses: ``mode`` (``--pair``: auto, id, order) and ``match``
+    (``--match``: a regex with one group, checked by :mod:`handeye.app.ingest.request`; None: the
+    name's digits)."""
+
+    mode: str = "auto"
+    match: str | None = None
+
+
+AUTO = Pairing()
 
 
 def natural_key(text):
@@ -26,36 +37,8 @@ def natural_key(text):
     return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", str(text)) if t]
 
 
-def expand(specs, exclude=()):
-    """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
-    pairs, natural order within each argument, argument order kept; ``listed`` is False for a
-    folder's files (which may hold other files too). A folder's hidden files and subfolders, and
-    the files in ``exclude`` (the pose file, ...), are left out."""
-    skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
-    out = []
-    for spec in specs:
-        p = pathlib.Path(spec)
-        if p.is_dir():
-            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
-            where = f"folder {spec}"
-        elif any(c in str(spec) for c in "*?["):
-            files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
-            where = f"pattern {spec!r}"
-        elif p.is_file():
-            files, where = [p], spec
-        else:
-            raise RequestError(f"--profiles {spec}: no such file or folder")
-        if not files:
-            raise RequestError(f"--profiles: {where} has no files")
-        out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
-    return out
-
-
-def _token(name, pattern, label):
-    regex = re.compile(pattern)
-    if regex.groups != 1:
-        raise RequestError(f"--match {pattern!r} needs exactly one group (...), it has {regex.groups}")
-    m = regex.search(name)
+def _token(name, pattern):
+    m = re.search(pattern, name)
     return None if m is None else m.group(1)
 
 
@@ -85,7 +68,7 @@ def _by_id(labels, names, pose_ids, tokens, pose_file):
     return index
 
 
-def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
+def pair(labels, names, pose_ids, n_poses, pose_file, asked=AUTO):
     """Pose index of each profile and a description of the pairing.
 
     Parameters
@@ -98,22 +81,22 @@ def pair(labels, names, pose_ids, n_poses, pose_file, mode="auto", match=None):
         The poses' ids; None: the poses are numbered (1..N, or 0..N-1 when the names are).
     n_poses : int
     pose_file : str
-    mode : {'auto', 'id', 'order'}
-    match : str or None
-        ``--match`` regex (one group).
+    asked : Pairing
+        ``--pair`` and ``--match``.
 
     Returns
     -------
     (list of int, list of str, str)
         Pose index per profile, the pose ids (generated when ``pose_ids`` is None), how.
     """
+    mode, match = asked.mode, asked.match
     if match is None and mode != "order":
         for pattern, words in ((DEFAULT_MATCH, "last digits of the name"), (FIRST_DIGITS, "first digits of the name")):
-            tokens = [_token(name, pattern, label) for name, label in zip(names, labels)]
+            tokens = [_token(name, pattern) for name in names]
             ids = _pose_ids(pose_ids, tokens, n_poses)
             if _all_match(tokens, ids):
                 return _by_id(labels, names, ids, tokens, pose_file), list(ids), f"by id in the file name ({words})"
-    tokens = [_token(name, match or DEFAULT_MATCH, label) for name, label in zip(names, labels)]
+    tokens = [_token(name, match or DEFAULT_MATCH) for name in names]
     ids = _pose_ids(pose_ids, tokens, n_poses)
     if mode == "order" or (mode == "auto" and match is None and all(t is None for t in tokens)):
         return _by_order(labels, ids, pose_file), list(ids), "by order (natural sort of the file names)"

@@ -19,7 +19,6 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.common.errors import RequestError
 from handeye.model.readers.tables import DatasetError
 
 AXES = "xyz"
@@ -95,27 +94,6 @@ def normal_axis(points, file):
                              "profile lies in the laser plane")
 
 
-def _signed_axis(text):
-    t = text.strip().lower()
-    sign = -1.0 if t.startswith("-") else 1.0
-    name = t.lstrip("+-")
-    if name not in AXES:
-        raise RequestError(f"--profile-axes: {text!r} is not x, y or z (with an optional sign)")
-    return AXES.index(name), sign
-
-
-def parse_axes(axes):
-    """``--profile-axes 'y,-x'`` -> ((1, 1.0), (0, -1.0)): the file's axes (index, sign) that are
-    handeye's x and z."""
-    parts = str(axes).split(",")
-    if len(parts) != 2:
-        raise RequestError(f"--profile-axes takes two axes (handeye's x, z), got {axes!r}")
-    (ax, sx), (az, sz) = (_signed_axis(p) for p in parts)
-    if ax == az:
-        raise RequestError(f"--profile-axes {axes}: two different axes")
-    return (ax, sx), (az, sz)
-
-
 def _normal(profiles):
     """The laser plane's normal (0, 1, 2) of 3-column profiles, one for all; y for 2-column ones."""
     normals = [(file, normal_axis(pts, file)) for file, pts in profiles if pts.shape[1] == 3]
@@ -169,14 +147,15 @@ def decide(profiles, axes=None):
     """The :class:`PlaneMapping` of profiles ``[(label, points (K, 2) or (K, 3))]`` (module
     docstring): the plane's normal becomes handeye's y, the depth axis z, signed so that z runs
     away from the sensor (:func:`cap_votes`; 2-column profiles are (x, z) of the plane y = 0).
-    ``axes`` (``--profile-axes``) names handeye's x and z instead, as they are."""
+    ``axes`` (``--profile-axes``, as the files' ``((axis, sign), (axis, sign))`` of handeye's x and z)
+    names them instead, as they are."""
     normal = _normal(profiles)
     votes = None
     if axes is not None:
-        (ax, sx), (az, sz) = parse_axes(axes)
+        (ax, sx), (az, sz) = axes
         if len({ax, az, normal}) != 3:
-            raise RequestError(f"--profile-axes {axes}: the two axes must be the in-plane ones (the normal is "
-                               f"{AXES[normal]})")
+            raise DatasetError(profiles[0][0], f"its laser plane is {AXES[normal]} = 0: --profile-axes must name the "
+                                               "two in-plane axes")
     else:
         (ax, az), sx = _in_plane(profiles, normal), 1.0
         trial = _rotation(ax, sx, az, 1.0)

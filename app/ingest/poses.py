@@ -16,7 +16,6 @@ import re
 
 import numpy as np
 
-from handeye.app.common.errors import RequestError
 from handeye.app.ingest.tables import read_table
 from handeye.model.chain import conventions
 from handeye.model.readers.tables import DatasetError
@@ -100,20 +99,14 @@ class PoseTable:
 def _names(table, columns, convention, width, what="pose"):
     """Canonical names of the table's columns: from --columns, the header or the convention."""
     if columns is not None:
-        names = [c.strip() for c in str(columns).split(",")]
-        mapped = [None if n in ("-", "_", "skip", "") else canonical(n) for n in names]
-        for n, m in zip(names, mapped):
-            if m is None and n not in ("-", "_", "skip", ""):
-                raise RequestError(f"--columns: unknown column name {n!r} (x,y,z, a,b,c | w,p,r | rx,ry,rz | "
-                                   "qw,qx,qy,qz, id; '-' skips a column)")
-        if len(mapped) != width:
-            raise RequestError(f"--columns names {len(mapped)} columns; {table.file} has {width} per row")
-        return mapped
+        if len(columns) != width:
+            raise DatasetError(table.file, f"--columns names {len(columns)} columns; the file has {width} per row")
+        return list(columns)
     if table.header is not None:
         return [canonical(h) for h in table.header]
     if convention is None:
-        raise RequestError(f"{table.file} has no header: give --convention (kuka|abb|ur|fanuc; its columns in "
-                           "order, with an optional leading id) or --columns")
+        raise DatasetError(table.file, "no header: give --convention (kuka|abb|ur|fanuc; its columns in order, with "
+                                       "an optional leading id) or --columns")
     cols = ["x", "y", "z", *KINDS[convention]] if what == "pose" else [f"j{k}" for k in range(1, 7)]
     if width == len(cols):
         return cols
@@ -216,9 +209,9 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
     convention : str or None
         kuka, abb, ur or fanuc: the columns of a headerless file, and the dataset's convention
         (named columns in another convention are converted to it). None: the file's.
-    columns : str or None
-        Comma-separated names of the file's columns (``id,x,y,z,qx,qy,qz,qw`` for ROS-ordered
-        quaternions; ``-`` skips a column); overrides the header.
+    columns : tuple of str or None
+        The canonical names of the file's columns (None skips one; ``--columns id,x,y,z,qx,qy,qz,qw``
+        for ROS-ordered quaternions, read by :mod:`handeye.app.ingest.request`); overrides the header.
     units : {'mm', 'm'}
         Units of the positions.
     angles : {'deg', 'rad'} or None

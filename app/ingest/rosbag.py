@@ -1,6 +1,7 @@
 """Poses and profiles from a ROS 2 bag (sqlite3 or mcap), read by the pure-Python ``rosbags``.
 
-``rosbags`` is an optional extra (``pip install 'handeye[ros]'``); no ROS installation is needed.
+``rosbags`` is an optional extra (``pip install 'handeye[ros]'``; no ROS installation is needed): this
+module imports it, and is imported only once :mod:`handeye.app.ingest.request` found it installed.
 Poses: ``geometry_msgs/msg/PoseStamped`` (the flange in the robot base), or ``tf2_msgs/msg/TFMessage``
 on ``/tf`` (with ``/tf_static`` when the bag has it) composed from ``base_frame`` to
 ``flange_frame``. Profiles: ``sensor_msgs/msg/PointCloud2`` (float32 or float64 x, y, z fields) or
@@ -15,8 +16,8 @@ import dataclasses
 import pathlib
 
 import numpy as np
+from rosbags.highlevel import AnyReader
 
-from handeye.app.common.errors import RequestError
 from handeye.model.chain.conventions import matrix_from
 from handeye.model.readers.tables import DatasetError
 
@@ -48,14 +49,6 @@ class BagData:
     stamps: np.ndarray
     counts: dict
     types: tuple
-
-
-def _reader_class():
-    try:
-        from rosbags.highlevel import AnyReader
-    except ImportError:
-        raise RequestError("--bag needs the rosbags package: pip install 'handeye[ros]'") from None
-    return AnyReader
 
 
 def _stamp(msg, bag_ns):
@@ -98,16 +91,16 @@ def _connections(reader, topic, types, option, file):
     found = [c for c in reader.connections if c.topic == topic]
     if not found:
         have = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections}))
-        raise RequestError(f"{option} {topic}: no such topic in {file} (it has {have})")
+        raise DatasetError(file, f"{option} {topic}: no such topic (it has {have})")
     if found[0].msgtype not in types:
-        raise RequestError(f"{option} {topic}: type {found[0].msgtype}; handeye reads {', '.join(types)}")
+        raise DatasetError(file, f"{option} {topic}: type {found[0].msgtype}; handeye reads {', '.join(types)}")
     return found
 
 
 def _tf_poses(reader, conns, base, flange, file):
     """(stamps, transforms) of flange in base composed from /tf (and /tf_static) at each message."""
     if not base or not flange:
-        raise RequestError("a TFMessage pose topic needs --base-frame and --flange-frame")
+        raise DatasetError(file, "a TFMessage pose topic needs --base-frame and --flange-frame")
     static = [c for c in reader.connections if c.topic == "/tf_static"]
     links, stamps, poses = {}, [], []
     for conn, bag_ns, raw in reader.messages(connections=static + conns):
@@ -154,13 +147,9 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
     -------
     BagData
     """
-    if not pose_topic or not profile_topic:
-        raise RequestError("--bag needs --pose-topic and --profile-topic")
-    reader_class, file = _reader_class(), pathlib.Path(path)
-    if not file.exists():
-        raise RequestError(f"--bag {path}: no such file or folder")
+    file = pathlib.Path(path)
     try:
-        with reader_class([file]) as reader:
+        with AnyReader([file]) as reader:
             pconns = _connections(reader, pose_topic, POSE_TYPES, "--pose-topic", file)
             sconns = _connections(reader, profile_topic, PROFILE_TYPES, "--profile-topic", file)
             if pconns[0].msgtype == POSE_TYPES[1]:
@@ -172,7 +161,7 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
                 msg = reader.deserialize(raw, conn.msgtype)
                 stamps.append(_stamp(msg, bag_ns))
                 clouds.append(_scan_points(msg) if conn.msgtype == PROFILE_TYPES[1] else _cloud_points(msg, file))
-    except (RequestError, DatasetError):
+    except DatasetError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a broken bag) are bad input here
         raise DatasetError(file, f"cannot be read as a ROS 2 bag: {type(exc).__name__}: {exc}") from None

@@ -12,7 +12,6 @@ import dataclasses
 import numpy as np
 
 from handeye.app.ingest import clouds, plane
-from handeye.app.ingest.pairing import expand
 from handeye.model.readers.tables import DatasetError
 
 
@@ -45,13 +44,13 @@ class Profile:
     xz: np.ndarray | None = None
 
 
-def read_profiles(specs, units="mm", exclude=()):
-    """``(profiles, skipped)``: every profile of the ``--profiles`` arguments (files, globs,
-    folders) in pairing order, and the files of a folder that are no profile (``[(file, why)]``:
-    a folder may hold the pose file or a calibration report too; a file named or matched is read
-    or is an error). ``exclude``: input files that are not profiles (the pose file, ...)."""
+def read_profiles(files, units="mm"):
+    """``(profiles, skipped)``: every profile of ``files``, the ``(file, listed)`` pairs of the
+    ``--profiles`` arguments (:func:`handeye.app.ingest.request.expand`) in pairing order, and the
+    files of a folder that are no profile (``[(file, why)]``: a folder may hold the pose file or a
+    calibration report too; a file named or matched, ``listed``, is read or is an error)."""
     out, skipped = [], []
-    for f, listed in expand(specs, exclude):
+    for f, listed in files:
         try:
             fmt, matrices = clouds.read_profile_file(f)
             if not listed:

@@ -49,18 +49,23 @@ def _vec(v):
     return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
 
-def setup_text(convention, diameter, side, center=None, start=None, robot=None, own_axes=None):
-    """``setup.toml`` of the assembled dataset (:mod:`handeye.model.datasets.dataset` has the format);
-    ``own_axes``: the turn R (``p_handeye = R p_file``) of profiles not given in handeye's frame,
-    kept with ``poses = "own"``: ``start`` and every pose a calibration reports are of the sensor's own frame."""
+def setup_text(result, request, start=None):
+    """``setup.toml`` of the dataset ``result`` (a :class:`~handeye.app.ingest.command.NewDatasetResult`:
+    convention, side, and ``rotation``, the turn R, ``p_handeye = R p_file``, of profiles not given
+    in handeye's frame, kept as ``own_axes`` with ``poses = "own"``: ``start`` and every pose a
+    calibration reports are of the sensor's own frame) assembled for ``request`` (a
+    :class:`~handeye.app.ingest.request.NewDatasetRequest`: diameter, centre, robot model);
+    :mod:`handeye.model.datasets.dataset` has the format."""
     text = "# assembled by `handeye dataset new`; PROVENANCE.toml says from what\n"
-    text += f"[robot]\nconvention = \"{convention}\"\n" + (f"model = {json.dumps(robot)}\n" if robot else "") + "\n"
+    model = f"model = {json.dumps(request.robot)}\n" if request.robot else ""
+    text += f"[robot]\nconvention = \"{result.convention}\"\n{model}\n"
     if start is not None:
         text += f"[sensor]\nstart_pose = {_vec(start)}\n\n"
-    text += f"[sphere]\ndiameter = {float(diameter)!r}\n" + (f"center = {_vec(center)}\n" if center is not None else "")
-    text += f"\n[profile]\nside = {int(side)}\n"
-    if own_axes is not None:
-        rows = ", ".join(_vec(np.round(np.asarray(r, float), 12) + 0.0) for r in own_axes)
+    text += f"[sphere]\ndiameter = {float(request.diameter)!r}\n"
+    text += f"center = {_vec(request.center)}\n" if request.center is not None else ""
+    text += f"\n[profile]\nside = {int(result.side)}\n"
+    if result.rotation is not None:
+        rows = ", ".join(_vec(np.round(np.asarray(r, float), 12) + 0.0) for r in result.rotation)
         text += ("# the profiles were turned from the sensor's own frame: p = R p_own (rows of R); every sensor\n"
                  "# pose (start_pose here, calibrate's, export's) is of the sensor's own frame\n"
                  f"own_axes = [{rows}]\nposes = \"own\"\n")

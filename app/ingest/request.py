@@ -1,0 +1,300 @@
+"""The options of ``handeye dataset new``, validated in one place: :class:`NewDatasetRequest`.
+
+:func:`handeye.app.ingest.command.new_dataset` reads as request -> read -> pair -> write. The
+request is made before anything is read: the option table's checks
+(:attr:`handeye.app.common.option_record.Opt.check`) and what only this command knows (poses from
+files or a bag, not both; ``--joints`` with ``--robot``), with ``--setup``'s values filling the
+options not given, ``--profiles`` expanded into files, ``--robot`` resolved. What only the data
+tell (a column the file lacks, a topic the bag lacks, a pairing that fails) is a data error naming
+file, row and column, raised where the file is read; the one check of an option that waits for
+the data, the start pose's length (the dataset's convention), is :meth:`NewDatasetRequest.start_pose`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import glob
+import importlib.util
+import pathlib
+import re
+import tomllib
+
+import numpy as np
+
+from handeye.app.common.errors import RequestError
+from handeye.app.common.files import check_output_folder
+from handeye.app.engine.command_request import checked_values
+from handeye.app.ingest.pairing import Pairing, natural_key
+from handeye.app.ingest.plane import AXES
+from handeye.app.ingest.poses import canonical
+from handeye.model.chain import conventions, own_frame
+from handeye.model.readers.setup_file import _own_axes
+from handeye.model.readers.tables import DatasetError
+from handeye.model.robot import robots
+
+#: The name a robot model file gets in the dataset (as ``handeye simulate --robot FILE`` names it).
+MODEL_FILE = "robot_model.toml"
+#: what ``--columns`` writes for a column to skip
+_SKIP = ("-", "_", "skip", "")
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+#: option -> (section, key) of setup.toml that fills it, and what its value must be
+_SETUP = {"diameter": ("sphere", "diameter", _is_number),
+          "side": ("profile", "side", lambda v: v in (1, -1) and not isinstance(v, bool)),
+          "center": ("sphere", "center", lambda v: isinstance(v, list) and len(v) == 3 and all(map(_is_number, v))),
+          "start": ("sensor", "start_pose", lambda v: isinstance(v, list) and all(map(_is_number, v))),
+          "convention": ("robot", "convention", lambda v: isinstance(v, str)),
+          "robot": ("robot", "model", lambda v: isinstance(v, str) and v.strip())}
+
+
+@dataclasses.dataclass(frozen=True)
+class NewDatasetRequest:
+    """``handeye dataset new``'s options, checked and resolved.
+
+    Attributes
+    ----------
+    poses, joints, setup : path-like or None
+        The pose file (None: a bag), the joint angles, the ``--setup`` file.
+    profiles : tuple of (pathlib.Path, bool)
+        The ``--profiles`` files in pairing order, each with whether it was named or matched (False:
+        a folder's, which may hold files that are no profile).
+    convention, angles : str or None
+    columns : tuple or None
+        ``--columns`` as canonical names (None for a column skipped).
+    units, profile_units : str
+    profile_axes : tuple or None
+        ``--profile-axes`` as the files' ``(axis, sign)`` of handeye's x and of its z.
+    diameter : float
+    side : int
+        ``--side`` in the profiles' frame (default -1), or the setup's, in handeye's frame already.
+    side_from : {'option', 'default', 'setup'}
+    center : ndarray (3,) or None
+    start : str, sequence or None
+        The start pose as given (checked against the dataset's convention by :meth:`start_pose`).
+    start_axes : ndarray (3, 3), None or False
+        False: ``--start`` given, in the frame of the profile files; else the start pose is the
+        setup's, in the setup's own frame (``[profile] own_axes``) or in handeye's (None).
+    robot : str or None
+        ``[robot] model``: a built-in name, or :data:`MODEL_FILE`.
+    robot_file : (path-like, str) or None
+        A model file and its text, copied into the dataset.
+    pairing : Pairing
+    bag, pose_topic, profile_topic, base_frame, flange_frame, max_dt
+        A ROS 2 bag and what to read of it (:func:`handeye.app.ingest.rosbag.read_bag`).
+    options : dict
+        The options as PROVENANCE.toml keeps them (the setup's values filled in; None left out).
+    """
+
+    poses: object
+    profiles: tuple
+    convention: str | None
+    columns: tuple | None
+    units: str
+    angles: str | None
+    profile_units: str
+    profile_axes: tuple | None
+    diameter: float
+    side: int
+    side_from: str
+    center: np.ndarray | None
+    start: object
+    start_axes: object
+    joints: object
+    setup: object
+    robot: str | None
+    robot_file: tuple | None
+    pairing: Pairing
+    bag: object
+    pose_topic: str | None
+    profile_topic: str | None
+    base_frame: str | None
+    flange_frame: str | None
+    max_dt: float
+    options: dict
+
+    @classmethod
+    def from_options(cls, given):
+        """The request of ``given``, the keywords :func:`~handeye.app.ingest.command.new_dataset`
+        was called with; raises :class:`~handeye.app.common.errors.RequestError` naming the option (a
+        bad value of the ``--setup`` file: :class:`~handeye.model.readers.tables.DatasetError`)."""
+        profiles = given["profiles"]
+        v = {**given, "profiles": [profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ())}
+        check_output_folder(v["out"], "OUT", empty=True)
+        found, start_axes = _from_setup(v["setup"], start_given=v["start"] is not None)
+        side_from = "option" if v["side"] is not None else "setup" if found.get("side") is not None else "default"
+        v.update({key: value for key, value in found.items() if v[key] is None and value is not None})
+        v["side"] = -1 if v["side"] is None else v["side"]
+        _together(v)
+        v = checked_values("dataset new", v)  # diameter and --max-dt in range, the choices among theirs
+        if v["bag"] is not None:
+            _bag_checked(v["bag"])
+        robot, robot_file = _robot(v["robot"])
+        resolved = {
+            "profiles": tuple(expand(v["profiles"], [v[k] for k in ("poses", "joints", "setup")])),
+            "columns": None if v["columns"] is None else _columns(v["columns"]), "profile_units": v["profile_units"] or "mm",
+            "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
+            "center": _vector(v["center"], 3, "--center"), "robot": robot, "robot_file": robot_file,
+            "pairing": Pairing(v["pair"], _match(v["match"])), "side_from": side_from, "start_axes": start_axes,
+            "options": {k: x for k, x in v.items() if k != "out" and x is not None and not (isinstance(x, list) and not x)}}
+        return cls(**{**{field.name: v.get(field.name) for field in dataclasses.fields(cls)}, **resolved})
+
+    def start_pose(self, convention, rotation):
+        """``[sensor] start_pose`` of a dataset in ``convention`` whose profiles were turned by
+        ``rotation`` (``p_handeye = R p_file``; None: not turned): the columns of the convention,
+        in the frame of the profile files; None without a start pose."""
+        pose = _vector(self.start, len(conventions.columns(convention)), "--start")
+        if pose is None or self.start_axes is False:
+            return pose
+        matrix = own_frame.to_internal(conventions.transform_from(convention, pose), self.start_axes)
+        return conventions.pose_from(convention, own_frame.to_own(matrix, rotation))
+
+
+def _together(v):
+    """Options that do not go together, and options that others need."""
+    poses, bag, joints, robot = (v[key] is not None for key in ("poses", "bag", "joints", "robot"))
+    for refused, text in (
+            (poses and bag, "--poses and --bag: give one of them (the bag's --pose-topic has the poses)"),
+            (not poses and not bag, "give the poses: --poses FILE, or --bag PATH with --pose-topic and --profile-topic"),
+            (poses and not v["profiles"], "--poses needs --profiles FILES|GLOB|DIR (the laser profile of each pose)"),
+            (bag and v["profiles"], "--profiles and --bag: the bag's --profile-topic gives the profiles; give one of them"),
+            (v["diameter"] is None, "--diameter MM is required: the sphere's diameter from its certificate, mm"),
+            (joints and bag, "--joints with --bag: a bag's joint states are not read; give --poses and --profiles files"),
+            (joints and not robot, "--joints needs --robot MODEL (the nominal kinematics the loader checks them against)"),
+            (bag and not (v["pose_topic"] and v["profile_topic"]), "--bag needs --pose-topic and --profile-topic")):
+        if refused:
+            raise RequestError(text)
+
+
+def _bag_checked(bag):
+    """A bag that can be read: the ``rosbags`` package there, the bag there."""
+    if importlib.util.find_spec("rosbags") is None or importlib.util.find_spec("rosbags.highlevel") is None:
+        raise RequestError("--bag needs the rosbags package: pip install 'handeye[ros]'")
+    if not pathlib.Path(bag).exists():
+        raise RequestError(f"--bag {bag}: no such file or folder")
+
+
+def _vector(value, n, option):
+    """``'1,2,3'`` or a sequence as n floats; None stays None."""
+    if value is None:
+        return None
+    parts = str(value).split(",") if isinstance(value, str) else list(np.ravel(value))
+    try:
+        out = np.array([float(v) for v in parts])
+    except (TypeError, ValueError):
+        raise RequestError(f"{option}: needs {n} comma-separated numbers, got {value!r}") from None
+    if len(out) != n or not np.all(np.isfinite(out)):
+        raise RequestError(f"{option}: needs {n} finite numbers, got {value!r}")
+    return out
+
+
+def _columns(text):
+    """``--columns`` as canonical names of the file's columns (None: one skipped)."""
+    names = [c.strip() for c in str(text).split(",")]
+    for name in names:
+        if name not in _SKIP and canonical(name) is None:
+            raise RequestError(f"--columns: unknown column name {name!r} (x,y,z, a,b,c | w,p,r | rx,ry,rz | "
+                               "qw,qx,qy,qz, id; '-' skips a column)")
+    return tuple(None if name in _SKIP else canonical(name) for name in names)
+
+
+def _profile_axes(text):
+    """``--profile-axes 'y,-x'`` -> ((1, 1.0), (0, -1.0)): the files' axes (index, sign) that are
+    handeye's x and z."""
+    parts = str(text).split(",")
+    if len(parts) != 2:
+        raise RequestError(f"--profile-axes takes two axes (handeye's x, z), got {text!r}")
+    axes = []
+    for part in parts:
+        name = part.strip().lower()
+        if name.lstrip("+-") not in AXES:
+            raise RequestError(f"--profile-axes: {part!r} is not x, y or z (with an optional sign)")
+        axes.append((AXES.index(name.lstrip("+-")), -1.0 if name.startswith("-") else 1.0))
+    if axes[0][0] == axes[1][0]:
+        raise RequestError(f"--profile-axes {text}: two different axes")
+    return tuple(axes)
+
+
+def _match(pattern):
+    """``--match``: a regular expression with exactly one group (None stays None)."""
+    if pattern is None:
+        return None
+    try:
+        groups = re.compile(pattern).groups
+    except re.error as exc:
+        raise RequestError(f"--match {pattern!r}: not a regular expression ({exc})") from None
+    if groups != 1:
+        raise RequestError(f"--match {pattern!r} needs exactly one group (...), it has {groups}")
+    return pattern
+
+
+def expand(specs, exclude=()):
+    """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
+    pairs, natural order within each argument, argument order kept; ``listed`` is False for a
+    folder's files (which may hold other files too). A folder's hidden files and subfolders, and
+    the files in ``exclude`` (the pose file, ...), are left out."""
+    skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
+    out = []
+    for spec in specs:
+        p = pathlib.Path(spec)
+        if p.is_dir():
+            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
+            where = f"folder {spec}"
+        elif any(c in str(spec) for c in "*?["):
+            files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
+            where = f"pattern {spec!r}"
+        elif p.is_file():
+            files, where = [p], spec
+        else:
+            raise RequestError(f"--profiles {spec}: no such file or folder")
+        if not files:
+            raise RequestError(f"--profiles: {where} has no files")
+        out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
+    return out
+
+
+def _robot(robot):
+    """``([robot] model, (model file, its text) or None)``: a built-in name as it is; a model file
+    copied into the dataset as :data:`MODEL_FILE` (a path in setup.toml is the dataset folder's)."""
+    if robot is None or str(robot) in robots.builtin_names():
+        return robot, None
+    path = pathlib.Path(robot)
+    if not path.is_file():
+        raise RequestError(f"--robot {robot}: not a built-in model ({', '.join(robots.builtin_names())}) nor a file")
+    try:
+        return MODEL_FILE, (robot, path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RequestError(f"--robot {robot}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+
+
+def _from_setup(file, start_given):
+    """``--setup FILE``: ``(values, start axes)``, the values an existing setup.toml gives for the
+    options (diameter, center, side, start pose, convention, robot model; a model file's path made
+    the setup folder's) and :attr:`NewDatasetRequest.start_axes` (the frame of the setup's start
+    pose when it gives the one used: its ``own_axes`` when its poses are of the sensor's own frame,
+    else None, handeye's). No file: ``({}, False)``."""
+    if file is None:
+        return {}, False
+    try:
+        doc = tomllib.loads(pathlib.Path(file).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DatasetError(file, f"not valid TOML: {exc}") from None
+    for section in ("sphere", "sensor", "robot", "profile"):
+        if not isinstance(doc.get(section, {}), dict):
+            raise DatasetError(file, "must be a [section] of keys (the --setup file)", column=f"[{section}]")
+    found = {option: doc.get(section, {}).get(key) for option, (section, key, _) in _SETUP.items()}
+    for option, (section, key, ok) in _SETUP.items():
+        if found[option] is not None and not ok(found[option]):
+            raise DatasetError(file, f"{str(found[option])[:40]!r} is not a value of this key (the --setup file)",
+                               column=f"[{section}] {key}")
+    model = found["robot"]
+    if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
+        found["robot"] = str(pathlib.Path(file).parent / model)
+    if start_given or found["start"] is None:
+        return found, False
+    profile = doc.get("profile", {})
+    return found, _own_axes(profile.get("own_axes"), file) if profile.get("poses") == "own" else None
