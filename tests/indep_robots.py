@@ -656,8 +656,8 @@ def fit_robot_errors(truth, parameters, centre=False, iterations=8):
         for i, name in enumerate(names):
             if name in values:
                 values[name] += delta[i]
-        if np.abs(delta).max() < 1e-12:
-            break
+        if np.abs(delta).max() < 1e-9:  # converged: the central differences' own noise leaves steps of ~1e-11
+            break  # (mm, rad, deg, deg/m) that never fall below 1e-12; the estimates are compared at 0.1 sd
     J, names = _chain_jacobian(cell(), list(parameters), centre)
     r = chain_residuals(cell()).ravel()
     sigma = math.sqrt(float(r @ r) / (len(r) - J.shape[1]))
