@@ -58,6 +58,7 @@ def test_hidden_effects_are_named_and_nothing_else(tmp_path, case, seed):
         assert res["heldout_rms_after_mm"] < res["heldout_rms_before_mm"]
 
 
+@pytest.mark.slow(sibling="test_hidden_effects_are_named_and_nothing_else")  # its case "none", two seeds
 def test_null_rate_over_thirty_seeds(tmp_path):
     """No effect hidden: no effect named and no sample excluded in at least 95 % of datasets
     (measured here: 40 of 40 in development, 30 of 30 in this test's seeds)."""

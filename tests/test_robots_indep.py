@@ -446,10 +446,15 @@ def _check(result, truth, plants):
     assert result.rms_after_mm < 1.3 * np.sqrt(3) * noise  # the 3-d residual of isotropic noise: sqrt(3) sd
 
 
+#: The default tier plants the cells with lengths absorbed too (each also plants visible ones); the
+#: plainer cells run in the full suite.
+_PLAIN_LENGTHS = pytest.mark.slow(sibling="test_diagnose_names_link_lengths_within_3_sd[kr60ha-lengths1]")
+
+
 @pytest.mark.parametrize("model, lengths", [
-    ("kr60ha", {"j3_x": 0.5, "j4_x": -0.4, "j4_z": 0.3}),
+    pytest.param("kr60ha", {"j3_x": 0.5, "j4_x": -0.4, "j4_z": 0.3}, marks=_PLAIN_LENGTHS),
     ("kr60ha", {"j2_x": 0.4, "j5_x": 0.3, "j2_z": 0.5, "j6_x": -0.4}),  # j5_x on j4_x's line; j2_z, j6_x absorbed
-    ("ur10e", {"a2": 0.4, "a3": -0.5, "d5": 0.2}),
+    pytest.param("ur10e", {"a2": 0.4, "a3": -0.5, "d5": 0.2}, marks=_PLAIN_LENGTHS),
     ("ur10e", {"d4": -0.3, "d1": 0.4, "d6": 0.3}),  # d1, d6 absorbed
 ])
 def test_diagnose_names_link_lengths_within_3_sd(tmp_path, model, lengths):
@@ -464,11 +469,15 @@ def test_diagnose_names_link_lengths_within_3_sd(tmp_path, model, lengths):
         assert f"link_lengths.{name}" in result.absorbed_by, (name, _report(result))
 
 
+#: The default tier plants compliance on two joints of each robot; one joint alone runs in the full suite.
+_ONE_JOINT = pytest.mark.slow(sibling="test_diagnose_names_joint_compliance_within_3_sd[kr60ha-compliance0]")
+
+
 @pytest.mark.parametrize("model, compliance", [
     ("kr60ha", {"j2": 0.03, "j3": 0.02}),
-    ("kr60ha", {"j3": 0.04}),
+    pytest.param("kr60ha", {"j3": 0.04}, marks=_ONE_JOINT),
     ("ur10e", {"j2": 0.03, "j3": 0.02}),
-    ("ur10e", {"j2": 0.015}),
+    pytest.param("ur10e", {"j2": 0.015}, marks=_ONE_JOINT),
 ])
 def test_diagnose_names_joint_compliance_within_3_sd(tmp_path, model, compliance):
     """Gravity compliance of 0.015-0.04 deg/m, 40 poses, noise 0.015 mm: ``joint_compliance`` named, the

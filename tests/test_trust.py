@@ -75,7 +75,13 @@ def test_noise_free_simulation_is_recovered_exactly_by_every_model(tmp_path):
         assert res["converged"] and dt < 1e-6 and dr < 1e-6, kind
 
 
-@pytest.mark.parametrize("kind", ["centre", "measurement", "points"])
+#: The default tier checks the coverage of the centre model's sd; the profile models' (each ten
+#: datasets with profiles) run in the full suite.
+_PROFILE_MODEL = pytest.mark.slow(sibling="test_simulated_truth_lies_within_three_reported_sd[centre]")
+
+
+@pytest.mark.parametrize("kind", ["centre", pytest.param("measurement", marks=_PROFILE_MODEL),
+                                  pytest.param("points", marks=_PROFILE_MODEL)])
 def test_simulated_truth_lies_within_three_reported_sd(tmp_path, kind):
     """Over ten simulated datasets, the error of each of the six pose parameters is within 3
     reported standard deviations; a dataset breaking that for any of its 6 parameters has
