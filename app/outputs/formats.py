@@ -110,12 +110,8 @@ def _sd_lines(calibration, unit="mm"):
     tr, rot = sd
     scale = 1e-3 if unit == "m" else 1.0
     trans = ", ".join(f"{v * scale:.3g}" for v in tr)
-    return [f"1 sd: translation +-({trans}) {unit} along the {_frame(calibration)}'s x, y, z;",
+    return [f"1 sd: translation +-({trans}) {unit} along the {calibration.frame}'s x, y, z;",
             f"      rotation +-({', '.join(f'{v:.3g}' for v in rot)}) deg about the sensor's x, y, z"]
-
-
-def _frame(calibration):
-    return "base" if _world(calibration) else "flange"
 
 
 def _world(calibration):
@@ -240,7 +236,7 @@ def _fanuc(job):
 
 def _matrix(job):
     rows = "\n".join(" ".join(_f(row, 10)) for row in job.calibration.sensor2flange)
-    head = job.header(f"4x4 homogeneous transform, sensor -> {_frame(job.calibration)}, mm")
+    head = job.header(f"4x4 homogeneous transform, sensor -> {job.calibration.frame}, mm")
     return _comment("# ", head) + "\n" + rows + "\n"
 
 
