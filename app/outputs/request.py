@@ -126,6 +126,11 @@ def _inputs(data, *more):
     return [data.path / "measurements.csv", data.path / "setup.toml", *more]
 
 
+def _file(calibration):
+    """``[calibration]`` when it is a file's name (an input, never written over), else ``[]``."""
+    return [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
+
+
 @dataclasses.dataclass(frozen=True)
 class ExportRequest:
     """``handeye export``'s options, checked: the calibration (a robot format: the saved file's name
@@ -141,7 +146,7 @@ class ExportRequest:
         if calibration is None and v["sensor_pose"] is None:
             raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
         if v["out"] is not None:
-            files.check_output_path(v["out"], "--out", [calibration] if isinstance(calibration, (str, pathlib.Path)) else [])
+            files.check_output_path(v["out"], "--out", _file(calibration))
         if fmt in ROBOT_FORMATS:
             return cls(_robot_file(calibration, fmt, v["force"]), Names())
         cal = held(v, name="the saved calibration")
@@ -216,9 +221,7 @@ class CloudRequest:
         if suffix in CLOUD_FORMATS and suffix != fmt:
             raise RequestError(f"--out {out}: a .{suffix} file, but --format {fmt}; name it .{fmt} or drop --format")
         if out is not None:
-            calibration = v["calibration"]
-            files.check_output_path(out, "--out", _inputs(data, *data.profile_files, *(
-                [calibration] if isinstance(calibration, (str, pathlib.Path)) else [])))
+            files.check_output_path(out, "--out", _inputs(data, *data.profile_files, *_file(v["calibration"])))
         return cls(*_held_on(v, data, "cloud"), fmt)
 
 
