@@ -33,11 +33,7 @@ ALLOWED = {
     "app/tools/bench.py::run": _PUBLIC + " (README: handeye.app.tools.bench.run)",
     "model/fit/calibration.py::CalibrationModel.__init__": _PUBLIC + " (README: calibration_problem(CalibrationModel(...)))",
     "model/fit/calibration.py::CalibrationModel.from_circles": _PUBLIC + " (CalibrationModel's documented constructor)",
-    # private helpers of the files under rewrite
-    "app/outputs/commands.py::_calibration": _REWRITE,
     # the signature a file under rewrite calls
-    "app/outputs/formats.py::text": _PINNED + " (outputs/commands.py)",
-    "app/present/web/write.py::write_report": _PINNED + " (reporting.py, api.py)",
     "model/design/planning.py::plan": _PINNED + " (making.py)",
     "model/design/planning_robot.py::request": _PINNED + " (making.py; it builds planning_robot's Candidates and PlanAsk)",
     "model/simulation/simulate.py::simulate": _PINNED + " (making.py)",

@@ -84,12 +84,9 @@ def _bench(args):
 
 
 def _study(args):
-    from handeye.app.common.errors import RequestError
     from handeye.app.tools import sweep
     from handeye.studies import study  # the one import of the studies, only when one is run
 
-    if args.jobs is not None and args.jobs < 1:
-        raise RequestError("--jobs must be at least 1")
     # an interrupted sweep's worker pool is cleaned up by joblib's resource tracker (a child with
     # our stderr), which would report each semaphore and folder it removes: the one line is ours
     os.environ.setdefault("PYTHONWARNINGS", "ignore::UserWarning:joblib.externals.loky.backend.resource_tracker")

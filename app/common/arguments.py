@@ -1,6 +1,6 @@
 """The checks every command's arguments share: a dataset named or given, numbers in their ranges,
-poses as text or numbers (:mod:`handeye.app.public.api` and :mod:`handeye.app.public.making` use them; one
-place, one message for each slip)."""
+poses as text or numbers, a sensor pose typed in (:mod:`handeye.app.public.api`, :mod:`handeye.app.public.making`
+and the requests use them; one place, one message for each slip)."""
 from __future__ import annotations
 
 import os
@@ -9,6 +9,7 @@ import numpy as np
 
 from handeye.app.common.errors import RequestError
 from handeye.app.common.options import MAX_ITER  # noqa: F401  (handeye.app.common.arguments.MAX_ITER, as before)
+from handeye.model.chain import conventions
 
 
 def load_dataset(name_or_folder, clean=True):
@@ -70,3 +71,25 @@ def _integer(value, option, low, high=None):
         bound = f"at least {low}" if high is None else f"at least {low} and at most {high}"
         raise RequestError(f"{option} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+#: A sensor origin nearer its mount's frame's than this (mm) is a pose typed in metres (UR's units).
+MIN_OFFSET_MM = 1.0
+
+
+def typed_pose(pose, convention, frame="flange"):
+    """A sensor pose typed in (``--sensor-pose``: ``x, y, z`` mm and ``convention``'s orientation
+    columns, in the ``frame`` of its mount) checked: ``(its numbers, its 4x4)``."""
+    cols = conventions.columns(convention)
+    values = np.asarray(pose, dtype=float)
+    if values.shape != (len(cols),) or not np.all(np.isfinite(values)):
+        raise RequestError(f"--sensor-pose needs {len(cols)} finite numbers ({','.join(cols)}, {convention})")
+    try:
+        matrix = conventions.transform_from(convention, values)
+    except conventions.ConventionError as exc:
+        raise RequestError(f"--sensor-pose: {exc}") from None
+    offset = float(np.linalg.norm(values[:3]))
+    if 0 < offset < MIN_OFFSET_MM:
+        raise RequestError(f"--sensor-pose: the sensor origin {offset:.3g} mm from the {frame}'s: metres? handeye "
+                           "positions are mm (UR: multiply x, y, z by 1000)")
+    return values, matrix

@@ -14,92 +14,18 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
-import pathlib
 
 import numpy as np
 
 from handeye.app.common import files, options
-from handeye.app.common.choices import CLOUD_FORMATS  # noqa: F401 - the names, defined without numpy
-from handeye.app.common.errors import RequestError
+from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.outputs import formats as exports
-from handeye.app.outputs import saved
+from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
+from handeye.app.outputs.request import given_calibration as given_calibration  # (and the two below) api.py's
+from handeye.app.outputs.request import numbers as numbers
+from handeye.app.outputs.request import same_mount as same_mount
 from handeye.app.present.protocol import ResultProtocol
 from handeye.model.chain.mounts import FRAME
-
-
-def _calibration(calibration, sensor_pose=None, convention=None, force=False, dataset_convention="kuka",
-                 name="--calibration", sensor_mount=None, own_axes=None):
-    """The :class:`saved.Calibration` to use; ``sensor_mount`` (None: flange, or the file's) is
-    that of ``--sensor-pose``, or checked against the calibration's; ``own_axes`` (a dataset whose
-    profiles ``dataset new`` turned): a typed pose or 4x4 is of the sensor's own frame, turned back."""
-    if sensor_pose is not None:
-        if calibration is not None:
-            raise RequestError(f"give {name} or --sensor-pose, not both")
-        if convention is None and dataset_convention is None:
-            raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
-                               "it from")
-        values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
-        cal = saved.from_pose(values, convention or dataset_convention, sensor_mount or "flange")
-        return cal.from_user_frame(own_axes)
-    cal = given_calibration(calibration, sensor_mount, own_axes)
-    if sensor_mount is not None and saved.check_mount(sensor_mount) != cal.sensor_mount:
-        raise RequestError(f"--sensor-mount {sensor_mount}: {cal.source} is a sensor_mount {cal.sensor_mount} "
-                           "calibration (the option is for --sensor-pose or a 4x4)")
-    if not cal.converged and not force:
-        raise RequestError(f"{cal.source}: the calibration did not converge; handeye will not use it (rerun "
-                           "calibrate, or pass --force to use it anyway)")
-    return cal
-
-
-def given_calibration(calibration, sensor_mount=None, own_axes=None):
-    """A calibration given as a file, a 4x4 (in ``sensor_mount``'s frame; of the sensor's own frame
-    for a dataset whose profiles were turned, ``own_axes``), a :class:`saved.Calibration` or a
-    CalibrationResult."""
-    if calibration is None:
-        raise RequestError("a calibration is needed: --calibration RESULT.json (from handeye calibrate --out) or "
-                           "--sensor-pose X,Y,Z,...")
-    if isinstance(calibration, saved.Calibration):
-        cal = calibration
-    elif isinstance(calibration, np.ndarray) or isinstance(calibration, (list, tuple)):
-        cal = saved.from_matrix(calibration, sensor_mount=sensor_mount or "flange").from_user_frame(own_axes)
-    elif hasattr(calibration, "sensor2flange") and hasattr(calibration, "covariance"):  # a CalibrationResult
-        if calibration.sensor2flange is None:
-            raise RequestError(f"the calibration failed ({calibration.message}); nothing to use")
-        cov = None if calibration.covariance is None else np.asarray(calibration.covariance)[:6, :6]
-        cal = saved.Calibration(np.asarray(calibration.sensor2flange, float), cov,
-                                f"calibration of {calibration.dataset}", calibration.dataset,
-                                calibration.dataset_sha256, bool(calibration.converged),
-                                saved.check_mount(getattr(calibration, "sensor_mount", "flange"), "sensor_mount"),
-                                own_axes=getattr(calibration, "own_axes", None))
-        if getattr(calibration, "pose_frame", "handeye") == "own":  # a result turned for the user: back to handeye's
-            cal = dataclasses.replace(cal, own_axes=None).from_user_frame(cal.own_axes)
-    else:
-        cal = saved.load(calibration).for_dataset(own_axes)
-    return cal
-
-
-def same_mount(cal, data, command):
-    """``cal``, if its sensor is mounted where the dataset's is (a sensor2flange read as a
-    sensor2base, or the other way round, would give wrong numbers without a warning)."""
-    mounts = getattr(data, "mounts", None)
-    mount = "flange" if mounts is None else mounts.sensor
-    if cal.sensor_mount != mount:
-        raise RequestError(f"{cal.source}: a calibration of a sensor mounted on the {cal.sensor_mount} "
-                           f"(sensor_mount); {data.path / 'setup.toml'} mounts the sensor on the {mount} "
-                           f"([sensor] mount): handeye {command} needs the two to agree")
-    return cal
-
-
-def _at_calibrated_axes(data, cal):
-    """The dataset at the positioner axes the calibration holds (as set up when it holds none)."""
-    axes = getattr(cal, "positioner_axes", None)
-    mounts = getattr(data, "mounts", None)
-    if not axes or mounts is None or mounts.sphere != "positioner":
-        return data
-    if tuple(a.name for a in axes) != mounts.axis_names:
-        raise RequestError(f"{cal.source}: its positioner axes ({', '.join(a.name for a in axes)}) are not the "
-                           f"dataset's ({', '.join(mounts.axis_names)})")
-    return dataclasses.replace(data, mounts=mounts.at(axes))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,16 +56,11 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
 
     {parameters}
     """
-    if calibration is None and sensor_pose is None:
-        raise RequestError("give the saved calibration (handeye export RESULT.json --format ...) or --sensor-pose")
-    if out is not None:
-        inputs = [calibration] if isinstance(calibration, (str, pathlib.Path)) else []
-        files.check_output_path(out, "--out", inputs)
-    if format in ("robot-toml", "robot-urdf"):
-        text = robot_text(calibration, format, force)
+    request = ExportRequest.from_options(options.COMMANDS["export"].given(locals()))
+    if format in ROBOT_FORMATS:
+        text = robot_text(*request.held, format)
     else:
-        cal = _calibration(calibration, sensor_pose, convention, force, None, "the saved calibration", sensor_mount)
-        text = exports.text(cal, format, parent, child, tool, register, base)
+        text = exports.text(request.held, format, request.names)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -170,21 +91,14 @@ def _robot_values(doc, model):
     return values, said
 
 
-def robot_text(calibration, format, force=False):
+def robot_text(calibration, doc, format):
     """The robot's nominal model corrected by the calibrated ``joint_offsets`` and ``link_lengths``
-    of a saved calibration, as the model TOML (``robot-toml``) or a URDF (``robot-urdf``);
-    :mod:`handeye.model.robot.robots`. ``joint_compliance`` depends on the pose: said in a comment."""
+    of a saved calibration (the file ``calibration``, its JSON object ``doc``), as the model TOML
+    (``robot-toml``) or a URDF (``robot-urdf``); :mod:`handeye.model.robot.robots`.
+    ``joint_compliance`` depends on the pose: said in a comment."""
     from handeye.model.robot import robot_errors, robots
 
-    if not isinstance(calibration, (str, pathlib.Path)):
-        raise RequestError(f"--format {format}: give a saved calibration file (calibrate --effects joint_offsets --out)")
-    doc = saved.document(pathlib.Path(calibration))
-    spec = doc.get("robot_model") if isinstance(doc, dict) else None
-    if not isinstance(spec, str):
-        raise RequestError(f"{calibration}: no robot_model (calibrate a dataset with j1..j6 and [robot] model)")
-    if doc.get("converged") is not True and not force:
-        raise RequestError(f"{calibration}: the calibration did not converge; handeye will not use it (--force)")
-    nominal = robots.load(spec)
+    nominal = robots.load(doc["robot_model"])
     values, said = _robot_values(doc, nominal)
     model = robot_errors.corrected_model(nominal, values)
     note = f"{model.name} corrected by the robot effects of {calibration} ({'; '.join(said) or 'none'})"
@@ -293,13 +207,6 @@ def _write_cloud(result, out, fmt):
     files.write_text_atomically(out, buf.getvalue())
 
 
-def _scan_inputs(path):
-    from handeye.model.datasets import dataset
-
-    folder = dataset.resolve(path)
-    return [folder / "measurements.csv", folder / "setup.toml"]
-
-
 @options.COMMANDS["cloud"].documented
 def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.geometry.cloud`).
@@ -313,30 +220,17 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.datasets import scan as scans
     from handeye.model.geometry import cloud as clouds
 
-    suffix = "" if out is None else pathlib.Path(out).suffix.lower().lstrip(".")
-    if format is None:
-        format = "csv" if suffix == "csv" else "ply"
-    if format not in CLOUD_FORMATS:
-        raise RequestError(f"--format {format!r}: choose one of {', '.join(CLOUD_FORMATS)}")
-    if suffix in CLOUD_FORMATS and suffix != format:
-        raise RequestError(f"--out {out}: a .{suffix} file, but --format {format}; name it .{format} or drop --format")
-    if out is not None:
-        inputs = _scan_inputs(dataset) + ([calibration] if isinstance(calibration, (str, pathlib.Path)) else [])
-        files.check_output_path(out, "--out", inputs)
-    data = scans.load(dataset)
-    if out is not None:
-        files.check_output_path(out, "--out", list(data.profile_files))
-    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention,
-                                  own_axes=getattr(data, "own_axes", None)), data, "cloud")
-    data = _at_calibrated_axes(data, cal)
+    given = options.COMMANDS["cloud"].given(locals())
+    request = CloudRequest.from_options(given, scans.load(dataset))
+    cal, data = request.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None
     if cal.covariance is not None:
         sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)
-    result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), format,
+    result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
                          cal.source, FRAME[data.mounts.sphere])
     if out is not None:
-        _write_cloud(result, out, format)
+        _write_cloud(result, out, request.format)
     return result
 
 
@@ -359,56 +253,25 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     from handeye.model.datasets import scan as scans
     from handeye.model.readers import tables
 
-    limits = _mpe(mpe)
-    try:
-        exclude = float(exclude)
-    except (TypeError, ValueError):
-        raise RequestError(f"--exclude {exclude!r}: a fraction of points in [0, 0.05]") from None
-    if not 0.0 <= exclude <= 0.05:
-        raise RequestError(f"--exclude {exclude}: a fraction of points in [0, 0.05] (VDI/VDE 2634-2 allows 0.003)")
-    if plot is not None:
-        files.check_output_path(plot, "--plot", _scan_inputs(dataset), plot=True)
+    given = options.COMMANDS["validate"].given(locals())
     folder = datasets.resolve(dataset)
     table = tables.read_table(folder / "measurements.csv")
     header = [h.strip() for h in table[0]] if table else []
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
-    data = scans.load(folder) if with_profiles else datasets.load(folder)
-    cal = same_mount(_calibration(calibration, sensor_pose, convention, force, data.convention,
-                                  own_axes=getattr(data, "own_axes", None)), data, "validate")
-    data = _at_calibrated_axes(data, cal)
+    request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
+    cal, data = request.calibration, request.data
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     if with_profiles:
-        result = validation.validate_scan(data, cal, float(exclude), own)
+        result = validation.validate_scan(data, cal, request.exclude, own)
     else:
         result = validation.validate_centres(data, cal, own)
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
         data.mounts.sphere])
-    if limits is not None:
-        result = dataclasses.replace(result, acceptance=validation.accept(result, limits))
+    if request.limits is not None:
+        result = dataclasses.replace(result, acceptance=validation.accept(result, request.limits))
     if plot is not None:
         from handeye.app.present import report
 
         report.validation_figure(result, plot)
     return result
-
-
-def _mpe(mpe):
-    """``"PF,PS[,SD]"`` (mm) or a sequence, checked; None stays None."""
-    if mpe is None:
-        return None
-    values = list(numbers(mpe, "--mpe", "PF,PS[,SD] in mm, e.g. 0.05,0.03"))
-    if len(values) not in (2, 3) or not all(np.isfinite(v) and v > 0 for v in values):
-        raise RequestError(f"--mpe {mpe!r}: two or three positive numbers (PF, PS[, SD] in mm)")
-    return values
-
-
-def numbers(value, option, form):
-    """Comma-separated numbers of an option (a sequence passes as it is); RequestError naming
-    ``option`` and the expected ``form`` otherwise."""
-    if not isinstance(value, str):
-        return value
-    try:
-        return [float(v) for v in value.split(",")]
-    except ValueError:
-        raise RequestError(f"{option} {value!r}: {form}") from None

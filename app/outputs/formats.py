@@ -48,15 +48,34 @@ import re
 import numpy as np
 
 from handeye.app.common.choices import FORMATS  # noqa: F401 - the names, defined without numpy
-from handeye.app.common.errors import RequestError
+from handeye.app.common.jsonio import dumps
 from handeye.model.chain import conventions
 
-#: Frame names: what ROS, URDF and the controllers accept as an identifier.
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_/.-]{0,63}$")
-_RAPID_NAME = re.compile(r"[^A-Za-z0-9_]")
-_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,31}$")
 #: Default parent frame (ros2, urdf) by sensor mount.
 DEFAULT_PARENT = {"flange": "flange", "world": "base_link"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Names:
+    """What an export names and numbers (checked for its format by
+    :class:`handeye.app.outputs.request.ExportRequest`).
+
+    Attributes
+    ----------
+    parent, child : str
+        Frame names (ros2, urdf; the child names the ABB tooldata / wobjdata, the KUKA tool /
+        base and the UR variable). ``parent`` None: ``flange``, or ``base_link`` (world).
+    number : int
+        Tool number of a sensor on the flange (KUKA ``TOOL_DATA[n]``, FANUC ``UTOOL[n]``), or
+        base / user frame number of one fixed in the cell (KUKA ``BASE_DATA[n]``, FANUC ``UFRAME[n]``).
+    register : int
+        FANUC position register the TP program writes (overwritten).
+    """
+
+    parent: str | None = None
+    child: str = "sensor"
+    number: int = 1
+    register: int = 99
 
 
 def representations(sensor2flange):
@@ -84,13 +103,6 @@ def representations(sensor2flange):
     }
 
 
-def _check_name(option, name):
-    if not _NAME.match(name):
-        raise RequestError(f"{option} {name!r}: a frame name is letters, digits and _ / . - (at most 64), "
-                           "starting with a letter or _")
-    return name
-
-
 def _sd_lines(calibration, unit="mm"):
     sd = calibration.sd()
     if sd is None:
@@ -98,12 +110,8 @@ def _sd_lines(calibration, unit="mm"):
     tr, rot = sd
     scale = 1e-3 if unit == "m" else 1.0
     trans = ", ".join(f"{v * scale:.3g}" for v in tr)
-    return [f"1 sd: translation +-({trans}) {unit} along the {_frame(calibration)}'s x, y, z;",
+    return [f"1 sd: translation +-({trans}) {unit} along the {calibration.frame}'s x, y, z;",
             f"      rotation +-({', '.join(f'{v:.3g}' for v in rot)}) deg about the sensor's x, y, z"]
-
-
-def _frame(calibration):
-    return "base" if _world(calibration) else "flange"
 
 
 def _world(calibration):
@@ -133,17 +141,11 @@ def _f(values, digits):
 
 @dataclasses.dataclass(frozen=True)
 class _Job:
-    """One export: the calibration, its numbers and the resolved names and numbers.
-
-    ``number`` is the tool number (flange) or the base / user frame number (world).
-    """
+    """One export: the calibration, its numbers and its :class:`Names` (the parent resolved)."""
 
     calibration: object
     rep: dict
-    parent: str
-    child: str
-    number: int
-    register: int
+    names: Names
 
     @property
     def world(self):
@@ -159,10 +161,7 @@ def _ur(job):
     head = job.header("URScript pose: x, y, z in metres, rotation vector rx, ry, rz in radians", "m")
     if not job.world:
         return _comment("# ", head) + f"\nset_tcp(p[{values}])\n"
-    name = f"{job.child}_frame"
-    if not _IDENTIFIER.match(name):
-        raise RequestError(f"--child {job.child!r}: the URScript variable is {name}, an identifier: letters, digits "
-                           "and _, at most 32 characters")
+    name = f"{job.names.child}_frame"
     head += ["a feature pose in the robot base, not a TCP (set_tcp is for a sensor on the flange): a point",
              f"(x, y, z) in the sensor frame (metres) is pose_trans({name}, p[x, y, z, 0, 0, 0]) in the base;",
              f"pose_inv({name}) takes base poses into the sensor frame"]
@@ -170,7 +169,7 @@ def _ur(job):
 
 
 def _ros2(job):
-    parent, child = job.parent, job.child
+    parent, child = job.names.parent, job.names.child
     x, y, z = _f(job.rep["translation_m"], 10)
     qx, qy, qz, qw = _f(job.rep["quaternion_xyzw"], 12)
     head = job.header(f"tf2 static transform {parent} -> {child}: metres, quaternion x, y, z, w", "m")
@@ -179,7 +178,7 @@ def _ros2(job):
 
 
 def _urdf(job):
-    parent, child = job.parent, job.child
+    parent, child = job.names.parent, job.names.child
     head = job.header("URDF fixed joint: xyz in metres, rpy = fixed-axis roll, pitch, yaw in radians", "m")
     xyz, rpy = " ".join(_f(job.rep["translation_m"], 10)), " ".join(_f(job.rep["rpy_rad"], 12))
     return ("<!--\n" + _comment("  ", [h.replace("--", "- -") for h in head]) + "\n-->\n"
@@ -188,12 +187,8 @@ def _urdf(job):
 
 
 def _kuka(job):
-    n, child = job.number, job.child
-    kind, option, most = ("BASE", "--base", 32) if job.world else ("TOOL", "--tool", 16)
-    if not 1 <= n <= most:
-        raise RequestError(f"{option} {n}: a KUKA {kind.lower()} number is 1..{most}")
-    if len(child) > 24 or '"' in child:
-        raise RequestError(f"--child {child!r}: KUKA's {kind}_NAME holds at most 24 characters")
+    n, child = job.names.number, job.names.child
+    kind = "BASE" if job.world else "TOOL"
     x, y, z = _f(job.rep["translation_mm"], 6)
     a, b, c = _f(job.rep["kuka_abc_deg"], 8)
     head = job.header(f"KRL FRAME for $config.dat, {kind}_DATA[{n}]: X, Y, Z mm, A, B, C deg (Rz(A) Ry(B) Rx(C))")
@@ -204,12 +199,8 @@ def _kuka(job):
 
 
 def _abb(job):
-    child = job.child
+    child = job.names.child
     name = f"wobj_{child}" if job.world else "t" + child
-    what = "wobjdata" if job.world else "tooldata"
-    if _RAPID_NAME.search(child) or len(name) > 32:
-        raise RequestError(f"--child {child!r}: the ABB {what} is named {name}, a RAPID identifier: letters, "
-                           "digits and _, at most 32 characters")
     frame = f"[[{', '.join(_f(job.rep['translation_mm'], 6))}], [{', '.join(_f(job.rep['quaternion_wxyz'], 12))}]]"
     if job.world:
         head = job.header("RAPID wobjdata, uframe: [x, y, z] mm, [q1, q2, q3, q4] = quaternion w, x, y, z")
@@ -224,16 +215,12 @@ def _abb(job):
 
 
 def _fanuc(job):
-    n, register = job.number, job.register
-    kind, option, most, what = ("UFRAME", "--base", 9, "user") if job.world else ("UTOOL", "--tool", 10, "tool")
-    if not 1 <= n <= most:
-        raise RequestError(f"{option} {n}: a FANUC {what} frame number is 1..{most}")
-    if not 1 <= register <= 100:
-        raise RequestError(f"--register {register}: a FANUC position register is 1..100")
+    n, register = job.names.number, job.names.register
+    kind = "UFRAME" if job.world else "UTOOL"
     values = _f(job.rep["translation_mm"], 6) + _f(job.rep["fanuc_wpr_deg"], 8)
     sd = job.calibration.sd()
     where = "fixed in cell" if job.world else "on flange"
-    notes = [f"handeye: sensor {where}", f"frame {job.child}"[:29], f"{kind}: X Y Z mm, W P R deg",
+    notes = [f"handeye: sensor {where}", f"frame {job.names.child}"[:29], f"{kind}: X Y Z mm, W P R deg",
              "Direct Entry: the PR values"]
     if sd is not None:  # a TP comment holds 32 characters: one number per line, rounded
         notes += [f"1sd {a} {v:.3g} mm" for a, v in zip("XYZ", sd[0])]
@@ -249,36 +236,14 @@ def _fanuc(job):
 
 def _matrix(job):
     rows = "\n".join(" ".join(_f(row, 10)) for row in job.calibration.sensor2flange)
-    head = job.header(f"4x4 homogeneous transform, sensor -> {_frame(job.calibration)}, mm")
+    head = job.header(f"4x4 homogeneous transform, sensor -> {job.calibration.frame}, mm")
     return _comment("# ", head) + "\n" + rows + "\n"
 
 
 _WRITERS = {"ur": _ur, "ros2": _ros2, "urdf": _urdf, "kuka": _kuka, "abb": _abb, "fanuc": _fanuc, "matrix": _matrix}
 
 
-def resolve_numbers(calibration, tool=None, base=None):
-    """The tool number (flange) or base / user frame number (world); default 1.
-
-    ``--tool`` belongs to a sensor on the flange, ``--base`` to one fixed in the cell: the
-    other one given is a :class:`RequestError`.
-    """
-    if _world(calibration):
-        if tool is not None:
-            raise RequestError(f"--tool {tool}: the sensor is fixed in the cell (sensor_mount world), written as a "
-                               "base / user frame: give its number with --base")
-        return 1 if base is None else base
-    if base is not None:
-        raise RequestError(f"--base {base}: the sensor is on the flange, written as a tool: give its number with "
-                           "--tool")
-    return 1 if tool is None else tool
-
-
-def resolve_parent(calibration, parent=None):
-    """``parent``, or the mount's default: ``flange``, or ``base_link`` for a sensor fixed in the cell."""
-    return DEFAULT_PARENT["world" if _world(calibration) else "flange"] if parent is None else parent
-
-
-def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, base=None):
+def text(calibration, fmt, names=Names()):
     """The calibration as ``fmt`` text (module docstring), ending with a newline.
 
     Parameters
@@ -287,39 +252,22 @@ def text(calibration, fmt, parent=None, child="sensor", tool=None, register=99, 
         Its ``sensor_mount`` chooses a tool (flange) or a base / user frame (world); written in the
         user's frame (the sensor's own when the profiles were turned: ``Calibration.user_frame``).
     fmt : str
-        One of :data:`FORMATS` except ``json`` (see :func:`data`).
-    parent, child : str
-        Frame names (ros2, urdf; the child names the ABB tooldata / wobjdata, the KUKA tool /
-        base and the UR variable). ``parent`` default: ``flange``, or ``base_link`` (world).
-    tool : int, optional
-        Tool number of a flange-mounted sensor (KUKA ``TOOL_DATA[tool]``, FANUC
-        ``UTOOL[tool]``), 1..16 / 1..10; default 1.
-    register : int
-        FANUC position register the TP program writes (overwritten), 1..100.
-    base : int, optional
-        Base / user frame number of a sensor fixed in the cell (KUKA ``BASE_DATA[base]``,
-        FANUC ``UFRAME[base]``), 1..32 / 1..9; default 1.
+        One of :data:`FORMATS`.
+    names : Names
+        The frame names, the tool or base number and the FANUC register (default: ``sensor`` on
+        the mount's parent, number 1, register 99).
     """
-    if fmt not in FORMATS:
-        raise RequestError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
-    parent = resolve_parent(calibration, parent)
-    _check_name("--parent", parent)
-    _check_name("--child", child)
-    number = resolve_numbers(calibration, tool, base)
+    parent = DEFAULT_PARENT[calibration.sensor_mount] if names.parent is None else names.parent
     if fmt == "json":
-        from handeye.app.common.jsonio import dumps
-
-        return dumps(data(calibration, parent, child)) + "\n"
+        return dumps(data(calibration, parent, names.child)) + "\n"
     user = calibration.user_frame()
-    job = _Job(user, representations(user.sensor2flange), parent, child, number, register)
-    return _WRITERS[fmt](job)
+    return _WRITERS[fmt](_Job(user, representations(user.sensor2flange), dataclasses.replace(names, parent=parent)))
 
 
-def data(calibration, parent=None, child="sensor"):
+def data(calibration, parent, child):
     """Every format's numbers as one JSON-ready dict (``--format json``) of the user's frame (``own_axes``
-    and ``sensor_frame`` "own" when that is the sensor's own); a sensor fixed in the cell adds
-    ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
-    parent = resolve_parent(calibration, parent)
+    and ``sensor_frame`` "own" when that is the sensor's own), with the frame names; a sensor fixed in the
+    cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
     matrix = calibration.user_frame().sensor2flange
     rep = representations(matrix)
     mount = {"sensor_mount": "world"} if _world(calibration) else {}

@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import pathlib
 
 import numpy as np
 
+from handeye.app.common.arguments import typed_pose
 from handeye.app.common.errors import RequestError
-from handeye.model.chain import conventions, own_frame
+from handeye.model.chain import own_frame
 from handeye.model.chain.names import SENSOR_MOUNTS
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
@@ -298,41 +298,18 @@ def _positioner(doc, file):
     return tuple(axes)
 
 
-#: A sensor origin nearer the flange's than this (mm) is a pose typed in metres (UR's units).
-MIN_OFFSET_MM = 1.0
-
-
-def check_mount(mount, option="--sensor-mount"):
-    """``mount`` if it is one of :data:`SENSOR_MOUNTS`, else :class:`RequestError` naming ``option``."""
-    if mount not in SENSOR_MOUNTS:
-        raise RequestError(f"{option} {mount!r}: choose one of {', '.join(SENSOR_MOUNTS)}")
-    return mount
-
-
 def from_matrix(matrix, source="a 4x4 matrix", sensor_mount="flange"):
     """A :class:`Calibration` without covariance from a 4x4 sensor2flange (or, ``sensor_mount``
     "world", sensor2base), mm, checked rigid."""
     return Calibration(check_transform(_matrix(matrix, (4, 4), source, None), source), None, source,
-                       sensor_mount=check_mount(sensor_mount))
+                       sensor_mount=sensor_mount)
 
 
 def from_pose(pose, convention="kuka", sensor_mount="flange"):
     """A :class:`Calibration` without covariance from a pose typed in (``x, y, z`` mm and the
-    convention's orientation columns), in the flange frame or (``sensor_mount`` "world") the
-    robot base frame."""
-    cols = conventions.columns(convention)
-    values = np.asarray(pose, dtype=float)
-    if values.shape != (len(cols),) or not all(math.isfinite(v) for v in values):
-        raise RequestError(f"--sensor-pose needs {len(cols)} finite numbers ({','.join(cols)}, {convention})")
-    try:
-        m = conventions.transform_from(convention, values)
-    except conventions.ConventionError as exc:
-        raise RequestError(f"--sensor-pose: {exc}") from None
-    frame = MOUNT_FRAME[check_mount(sensor_mount)]
-    offset = float(np.linalg.norm(values[:3]))
-    if 0 < offset < MIN_OFFSET_MM:
-        raise RequestError(f"--sensor-pose: the sensor origin {offset:.3g} mm from the {frame}'s: metres? handeye "
-                           "positions are mm (UR: multiply x, y, z by 1000)")
+    convention's orientation columns; checked by :func:`handeye.app.common.arguments.typed_pose`),
+    in the flange frame or (``sensor_mount`` "world") the robot base frame."""
+    values, m = typed_pose(pose, convention, MOUNT_FRAME[sensor_mount])
     where = "" if sensor_mount == "flange" else ", in the robot base"
     return Calibration(m, None, f"--sensor-pose {','.join(f'{v:g}' for v in values)} ({convention}{where})",
                        sensor_mount=sensor_mount)

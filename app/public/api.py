@@ -123,9 +123,9 @@ def _written(result, data, record, out=None, plot=None, report=None):
 
         calibration_plot(result, dataset_at(result, data), plot)
     if report is not None:
-        from handeye.app.present.web.write import write_report
+        from handeye.app.present.web.write import Page, write_report
 
-        write_report(result.to_dict(), data, report, result_json=result.to_json(), option="--report")
+        write_report(Page(result.to_dict(), data, result_json=result.to_json()), report, option="--report")
     return result.in_user_frame()  # its attributes too: every pose in the frame of the user's files
 
 

@@ -1,25 +1,27 @@
 """``handeye report DATASET [--calibration FILE] --html OUT.html`` and ``calibrate --report``.
 
-Stages: validate the request (output path, the saved calibration's kind and dataset) -> the
-calibration (run now, or read from ``calibrate --out``'s file) -> optionally the discrepancy
-workflow -> the page (:mod:`handeye.app.present.web.page`) -> written atomically. The page is
-built from the calibration's JSON object, the same one ``calibrate --json`` prints, so a report
-of a saved file and one of a fresh run are the same page.
+Stages: load the dataset -> the request (:class:`ReportRequest`: the options, the output path, the
+saved calibration's kind and dataset) -> the calibration (run now, or read from ``calibrate
+--out``'s file) -> optionally the discrepancy workflow -> the page (:mod:`handeye.app.present.web.page`)
+-> written atomically. The page is built from the calibration's JSON object, the same one
+``calibrate --json`` prints, so a report of a saved file and one of a fresh run are the same page.
 """
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
 from handeye.app.common import options
 from handeye.app.common.errors import RequestError
-from handeye.app.present.web.write import ReportResult, write_report  # noqa: F401  (the command's result: public here)
+from handeye.app.common.files import check_output_path, input_files
+from handeye.app.engine.request import UNKNOWNS, unknown_parts
+from handeye.app.outputs.saved import CalibrationFileError, document, from_document
+from handeye.app.present.web.write import Page, ReportResult, write_report  # noqa: F401  (the command's result: public here)
 
 
 def saved_result(path, dataset):
     """The JSON object of a ``calibrate --out`` file made from ``dataset`` (the same content hash),
     or :class:`RequestError` naming the file and what does not match."""
-    from handeye.app.outputs.saved import CalibrationFileError, document
-
     file = pathlib.Path(path)
     doc = document(file)
     if not isinstance(doc, dict) or not isinstance(doc.get("residuals"), list) or "sensor_matrix" not in doc:
@@ -36,13 +38,50 @@ def saved_result(path, dataset):
                                          f"{dataset.name} has {sha[:12]}...): report it on its own dataset, or score it "
                                          f"on this one with `handeye calibrate {dataset.name} --calibration {file}`",
                                    "dataset_sha256")
-    from handeye.app.outputs.saved import from_document
-
     from_document(doc, file)  # the matrix, covariance, mount and axes as any use of the file checks them
     centre = doc.get("sphere_center")
     if not (isinstance(centre, list) and len(centre) == 3 and all(isinstance(v, (int, float)) for v in centre)):
         raise CalibrationFileError(file, "needs three numbers (mm)", "sphere_center")
     return doc
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportRequest:
+    """``handeye report``'s options, checked against the dataset.
+
+    Attributes
+    ----------
+    saved : dict or None
+        The saved calibration's JSON object (:func:`saved_result`); None: calibrate now.
+    source : str
+        ``calibrated now`` or the saved file's name.
+    diagnose : str or None
+        The unknowns the discrepancy workflow runs with (the calibration's); None: not run.
+    """
+
+    saved: dict | None
+    source: str
+    diagnose: str | None
+
+    @classmethod
+    def from_options(cls, v, data):
+        """The request of the options ``v`` (the public function's keywords) on ``data``."""
+        file = v["calibration"]
+        given = [o for o, key in (("--unknowns", "unknowns"), ("--model", "model"), ("--convention", "convention"),
+                                  ("--keep-all", "keep_all")) if v[key]]
+        if file is not None and given:
+            raise RequestError(f"{', '.join(given)}: options of a calibration made now; with --calibration the file is "
+                               "reported as it was made (calibrate again with them, or leave them out)")
+        inputs = input_files(data) | (set() if file is None else {pathlib.Path(file).resolve()})
+        check_output_path(v["html"], "--html", inputs=inputs)
+        doc, source = (None, "calibrated now") if file is None else (saved_result(file, data), str(file))
+        if not v["diagnose"]:
+            return cls(doc, source, None)
+        how = unknown_parts(v["unknowns"] or "sensor") if doc is None else doc.get("unknowns")
+        if how not in UNKNOWNS:
+            raise RequestError("--diagnose: diagnose takes --unknowns sensor or sensor+sphere"
+                               + (f", not {how}" if doc is None else f"; {file} was calibrated with {how}"))
+        return cls(doc, source, how)
 
 
 @options.COMMANDS["report"].documented
@@ -56,33 +95,15 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
     -------
     ReportResult
     """
-    from handeye.app.common.files import check_output_path, input_files
     from handeye.app.public import api
 
-    if calibration is not None:
-        given = [o for o, v in (("--unknowns", unknowns), ("--model", model), ("--convention", convention),
-                                ("--keep-all", keep_all)) if v]
-        if given:
-            raise RequestError(f"{', '.join(given)}: options of a calibration made now; with --calibration the file is "
-                               "reported as it was made (calibrate again with them, or leave them out)")
+    given = options.COMMANDS["report"].given(locals())
     data = api.load_dataset(dataset, clean=not no_clean)
-    check_output_path(html, "--html", inputs=input_files(data) | _input(calibration))
-    if calibration is not None:
-        result, source, text = saved_result(calibration, data), str(calibration), None
-        if diagnose and result.get("unknowns") not in ("sensor", "sensor+sphere"):
-            raise RequestError(f"--diagnose: diagnose takes --unknowns sensor or sensor+sphere; {calibration} was "
-                               f"calibrated with {result.get('unknowns')}")
+    request = ReportRequest.from_options(given, data)
+    if request.saved is not None:
+        result, text = request.saved, None
     else:
         res = api.calibrate(data, unknowns=unknowns or "sensor", model=model, convention=convention, keep_all=keep_all)
-        result, source, text = res.to_dict(), "calibrated now", res.to_json()
-    diagnosis = None
-    if diagnose:
-        how = result.get("unknowns") or unknowns or "sensor"
-        if how not in ("sensor", "sensor+sphere"):
-            raise RequestError(f"--diagnose: diagnose takes --unknowns sensor or sensor+sphere, not {how}")
-        diagnosis = api.diagnose(data, unknowns=how).to_dict()
-    return write_report(result, data, html, diagnosis, text, source)
-
-
-def _input(calibration):
-    return set() if calibration is None else {pathlib.Path(calibration).resolve()}
+        result, text = res.to_dict(), res.to_json()
+    diagnosis = None if request.diagnose is None else api.diagnose(data, unknowns=request.diagnose).to_dict()
+    return write_report(Page(result, data, diagnosis, text, request.source), html)

@@ -31,10 +31,13 @@ import signal
 import sys
 from typing import Optional
 
+from handeye.app.common.errors import RequestError
+
 
 @dataclasses.dataclass(frozen=True)
 class Backend:
-    """Where sweeps run.
+    """Where sweeps run: the request of ``handeye study``'s ``--jobs`` and ``--dask``, checked when
+    made (what the cluster says of its address is said where it is reached, :func:`using`).
 
     Attributes
     ----------
@@ -46,6 +49,12 @@ class Backend:
 
     jobs: Optional[int] = None
     dask: Optional[str] = None
+
+    def __post_init__(self):
+        if self.jobs is not None and self.jobs < 1:
+            raise RequestError("--jobs must be at least 1")
+        if self.jobs is not None and self.dask not in (None, "local"):
+            raise RequestError("--jobs applies to --dask local only; a cluster has the workers it was started with")
 
 
 _STACK = [Backend()]
@@ -89,8 +98,6 @@ def _dask_client(b):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        from handeye.app.common.errors import RequestError
-
         raise RequestError("--dask needs Dask's distributed scheduler: pip install 'handeye[dask]'") from None
     if b.dask == "local":
         workers = b.jobs or os.cpu_count() or 1
@@ -98,10 +105,6 @@ def _dask_client(b):
             with Client(cluster) as client:
                 yield client
     else:
-        from handeye.app.common.errors import RequestError
-
-        if b.jobs is not None:
-            raise RequestError("--jobs applies to --dask local only; a cluster has the workers it was started with")
         try:
             client = Client(b.dask, timeout="20s")
         except ValueError as exc:

@@ -1,5 +1,5 @@
-"""The report written: :func:`write_report` (the page of a calibration's JSON object, atomically)
-and what it wrote, :class:`ReportResult`."""
+"""The report written: :func:`write_report` (the page of a calibration's JSON object, :class:`Page`,
+atomically) and what it wrote, :class:`ReportResult`."""
 from __future__ import annotations
 
 import dataclasses
@@ -50,22 +50,37 @@ class ReportResult(ResultProtocol):
                 + ("; diagnose steps included" if self.diagnosed else ""))
 
 
-def write_report(result, dataset, html, diagnosis=None, result_json=None, source="calibrated now", option="--html"):
-    """Build the page of ``result`` (a calibration's JSON object) on ``dataset`` and write it to
-    ``html`` atomically; the :class:`ReportResult`."""
-    from handeye.app.common.files import write_text_atomically
-    from handeye.app.present.web import page, view
+@dataclasses.dataclass(frozen=True)
+class Page:
+    """What a report shows: ``result`` (a calibration's JSON object) on ``dataset``, the
+    discrepancy workflow's ``diagnosis`` (None: not run), ``result_json`` (the text ``calibrate
+    --json`` prints, embedded as it is; None: made from ``result``) and its ``source``
+    (``calibrated now`` or the saved file)."""
 
-    if source == "calibrated now":
-        text = page.build(result, dataset, diagnosis, result_json)
+    result: dict
+    dataset: object
+    diagnosis: dict | None = None
+    result_json: str | None = None
+    source: str = "calibrated now"
+
+
+def write_report(page, html, option="--html"):
+    """Build the :class:`Page` and write it to ``html`` atomically; the :class:`ReportResult`."""
+    from handeye.app.common.files import write_text_atomically
+    from handeye.app.present.web import page as pages
+    from handeye.app.present.web import view
+
+    result, how = page.result, (page.result, page.dataset, page.diagnosis, page.result_json)
+    if page.source == "calibrated now":
+        text = pages.build(*how)
     else:  # a file: what its checks let through and the page still cannot read is named, never a traceback
         from handeye.app.outputs.saved import CalibrationFileError
 
         try:
-            text = page.build(result, dataset, diagnosis, result_json, source)
+            text = pages.build(*how, page.source)
         except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise CalibrationFileError(source, f"cannot be reported: {type(exc).__name__}: {str(exc)[:120]}") from None
+            raise CalibrationFileError(page.source, f"cannot be reported: {type(exc).__name__}: {str(exc)[:120]}") from None
     write_text_atomically(html, text, option=option)
-    return ReportResult(str(html), len(text.encode("utf-8")), view.have_plotly(), str(result.get("dataset")), source,
+    return ReportResult(str(html), len(text.encode("utf-8")), view.have_plotly(), str(result.get("dataset")), page.source,
                         bool(result.get("converged")), len(result.get("residuals") or []),
-                        len(result.get("excluded") or []), diagnosis is not None)
+                        len(result.get("excluded") or []), page.diagnosis is not None)
