@@ -21,9 +21,6 @@ from handeye.app.common import files, options
 from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.outputs import formats as exports
 from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
-from handeye.app.outputs.request import given_calibration as given_calibration  # (and the two below) api.py's
-from handeye.app.outputs.request import numbers as numbers
-from handeye.app.outputs.request import same_mount as same_mount
 from handeye.app.present.protocol import ResultProtocol
 from handeye.model.chain.mounts import FRAME
 

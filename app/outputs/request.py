@@ -18,6 +18,7 @@ import re
 import numpy as np
 
 from handeye.app.common import files
+from handeye.app.common.arguments import _path_argument
 from handeye.app.common.choices import CLOUD_FORMATS, FORMATS, ROBOT_FORMATS
 from handeye.app.common.errors import RequestError
 from handeye.app.outputs import saved
@@ -106,6 +107,34 @@ def same_mount(cal, data, command):
                            f"(sensor_mount); {data.path / 'setup.toml'} mounts the sensor on the {mount} "
                            f"([sensor] mount): handeye {command} needs the two to agree")
     return cal
+
+
+def given_sensor(calibration, sensor_pose, convention, data, scoring=False):
+    """The sensor pose given (4x4, the mount's frame) and where it came from: a saved calibration
+    (``--calibration``) or a pose typed in (``--sensor-pose``, in ``convention``), checked against
+    the dataset's sensor mount; ``(None, None)`` when neither is given. A calibration that did not
+    converge is held only to be scored."""
+    if calibration is None and sensor_pose is None:
+        return None, None
+    if sensor_pose is not None:
+        values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
+        text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
+        cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
+        if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
+            cal = cal.from_user_frame(data.own_axes)
+            source += " (the sensor's own frame, turned by [profile] own_axes)"
+    else:
+        cal, source = saved.load(_path_argument(calibration)).for_dataset(data.own_axes), str(calibration)
+        source += "" if cal.converged else " (a calibration that did not converge)"
+        if not cal.converged and not scoring:
+            raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
+                               "(calibrate again)")
+    mount = getattr(cal, "sensor_mount", "flange")
+    if mount != data.mounts.sensor:
+        raise RequestError(f"{'--calibration' if calibration is not None else '--sensor-pose'}: {source} is of a sensor "
+                           f"mounted on the {mount}, the dataset's sensor is mounted on the {data.mounts.sensor} "
+                           "([sensor] mount)")
+    return np.asarray(cal.sensor2flange, float), source
 
 
 def _held_on(v, data, command):

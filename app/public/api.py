@@ -26,41 +26,11 @@ from handeye.app.common.arguments import (  # noqa: F401  (load_dataset and MAX_
     _path_argument,
     load_dataset,
 )
-from handeye.app.common.errors import RequestError
 from handeye.app.engine.robust import ALPHA
+from handeye.app.outputs import request as held_request
 from handeye.app.public.making import PlanResult, SimulationResult, plan, simulate  # noqa: F401  (the API's)
 from handeye.model.common import scratch
 from handeye.model.common.errors import InputError
-
-
-def _given_sensor(calibration, sensor_pose, convention, data, scoring=False):
-    """The sensor pose given (4x4, the mount's frame) and where it came from: a saved calibration
-    (``--calibration``) or a pose typed in (``--sensor-pose``, in ``convention``), checked against
-    the dataset's sensor mount; ``(None, None)`` when neither is given. A calibration that did not
-    converge is held only to be scored."""
-    if calibration is None and sensor_pose is None:
-        return None, None
-    from handeye.app.outputs import commands, saved
-
-    if sensor_pose is not None:
-        values = commands.numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
-        text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
-        cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
-        if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
-            cal = cal.from_user_frame(data.own_axes)
-            source += " (the sensor's own frame, turned by [profile] own_axes)"
-    else:
-        cal, source = saved.load(_path_argument(calibration)).for_dataset(data.own_axes), str(calibration)
-        source += "" if cal.converged else " (a calibration that did not converge)"
-        if not cal.converged and not scoring:
-            raise RequestError(f"--calibration: {calibration} did not converge; handeye will not hold its sensor pose "
-                               "(calibrate again)")
-    mount = getattr(cal, "sensor_mount", "flange")
-    if mount != data.mounts.sensor:
-        raise RequestError(f"{'--calibration' if calibration is not None else '--sensor-pose'}: {source} is of a sensor "
-                           f"mounted on the {mount}, the dataset's sensor is mounted on the {data.mounts.sensor} "
-                           "([sensor] mount)")
-    return np.asarray(cal.sensor2flange, float), source
 
 
 @options.COMMANDS["calibrate"].documented
@@ -95,7 +65,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     data = load_dataset(dataset, clean=not no_clean)
     asked = CalibrateRequest.from_options(values, data)
     request, free = asked.request, asked.free
-    given, source = _given_sensor(calibration, sensor_pose, request.convention, data, free.scored)
+    given, source = held_request.given_sensor(calibration, sensor_pose, request.convention, data, free.scored)
     if asked.closed_form:
         result = calibrate_classic(data, method, free.parts, outliers=request.outliers, alpha=request.alpha,
                                    convention=request.convention)
@@ -211,14 +181,13 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     """
     from handeye.app.engine import score
     from handeye.app.engine.command_request import compare_request
-    from handeye.app.outputs import commands
 
     values = options.COMMANDS["compare"].given(locals())
     data = load_dataset(dataset)
     request, level = compare_request(values, data)
     poses, sources = [], []
     for given in (a, b):
-        cal = commands.same_mount(commands.given_calibration(_path_argument(given) if isinstance(given, str) else given,
+        cal = held_request.same_mount(held_request.given_calibration(_path_argument(given) if isinstance(given, str) else given,
                                                              own_axes=data.own_axes), data, "compare")
         poses.append(np.asarray(cal.sensor2flange, float))
         sources.append(cal.source + ("" if cal.converged else " (converged: false in the file)"))
