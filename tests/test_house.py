@@ -38,9 +38,6 @@ ALLOWED = {
     # the signature a file under rewrite calls
     "app/outputs/formats.py::text": _PINNED + " (outputs/commands.py)",
     "app/present/web/write.py::write_report": _PINNED + " (reporting.py, api.py)",
-    "model/design/planning.py::plan": _PINNED + " (making.py)",
-    "model/design/planning_robot.py::request": _PINNED + " (making.py; it builds planning_robot's Candidates and PlanAsk)",
-    "model/simulation/simulate.py::simulate": _PINNED + " (making.py)",
 }
 
 
