@@ -13,9 +13,6 @@ MAX_BODY_LINES = 60
 MAX_PARAMETERS = 6
 
 _PUBLIC = "public API: its keywords are the documented options"
-_REWRITE = ("in a file being rewritten (issue 38): app/public/api.py, making.py, ingest/command.py, outputs/commands.py, "
-            "reporting.py")
-_PINNED = "called positionally or with these keywords from a file being rewritten (issue 38); its record comes with that rewrite"
 
 #: "path::qualified name" -> why it may break the rule
 ALLOWED = {
@@ -33,10 +30,6 @@ ALLOWED = {
     "app/tools/bench.py::run": _PUBLIC + " (README: handeye.app.tools.bench.run)",
     "model/fit/calibration.py::CalibrationModel.__init__": _PUBLIC + " (README: calibration_problem(CalibrationModel(...)))",
     "model/fit/calibration.py::CalibrationModel.from_circles": _PUBLIC + " (CalibrationModel's documented constructor)",
-    # the signature a file under rewrite calls
-    "model/design/planning.py::plan": _PINNED + " (making.py)",
-    "model/design/planning_robot.py::request": _PINNED + " (making.py; it builds planning_robot's Candidates and PlanAsk)",
-    "model/simulation/simulate.py::simulate": _PINNED + " (making.py)",
 }
 
 

@@ -100,7 +100,7 @@ def test_the_predicted_sd_matches_a_monte_carlo_of_the_planned_poses(ur10e, tmp_
     """40 fits of the extended model (sensor, centre, joint offsets) at the stated noise: the scatter
     of every parameter within a loose factor of the plan's Cramer-Rao sd."""
     setup = _setup("ur10e")
-    made = sim.simulate(setup, seed=0, flange_poses=ur10e.poses, ids=ur10e.ids, robot=_arm("ur10e", ur10e.joints))
+    made = sim.simulate_rig(setup, 0, poses=sim.Poses(ur10e.poses, ur10e.ids), robot=_arm("ur10e", ur10e.joints))
     sim.write(made, tmp_path / "d")
     data = handeye.load_dataset(tmp_path / "d")
     flanges, x, c = robots.load("ur10e").flange2base(data.joints), transform_from_pose(setup.sensor_pose), \
@@ -127,8 +127,7 @@ def test_the_predicted_sd_matches_a_monte_carlo_of_the_planned_poses(ur10e, tmp_
 def test_calibrate_reports_the_sd_the_plan_predicts(ur10e, tmp_path):
     """The whole pipeline on the simulator's own noise: calibrate --effects joint_offsets reports the
     plan's sd scaled by its estimated noise (the plan's is at the stated 0.05 mm)."""
-    made = sim.simulate(_setup("ur10e"), seed=2, flange_poses=ur10e.poses, ids=ur10e.ids,
-                        robot=_arm("ur10e", ur10e.joints))
+    made = sim.simulate_rig(_setup("ur10e"), 2, poses=sim.Poses(ur10e.poses, ur10e.ids), robot=_arm("ur10e", ur10e.joints))
     sim.write(made, tmp_path / "d")
     r = handeye.calibrate(tmp_path / "d", effects="joint_offsets", unknowns="sensor+sphere", no_loo=True)
     reported = next(e for e in r.effects if e.name == "joint_offsets").std
@@ -146,8 +145,8 @@ def test_the_number_of_poses_it_takes_identifies_hidden_offsets(tmp_path):
     assert rp is not None and rp.model == "m20ia" and p.n == rp.n_needed and rp.reached
     truth = np.array([0.0, 0.03, -0.02, 0.04, -0.03, 0.0])
     nominal = datasets.load_setup(cell.path).start_pose  # planned without --margin: the sensor where planned
-    made = sim.simulate(_setup("m20ia", nominal), seed=3, effects={"joint_offsets": truth.tolist()}, flange_poses=p.poses,
-                        ids=p.ids, robot=_arm("m20ia", p.joints))
+    made = sim.simulate_rig(_setup("m20ia", nominal), 3, {"joint_offsets": truth.tolist()}, sim.Poses(p.poses, p.ids),
+                            robot=_arm("m20ia", p.joints))
     sim.write(made, tmp_path / "measured")
     d = handeye.diagnose(tmp_path / "measured")
     named = {e.name: e for e in d.effects}

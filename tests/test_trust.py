@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from handeye.app.command.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from handeye.app.common.errors import RequestError
 from handeye.app.engine.calibrate import calibrate
+from handeye.app.engine.making_request import parse_effects
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common.rotation import matrix_from_rotvec, rotvec_from_matrix, transform_distance
 from handeye.model.datasets.dataset import load
@@ -59,8 +61,8 @@ def test_effects_are_what_they_say():
     ("sign_flip=", "one or more sample ids"), ("sensor_scale=nan", "finite"),
 ])
 def test_bad_effects(spec, needle):
-    with pytest.raises(simulate.SimulationError, match=needle):
-        simulate.parse_effects([spec])
+    with pytest.raises(RequestError, match=needle):
+        parse_effects([spec])  # --effect's text: read by the simulate request
     with pytest.raises(simulate.SimulationError, match="unknown sample id"):
         simulate.simulate(IDEAL, effects={"outlier": ["nope"]})
 

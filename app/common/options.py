@@ -145,12 +145,13 @@ _SIMULATE = (
         help='A pose list (header ``id,x,y,z,a,b,c``, KUKA; on a positioner followed by its axis columns, degrees) instead of '
              'the thesis strategy.',
         kind='path'),
-    Opt('--n-poses', 36, check=('integer', 1), type='int', help='poses of the thesis strategy (1-36)'),
-    Opt('--linearity', 0.0, type='float', help='sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)'),
-    Opt('--motions', 'thesis', choices=('thesis', 'about-sphere'),
+    Opt('--n-poses', 36, check=('integer', 1, 36), type='int', help='poses of the thesis strategy (1-36)'),
+    Opt('--linearity', 0.0, check=('number', 0.0, 0.1), type='float',
+        help='sensor linearity error as a fraction of the 100 mm range (data sheet: 0.0016)'),
+    Opt('--motions', 'thesis', choices=('thesis', 'about-sphere'), check=ONE_OF,
         help="thesis: the seed's 36 orientations, sphere seen at random points; about-sphere: the same orientations rotating "
              "about the sphere (seen at one sensor point)"),
-    Opt('--translations', 0, check=('integer', 0), type='int', metavar='K',
+    Opt('--translations', 0, check=('integer', 0, 6), type='int', metavar='K',
         help='Pure flange translations (0-6) at each of two orientations.'),
     Opt('--truth', metavar='POSE',
         help="True sensor pose in its mount's frame, in ``convention`` (KUKA: mm, degrees); default the thesis's (190, 100, "
@@ -163,14 +164,14 @@ _SIMULATE = (
         help="Sphere centre in its mount's frame, mm (``'X,Y,Z'`` or three numbers); default the thesis's in the base, "
              ":mod:`handeye.model.simulation.simulate_mounts`' on the flange or the table.",
         pytype='str or array_like, optional'),
-    Opt('--convention', 'kuka', choices=tuple(CONVENTIONS),
+    Opt('--convention', 'kuka', choices=tuple(CONVENTIONS), check=ONE_OF,
         help='Robot convention of the written dataset (poses, start pose, truth) and of ``truth``.'),
     Opt('--max-tilt', 90.0, check=TILT, type='float', metavar='DEG',
         help='Largest tilt of the sensor from looking straight down, degrees (the thesis: 90).'),
     Opt('--no-start', action='store_true', help='write no start pose (calibrate starts from the closed form)'),
-    Opt('--sensor-mount', 'flange', choices=('flange', 'world'),
+    Opt('--sensor-mount', 'flange', choices=('flange', 'world'), check=ONE_OF,
         help='where the sensor is: on the flange (default) or fixed in the cell (robot base frame)'),
-    Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'),
+    Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'), check=ONE_OF,
         help="where the sphere is: fixed in the cell (default), on the flange or on a positioner's table; observable pairs: "
              "flange/world, world/flange, flange/positioner"),
     Opt('--positioner-axes', metavar='NAME:PX,PY,PZ:DX,DY,DZ;...',
@@ -224,9 +225,9 @@ _PLAN = (
         pytype='str or sequence of six floats, optional'),
     Opt('--score', metavar='CSV', help='A pose list to score (predicted accuracy) instead of choosing.',
         kind='path'),
-    Opt('--sensor-mount', 'flange', choices=('flange', 'world'),
+    Opt('--sensor-mount', 'flange', choices=('flange', 'world'), check=ONE_OF,
         help="without --dataset: plan for `handeye simulate`'s nominal cell of these mounts"),
-    Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'),
+    Opt('--sphere-mount', 'world', choices=('world', 'flange', 'positioner'), check=ONE_OF,
         help="without --dataset (with it: its setup.toml's mounts); on a positioner every pose list carries one column per "
              "axis (degrees) after the pose's, and the plan chooses axis angles"),
     Opt('--robot', metavar='MODEL',

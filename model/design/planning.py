@@ -133,16 +133,21 @@ def thesis_candidates(setup, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.
         window["cuts"] = np.asarray(cuts, float)
     t_x = transform_from_pose(setup.sensor_pose)
     ids, poses = [], []
+    for name, rot, seen_at in _placements(setup, window, rng):
+        sensor = np.eye(4)
+        sensor[:3, :3] = rot
+        sensor[:3, 3] = np.asarray(sphere_centre, float) - rot @ seen_at
+        ids.append(name if name not in ids else f"{name}#{sum(i.startswith(name) for i in ids) + 1}")
+        poses.append(pose_from_transform(sensor @ np.linalg.inv(t_x)))
+    return ids, np.array(poses)
+
+
+def _placements(setup, window, rng):
+    """``(id, sensor rotation, sphere centre in the sensor frame)`` of each thesis orientation (tilted up to
+    ``setup.max_tilt_deg``) x cut of the :func:`view_window` ``window``; x and z drawn from ``rng`` in turn."""
     for ident, rot in simulate.thesis_orientations(36, setup.max_tilt_deg):
         for cut in window["cuts"]:
-            seen_at = np.array([rng.uniform(*window["x"]), setup.side * cut, rng.uniform(*window["z"])])
-            sensor = np.eye(4)
-            sensor[:3, :3] = rot
-            sensor[:3, 3] = np.asarray(sphere_centre, float) - rot @ seen_at
-            name = f"{ident}@{cut:.3g}"
-            ids.append(name if name not in ids else f"{name}#{sum(i.startswith(name) for i in ids) + 1}")
-            poses.append(pose_from_transform(sensor @ np.linalg.inv(t_x)))
-    return ids, np.array(poses)
+            yield f"{ident}@{cut:.3g}", rot, np.array([rng.uniform(*window["x"]), setup.side * cut, rng.uniform(*window["z"])])
 
 
 def cell_candidates(setup, mounts, sphere_centre, seed=0, margin_mm=0.0, margin_deg=0.0):
@@ -171,13 +176,7 @@ def cell_candidates(setup, mounts, sphere_centre, seed=0, margin_mm=0.0, margin_
     from handeye.model.simulation import simulate_mounts
 
     rng = np.random.default_rng(seed)
-    window = view_window(setup, margin_mm, margin_deg)
-    ids, rots, seen = [], [], []
-    for ident, rot in simulate.thesis_orientations(36, setup.max_tilt_deg):
-        for cut in window["cuts"]:
-            ids.append(f"{ident}@{cut:.3g}")
-            rots.append(rot)
-            seen.append([rng.uniform(*window["x"]), setup.side * cut, rng.uniform(*window["z"])])
+    ids, rots, seen = (list(column) for column in zip(*_placements(setup, view_window(setup, margin_mm, margin_deg), rng)))
     angles = None
     if mounts.sphere == "positioner":
         angles = simulate_mounts.draw_axis_angles(len(ids), len(mounts.axes), rng)
@@ -266,6 +265,18 @@ def score(flange_poses, setup, sphere_centre, mounts=None, angles=None):
             from None
 
 
+@dataclasses.dataclass(frozen=True)
+class Candidates:
+    """Candidate flange poses: ``ids``; ``flange_poses`` (N, 6), KUKA (mm, degrees), robot base; the
+    positioner's axis ``angles`` (N, k), degrees, or None; the robot's ``joints`` (N, 6), degrees, to use
+    instead of the inverse kinematics' (a robot plan), or None."""
+
+    ids: list
+    flange_poses: object
+    angles: object = None
+    joints: object = None
+
+
 @dataclasses.dataclass
 class Plan:
     """A planned pose set with its predicted accuracy."""
@@ -278,13 +289,14 @@ class Plan:
     angles: np.ndarray | None = None
 
 
-def plan(candidate_ids, candidate_poses, n, setup, sphere_centre, mounts=None, angles=None):
-    """Choose ``n`` of the candidates (D-optimal); candidates that cannot see the sphere are skipped.
+def plan(candidates, n, setup, sphere_centre, mounts=None):
+    """Choose ``n`` of the :class:`Candidates` (D-optimal); candidates that cannot see the sphere are skipped.
 
     ``mounts`` (:class:`handeye.model.chain.mounts.Mounts`, nominal axes) and the candidates' axis
-    ``angles`` (N, k), degrees, make the information of any mount (:func:`carrier_poses`);
+    angles (N, k), degrees, make the information of any mount (:func:`carrier_poses`);
     ``sphere_centre`` is then in its mount's frame.
     """
+    candidate_ids, candidate_poses, angles = candidates.ids, candidates.flange_poses, candidates.angles
     infos, keep, skipped = [], [], []
     carriers = carrier_poses(candidate_poses, mounts, angles)
     for k, (ident, pose) in enumerate(zip(candidate_ids, carriers)):

@@ -50,7 +50,6 @@ fits at the stated isotropic noise within about 15 % (tests/test_plan_robot.py).
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 
 import numpy as np
 
@@ -59,10 +58,7 @@ from handeye.model.design import planning, robot_gate
 from handeye.model.design.planning import PlanningError
 from handeye.model.fit import extended
 from handeye.model.fit.calibration import CalibrationModel
-from handeye.model.readers.setup_file import NOISE_CENTRE_MM, read_setup
-from handeye.model.readers.tables import DatasetError, read_pose_list, read_table
-from handeye.model.robot import robot_errors, robots
-from handeye.model.robot.robots import JOINTS, check_reported
+from handeye.model.robot import robot_errors
 from handeye.model.simulation import simulate, simulate_robot
 
 #: 1-sd a plan aims at per robot effect: degrees, mm, degrees per metre.
@@ -78,44 +74,6 @@ FULL_RANK = 1e-10
 #: the noise and test the fit; on the UR10e's 5 poses that reach the default target (13
 #: parameters) handeye diagnose names no effect, on 9 it names the hidden joint offsets.
 DOF_PER_PARAMETER = 1.0
-
-
-def parse_effects(effects):
-    """``'joint_offsets,link_lengths'`` (or a sequence) -> the robot effects in
-    :data:`~handeye.model.robot.robot_errors.NAMES` order; PlanningError naming ``--effects``."""
-    names = [effects] if isinstance(effects, str) else list(effects or ())
-    names = [n.strip() for text in names for n in str(text).split(",") if n.strip()]
-    unknown = [n for n in names if n not in robot_errors.NAMES]
-    if unknown or not names:
-        raise PlanningError(f"--effects: {'unknown ' + repr(unknown[0]) if unknown else 'none given'}; plan with a "
-                            f"robot for {', '.join(robot_errors.NAMES)}")
-    return tuple(n for n in robot_errors.NAMES if n in names)
-
-
-def parse_targets(targets, effects):
-    """Targets (``'joint_offsets=0.005,link_lengths=0.02'`` or a mapping) over the defaults, for the
-    asked ``effects``; PlanningError naming ``--target``."""
-    out = {name: DEFAULT_TARGETS[name] for name in effects}
-    if targets is None:
-        return out
-    if isinstance(targets, dict):
-        items = list(targets.items())
-    else:
-        items = [part.partition("=")[::2] for text in ([targets] if isinstance(targets, str) else targets)
-                 for part in str(text).split(",") if part.strip()]
-    for name, value in items:
-        name = str(name).strip()
-        if name not in effects:
-            raise PlanningError(f"--target {name}={value}: give EFFECT=SD for an effect of --effects "
-                                f"({', '.join(effects)})")
-        try:
-            sd = float(value)
-        except (TypeError, ValueError):
-            sd = float("nan")
-        if not np.isfinite(sd) or sd <= 0:
-            raise PlanningError(f"--target {name}={value}: needs a positive 1-sd in {UNITS[name]}")
-        out[name] = sd
-    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -329,7 +287,7 @@ def absorbed_why(absorbers):
 
 @dataclasses.dataclass(frozen=True)
 class RobotPlan:
-    """A plan for the robot's effects (:func:`plan`).
+    """A plan for the robot's effects (:func:`identify`, then :func:`choose`).
 
     Attributes
     ----------
@@ -458,16 +416,6 @@ def _warnings(made, jac, chosen, floor, score=False):
 
 
 @dataclasses.dataclass(frozen=True)
-class Candidates:
-    """Candidate poses: ``ids``; ``flange_poses`` (N, 6), KUKA (mm, degrees), robot base; ``joints`` (N, 6),
-    degrees, their joint angles instead of the inverse kinematics', or None."""
-
-    ids: list
-    flange_poses: object
-    joints: object = None
-
-
-@dataclasses.dataclass(frozen=True)
 class PlanAsk:
     """What a robot plan is asked.
 
@@ -481,8 +429,6 @@ class PlanAsk:
         The nominal model and its ``[robot] model`` name.
     effects : sequence of str
         Robot effects, :data:`~handeye.model.robot.robot_errors.NAMES` order.
-    n : int, optional
-        Poses to choose; default the number the targets take (every usable candidate when none does).
     sigma : float
         Stated noise per component of a sphere centre, mm.
     targets : dict, optional
@@ -495,111 +441,80 @@ class PlanAsk:
     centre: object
     robot: object
     effects: tuple
-    n: int | None = None
     sigma: float = 0.05
     targets: dict | None = None
     score: bool = False
 
 
-def plan(candidates, ask):
-    """Choose poses (and joint configurations) that identify the robot effects (module docstring):
-    of ``candidates`` (:class:`Candidates`), as ``ask`` (:class:`PlanAsk`) says. Returns a :class:`RobotPlan`."""
-    ids, flange_poses, joints = candidates.ids, candidates.flange_poses, candidates.joints
-    setup, centre, robot, effects, n, sigma, score = ask.setup, ask.centre, ask.robot, ask.effects, ask.n, ask.sigma, ask.score
-    targets = ask.targets
-    targets = {e: DEFAULT_TARGETS[e] for e in effects} | dict(targets or {})
-    flanges = transform_from_pose(np.asarray(flange_poses, float))
-    seen, skipped = visible(ids, flanges, setup, centre)
+@dataclasses.dataclass(frozen=True)
+class Identified:
+    """What the candidates identify (:func:`identify`), for :func:`choose`.
+
+    Attributes
+    ----------
+    ask : PlanAsk
+        As asked, its ``targets`` with the defaults filled in.
+    reached : Reached
+        The candidates that see the sphere, in joint space.
+    skipped : list of (str, str)
+        Candidates that cannot see the sphere, with the reason.
+    jac : ndarray, shape (N, 3, p)
+        Each reached candidate's Jacobian of the parameters kept (:func:`identifiable`).
+    names, dropped
+        The parameters kept (:data:`BASE_NAMES` first) and those left out (-> what absorbs them).
+    info : ndarray, shape (N, p, p)
+        Each candidate's information at the stated noise.
+    least, by_targets, needed : int or None
+        :func:`how_many`.
+    floor : int
+        Poses that leave a residual able to test the fit (:data:`DOF_PER_PARAMETER`).
+    """
+
+    ask: PlanAsk
+    reached: Reached
+    skipped: list
+    jac: np.ndarray
+    names: list
+    dropped: dict
+    info: np.ndarray
+    least: int
+    by_targets: int | None
+    needed: int | None
+    floor: int
+
+
+def identify(candidates, ask):
+    """What the :class:`~handeye.model.design.planning.Candidates` (KUKA flange poses, optionally their
+    joints) can identify of the robot effects ``ask`` (:class:`PlanAsk`) names (module docstring): an
+    :class:`Identified`, from which :func:`choose` chooses."""
+    setup, centre, robot, effects = ask.setup, ask.centre, ask.robot, ask.effects
+    ask = dataclasses.replace(ask, targets={e: DEFAULT_TARGETS[e] for e in effects} | dict(ask.targets or {}))
+    flanges = transform_from_pose(np.asarray(candidates.flange_poses, float))
+    seen, skipped = visible(candidates.ids, flanges, setup, centre)
     key = robot.model_key if robot.model_key in simulate_robot.SEEDS else None
-    cand = reach(robot.model, key, [i for i, s in zip(ids, seen) if s], flanges[seen], not score,
-                 None if joints is None else np.asarray(joints, float)[seen])
+    cand = reach(robot.model, key, [i for i, s in zip(candidates.ids, seen) if s], flanges[seen], not ask.score,
+                 None if candidates.joints is None else np.asarray(candidates.joints, float)[seen])
     if not cand.ids:
         raise PlanningError(f"the {robot.model.name} reaches none of the {int(seen.sum())} candidate poses that see "
                             "the sphere: put the sphere (its centre) inside its workspace")
     jac, names = jacobian(robot.model, cand.joints, cand.flanges, transform_from_pose(setup.sensor_pose), centre, effects)
-    keep, dropped = identifiable(jac, names, sigma)
+    keep, dropped = identifiable(jac, names, ask.sigma)
     jac, names = jac[:, :, keep], [names[k] for k in keep]
-    if len(names) == len(BASE_NAMES):
-        raise PlanningError(f"--effects {','.join(effects)}: these candidates separate none of its parameters from the "
-                            "sensor pose and the sphere centre")
-    info = np.einsum("nki,nkj->nij", jac, jac) / sigma**2
-    robot_cols = np.arange(len(BASE_NAMES), len(names))
-    limits = np.array([targets[name.split(".")[0]] for name in names[len(BASE_NAMES):]])
+    info = np.einsum("nki,nkj->nij", jac, jac) / ask.sigma**2
+    limits = np.array([ask.targets[name.split(".")[0]] for name in names[len(BASE_NAMES):]])
     floor = int(np.ceil((1.0 + DOF_PER_PARAMETER) * len(names) / 3))
-    least, by_targets, needed = how_many(info, robot_cols, limits, floor)
-    if n is not None and not score and not least <= n <= len(info):
-        raise PlanningError(f"--n {n}: the {len(names)} parameters need at least {least} poses" if n < least else
-                            f"--n {n}: only {len(info)} usable candidates")
-    count = len(info) if score else n if n is not None else needed if needed is not None else len(info)
-    chosen, value = planning.select(info, count)
+    counts = how_many(info, np.arange(len(BASE_NAMES), len(names)), limits, floor)
+    return Identified(ask, cand, skipped, jac, names, dropped, info, *counts, floor)
+
+
+def choose(found, n):
+    """The D-optimal ``n`` of the candidates :func:`identify` found (``n`` at least ``found.least``, at most
+    every usable candidate): a :class:`RobotPlan`."""
+    ask, cand, info = found.ask, found.reached, found.info
+    chosen, value = planning.select(info, n)
     sd, best = report_sd(info[chosen].sum(axis=0)), report_sd(info.sum(axis=0))
-    made = RobotPlan(robot.model_key, tuple(effects), float(sigma), targets, [cand.ids[k] for k in chosen],
-                     pose_from_transform(cand.flanges[chosen]), cand.joints[chosen], value, names, sd, best, dropped,
-                     least, by_targets, needed, skipped + cand.unreachable, len(cand.unreachable), cand.flips, len(info), ())
-    return dataclasses.replace(made, warnings=_warnings(made, jac, chosen, floor, score))
-
-
-def cell_robot(robot=None, dataset=None):
-    """The robot a plan is for and the stated noise: ``(Robot or None, sigma mm)``.
-
-    ``robot`` (a built-in name or a model file) wins; else the ``[robot] model`` of ``dataset`` (a
-    :class:`~handeye.model.datasets.dataset.Dataset` or a :class:`~handeye.model.datasets.dataset.CellSetup`, whose
-    setup.toml is read again for it). ``sigma`` is the dataset's ``[noise] centre_mm``, else
-    :data:`~handeye.model.readers.setup_file.NOISE_CENTRE_MM`. A model that cannot be loaded: PlanningError
-    naming ``--robot`` or ``[robot] model``."""
-    sigma, model, key = NOISE_CENTRE_MM, None, robot
-    if dataset is not None and hasattr(dataset, "noise_centre_mm"):  # a loaded Dataset
-        sigma, model = dataset.noise_centre_mm, dataset.robot_model
-        key = key or (None if model is None else model.spec or model.name)
-    elif dataset is not None:
-        st = read_setup(dataset.path)
-        sigma = st.noise.get("centre_mm", NOISE_CENTRE_MM)
-        if key is None and st.robot_model is not None:
-            name = st.robot_model
-            key = name if name in robots.builtin_names() else dataset.path / name
-    if key is None:
-        return None, sigma
-    if robot is None and model is not None:
-        return simulate_robot.Robot(str(key), model), sigma
-    try:
-        return simulate_robot.Robot.load(key), sigma
-    except DatasetError as exc:
-        raise PlanningError(f"--robot {robot}: {exc}" if robot is not None else str(exc)) from None
-
-
-def read_poses(path):
-    """A pose list (:func:`handeye.model.readers.tables.read_pose_list`) and its joint angles when its header
-    ends with j1..j6 (degrees): ``(ids, poses (N, 6) KUKA, joints (N, 6) or None)``."""
-    table = read_table(pathlib.Path(path))
-    if table and [h.strip() for h in table[0]][-len(JOINTS):] == list(JOINTS):
-        ids, poses, joints = read_pose_list(path, axes=JOINTS)
-        return ids, poses, joints
-    ids, poses = read_pose_list(path)
-    return ids, poses, None
-
-
-def request(setup, centre, robot, effects=None, targets=None, n=None, sigma=0.05, poses=None, score=False,
-            workspace=None, margin=(0.0, 0.0)):
-    """:func:`plan` as ``handeye plan`` asks it: the options parsed (``effects`` default
-    ``joint_offsets``), the candidates read (``poses``, a pose list, optionally with j1..j6: checked
-    against the model) or made (:func:`handeye.model.design.planning.thesis_candidates` within ``margin``),
-    those outside ``workspace`` skipped. Returns a :class:`RobotPlan`."""
-    effects = parse_effects("joint_offsets" if effects is None else effects)
-    targets = parse_targets(targets, effects)
-    joints = None
-    if poses is not None:
-        ids, flange_poses, joints = read_poses(poses)
-        if joints is not None:
-            check_reported(robot.model, joints, transform_from_pose(flange_poses), poses)
-    else:
-        ids, flange_poses = planning.thesis_candidates(setup, centre, margin_mm=margin[0], margin_deg=margin[1])
-    skipped = []
-    if workspace is not None:
-        inside = planning.in_workspace(flange_poses, workspace)
-        skipped = [(i, "flange position outside --workspace") for i, k in zip(ids, inside) if not k]
-        ids, flange_poses = [i for i, k in zip(ids, inside) if k], np.asarray(flange_poses)[inside]
-        joints = None if joints is None else joints[inside]
-    if not ids:
-        raise PlanningError("no candidate pose is left to plan with (--workspace excludes them all)")
-    made = plan(Candidates(ids, flange_poses, joints), PlanAsk(setup, centre, robot, effects, n, sigma, targets, score))
-    return dataclasses.replace(made, skipped=skipped + made.skipped)
+    made = RobotPlan(ask.robot.model_key, tuple(ask.effects), float(ask.sigma), ask.targets,
+                     [cand.ids[k] for k in chosen], pose_from_transform(cand.flanges[chosen]), cand.joints[chosen], value,
+                     found.names, sd, best, found.dropped, found.least, found.by_targets, found.needed,
+                     found.skipped + cand.unreachable, len(cand.unreachable), cand.flips, len(info), ())
+    return dataclasses.replace(made, warnings=_warnings(made, found.jac, chosen, found.floor, ask.score))

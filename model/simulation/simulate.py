@@ -56,6 +56,7 @@ import pathlib
 
 import numpy as np
 
+from handeye.model.chain import mounts as mount_model
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.errors import InputError
 from handeye.model.common.rotation import matrix_from_rotvec
@@ -67,11 +68,9 @@ VIEW = ((-10.0, 10.0), (3.0, 20.0), (210.0, 270.0))
 
 EFFECTS = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier", "joint_offsets", "link_lengths",
            "joint_compliance")
-#: Effects of the robot's own kinematics (need ``--robot``); the first is six numbers, the others
-#: ``{parameter: value}`` (:mod:`handeye.model.robot.robot_errors`).
+#: Effects of the robot's own kinematics (need a robot with joints); the first is six numbers, the
+#: others ``{parameter: value}`` (:mod:`handeye.model.robot.robot_errors`).
 ROBOT_EFFECTS = ("joint_offsets", "link_lengths", "joint_compliance")
-#: Largest value of a robot effect's parameter that a simulation accepts (degrees, mm, deg/m).
-ROBOT_LIMITS = {"joint_offsets": 5.0, "link_lengths": 20.0, "joint_compliance": 1.0}
 CERTIFIED_DIAMETER = 59.94507
 #: Joint-angle columns of a simulation with a robot (degrees; :data:`handeye.model.robot.robots.JOINTS`).
 JOINT_COLUMNS = ("j1", "j2", "j3", "j4", "j5", "j6")
@@ -101,76 +100,10 @@ class Setup:
     max_tilt_deg: float = 90.0
 
 
-def parse_effects(specs):
-    """``['sphere_center=1,2,3', 'sign_flip=a,b']`` -> dict; raises SimulationError."""
-    out = {}
-    for spec in specs or []:
-        name, sep, value = str(spec).partition("=")
-        name = name.strip()
-        if not sep or name not in EFFECTS:
-            raise SimulationError(f"--effect {spec!r}: expected NAME=VALUE with NAME one of {', '.join(EFFECTS)}")
-        parts = [p.strip() for p in value.split(",") if p.strip()]
-        if name in ("sign_flip", "outlier"):
-            if not parts:
-                raise SimulationError(f"--effect {spec!r}: give one or more sample ids")
-            out[name] = parts
-            continue
-        if name == "joint_offsets":
-            out[name] = parse_joint_offsets(value).tolist()
-            continue
-        if name in ROBOT_EFFECTS:
-            named = parse_named(name, value)
-            twice = sorted(set(named) & set(out.get(name, {})))
-            if twice:
-                raise SimulationError(f"--effect {name}: {twice[0]} given twice")
-            out[name] = {**out.get(name, {}), **named}
-            continue
-        try:
-            nums = [float(p) for p in parts]
-        except ValueError:
-            raise SimulationError(f"--effect {spec!r}: not a number") from None
-        want = 3 if name == "sphere_center" else 1
-        if len(nums) != want or not np.all(np.isfinite(nums)):
-            raise SimulationError(f"--effect {spec!r}: needs {want} finite number(s)")
-        out[name] = nums if want == 3 else nums[0]
-    return out
-
-
-def parse_joint_offsets(value):
-    """``'j2:0.05,j3:-0.03'`` -> offsets (6,), degrees (:func:`parse_named`, the names the joints');
-    raises SimulationError."""
-    named = parse_named("joint_offsets", value)
-    unknown = sorted(set(named) - set(JOINT_COLUMNS))
-    if unknown:
-        raise SimulationError(f"--effect joint_offsets={value}: expected JOINT:DEG,... with JOINT one of "
-                              f"{', '.join(JOINT_COLUMNS)} and |DEG| <= {ROBOT_LIMITS['joint_offsets']:g}")
-    return np.array([named.get(j, 0.0) for j in JOINT_COLUMNS])
-
-
-def parse_named(name, value):
-    """``'a2:0.3,d4:-0.2'`` -> ``{'a2': 0.3, 'd4': -0.2}`` (the names are checked against the robot
-    model later, :func:`robot_errors`); raises SimulationError."""
-    out, limit = {}, ROBOT_LIMITS[name]
-    for part in (p.strip() for p in str(value).split(",") if p.strip()):
-        key, sep, number = part.partition(":")
-        try:
-            number = float(number)
-        except ValueError:
-            number = None
-        if not sep or not key.strip() or number is None or not np.isfinite(number) or abs(number) > limit:
-            raise SimulationError(f"--effect {name}={value}: expected PARAMETER:VALUE,... with |VALUE| <= {limit:g}")
-        if key.strip() in out:
-            raise SimulationError(f"--effect {name}={value}: {key.strip()} given twice")
-        out[key.strip()] = number
-    if not any(out.values()):
-        raise SimulationError(f"--effect {name}={value}: give at least one non-zero value")
-    return out
-
-
 def robot_errors(effects, model):
     """The robot effects among ``effects`` as full parameter vectors of ``model``
-    (:func:`handeye.model.robot.robot_errors.perturbed`'s ``values``); raises SimulationError naming an
-    unknown parameter."""
+    (:func:`handeye.model.robot.robot_errors.perturbed`'s ``values``); raises SimulationError naming a
+    parameter the model does not have."""
     from handeye.model.robot.robot_errors import param_names
 
     values = {}
@@ -183,7 +116,7 @@ def robot_errors(effects, model):
             continue
         unknown = sorted(set(effects[name]) - set(names))
         if unknown:
-            raise SimulationError(f"--effect {name}: {', '.join(unknown)} not a parameter of the {model.name}; "
+            raise SimulationError(f"{name}: {', '.join(unknown)} not a parameter of the {model.name}; "
                                   f"its parameters are {', '.join(names)}")
         values[name] = np.array([effects[name].get(n, 0.0) for n in names])
     return values
@@ -204,7 +137,7 @@ def thesis_orientations(n_poses=36, max_tilt_deg=90.0):
     names only at the default).
     """
     if not 0.0 < max_tilt_deg <= 90.0:
-        raise SimulationError(f"--max-tilt must lie in (0, 90] degrees, got {max_tilt_deg}")
+        raise SimulationError(f"max_tilt_deg must lie in (0, 90] degrees, got {max_tilt_deg}")
     items = []
     for name in ("x", "y", "x*", "y*"):
         u = _axis(name)
@@ -348,37 +281,53 @@ class _Sensor:
 
 
 @dataclasses.dataclass(frozen=True)
-class _Custom:
-    """Poses the caller gave: flange poses (N, 6), their ids or None, the positioner's axis angles or None."""
+class Poses:
+    """The poses of a simulation: the caller's flange poses or the cell's default strategy.
 
-    flange_poses: object
-    ids: object
-    axis_angles: object
+    Attributes
+    ----------
+    flange_poses : array_like, shape (N, 6), optional
+        Custom flange poses (KUKA); None: the cell's default strategy of ``n`` thesis orientations.
+    ids : list of str, optional
+        Ids of custom poses (default ``p1, p2, ...``).
+    axis_angles : array_like, shape (N, k), optional
+        Positioner axis angles (degrees) of custom poses.
+    joints : array_like, shape (N, 6), optional
+        With a robot: the joint angles of custom poses (degrees, a planned pose list's), used instead
+        of the inverse kinematics (the other wrist stays the other wrist).
+    n : int
+        Poses of the default strategy (1..36).
+    """
+
+    flange_poses: object = None
+    ids: object = None
+    axis_angles: object = None
+    joints: object = None
+    n: int = 36
 
 
-def _poses(setup, rng, centre, custom, n_poses, cell):
-    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation (``custom``: a :class:`_Custom`
-    or None)."""
-    if custom is not None:
-        true_flanges = transform_from_pose(np.asarray(custom.flange_poses, float))
-        out_ids = list(custom.ids) if custom.ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
+def _poses(setup, rng, centre, poses, cell):
+    """(ids, true flanges (N, 4, 4), axis angles (N, k) or None) of a simulation's :class:`Poses`."""
+    if poses.flange_poses is not None:
+        true_flanges = transform_from_pose(np.asarray(poses.flange_poses, float))
+        out_ids = list(poses.ids) if poses.ids is not None else [f"p{k + 1}" for k in range(len(true_flanges))]
         if cell is not None and cell.sphere == "positioner":
-            axis_angles = custom.axis_angles
+            axis_angles = poses.axis_angles
             if axis_angles is None or np.shape(axis_angles) != (len(true_flanges), len(cell.true_axes)):
                 raise SimulationError(f"custom poses on a positioner need the axis angles ({', '.join(cell.axis_names)})"
                                       " of every pose")
             return out_ids, true_flanges, np.asarray(axis_angles, float)
         return out_ids, true_flanges, None
     if cell is not None and not cell.default:
-        return cell.poses(setup, rng, centre, n_poses)
-    out_ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
+        return cell.poses(setup, rng, centre, poses.n)
+    out_ids, rots = zip(*thesis_orientations(poses.n, setup.max_tilt_deg))
     seen_at = np.array([random_view(setup, rng) for _ in rots])
     return out_ids, flanges_for_views(setup, np.array(rots), seen_at, centre), None
 
 
-def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None, cell=None,
-             axis_angles=None, robot=None, joints=None):
-    """Simulate a dataset (module docstring).
+def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36, ids=None):
+    """Simulate a dataset of the seed's cell (module docstring): :func:`simulate_rig` with the poses
+    ``Poses(flange_poses, ids, n=n_poses)``.
 
     Parameters
     ----------
@@ -387,52 +336,47 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
     seed : int
         Seed of ``np.random.default_rng``; the same seed gives the same dataset.
     effects : dict, optional
-        From :func:`parse_effects`; ``sphere_center`` offsets the centre in its mount's frame.
+        Hidden effects (module docstring): ``{'sphere_center': [dx, dy, dz], 'sensor_scale': s,
+        'sphere_radius': dr, 'sign_flip': [id, ...], 'outlier': [id, ...]}``, with a robot also
+        ``'joint_offsets'`` (six degrees) and ``'link_lengths'``, ``'joint_compliance'``
+        (``{parameter: value}``); ``sphere_center`` offsets the centre in its mount's frame.
     flange_poses : array_like, shape (N, 6), optional
         Custom flange poses (KUKA) instead of the thesis strategy.
     n_poses : int
         Poses of the thesis strategy (1..36).
     ids : list of str, optional
         Ids of custom poses (default ``p1, p2, ...``).
-    cell : handeye.model.simulation.simulate_mounts.Cell, optional
-        The mounts (default: the seed's cell, sensor on the flange, sphere in the base); its
-        ``poses`` makes the default poses of another cell.
-    axis_angles : array_like, shape (N, k), optional
-        Positioner axis angles (degrees) of custom poses.
-    robot : handeye.model.simulation.simulate_robot.Robot, optional
-        A robot with joints (:mod:`handeye.model.simulation.simulate_robot`): each flange pose is reached by
-        the nominal inverse kinematics (unreachable poses are dropped), the dataset gets the joint
-        angles, and ``joint_offsets`` among the effects moves the true flange.
-    joints : array_like, shape (N, 6), optional
-        With ``robot`` and custom poses: their joint angles (degrees, a planned pose list's), used
-        instead of the inverse kinematics (the other wrist stays the other wrist).
     """
-    from handeye.model.chain import mounts as mount_model
+    return simulate_rig(setup, seed, effects, Poses(flange_poses, ids, n=n_poses))
 
+
+def simulate_rig(setup=Setup(), seed=0, effects=None, poses=Poses(), cell=None, robot=None):
+    """Simulate a dataset of any cell (module docstring): :func:`simulate`'s ``setup``, ``seed`` and
+    ``effects``, the :class:`Poses`, the mounts and a robot with joints.
+
+    ``cell`` is a :class:`handeye.model.simulation.simulate_mounts.Cell` (None: the seed's cell, sensor on the
+    flange, sphere in the base; its ``poses`` makes the default poses of another cell), ``robot`` a
+    :class:`handeye.model.simulation.simulate_robot.Robot` (or None): each flange pose is reached by the nominal
+    inverse kinematics (unreachable poses are dropped), the dataset gets the joint angles, and the robot
+    effects move the true flange.
+    """
     rng = np.random.default_rng(seed)
     effects = dict(effects or {})
     t_x = transform_from_pose(setup.sensor_pose)
-    radius_setup = setup.diameter / 2
-    radius_true = radius_setup + effects.get("sphere_radius", 0.0)
+    radius_true = setup.diameter / 2 + effects.get("sphere_radius", 0.0)
     centre = np.asarray(setup.sphere_centre, float) + np.asarray(effects.get("sphere_center", [0, 0, 0]), float)
-    custom = None if flange_poses is None else _Custom(flange_poses, ids, axis_angles)
-    out_ids, true_flanges, angles = _poses(setup, rng, centre, custom, n_poses, cell)
-    reported, given, joints, unreached = true_flanges, joints, None, {}
+    out_ids, true_flanges, angles = _poses(setup, rng, centre, poses, cell)
+    reported, joints, unreached = true_flanges, None, {}
     if robot is not None:
-        errors = robot_errors(effects, robot.model)
-        try:
-            joints, reported, true_flanges, unreached = robot.reach(true_flanges, errors, given)
-        except ValueError as exc:
-            raise SimulationError(f"--poses: {exc}") from None
+        joints, reported, true_flanges, unreached = robot.reach(true_flanges, robot_errors(effects, robot.model), poses.joints)
     elif any(name in effects for name in ROBOT_EFFECTS):
-        raise SimulationError(f"--effect {next(n for n in ROBOT_EFFECTS if n in effects)} needs a robot with joints "
-                              "(--robot MODEL)")
+        raise SimulationError(f"{next(n for n in ROBOT_EFFECTS if n in effects)} needs a robot with joints")
     mounts = mount_model.Mounts() if cell is None else cell.mounts
     tables = None if angles is None else mount_model.table2base(mounts.axes, angles)
     for name in ("sign_flip", "outlier"):
         unknown = sorted(set(effects.get(name, [])) - set(out_ids))
         if unknown:
-            raise SimulationError(f"--effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
+            raise SimulationError(f"effect {name}: unknown sample id(s) {unknown}; ids are {', '.join(out_ids)}")
     recorded, centres, profiles, kept, dropped, kept_k = [], [], [], [], [], []
     sensor = _Sensor(setup, effects, rng, radius_true)
     for k, (ident, flange) in enumerate(zip(out_ids, true_flanges)):
@@ -455,8 +399,12 @@ def simulate(setup=Setup(), seed=0, effects=None, flange_poses=None, n_poses=36,
         ident, reason = dropped[0]
         raise SimulationError(f"every pose was dropped (first: {ident}: {reason}); check the effects and the setup")
     return Simulation(kept, np.array(recorded), np.array(centres), profiles, setup, effects, centre, seed, dropped,
-                      cell, None if angles is None else angles[kept_k], None if joints is None else joints[kept_k],
-                      robot)
+                      cell, None if angles is None else angles[kept_k], None if joints is None else joints[kept_k], robot)
+
+
+def toml_vector(v):
+    """A vector as TOML's array of floats (every digit: ``repr``)."""
+    return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
 
 
 #: The name a robot model file gets in a simulated dataset (setup.toml's ``[robot] model``).
@@ -517,23 +465,20 @@ def write(sim, folder, profiles=False, start_offset=(5.0, -5.0, 5.0, 1.0, 1.0, -
     def as_written(kuka_pose):
         return kuka_pose if convention == "kuka" else conventions.convert(kuka_pose, "kuka", convention)
 
-    def vec(v):
-        return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
-
     default = sim.cell is None or sim.cell.default
     sensor_keys, sphere_keys, positioner, truth_axes = ("",) * 4 if default else sim.cell.toml_parts()
     start = ("" if start_offset is None else
-             f"start_pose = {vec(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
+             f"start_pose = {toml_vector(as_written(np.asarray(s.sensor_pose, float) + np.asarray(start_offset, float)))}\n")
     (folder / "setup.toml").write_text(
         f"# simulated by handeye (seed {sim.seed}); see simulation.json\n"
         + _robot_section(convention, sim.robot, folder)
         + (f"[sensor]\n{sensor_keys}{start}\n" if sensor_keys or start else "")
-        + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {vec(s.sphere_centre)}\n\n"
+        + f"[sphere]\n{sphere_keys}diameter = {s.diameter!r}\ncenter = {toml_vector(s.sphere_centre)}\n\n"
         + positioner
         + f"[profile]\nside = {s.side}\n\n"
-        f"[truth]\nsensor_pose = {vec(as_written(np.asarray(s.sensor_pose, float)))}\n"
-        f"sphere_center = {vec(sim.true_centre)}\n" + truth_axes
-        + (f"joint_offsets = {vec(sim.effects['joint_offsets'])}\n" if "joint_offsets" in sim.effects else "")
+        f"[truth]\nsensor_pose = {toml_vector(as_written(np.asarray(s.sensor_pose, float)))}\n"
+        f"sphere_center = {toml_vector(sim.true_centre)}\n" + truth_axes
+        + (f"joint_offsets = {toml_vector(sim.effects['joint_offsets'])}\n" if "joint_offsets" in sim.effects else "")
         + "".join(f"{name} = {{ " + ", ".join(f"{k} = {float(v)!r}" for k, v in sim.effects[name].items()) + " }\n"
                   for name in ROBOT_EFFECTS[1:] if name in sim.effects)
     )

@@ -32,11 +32,10 @@ import dataclasses
 
 import numpy as np
 
-from handeye.model.chain.mounts import CELLS, Axis, Mounts, table2base, unit
+from handeye.model.chain.mounts import Axis, Mounts, table2base, unit
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common.rotation import matrix_from_rotvec
-from handeye.model.readers.mount_setup import _AXIS_NAME, MAX_AXES, RESERVED
-from handeye.model.simulation.simulate import SimulationError, flanges_for_views, random_view, thesis_orientations
+from handeye.model.simulation.simulate import flanges_for_views, random_view, thesis_orientations, toml_vector
 
 #: Default true sensor pose in the robot base for a sensor fixed in the cell (KUKA: mm, degrees):
 #: laser line along the base's y, looking back at the robot (-x) and 20 degrees down.
@@ -53,10 +52,6 @@ POSITIONER_ERROR = (1.0, 0.2)
 #: Angles of a tilt axis (every axis but the last), degrees; the last (the table) turns over the
 #: full circle.
 TILT_LEVELS = (-45.0, -22.5, 0.0, 22.5, 45.0)
-
-
-def _error(message):
-    return SimulationError(message)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,48 +86,31 @@ class Cell:
         return tuple(a.name for a in self.nominal_axes)
 
     def poses(self, setup, rng, centre, n_poses):
-        """:func:`cell_poses` of this cell (what :func:`handeye.model.simulation.simulate.simulate` calls)."""
-        return cell_poses(self, setup, rng, centre, n_poses)
+        """The default strategy for a cell other than the seed's (what
+        :func:`handeye.model.simulation.simulate.simulate_rig` calls): ids, true flanges (N, 4, 4) and axis angles
+        (N, k) or None (module docstring)."""
+        ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
+        seen_at = np.array([random_view(setup, rng) for _ in rots])
+        angles = draw_axis_angles(len(ids), len(self.true_axes), rng) if self.sphere == "positioner" else None
+        return list(ids), flanges_for_cell(self.mounts, setup, np.array(rots), seen_at, centre, angles), angles
 
     def toml_parts(self):
-        """:func:`toml_parts` of this cell."""
-        return toml_parts(self)
+        """(``[sensor]`` lines, ``[sphere]`` lines, ``[positioner]`` section, ``[truth]`` lines) to add
+        to a simulated ``setup.toml`` for this cell; empty strings for the seed's cell."""
+        if self.default:
+            return "", "", "", ""
+        sensor = f'mount = "{self.sensor}"\n' if self.sensor != "flange" else ""
+        sphere = f'mount = "{self.sphere}"\n'
+        if self.sphere != "positioner":
+            return sensor, sphere, "", ""
+        return sensor, sphere, f"[positioner]\naxes = {_axes_toml(self.nominal_axes)}\n\n", \
+            f"axes = {_axes_toml(self.true_axes)}\n"
 
     def describe(self):
-        """:func:`describe` of this cell."""
-        return describe(self)
-
-
-def check_pair(sensor, sphere):
-    """Raise SimulationError (one line naming the options) unless the pair is an observable cell."""
-    if (sensor, sphere) not in CELLS:
-        pairs = ", ".join(f"{a}/{b}" for a, b in CELLS)
-        raise _error(f"--sensor-mount {sensor} with --sphere-mount {sphere} is no observable cell "
-                     f"(nothing moves the sensor against the sphere); use one of {pairs}")
-
-
-def parse_axes(text):
-    """``'NAME:px,py,pz:dx,dy,dz;NAME:...'`` (robot base at zero angles, mm) -> tuple of Axis."""
-    out = []
-    for part in [p.strip() for p in str(text).split(";") if p.strip()]:
-        fields = part.split(":")
-        if len(fields) != 3:
-            raise _error(f"--positioner-axes {part!r}: expected NAME:px,py,pz:dx,dy,dz")
-        name = fields[0].strip()
-        if not _AXIS_NAME.match(name) or name.lower() in RESERVED or name in [a.name for a in out]:
-            raise _error(f"--positioner-axes: {name!r} is no usable column name (letters, digits, _; unique; "
-                         "not a pose or centre column)")
-        try:
-            point, direction = (np.array([float(v) for v in f.split(",")]) for f in fields[1:])
-        except ValueError:
-            raise _error(f"--positioner-axes {part!r}: not a number") from None
-        if point.shape != (3,) or direction.shape != (3,) or not np.all(np.isfinite(np.r_[point, direction])) \
-                or np.linalg.norm(direction) < 1e-9:
-            raise _error(f"--positioner-axes {part!r}: needs three finite numbers each and a nonzero direction")
-        out.append(Axis(name, point, unit(direction)))
-    if not 1 <= len(out) <= MAX_AXES:
-        raise _error(f"--positioner-axes: give 1 to {MAX_AXES} axes, got {len(out)}")
-    return tuple(out)
+        """The cell for ``simulation.json``: mounts and (positioner) nominal and true axes."""
+        return {"sensor_mount": self.sensor, "sphere_mount": self.sphere,
+                "nominal_axes": [a.to_dict() for a in self.nominal_axes],
+                "true_axes": [a.to_dict() for a in self.true_axes]}
 
 
 def perturb_axes(axes, error_mm, error_deg, rng):
@@ -148,18 +126,13 @@ def perturb_axes(axes, error_mm, error_deg, rng):
 
 
 def make_cell(sensor="flange", sphere="world", axes=None, error=POSITIONER_ERROR, seed=0):
-    """A :class:`Cell`; the true axes drawn from ``seed`` (their own stream: the poses do not
-    depend on ``error``). ``axes`` (nominal, default :data:`POSITIONER_AXES`) and ``error``
-    (mm, deg) apply to a positioner only."""
-    check_pair(sensor, sphere)
+    """A :class:`Cell` of an observable pair of mounts (:data:`handeye.model.chain.mounts.CELLS`); the true
+    axes drawn from ``seed`` (their own stream: the poses do not depend on ``error``). ``axes`` (nominal,
+    default :data:`POSITIONER_AXES`) and ``error`` (mm, deg) apply to a positioner only."""
     if sphere != "positioner":
-        if axes is not None:
-            raise _error("--positioner-axes needs --sphere-mount positioner")
         return Cell(sensor, sphere)
     nominal = POSITIONER_AXES if axes is None else tuple(axes)
     error_mm, error_deg = (float(v) for v in error)
-    if not (0 <= error_mm <= 100 and 0 <= error_deg <= 10):
-        raise _error(f"--positioner-error must lie in 0..100 mm and 0..10 deg, got {error_mm:g},{error_deg:g}")
     return Cell(sensor, sphere, nominal, perturb_axes(nominal, error_mm, error_deg, np.random.default_rng([seed, 7])))
 
 
@@ -211,38 +184,7 @@ def flanges_for_cell(mounts, setup, rotations, seen_at, centre, angles=None):
     return flanges_for_views(setup, rotations, seen_at, centre)
 
 
-def cell_poses(cell, setup, rng, centre, n_poses):
-    """The default strategy for a cell other than the seed's: ids, true flanges (N, 4, 4) and
-    axis angles (N, k) or None (module docstring)."""
-    ids, rots = zip(*thesis_orientations(n_poses, setup.max_tilt_deg))
-    seen_at = np.array([random_view(setup, rng) for _ in rots])
-    angles = draw_axis_angles(len(ids), len(cell.true_axes), rng) if cell.sphere == "positioner" else None
-    return list(ids), flanges_for_cell(cell.mounts, setup, np.array(rots), seen_at, centre, angles), angles
-
-
 def _axes_toml(axes):
-    def vec(v):
-        return "[" + ", ".join(f"{float(a)!r}" for a in v) + "]"
-
-    rows = [f'  {{ name = "{a.name}", point = {vec(a.point)}, direction = {vec(a.direction)} }}' for a in axes]
+    rows = [f'  {{ name = "{a.name}", point = {toml_vector(a.point)}, direction = {toml_vector(a.direction)} }}'
+            for a in axes]
     return "[\n" + ",\n".join(rows) + ",\n]"
-
-
-def toml_parts(cell):
-    """(``[sensor]`` lines, ``[sphere]`` lines, ``[positioner]`` section, ``[truth]`` lines) to add
-    to a simulated ``setup.toml`` for this cell; empty strings for the seed's cell."""
-    if cell.default:
-        return "", "", "", ""
-    sensor = f'mount = "{cell.sensor}"\n' if cell.sensor != "flange" else ""
-    sphere = f'mount = "{cell.sphere}"\n'
-    if cell.sphere != "positioner":
-        return sensor, sphere, "", ""
-    return sensor, sphere, f"[positioner]\naxes = {_axes_toml(cell.nominal_axes)}\n\n", \
-        f"axes = {_axes_toml(cell.true_axes)}\n"
-
-
-def describe(cell):
-    """The cell for ``simulation.json``: mounts and (positioner) nominal and true axes."""
-    return {"sensor_mount": cell.sensor, "sphere_mount": cell.sphere,
-            "nominal_axes": [a.to_dict() for a in cell.nominal_axes],
-            "true_axes": [a.to_dict() for a in cell.true_axes]}

@@ -184,8 +184,10 @@ class Robot:
         """The robot of a built-in name or model file (DatasetError when there is none)."""
         return cls(str(name), robots.load(name))
 
-    def _given(self, wanted, joints):
-        """Given joint angles checked against the wanted flange poses: ``(joints, all reached)``."""
+    def joints_given(self, wanted, joints):
+        """Given joint angles checked against the wanted flange poses (N, 4, 4): ``(joints, all reached)``;
+        ValueError naming the first whose nominal flange is off by more than :data:`GIVEN_MM` or
+        :data:`GIVEN_DEG`."""
         joints = np.asarray(joints, float).reshape(len(wanted), 6)
         dpos, dang = transform_distance(self.model.flange2base(joints), wanted)
         bad = np.flatnonzero((dpos > GIVEN_MM) | (dang > GIVEN_DEG))
@@ -231,7 +233,7 @@ class Robot:
         if joints is None:
             joints, ok = inverse_kinematics(self.model, wanted, self.model_key)
         else:
-            joints, ok = self._given(wanted, joints)
+            joints, ok = self.joints_given(wanted, joints)
         q = np.where(ok[:, None], joints, 0.0)
         values = {} if errors is None else errors if isinstance(errors, dict) else {"joint_offsets": errors}
         reported = np.where(ok[:, None, None], self.model.flange2base(q), wanted)
