@@ -33,7 +33,7 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
         return classics.kim_cho(flange2base, centre_in_sensor)
     if method == "li-two-step":
         return classics.li_two_step(flange2base, centre_in_sensor, sphere_centre)
-    raise CalibrationInputError(f"--method: unknown closed-form method {method!r}; choose one of {', '.join(METHODS)}")
+    raise CalibrationInputError(f"unknown closed-form method {method!r}; choose one of {', '.join(METHODS)}")
 
 
 def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA, convention=None):

@@ -78,7 +78,7 @@ def whitening(cov):
 def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_SIGMA, sphere_centre=None):
     """The calibration model of ``dataset`` with residual ``kind`` (module docstring)."""
     if kind not in MODEL_KINDS:
-        raise ObservationError(f"--model: unknown {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
+        raise ObservationError(f"unknown residual model {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
     centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
     radius = dataset.sphere_diameter / 2
     f2b = dataset.motions()
