@@ -12,25 +12,33 @@ from handeye.model.simulation import simulate
 from handeye.studies.study import STUDIES
 
 #: The slowest quick studies (15-60 s here) run whole in the full suite only; the default tier
-#: runs them on part of their design, a module constant narrowed: one residual model of the
-#: three; one hidden effect of three at two of its five sizes; one method and parametrisation
-#: of eight (in this process, --jobs 1, where the narrowed constant holds); one mount of three;
-#: two solvers of eight. Per study: the constant, its narrowed value, extra arguments, and the
-#: summary's entries that follow (key None: the summary's own keys).
+#: runs them on part of their design, a module constant narrowed: one of eight methods and
+#: parametrisations of random starts (in this process, --jobs 1, where the narrowed constant
+#: holds), one mount of three, two solvers of eight. Per study: the constant, its narrowed value,
+#: extra arguments, and the summary's entries that follow (key None: the summary's own keys).
 NARROWED = {
-    "accuracy": ("KINDS", ("measurement",), [], ("models", {"measurement"})),
     "batch-equivalence": ("METHODS", ("newton", "lm"), [], ("methods", {"newton", "lm"})),
     "mounts": ("CELLS", (("eye-in-hand", "flange", "world", "sensor+sphere"),), [],
                (None, {"replicates", "eye-in-hand"})),
-    "discrepancy-power": ("GRIDS", {"sphere_center": [0.04, 0.16]}, [], ("effects", {"sphere_center"})),
     "random-starts": ("SUPPORTED", {"lm": ("local",), "gn": (), "newton": (), "ipopt": ()}, ["--jobs", "1"],
                       ("methods", {"lm/local", "lm-fast/local"})),
 }
+#: The studies whose claims are statistics over many cells (accuracy, discrepancy power, start
+#: poses, the thesis robot, circle fits, real data, the test function: 3-10 CPU-s each even quick)
+#: run in the full suite only, like the other rate checks; in the default tier the study command,
+#: its figures, summary and claims are exercised by the others (pose planning, classics, the
+#: global guarantee, the honest default and the three narrowed above).
+RATES = ("accuracy", "circle-fits", "discrepancy-power", "real-data", "start-poses", "testfunction", "thesis-robot")
+#: the default-tier study a rate study names as its sibling
+_RUNS = "test_quick_study_runs_and_its_claims_hold[pose-planning]"
 
 
 def _quick(names):
-    return [pytest.param(n, marks=pytest.mark.slow(sibling=f"test_narrowed_quick_study_runs_and_its_claims_hold[{n}]"))
-            if n in NARROWED else n for n in names]
+    def mark(n):
+        if n in NARROWED:
+            return pytest.mark.slow(sibling=f"test_narrowed_quick_study_runs_and_its_claims_hold[{n}]")
+        return pytest.mark.slow(sibling=_RUNS) if n in RATES else ()
+    return [pytest.param(n, marks=mark(n)) for n in names]
 
 
 @pytest.mark.parametrize("name", _quick(sorted(STUDIES)))
