@@ -8,7 +8,6 @@ import os
 import numpy as np
 
 from handeye.app.common.errors import RequestError
-from handeye.app.common.options import MAX_ITER  # noqa: F401  (handeye.app.common.arguments.MAX_ITER, as before)
 from handeye.model.chain import conventions
 
 
