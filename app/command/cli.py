@@ -163,10 +163,11 @@ def _stop_workers():
             pass
 
 
-def install_signal_handlers():
-    """SIGINT and SIGTERM end the run with :func:`_end` (the console script's first act)."""
+def install_signal_handlers(action=_end):
+    """SIGINT and SIGTERM end the run with :func:`_end` (the console script's first act); ``action``
+    ``signal.SIG_IGN``: ignored (its last)."""
     for name in _ENDINGS:
-        signal.signal(getattr(signal, name), _end)
+        signal.signal(getattr(signal, name), action)
 
 
 def _run(args):
@@ -211,13 +212,8 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     code = _guarded(args)
     if argv is None:  # done: a signal during the interpreter's teardown no longer changes the outcome
-        _ignore_signals()  # (the teardown restores the default action, which would end it with -2 or -15)
+        install_signal_handlers(signal.SIG_IGN)  # (the teardown restores the default action, which would end it with -2 or -15)
     return code
-
-
-def _ignore_signals():
-    for name in _ENDINGS:
-        signal.signal(getattr(signal, name), signal.SIG_IGN)
 
 
 def _json_error(args, exc, code):

@@ -8,7 +8,6 @@ import os
 import numpy as np
 
 from handeye.app.common.errors import RequestError
-from handeye.app.common.options import MAX_ITER  # noqa: F401  (handeye.app.common.arguments.MAX_ITER, as before)
 from handeye.model.chain import conventions
 
 
@@ -56,6 +55,22 @@ def _pose_text(pose, option):
         return ",".join(repr(float(v)) for v in np.ravel(np.asarray(pose, dtype=object)))
     except (TypeError, ValueError):
         raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
+
+
+def numbers(value, option, count=None, form="numbers separated by commas"):
+    """An option's numbers, ``'1,2,3'`` or a sequence, as a list of floats (None stays None); with
+    ``count``, exactly that many and finite. RequestError naming ``option`` and the expected
+    ``form`` otherwise (the one parser of the requests' number lists)."""
+    if value is None:
+        return None
+    parts = value.split(",") if isinstance(value, str) else np.ravel(np.asarray(value, dtype=object)).tolist()
+    try:
+        out = [float(v) for v in parts]
+    except (TypeError, ValueError):
+        raise RequestError(f"{option} {value!r}: {form}") from None
+    if count is not None and (len(out) != count or not np.all(np.isfinite(out))):
+        raise RequestError(f"{option} {value!r}: needs {count} finite numbers")
+    return out
 
 
 def _number(value, option, low, high, low_open=False):

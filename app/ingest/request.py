@@ -18,8 +18,7 @@ import pathlib
 import re
 import tomllib
 
-import numpy as np
-
+from handeye.app.common.arguments import numbers
 from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_folder
 from handeye.app.engine.command_request import checked_values
@@ -71,7 +70,7 @@ class NewDatasetRequest:
     side : int
         ``--side`` in the profiles' frame (default -1), or the setup's, in handeye's frame already.
     side_from : {'option', 'default', 'setup'}
-    center : ndarray (3,) or None
+    center : list of 3 floats or None
     start : str, sequence or None
         The start pose as given (checked against the dataset's convention by :meth:`start_pose`).
     start_axes : ndarray (3, 3), None or False
@@ -99,7 +98,7 @@ class NewDatasetRequest:
     diameter: float
     side: int
     side_from: str
-    center: np.ndarray | None
+    center: list | None
     start: object
     start_axes: object
     joints: object
@@ -136,7 +135,7 @@ class NewDatasetRequest:
             "profiles": tuple(expand(v["profiles"], [v[k] for k in ("poses", "joints", "setup")])),
             "columns": None if v["columns"] is None else _columns(v["columns"]), "profile_units": v["profile_units"] or "mm",
             "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
-            "center": _vector(v["center"], 3, "--center"), "robot": robot, "robot_file": robot_file,
+            "center": numbers(v["center"], "--center", 3), "robot": robot, "robot_file": robot_file,
             "pairing": Pairing(v["pair"], _match(v["match"])), "side_from": side_from, "start_axes": start_axes,
             "options": {k: x for k, x in v.items() if k != "out" and x is not None and not (isinstance(x, list) and not x)}}
         return cls(**{**{field.name: v.get(field.name) for field in dataclasses.fields(cls)}, **resolved})
@@ -145,7 +144,7 @@ class NewDatasetRequest:
         """``[sensor] start_pose`` of a dataset in ``convention`` whose profiles were turned by
         ``rotation`` (``p_handeye = R p_file``; None: not turned): the columns of the convention,
         in the frame of the profile files; None without a start pose."""
-        pose = _vector(self.start, len(conventions.columns(convention)), "--start")
+        pose = numbers(self.start, "--start", len(conventions.columns(convention)))
         if pose is None or self.start_axes is False:
             return pose
         matrix = own_frame.to_internal(conventions.transform_from(convention, pose), self.start_axes)
@@ -174,20 +173,6 @@ def _bag_checked(bag):
         raise RequestError("--bag needs the rosbags package: pip install 'handeye[ros]'")
     if not pathlib.Path(bag).exists():
         raise RequestError(f"--bag {bag}: no such file or folder")
-
-
-def _vector(value, n, option):
-    """``'1,2,3'`` or a sequence as n floats; None stays None."""
-    if value is None:
-        return None
-    parts = str(value).split(",") if isinstance(value, str) else list(np.ravel(value))
-    try:
-        out = np.array([float(v) for v in parts])
-    except (TypeError, ValueError):
-        raise RequestError(f"{option}: needs {n} comma-separated numbers, got {value!r}") from None
-    if len(out) != n or not np.all(np.isfinite(out)):
-        raise RequestError(f"{option}: needs {n} finite numbers, got {value!r}")
-    return out
 
 
 def _columns(text):

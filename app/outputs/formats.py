@@ -124,13 +124,6 @@ def _one_line(text):
     return re.sub(r"[\x00-\x1f\x7f]", " ", str(text))[:200]
 
 
-def _header(calibration, what, unit="mm"):
-    source = _one_line(calibration.source) + (f" (dataset {_one_line(calibration.dataset)})" if calibration.dataset
-                                              else "")
-    where = "in the robot base, fixed in the cell" if _world(calibration) else "on the robot flange"
-    return [f"handeye: the sensor frame {where} ({what})", f"from {source}"] + _sd_lines(calibration, unit)
-
-
 def _comment(prefix, lines, suffix=""):
     return "\n".join(f"{prefix}{line}{suffix}" for line in lines)
 
@@ -152,7 +145,10 @@ class _Job:
         return _world(self.calibration)
 
     def header(self, what, unit="mm"):
-        return _header(self.calibration, what, unit)
+        cal = self.calibration
+        source = _one_line(cal.source) + (f" (dataset {_one_line(cal.dataset)})" if cal.dataset else "")
+        where = "in the robot base, fixed in the cell" if self.world else "on the robot flange"
+        return [f"handeye: the sensor frame {where} ({what})", f"from {source}"] + _sd_lines(cal, unit)
 
 
 def _ur(job):

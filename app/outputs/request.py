@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from handeye.app.common import files
-from handeye.app.common.arguments import _path_argument
+from handeye.app.common.arguments import _path_argument, numbers
 from handeye.app.common.choices import CLOUD_FORMATS, FORMATS, ROBOT_FORMATS
 from handeye.app.common.errors import RequestError
 from handeye.app.outputs import saved
@@ -32,17 +32,6 @@ _IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,31}$")
 #: format -> (largest number, what it numbers) of a tool (sensor on the flange) and of a base / user frame (world)
 _NUMBERS = {"kuka": ((16, "a KUKA tool number"), (32, "a KUKA base number")),
             "fanuc": ((10, "a FANUC tool frame number"), (9, "a FANUC user frame number"))}
-
-
-def numbers(value, option, form):
-    """Comma-separated numbers of an option (a sequence passes as it is); RequestError naming
-    ``option`` and the expected ``form`` otherwise."""
-    if not isinstance(value, str):
-        return value
-    try:
-        return [float(v) for v in value.split(",")]
-    except ValueError:
-        raise RequestError(f"{option} {value!r}: {form}") from None
 
 
 def given_calibration(calibration, sensor_mount=None, own_axes=None):
@@ -85,7 +74,7 @@ def held(v, data=None, name="--calibration"):
         if convention is None:
             raise RequestError("--sensor-pose needs --convention (kuka, fanuc, abb, ur): there is no dataset to take "
                                "it from")
-        values = numbers(v["sensor_pose"], "--sensor-pose", "numbers separated by commas")
+        values = numbers(v["sensor_pose"], "--sensor-pose")
         return saved.from_pose(values, convention, mount or "flange").from_user_frame(own_axes)
     cal = given_calibration(v["calibration"], mount, own_axes)
     if mount is not None and mount != cal.sensor_mount:
@@ -117,7 +106,7 @@ def given_sensor(calibration, sensor_pose, convention, data, scoring=False):
     if calibration is None and sensor_pose is None:
         return None, None
     if sensor_pose is not None:
-        values = numbers(sensor_pose, "--sensor-pose", "numbers separated by commas")
+        values = numbers(sensor_pose, "--sensor-pose")
         text = sensor_pose if isinstance(sensor_pose, str) else ",".join(map(repr, np.ravel(sensor_pose).tolist()))
         cal, source = saved.from_pose(values, convention, data.mounts.sensor), f"--sensor-pose {text}"
         if data.own_axes is not None:  # typed in: the sensor's own frame, as export writes it (p = R p_own)
@@ -295,7 +284,7 @@ def _mpe(mpe):
     """``"PF,PS[,SD]"`` (mm) or a sequence, checked; None stays None."""
     if mpe is None:
         return None
-    values = list(numbers(mpe, "--mpe", "PF,PS[,SD] in mm, e.g. 0.05,0.03"))
+    values = numbers(mpe, "--mpe", form="PF,PS[,SD] in mm, e.g. 0.05,0.03")
     if len(values) not in (2, 3) or not all(np.isfinite(v) and v > 0 for v in values):
         raise RequestError(f"--mpe {mpe!r}: two or three positive numbers (PF, PS[, SD] in mm)")
     return values

@@ -32,15 +32,12 @@ import numpy as np
 
 from handeye.app.common.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.result_parts import _list
 from handeye.model.geometry import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
 #: no sphere of the setup (with two spheres: the pose cannot be assigned).
 ASSIGN_RADII = 1.5
-
-
-def _list(a):
-    return None if a is None else np.asarray(a, float).tolist()
 
 
 @dataclasses.dataclass(frozen=True)

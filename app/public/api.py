@@ -21,11 +21,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.common import options
-from handeye.app.common.arguments import (  # noqa: F401  (load_dataset and MAX_ITER: public names of the API too)
-    MAX_ITER,
-    _path_argument,
-    load_dataset,
-)
+from handeye.app.common.arguments import _path_argument, load_dataset
 from handeye.app.engine.robust import ALPHA
 from handeye.app.outputs import request as held_request
 from handeye.app.public.making import PlanResult, SimulationResult, plan, simulate  # noqa: F401  (the API's)

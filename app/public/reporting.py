@@ -16,7 +16,7 @@ from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_path, input_files
 from handeye.app.engine.request import UNKNOWNS, unknown_parts
 from handeye.app.outputs.saved import CalibrationFileError, document, from_document
-from handeye.app.present.web.write import Page, ReportResult, write_report  # noqa: F401  (the command's result: public here)
+from handeye.app.present.web.write import Page, write_report
 
 
 def saved_result(path, dataset):
@@ -93,7 +93,7 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
 
     Returns
     -------
-    ReportResult
+    handeye.app.present.web.write.ReportResult
     """
     from handeye.app.public import api
 

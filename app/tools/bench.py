@@ -35,6 +35,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.engine import robust
+from handeye.app.tools.peak import timed
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common import scratch
 from handeye.model.common.rotation import nearest_transform, transform_distance
@@ -129,15 +130,6 @@ def _methods(f2b, xs, centre, start, n):
     return out
 
 
-def _time(function, reps):
-    times, value = [], None
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        value = function()
-        times.append(time.perf_counter() - t0)
-    return np.array(times), value
-
-
 def compare(cases, reps):
     """Every method on every case: the side-by-side table."""
     result = {}
@@ -148,7 +140,7 @@ def compare(cases, reps):
         for method in ORDER:
             if method not in methods:
                 continue
-            times, (t, its, evals, cost) = _time(methods[method], reps)
+            times, (t, its, evals, cost) = timed(methods[method], reps)
             ref = t if ref is None else ref
             dt, dr = transform_distance(t, ref)
             table[method] = {"median_ms": float(np.median(times) * 1e3), "min_ms": float(np.min(times) * 1e3),
@@ -184,12 +176,12 @@ def scaling(sizes=SCALING, reps=5):
         case = simulated_case(n, seed=1)
         f2b, xs, centre, start = case
         fast.calibrate_fast(f2b, xs, centre, start)
-        times, res = _time(lambda: fast.calibrate_fast(f2b, xs, centre, start), reps)
+        times, res = timed(lambda: fast.calibrate_fast(f2b, xs, centre, start), reps)
         row = {"n": int(n), "median_ms": float(np.median(times) * 1e3), "evaluations": res.evaluations}
         if fast.library() is not None:
             driver = _driver(case)
-            loop, evals = _time(driver, reps)
-            call, _ = _time(lambda: driver(n=0), reps)
+            loop, evals = timed(driver, reps)
+            call, _ = timed(lambda: driver(n=0), reps)
             row["per_evaluation_us"] = float((np.median(loop) - np.median(call)) * 1e6 / evals)
         else:
             row["per_evaluation_us"] = float(np.median(times) * 1e6 / res.evaluations)
@@ -204,16 +196,16 @@ def profile(case, reps=200):
     versus the compiled iteration; evaluations, instructions of the generated model and the
     compute limit they imply."""
     f2b, xs, centre, start = case
-    total, res = _time(lambda: fast.calibrate_fast(f2b, xs, centre, start), reps)
+    total, res = timed(lambda: fast.calibrate_fast(f2b, xs, centre, start), reps)
     out = {"total_us": float(np.median(total) * 1e6), "evaluations": res.evaluations, "n": len(xs),
            "instructions_per_measurement": int(fast._per_measurement().n_instructions()),
            "compiled": fast.library() is not None}
     if not out["compiled"]:
         return out
     driver = _driver(case)
-    call, _ = _time(lambda: driver(n=0), reps)  # the bare ctypes call
-    one, _ = _time(lambda: driver(0), reps)  # one evaluation, no step
-    iterate, _ = _time(driver, reps)
+    call, _ = timed(lambda: driver(n=0), reps)  # the bare ctypes call
+    one, _ = timed(lambda: driver(0), reps)  # one evaluation, no step
+    iterate, _ = timed(driver, reps)
     out["call_us"] = float(np.median(call) * 1e6)
     out["compiled_loop_us"] = float(np.median(iterate) * 1e6) - out["call_us"]
     out["one_evaluation_us"] = float(np.median(one) * 1e6) - out["call_us"]

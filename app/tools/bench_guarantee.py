@@ -9,11 +9,11 @@ both alike, and the medians are compared. The steps' own parts are timed alone a
 from __future__ import annotations
 
 import contextlib
-import time
 
 import numpy as np
 
 import handeye
+from handeye.app.tools.peak import timed
 
 
 @contextlib.contextmanager
@@ -32,12 +32,7 @@ def _without_guarantee():
 
 
 def _median_ms(function, reps):
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
+    return 1e3 * float(np.median(timed(function, reps)[0]))
 
 
 def measure(dataset="thesis-real", reps=7, unknowns="sensor"):

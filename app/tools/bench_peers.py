@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 
+from handeye.app.tools.peak import timed
 from handeye.model.chain.pose import pose_from_transform
 from handeye.model.common.rotation import transform_distance
 from handeye.model.fit.calibration import CalibrationModel
@@ -106,11 +107,7 @@ def memory_bandwidth(megabytes=256, reps=5):
 
 
 def _timed(solve, reps):
-    times, out = [], None
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        out = solve()
-        times.append(time.perf_counter() - t0)
+    times, out = timed(solve, reps)
     return float(np.median(times)), out
 
 

@@ -7,7 +7,7 @@ maximum over every child, each at least as large. The high-water mark of the add
 (``VmHWM`` in ``/proc/self/status``) starts afresh at ``exec``: that is the child's own peak.
 This module imports nothing heavy, so that a child measuring itself stays small. It also
 says which machine a measurement was taken on (:func:`machine`): a time or a memory figure
-means little without it.
+means little without it; and times repeated calls (:func:`timed`, the bench's one timing loop).
 """
 from __future__ import annotations
 
@@ -16,6 +16,17 @@ import os
 import platform
 import resource
 import sys
+import time
+
+
+def timed(function, reps):
+    """``(wall times of reps calls of function in s, what the last call returned)``."""
+    times, value = [], None
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        value = function()
+        times.append(time.perf_counter() - t0)
+    return times, value
 
 
 def own_peak_kb():
