@@ -57,7 +57,7 @@ def _pose_text(pose, option):
         raise RequestError(f"{option}: needs numbers, got {pose!r}") from None
 
 
-def numbers(value, option, count=None, form="numbers separated by commas"):
+def numbers(value, option, count=None, form="not a number (give numbers separated by commas)"):
     """An option's numbers, ``'1,2,3'`` or a sequence, as a list of floats (None stays None); with
     ``count``, exactly that many and finite. RequestError naming ``option`` and the expected
     ``form`` otherwise (the one parser of the requests' number lists)."""

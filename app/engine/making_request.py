@@ -15,7 +15,7 @@ import pathlib
 
 import numpy as np
 
-from handeye.app.common.arguments import _path_argument, _pose_text
+from handeye.app.common.arguments import _path_argument, _pose_text, numbers
 from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_folder, check_output_path
 from handeye.app.engine.command_request import checked_values
@@ -35,17 +35,6 @@ from handeye.model.simulation import simulate_mounts as sm
 
 #: Largest value of a robot effect's parameter that a simulation accepts (degrees, mm, deg/m).
 ROBOT_LIMITS = {"joint_offsets": 5.0, "link_lengths": 20.0, "joint_compliance": 1.0}
-
-
-def _floats(text, option, count):
-    values = _pose_text(text, option).split(",")
-    try:
-        out = [float(v) for v in values]
-    except ValueError:
-        raise RequestError(f"{option}: not a number in {text!r}") from None
-    if len(out) != count or not np.all(np.isfinite(out)):
-        raise RequestError(f"{option} needs {count} finite numbers, got {text!r}")
-    return out
 
 
 def _named(name, value):
@@ -101,8 +90,8 @@ def parse_effects(specs):
                 raise RequestError(f"--effect {name}: {twice[0]} given twice")
             out[name] = {**out.get(name, {}), **named}
         else:
-            numbers = _floats(value, f"--effect {name}", 3 if name == "sphere_center" else 1)
-            out[name] = numbers if name == "sphere_center" else numbers[0]
+            values = numbers(value, f"--effect {name}", 3 if name == "sphere_center" else 1)
+            out[name] = values if name == "sphere_center" else values[0]
     return out
 
 
@@ -117,7 +106,7 @@ def _axes(text):
         if not _AXIS_NAME.match(name) or name.lower() in RESERVED or name in [a.name for a in out]:
             raise RequestError(f"--positioner-axes: {name!r} is no usable column name (letters, digits, _; unique; "
                                "not a pose or centre column)")
-        point, direction = (np.array(_floats(f, f"--positioner-axes {part!r}", 3)) for f in fields[1:])
+        point, direction = (np.array(numbers(f, f"--positioner-axes {part!r}", 3)) for f in fields[1:])
         if np.linalg.norm(direction) < 1e-9:
             raise RequestError(f"--positioner-axes {part!r}: needs a nonzero direction")
         out.append(Axis(name, point, unit(direction)))
@@ -134,7 +123,7 @@ def _positioner(v):
     axes = None if v["positioner_axes"] is None else _axes(v["positioner_axes"])
     if v["positioner_error"] is None:
         return axes, sm.POSITIONER_ERROR
-    error = _floats(v["positioner_error"], "--positioner-error", 2)
+    error = numbers(v["positioner_error"], "--positioner-error", 2)
     if not (0 <= error[0] <= 100 and 0 <= error[1] <= 10):
         raise RequestError(f"--positioner-error must lie in 0..100 mm and 0..10 deg, got {error[0]:g},{error[1]:g}")
     return axes, error
@@ -182,7 +171,7 @@ def _simulated_setup(v):
     setup = sim.Setup(linearity=v["linearity"], max_tilt_deg=v["max_tilt"])
     cell, setup = _cell(setup, (v["sensor_mount"], v["sphere_mount"]), *_positioner(v), v["seed"])
     pose = None if v["truth"] is None else parse_pose(_pose_text(v["truth"], "--truth"), "--truth", v["convention"])
-    centre = None if v["center"] is None else _floats(v["center"], "--center", 3)
+    centre = None if v["center"] is None else numbers(v["center"], "--center", 3)
     return cell, _replaced(setup, sensor_pose=None if pose is None else tuple(pose), diameter=v["diameter"],
                            sphere_centre=None if centre is None else tuple(centre))
 
@@ -445,10 +434,10 @@ class PlanRequest:
         """The request of the options ``values`` (the public function's keywords); raises
         :class:`handeye.InputError` naming the option at fault."""
         v = checked_values("plan", values)
-        v["margin"] = (0.0, 0.0) if v["margin"] is None else tuple(_floats(v["margin"], "--margin", 2))
+        v["margin"] = (0.0, 0.0) if v["margin"] is None else tuple(numbers(v["margin"], "--margin", 2))
         if min(v["margin"]) < 0:
             raise RequestError(f"--margin must not be negative, got {v['margin']}")
-        v["workspace"] = None if v["workspace"] is None else _floats(v["workspace"], "--workspace", 6)
+        v["workspace"] = None if v["workspace"] is None else numbers(v["workspace"], "--workspace", 6)
         setup, centre, convention, mounts, d = _planned_cell(v)
         if v["out"] is not None:  # before the work, and never over a file this command reads or of the dataset
             inputs = [p for p in (v["candidates"], v["score"]) if p is not None]
