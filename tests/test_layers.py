@@ -258,7 +258,6 @@ LOCAL_IMPORTS = {
     "start-up: would load casadi at import, which the module does not load yet": [
         ("app/engine/problems.py", "testfunction_nlp", "casadi"),
         ("model/chain/codegen.py", "casadi_function", "casadi"),
-        ("model/chain/pose.py", "transform_from_pose_casadi", "casadi"),
         ("model/chain/testfunction.py", "casadi_function", "casadi"),
         ("model/compiled/fast.py", "_calibrate_python", "casadi"),
         ("model/compiled/fast.py", "_per_measurement", "casadi"),
@@ -486,7 +485,6 @@ LOCAL_IMPORTS = {
         ("studies/study_mounts.py", "_fan", "mpl_toolkits.mplot3d.art3d"),
     ],
     "start-up: would load numpy at import, which the module does not load yet": [
-        ("app/common/files.py", "write_json_atomically", "handeye.app.common.jsonio"),
         ("app/present/interactive.py", "png_from_figure", "handeye.app.present.figure_style"),
         ("app/present/plotting.py", "figure", "handeye.app.present.figure_style"),
     ],

@@ -109,11 +109,6 @@ class Free:
         return cls(unknown_parts(unknowns), effect_names(effects), given)
 
     @property
-    def held_sensor(self):
-        """A given sensor pose held while the other parts are estimated (no sensor among the parts)."""
-        return self.given is not None and "sensor" not in self.parts.split("+")
-
-    @property
     def scored(self):
         """A given sensor pose scored, not calibrated (the sensor among the parts)."""
         return self.given is not None and "sensor" in self.parts.split("+")

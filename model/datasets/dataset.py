@@ -71,7 +71,6 @@ from handeye.model.readers.tables import (  # noqa: F401  (read_pose_list, pose_
 from handeye.model.robot import robots
 from handeye.model.robot.robots import JOINTS
 
-REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
 OPTIONAL_COLUMNS = ("profile",)
 DATA_DIR = pathlib.Path(__file__).parent.parent / "data"
 
