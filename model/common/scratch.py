@@ -2,10 +2,11 @@
 
 Whatever writes a temporary file or folder registers it while it exists (:func:`register`, or
 :func:`temporary_folder` for a folder); the command line's handler of SIGINT and SIGTERM
-(:mod:`handeye.app.command.cli`) ends the process at once -- ``os._exit``, as IPOPT and worker pools would swallow a ``KeyboardInterrupt`` -- and
-first removes what is registered (:func:`remove_all`). Creating and registering, and
-renaming and unregistering, happen with those signals held back (:func:`signals_held`), so no
-moment leaves a temporary file unknown to the handler.
+(:mod:`handeye.app.command.cli`) ends the process at once -- ``os._exit``, as IPOPT and worker
+pools would swallow a ``KeyboardInterrupt`` -- and first removes what is registered
+(:func:`remove_all`). Creating and registering, and renaming and unregistering, happen with
+those signals held back (:func:`signals_held`), so no moment leaves a temporary file unknown to
+the handler.
 """
 from __future__ import annotations
 
