@@ -119,7 +119,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
     alpha : float
         Family-wise level of the effect and outlier tests.
     start : array_like, shape (6,), optional
-        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.engine.calibrate.resolve_start`.
+        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.engine.prepare.resolve_start`.
     sigma : float, optional
         Nominal noise per residual component (mm) for chi2/dof; default the dataset's
         ``[noise] centre_mm``.

@@ -18,7 +18,7 @@ from handeye.app.common.choices import CLASSIC_METHODS, METHODS
 from handeye.app.common.errors import CalibrationInputError
 from handeye.model.chain import conventions
 from handeye.model.chain.names import PARTS, ROTATIONS, UNKNOWNS
-from handeye.model.datasets.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
+from handeye.model.readers.tables import GUESS_LIMITS, LIMIT_POSITION_MM
 
 # METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 

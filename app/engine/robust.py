@@ -25,7 +25,6 @@ from handeye import solvers
 from handeye.app.common.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.engine import loo
 from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers are robust's names too
-    LOO_GN_ITER,
     LOO_GN_MAX_RATE,
     LOO_RATE_SAFETY,
     LOO_XTOL,
@@ -34,7 +33,6 @@ from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers 
     _deletion_steps,
     _gauss_newton_rate,
     _gauss_newton_refit,
-    _group_normal_equations,
 )
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample

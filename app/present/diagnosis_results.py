@@ -10,7 +10,6 @@ import html
 
 import numpy as np
 
-from handeye.app.common.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
 from handeye.model import effects
