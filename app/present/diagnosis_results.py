@@ -6,7 +6,6 @@ workflow's steps, score tests, per-sample residuals before and after the named e
 from __future__ import annotations
 
 import dataclasses
-import html
 
 import numpy as np
 
@@ -109,6 +108,8 @@ class DiagnosisResult(ResultProtocol):
         <handeye.app.present.results.CalibrationResult>` (``{'applied': False}`` with
         ``--no-clean``; None without profiles).
     """
+
+    caption = "handeye diagnosis"
 
     dataset: str
     effects: list
@@ -221,18 +222,16 @@ class DiagnosisResult(ResultProtocol):
 
         return report.diagnosis_figures(self, folder)
 
-    def _repr_html_(self):
+    def _html_rows(self):
+        """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`)."""
         named = "; ".join(
             e.name + (": " + ", ".join(e.parameters["ids"]) if e.std is None else
                       ": " + ", ".join(f"{k} = {v:.4g} ± {e.std[k]:.2g}" for k, v in e.parameters.items()))
             for e in self.effects) or "none"
-        rows = [("dataset", self.dataset), ("effects named", named),
+        return [("dataset", self.dataset), ("effects named", named),
                 ("outliers", ", ".join(self.outliers) or "none"),
                 ("absorbed (not identifiable)", ", ".join(self.not_identifiable) or "none"),
                 ("RMS before → after (mm)", f"{self.rms_before_mm:.4f} → {self.rms_after_mm:.4f}"),
                 ("held-out RMS before → after (mm)",
                  f"{self.heldout_rms_before_mm:.4f} → {self.heldout_rms_after_mm:.4f}"),
                 ("unexplained", self.unexplained)]
-        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
-                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
-        return f"<table><caption>handeye diagnosis</caption>{body}</table>"

@@ -19,7 +19,6 @@ which).
 from __future__ import annotations
 
 import dataclasses
-import html
 import json
 from json.encoder import encode_basestring_ascii as quote
 
@@ -395,6 +394,8 @@ class CalibrationResult(ResultProtocol):
     own_axes: np.ndarray | None = None
     pose_frame: str = "handeye"
 
+    caption = "handeye calibration"
+
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
         where = FLAT.get(name) if not name.startswith("__") else None
@@ -584,7 +585,8 @@ class CalibrationResult(ResultProtocol):
 
         return report.calibration_text(self.in_user_frame())
 
-    def _repr_html_(self):
+    def _html_rows(self):
+        """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`), of the user's frame."""
         self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
@@ -604,10 +606,7 @@ class CalibrationResult(ResultProtocol):
         if self.std is not None:
             rows.append(("1 sd translation (mm)", " ".join(f"{v:.4f}" for v in self.std.sensor_translation_mm)))
             rows.append(("1 sd rotation (deg)", " ".join(f"{v:.4f}" for v in self.std.sensor_rotation_deg)))
-        rows += [("warning", w) for w in self.warnings]
-        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
-                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
-        return f"<table><caption>handeye calibration</caption>{body}</table>"
+        return rows + [("warning", w) for w in self.warnings]
 
     def __repr__(self):
         self = self.in_user_frame()
