@@ -30,6 +30,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
+from handeye.app.present.residual_table import ResidualTable
 from handeye.app.present.result_parts import PositionerRecord
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import inverse_transforms
@@ -189,8 +190,6 @@ def refined_mounts(dataset, fitted):
 def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
-    from handeye.app.present.results import ResidualTable
-
     data = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted)) if fitted.axes else dataset
     xs = np.column_stack([data.centre_in_sensor, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre

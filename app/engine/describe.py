@@ -14,14 +14,13 @@ import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robot_choice, robust
+from handeye.app.present.residual_table import ResidualTable, SampleResidual
 from handeye.app.present.result_parts import EffectsRecord, FitRecord, PositionerRecord, ScreeningRecord, UncertaintyRecord
 from handeye.app.present.results import (
     RMS_PER_CENTRE,
     CalibrationResult,
     NamedEffect,
     NoiseTest,
-    ResidualTable,
-    SampleResidual,
     Uncertainty,
 )
 from handeye.model import effects as catalogue

@@ -36,7 +36,7 @@ class FitRecord:
     status : int or None
         Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
     message : str
-    residuals : list of handeye.app.present.results.SampleResidual
+    residuals : list of handeye.app.present.residual_table.SampleResidual
         Every sample, used or excluded.
     iterations, evaluations, history, solver_point, solver_extra, hessian_eigenvalues
         The solver's record (None for a closed-form method).
