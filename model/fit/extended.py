@@ -149,14 +149,10 @@ class Samples:
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
         an index array, only, when given)."""
-        if rows is None:
-            xs = self.d.centre_in_sensor.copy()
-            for i in structure.flips:
-                xs[i, 1] = -xs[i, 1]
-            return xs
-        xs = self.d.centre_in_sensor[rows]
+        xs = self.d.centre_in_sensor.copy() if rows is None else self.d.centre_in_sensor[rows]
         if structure.flips:
-            flip = np.isin(rows, np.fromiter(structure.flips, int))
+            flipped = np.fromiter(structure.flips, int)
+            flip = flipped if rows is None else np.isin(rows, flipped)
             xs[flip, 1] = -xs[flip, 1]
         return xs
 
@@ -216,21 +212,9 @@ class Samples:
         """Least squares of the structure on the samples in ``mask``. Above
         :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples (or with ``chunk``) on normal
         equations summed chunk by chunk: the Fit then holds no Jacobian (``jac`` None)."""
-        params0 = {n: np.zeros(len(self.params_of(n))) for n in structure.data_effects} | (params0 or {})
-        keys = list(structure.data_effects)
-        sizes = [len(self.params_of(n)) for n in keys]
-        n_pt, n_theta = len(x0), self._chart(structure.centre).n
+        z0, n, split, retract = self._layout(structure, x0, params0)
         big = chunk is not None or int(np.count_nonzero(mask)) > ROW_CHUNK
-
-        def split(z):
-            x, params, k = z[:n_pt], {}, n_pt
-            for key, size in zip(keys, sizes):
-                params[key] = z[k : k + size]
-                k += size
-            return x, params
-
-        z0 = np.concatenate([x0] + [params0[k] for k in keys])
-        problem = self._problem(structure, mask, split, (n_pt, n_theta, n_theta + sum(sizes)), chunk, big)
+        problem = self._problem(structure, mask, (n, split, retract), chunk, big)
         solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
         x, params = split(solved.x)
         if big:
@@ -238,8 +222,8 @@ class Samples:
         else:
             e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
-        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n_theta + sum(sizes),
-                   bool(solved.converged), solved.message)
+        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n, bool(solved.converged),
+                   solved.message)
 
     def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
         """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
@@ -264,33 +248,37 @@ class Samples:
         e : ndarray, shape (len(rows), 3)
             Residuals of the samples ``rows`` at the fit.
         """
-        keys = list(structure.data_effects)
-        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
-        chart, n_pt = self._chart(structure.centre), len(x0)
-        n = chart.n + sum(len(params0[k]) for k in keys)
+        z0, n, split, retract = self._layout(structure, x0, params0)
         sw = np.sqrt(np.repeat(np.asarray(weights, float), 3))
-
-        def split(z):
-            ends = np.cumsum([n_pt] + [len(params0[k]) for k in keys])
-            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
-
         problem = solvers.Problem(
-            n=n,
-            retract=lambda z, d: np.concatenate([chart.retract(z[:n_pt], d[:chart.n]), z[n_pt:] + d[chart.n:]]),
+            n=n, retract=retract,
             residual=lambda z: sw * self.evaluate(structure, *split(z), rows)[0].ravel(),
             jacobian=lambda z: sw[:, None] * self.evaluate(structure, *split(z), rows)[1].reshape(-1, n))
-        z0 = np.concatenate([x0] + [params0[k] for k in keys])
         x, params = split(solvers.solve(problem, z0, "lm", {"max_iter": max_iter}).x)
         return x, params, self.evaluate(structure, x, params, rows)[0]
 
-    def _problem(self, structure, mask, split, sizes, chunk, big):
-        """The solvers' Problem of :meth:`fit` (``sizes``: point, chart step and step lengths):
-        on normal equations when ``big``."""
-        retract_model, (n_pt, n_theta, n) = self._chart(structure.centre), sizes
+    def _layout(self, structure, x0, params0):
+        """The one vector of a point and the structure's effect parameters that :meth:`fit` and
+        :meth:`weighted_fit` solve for: its start (``x0``, then ``params0``, default zero), its
+        step's length, the split of a vector into the point and the parameters (name -> array),
+        and the retraction of a step (the chart's, then the parameters' plain sum)."""
+        keys = list(structure.data_effects)
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
+        chart, n_pt = self._chart(structure.centre), len(x0)
+        ends = np.cumsum([n_pt] + [len(self.params_of(n)) for n in keys])
+
+        def split(z):
+            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
 
         def retract(z, delta):
-            return np.concatenate([retract_model.retract(z[:n_pt], delta[:n_theta]), z[n_pt:] + delta[n_theta:]])
+            return np.concatenate([chart.retract(z[:n_pt], delta[:chart.n]), z[n_pt:] + delta[chart.n:]])
 
+        return np.concatenate([x0] + [params0[k] for k in keys]), chart.n + int(ends[-1]) - n_pt, split, retract
+
+    def _problem(self, structure, mask, layout, chunk, big):
+        """The solvers' Problem of :meth:`fit` (``layout``: the step's length, split and retraction
+        of :meth:`_layout`): on normal equations when ``big``."""
+        n, split, retract = layout
         if big:
             return solvers.Problem(
                 n=n, retract=retract,
@@ -343,20 +331,27 @@ def _times(tall, small):
     return (small.T @ tall.T).T
 
 
+def _cholesky(gram):
+    """The lower Cholesky factor of ``gram``, or None where it fails or is ill-conditioned (a
+    diagonal entry below 1e-7 of the largest)."""
+    try:
+        chol = np.linalg.cholesky(gram)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.abs(np.diag(chol))
+    return chol if np.all(np.isfinite(chol)) and d.min() > 1e-7 * d.max() else None
+
+
 def _projection(jac_cur):
     """Orthonormal basis (m, p) of the columns of ``jac_cur`` (m, p)."""
     if len(jac_cur) <= CHOLESKY_QR_ABOVE:
         return np.linalg.qr(jac_cur)[0]
     q = jac_cur
     for _ in range(2):
-        try:
-            r = np.linalg.cholesky(q.T @ q).T
-        except np.linalg.LinAlgError:
+        chol = _cholesky(q.T @ q)
+        if chol is None:  # ill-conditioned: Householder
             return np.linalg.qr(jac_cur)[0]
-        d = np.abs(np.diag(r))
-        if not np.all(np.isfinite(r)) or d.min() <= 1e-7 * d.max():  # ill-conditioned: Householder
-            return np.linalg.qr(jac_cur)[0]
-        q = _times(q, np.linalg.inv(r))
+        q = _times(q, np.linalg.inv(chol.T))
     return q
 
 
@@ -408,10 +403,9 @@ def candidate_rows(prob, structure, fit, rows, name):
     for eff in structure.data_effects:
         if eff not in robot:
             xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
-    if effect.KIND == "robot":
-        r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
-        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
     r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+    if effect.KIND == "robot":
+        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
     r12 = f2b[:, :3, :3] @ r2
     if effect.KIND == "centre":
         return -np.broadcast_to(np.eye(3), (len(xs), 3, 3))
@@ -425,12 +419,18 @@ def candidate_rows(prob, structure, fit, rows, name):
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
 
 
-def score_test(fit, mask, cand):
-    jac_cur = fit.jac[mask].reshape(-1, fit.p)
+def _score(fit, mask, cand, q=None):
+    """The residual ``r`` of the samples in ``mask``, the candidate's columns ``a`` less their part
+    in the span of the fit's Jacobian (``q``: its :func:`_projection` when already computed), and
+    the score ``a^T r``."""
     r = fit.e[mask].ravel()
-    q = _projection(jac_cur)
+    q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
     a = cand - _times(q, q.T @ cand)
-    g = a.T @ r
+    return r, a, a.T @ r
+
+
+def score_test(fit, mask, cand):
+    _, a, g = _score(fit, mask, cand)
     stat = float(g @ np.linalg.lstsq(a.T @ a, g, rcond=None)[0]) / fit.sigma2
     return stat, chi2_survival(stat, cand.shape[1])
 
@@ -440,10 +440,7 @@ def score_test_robust(fit, mask, cand, q=None):
     centre's y is noisier where the laser plane passes near the sphere's centre): the score's
     variance is summed over the samples (cluster-robust), with the small-sample factor m / (m - p).
     ``q``: :func:`_projection` of the fit's Jacobian on ``mask`` when already computed."""
-    r = fit.e[mask].ravel()
-    q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
-    a = cand - _times(q, q.T @ cand)
-    g = a.T @ r
+    r, a, g = _score(fit, mask, cand, q)
     per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
     m = len(r)
     v = per_sample.T @ per_sample * m / max(m - fit.p, 1)
@@ -509,12 +506,8 @@ def score_by_sums(prob, structure, fit, mask, names, chunk=None):
     jtj, jtr, finite, sums = _first_pass(prob, structure, fit, mask, names, chunk)
     if not finite:
         return []
-    try:
-        chol = np.linalg.cholesky(jtj)
-    except np.linalg.LinAlgError:
-        return None
-    d = np.abs(np.diag(chol))
-    if not np.all(np.isfinite(chol)) or d.min() <= 1e-7 * d.max():
+    chol = _cholesky(jtj)
+    if chol is None:
         return None
     tested = {}
     for name, (cj, cc, cr, ok) in sums.items():
@@ -589,10 +582,7 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
         return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
     found, q = [], _projection(jac_cur)  # one basis for every candidate
-    for effect in effects.catalogue():
-        name = effect.NAME
-        if effect.KIND not in ("data", "centre") or name in skip or (name == "sphere_center" and structure.centre):
-            continue
+    for name in _candidates(structure, skip):
         cols = candidate_columns(prob, structure, fit, mask, name)
         if not np.all(np.isfinite(cols)):
             continue
