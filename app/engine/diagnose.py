@@ -48,15 +48,8 @@ from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
-from handeye.model.fit.extended import (
-    GATE,
-    Samples,
-    ScoreTest,
-    Structure,
-    candidate_columns,
-    gate,
-    score_test,
-)
+from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
+from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA

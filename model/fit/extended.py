@@ -19,6 +19,7 @@ from handeye import solvers
 from handeye.model import effects
 from handeye.model.common.statistics import chi2_survival
 from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
+from handeye.model.fit.score_tests import cholesky, gate, gate_from_sums, projection, score_test_robust
 
 
 @dataclasses.dataclass(frozen=True)
@@ -318,66 +319,6 @@ class Samples:
         return x[12:15] if structure.centre else self.d.sphere_centre
 
 
-#: Above this many rows the orthonormal basis of the Jacobian's columns is CholeskyQR2 (two
-#: Cholesky passes of the normal equations: matrix products, several times faster than
-#: Householder QR on (3 million, p), and as orthogonal for a condition number below ~1e7).
-CHOLESKY_QR_ABOVE = 30_000
-
-
-def _times(tall, small):
-    """``tall @ small`` for a tall (m, p) and a small (p, k) matrix, as ``(small^T tall^T)^T``:
-    the same products, several times faster (numpy's matmul of a tall matrix by a small one
-    does not reach BLAS's speed; the transposed product does)."""
-    return (small.T @ tall.T).T
-
-
-def _cholesky(gram):
-    """The lower Cholesky factor of ``gram``, or None where it fails or is ill-conditioned (a
-    diagonal entry below 1e-7 of the largest)."""
-    try:
-        chol = np.linalg.cholesky(gram)
-    except np.linalg.LinAlgError:
-        return None
-    d = np.abs(np.diag(chol))
-    return chol if np.all(np.isfinite(chol)) and d.min() > 1e-7 * d.max() else None
-
-
-def _projection(jac_cur):
-    """Orthonormal basis (m, p) of the columns of ``jac_cur`` (m, p)."""
-    if len(jac_cur) <= CHOLESKY_QR_ABOVE:
-        return np.linalg.qr(jac_cur)[0]
-    q = jac_cur
-    for _ in range(2):
-        chol = _cholesky(q.T @ q)
-        if chol is None:  # ill-conditioned: Householder
-            return np.linalg.qr(jac_cur)[0]
-        q = _times(q, np.linalg.inv(chol.T))
-    return q
-
-
-def gate(jac_cur, cand, names, q=None, absorbers=True):
-    """Fraction of the candidate's columns outside the current span, and who absorbs it
-    (``q``: :func:`_projection` of ``jac_cur`` when already computed; without ``absorbers``
-    the list is empty and its least-squares solve skipped)."""
-    norms = np.linalg.norm(cand, axis=0)
-    scaled = cand / np.where(norms > 0, norms, 1.0)
-    q = _projection(jac_cur) if q is None else q
-    perp = scaled - _times(q, q.T @ scaled)
-    s_perp = np.linalg.svd(perp, compute_uv=False)
-    s_full = np.linalg.svd(scaled, compute_uv=False)
-    frac = float(s_perp[-1] / max(s_full[-1], 1e-300))
-    if not absorbers:
-        return frac, []
-    coef, *_ = np.linalg.lstsq(jac_cur, scaled, rcond=None)
-    weight = np.abs(coef) * np.linalg.norm(jac_cur, axis=0)[:, None]
-    # strongest first; weights equal to 6 digits (a frame shift absorbed by cx, cy, cz alike)
-    # keep the parameters' order, so the list does not follow the last bits of the solve
-    strength = np.round(weight.max(axis=1) / max(weight.max(), 1e-300), 6)
-    top = np.argsort(-strength, kind="stable")
-    absorbers = [names[k] for k in top if strength[k] > 0.1][:6]
-    return frac, absorbers
-
-
 def _moved_centre(dfk, in_flange):
     """Derivatives (N, 3, k) of the centre ``F p`` seen from flanges whose derivatives are ``dfk``
     (N, k, 4, 4), ``in_flange`` (N, 3) the centre in the flange frame."""
@@ -419,35 +360,6 @@ def candidate_rows(prob, structure, fit, rows, name):
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
 
 
-def _score(fit, mask, cand, q=None):
-    """The residual ``r`` of the samples in ``mask``, the candidate's columns ``a`` less their part
-    in the span of the fit's Jacobian (``q``: its :func:`_projection` when already computed), and
-    the score ``a^T r``."""
-    r = fit.e[mask].ravel()
-    q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
-    a = cand - _times(q, q.T @ cand)
-    return r, a, a.T @ r
-
-
-def score_test(fit, mask, cand):
-    _, a, g = _score(fit, mask, cand)
-    stat = float(g @ np.linalg.lstsq(a.T @ a, g, rcond=None)[0]) / fit.sigma2
-    return stat, chi2_survival(stat, cand.shape[1])
-
-
-def score_test_robust(fit, mask, cand, q=None):
-    """The score test with a variance robust to unequal noise between samples (a reconstructed
-    centre's y is noisier where the laser plane passes near the sphere's centre): the score's
-    variance is summed over the samples (cluster-robust), with the small-sample factor m / (m - p).
-    ``q``: :func:`_projection` of the fit's Jacobian on ``mask`` when already computed."""
-    r, a, g = _score(fit, mask, cand, q)
-    per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
-    m = len(r)
-    v = per_sample.T @ per_sample * m / max(m - fit.p, 1)
-    stat = float(g @ np.linalg.lstsq(v, g, rcond=None)[0])
-    return stat, chi2_survival(stat, cand.shape[1])
-
-
 def _candidates(structure, skip):
     """The catalogue's effects the score tests try, in the catalogue's order."""
     return [effect.NAME for effect in effects.catalogue() if effect.KIND in ("data", "centre")
@@ -483,35 +395,23 @@ def _first_pass(prob, structure, fit, mask, names, chunk):
     return jtj, jtr, finite, sums
 
 
-def _gate_from_sums(chol, cj, cc):
-    """:func:`gate`'s fraction from sums: the candidate's scaled columns' Gram matrix less its
-    part in the span of J (``chol``: the lower Cholesky factor of ``J^T J``)."""
-    norms = np.sqrt(np.diag(cc))
-    norms = np.where(norms > 0, norms, 1.0)
-    full = cc / np.outer(norms, norms)
-    w = np.linalg.solve(chol, (cj / norms[:, None]).T)
-    perp = full - w.T @ w
-    s_perp = np.sqrt(max(float(np.linalg.eigvalsh(perp)[0]), 0.0))
-    s_full = np.sqrt(max(float(np.linalg.eigvalsh(full)[0]), 0.0))
-    return float(s_perp / max(s_full, 1e-300))
-
-
 def score_by_sums(prob, structure, fit, mask, names, chunk=None):
-    """The robust score tests (:func:`score_test_robust`) of the candidates ``names`` in two
-    passes over chunks of the samples in ``mask``, never holding the Jacobian of every sample:
-    the first sums the normal equations and the candidates' cross products (gate, score), the
-    second each sample's score for the variance. Returns ``[(p, name, statistic, gate)]``,
-    ``[]`` when the fit has no finite derivative, or None when ``J^T J`` is too ill-conditioned
-    for its Cholesky factor (then the full arrays' Householder QR is needed)."""
+    """The robust score tests (:func:`~handeye.model.fit.score_tests.score_test_robust`) of the
+    candidates ``names`` in two passes over chunks of the samples in ``mask``, never holding the
+    Jacobian of every sample: the first sums the normal equations and the candidates' cross
+    products (gate, score), the second each sample's score for the variance. Returns
+    ``[(p, name, statistic, gate)]``, ``[]`` when the fit has no finite derivative, or None when
+    ``J^T J`` is too ill-conditioned for its Cholesky factor (then the full arrays' Householder
+    QR is needed)."""
     jtj, jtr, finite, sums = _first_pass(prob, structure, fit, mask, names, chunk)
     if not finite:
         return []
-    chol = _cholesky(jtj)
+    chol = cholesky(jtj)
     if chol is None:
         return None
     tested = {}
     for name, (cj, cc, cr, ok) in sums.items():
-        frac = _gate_from_sums(chol, cj, cc) if ok else 0.0
+        frac = gate_from_sums(chol, cj, cc) if ok else 0.0
         if ok and frac >= GATE:
             b = np.linalg.solve(jtj, cj.T)  # projection coefficients G^-1 J^T C
             tested[name] = (b, cr - b.T @ jtr, frac, 0.0)
@@ -567,7 +467,8 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     -------
     list of ScoreTest
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
-        the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
+        the score's variance is robust to unequal noise between samples
+        (:func:`~handeye.model.fit.score_tests.score_test_robust`).
     """
     prob, mask = prob or Samples(dataset), np.asarray(at.mask, bool)
     structure = Structure(centre=at.unknowns == "sensor+sphere", data_effects=tuple(skip))
@@ -581,7 +482,7 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     jac_cur = fit.jac[mask].reshape(-1, fit.p)
     if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
         return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
-    found, q = [], _projection(jac_cur)  # one basis for every candidate
+    found, q = [], projection(jac_cur)  # one basis for every candidate
     for name in _candidates(structure, skip):
         cols = candidate_columns(prob, structure, fit, mask, name)
         if not np.all(np.isfinite(cols)):
