@@ -10,13 +10,12 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
+from handeye.app.present.result_parts import AsDict, Uncertainty, _list, frame_keys, user_poses, user_std
 from handeye.model import effects
-from handeye.model.fit.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
 @dataclasses.dataclass(frozen=True)
-class Step:
+class Step(AsDict):
     """One step of the diagnosis: the fit after it (mm; chi2/dof against the nominal sigma)."""
 
     step: str
@@ -25,21 +24,15 @@ class Step:
     sigma_mm: float
     heldout_rms_mm: float
 
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
 
 @dataclasses.dataclass(frozen=True)
-class DiagnosisResidual:
+class DiagnosisResidual(AsDict):
     """|residual| of one sample before (base model) and after (with the named effects), mm."""
 
     id: str
     before_mm: float
     after_mm: float
     used: bool
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 def absorbed_sentence(name, by, centre_fitted=True, always=False):
@@ -93,7 +86,7 @@ class DiagnosisResult(ResultProtocol):
     sphere_centre : ndarray, shape (3,)
         Robot base, mm. JSON key ``sphere_center``.
     steps : list of Step
-    tests : list of list of ScoreTest
+    tests : list of list of handeye.model.fit.extended.ScoreTest
         The score tests of each round.
     residuals : list of DiagnosisResidual
     unexplained : str

@@ -18,6 +18,13 @@ def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
 
 
+class AsDict:
+    """Mixin of a flat record (a dataclass) whose JSON object is :func:`dataclasses.asdict` of it."""
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
 @dataclasses.dataclass(frozen=True)
 class FitRecord:
     """The reported fit: the pose, how the solver got there, and its residuals.
@@ -190,7 +197,7 @@ class Uncertainty:
 
 
 @dataclasses.dataclass(frozen=True)
-class NoiseTest:
+class NoiseTest(AsDict):
     """The fit tested against the stated noise model (``[noise]`` in setup.toml, ``--sigma``).
 
     Attributes
@@ -215,9 +222,6 @@ class NoiseTest:
     ratio: float
     nominal: str
     passed: bool
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -28,6 +28,7 @@ from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.residual_table import residual_dicts, residuals_json
 from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, NoiseTest, Uncertainty: public here too)
     FLAT,
+    AsDict,
     EffectsRecord,
     FitRecord,
     NamedEffect,
@@ -48,7 +49,7 @@ def _unit(name):
 
 
 @dataclasses.dataclass(frozen=True)
-class ExcludedSample:
+class ExcludedSample(AsDict):
     """A sample excluded as a gross error, or as a row that contradicts itself, with the
     evidence (:mod:`handeye.app.engine.robust`).
 
@@ -83,9 +84,6 @@ class ExcludedSample:
     reason: str
     geometry: str | None = None
 
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
 
 #: What :attr:`CalibrationResult.rms_mm` measures, for every residual model (the figure that
 #: compares across ``--model``).
@@ -95,7 +93,7 @@ RMS_PER_CENTRE = ("RMS over the samples used of |e_i|, the distance (mm) of samp
 
 
 @dataclasses.dataclass(frozen=True)
-class Before:
+class Before(AsDict):
     """The plain least-squares fit of every sample, before any exclusion.
 
     Always the unweighted ``centre`` model (whatever ``--model`` the final fit uses): its
@@ -122,9 +120,6 @@ class Before:
     weighted: bool = False
     what: str = ("plain least squares of the centre model on every sample (unweighted, nothing excluded); rms_mm per "
                  "sphere centre as the final fit's; loo_error_mm refits this centre model without each sample")
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
