@@ -277,7 +277,6 @@ LOCAL_IMPORTS = {
         ("app/common/arguments.py", "load_dataset", "handeye.model.datasets.dataset"),
         ("app/common/options.py", "_studies", "handeye.app.common.registry"),
         ("app/engine/cell_stage.py", "_other_mount_fits_better", "handeye.model.fit.global_fit"),
-        ("app/engine/cell_stage.py", "compose", "handeye.app.present.results"),
         ("app/engine/cell_stage.py", "held_contradicted", "handeye.app.engine.describe"),
         ("app/engine/command_request.py", "outputs_checked", "handeye.app.common.files"),
         ("app/engine/request.py", "_robot_effects_possible", "handeye.model.effects"),

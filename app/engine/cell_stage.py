@@ -31,7 +31,7 @@ import numpy as np
 from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.present.residual_table import ResidualTable
-from handeye.app.present.result_parts import PositionerRecord
+from handeye.app.present.result_parts import PositionerRecord, Uncertainty
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import inverse_transforms
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
@@ -258,8 +258,6 @@ def held_contradicted(dataset, request, fitted, free, mask):
 
 def compose(request, dataset, result, fitted, free, nominal):
     """The conditional result with the cell fit's parts (module docstring)."""
-    from handeye.app.present.results import Uncertainty
-
     sensor = fitted.sensor
     test, refusal = held_contradicted(dataset, request, fitted, free, mask_of(result))
     fit_part = dataclasses.replace(

@@ -40,8 +40,7 @@ import numpy as np
 from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
-from handeye.app.present.result_parts import cleaning_summary
-from handeye.app.present.results import NamedEffect, Uncertainty
+from handeye.app.present.result_parts import NamedEffect, Uncertainty, cleaning_summary
 from handeye.model import effects
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose

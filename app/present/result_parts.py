@@ -86,7 +86,7 @@ class UncertaintyRecord:
 
     Attributes
     ----------
-    std : handeye.app.present.results.Uncertainty or None
+    std : Uncertainty or None
     sigma_mm : float or None
         Noise per component estimated from an unweighted fit, mm.
     sigma_scale : float or None
@@ -126,7 +126,7 @@ class EffectsRecord:
     ----------
     tests : list of handeye.model.fit.extended.ScoreTest or None
         The result's ``effect_tests``.
-    calibrated : list of handeye.app.present.results.NamedEffect or None
+    calibrated : list of NamedEffect or None
         The result's ``effects``.
     """
 

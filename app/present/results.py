@@ -26,15 +26,12 @@ import numpy as np
 from handeye.app.common.jsonio import dumps
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.residual_table import residual_dicts, residuals_json
-from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, NoiseTest, Uncertainty: public here too)
+from handeye.app.present.result_parts import (
     FLAT,
     AsDict,
     EffectsRecord,
     FitRecord,
-    NamedEffect,
-    NoiseTest,
     ScreeningRecord,
-    Uncertainty,
     UncertaintyRecord,
     _list,
     frame_keys,
@@ -213,7 +210,7 @@ class CalibrationResult(ResultProtocol):
         Every sample, used or excluded.
     excluded : list of ExcludedSample
         Gross errors excluded, with statistic and reason (``outliers`` in the JSON: their ids).
-    std : Uncertainty or None
+    std : handeye.app.present.result_parts.Uncertainty or None
     identifiability : handeye.model.design.identifiability.Identifiability or None
         Rank, singular values and observability of the final Jacobian.
     warnings : list of str
@@ -221,12 +218,12 @@ class CalibrationResult(ResultProtocol):
         The plain fit of every sample.
     closed_form : ClosedFormDetails or None
         Set for the closed-form methods only.
-    noise_test : NoiseTest or None
+    noise_test : handeye.app.present.result_parts.NoiseTest or None
         The fit against the stated noise model (None for the ``points`` model and closed form).
     effect_tests : list of ScoreTest or None
         Score tests of the catalogue's effects at the fit (:func:`handeye.model.fit.extended.score_effects`):
         a significant one is named in a warning that points to ``handeye diagnose``.
-    effects : list of NamedEffect or None
+    effects : list of handeye.app.present.result_parts.NamedEffect or None
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
