@@ -19,8 +19,8 @@ import dataclasses
 
 import numpy as np
 
-from handeye.solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult
-from handeye.solvers.stacks import half_squares, max_abs_rows, transpose_times
+from handeye.solvers.result import CONVERGED, STATUS_MESSAGES, OptimizeResult, gradient_small
+from handeye.solvers.stacks import finite_rows, half_squares, max_abs_rows, transpose_times
 
 RUNNING = -100  # status of a row that has not stopped yet
 
@@ -167,6 +167,14 @@ class Runs:
         if message is not None:
             self.messages.update(dict.fromkeys(done.tolist(), message))
         return rows[~mask]
+
+    def screened(self, iteration, opts, *arrays):
+        """The rows still running after the stops every iteration starts with: a non-finite cost,
+        gradient or row of ``arrays`` (N, ...) stops a row with -1, a small gradient
+        (:func:`~handeye.solvers.result.gradient_small`) with 1."""
+        rows = self.active()
+        rows = self.stop(rows, ~finite_rows(self.f[rows], self.g[rows], *(a[rows] for a in arrays)), -1, iteration)
+        return self.stop(rows, gradient_small(self.g[rows], self.f[rows], opts), 1, iteration)
 
     def record(self, rows, x):
         if self.trace:

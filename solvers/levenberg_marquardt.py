@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.solvers.batch import RUNNING, Runs
-from handeye.solvers.result import gradient_small, reduction_small, step_small
-from handeye.solvers.stacks import dot_rows, finite_rows, gram, half_squares, quad_rows, solve_rows, transpose_times
+from handeye.solvers.result import reduction_small, step_small
+from handeye.solvers.stacks import dot_rows, gram, half_squares, quad_rows, solve_rows, transpose_times
 
 
 def _diag(a):
@@ -49,9 +49,7 @@ def run(stacked, x0, opts, trace=False):
     diag = np.arange(stacked.n)
     runs.note("damping", rows, mu)
     for k in range(opts.max_iter):
-        rows = runs.active()
-        rows = runs.stop(rows, ~finite_rows(runs.f[rows], a[rows], runs.g[rows]), -1, k)
-        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        rows = runs.screened(k, opts, a)
         if not rows.size:
             break
         g = runs.g[rows]

@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 
 from handeye.solvers.batch import Runs
-from handeye.solvers.result import gradient_small, reduction_small, step_small
+from handeye.solvers.result import reduction_small, step_small
 from handeye.solvers.stacks import dot_rows, finite_rows, matvec, norm_rows, solve_rows
 
 C1, C2, RHO = 1e-4, 0.9, 0.5
@@ -148,9 +148,7 @@ def _run(stacked, x0, opts, method, trace=False):
     runs.g[rows] = runs.grad(runs.x, rows)
     eps = np.finfo(float).eps
     for k in range(opts.max_iter):
-        rows = runs.active()
-        rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows]), -1, k)
-        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        rows = runs.screened(k, opts)
         if not rows.size:
             break
         x, f, g = runs.x[rows], runs.f[rows], runs.g[rows]

@@ -16,7 +16,7 @@ maximum just as happily -- the basin maps of the studies show exactly that.
 from __future__ import annotations
 
 from handeye.solvers.batch import Runs
-from handeye.solvers.result import gradient_small, step_small
+from handeye.solvers.result import step_small
 from handeye.solvers.stacks import finite_rows, solve_rows
 
 
@@ -27,9 +27,7 @@ def run(stacked, x0, opts, trace=False):
     runs.f[rows] = runs.cost(runs.x, rows)
     runs.g[rows] = runs.grad(runs.x, rows)
     for k in range(opts.max_iter):
-        rows = runs.active()
-        rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows]), -1, k)
-        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        rows = runs.screened(k, opts)
         if not rows.size:
             break
         p, ok = solve_rows(runs.hessian(runs.x[rows], rows), -runs.g[rows])

@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.solvers.batch import Runs
-from handeye.solvers.result import gradient_small, reduction_small, step_small
+from handeye.solvers.result import reduction_small, step_small
 from handeye.solvers.stacks import (
     dot_rows,
     finite_rows,
@@ -213,9 +213,7 @@ def run(stacked, x0, opts, trace=False, model="newton"):
     min_radius = 1e-14 * radius
     runs.note("radius", rows, radius)
     for k in range(opts.max_iter):
-        rows = runs.active()
-        rows = runs.stop(rows, ~finite_rows(runs.f[rows], runs.g[rows], b[rows]), -1, k)
-        rows = runs.stop(rows, gradient_small(runs.g[rows], runs.f[rows], opts), 1, k)
+        rows = runs.screened(k, opts, b)
         if not rows.size:
             break
         f, g, bk, dk = runs.f[rows], runs.g[rows], b[rows], diag[rows]

@@ -1,4 +1,4 @@
-"""Pose conversions: round trips, gimbal lock at B = +-90 deg, numpy vs CasADi vs definition."""
+"""Pose conversions: round trips, gimbal lock at B = +-90 deg, numpy vs definition."""
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,7 +9,6 @@ from handeye.model.chain.pose import (
     matrix_from_kuka,
     pose_from_transform,
     transform_from_pose,
-    transform_from_pose_casadi,
 )
 from handeye.model.common import rotation
 
@@ -46,17 +45,6 @@ def test_vectorised_shapes():
     assert pose_from_transform(transform_from_pose(p)).shape == (2, 3, 6)
     with pytest.raises(ValueError):
         transform_from_pose(np.zeros(5))
-
-
-def test_casadi_version_equals_numpy():
-    import casadi as ca
-
-    rng = np.random.default_rng(2)
-    p = ca.SX.sym("p", 6)
-    f = ca.Function("t", [p], [transform_from_pose_casadi(p)])
-    for _ in range(20):
-        pose = np.concatenate([rng.uniform(-500, 500, 3), rng.uniform(-180, 180, 3)])
-        np.testing.assert_allclose(np.array(f(pose)), transform_from_pose(pose), atol=1e-12)
 
 
 angles = st.floats(-180, 180, allow_nan=False)

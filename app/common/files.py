@@ -206,10 +206,3 @@ def write_stream_atomically(path, write, option="--out"):
 def write_bytes_atomically(path, data, option="--out"):
     """Bytes through a temporary file and a rename (:func:`_atomically`)."""
     _atomically(path, option, "wb", lambda fh: fh.write(data))
-
-
-def write_json_atomically(path, data, option="--out"):
-    """JSON through :func:`write_text_atomically`."""
-    from handeye.app.common.jsonio import dumps
-
-    write_text_atomically(path, dumps(data), option=option)

@@ -37,23 +37,8 @@ import numpy as np
 
 from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, positioner_effect, robust, slips
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
-from handeye.app.engine.prepare import (  # noqa: F401  (the prepare stage's helpers: this module's public names too)
-    Prepared,
-    check_identifiable,
-    gate,
-    prepare,
-    resolve_start,
-    with_sphere_centre,
-)
-from handeye.app.engine.request import (  # noqa: F401  (the request's names: this module's public names too)
-    DEFAULT_ROTATION,
-    LARGE,
-    METHODS,
-    SUPPORTED,
-    CalibrationRequest,
-    min_measurements,
-    parse_pose,
-)
+from handeye.app.engine.prepare import prepare
+from handeye.app.engine.request import METHODS, SUPPORTED, CalibrationRequest  # noqa: F401  (METHODS, SUPPORTED: public here too)
 from handeye.app.present.result_parts import cleaning_summary
 from handeye.app.present.results import Before
 from handeye.model.chain import own_frame

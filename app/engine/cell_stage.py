@@ -30,7 +30,8 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
-from handeye.app.present.result_parts import PositionerRecord
+from handeye.app.present.residual_table import ResidualTable
+from handeye.app.present.result_parts import PositionerRecord, Uncertainty
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import inverse_transforms
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
@@ -189,8 +190,6 @@ def refined_mounts(dataset, fitted):
 def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
-    from handeye.app.present.results import ResidualTable
-
     data = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted)) if fitted.axes else dataset
     xs = np.column_stack([data.centre_in_sensor, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
@@ -259,8 +258,6 @@ def held_contradicted(dataset, request, fitted, free, mask):
 
 def compose(request, dataset, result, fitted, free, nominal):
     """The conditional result with the cell fit's parts (module docstring)."""
-    from handeye.app.present.results import Uncertainty
-
     sensor = fitted.sensor
     test, refusal = held_contradicted(dataset, request, fitted, free, mask_of(result))
     fit_part = dataclasses.replace(

@@ -18,8 +18,9 @@ from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robust, slips
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
+from handeye.app.present.residual_table import SampleResidual
 from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleaning_summary
-from handeye.app.present.results import CalibrationResult, ClosedFormDetails, SampleResidual
+from handeye.app.present.results import CalibrationResult, ClosedFormDetails
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import transform_distance

@@ -85,6 +85,16 @@ def _group_normal_equations(model, x):
     return out_jtj, out_jtr, out_rtr
 
 
+def _deletion_step(info, jtj, jtr):
+    """The deletion formula's steps ``(A - B_g)^-1 J_g^T r_g`` (G, p) (NaN where a sample alone
+    determines a direction: then it is refitted from x)."""
+    with np.errstate(all="ignore"):
+        try:
+            return np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            return np.full(jtr.shape, np.nan)
+
+
 def _deletion_steps(model, x, mask):
     """Deletion-formula steps ``(A - B_g)^-1 J_g^T r_g`` (G, p) of the samples in ``mask``,
     their leverages (largest eigenvalue of ``A^-1 B_g``) and the sum of squares of the other
@@ -99,11 +109,7 @@ def _deletion_steps(model, x, mask):
         nan = np.full(jtr.shape, np.nan)
         return nan, np.full(len(jtr), np.nan), others, info
     leverage = np.linalg.eigvalsh(inv_l @ jtj @ inv_l.T)[:, -1]
-    with np.errstate(all="ignore"):
-        try:
-            step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a sample alone determines a direction: refit from x
-            step = np.full(jtr.shape, np.nan)
+    step = _deletion_step(info, jtj, jtr)
     return step, leverage, others, info
 
 
@@ -137,10 +143,6 @@ def _deletion_chunk(normal, e, jac, d, dj):
         leverage = np.linalg.eigvalsh(mm @ np.swapaxes(mm, 1, 2))[:, -1]
     else:
         leverage = np.full(len(jtj), np.nan)
-    with np.errstate(all="ignore"):
-        try:
-            step = np.linalg.solve(info - jtj, jtr[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a sample alone determines a direction: refit from x
-            step = np.full(jtr.shape, np.nan)
+    step = _deletion_step(info, jtj, jtr)
     errors = np.linalg.norm(d + np.einsum("gkp,gp->gk", dj, step), axis=1)
     return step, leverage, total - np.einsum("rk,rk->r", e, e), errors

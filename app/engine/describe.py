@@ -14,16 +14,18 @@ import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robot_choice, robust
-from handeye.app.present.result_parts import EffectsRecord, FitRecord, PositionerRecord, ScreeningRecord, UncertaintyRecord
-from handeye.app.present.results import (
-    RMS_PER_CENTRE,
-    CalibrationResult,
+from handeye.app.present.residual_table import ResidualTable, SampleResidual
+from handeye.app.present.result_parts import (
+    EffectsRecord,
+    FitRecord,
     NamedEffect,
     NoiseTest,
-    ResidualTable,
-    SampleResidual,
+    PositionerRecord,
+    ScreeningRecord,
     Uncertainty,
+    UncertaintyRecord,
 )
+from handeye.app.present.results import RMS_PER_CENTRE, CalibrationResult
 from handeye.model import effects as catalogue
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform

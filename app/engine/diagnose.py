@@ -40,23 +40,15 @@ import numpy as np
 from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
-from handeye.app.present.result_parts import cleaning_summary
-from handeye.app.present.results import NamedEffect, Uncertainty
+from handeye.app.present.result_parts import NamedEffect, Uncertainty, cleaning_summary
 from handeye.model import effects
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
-from handeye.model.fit.extended import (
-    GATE,
-    Samples,
-    ScoreTest,
-    Structure,
-    candidate_columns,
-    gate,
-    score_test,
-)
+from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
+from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA
@@ -119,7 +111,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
     alpha : float
         Family-wise level of the effect and outlier tests.
     start : array_like, shape (6,), optional
-        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.engine.calibrate.resolve_start`.
+        Start sensor pose (KUKA, mm, deg); default as :func:`handeye.app.engine.prepare.resolve_start`.
     sigma : float, optional
         Nominal noise per residual component (mm) for chi2/dof; default the dataset's
         ``[noise] centre_mm``.

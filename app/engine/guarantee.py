@@ -32,6 +32,7 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.present.result_parts import AsDict
 from handeye.model.chain import own_frame
 from handeye.model.chain.pose import pose_from_transform
 from handeye.model.common.rotation import transform_distance
@@ -58,7 +59,7 @@ NOISE_P = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
-class GlobalCheck:
+class GlobalCheck(AsDict):
     """How the reported minimum was established (the JSON's ``global``).
 
     Attributes
@@ -85,9 +86,6 @@ class GlobalCheck:
     reached: int
     next_best_cost: float | None
     centre_minima: int = 1
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 def centre_basin(dataset, unknowns):

@@ -23,7 +23,7 @@ import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import cell_stage
-from handeye.app.present.results import NamedEffect
+from handeye.app.present.result_parts import NamedEffect
 from handeye.model.common.statistics import f_survival
 from handeye.model.fit.cell import normals
 

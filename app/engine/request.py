@@ -18,7 +18,7 @@ from handeye.app.common.choices import CLASSIC_METHODS, METHODS
 from handeye.app.common.errors import CalibrationInputError
 from handeye.model.chain import conventions
 from handeye.model.chain.names import PARTS, ROTATIONS, UNKNOWNS
-from handeye.model.datasets.dataset import GUESS_LIMITS, LIMIT_POSITION_MM
+from handeye.model.readers.tables import GUESS_LIMITS, LIMIT_POSITION_MM
 
 # METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 
@@ -107,11 +107,6 @@ class Free:
             raise CalibrationInputError("give --calibration or --sensor-pose, not both")
         given = "--calibration" if calibration is not None else "--sensor-pose" if sensor_pose is not None else None
         return cls(unknown_parts(unknowns), effect_names(effects), given)
-
-    @property
-    def held_sensor(self):
-        """A given sensor pose held while the other parts are estimated (no sensor among the parts)."""
-        return self.given is not None and "sensor" not in self.parts.split("+")
 
     @property
     def scored(self):

@@ -25,7 +25,6 @@ from handeye import solvers
 from handeye.app.common.choices import ALPHA  # noqa: F401 - the level, defined without numpy
 from handeye.app.engine import loo
 from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers are robust's names too
-    LOO_GN_ITER,
     LOO_GN_MAX_RATE,
     LOO_RATE_SAFETY,
     LOO_XTOL,
@@ -34,7 +33,6 @@ from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers 
     _deletion_steps,
     _gauss_newton_rate,
     _gauss_newton_refit,
-    _group_normal_equations,
 )
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
@@ -55,19 +53,15 @@ class Screening:
     excluded : list of handeye.app.present.results.ExcludedSample
         With the prediction error from the final fit, the statistic (F), the Bonferroni
         p-value and the reason.
-    robust_sigma_mm : float
-        Robust scale of the robust pass, per component.
     robust_sensor2flange : ndarray, shape (4, 4)
-    robust_centre : ndarray, shape (3,)
+        The sensor pose of the robust pass.
     note : str
         Empty, or why the procedure stopped early.
     """
 
     inliers: np.ndarray
     excluded: list
-    robust_sigma_mm: float
     robust_sensor2flange: np.ndarray
-    robust_centre: np.ndarray
     note: str = ""
 
 
@@ -303,9 +297,7 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     return Screening(
         inliers=inliers,
         excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
-        robust_sigma_mm=float(sigma),
         robust_sensor2flange=full.sensor2flange(x_rob),
-        robust_centre=full.sphere_centre(x_rob),
         note=note or stopped,
     )
 

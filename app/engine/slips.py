@@ -123,18 +123,24 @@ def _candidates(dataset):
     return out
 
 
-def plain_rms(dataset, unknowns):
-    """RMS (mm) of the plain least-squares fit of every sample: the unweighted centre model's
-    global minimum (:mod:`handeye.model.fit.global_fit`: one SVD with the centre known), or None
-    when the data do not determine it."""
+def _plain_fit(dataset, unknowns):
+    """The plain least-squares fit of every sample, the unweighted centre model's global minimum
+    (:mod:`handeye.model.fit.global_fit`: one SVD with the centre known), and its RMS (mm); both
+    None when the data do not determine it."""
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
         with np.errstate(all="ignore"):
             best = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, centre).best
     except global_fit.GlobalFitError:
-        return None
+        return None, None
     rms = float(np.sqrt(2.0 * best.cost / len(dataset)))
-    return rms if np.isfinite(rms) else None
+    return best, rms if np.isfinite(rms) else None
+
+
+def plain_rms(dataset, unknowns):
+    """RMS (mm) of the plain least-squares fit of every sample (:func:`_plain_fit`), or None when
+    the data do not determine it."""
+    return _plain_fit(dataset, unknowns)[1]
 
 
 def free_axes_rms(dataset, unknowns):
@@ -143,16 +149,14 @@ def free_axes_rms(dataset, unknowns):
     the set-up axes; else (or when they are not determined) :func:`plain_rms`. Set-up axes a few
     millimetres off leave millimetres of residual that no slip explains: slips are compared
     without them."""
-    rms = plain_rms(dataset, unknowns)
+    best, rms = _plain_fit(dataset, unknowns)
     if dataset.mounts.sphere != "positioner" or rms is None:
         return rms
     from handeye.app.engine import cell_stage
 
-    centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre
     try:
-        with np.errstate(all="ignore"):
-            best = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, centre).best
-        free = ("sensor", "sphere", "positioner") if centre is None else ("sensor", "positioner")
+        known = unknowns != "sensor+sphere" and dataset.sphere_centre is not None  # as _plain_fit held it
+        free = ("sensor", "positioner") if known else ("sensor", "sphere", "positioner")
         fitted = cell_stage.fit(dataset, free, best.sensor2flange, best.centre, np.ones(len(dataset), bool),
                                 axes=cell_stage.turning_axes(dataset))
     except (global_fit.GlobalFitError, CalibrationInputError, np.linalg.LinAlgError):

@@ -6,19 +6,16 @@ workflow's steps, score tests, per-sample residuals before and after the named e
 from __future__ import annotations
 
 import dataclasses
-import html
 
 import numpy as np
 
-from handeye.app.common.jsonio import dumps  # noqa: F401  (shared JSON helpers)
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import Uncertainty, _list, frame_keys, user_poses, user_std  # noqa: F401
+from handeye.app.present.result_parts import AsDict, Uncertainty, _list, frame_keys, user_poses, user_std
 from handeye.model import effects
-from handeye.model.fit.extended import ScoreTest  # noqa: F401  (a diagnosis result's part)
 
 
 @dataclasses.dataclass(frozen=True)
-class Step:
+class Step(AsDict):
     """One step of the diagnosis: the fit after it (mm; chi2/dof against the nominal sigma)."""
 
     step: str
@@ -27,21 +24,15 @@ class Step:
     sigma_mm: float
     heldout_rms_mm: float
 
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
 
 @dataclasses.dataclass(frozen=True)
-class DiagnosisResidual:
+class DiagnosisResidual(AsDict):
     """|residual| of one sample before (base model) and after (with the named effects), mm."""
 
     id: str
     before_mm: float
     after_mm: float
     used: bool
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 def absorbed_sentence(name, by, centre_fitted=True, always=False):
@@ -95,7 +86,7 @@ class DiagnosisResult(ResultProtocol):
     sphere_centre : ndarray, shape (3,)
         Robot base, mm. JSON key ``sphere_center``.
     steps : list of Step
-    tests : list of list of ScoreTest
+    tests : list of list of handeye.model.fit.extended.ScoreTest
         The score tests of each round.
     residuals : list of DiagnosisResidual
     unexplained : str
@@ -110,6 +101,8 @@ class DiagnosisResult(ResultProtocol):
         <handeye.app.present.results.CalibrationResult>` (``{'applied': False}`` with
         ``--no-clean``; None without profiles).
     """
+
+    caption = "handeye diagnosis"
 
     dataset: str
     effects: list
@@ -222,18 +215,16 @@ class DiagnosisResult(ResultProtocol):
 
         return report.diagnosis_figures(self, folder)
 
-    def _repr_html_(self):
+    def _html_rows(self):
+        """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`)."""
         named = "; ".join(
             e.name + (": " + ", ".join(e.parameters["ids"]) if e.std is None else
                       ": " + ", ".join(f"{k} = {v:.4g} ± {e.std[k]:.2g}" for k, v in e.parameters.items()))
             for e in self.effects) or "none"
-        rows = [("dataset", self.dataset), ("effects named", named),
+        return [("dataset", self.dataset), ("effects named", named),
                 ("outliers", ", ".join(self.outliers) or "none"),
                 ("absorbed (not identifiable)", ", ".join(self.not_identifiable) or "none"),
                 ("RMS before → after (mm)", f"{self.rms_before_mm:.4f} → {self.rms_after_mm:.4f}"),
                 ("held-out RMS before → after (mm)",
                  f"{self.heldout_rms_before_mm:.4f} → {self.heldout_rms_after_mm:.4f}"),
                 ("unexplained", self.unexplained)]
-        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
-                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
-        return f"<table><caption>handeye diagnosis</caption>{body}</table>"

@@ -44,6 +44,8 @@ class ResultProtocol:
         return "\n".join(lines)
 
     def _html_rows(self):
+        """The Jupyter table's ``(name, value)`` rows: the summary's ``name: value`` lines (a result
+        type may give its own)."""
         rows = []
         for line in self.summary().splitlines():
             if not line.strip():

@@ -75,7 +75,7 @@ def residual_lines(residuals, limit=REPORT_ROWS):
 
     Parameters
     ----------
-    residuals : sequence of handeye.app.present.results.SampleResidual (or a ResidualTable), length N
+    residuals : sequence of handeye.app.present.residual_table.SampleResidual (or a ResidualTable), length N
     limit : int
 
     Returns

@@ -18,6 +18,13 @@ def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
 
 
+class AsDict:
+    """Mixin of a flat record (a dataclass) whose JSON object is :func:`dataclasses.asdict` of it."""
+
+    def to_dict(self):
+        return dataclasses.asdict(self)
+
+
 @dataclasses.dataclass(frozen=True)
 class FitRecord:
     """The reported fit: the pose, how the solver got there, and its residuals.
@@ -36,7 +43,7 @@ class FitRecord:
     status : int or None
         Key of :data:`handeye.solvers.STATUS_MESSAGES`; None for a closed-form method.
     message : str
-    residuals : list of handeye.app.present.results.SampleResidual
+    residuals : list of handeye.app.present.residual_table.SampleResidual
         Every sample, used or excluded.
     iterations, evaluations, history, solver_point, solver_extra, hessian_eigenvalues
         The solver's record (None for a closed-form method).
@@ -79,7 +86,7 @@ class UncertaintyRecord:
 
     Attributes
     ----------
-    std : handeye.app.present.results.Uncertainty or None
+    std : Uncertainty or None
     sigma_mm : float or None
         Noise per component estimated from an unweighted fit, mm.
     sigma_scale : float or None
@@ -119,7 +126,7 @@ class EffectsRecord:
     ----------
     tests : list of handeye.model.fit.extended.ScoreTest or None
         The result's ``effect_tests``.
-    calibrated : list of handeye.app.present.results.NamedEffect or None
+    calibrated : list of NamedEffect or None
         The result's ``effects``.
     """
 
@@ -190,7 +197,7 @@ class Uncertainty:
 
 
 @dataclasses.dataclass(frozen=True)
-class NoiseTest:
+class NoiseTest(AsDict):
     """The fit tested against the stated noise model (``[noise]`` in setup.toml, ``--sigma``).
 
     Attributes
@@ -215,9 +222,6 @@ class NoiseTest:
     ratio: float
     nominal: str
     passed: bool
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)

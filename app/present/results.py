@@ -19,22 +19,19 @@ which).
 from __future__ import annotations
 
 import dataclasses
-import html
 import json
-from json.encoder import encode_basestring_ascii as quote
 
 import numpy as np
 
-from handeye.app.common.jsonio import dumps, finite_json  # noqa: F401  (re-exported: results' JSON)
+from handeye.app.common.jsonio import dumps
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import (  # noqa: F401  (NamedEffect, NoiseTest, Uncertainty: public here too)
+from handeye.app.present.residual_table import residual_dicts, residuals_json
+from handeye.app.present.result_parts import (
     FLAT,
+    AsDict,
     EffectsRecord,
     FitRecord,
-    NamedEffect,
-    NoiseTest,
     ScreeningRecord,
-    Uncertainty,
     UncertaintyRecord,
     _list,
     frame_keys,
@@ -49,115 +46,7 @@ def _unit(name):
 
 
 @dataclasses.dataclass(frozen=True)
-class SampleResidual:
-    """Residual of one measurement at the calibration.
-
-    Attributes
-    ----------
-    id : str
-    row : int
-        Line of the measurement in ``measurements.csv``.
-    vector : ndarray, shape (3,)
-        Predicted minus known sphere centre, robot base, mm.
-    norm : float
-        ``|vector|``, mm.
-    used : bool
-        False when excluded as a gross error.
-    loo_error_mm : float or None
-        Leave-one-out prediction error (None when not computed or not used).
-    """
-
-    id: str
-    row: int
-    vector: np.ndarray
-    norm: float
-    used: bool
-    loo_error_mm: float | None = None
-
-    def to_dict(self):
-        return {"id": self.id, "row": int(self.row), "vector": _list(self.vector), "norm": float(self.norm),
-                "used": bool(self.used), "loo_error_mm": self.loo_error_mm}
-
-
-class ResidualTable:
-    """The residuals of every measurement as columns: a read-only sequence of
-    :class:`SampleResidual` (``len``, indexing, iteration) that holds a million rows in a few
-    arrays instead of a million objects, and writes its JSON without building them.
-
-    Parameters
-    ----------
-    ids : sequence of str, length N
-    rows : array_like of int, shape (N,)
-        Lines in ``measurements.csv``.
-    vectors : array_like, shape (N, 3)
-        Predicted minus known sphere centre, robot base, mm.
-    norms : array_like, shape (N,)
-        ``|vector|``, mm.
-    used : array_like of bool, shape (N,)
-    loo : array_like, shape (N,), optional
-        Leave-one-out prediction errors, mm; NaN (or absent) where not computed.
-    """
-
-    def __init__(self, ids, rows, vectors, norms, used, loo=None):
-        self.ids = list(ids)
-        self.rows = np.asarray(rows, int)
-        self.vectors = np.asarray(vectors, float).reshape(-1, 3)
-        self.norms = np.asarray(norms, float)
-        self.used = np.asarray(used, bool)
-        self.loo = np.full(len(self.ids), np.nan) if loo is None else np.asarray(loo, float)
-
-    def __len__(self):
-        return len(self.ids)
-
-    def _one(self, k):
-        lo = self.loo[k]
-        return SampleResidual(self.ids[k], int(self.rows[k]), self.vectors[k], float(self.norms[k]),
-                              bool(self.used[k]), float(lo) if np.isfinite(lo) else None)
-
-    def __getitem__(self, k):
-        if isinstance(k, slice):
-            return [self._one(i) for i in range(*k.indices(len(self)))]
-        return self._one(range(len(self))[k])
-
-    def __iter__(self):
-        return (self._one(k) for k in range(len(self)))
-
-    def to_dicts(self):
-        """The ``residuals`` entries of the JSON report, one dict per row (as :meth:`SampleResidual.to_dict`)."""
-        return [r.to_dict() for r in self]
-
-    def json_rows(self):
-        """Strict compact JSON of each row's dict (same keys and numbers as :meth:`to_dicts`; non-finite
-        numbers as null), formatted column-wise: a list of N strings."""
-        def numbers(a):  # repr: the shortest text that parses to the same float; one finiteness test per column
-            out = list(map(float.__repr__, a.tolist()))
-            for k in np.flatnonzero(~np.isfinite(a)).tolist():
-                out[k] = "null"
-            return out
-
-        x, y, z = (numbers(self.vectors[:, i]) for i in range(3))
-        loo = numbers(self.loo)
-        used = ["true" if u else "false" for u in self.used.tolist()]
-        return [f'{{"id":{quote(i)},"row":{r},"vector":[{a},{b},{c}],"norm":{n},"used":{u},"loo_error_mm":{lo}}}'
-                for i, r, a, b, c, n, u, lo in zip(self.ids, self.rows.tolist(), x, y, z, numbers(self.norms), used,
-                                                    loo)]
-
-
-def residual_dicts(residuals):
-    """The JSON entries of a list of :class:`SampleResidual` or a :class:`ResidualTable`."""
-    return residuals.to_dicts() if isinstance(residuals, ResidualTable) else [r.to_dict() for r in residuals]
-
-
-def _residuals_json(residuals):
-    """Compact JSON text of the residual list, one row a line (a report of a million rows stays
-    readable line by line and is written in seconds)."""
-    rows = (residuals.json_rows() if isinstance(residuals, ResidualTable)
-            else [json.dumps(finite_json(r.to_dict()), separators=(",", ":"), allow_nan=False) for r in residuals])
-    return "[\n" + ",\n".join(rows) + "\n]" if rows else "[]"
-
-
-@dataclasses.dataclass(frozen=True)
-class ExcludedSample:
+class ExcludedSample(AsDict):
     """A sample excluded as a gross error, or as a row that contradicts itself, with the
     evidence (:mod:`handeye.app.engine.robust`).
 
@@ -192,9 +81,6 @@ class ExcludedSample:
     reason: str
     geometry: str | None = None
 
-    def to_dict(self):
-        return dataclasses.asdict(self)
-
 
 #: What :attr:`CalibrationResult.rms_mm` measures, for every residual model (the figure that
 #: compares across ``--model``).
@@ -204,7 +90,7 @@ RMS_PER_CENTRE = ("RMS over the samples used of |e_i|, the distance (mm) of samp
 
 
 @dataclasses.dataclass(frozen=True)
-class Before:
+class Before(AsDict):
     """The plain least-squares fit of every sample, before any exclusion.
 
     Always the unweighted ``centre`` model (whatever ``--model`` the final fit uses): its
@@ -231,9 +117,6 @@ class Before:
     weighted: bool = False
     what: str = ("plain least squares of the centre model on every sample (unweighted, nothing excluded); rms_mm per "
                  "sphere centre as the final fit's; loo_error_mm refits this centre model without each sample")
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -323,11 +206,11 @@ class CalibrationResult(ResultProtocol):
     rms_note : str or None
         Why ``rms_mm`` and ``before.rms_mm`` differ (other samples, another objective); None
         when they are the same fit's. A property; a key of the JSON.
-    residuals : list of SampleResidual or ResidualTable
+    residuals : list of SampleResidual or ResidualTable (:mod:`handeye.app.present.residual_table`)
         Every sample, used or excluded.
     excluded : list of ExcludedSample
         Gross errors excluded, with statistic and reason (``outliers`` in the JSON: their ids).
-    std : Uncertainty or None
+    std : handeye.app.present.result_parts.Uncertainty or None
     identifiability : handeye.model.design.identifiability.Identifiability or None
         Rank, singular values and observability of the final Jacobian.
     warnings : list of str
@@ -335,12 +218,12 @@ class CalibrationResult(ResultProtocol):
         The plain fit of every sample.
     closed_form : ClosedFormDetails or None
         Set for the closed-form methods only.
-    noise_test : NoiseTest or None
+    noise_test : handeye.app.present.result_parts.NoiseTest or None
         The fit against the stated noise model (None for the ``points`` model and closed form).
     effect_tests : list of ScoreTest or None
         Score tests of the catalogue's effects at the fit (:func:`handeye.model.fit.extended.score_effects`):
         a significant one is named in a warning that points to ``handeye diagnose``.
-    effects : list of NamedEffect or None
+    effects : list of handeye.app.present.result_parts.NamedEffect or None
         Catalogue effects calibrated with the sensor pose (``--effects``), with their 1-sd.
     provenance : dict or None
         Tool version, dataset hash, options and time, set when the result is saved.
@@ -394,6 +277,8 @@ class CalibrationResult(ResultProtocol):
     cleaning: dict | None = None
     own_axes: np.ndarray | None = None
     pose_frame: str = "handeye"
+
+    caption = "handeye calibration"
 
     def __getattr__(self, name):
         """The parts' attributes as the result's own (``result.rms_mm`` is ``result.fit.rms_mm``)."""
@@ -576,7 +461,7 @@ class CalibrationResult(ResultProtocol):
         marker = "\x00residuals\x00"  # replaced by the rows' own text, in its place among the keys
         out["residuals"] = marker
         text = dumps(out, indent)
-        return text.replace(json.dumps(marker), _residuals_json(self.residuals), 1)
+        return text.replace(json.dumps(marker), residuals_json(self.residuals), 1)
 
     def summary(self):
         """The CLI's text report."""
@@ -584,7 +469,8 @@ class CalibrationResult(ResultProtocol):
 
         return report.calibration_text(self.in_user_frame())
 
-    def _repr_html_(self):
+    def _html_rows(self):
+        """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`), of the user's frame."""
         self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
@@ -604,10 +490,7 @@ class CalibrationResult(ResultProtocol):
         if self.std is not None:
             rows.append(("1 sd translation (mm)", " ".join(f"{v:.4f}" for v in self.std.sensor_translation_mm)))
             rows.append(("1 sd rotation (deg)", " ".join(f"{v:.4f}" for v in self.std.sensor_rotation_deg)))
-        rows += [("warning", w) for w in self.warnings]
-        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
-                       f"{html.escape(str(v))}</td></tr>" for k, v in rows)
-        return f"<table><caption>handeye calibration</caption>{body}</table>"
+        return rows + [("warning", w) for w in self.warnings]
 
     def __repr__(self):
         self = self.in_user_frame()

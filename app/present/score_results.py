@@ -12,8 +12,8 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.residual_table import ResidualTable
 from handeye.app.present.result_parts import _list, frame_keys, user_poses
-from handeye.app.present.results import ResidualTable
 
 #: Residual model -> what one of its rows is.
 _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points": "profile point"}

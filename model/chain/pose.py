@@ -63,25 +63,6 @@ def transform_from_pose(pose):
     return out
 
 
-def transform_from_pose_casadi(pose):
-    """CasADi version of :func:`transform_from_pose` for one symbolic pose.
-
-    Parameters
-    ----------
-    pose : casadi.SX or casadi.MX, shape (6, 1)
-        mm and degrees.
-
-    Returns
-    -------
-    casadi.SX, shape (4, 4)
-    """
-    import casadi as ca
-
-    vals = codegen.casadi_function(_source())(*[pose[k] for k in range(6)])
-    rows = [ca.horzcat(*vals[4 * r : 4 * r + 4]) for r in range(3)]
-    return ca.vertcat(*rows, ca.horzcat(0, 0, 0, 1))
-
-
 def matrix_from_kuka(angles):
     """Rotation matrix of KUKA angles ``(A, B, C)`` in degrees, shape (..., 3) -> (..., 3, 3)."""
     angles = np.asarray(angles, dtype=float)

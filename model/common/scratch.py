@@ -1,11 +1,12 @@
 """Temporary files and folders in flight, so that an interrupted run leaves none behind.
 
-Whatever writes a temporary file or folder registers it while it exists (:func:`pending`); the
-command line's handler of SIGINT and SIGTERM (:mod:`handeye.app.command.cli`) ends the process at
-once -- ``os._exit``, as IPOPT and worker pools would swallow a ``KeyboardInterrupt`` -- and
-first removes what is registered (:func:`remove_all`). Creating and registering, and
-renaming and unregistering, happen with those signals held back (:func:`signals_held`), so no
-moment leaves a temporary file unknown to the handler.
+Whatever writes a temporary file or folder registers it while it exists (:func:`register`, or
+:func:`temporary_folder` for a folder); the command line's handler of SIGINT and SIGTERM
+(:mod:`handeye.app.command.cli`) ends the process at once -- ``os._exit``, as IPOPT and worker
+pools would swallow a ``KeyboardInterrupt`` -- and first removes what is registered
+(:func:`remove_all`). Creating and registering, and renaming and unregistering, happen with
+those signals held back (:func:`signals_held`), so no moment leaves a temporary file unknown to
+the handler.
 """
 from __future__ import annotations
 
@@ -43,17 +44,6 @@ def register(path, folder=False):
 def forget(path):
     """``path`` is gone or is no longer temporary (renamed into place)."""
     _PENDING.pop(os.fspath(path), None)
-
-
-@contextlib.contextmanager
-def pending(path, folder=False):
-    """Register ``path`` for the block (a ``with tempfile.TemporaryDirectory() as tmp,
-    pending(tmp, folder=True)``)."""
-    register(path, folder)
-    try:
-        yield path
-    finally:
-        forget(path)
 
 
 def remove_all():

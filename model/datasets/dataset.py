@@ -44,20 +44,13 @@ from handeye.model.chain import conventions
 from handeye.model.chain.mounts import Mounts, motions
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.readers.setup_file import (  # noqa: F401  (the setup's names: public here too)
-    LIMIT_RANGE_MM,
     LIMIT_SENSOR_MM,
     NOISE_CENTRE_MM,
-    NOISE_RANGE_MM,
     NOISE_ROBOT_MM,
     read_setup,
-    toml_number,
 )
 from handeye.model.readers.tables import (  # noqa: F401  (read_pose_list, pose_list_text: public here too)
-    GUESS_LIMITS,
-    LIMIT_POSITION_MM,
-    MAX_LINE_BYTES,
     DatasetError,
-    check_angles,
     number,
     pose_list_text,
     read_plain_rows,
@@ -66,12 +59,10 @@ from handeye.model.readers.tables import (  # noqa: F401  (read_pose_list, pose_
     read_pose_list,
     read_table,
     row_id,
-    to_kuka,
 )
 from handeye.model.robot import robots
 from handeye.model.robot.robots import JOINTS
 
-REQUIRED_COLUMNS = ("id", "x", "y", "z", "a", "b", "c", "xs", "ys", "zs")
 OPTIONAL_COLUMNS = ("profile",)
 DATA_DIR = pathlib.Path(__file__).parent.parent / "data"
 

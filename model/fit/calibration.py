@@ -56,23 +56,25 @@ from handeye.model.common import rotation
 NLP_CALLBACK_ABOVE = 1000
 
 
-@functools.lru_cache(maxsize=None)
-def _sources(rot, kind="centre"):
-    def build_resjac():
+def _derived(rot, kind, outputs):
+    """The ``build`` of a generated function of the residual ``kind`` in ``rot``: the inputs of
+    :func:`handeye.model.chain.symbolic.calibration_residual` (theta, extra, data) and, as outputs,
+    ``outputs`` of its expressions."""
+
+    def build():
         from handeye.model.chain import symbolic  # sympy only on a cache miss
 
         s = symbolic.calibration_residual(rot, kind)
-        return s["theta"] + s["extra"] + s["data"], list(s["e"]) + list(s["jac"])
+        return s["theta"] + s["extra"] + s["data"], outputs(s)
 
-    def build_hess():
-        from handeye.model.chain import symbolic
+    return build
 
-        s = symbolic.calibration_residual(rot, kind)
-        return s["theta"] + s["extra"] + s["data"], [v for h in s["hess"] for v in h]
 
+@functools.lru_cache(maxsize=None)
+def _sources(rot, kind="centre"):
     return (
-        codegen.generated_source(f"calib_resjac_{rot}_{kind}", build_resjac),
-        codegen.generated_source(f"calib_hess_{rot}_{kind}", build_hess),
+        codegen.generated_source(f"calib_resjac_{rot}_{kind}", _derived(rot, kind, lambda s: list(s["e"]) + list(s["jac"]))),
+        codegen.generated_source(f"calib_hess_{rot}_{kind}", _derived(rot, kind, lambda s: [v for h in s["hess"] for v in h])),
     )
 
 
@@ -87,14 +89,8 @@ def _numpy_residual(rot, kind="centre"):
     """The residual alone, generated from the same expressions as ``calib_resjac`` (its first
     outputs; simplified on its own, so it agrees with them to rounding, not bit for bit): what
     a line search or a trial step needs, several times cheaper than with the Jacobian."""
-
-    def build_res():
-        from handeye.model.chain import symbolic
-
-        s = symbolic.calibration_residual(rot, kind)
-        return s["theta"] + s["extra"] + s["data"], list(s["e"])
-
-    return codegen.numpy_function(codegen.generated_source(f"calib_res_{rot}_{kind}", build_res))
+    source = codegen.generated_source(f"calib_res_{rot}_{kind}", _derived(rot, kind, lambda s: list(s["e"])))
+    return codegen.numpy_function(source)
 
 
 _N_ROT = {"euler": 3, "matrix": 9, "local": 3}
@@ -144,8 +140,8 @@ class CalibrationModel:
 
     def __init__(self, flange2base, centre_in_sensor, sphere_centre, rotation="euler", unknowns="sensor",
                  kind="centre", radius=None, whiten=None):
-        if rotation not in ROTATIONS:
-            raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+        self.unknowns = unknowns
+        self._set_rotation(rotation)
         if unknowns not in UNKNOWNS:
             raise ValueError(f"unknowns must be one of {UNKNOWNS}, got {unknowns!r}")
         if kind not in KINDS:
@@ -154,8 +150,6 @@ class CalibrationModel:
             raise ValueError(f"the {kind!r} residual needs the sphere radius")
         f2b = np.asarray(flange2base, dtype=float)
         xs = np.asarray(centre_in_sensor, dtype=float)
-        self.rotation = rotation
-        self.unknowns = unknowns
         self.kind = kind
         self.m = KINDS[kind]
         self.radius = None if radius is None else float(radius)
@@ -170,10 +164,15 @@ class CalibrationModel:
         self.centre_in_sensor = xs
         #: rows that share one measurement (profile points); None: every row its own
         self.groups = None
-        n_rot = _N_ROT[rotation]
-        self._cols = slice(0, 3 + n_rot + (3 if unknowns == "sensor+sphere" else 0))
+
+    def _set_rotation(self, rotation):
+        """The parametrisation: its name, the step's columns of the generated Jacobian, their number and names."""
+        if rotation not in ROTATIONS:
+            raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+        self.rotation = rotation
+        self._cols = slice(0, 3 + _N_ROT[rotation] + (3 if self.unknowns == "sensor+sphere" else 0))
         self.n = self._cols.stop
-        self.names = parameter_names(rotation, unknowns)
+        self.names = parameter_names(rotation, self.unknowns)
 
     @classmethod
     def from_dataset(cls, dataset, rotation="local", unknowns="sensor", sphere_centre=None):
@@ -220,14 +219,9 @@ class CalibrationModel:
 
     def with_rotation(self, rotation, sphere_centre=None):
         """The same rows, kind and whitening in another parametrisation (and fixed centre)."""
-        if rotation not in ROTATIONS:
-            raise ValueError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
         twin = copy.copy(self)  # the rows' arrays shared (read-only), not rebuilt: a million rows take a while
-        twin.rotation = rotation
+        twin._set_rotation(rotation)
         twin.fixed_centre = np.asarray(self.fixed_centre if sphere_centre is None else sphere_centre, float).reshape(3)
-        twin._cols = slice(0, 3 + _N_ROT[rotation] + (3 if self.unknowns == "sensor+sphere" else 0))
-        twin.n = twin._cols.stop
-        twin.names = parameter_names(rotation, self.unknowns)
         return twin
 
     # -- points ----------------------------------------------------------------------------
@@ -293,7 +287,8 @@ class CalibrationModel:
     # -- residual and derivatives ---------------------------------------------------------
     # A point x (n,) or a stack of points (..., n): the batch axes lead every result, so the
     # batched solvers (handeye.solvers.solve_many) evaluate all running starts in one call.
-    def _args(self, x):
+    def _head(self, x):
+        """The generated functions' arguments before the rows' data: the parameters of ``x`` (and the radius)."""
         t2, q, c = self._split(x)
         batch = np.shape(x)[:-1]
 
@@ -307,7 +302,11 @@ class CalibrationModel:
             theta, extra = [*entries(t2), *entries(q), *entries(c)], []
         if self.kind != "centre":
             extra.append(self.radius)
-        return (*theta, *extra, *self._data)
+        return (*theta, *extra)
+
+    def _rows(self, function, head, rows):
+        """A generated ``function`` at the parameters ``head`` (:meth:`_head`) for the row slice ``rows``."""
+        return function(*head, *(d[rows] for d in self._data))
 
     def _evaluate(self, function, x, rows=None):
         """Outputs (..., R, K) of a generated ``function`` at the point(s) ``x`` for the rows
@@ -315,45 +314,36 @@ class CalibrationModel:
         temporaries stay in cache, and a million rows need a few MB of them, not gigabytes; a
         point of the ``points`` model is evaluated per profile (:meth:`_profile_layout`) and its
         real rows taken back in order."""
-        batch = np.shape(x)[:-1]
-        args = self._args(x)
-        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        batch, head = np.shape(x)[:-1], self._head(x)
         start, stop, _ = (rows or slice(None)).indices(self.n_meas)
         layout = None if batch or rows is not None else self._profile_layout()
         if layout is not None:  # a scan's points per profile: the flange pose's terms once per profile
-            return codegen.stack_outputs(function(*self._layout_args(x, layout)), layout[1].shape)[layout[1]]
+            return codegen.stack_outputs(function(*head, *layout[2]), layout[1].shape)[layout[1]]
         if stop - start <= ROW_CHUNK and rows is None:
-            return codegen.stack_outputs(function(*args), batch + (self.n_meas,))
+            return codegen.stack_outputs(function(*head, *self._data), batch + (self.n_meas,))
         out = None
         for a in range(start, stop, ROW_CHUNK):
             b = min(a + ROW_CHUNK, stop)
-            values = function(*head, *(d[a:b] for d in args[len(args) - n_data:]))
+            values = self._rows(function, head, slice(a, b))
             if out is None:
                 out = np.empty((len(values),) + batch + (stop - start,))
             for k, v in enumerate(values):
                 out[k, ..., a - start:b - start] = v
         return np.moveaxis(out, 0, -1)
 
-    def _layout_args(self, x, layout):
-        """The generated functions' arguments at one point with the rows as a (profiles, points) table."""
-        return (*self._args(x)[:-len(self._data)], *layout[2])
-
     def _raw(self, x):
-        resjac, _ = _numpy_functions(self.rotation, self.kind)
-        batch = np.shape(x)[:-1]
-        vals = self._evaluate(resjac, x)
+        return self._residual_jacobian(self._evaluate(_numpy_functions(self.rotation, self.kind)[0], x))
+
+    def _residual_jacobian(self, vals):
+        """Residuals (..., R, m) and Jacobian (..., R, m, n) of ``calib_resjac``'s outputs (..., R, K)."""
         m = self.m
-        e = vals[..., :m]
         n_theta = (vals.shape[-1] - m) // m
-        jac = vals[..., m:].reshape(batch + (self.n_meas, m, n_theta))[..., self._cols]
-        return e, jac
+        return vals[..., :m], vals[..., m:].reshape(vals.shape[:-1] + (m, n_theta))[..., self._cols]
 
     def _chunk(self, function, x, rows):
         """The outputs (..., R, K) of a generated ``function`` at ``x`` for the row slice ``rows``
         (one chunk: the temporaries stay in cache)."""
-        args = self._args(x)
-        head, n_data = args[:len(args) - len(self._data)], len(self._data)
-        values = function(*head, *(d[rows] for d in args[len(args) - n_data:]))
+        values = self._rows(function, self._head(x), rows)
         return codegen.stack_outputs(values, np.shape(x)[:-1] + (rows.stop - rows.start,))
 
     def chunks(self, x, chunk=None):
@@ -362,13 +352,10 @@ class CalibrationModel:
         (..., R, m, n) as :meth:`residual_and_jacobian` gives for those rows (whitened). What
         only needs sums over the rows (:meth:`normal_equations`) never holds all of them."""
         resjac, _ = _numpy_functions(self.rotation, self.kind)
-        batch, m, step = np.shape(x)[:-1], self.m, chunk or ROW_CHUNK
+        step = chunk or ROW_CHUNK
         for a in range(0, self.n_meas, step):
             rows = slice(a, min(a + step, self.n_meas))
-            vals = self._chunk(resjac, x, rows)
-            n_theta = (vals.shape[-1] - m) // m
-            e = vals[..., :m]
-            jac = vals[..., m:].reshape(batch + (rows.stop - a, m, n_theta))[..., self._cols]
+            e, jac = self._residual_jacobian(self._chunk(resjac, x, rows))
             if self.whiten is not None:
                 w = self.whiten[rows]
                 e, jac = np.einsum("ikl,...il->...ik", w, e), np.einsum("ikl,...iln->...ikn", w, jac)
@@ -514,12 +501,11 @@ class CalibrationModel:
         if not np.shape(x)[:-1] and back.ndim == 2 and self._profile_layout() is not None:
             return self._weighted_second_derivatives(x, back)
         _, hess = _numpy_functions(self.rotation, self.kind)
-        args = self._args(x)
-        head, n_data = args[:len(args) - len(self._data)], len(self._data)
+        head = self._head(x)
         out = np.zeros(np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1]) + (self.n, self.n))
         for a in range(0, self.n_meas, ROW_CHUNK):
             b = min(a + ROW_CHUNK, self.n_meas)
-            vals = hess(*head, *(d[a:b] for d in args[len(args) - n_data:]))
+            vals = self._rows(hess, head, slice(a, b))
             n_theta = int(round(np.sqrt(len(vals) / self.m)))
             cols = np.arange(n_theta)[self._cols]
             parts = [back[..., a:b, comp] for comp in range(self.m)]
@@ -538,9 +524,9 @@ class CalibrationModel:
         batch = np.shape(x)[:-1]
         layout = None if batch else self._profile_layout()
         if layout is None:
-            vals = hess(*self._args(x))
+            vals = hess(*self._head(x), *self._data)
         else:
-            vals = hess(*self._layout_args(x, layout))
+            vals = hess(*self._head(x), *layout[2])  # the rows as a (profiles, points) table
             weighted = np.where(layout[1][..., None], weighted[layout[0]], 0.0)  # (G, K, m): padding weighs nothing
         per = len(vals) // self.m  # entries of one component's Hessian
         comps = [np.ascontiguousarray(weighted[..., c]) for c in range(self.m)]

@@ -19,6 +19,7 @@ from handeye import solvers
 from handeye.model import effects
 from handeye.model.common.statistics import chi2_survival
 from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
+from handeye.model.fit.score_tests import cholesky, gate, gate_from_sums, projection, score_test_robust
 
 
 @dataclasses.dataclass(frozen=True)
@@ -149,14 +150,10 @@ class Samples:
     def measured(self, structure, rows=None):
         """The measured centres (N, 3) with the structure's sign flips (of the samples ``rows``,
         an index array, only, when given)."""
-        if rows is None:
-            xs = self.d.centre_in_sensor.copy()
-            for i in structure.flips:
-                xs[i, 1] = -xs[i, 1]
-            return xs
-        xs = self.d.centre_in_sensor[rows]
+        xs = self.d.centre_in_sensor.copy() if rows is None else self.d.centre_in_sensor[rows]
         if structure.flips:
-            flip = np.isin(rows, np.fromiter(structure.flips, int))
+            flipped = np.fromiter(structure.flips, int)
+            flip = flipped if rows is None else np.isin(rows, flipped)
             xs[flip, 1] = -xs[flip, 1]
         return xs
 
@@ -216,21 +213,9 @@ class Samples:
         """Least squares of the structure on the samples in ``mask``. Above
         :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples (or with ``chunk``) on normal
         equations summed chunk by chunk: the Fit then holds no Jacobian (``jac`` None)."""
-        params0 = {n: np.zeros(len(self.params_of(n))) for n in structure.data_effects} | (params0 or {})
-        keys = list(structure.data_effects)
-        sizes = [len(self.params_of(n)) for n in keys]
-        n_pt, n_theta = len(x0), self._chart(structure.centre).n
+        z0, n, split, retract = self._layout(structure, x0, params0)
         big = chunk is not None or int(np.count_nonzero(mask)) > ROW_CHUNK
-
-        def split(z):
-            x, params, k = z[:n_pt], {}, n_pt
-            for key, size in zip(keys, sizes):
-                params[key] = z[k : k + size]
-                k += size
-            return x, params
-
-        z0 = np.concatenate([x0] + [params0[k] for k in keys])
-        problem = self._problem(structure, mask, split, (n_pt, n_theta, n_theta + sum(sizes)), chunk, big)
+        problem = self._problem(structure, mask, (n, split, retract), chunk, big)
         solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
         x, params = split(solved.x)
         if big:
@@ -238,8 +223,8 @@ class Samples:
         else:
             e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
-        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n_theta + sum(sizes),
-                   bool(solved.converged), solved.message)
+        return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n, bool(solved.converged),
+                   solved.message)
 
     def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
         """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
@@ -264,33 +249,37 @@ class Samples:
         e : ndarray, shape (len(rows), 3)
             Residuals of the samples ``rows`` at the fit.
         """
-        keys = list(structure.data_effects)
-        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
-        chart, n_pt = self._chart(structure.centre), len(x0)
-        n = chart.n + sum(len(params0[k]) for k in keys)
+        z0, n, split, retract = self._layout(structure, x0, params0)
         sw = np.sqrt(np.repeat(np.asarray(weights, float), 3))
-
-        def split(z):
-            ends = np.cumsum([n_pt] + [len(params0[k]) for k in keys])
-            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
-
         problem = solvers.Problem(
-            n=n,
-            retract=lambda z, d: np.concatenate([chart.retract(z[:n_pt], d[:chart.n]), z[n_pt:] + d[chart.n:]]),
+            n=n, retract=retract,
             residual=lambda z: sw * self.evaluate(structure, *split(z), rows)[0].ravel(),
             jacobian=lambda z: sw[:, None] * self.evaluate(structure, *split(z), rows)[1].reshape(-1, n))
-        z0 = np.concatenate([x0] + [params0[k] for k in keys])
         x, params = split(solvers.solve(problem, z0, "lm", {"max_iter": max_iter}).x)
         return x, params, self.evaluate(structure, x, params, rows)[0]
 
-    def _problem(self, structure, mask, split, sizes, chunk, big):
-        """The solvers' Problem of :meth:`fit` (``sizes``: point, chart step and step lengths):
-        on normal equations when ``big``."""
-        retract_model, (n_pt, n_theta, n) = self._chart(structure.centre), sizes
+    def _layout(self, structure, x0, params0):
+        """The one vector of a point and the structure's effect parameters that :meth:`fit` and
+        :meth:`weighted_fit` solve for: its start (``x0``, then ``params0``, default zero), its
+        step's length, the split of a vector into the point and the parameters (name -> array),
+        and the retraction of a step (the chart's, then the parameters' plain sum)."""
+        keys = list(structure.data_effects)
+        params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
+        chart, n_pt = self._chart(structure.centre), len(x0)
+        ends = np.cumsum([n_pt] + [len(self.params_of(n)) for n in keys])
+
+        def split(z):
+            return z[:n_pt], {k: z[a:b] for k, a, b in zip(keys, ends[:-1], ends[1:])}
 
         def retract(z, delta):
-            return np.concatenate([retract_model.retract(z[:n_pt], delta[:n_theta]), z[n_pt:] + delta[n_theta:]])
+            return np.concatenate([chart.retract(z[:n_pt], delta[:chart.n]), z[n_pt:] + delta[chart.n:]])
 
+        return np.concatenate([x0] + [params0[k] for k in keys]), chart.n + int(ends[-1]) - n_pt, split, retract
+
+    def _problem(self, structure, mask, layout, chunk, big):
+        """The solvers' Problem of :meth:`fit` (``layout``: the step's length, split and retraction
+        of :meth:`_layout`): on normal equations when ``big``."""
+        n, split, retract = layout
         if big:
             return solvers.Problem(
                 n=n, retract=retract,
@@ -330,59 +319,6 @@ class Samples:
         return x[12:15] if structure.centre else self.d.sphere_centre
 
 
-#: Above this many rows the orthonormal basis of the Jacobian's columns is CholeskyQR2 (two
-#: Cholesky passes of the normal equations: matrix products, several times faster than
-#: Householder QR on (3 million, p), and as orthogonal for a condition number below ~1e7).
-CHOLESKY_QR_ABOVE = 30_000
-
-
-def _times(tall, small):
-    """``tall @ small`` for a tall (m, p) and a small (p, k) matrix, as ``(small^T tall^T)^T``:
-    the same products, several times faster (numpy's matmul of a tall matrix by a small one
-    does not reach BLAS's speed; the transposed product does)."""
-    return (small.T @ tall.T).T
-
-
-def _projection(jac_cur):
-    """Orthonormal basis (m, p) of the columns of ``jac_cur`` (m, p)."""
-    if len(jac_cur) <= CHOLESKY_QR_ABOVE:
-        return np.linalg.qr(jac_cur)[0]
-    q = jac_cur
-    for _ in range(2):
-        try:
-            r = np.linalg.cholesky(q.T @ q).T
-        except np.linalg.LinAlgError:
-            return np.linalg.qr(jac_cur)[0]
-        d = np.abs(np.diag(r))
-        if not np.all(np.isfinite(r)) or d.min() <= 1e-7 * d.max():  # ill-conditioned: Householder
-            return np.linalg.qr(jac_cur)[0]
-        q = _times(q, np.linalg.inv(r))
-    return q
-
-
-def gate(jac_cur, cand, names, q=None, absorbers=True):
-    """Fraction of the candidate's columns outside the current span, and who absorbs it
-    (``q``: :func:`_projection` of ``jac_cur`` when already computed; without ``absorbers``
-    the list is empty and its least-squares solve skipped)."""
-    norms = np.linalg.norm(cand, axis=0)
-    scaled = cand / np.where(norms > 0, norms, 1.0)
-    q = _projection(jac_cur) if q is None else q
-    perp = scaled - _times(q, q.T @ scaled)
-    s_perp = np.linalg.svd(perp, compute_uv=False)
-    s_full = np.linalg.svd(scaled, compute_uv=False)
-    frac = float(s_perp[-1] / max(s_full[-1], 1e-300))
-    if not absorbers:
-        return frac, []
-    coef, *_ = np.linalg.lstsq(jac_cur, scaled, rcond=None)
-    weight = np.abs(coef) * np.linalg.norm(jac_cur, axis=0)[:, None]
-    # strongest first; weights equal to 6 digits (a frame shift absorbed by cx, cy, cz alike)
-    # keep the parameters' order, so the list does not follow the last bits of the solve
-    strength = np.round(weight.max(axis=1) / max(weight.max(), 1e-300), 6)
-    top = np.argsort(-strength, kind="stable")
-    absorbers = [names[k] for k in top if strength[k] > 0.1][:6]
-    return frac, absorbers
-
-
 def _moved_centre(dfk, in_flange):
     """Derivatives (N, 3, k) of the centre ``F p`` seen from flanges whose derivatives are ``dfk``
     (N, k, 4, 4), ``in_flange`` (N, 3) the centre in the flange frame."""
@@ -408,10 +344,9 @@ def candidate_rows(prob, structure, fit, rows, name):
     for eff in structure.data_effects:
         if eff not in robot:
             xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
-    if effect.KIND == "robot":
-        r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
-        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
     r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
+    if effect.KIND == "robot":
+        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
     r12 = f2b[:, :3, :3] @ r2
     if effect.KIND == "centre":
         return -np.broadcast_to(np.eye(3), (len(xs), 3, 3))
@@ -423,32 +358,6 @@ def candidate_rows(prob, structure, fit, rows, name):
     u = np.einsum("ij,nj->ni", r2, xs) + t2
     q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
-
-
-def score_test(fit, mask, cand):
-    jac_cur = fit.jac[mask].reshape(-1, fit.p)
-    r = fit.e[mask].ravel()
-    q = _projection(jac_cur)
-    a = cand - _times(q, q.T @ cand)
-    g = a.T @ r
-    stat = float(g @ np.linalg.lstsq(a.T @ a, g, rcond=None)[0]) / fit.sigma2
-    return stat, chi2_survival(stat, cand.shape[1])
-
-
-def score_test_robust(fit, mask, cand, q=None):
-    """The score test with a variance robust to unequal noise between samples (a reconstructed
-    centre's y is noisier where the laser plane passes near the sphere's centre): the score's
-    variance is summed over the samples (cluster-robust), with the small-sample factor m / (m - p).
-    ``q``: :func:`_projection` of the fit's Jacobian on ``mask`` when already computed."""
-    r = fit.e[mask].ravel()
-    q = _projection(fit.jac[mask].reshape(-1, fit.p)) if q is None else q
-    a = cand - _times(q, q.T @ cand)
-    g = a.T @ r
-    per_sample = np.einsum("nik,ni->nk", a.reshape(-1, 3, a.shape[1]), r.reshape(-1, 3))
-    m = len(r)
-    v = per_sample.T @ per_sample * m / max(m - fit.p, 1)
-    stat = float(g @ np.linalg.lstsq(v, g, rcond=None)[0])
-    return stat, chi2_survival(stat, cand.shape[1])
 
 
 def _candidates(structure, skip):
@@ -486,39 +395,23 @@ def _first_pass(prob, structure, fit, mask, names, chunk):
     return jtj, jtr, finite, sums
 
 
-def _gate_from_sums(chol, cj, cc):
-    """:func:`gate`'s fraction from sums: the candidate's scaled columns' Gram matrix less its
-    part in the span of J (``chol``: the lower Cholesky factor of ``J^T J``)."""
-    norms = np.sqrt(np.diag(cc))
-    norms = np.where(norms > 0, norms, 1.0)
-    full = cc / np.outer(norms, norms)
-    w = np.linalg.solve(chol, (cj / norms[:, None]).T)
-    perp = full - w.T @ w
-    s_perp = np.sqrt(max(float(np.linalg.eigvalsh(perp)[0]), 0.0))
-    s_full = np.sqrt(max(float(np.linalg.eigvalsh(full)[0]), 0.0))
-    return float(s_perp / max(s_full, 1e-300))
-
-
 def score_by_sums(prob, structure, fit, mask, names, chunk=None):
-    """The robust score tests (:func:`score_test_robust`) of the candidates ``names`` in two
-    passes over chunks of the samples in ``mask``, never holding the Jacobian of every sample:
-    the first sums the normal equations and the candidates' cross products (gate, score), the
-    second each sample's score for the variance. Returns ``[(p, name, statistic, gate)]``,
-    ``[]`` when the fit has no finite derivative, or None when ``J^T J`` is too ill-conditioned
-    for its Cholesky factor (then the full arrays' Householder QR is needed)."""
+    """The robust score tests (:func:`~handeye.model.fit.score_tests.score_test_robust`) of the
+    candidates ``names`` in two passes over chunks of the samples in ``mask``, never holding the
+    Jacobian of every sample: the first sums the normal equations and the candidates' cross
+    products (gate, score), the second each sample's score for the variance. Returns
+    ``[(p, name, statistic, gate)]``, ``[]`` when the fit has no finite derivative, or None when
+    ``J^T J`` is too ill-conditioned for its Cholesky factor (then the full arrays' Householder
+    QR is needed)."""
     jtj, jtr, finite, sums = _first_pass(prob, structure, fit, mask, names, chunk)
     if not finite:
         return []
-    try:
-        chol = np.linalg.cholesky(jtj)
-    except np.linalg.LinAlgError:
-        return None
-    d = np.abs(np.diag(chol))
-    if not np.all(np.isfinite(chol)) or d.min() <= 1e-7 * d.max():
+    chol = cholesky(jtj)
+    if chol is None:
         return None
     tested = {}
     for name, (cj, cc, cr, ok) in sums.items():
-        frac = _gate_from_sums(chol, cj, cc) if ok else 0.0
+        frac = gate_from_sums(chol, cj, cc) if ok else 0.0
         if ok and frac >= GATE:
             b = np.linalg.solve(jtj, cj.T)  # projection coefficients G^-1 J^T C
             tested[name] = (b, cr - b.T @ jtr, frac, 0.0)
@@ -574,7 +467,8 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     -------
     list of ScoreTest
         Every identifiable candidate, Bonferroni-adjusted over them, most significant first;
-        the score's variance is robust to unequal noise between samples (:func:`score_test_robust`).
+        the score's variance is robust to unequal noise between samples
+        (:func:`~handeye.model.fit.score_tests.score_test_robust`).
     """
     prob, mask = prob or Samples(dataset), np.asarray(at.mask, bool)
     structure = Structure(centre=at.unknowns == "sensor+sphere", data_effects=tuple(skip))
@@ -588,11 +482,8 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     jac_cur = fit.jac[mask].reshape(-1, fit.p)
     if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
         return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
-    found, q = [], _projection(jac_cur)  # one basis for every candidate
-    for effect in effects.catalogue():
-        name = effect.NAME
-        if effect.KIND not in ("data", "centre") or name in skip or (name == "sphere_center" and structure.centre):
-            continue
+    found, q = [], projection(jac_cur)  # one basis for every candidate
+    for name in _candidates(structure, skip):
         cols = candidate_columns(prob, structure, fit, mask, name)
         if not np.all(np.isfinite(cols)):
             continue
