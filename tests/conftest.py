@@ -34,6 +34,48 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: item.get_closest_marker("slow") is not None)
 
 
+#: How many tests of the default tier this run selected (each pytest-xdist worker collects them all).
+SELECTED = {"default": 0}
+#: A slow test waits for the default tier to end, unless no default test has ended for this long
+#: (s; a worker lost mid-test must not hang the run): the longest default test takes ~12 s.
+STALL = 120.0
+
+
+def pytest_collection_finish(session):
+    SELECTED["default"] = sum(item.get_closest_marker("slow") is None for item in session.items)
+
+
+def _ended(config):
+    """The file in which each worker marks, a byte a test, the default-tier tests it ended."""
+    return shards.run_root(config._tmp_path_factory) / "default-tier.ended"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """The slow tests start when every default-tier test has ended, on every worker: the time
+    printed for the default tier inside the full run is then its own, as when it runs alone (a
+    worker idles at most as long as the other's last default tests; CPU-heavy slow tests
+    started beside them took up to a minute off them)."""
+    slow = item.get_closest_marker("slow") is not None
+    if slow:
+        _wait_for_the_default_tier(_ended(item.config))
+    yield
+    if not slow:
+        with open(_ended(item.config), "ab") as fh:  # one byte, appended: workers never overwrite each other
+            fh.write(b".")
+
+
+def _wait_for_the_default_tier(path):
+    seen, since = -1, time.monotonic()
+    while True:
+        count = path.stat().st_size if path.exists() else 0
+        if count >= SELECTED["default"] or time.monotonic() - since > STALL:
+            return
+        if count != seen:
+            seen, since = count, time.monotonic()
+        time.sleep(0.2)
+
+
 #: The run's clock (on the controller, which every pytest-xdist worker reports to): when the
 #: session started, and per test its tier, its time (setup, call and teardown) and when it ended.
 CLOCK = {"start": None, "tests": {}}

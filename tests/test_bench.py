@@ -10,6 +10,11 @@ from handeye.model.compiled import fast
 from handeye.model.fit.calibration import CalibrationModel
 
 
+#: The benchmark's runs of every section (10-20 s even small) are in the full suite; the default
+#: tier runs its sections one by one: the fast path, the guarantee's measurement, the pipeline,
+#: a child's peak memory, the machine record (and test_points_fast_path.py's points and peers).
+_SECTION = "test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve"
+
 def _newton_polished(f2b, xs, centre, sensor2flange, steps=4):
     """The minimum by exact Newton steps (cost Hessian of the symbolic model, not the fast path's)."""
     model = CalibrationModel(f2b, xs, centre, "local")
@@ -67,7 +72,7 @@ def test_degenerate_data_are_not_a_calibration(compiled):
     assert not res.converged
 
 
-@pytest.mark.slow(sibling="test_quick_bench_reports_every_section_and_plots")
+@pytest.mark.slow(sibling=_SECTION)
 def test_bench_reports_every_method():
     """The whole benchmark but for the start-up, every section at its full size (the point clouds up
     to 3 million points), each timed once (``reps=1``: every section's repetitions are capped by it;
@@ -105,6 +110,7 @@ def test_guarantee_overhead_is_measured():
     assert "thesis-real (sensor)" in bench_guarantee.text([g])
 
 
+@pytest.mark.slow(sibling=_SECTION)
 def test_quick_bench_reports_every_section_and_plots(tmp_path, monkeypatch):
     """A small run of every section (the guarantee's measurement, timed above, stubbed; the
     smallest point cloud; no pipeline): the report names each, and the plot is drawn."""
@@ -138,7 +144,7 @@ def test_fast_path_refuses_wrong_shapes_instead_of_reading_past_the_arrays():
     assert res.converged and np.allclose(res.sensor2flange[3], [0, 0, 0, 1])
 
 
-@pytest.mark.slow(sibling="test_solver_bench_reports_both_paths_and_the_study_run_in_process")
+@pytest.mark.slow(sibling="test_solver_bench_reports_a_failed_study")
 def test_solver_bench_reports_both_paths_and_the_study():
     """``handeye bench --solvers`` on a tiny sample: every method has both per-start times,
     their ends agree, the scaling has a slope per method, and the study section comes from
@@ -146,6 +152,7 @@ def test_solver_bench_reports_both_paths_and_the_study():
     _check_solver_bench()
 
 
+@pytest.mark.slow(sibling="test_solver_bench_reports_a_failed_study")
 def test_solver_bench_reports_both_paths_and_the_study_run_in_process(monkeypatch):
     """The same, the study's command run in this process (no interpreter start-up)."""
     import subprocess
