@@ -9,7 +9,6 @@ from handeye.model.common.rotation import transform_distance
 from handeye.model.compiled import fast
 from handeye.model.fit.calibration import CalibrationModel
 
-
 #: The benchmark's runs of every section (10-20 s even small) are in the full suite; the default
 #: tier runs its sections one by one: the fast path, the guarantee's measurement, the pipeline,
 #: a child's peak memory, the machine record (and test_points_fast_path.py's points and peers).
