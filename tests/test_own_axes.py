@@ -326,3 +326,48 @@ def test_a_setup_s_side_is_not_turned_twice(turned, tmp_path, capsys):
     assert main(["dataset", "new", str(second), *args, "--setup", str(first / "setup.toml")]) == 0
     capsys.readouterr()
     assert handeye.load_dataset(second).side == handeye.load_dataset(first).side == data.side
+
+
+def _rotvec(w):
+    """Rodrigues' rotation of a rotation vector (rad), written out."""
+    angle = np.linalg.norm(w)
+    if angle == 0:
+        return np.eye(3)
+    k = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / angle
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def test_the_identifiability_analysis_is_of_the_own_axes(turned, cell):
+    """The rank analysis the JSON reports (scaled singular values, weakest direction) is of the
+    Jacobian in the own frame's chart: its columns by central differences of the residual at the
+    sensor pose moved by dt (mm) and turned about its own axes by dw (rad), written out here (in
+    handeye's axes the weakest direction names other rotations)."""
+    from handeye.app.engine.robust import _subset
+    from handeye.model.datasets.observations import build
+    from handeye.model.design.identifiability import analyse
+
+    tmp, result, _ = cell
+    own = np.asarray(result.sensor2flange)
+    data = handeye.load_dataset(tmp / "cell")
+    used = np.array([r["used"] for r in result.to_dict()["residuals"]], bool)
+    model = _subset(build(data, result.model, "local", result.unknowns), used)
+
+    def residual(step):
+        moved = own.copy()
+        moved[:3, 3] += step[:3]
+        moved[:3, :3] = own[:3, :3] @ _rotvec(step[3:])
+        return model.residual(model.point_from(moved @ TURN.T))  # the own frame's pose in handeye's
+
+    h = 1e-6
+    jac = np.column_stack([(residual(h * e) - residual(-h * e)) / (2 * h) for e in np.eye(6)])
+    want = analyse(jac, ("tx", "ty", "tz", "wx", "wy", "wz"))
+    got = result.identifiability
+    np.testing.assert_allclose(got.singular_values, want.singular_values, rtol=1e-5)
+    assert got.weakest_direction.keys() == want.weakest_direction.keys()
+    for k, v in want.weakest_direction.items():
+        assert abs(got.weakest_direction[k] - v) < 1e-3, (k, got.weakest_direction, want.weakest_direction)
+    assert result.to_dict()["identifiability"]["singular_values"] == pytest.approx(list(got.singular_values))
+    turn = np.eye(6)
+    turn[3:, 3:] = ROT.T  # dw_own = R^T dw: the same Jacobian in handeye's chart is jac @ turn
+    theirs = analyse(jac @ turn, want.names)  # what the JSON said before: of handeye's axes (here permuted)
+    assert theirs.weakest_direction != got.weakest_direction, theirs.weakest_direction

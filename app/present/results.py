@@ -333,8 +333,9 @@ class CalibrationResult(ResultProtocol):
         """The result with every pose the user reads in the frame of the user's files: the
         sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.chain.own_frame`):
         ``sensor2flange``, ``sensor_pose`` (and KUKA), the start pose, the iterates, the closed
-        form's linear matrix, the covariance, correlation and 1-sd of the rotation (about the own
-        axes); ``pose_frame`` then ``"own"``. Itself without a turn or when turned already.
+        form's linear matrix, the covariance, correlation and 1-sd of the rotation and the
+        identifiability analysis (about the own axes); ``pose_frame`` then ``"own"``. Itself without a turn
+        or when turned already.
         :meth:`to_dict`, :meth:`summary` and every saved or exported form are of this one."""
         rot = self.own_axes
         if rot is None or self.pose_frame == "own" or self.sensor2flange is None:
@@ -355,9 +356,12 @@ class CalibrationResult(ResultProtocol):
             transform_from_pose(self.start_pose_kuka), rot, self.convention)
         closed = self.closed_form if self.closed_form is None else dataclasses.replace(
             self.closed_form, linear_matrix=own_frame.to_own(self.closed_form.linear_matrix, rot))
+        ident = self.identifiability
+        if ident is not None and "wx" in ident.names:
+            ident = ident.turned(own_frame.step_to_own(ident.n, rot, ident.names.index("wx")))
         return dataclasses.replace(
             self, fit=fit, uncertainty=dataclasses.replace(self.uncertainty, std=std, covariance=cov, correlation=corr),
-            start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, pose_frame="own")
+            start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, identifiability=ident, pose_frame="own")
 
     def to_dict(self, residuals=True):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without

@@ -48,7 +48,14 @@ def covariance_to_own(covariance, own_axes, forward=True, first=3):
     parameters (translation, sphere, effects) are left as they are."""
     if covariance is None or own_axes is None or first is None:
         return covariance
-    cov = np.asarray(covariance, float)
-    jac = np.eye(len(cov))
+    jac = step_to_own(len(covariance), own_axes, first, forward)
+    return jac @ np.asarray(covariance, float) @ jac.T
+
+
+def step_to_own(n, own_axes, first=3, forward=True):
+    """The (n, n) map of a step of parameters whose entries ``first`` .. ``first + 2`` are the
+    sensor's rotation about handeye's axes to the step about the own frame's (``dw_own = R^T dw``;
+    ``forward`` False the inverse); the identity elsewhere."""
+    jac = np.eye(n)
     jac[first:first + 3, first:first + 3] = np.asarray(own_axes, float).T if forward else np.asarray(own_axes, float)
-    return jac @ cov @ jac.T
+    return jac

@@ -66,6 +66,19 @@ class Identifiability:
     null_directions: list
     weakest_direction: dict = dataclasses.field(default_factory=dict)
     observability: dict = dataclasses.field(default_factory=dict)
+    names: tuple = ()
+    factor: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+    rows: int = 0
+    rtol: float = RTOL
+
+    def turned(self, step):
+        """The analysis in the parameters ``p' = step p`` (``step`` (n, n) orthogonal, e.g. the
+        rotation about the sensor's own axes: :func:`handeye.model.chain.own_frame.step_to_own`):
+        the Jacobian is ``J step^T``, analysed from the triangular factor kept (the column
+        scaling makes the analysis change with the parameters' axes, not only turn)."""
+        if self.factor is None:
+            return self
+        return analyse(self.factor @ np.asarray(step, float).T, self.names, self.rtol, rows=self.rows)
 
     @property
     def full_rank(self):
@@ -135,7 +148,8 @@ def analyse(jacobian, names, rtol=RTOL, rows=None):
         "O3": smin,
         "O4": float(smin**2 / smax) if smax > 0 else 0.0,
     }
-    return Identifiability(rank, n, s_full, raw, cond, null, weakest, obs)
+    factor = j if rows is not None or m <= n else np.linalg.qr(j, mode="r")
+    return Identifiability(rank, n, s_full, raw, cond, null, weakest, obs, tuple(names), factor, m, rtol)
 
 
 def structural(model, x, rtol=RTOL):
