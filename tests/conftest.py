@@ -57,12 +57,20 @@ def pytest_runtest_protocol(item, nextitem):
     worker idles at most as long as the other's last default tests; CPU-heavy slow tests
     started beside them took up to a minute off them)."""
     slow = item.get_closest_marker("slow") is not None
-    if slow:
+    if slow and _waits(item.config):
         _wait_for_the_default_tier(_ended(item.config))
     yield
     if not slow:
         with open(_ended(item.config), "ab") as fh:  # one byte, appended: workers never overwrite each other
             fh.write(b".")
+
+
+def _waits(config):
+    """Only a pytest-xdist worker waits (in one process the tests run in their sorted order), and
+    not when ``--ff``/``--nf`` put tests before the sort's order (a worker would hold default tests
+    queued behind the slow one it waits in)."""
+    reordered = config.getoption("failedfirst", False) or config.getoption("newfirst", False)
+    return bool(os.environ.get("PYTEST_XDIST_WORKER")) and not reordered
 
 
 def _wait_for_the_default_tier(path):
