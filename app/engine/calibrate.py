@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, positioner_effect, robust, slips
+from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, positioner_effect, robust, search, slips
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import prepare
 from handeye.app.engine.request import METHODS, SUPPORTED, CalibrationRequest  # noqa: F401  (METHODS, SUPPORTED: public here too)
@@ -180,6 +180,7 @@ def run(request, dataset):
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
+    result = search.chosen(request, dataset, result, lambda asked, data: _stages(asked.checked(data), data))
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
     result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)

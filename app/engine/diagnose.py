@@ -158,8 +158,9 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
     if axes is not None:
         result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
     if run.implausible:
-        unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
-        result = dataclasses.replace(result, unexplained=unexplained)
+        beyond = tuple(dict.fromkeys(run.implausible))
+        result = dataclasses.replace(result, unexplained="; ".join(beyond) + ". " + result.unexplained,
+                                     beyond_catalogue=beyond)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
 
 

@@ -100,6 +100,10 @@ class DiagnosisResult(ResultProtocol):
         What profile cleaning dropped, as :attr:`CalibrationResult.cleaning
         <handeye.app.present.results.CalibrationResult>` (``{'applied': False}`` with
         ``--no-clean``; None without profiles).
+    beyond_catalogue : tuple of str
+        Why the nearest effects to the discrepancy were not named (their fitted values beyond
+        the catalogue's physical range): structure no catalogue effect explains (also at the
+        head of ``unexplained``).
     """
 
     caption = "handeye diagnosis"
@@ -139,6 +143,7 @@ class DiagnosisResult(ResultProtocol):
     own_axes: np.ndarray | None = None
     cleaning: dict | None = None
     pose_frame: str = "handeye"
+    beyond_catalogue: tuple = ()
 
     @property
     def absorbed_explained(self):

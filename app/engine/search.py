@@ -1,0 +1,127 @@
+"""calibrate is the search: the pose under the model the data choose, or no pose.
+
+After the stages (:mod:`handeye.app.engine.calibrate`) have fitted the requested model, the
+discrepancy search of ``handeye diagnose`` (:func:`handeye.app.engine.diagnose.diagnose`: the
+catalogue's score tests, each candidate confirmed by an F test, Delta BIC and a held-out error,
+plausibility, the robot effects compared as alternatives) runs on the same data, at the same
+level and stated noise, from calibrate's pose. Its outcome decides calibrate's:
+
+- it names no effect: the requested model is the one the data choose; the result stands;
+- it names catalogue effects: the result is the fit *with* them (``--effects``, the same as
+  ``handeye calibrate --effects NAMES``), each effect named with its sd and a warning saying the
+  search chose it; a fit with them that fails (an implausible value, no convergence) is refused;
+- the nearest effect to the discrepancy lies beyond the catalogue's physical range (a pairing
+  shift, profiles of no sphere, a scale of ten per cent): "unexplained structure", refused
+  (exit 1) with the search's evidence;
+- either way the reported pose is tested against the search's: where the distance, in the
+  reported pose's own covariance, has a chi-square(6) p-value below the request's ``alpha``,
+  the search puts the pose beyond its sd and the result is refused (exit 1).
+
+So calibrate never exits 0 at a pose its own diagnosis contradicts, and ``handeye diagnose``,
+which prints the same search step by step, cannot disagree with it. Left to their own checks:
+a request with ``--effects`` (the user chose the model), the cell stage (positioner axes or a
+sphere estimated in a cell; the positioner's own test, :mod:`handeye.app.engine.positioner_effect`,
+runs there) and a fit that did not converge.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.app.engine import diagnose
+from handeye.app.engine.describe import command_argument
+from handeye.model.common.rotation import pose_distance
+
+#: Effects the search names that are not a model the fit can take (handled as samples).
+NOT_A_MODEL = ("sign_flip",)
+
+#: The warning of the score tests at the requested model, replaced by the search's outcome.
+SCORE_ADVICE = "the residuals show structure the model lacks"
+
+
+def refused(result, why):
+    """``result`` not a calibration (exit 1): not converged, ``why`` its message and a warning."""
+    return dataclasses.replace(result, fit=dataclasses.replace(result.fit, converged=False, message=why),
+                               warnings=[*result.warnings, why])
+
+
+def searchable(request, dataset, result):
+    """Whether the search decides this result (module docstring: what is left to other checks)."""
+    return (result.converged and not request.effects and not request.cell
+            and dataset.mounts.sphere != "positioner" and np.all(np.isfinite(result.sensor2flange)))
+
+
+def search(request, dataset, result):
+    """The discrepancy search on the data of ``result``, from its pose (its sphere centre the
+    start of a free one)."""
+    data = dataset
+    if request.unknowns == "sensor+sphere":
+        data = dataclasses.replace(dataset, sphere_centre=np.asarray(result.sphere_centre, float))
+    return diagnose.diagnose(data, alpha=request.alpha, start=result.sensor_pose_kuka, sigma=request.sigma,
+                             centre_unknown=request.unknowns == "sensor+sphere")
+
+
+def chosen(request, dataset, result, refit):
+    """The result under the model the data choose (module docstring).
+
+    Parameters
+    ----------
+    request : handeye.app.engine.request.CalibrationRequest
+        Checked.
+    dataset : handeye.model.datasets.dataset.Dataset
+    result : handeye.app.present.results.CalibrationResult
+        Of the stages on ``request`` (handeye's frame).
+    refit : callable
+        ``refit(request, dataset)``: the stages on another (unchecked) request.
+
+    Returns
+    -------
+    handeye.app.present.results.CalibrationResult
+    """
+    if not searchable(request, dataset, result):
+        return result
+    found = search(request, dataset, result)
+    if found.beyond_catalogue:
+        return refused(result, "unexplained structure, not a calibration: the discrepancy search finds the residuals "
+                               f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"
+                               f" (handeye diagnose {command_argument(dataset)} prints its steps)")
+    names = tuple(e.name for e in found.effects if e.name not in NOT_A_MODEL)
+    if names:
+        result = _with_effects(request, dataset, result, refit, names, found)
+    if not result.converged:
+        return result
+    return _against_search(result, found, dataset, request.alpha)
+
+
+def _with_effects(request, dataset, result, refit, names, found):
+    """The fit with the effects the search named (a warning says it chose them, and why)."""
+    asked = dataclasses.replace(_unchecked(request), effects=names)
+    fitted = refit(asked, dataset)
+    steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm (held-out {s.heldout_rms_mm:.3g})" for s in found.steps)
+    note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
+            f"{'it' if len(names) == 1 else 'them'} ({steps}); calibrated with "
+            f"{'it' if len(names) == 1 else 'them'}, the same as `handeye calibrate {command_argument(dataset)} "
+            f"--effects {','.join(names)}`")
+    kept = [w for w in fitted.warnings if not w.startswith(SCORE_ADVICE)]
+    return dataclasses.replace(fitted, warnings=[note, *kept])
+
+
+def _against_search(result, found, dataset, alpha):
+    """``result`` refused when the search's pose lies beyond its sd (chi-square(6) p below ``alpha``)."""
+    cov, names = result.covariance, result.parameter_names
+    if cov is None or names is None or not np.all(np.isfinite(cov)):
+        return result
+    d = pose_distance(np.asarray(found.sensor2flange, float), np.asarray(result.sensor2flange, float), cov, names)
+    if d["p_value"] is None or d["p_value"] >= alpha:
+        return result
+    return refused(result, f"not a calibration: the discrepancy search's pose lies {d['translation_mm']:.3g} mm and "
+                           f"{d['rotation_deg']:.3g} deg from this one, {d['sd']:.1f} sd of its own (p = "
+                           f"{d['p_value']:.2g} < {alpha:g}), so the data do not determine one pose under one model "
+                           f"(handeye diagnose {command_argument(dataset)} prints both)")
+
+
+def _unchecked(request):
+    """A request with the checked one's values, to be checked again (with other effects)."""
+    fields = {f.name: getattr(request, f.name) for f in dataclasses.fields(request) if f.init}
+    return type(request)(**fields)
