@@ -21,11 +21,15 @@ def _errors_in_sd(r, truth):
 def test_a_hidden_scale_error_warns_is_named_and_is_calibrated(tmp_path):
     s = handeye.simulate(tmp_path / "scale", seed=11, effect="sensor_scale=0.002")
     truth = transform_from_pose(s.dataset.truth["sensor_pose"])
-    plain = handeye.calibrate(s.path, no_loo=True)
-    assert plain.converged and _errors_in_sd(plain, truth).max() > 10  # wrong by many of its own sd ...
-    assert any("sensor_scale" in w and "handeye diagnose" in w for w in plain.warnings)  # ... and it says so
+    plain = handeye.calibrate(s.path, no_loo=True, effects="none")
+    assert _errors_in_sd(plain, truth).max() > 10  # the plain model is wrong by many of its own sd ...
+    assert not plain.converged and "sensor_scale" in plain.message  # ... and refused: the search names the scale
     d = handeye.diagnose(s.path)
     assert [e.name for e in d.effects] == ["sensor_scale"]
+    chosen = handeye.calibrate(s.path, no_loo=True)  # without --effects: the model the search chooses
+    assert chosen.converged and [e.name for e in chosen.effects] == ["sensor_scale"]
+    assert _errors_in_sd(chosen, truth).max() < 4 and chosen.warnings[0].startswith("the data choose the model")
+    assert "within 1 sd" in d.against_calibrate
     r = handeye.calibrate(s.path, no_loo=True, effects="sensor_scale")
     (scale,) = r.effects
     assert scale.name == "sensor_scale" and abs(scale.parameters["s"] - 0.002) < 4 * scale.std["s"]
@@ -119,7 +123,12 @@ def test_screening_with_effects_keeps_clean_samples_and_excludes_a_gross_error(t
 
 
 def test_screening_without_effects_is_unchanged(tmp_path):
-    """The default path screens on the plain centre model, as before (the same 3 exclusions)."""
+    """The model held as asked (--effects none) screens on the plain centre model, as before (the
+    same 3 exclusions) and is refused: the search adds the scale. The default path calibrates
+    with the scale the search chooses, and keeps the 36 clean samples."""
     s = handeye.simulate(tmp_path / "my cell", seed=4, effect="sensor_scale=0.003")
-    r = handeye.calibrate(s.path, no_loo=True)
+    r = handeye.calibrate(s.path, no_loo=True, effects="none")
     assert r.n_used == 33 and len(r.excluded) == 3
+    assert not r.converged and "sensor_scale" in r.message
+    chosen = handeye.calibrate(s.path, no_loo=True)
+    assert chosen.converged and [e.name for e in chosen.effects] == ["sensor_scale"] and chosen.n_used == 36

@@ -440,9 +440,11 @@ def test_advice_without_a_sphere_centre_names_diagnose_with_the_centre_free(tmp_
     sim = handeye.simulate(tmp_path / "d", seed=5, effect="sensor_scale=0.003", profiles=True)
     setup = sim.path / "setup.toml"
     setup.write_text("\n".join(line for line in setup.read_text().splitlines() if not line.startswith("center")))
-    res = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True)
+    res = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True, effects="none")
     advice = [w for w in res.warnings if "handeye diagnose" in w]
     assert advice and all("/d --unknowns sensor+sphere`" in w for w in advice), advice
+    chosen = handeye.calibrate(sim.path, unknowns="sensor+sphere", no_loo=True)  # the model the search chooses
+    assert chosen.converged and "/d --unknowns sensor+sphere --effects sensor_scale`" in chosen.warnings[0]
     with pytest.raises(handeye.InputError, match="--unknowns sensor\\+sphere"):
         handeye.diagnose(sim.path)
     named = handeye.diagnose(sim.path, unknowns="sensor+sphere")

@@ -272,8 +272,11 @@ def test_a_robot_error_the_centre_check_would_blame_is_named_beside_it(tmp_path)
     folder = _cell(tmp_path / "a", "kr60ha", ["link_lengths=j3_x:0.4"], seed=0)
     with pytest.raises(handeye.InputError, match="or the robot's own errors are: with link_lengths"):
         handeye.calibrate(folder)
-    freed = handeye.calibrate(folder, unknowns="sensor+sphere")
-    assert any("structure the model lacks: link_lengths" in w for w in freed.warnings), freed.warnings
+    held = handeye.calibrate(folder, unknowns="sensor+sphere", effects="none")  # the centre free, no robot effect
+    assert any("structure the model lacks: link_lengths" in w for w in held.warnings), held.warnings
+    assert not held.converged and "link_lengths" in held.message  # and the search puts its pose elsewhere
+    freed = handeye.calibrate(folder, unknowns="sensor+sphere")  # the model the search chooses
+    assert freed.converged and [e.name for e in freed.effects][-1] == "link_lengths", freed.warnings
     fixed = handeye.calibrate(folder, effects="link_lengths")
     assert fixed.converged and abs(fixed.effects[0].parameters["j3_x"] - 0.4) < 3 * fixed.effects[0].std["j3_x"]
 

@@ -111,7 +111,9 @@ _CALIBRATE = (
     Opt('--effects', metavar='NAME[,NAME]',
         help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
              '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
-             'angles and `[robot] model`); their parameters and 1-sd in `effects`',
+             'angles and `[robot] model`); their parameters and 1-sd in `effects`. Without it calibrate adds the '
+             'effects the data choose (the search `handeye diagnose` prints); with it (`none`: no effect) the model is '
+             'yours and the search only checks it: a pose the search puts beyond 1 sd is refused (exit 1)',
         pytype='str or sequence of str, optional'),
     _json('machine-readable output'),
     Opt('--plot', kind='path', metavar='FILE', help='residuals per measurement and the sphere centres through the chain (PNG)'),

@@ -179,15 +179,17 @@ def run(request, dataset):
     if request.resolved is None:
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
-    result = cell_stage.extend(request, dataset, _stages) if request.cell else _stages(request, dataset)
-    result = search.chosen(request, dataset, result, lambda asked, data: _stages(asked.checked(data), data))
+    result = cell_stage.extend(request, dataset, stages) if request.cell else stages(request, dataset)
+    result = search.chosen(request, dataset, result, lambda asked, data: stages(asked.checked(data), data))
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
     result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
 
 
-def _stages(request, dataset):
-    """prepare -> screen -> fit -> verify -> describe on the request's (conditional) unknowns."""
+def stages(request, dataset):
+    """prepare -> screen -> fit -> verify -> describe on a checked request's (conditional)
+    unknowns: the requested model's fit, before the search (:mod:`handeye.app.engine.search`)
+    checks it or chooses another -- for studies of the fit itself."""
     prep = prepare(request, dataset)
     screened = screen(prep)
     final, verdict, start_used, warnings = fit(prep, screened)

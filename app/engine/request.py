@@ -68,9 +68,11 @@ def unknown_parts(text):
 
 def effect_names(effects):
     """``--effects`` (``'a,b'`` or a sequence) as its names, each checked against :data:`EFFECTS`;
-    given but naming none is bad input (None and ``()``: no effects)."""
+    ``'none'``: no effect, chosen; given but naming none is bad input (None and ``()``: no effects)."""
     names = [effects] if isinstance(effects, str) else list(effects or ())
     names = [n.strip() for name in names for n in str(name).split(",") if n.strip()]
+    if names == ["none"]:
+        return ()  # the model as asked, with no effect (the search checks it, :mod:`handeye.app.engine.search`)
     if not names and effects is not None and effects != ():
         raise CalibrationInputError("--effects: give one or more effect names (sensor_scale, sphere_radius, "
                                     "sphere_center, joint_offsets)")
@@ -94,11 +96,15 @@ class Free:
         The catalogue effects estimated with them (:func:`effect_names`).
     given : str or None
         The option that gives a sensor pose (``'--calibration'`` or ``'--sensor-pose'``), else None.
+    chosen : bool
+        ``--effects`` was given (``none`` for no effect): the user chose the model, which the
+        search checks instead of choosing (:mod:`handeye.app.engine.search`).
     """
 
     parts: str = "sensor"
     effects: tuple = ()
     given: str | None = None
+    chosen: bool = False
 
     @classmethod
     def from_options(cls, unknowns="sensor", effects=None, calibration=None, sensor_pose=None):
@@ -106,7 +112,7 @@ class Free:
         if calibration is not None and sensor_pose is not None:
             raise CalibrationInputError("give --calibration or --sensor-pose, not both")
         given = "--calibration" if calibration is not None else "--sensor-pose" if sensor_pose is not None else None
-        return cls(unknown_parts(unknowns), effect_names(effects), given)
+        return cls(unknown_parts(unknowns), effect_names(effects), given, effects is not None)
 
     @property
     def scored(self):
@@ -161,6 +167,10 @@ class CalibrationRequest:
         Convention of the reported pose; None: the dataset's.
     effects : sequence of str
         Catalogue effects (:data:`EFFECTS`) calibrated with the pose (``'a,b'`` or a list).
+    chosen : bool or None
+        Whether the model (``effects``, none included) is the user's choice, which the
+        discrepancy search then checks instead of choosing (:mod:`handeye.app.engine.search`);
+        None: chosen when ``effects`` names any.
     notes : tuple of str
         What :meth:`checked` decided that the user should read (a default method changed).
     resolved : str or None
@@ -183,6 +193,7 @@ class CalibrationRequest:
     convention: str | None = None
     sigma: float | None = None
     effects: tuple = ()
+    chosen: bool | None = None
     notes: tuple = ()
     sensor_pose: object = None
     resolved: str | None = dataclasses.field(default=None, init=False)
@@ -223,6 +234,7 @@ class CalibrationRequest:
         start = None if self.start is None else np.asarray(self.start, float).copy()
         checked = dataclasses.replace(
             self, method=method, rotation=rotation, effects=effects, unknowns=unknowns, model=model, start=start,
+            chosen=bool(effects) if self.chosen is None else bool(self.chosen),
             options=copy.deepcopy(_solver_options(self.options)), alpha=float(self.alpha),
             convention=conventions.check(self.convention or dataset.convention),
             sigma=dataset.noise_centre_mm if self.sigma is None else float(self.sigma),

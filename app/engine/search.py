@@ -6,22 +6,26 @@ catalogue's score tests, each candidate confirmed by an F test, Delta BIC and a 
 plausibility, the robot effects compared as alternatives) runs on the same data, at the same
 level and stated noise, from calibrate's pose. Its outcome decides calibrate's:
 
-- it names no effect: the requested model is the one the data choose; the result stands;
-- it names catalogue effects: the result is the fit *with* them (``--effects``, the same as
-  ``handeye calibrate --effects NAMES``), each effect named with its sd and a warning saying the
-  search chose it; a fit with them that fails (an implausible value, no convergence) is refused;
+- it names no effect: the requested model is the one the data choose; the result stands (its
+  residual model may weigh the data otherwise than the search's centre model, so the two poses
+  are not compared);
+- it names catalogue effects: the result is the fit *with* them (the same as ``handeye calibrate
+  --effects NAMES``), each effect named with its sd and a warning saying the search chose it; a
+  fit with them that fails (an implausible value, no convergence) is refused;
 - the nearest effect to the discrepancy lies beyond the catalogue's physical range (a pairing
   shift, profiles of no sphere, a scale of ten per cent): "unexplained structure", refused
   (exit 1) with the search's evidence;
-- either way the reported pose is tested against the search's: where the distance, in the
-  reported pose's own covariance, has a chi-square(6) p-value below the request's ``alpha``,
-  the search puts the pose beyond its sd and the result is refused (exit 1).
+- where it names effects, the reported pose is tested against the search's: where it lies more than
+  :data:`handeye.app.engine.diagnose.AGREE_SD` of the reported pose's own sd away (Mahalanobis distance on 6 dof), the
+  data contradict the reported model and the result is refused (exit 1).
 
-So calibrate never exits 0 at a pose its own diagnosis contradicts, and ``handeye diagnose``,
-which prints the same search step by step, cannot disagree with it. Left to their own checks:
-a request with ``--effects`` (the user chose the model), the cell stage (positioner axes or a
-sphere estimated in a cell; the positioner's own test, :mod:`handeye.app.engine.positioner_effect`,
-runs there) and a fit that did not converge.
+With ``--effects`` (``none`` for no effect) the model is the user's: the search checks it (the
+last two rules) instead of choosing. So calibrate never exits 0 at a pose its own diagnosis
+puts beyond its sd, and ``handeye diagnose``, which prints the same search step by step, says
+"the same pose within 1 sd" of every calibration that exits 0. Left to their own checks: the
+cell stage (positioner axes or a sphere estimated in a cell), a sphere on a positioner (the
+positioner's own test, :mod:`handeye.app.engine.positioner_effect`) and a fit that did not
+converge.
 """
 from __future__ import annotations
 
@@ -36,6 +40,7 @@ from handeye.model.common.rotation import pose_distance
 #: Effects the search names that are not a model the fit can take (handled as samples).
 NOT_A_MODEL = ("sign_flip",)
 
+
 #: The warning of the score tests at the requested model, replaced by the search's outcome.
 SCORE_ADVICE = "the residuals show structure the model lacks"
 
@@ -47,8 +52,8 @@ def refused(result, why):
 
 
 def searchable(request, dataset, result):
-    """Whether the search decides this result (module docstring: what is left to other checks)."""
-    return (result.converged and not request.effects and not request.cell
+    """Whether the search decides or checks this result (module docstring: what is left to other checks)."""
+    return (result.converged and not request.cell
             and dataset.mounts.sphere != "positioner" and np.all(np.isfinite(result.sensor2flange)))
 
 
@@ -81,17 +86,23 @@ def chosen(request, dataset, result, refit):
     """
     if not searchable(request, dataset, result):
         return result
-    found = search(request, dataset, result)
+    try:
+        found = search(request, dataset, result)
+    except (np.linalg.LinAlgError, FloatingPointError) as exc:
+        return dataclasses.replace(result, warnings=[*result.warnings, "the discrepancy search failed numerically "
+                                                     f"({exc}): the requested model is reported unchecked"])
     if found.beyond_catalogue:
         return refused(result, "unexplained structure, not a calibration: the discrepancy search finds the residuals "
                                f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"
-                               f" (handeye diagnose {command_argument(dataset)} prints its steps)")
+                               f" ({_command('diagnose', dataset, request)} prints its steps)")
     names = tuple(e.name for e in found.effects if e.name not in NOT_A_MODEL)
-    if names:
+    if not names:  # the requested model is the one the data choose (its own weights: no pose to compare)
+        return result
+    if not request.chosen:
         result = _with_effects(request, dataset, result, refit, names, found)
     if not result.converged:
         return result
-    return _against_search(result, found, dataset, request.alpha)
+    return _against_search(result, found, dataset, request)
 
 
 def _with_effects(request, dataset, result, refit, names, found):
@@ -101,24 +112,32 @@ def _with_effects(request, dataset, result, refit, names, found):
     steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm (held-out {s.heldout_rms_mm:.3g})" for s in found.steps)
     note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
             f"{'it' if len(names) == 1 else 'them'} ({steps}); calibrated with "
-            f"{'it' if len(names) == 1 else 'them'}, the same as `handeye calibrate {command_argument(dataset)} "
+            f"{'it' if len(names) == 1 else 'them'}, the same as `{_command('calibrate', dataset, request)} "
             f"--effects {','.join(names)}`")
     kept = [w for w in fitted.warnings if not w.startswith(SCORE_ADVICE)]
     return dataclasses.replace(fitted, warnings=[note, *kept])
 
 
-def _against_search(result, found, dataset, alpha):
-    """``result`` refused when the search's pose lies beyond its sd (chi-square(6) p below ``alpha``)."""
+def _against_search(result, found, dataset, request):
+    """``result`` refused when the search's pose is not its own (:func:`handeye.app.engine.diagnose.same_pose`)."""
     cov, names = result.covariance, result.parameter_names
     if cov is None or names is None or not np.all(np.isfinite(cov)):
         return result
     d = pose_distance(np.asarray(found.sensor2flange, float), np.asarray(result.sensor2flange, float), cov, names)
-    if d["p_value"] is None or d["p_value"] >= alpha:
+    if diagnose.same_pose(d):
         return result
-    return refused(result, f"not a calibration: the discrepancy search's pose lies {d['translation_mm']:.3g} mm and "
-                           f"{d['rotation_deg']:.3g} deg from this one, {d['sd']:.1f} sd of its own (p = "
-                           f"{d['p_value']:.2g} < {alpha:g}), so the data do not determine one pose under one model "
-                           f"(handeye diagnose {command_argument(dataset)} prints both)")
+    named = ", ".join(e.name for e in found.effects) or "no effect"
+    return refused(result, f"not a calibration: the discrepancy search (with {named}) puts the pose "
+                           f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.1f} sd "
+                           f"of its own (more than {diagnose.AGREE_SD:g}): these data contradict this model; "
+                           f"`{_command('diagnose', dataset, request)}` prints the search, and calibrate without --effects fits the "
+                           "model it chooses")
+
+
+def _command(verb, dataset, request):
+    """``handeye VERB DATASET`` with the request's unknowns when the centre is free."""
+    free = " --unknowns sensor+sphere" if request.unknowns == "sensor+sphere" else ""
+    return f"handeye {verb} {command_argument(dataset)}{free}"
 
 
 def _unchecked(request):
