@@ -60,9 +60,10 @@ def run_cli(*args):
 
 @pytest.fixture(scope="module")
 def calibration():
-    """``handeye calibrate thesis-real --json``, the README's main job."""
-    code, out = run_cli("calibrate", "thesis-real", "--json")
-    assert code == 0
+    """``handeye calibrate thesis-real --effects none --json``: the thesis's model (the taught centre
+    held), which the search contradicts (exit 1, its pose still reported)."""
+    code, out = run_cli("calibrate", "thesis-real", "--effects", "none", "--json")
+    assert code == 1
     return json.loads(out)
 
 
@@ -117,7 +118,8 @@ def test_the_json_keys_listed_are_exactly_calibrates(calibration):
 
 def test_the_calibration_of_the_printed_real_data(calibration):
     c = calibration
-    ids = figure(r"`handeye calibrate` excludes (\d) samples as gross errors: x\+22\.5 \(prediction error")
+    ids = figure(r"\(`handeye calibrate thesis-real --effects none`\), excludes (\d) samples as gross errors: x\+22\.5 "
+                 r"\(prediction error")
     assert int(ids) == len(c["outliers"]) == 4
     for sample in ("x+22.5", "x+45", "x*+90", "y*+112.5"):
         assert sample in c["outliers"]
@@ -133,9 +135,21 @@ def test_the_calibration_of_the_printed_real_data(calibration):
         assert agrees(printed, value), (printed, value)
 
 
+def test_the_main_job_is_the_model_the_data_choose(calibration, free_centre):
+    code, out = run_cli("calibrate", "thesis-real", "--json")
+    chosen = json.loads(out)
+    assert code == 0 and chosen["warnings"][0].startswith("the data choose the model with sphere_center")
+    np.testing.assert_allclose(chosen["sensor_matrix"], free_centre["sensor_matrix"], atol=1e-6)
+    mm, deg, sd = figure(r"`--effects none`\) is refused \(exit 1\): the search puts the pose ([\d.]+) mm and ([\d.]+)° "
+                         r"from it, ([\d.]+) sd")
+    error = calibration["error"]
+    assert "sphere_center" in error and f"{mm} mm and {deg} deg" in error and f"{sd} sd" in error, error
+
+
 def test_the_sphere_centre_freed(calibration, free_centre):
-    away, rms, loo, n = figure(r"the sphere centre is estimated ([\d.]+) mm away from the one given by the taught plate "
-                               r"pose \(Table 6-4\) and x_p′, with a 1-sd of [\d.]+ mm, and the RMS falls to ([\d.]+) mm "
+    away, rms, loo, n = figure(r"the sphere centre is estimated with the pose, ([\d.]+) mm away from the one given by the "
+                               r"taught plate pose \(Table 6-4\) and x_p′, with a 1-sd of [\d.]+ mm, and the RMS falls to "
+                               r"([\d.]+) mm "
                                r"\(leave-one-out ([\d.]+) mm, (\d+) samples")
     f = free_centre
     given = np.asarray(calibration["sphere_center"])
@@ -241,10 +255,12 @@ def corrected(tmp_path_factory):
 
 
 def _gn(dataset, **options):
-    from handeye.app.engine.calibrate import calibrate
+    """The thesis's model and method as fitted (the stages before the search)."""
+    from handeye.app.engine.calibrate import CalibrationRequest, stages
 
-    return calibrate(dataset, method="gn", rotation="euler", options={"max_iter": 250, **options},
-                     outliers=False, loo=False).to_dict()
+    request = CalibrationRequest(method="gn", rotation="euler", options={"max_iter": 250, **options}, outliers=False,
+                                 loo=False)
+    return stages(request.checked(dataset), dataset).to_dict()
 
 
 def test_the_corrected_real_data_against_table_7_4(corrected):
@@ -289,7 +305,7 @@ def test_kim_and_cho_and_the_taught_centre_against_the_free_centre(calibration, 
     from handeye.model.common.rotation import transform_distance
 
     km, kd, tm, td = figure(r"`handeye calibrate thesis-real --method kim-cho` lands ([\d.]+) mm / ([\d.]+)° from that "
-                            r"fit, the default \(taught-centre\) calibration ([\d.]+) mm / ([\d.]+)°")
+                            r"fit, the taught-centre calibration \(`--effects none`\) ([\d.]+) mm / ([\d.]+)°")
     code, out = run_cli("calibrate", "thesis-real", "--method", "kim-cho", "--json")
     assert code == 0
     free = np.array(free_centre["sensor_matrix"])
