@@ -130,8 +130,8 @@ def _against_search(result, found, dataset, request):
     return refused(result, f"not a calibration: the discrepancy search (with {named}) puts the pose "
                            f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.1f} sd "
                            f"of its own (more than {diagnose.AGREE_SD:g}): these data contradict this model; "
-                           f"`{_command('diagnose', dataset, request)}` prints the search, and calibrate without --effects fits the "
-                           "model it chooses")
+                           f"`{_command('diagnose', dataset, request)}` prints the search, and calibrate without "
+                           "--effects fits the model it chooses")
 
 
 def _command(verb, dataset, request):
