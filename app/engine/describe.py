@@ -385,9 +385,7 @@ def describe_fit(final):
     dataset, mask, fit, warnings = final.dataset, final.mask, final.fit, final.warnings
     loo, outliers_on, sigma = final.request.loo, final.request.outliers, final.request.sigma
     advice = diagnose_advice(dataset, final.centre_given)
-    note = robot_choice.unmodelled(dataset)
-    if note:
-        warnings.append(note)
+    warnings.extend(filter(None, [robot_choice.unmodelled(dataset)]))
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
@@ -520,20 +518,14 @@ def _fit_record(prep, verified):
         solver_extra={k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")})
 
 
-def _nominal_positioner(dataset):
-    """The positioner's axes as set up (held: the stages work at these axes), or None."""
-    if dataset.mounts.sphere != "positioner":
-        return None
-
-    return PositionerRecord(dataset.mounts.axes, dataset.mounts.axes)
-
-
 def result(prep, screened, verified, warnings):
     """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.engine.calibrate`)."""
     request, dataset, mask = prep.request, prep.dataset, screened.mask
     warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
     base = _fit_record(prep, verified)
     start = prep.start_pose
+    # a positioner's axes as set up (held: the stages work at these axes)
+    positioner = PositionerRecord(dataset.mounts.axes, dataset.mounts.axes) if dataset.mounts.sphere == "positioner" else None
     header = dict(
         dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
         method=request.method, rotation=request.rotation, unknowns=request.unknowns, model=prep.kind,
@@ -542,7 +534,7 @@ def result(prep, screened, verified, warnings):
         start_pose_kuka=start, start_used=verified.start_used, convention=request.convention,
         columns=conventions.columns(request.convention), global_check=verified.global_check,
         screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings,
-        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=_nominal_positioner(dataset),
+        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=positioner,
         robot_model=None if getattr(dataset, "robot_model", None) is None else dataset.robot_model.spec)
     fit = verified.fit
     if fit.local is None:  # numerical failure: nothing to describe, but the same complete type

@@ -93,9 +93,8 @@ class Procedure:
 
 
 def _summaries(prob, structure, fit, mask):
-    e = fit.e[mask]
     return {
-        "rms_mm": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
+        "rms_mm": _rms(fit, mask),
         "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
         "heldout_rms_mm": prob.heldout_rms(structure, mask, fit),
@@ -158,8 +157,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
     if axes is not None:
         result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
     if run.implausible:
-        unexplained = "; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained
-        result = dataclasses.replace(result, unexplained=unexplained)
+        result = dataclasses.replace(result, unexplained="; ".join(dict.fromkeys(run.implausible)) + ". " + result.unexplained)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
 
 
@@ -430,8 +428,6 @@ def _report(run, structure, fit, flips, outliers):
     if flips:
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
-    after_norms = np.linalg.norm(fit.e, axis=1)
-
     return DiagnosisResult(
         centre_fitted=bool(structure.centre),
         convention=d.convention,
@@ -458,7 +454,7 @@ def _report(run, structure, fit, flips, outliers):
         steps=[Step(**s) for s in run.steps],
         tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
-                   for i, b, a, u in zip(d.ids, run.before_norms, after_norms, mask)],
+                   for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(fit.e, axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
         robot_alternatives=run.robot_alternatives,
