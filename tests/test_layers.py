@@ -295,7 +295,6 @@ LOCAL_IMPORTS = {
         ("app/engine/slips.py", "_robot_alternative", "handeye.model.effects"),
         ("app/engine/slips.py", "check_diameter", "handeye.model.geometry.circle"),
         ("app/engine/slips.py", "check_radius", "handeye.model.fit.extended"),
-        ("app/engine/slips.py", "check_radius", "handeye.model.fit.global_fit"),
         ("app/engine/slips.py", "free_axes_rms", "handeye.app.engine.cell_stage"),
         ("app/outputs/commands.py", "_robot_values", "handeye.model.robot.robot_errors"),
         ("app/outputs/commands.py", "cloud", "handeye.model.datasets.scan"),
