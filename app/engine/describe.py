@@ -47,15 +47,9 @@ def gross_error_warnings(ids, norms):
     med = float(np.median(norms))
     spread = 1.4826 * float(np.median(np.abs(norms - med)))
     limit = med + GROSS_ERROR_Z * max(spread, 1e-9)
-    out = []
-    for i, n in zip(ids, norms):
-        if n > limit:
-            out.append(
-                f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
-                f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
-                "the whole calibration is pulled by it -- check or remove that sample"
-            )
-    return out
+    return [f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
+            f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
+            "the whole calibration is pulled by it -- check or remove that sample" for i, n in zip(ids, norms) if n > limit]
 
 
 def rms(values):

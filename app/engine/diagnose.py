@@ -309,18 +309,10 @@ def _outlier_step_label(dataset, previous, mask, flips):
     """What the final outlier test changed, said: a step that raises the RMS says that it
     reinstates samples (more data, not a worse model)."""
     before_mask, before_flips = previous
-    ids = dataset.ids
-    parts = []
     new_flips = sorted(set(flips) - set(before_flips))
-    if new_flips:
-        parts.append("sign_flip " + ",".join(ids[i] for i in new_flips))
     back = [i for i in np.where(mask & ~before_mask)[0] if i not in new_flips]
-    if back:
-        parts.append("reinstated " + ",".join(ids[i] for i in back))
-    out = np.where(~mask & before_mask)[0]
-    if len(out):
-        parts.append("excluded " + ",".join(ids[i] for i in out))
-    return "outliers: " + "; ".join(parts)
+    changes = (("sign_flip", new_flips), ("reinstated", back), ("excluded", np.where(~mask & before_mask)[0]))
+    return "outliers: " + "; ".join(f"{what} " + ",".join(dataset.ids[i] for i in rows) for what, rows in changes if len(rows))
 
 
 def _extend(structure, name):

@@ -345,10 +345,7 @@ def _exclude_or_reinstate(inliers, stat, adj, alpha, min_keep):
         else:  # one at a time: a gross error can mask another
             inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
     elif len(excluded_ok):
-        if many:
-            inliers[excluded_ok] = True
-        else:
-            inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
+        inliers[excluded_ok if many else excluded_ok[np.argmin(stat[excluded_ok])]] = True
     else:
         return ""
     return None
