@@ -117,10 +117,9 @@ def fit(dataset, free, sensor, centre, mask, axes=None):
 
 def _block_sd(fitted, part_names):
     """1-sd of the named step coordinates (zeros where a part was held)."""
-    names = fitted.model.names
     if fitted.covariance is None:
         return np.full(len(part_names), np.nan)
-    sd = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None))
+    sd, names = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)), fitted.model.names
     return np.array([sd[names.index(n)] if n in names else 0.0 for n in part_names])
 
 

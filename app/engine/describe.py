@@ -86,9 +86,7 @@ def command_argument(dataset):
     command would read instead) is given by its full path.
     """
     path = pathlib.Path(dataset.path)
-    if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists():
-        return shlex.quote(dataset.name)
-    return shlex.quote(str(path))
+    return shlex.quote(dataset.name if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists() else str(path))
 
 
 def diagnose_advice(dataset, centre_given=True):

@@ -74,9 +74,7 @@ def _euler(sequence, reverse, radians):
 
 
 def _known(sequence, reverse, radians):
-    if sequence == "zyx" and not radians:
-        return "fanuc" if reverse else "kuka"
-    return None
+    return ("fanuc" if reverse else "kuka") if sequence == "zyx" and not radians else None
 
 
 def _euler_name(sequence, reverse, radians, columns):
@@ -151,9 +149,8 @@ def _chain(dataset, flange2base):
 
 def raw_poses(dataset):
     """The file's pose numbers (N, 3 + k) in the dataset's convention."""
-    if dataset.raw_poses is not None:
-        return np.asarray(dataset.raw_poses, float)
-    return conventions.pose_from(dataset.convention, dataset.flange2base())
+    return (np.asarray(dataset.raw_poses, float) if dataset.raw_poses is not None
+            else conventions.pose_from(dataset.convention, dataset.flange2base()))
 
 
 def candidates(dataset):

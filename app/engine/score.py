@@ -136,8 +136,7 @@ class Scorer:
         x = self.model.point_from(s, c)
         r = self.model.residual(x)
         per_row = (r.reshape(-1, self.model.m) ** 2).sum(axis=1)
-        groups = self.model.groups
-        per_sample = per_row if groups is None else np.bincount(groups, weights=per_row)
+        per_sample = per_row if self.model.groups is None else np.bincount(self.model.groups, weights=per_row)
         rms = {name: float(np.sqrt(np.mean(np.sum(plain.residuals(plain.point_from(s, c)) ** 2, axis=1))))
                for name, plain in self.plain.items()}
         xs = np.column_stack([self.dataset.centre_in_sensor, np.ones(len(self.dataset))])

@@ -399,8 +399,6 @@ def _robot_alternative(dataset, effects, given, sigma):
     from handeye.model import effects as catalogue
 
     robot = [e.NAME for e in catalogue.catalogue("robot") if e.available(dataset) and e.NAME not in effects]
-    if not robot:
-        return None
     for k in range(1, len(robot) + 1):  # the fewest first
         for names in itertools.combinations(robot, k):
             if _effects_keep_centre(dataset, tuple(effects) + names, given, sigma):
