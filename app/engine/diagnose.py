@@ -337,9 +337,7 @@ def _confirmed(run, base_structure, base, structure, new):
     f_stat = ((base.ssr - new.ssr) / k) / (new.ssr / (new.m - new.p))
     p_f = f_survival(f_stat, k, new.m - new.p)
     d_bic = new.m * np.log(new.ssr / base.ssr) + k * np.log(new.m)
-    if not (p_f < alpha and d_bic < 0):
-        return False
-    return prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
+    return p_f < alpha and d_bic < 0 and prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
 
 
 def _backward(prob, structure, fit, mask, alpha, centre_unknown=False):
@@ -421,25 +419,15 @@ def _report(run, structure, fit, flips, outliers):
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
     return DiagnosisResult(
-        centre_fitted=bool(structure.centre),
-        convention=d.convention,
-        columns=conventions.columns(d.convention),
+        centre_fitted=bool(structure.centre), convention=d.convention, columns=conventions.columns(d.convention),
         sensor_pose_as=conventions.pose_from(d.convention, sensor),
         std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        dataset=d.name,
-        effects=named,
-        outliers=[d.ids[i] for i in outliers],
-        absorbed_by=run.absorbed,
-        rms_before_mm=before["rms_mm"],
-        rms_after_mm=after["rms_mm"],
-        heldout_rms_before_mm=before["heldout_rms_mm"],
-        heldout_rms_after_mm=after["heldout_rms_mm"],
-        chi2_dof_before=before["chi2_dof"],
-        chi2_dof_after=after["chi2_dof"],
-        nominal_sigma_mm=prob.sigma,
-        sigma_after_mm=after["sigma_mm"],
-        sensor_pose=pose_from_transform(sensor),
-        sensor2flange=sensor,
+        dataset=d.name, effects=named, outliers=[d.ids[i] for i in outliers], absorbed_by=run.absorbed,
+        rms_before_mm=before["rms_mm"], rms_after_mm=after["rms_mm"],
+        heldout_rms_before_mm=before["heldout_rms_mm"], heldout_rms_after_mm=after["heldout_rms_mm"],
+        chi2_dof_before=before["chi2_dof"], chi2_dof_after=after["chi2_dof"],
+        nominal_sigma_mm=prob.sigma, sigma_after_mm=after["sigma_mm"],
+        sensor_pose=pose_from_transform(sensor), sensor2flange=sensor,
         sphere_centre=np.asarray(prob.centre(structure, fit.x), float),
         effect_correlations={"names": [fit.names[k] for k in all_cols],
                              "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},

@@ -67,13 +67,9 @@ class Screening:
 
 def _weighted_problem(model, weights):
     sw = np.sqrt(np.repeat(weights, model.m))  # one weight per row, over the row's m components
-    return solvers.Problem(
-        n=model.n,
-        residual=lambda x: sw * model.residual(x),
-        jacobian=lambda x: sw[:, None] * model.jacobian(x),
-        retract=model.retract,
-        normal=(lambda x: model.normal_equations(x, weights)) if chunked(model) else None,
-    )
+    return solvers.Problem(n=model.n, residual=lambda x: sw * model.residual(x),
+                           jacobian=lambda x: sw[:, None] * model.jacobian(x), retract=model.retract,
+                           normal=(lambda x: model.normal_equations(x, weights)) if chunked(model) else None)
 
 
 def least_squares(model, x0, max_iter=200, lm_iter=50):
@@ -289,12 +285,8 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
     inliers, note = _robust_inliers(norms, sigma, alpha, min_keep)
     x, stopped = _test_on_the_fit(full, x_rob, inliers, alpha, min_keep)
-    return Screening(
-        inliers=inliers,
-        excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
-        robust_sensor2flange=full.sensor2flange(x_rob),
-        note=note or stopped,
-    )
+    return Screening(inliers=inliers, excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
+                     robust_sensor2flange=full.sensor2flange(x_rob), note=note or stopped)
 
 
 def _robust_inliers(norms, sigma, alpha, min_keep):
