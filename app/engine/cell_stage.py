@@ -197,14 +197,11 @@ def final_residuals(dataset, result, fitted):
 def reversed_axes(fitted, nominal):
     """Warnings for fitted axes that point against their set-up direction (the same rotations with the
     angles counted the other way round: right, but the setup's sign is not the controller's)."""
-    out = []
-    for axis, nom in zip(fitted.axes, nominal):
-        turn = float(np.degrees(np.arccos(np.clip(axis.direction @ nom.direction, -1.0, 1.0))))
-        if turn > 90.0:
-            out.append(f"positioner axis {axis.name} points {turn:.1f} deg from its direction in [positioner] axes: its "
-                       "angles count the other way round (negate its direction in setup.toml, or check the "
-                       "controller's sign of that axis)")
-    return out
+    turns = ((axis, float(np.degrees(np.arccos(np.clip(axis.direction @ nom.direction, -1.0, 1.0)))))
+             for axis, nom in zip(fitted.axes, nominal))
+    return [f"positioner axis {axis.name} points {turn:.1f} deg from its direction in [positioner] axes: its angles count "
+            "the other way round (negate its direction in setup.toml, or check the controller's sign of that axis)"
+            for axis, turn in turns if turn > 90.0]
 
 
 #: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...

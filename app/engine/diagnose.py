@@ -139,7 +139,6 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
         dataset, prob = axes.dataset, run.prob
         fit = prob.fit(structure, mask, fit.x)
         run.steps.append({"step": "+ positioner_axes", **_summaries(prob, structure, fit, mask)})
-    flips, outliers = [], []
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
         structure, fit = _search(run, structure, fit)
         previous = (mask.copy(), structure.flips)
@@ -431,16 +430,13 @@ def _report(run, structure, fit, flips, outliers):
         sphere_centre=np.asarray(prob.centre(structure, fit.x), float),
         effect_correlations={"names": [fit.names[k] for k in all_cols],
                              "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
-        steps=[Step(**s) for s in run.steps],
-        tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
+        steps=[Step(**s) for s in run.steps], tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
                    for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(fit.e, axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
-        robot_alternatives=run.robot_alternatives,
-        always_absorbed=tuple(sorted(prob.robot_always)),
-        cleaning=cleaning_summary(d),
-    )
+        robot_alternatives=run.robot_alternatives, always_absorbed=tuple(sorted(prob.robot_always)),
+        cleaning=cleaning_summary(d))
 
 
 def _unexplained(after, sigma):
