@@ -85,6 +85,4 @@ def text(res):
              f"from scratch, {res['ipopt'] * ms:.1f} ms); without leave-one-out {res['total_no_loo'] * ms:.1f} ms "
              f"({res['ratio_no_loo']:.1f}x)",
              "  stage       with LOO   without   (ms)"]
-    for name in STAGES:
-        lines.append(f"  {name:<10} {res['stages'][name] * ms:9.1f} {res['stages_no_loo'][name] * ms:9.1f}")
-    return lines
+    return lines + [f"  {name:<10} {res['stages'][name] * ms:9.1f} {res['stages_no_loo'][name] * ms:9.1f}" for name in STAGES]
