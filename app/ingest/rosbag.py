@@ -122,13 +122,14 @@ def _tf_poses(reader, conns, base, flange, file):
     return np.array(stamps), np.array(poses)
 
 
-def _pose_stamped(reader, conns):
-    stamps, poses = [], []
+def _stamped(reader, conns, read):
+    """``(stamps, [read(message, its type)])`` of every message on ``conns``."""
+    stamps, items = [], []
     for conn, bag_ns, raw in reader.messages(connections=conns):
         msg = reader.deserialize(raw, conn.msgtype)
         stamps.append(_stamp(msg, bag_ns))
-        poses.append(_transform(msg.pose.position, msg.pose.orientation))
-    return np.array(stamps), np.array(poses).reshape(-1, 4, 4)
+        items.append(read(msg, conn.msgtype))
+    return np.array(stamps), items
 
 
 def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None, max_dt=0.05):
@@ -155,17 +156,15 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
             if pconns[0].msgtype == POSE_TYPES[1]:
                 pstamps, poses = _tf_poses(reader, pconns, base_frame, flange_frame, file)
             else:
-                pstamps, poses = _pose_stamped(reader, pconns)
-            stamps, clouds = [], []
-            for conn, bag_ns, raw in reader.messages(connections=sconns):
-                msg = reader.deserialize(raw, conn.msgtype)
-                stamps.append(_stamp(msg, bag_ns))
-                clouds.append(_scan_points(msg) if conn.msgtype == PROFILE_TYPES[1] else _cloud_points(msg, file))
+                pstamps, poses = _stamped(reader, pconns, lambda msg, _: _transform(msg.pose.position, msg.pose.orientation))
+                poses = np.array(poses).reshape(-1, 4, 4)
+            stamps, clouds = _stamped(reader, sconns, lambda msg, kind: _scan_points(msg) if kind == PROFILE_TYPES[1]
+                                      else _cloud_points(msg, file))
     except DatasetError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a broken bag) are bad input here
         raise DatasetError(file, f"cannot be read as a ROS 2 bag: {type(exc).__name__}: {exc}") from None
-    return _match(file, _Stamped(pstamps, poses, pconns[0].msgtype), _Stamped(np.array(stamps), clouds, sconns[0].msgtype),
+    return _match(file, _Stamped(pstamps, poses, pconns[0].msgtype), _Stamped(stamps, clouds, sconns[0].msgtype),
                   max_dt)
 
 
