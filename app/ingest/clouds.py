@@ -46,9 +46,7 @@ def detect(raw):
     text = head.lstrip().upper()
     if text.startswith(b"# .PCD") or text.startswith(b"VERSION") or re.match(rb"(#[^\n]*\n)*\s*FIELDS", text):
         return "pcd"
-    if b"\x00" in head:
-        return None
-    return "text"
+    return None if b"\x00" in head else "text"
 
 
 def read_profile_file(path):

@@ -232,11 +232,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
 
 def _files(result, read, req, start_pose):
     """Relative path -> text of every file of the dataset."""
-    taken, files, rels = set(), {}, []
-    for ident, p in zip(result.ids, read.profiles):
-        rel = f"profiles/{writer.safe_name(ident, taken)}.csv"
-        files[rel] = writer.profile_text(p.xz)
-        rels.append(rel)
+    taken = set()
+    rels = [f"profiles/{writer.safe_name(ident, taken)}.csv" for ident in result.ids]
+    files = {rel: writer.profile_text(p.xz) for rel, p in zip(rels, read.profiles)}
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     sections = {"options": req.options, "inputs": dict(result.inputs), "conversions": {"made": list(result.conversions)},

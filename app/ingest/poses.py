@@ -225,9 +225,7 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
     width = len(table.header) if table.header is not None and columns is None else len(table.rows[0])
     names = _names(table, columns, convention, width)
     kind = _kind(names, table.file)
-    cols = ("x", "y", "z") + KINDS[kind]
-    raw = _numbers(table, names, cols)
-    values, notes = _check_units(raw, units, table.file)
+    values, notes = _check_units(_numbers(table, names, ("x", "y", "z") + KINDS[kind]), units, table.file)
     values, more = _check_angles(values, kind, angles, table.file)
     notes += more
     if kind == "abb" and [n for n in names if n in KINDS["abb"]] != list(KINDS["abb"]):
