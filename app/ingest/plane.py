@@ -178,9 +178,8 @@ def to_xz(points, mapping):
 
 
 def check_scale(xz, diameter, file, units_option="--profile-units"):
-    """Profile coordinates in mm plausible against the sphere's diameter (mm)."""
-    if not len(xz):
-        return
+    """Profile coordinates in mm plausible against the sphere's diameter (mm); ``xz`` has points
+    (:func:`handeye.app.ingest.sources.map_to_plane` refuses fewer than 3)."""
     top = float(np.max(np.abs(xz)))
     if diameter is not None and diameter > 5 and top < 1.0:
         raise DatasetError(file, f"every coordinate is within +-{top:.3g}: metres, not mm? give {units_option} m")

@@ -253,7 +253,7 @@ def _in_reading_ranges(values, kind):
     return conventions.convert(values, kind, kind), [f"{kind} angles re-expressed in the controller's ranges"]
 
 
-def read_joints(path, units="deg"):
+def read_joints(path):
     """Joint angles j1..j6 (degrees) of a CSV, whitespace-separated or JSON file; returns
     ``(ids or None, (N, 6) array, lines)``. A header (``j1..j6``, ``joint_1``, ``axis1``, ``id``) is
     optional; without one, 6 numbers per row or an id and 6."""
@@ -265,8 +265,6 @@ def read_joints(path, units="deg"):
     if missing:
         raise DatasetError(table.file, f"no column {missing[0]!r} (joint angles j1..j6, degrees)", 1)
     values = _numbers(table, names, cols)
-    if units == "rad":
-        values = np.degrees(values)
-    elif np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
+    if np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
         raise DatasetError(table.file, "every joint angle is within +-pi: radians, not degrees? convert them to degrees")
     return _ids(table, names), values, table.lines

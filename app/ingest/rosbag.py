@@ -36,8 +36,6 @@ class BagData:
         The pose matched to each kept profile, mm.
     profiles : list of ndarray (K, 3)
         Points in the sensor message's frame, mm (NaN rows still in).
-    stamps : ndarray, shape (N,)
-        Profile times, s.
     counts : dict
         ``poses``, ``profiles``, ``unmatched`` (profiles without a pose within max_dt), ``max_dt_used``.
     types : tuple of str
@@ -46,7 +44,6 @@ class BagData:
 
     flange2base: np.ndarray
     profiles: list
-    stamps: np.ndarray
     counts: dict
     types: tuple
 
@@ -197,4 +194,4 @@ def _match(file, pose, profile, max_dt):
                                  f"{len(pstamps)} poses)")
     counts = {"poses": int(len(pstamps)), "profiles": int(len(stamps)), "unmatched": int(len(stamps) - len(keep)),
               "max_dt_s": float(max_dt)}
-    return BagData(poses[chosen], [clouds[k] for k in keep], stamps[keep], counts, (pose.msgtype, profile.msgtype))
+    return BagData(poses[chosen], [clouds[k] for k in keep], counts, (pose.msgtype, profile.msgtype))

@@ -83,9 +83,7 @@ def read_table(path, known_name=None):
     """
     path = pathlib.Path(path)
     text = decode(path, read_bytes(path))
-    if text.lstrip()[:1] in ("[", "{"):
-        return _json_table(path, text)
-    return _text_table(path, text, known_name)
+    return _json_table(path, text) if text.lstrip()[:1] in ("[", "{") else _text_table(path, text, known_name)
 
 
 def _split(line, sep):
