@@ -31,15 +31,16 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
               "double": "f8", "float64": "f8"}
 
 
+#: the first bytes of the binary formats (and PLY's header)
+_MAGIC = ((b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"), (b"ply\n", "ply"), (b"ply\r\n", "ply"))
+
+
 def detect(raw):
     """The format of a profile file's bytes (table above)."""
     head = raw[:4096]
-    if head.startswith(b"\x93NUMPY"):
-        return "npy"
-    if head.startswith(b"PK\x03\x04"):
-        return "npz"
-    if head.startswith(b"ply\n") or head.startswith(b"ply\r\n"):
-        return "ply"
+    for magic, fmt in _MAGIC:
+        if head.startswith(magic):
+            return fmt
     flavour = opencv_storage.sniff(head)
     if flavour is not None:
         return "FileStorage " + flavour.upper()

@@ -163,15 +163,14 @@ def _from_bag(req):
     data = read_bag(req.bag, req.pose_topic, req.profile_topic, req.base_frame, req.flange_frame, req.max_dt)
     convention = req.convention or "abb"
     profiles = sources.bag_profiles(data.profiles, req.profile_topic)
-    ids = [p.name for p in profiles]
     inputs = {"bag": {"path": str(req.bag), "pose_topic": req.pose_topic, "profile_topic": req.profile_topic,
                       "types": list(data.types), "counts": data.counts}}
     notes = ["ROS positions m -> mm", "ROS quaternions (x, y, z, w)" + (" -> abb (w, x, y, z)" if convention == "abb"
                                                                           else f" -> {convention}")]
     how = f"by time: each profile with the nearest pose within {req.max_dt:g} s"
     roles = [("bag", f, "ROS 2 bag") for f in writer.source_files(req.bag)]
-    return _Read(ids, conventions.pose_from(convention, data.flange2base), convention, profiles, inputs, notes, how, roles,
-                 None)
+    return _Read([p.name for p in profiles], conventions.pose_from(convention, data.flange2base), convention, profiles, inputs,
+                 notes, how, roles, None)
 
 
 def _joints(file, table):

@@ -204,12 +204,9 @@ class PlanResult(ResultProtocol):
                 f"chose {self.n} of {self.usable} usable candidate poses for the {r.model}'s {', '.join(r.effects)} "
                 f"(D-optimal, log det {self.logdet:.2f}; {r.flips} in the other wrist, {r.unreachable} unreachable)")
         targets = ", ".join(f"{e} {v:g} {UNITS[e]}" for e, v in r.targets.items())
-        if r.n_needed is None:
-            needed = f"no plan of these candidates reaches the targets ({targets}; full rank from {r.n_min} poses)"
-        else:
-            needed = (f"{r.n_needed} (the targets {targets} alone: {r.n_targets}; full rank: {r.n_min}"
-                      + ("; a residual that can test the fit: " + str(r.n_needed) if r.n_needed > r.n_targets else "")
-                      + ")")
+        needed = (f"no plan of these candidates reaches the targets ({targets}; full rank from {r.n_min} poses)"
+                  if r.n_needed is None else f"{r.n_needed} (the targets {targets} alone: {r.n_targets}; full rank: {r.n_min}"
+                  + ("; a residual that can test the fit: " + str(r.n_needed) if r.n_needed > r.n_targets else "") + ")")
         lines = [head, f"poses needed: {needed}; these {self.n} {'meet' if r.reached else 'miss'} the targets",
                  f"predicted sd (Cramer-Rao bound, {r.sigma_mm:g} mm per centre component): translation mm "
                  + " ".join(f"{v:.4f}" for v in r.sd[:3]) + "; rotation deg " + " ".join(f"{v:.4f}" for v in r.sd[3:6])
