@@ -189,7 +189,7 @@ def _pcd(path, raw):
         starts = np.cumsum([0] + counts[:-1])
         cols = {f: table[:, s] for f, s in zip(fields, starts)}
     elif data == "binary":
-        dtype = np.dtype([(f if c == 1 else f, f"<{t.lower()}{s}", (c,) if c > 1 else ())
+        dtype = np.dtype([(f, f"<{t.lower()}{s}", (c,) if c > 1 else ())
                           for f, s, t, c in zip(fields, sizes, types, counts)])
         if len(raw) - offset < points * dtype.itemsize:
             raise DatasetError(path, f"PCD: {points} points announced, the file is shorter")

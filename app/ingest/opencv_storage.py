@@ -99,10 +99,9 @@ def _yaml(text, file):
         return _yaml_sequences(text, file)
     parts = text.split("!!opencv-matrix")
     out = []
-    for k in range(1, len(parts)):
+    for k, block in enumerate(parts[1:], start=1):
         before = parts[k - 1].rsplit("\n", 1)[-1].strip().rstrip(":").strip()
         name = before.lstrip("-").strip() or f"item{k}"
-        block = parts[k]
         fields = {}
         for key in ("rows", "cols", "dt"):
             m = re.search(rf"^\s*{key}\s*:\s*(\S+)", block, re.MULTILINE)

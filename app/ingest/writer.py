@@ -72,11 +72,8 @@ def setup_text(result, request, start=None):
 
 def sha256(path):
     """SHA-256 of a file (streamed)."""
-    h = hashlib.sha256()
     with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def source_files(path):

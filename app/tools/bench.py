@@ -134,9 +134,7 @@ def compare(cases, reps):
         methods = _methods(f2b, xs, centre, start, len(xs))
         methods["fast"]()  # compile (or load) outside the timing
         table, ref = {}, None
-        for method in ORDER:
-            if method not in methods:
-                continue
+        for method in (m for m in ORDER if m in methods):
             times, (t, its, evals, cost) = timed(methods[method], reps)
             ref = t if ref is None else ref
             dt, dr = transform_distance(t, ref)
@@ -404,8 +402,7 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     scaling_sizes = (SCALING[:4] if quick else SCALING) if scaling_sizes is None else scaling_sizes
     result["scaling"] = scaling(scaling_sizes, reps=3 if quick else 5)
     result["profile"] = profile(cases["thesis-real"], reps=50 if quick else 500)
-    tp = throughput(quick, throughput_n)
-    result["throughput"] = tp
+    result["throughput"] = tp = throughput(quick, throughput_n)
     result["throughput_per_s"] = tp["all_cores_per_s"]
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=min(reps, 3 if quick else 9), unknowns=u)
                            for u in ("sensor", "sensor+sphere")]

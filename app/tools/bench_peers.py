@@ -22,8 +22,6 @@ Timing is measured here, never in tests.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from handeye.app.tools.peak import timed
@@ -96,12 +94,7 @@ def memory_bandwidth(megabytes=256, reps=5):
     """Bytes per second of a large numpy copy (read and write counted), the best of ``reps``."""
     a = np.ones(megabytes * 2**20 // 8)
     b = np.empty_like(a)
-    best = np.inf
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        np.copyto(b, a)
-        best = min(best, time.perf_counter() - t0)
-    return 2 * a.nbytes / best
+    return 2 * a.nbytes / min(timed(lambda: np.copyto(b, a), reps)[0])
 
 
 def measure(case, own, reps=20):

@@ -261,8 +261,7 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
 def run(quick=False, with_study=True):
     """Every section. ``quick``: the 15 x 15 study, 2000 batch starts, 40 single, N up to 3000."""
     res = {"quick": quick, "machine": machine()}
-    rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
-    res["per_start"] = rows
+    res["per_start"] = rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
     res["calibration"] = calibration(n_batch=100 if quick else 400, n_single=20 if quick else 40)
     res["compiled"] = compiled(n=2000 if quick else 20000)
     res["scaling"] = scaling(sizes=SCALING[:-1] if quick else SCALING)
