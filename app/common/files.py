@@ -86,8 +86,7 @@ def check_output_path(path, option, inputs=(), plot=False):
         raise RequestError(f"{option} {path}: is a folder; give a file name")
     if target.exists() and not target.is_file():
         raise RequestError(f"{option} {path}: is not a regular file (a device or a pipe); give a file name")
-    resolved = target.resolve()
-    if resolved in {pathlib.Path(i).resolve() for i in inputs} or any(_same_file(target, i) for i in inputs):
+    if target.resolve() in {pathlib.Path(i).resolve() for i in inputs} or any(_same_file(target, i) for i in inputs):
         raise RequestError(f"{option} {path}: is a file this command reads; it would be overwritten -- choose another")
     if plot and target.suffix.lower().lstrip(".") not in PLOT_FORMATS:
         raise RequestError(f"{option} {path}: a figure needs one of the extensions {', '.join(PLOT_FORMATS)}")

@@ -247,8 +247,7 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
 def _in_reading_ranges(values, kind):
     """Angles outside the controller's ranges (A, C in +-180, B in +-90) re-expressed in them
     (the same rotations)."""
-    lim = np.array([180.0, 90.0, 180.0])
-    if np.all(np.abs(values[:, 3:]) <= lim + 1e-9):
+    if np.all(np.abs(values[:, 3:]) <= np.array([180.0, 90.0, 180.0]) + 1e-9):
         return values, []
     return conventions.convert(values, kind, kind), [f"{kind} angles re-expressed in the controller's ranges"]
 

@@ -257,10 +257,9 @@ PIPELINE = (1_000, 10_000, 100_000, 1_000_000)
 def write_dataset(folder, n, seed=0):
     """A simulated dataset of ``n`` measurements (thesis orientations, 0.02 mm noise) in ``folder``."""
     flanges, xs, centre, start, _ = simulated_batch(1, n, seed)
-    poses = pose_from_transform(flanges[0])
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    table = np.column_stack([poses, xs[0]])
+    table = np.column_stack([pose_from_transform(flanges[0]), xs[0]])
     body = "\n".join(f"m{k}," + ",".join(f"{v:.8f}" for v in row) for k, row in enumerate(table))
     (folder / "measurements.csv").write_text("id,x,y,z,a,b,c,xs,ys,zs\n" + body + "\n")
     s = ", ".join(repr(float(v)) for v in pose_from_transform(start))
@@ -285,8 +284,7 @@ def measure_python(setup="pass", call="0", args=()):
     or of the child itself, which on Linux carry this process's size over fork and exec
     (:mod:`handeye.app.tools.peak`). Seconds and peak are None when the child died before reporting.
     """
-    probe = _PROBE.format(setup=setup, call=call)
-    out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-c", _PROBE.format(setup=setup, call=call), *args], capture_output=True, text=True)
     line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
     if not line:
         return {"seconds": None, "peak_mb": None, "exit": out.returncode}
@@ -342,8 +340,7 @@ def write_scan(folder, n_points, per_profile=1280, seed=0):
         phi = np.linspace(np.pi + 0.2, 2 * np.pi - 0.2, per_profile)
         xz = np.c_[in_sensor[0] + r * np.cos(phi), in_sensor[2] + r * np.sin(phi) + rng.normal(0, 0.01, per_profile)]
         (folder / "p" / f"{k}.csv").write_text("x,z\n" + "\n".join(f"{a:.5f},{b:.5f}" for a, b in xz) + "\n")
-        pose = pose_from_transform(s2b @ np.linalg.inv(x))
-        rows.append(f"s{k}," + ",".join(f"{v:.9f}" for v in pose) + f",p/{k}.csv")
+        rows.append(f"s{k}," + ",".join(f"{v:.9f}" for v in pose_from_transform(s2b @ np.linalg.inv(x))) + f",p/{k}.csv")
     (folder / "measurements.csv").write_text("\n".join(rows) + "\n")
     (folder / "setup.toml").write_text(f"[sphere]\ndiameter = {2 * radius}\ncenter = {centre.tolist()}\n")
     cov = np.diag(np.square([0.05, 0.05, 0.05, 5e-4, 5e-4, 5e-4]))
@@ -393,9 +390,8 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     """Run the benchmark; returns the JSON-ready result."""
     reps = reps or (5 if quick else 20)
     started = machine()
-    cases = {"thesis-real": real_case()}
-    for n in sizes if sizes is not None else (SIZES[:2] if quick else SIZES):
-        cases[f"sim-{n}"] = simulated_case(n)
+    cases = {"thesis-real": real_case(),
+             **{f"sim-{n}": simulated_case(n) for n in (sizes if sizes is not None else (SIZES[:2] if quick else SIZES))}}
     result = {"reps": reps, "cases": compare(cases, reps)}
     real = result["cases"]["thesis-real"]
     result["speedup_vs_scipy"] = real["scipy-2point"]["median_ms"] / real["fast"]["median_ms"]
@@ -496,12 +492,9 @@ def _pipeline_text(pl):
 def _use_text(u):
     lines = ["", "handeye cloud (binary PLY, per-point sd) and validate (sphere fit, PF/PS, 1-sd), by points:"]
     for r in u["rows"]:
-        cells = []
-        for what in ("cloud", "validate"):
-            c = r[what]
-            cells.append(f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
-                         f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, "
-                         f"peak {c['peak_mb']:6.0f} MB")
+        cells = [f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
+                 f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, peak {c['peak_mb']:6.0f} MB"
+                 for what, c in (("cloud", r["cloud"]), ("validate", r["validate"]))]
         lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
     if "cloud_time_slope" in u:
         lines.append(f"  log-log slopes from {u['slope_from']:,} points: cloud time {u['cloud_time_slope']:.2f}, "
