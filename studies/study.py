@@ -23,9 +23,14 @@ def claim(condition, text):
         raise StudyClaimFailed(f"claim not supported by the data: {text}")
 
 
-def save(fig, path):
-    """Write a study's figure in the one style (:func:`handeye.app.present.figure_style.save`)."""
+def save(fig, path, rect=None):
+    """Lay ``fig`` out (``tight_layout(rect=rect)``), write it in the one style
+    (:func:`handeye.app.present.figure_style.save`) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout(rect=rect)
     figure_style.save(fig, path, option="--out")
+    plt.close(fig)
 
 
 def write_table(out, name, header, rows):

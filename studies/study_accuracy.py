@@ -106,9 +106,7 @@ def _plot(out, summary, reps):
     ax.set_xticks(range(6), NAMES)
     ax.set(ylabel="RMSE / CRLB", title=f"accuracy against the bound ({reps} noisy replicates, 36 poses)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "accuracy.png")
-    plt.close(fig)
 
 
 def _claims(b, best, fig_ratio, reps, quick):

@@ -144,9 +144,7 @@ def run(out, quick=False):
     ax.set_xticks(range(len(results)), [c.method for c in results])
     ax.set(yscale="log", ylabel="single-start time / batch time",
            title=f"same ends from {n} starts per method; the batch's speed-up")
-    fig.tight_layout()
     save(fig, out / "batch_speedup.png")
-    plt.close(fig)
     for c in results:
         d = c.to_dict()
         claim(d["same_end"] >= 0.999, f"{c.method}: batch and single starts end at the same stationary point "

@@ -54,9 +54,7 @@ def run(out, quick=False):
     for ax in axes:
         ax.axhline(0, color="grey", lw=0.5)
         ax.legend()
-    fig.tight_layout()
     save(fig, out / "circle_fits.png")
-    plt.close(fig)
     pick = {m: next(r for r in rows if r[0] == m and r[1] == 30 and r[2] == 0.05) for m in circle.FITS}
     summary = {m: {"bias_mm": r[3], "spread_mm": r[4], "se_mm": r[5]} for m, r in pick.items()}
     write_summary(out, {"arc30_noise005": summary, "replicates": reps})

@@ -273,6 +273,4 @@ def _plot(out, table):
     axes[0].set_xticks(noise, [f"{k:g}" for k in noise])
     axes[0].minorticks_off()
     fig.suptitle("Closed-form baselines against nonlinear least squares")
-    fig.tight_layout()
     save(fig, out / "classics.png")
-    plt.close(fig)

@@ -95,9 +95,7 @@ def run(out, quick=False):
     ax.set(xlabel="largest |error| / sd over the six components", ylabel="runs",
            title=f"no start pose, random mounts: {summary['converged_at_truth']}/{len(rows)} at the truth, exit 0")
     ax.legend()
-    fig.tight_layout()
     save(fig, f"{out}/honest_default.png")
-    plt.close(fig)
     claim(summary["converged_at_truth"] == len(rows),
           f"every run converges at the truth ({summary['converged_at_truth']} of {len(rows)})")
     claim(false_alarms == 0 and false_successes == 0,

@@ -241,9 +241,7 @@ def run(out, quick=False):
         left += counts
     ax.set(xlabel="datasets", title=f"exit 0 at a wrong pose: {summary['clean_exit0_wrong'] + summary['slips_exit0_wrong']}")
     ax.legend(loc="lower right")
-    fig.tight_layout()
     save(fig, f"{out}/guarantee.png")
-    plt.close(fig)
     claim(summary["clean_exit0_at_truth"] == len(clean),
           f"every correct dataset exits 0 at the truth ({summary['clean_exit0_at_truth']} of {len(clean)})")
     claim(summary["clean_exit0_wrong"] == 0 and summary["slips_exit0_wrong"] == 0

@@ -157,6 +157,4 @@ def draw(out, label, data, res, n_show=8):
     ax.set_title(f"{label}: {data.mounts.describe()}\n(frames: x vermillion, y green, z blue; laser window orange; "
                  "robot base frame)", fontsize=10)
     ax.legend(loc="upper left")
-    fig.tight_layout()
     save(fig, out / f"cell_{label}.png")
-    plt.close(fig)

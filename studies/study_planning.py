@@ -88,9 +88,7 @@ def run(out, quick=False):
     axes[1].set(xlabel="distance of the laser plane from the centre (mm)", ylabel="largest sd bound",
                 title="36 thesis poses against the cut distance")
     axes[1].legend()
-    fig.tight_layout()
     save(fig, out / "planning.png")
-    plt.close(fig)
     write_summary(out, summary)
     ratio = observed / predicted
     tol = 0.35 * (1 + 2 / np.sqrt(reps)) if quick else 0.35

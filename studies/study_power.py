@@ -83,6 +83,4 @@ def _draw(out, summary, seeds):
     axes[0, 0].set_ylabel("detection rate")
     fig.suptitle(f"power of handeye diagnose ({seeds} datasets per size, 36 thesis poses; "
                  "bars: Wilson 95 % intervals; dashed: 90 %)")
-    fig.tight_layout()
     save(fig, out / "power.png")
-    plt.close(fig)

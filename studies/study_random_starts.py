@@ -179,9 +179,7 @@ def _draw(out, rows, methods, n_starts):
     axes[0, 0].set_ylim(-0.04, 1.06)
     fig.suptitle(f"convergence from {n_starts} random starts (translations 0-500 mm off; "
                  "bars: Wilson 95 % intervals)")
-    fig.tight_layout()
     save(fig, out / "random_starts.png")
-    plt.close(fig)
 
 
 def _rate(ax, x, idx, ok, nbins, label, **style):

@@ -55,9 +55,7 @@ def run(out, quick=False):
     ax.set_xticks(range(len(d)), d.ids, rotation=90)
     ax.set(ylabel="|e_i| (mm)", title="thesis-real: residual per measurement (IPOPT, matrix)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "real_data.png")
-    plt.close(fig)
     write_summary(out, summary)
     claim(spread < 1e-4, f"every screened fit lands on the same transform (spread {spread:.1e})")
     claim(summary["screened_rms_mm"] < 10 and min(summary["unscreened_rms_mm"]) > 300,

@@ -61,9 +61,7 @@ def run(out, quick=False):
     ax.boxplot(data)
     ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, ha="right", rotation_mode="anchor")
     ax.set(ylabel="iterations", title="thesis-sim from Table 7-2's ten starts")
-    fig.tight_layout()
     save(fig, out / "start_poses.png")
-    plt.close(fig)
     write_summary(out, summary)
     for key, s in summary.items():
         claim(s["reached_truth"] == s["of"], f"{key} reaches the truth from all ten starts")

@@ -225,6 +225,4 @@ def _draw(out, maps, grids, n):
                                                        for k in KINDS],
                    loc="lower center", ncol=4, frameon=False)
         fig.suptitle(f"basins of attraction on (6-16), {n} x {n} starts over [{axis[0]:g}, {axis[-1]:g}]^2")
-        fig.tight_layout(rect=(0, 0.05, 1, 1))
-        save(fig, out / f"basins_{label}.png")
-        plt.close(fig)
+        save(fig, out / f"basins_{label}.png", rect=(0, 0.05, 1, 1))

@@ -97,6 +97,4 @@ def _draw(out, plain, with_joints):
     ax.set(ylabel="|e_i| after diagnose (mm, log; the tall bars are the gross errors diagnose excludes)", yscale="log",
            title="thesis-real: what joint offsets can explain (angles reconstructed)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "thesis_robot.png")
-    plt.close(fig)
