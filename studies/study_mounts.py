@@ -22,8 +22,7 @@ from handeye.app.present import figure_style
 from handeye.model.chain.mounts import table2base
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 #: (label, sensor mount, sphere mount, unknowns)
 CELLS = (
@@ -36,9 +35,8 @@ CELLS = (
 def _errors(res, truth):
     """Errors and reported sd of one calibration: (parts -> (errors, sd)) in mm and degrees."""
     est, sd = res.sensor2flange, res.std
-    out = {"sensor t (mm)": (est[:3, 3] - truth["sensor"][:3, 3], sd.sensor_translation_mm),
-           "sensor r (deg)": (np.degrees(rotvec_from_matrix(truth["sensor"][:3, :3].T @ est[:3, :3])),
-                              sd.sensor_rotation_deg),
+    dt, dr = pose_error(est, truth["sensor"])
+    out = {"sensor t (mm)": (dt, sd.sensor_translation_mm), "sensor r (deg)": (dr, sd.sensor_rotation_deg),
            "sphere (mm)": (res.sphere_centre - truth["centre"], sd.sphere_center_mm)}
     if res.positioner is not None and res.positioner.calibrated:
         dist, pred = [], []

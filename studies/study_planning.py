@@ -17,11 +17,10 @@ import numpy as np
 import handeye
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
 from handeye.model.datasets.dataset import load
 from handeye.model.design import bounds, planning
 from handeye.model.simulation import simulate
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 
 def _rmse(setup, ids, poses, reps):
@@ -32,9 +31,7 @@ def _rmse(setup, ids, poses, reps):
             sim = simulate.simulate(setup, seed=500 + r, flange_poses=poses, ids=ids)
             d = load(simulate.write(sim, f"{tmp}/r{r}", profiles=True))
             res = handeye.calibrate(d, method="lm", model="measurement", no_loo=True, keep_all=True)
-            est = res.sensor2flange
-            errs.append(np.concatenate([est[:3, 3] - truth[:3, 3],
-                                        np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
+            errs.append(np.concatenate(pose_error(res.sensor2flange, truth)))
     return np.sqrt(np.mean(np.array(errs) ** 2, axis=0))
 
 
