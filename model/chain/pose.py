@@ -94,8 +94,7 @@ def kuka_from_matrix(rot):
     row2 = r[..., 2, :]
     c = np.arctan2(sb * row0[..., 1] + cb * row2[..., 1], row1[..., 1])
     out = np.degrees(np.stack([a, b, c], axis=-1))
-    out = np.where(out <= -180.0, out + 360.0, out)
-    return out
+    return np.where(out <= -180.0, out + 360.0, out)
 
 
 def pose_from_transform(transform):

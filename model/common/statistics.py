@@ -288,14 +288,12 @@ def bonferroni_survival(stat, n_tests, d1, d2=None):
     for dof in np.unique(d2):  # NaN d2: chi-square (np.unique keeps one NaN per NaN)
         same = np.isnan(d2) if np.isnan(dof) else d2 == dof
         if np.isnan(dof):
-            def tail(x, d1=d1):
-                return chi2_survival_array(x, d1)
+            tail = functools.partial(chi2_survival_array, k=d1)
         elif dof <= 0:
             out[same] = np.nan
             continue
         else:
-            def tail(x, d1=d1, dof=dof):
-                return f_survival_array(x, d1, dof)
+            tail = functools.partial(f_survival_array, d1=d1, d2=dof)
         if same.sum() <= BONFERRONI_ALL_UP_TO:  # few: every tail (the bisection would cost more)
             need = same & ~np.isnan(stat)
         else:

@@ -184,10 +184,7 @@ def centre_minima(flange2base, centre_in_sensor, sphere_centre=None):
             raise GlobalFitError("the centres seen from the flange do not span a plane: the rotation is not determined")
         best = Minimum(x, c.copy(), centre_cost(f2b, p, x, c))
         return CentreMinima((best,), "absolute orientation (Kabsch/Umeyama SVD): the unique local minimum", 1)
-    form = reduced_form(f2b, p)
-    rots = _search(form)
-    minima = [_complete(f2b, p, rot, n) for rot, n in rots]
-    minima.sort(key=lambda m: m.cost)
+    minima = sorted((_complete(f2b, p, rot, n) for rot, n in _search(reduced_form(f2b, p))), key=lambda m: m.cost)
     return CentreMinima(tuple(minima), f"(t, c) eliminated in closed form; {COVER} rotations covering SO(3), "
                                        f"{SEEDS} polished by Newton on SO(3)", SEEDS)
 
