@@ -94,8 +94,7 @@ def _tabulate(out, errors, reported, bound_sd, reps):
 
 
 def _plot(out, summary, reps):
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = figure().subplots(figsize=(8, 4))
     width = 0.25
     for i, kind in enumerate(KINDS):
         ax.bar(np.arange(6) + (i - 1) * width, summary["models"][kind]["rmse_over_crlb"], width, label=kind)

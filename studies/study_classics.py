@@ -255,8 +255,7 @@ def _table_4_1(entry, basin):
 
 
 def _plot(out, table):
-    plt = figure()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = figure().subplots(1, 2, figsize=(10, 4))
     noise = [k for k in NOISE]
     for m, style in zip(METHODS, ("o-", "s--", "^--")):
         axes[0].loglog(noise, [table[f"k={k:g},n=36"][m]["rmse_mm"] for k in noise], style, label=m)

@@ -85,8 +85,7 @@ def run(out, quick=False):
                "max_error_in_sd": max(r[8] for r in rows), "polished": sum("polish" in r[12] for r in rows),
                "effect_warnings": sum(r[14] for r in rows), "noise_warnings": sum(r[15] for r in rows)}
     write_summary(out, summary)
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = figure().subplots(figsize=(6, 3.5))
     ax.hist([r[8] for r in rows], bins=30, color="C0")
     ax.axvline(5.0, color="C3", ls="--", label="5 sd")
     ax.set(xlabel="largest |error| / sd over the six components", ylabel="runs",

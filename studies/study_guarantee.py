@@ -196,8 +196,7 @@ HEADER = ["seed", "slip", "plan", "convention", "diameter_mm", "poses", "profile
 
 
 def run(out, quick=False):
-    n_cells = 8 if quick else 232
-    rows = sweep.run(one, _tasks(n_cells, quick), label="global guarantee")
+    rows = sweep.run(one, _tasks(8 if quick else 232, quick), label="global guarantee")
     write_table(out, "guarantee", HEADER, rows)
     recs = [dict(zip(HEADER, r)) for r in rows]
     beyond = [r for r in recs if not r["slip"] and r["plan"] == "plan, CAD beyond the margin"]
@@ -227,8 +226,7 @@ def run(out, quick=False):
         "by_slip": {s: [r["exit"] for r in slipped if r["slip"] == s] for s in SLIPS},
     }
     write_summary(out, summary)
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    fig, ax = figure().subplots(figsize=(6.4, 3.6))
     labels = ["correct", "CAD beyond margin"] + list(SLIPS)
     outcome = {0: "exit 0 at the truth", 1: "exit 1", 2: "exit 2 (slip named)", 3: "exit 0 WRONG"}
     left = np.zeros(len(labels))

@@ -125,8 +125,7 @@ def draw(out, label, data, res, n_show=8):
     """The cell in 3-D (robot base, mm), around where it measures: flange and sensor frames and laser
     windows of ``n_show`` poses, the sphere at each pose (one drawn), the positioner's axes, and the
     direction to the robot's base."""
-    plt = figure()
-    fig = plt.figure(figsize=(7.5, 6.5))
+    fig = figure().figure(figsize=(7.5, 6.5))
     ax = fig.add_subplot(projection="3d")
     f2b = data.flange2base()
     show = np.linspace(0, len(data) - 1, min(n_show, len(data))).round().astype(int)

@@ -70,8 +70,7 @@ def run(out, quick=False):
     predicted = planning.predicted_sd(info[p12].sum(axis=0))
     summary["planned12"] = {"predicted_sd": predicted.tolist(), "observed_rmse": observed.tolist(), "replicates": reps,
                             "ids": [ids[k] for k in p12]}
-    plt = figure()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = figure().subplots(1, 2, figsize=(10, 4))
     ns = [r[0] for r in rows]
     axes[0].plot(ns, [r[3] for r in rows], "o-", label="thesis strategy (cut 15 mm)")
     axes[0].plot(ns, [r[4] for r in rows], "s-", label="D-optimal from 108 candidates")

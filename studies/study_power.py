@@ -67,9 +67,8 @@ UNITS = {"sphere_center": ("offset (mm)", 1.0), "sensor_scale": ("scale error s 
 
 def _draw(out, summary, seeds):
     """Detection rate against size per effect, with Wilson 95 % intervals (n = seeds per size)."""
-    plt = figure()
     effects = summary["effects"]
-    fig, axes = plt.subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)
+    fig, axes = figure().subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)
     for ax, (name, s) in zip(axes[0], effects.items()):
         label, scale = UNITS[name]
         sizes, rates = np.asarray(s["sizes"]) * scale, np.asarray(s["rates"])

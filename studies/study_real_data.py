@@ -47,8 +47,7 @@ def run(out, quick=False):
                "screened_rms_mm": float(screened[0][1][0].rms_mm),
                "unscreened_rms_mm": [float(v[0].rms_mm) for k, v in results.items() if not k[0]],
                "table_7_4_distance": [float(x) for x in transform_distance(ref, thesis)]}
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = figure().subplots(figsize=(10, 4))
     for screened_flag, label in ((False, "every sample (as the thesis)"), (True, "gross errors screened")):
         res = results[(screened_flag, "ipopt", "matrix")][0]
         ax.semilogy([r.norm for r in res.residuals], "o-" if screened_flag else "s--", label=label, ms=4)

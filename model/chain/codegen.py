@@ -40,8 +40,7 @@ class CacheWarning(UserWarning):
 
 
 def _user_cache():
-    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
-    return pathlib.Path(base) / "handeye"
+    return pathlib.Path(os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache") / "handeye"
 
 
 def _writable(folder):

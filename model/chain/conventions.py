@@ -84,8 +84,7 @@ def matrix_from(convention, values):
     """Rotation matrices (..., 3, 3) of orientation values (..., k) in a convention."""
     v = validate(check(convention), values)
     batch = v.shape[:-1]
-    out = codegen.stack_outputs(_function(convention)(*np.moveaxis(v, -1, 0)), batch)
-    return out.reshape(batch + (3, 3))
+    return codegen.stack_outputs(_function(convention)(*np.moveaxis(v, -1, 0)), batch).reshape(batch + (3, 3))
 
 
 def values_from_matrix(convention, rot):

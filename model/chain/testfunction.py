@@ -60,8 +60,7 @@ def _eval(part, x):
     shape = _PARTS[part][1]
     if x.shape == (2,):  # one point: plain floats are faster than arrays
         return np.array(scalar(float(x[0]), float(x[1]))).reshape(shape)
-    out = codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1])
-    return out.reshape(x.shape[:-1] + shape)
+    return codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1]).reshape(x.shape[:-1] + shape)
 
 
 def value(x):

@@ -238,8 +238,7 @@ def f_survival_array(x, d1, d2):
 def chi2_survival_array(x, k):
     """P(chi^2_k > x), vectorised; NaN in, NaN out; agrees with :func:`chi2_survival` (tested)."""
     x, k = np.broadcast_arrays(np.asarray(x, float), np.asarray(k, float))
-    out = _gammainc_upper(k / 2.0, x / 2.0)
-    return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, out)
+    return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, _gammainc_upper(k / 2.0, x / 2.0))
 
 
 def _threshold(survival, p, lo=0.0, hi=1.0):

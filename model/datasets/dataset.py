@@ -450,8 +450,7 @@ def _robot_model(st, folder, joints, poses, file):
                                                       f"nominal model (built in: {', '.join(robots.builtin_names())}, "
                                                       "or a model file)", column="[robot] model")
         return None
-    name = st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model
-    model = robots.load(name)
+    model = robots.load(st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model)
     if joints is not None and len(joints):
         robots.check_reported(model, joints, transform_from_pose(poses), file)
     return model

@@ -198,5 +198,4 @@ def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose
     m = CalibrationModel(flange2base, centre_in_sensor, c, "local", "sensor+sphere")
     j = m.jacobian(m.point_from(sensor2flange, c))
     j12 = np.hstack([j[:, :6], j[:, 6:9] @ dc])
-    names = m.names[:6] + ["x3", "y3", "z3", "A3", "B3", "C3"]
-    return analyse(j12, names, rtol)
+    return analyse(j12, m.names[:6] + ["x3", "y3", "z3", "A3", "B3", "C3"], rtol)

@@ -161,8 +161,7 @@ def _solve_linear(d, f, what):
     sv = np.linalg.svd(d / scale, compute_uv=False)
     if sv[-1] <= CONDITION_LIMIT_INV * sv[0]:
         raise MissingMotions(what(sv))
-    u = np.linalg.lstsq(d / scale, f, rcond=None)[0] / scale
-    return u, sv
+    return np.linalg.lstsq(d / scale, f, rcond=None)[0] / scale, sv
 
 
 def kim_cho(flange2base, centre_in_sensor, pairs="auto"):

@@ -221,8 +221,7 @@ def reduced_form(flange2base, centre_in_sensor):
     q = mtm - mtb @ sol[:, :9]
     q = 0.5 * (q + q.T)
     g = mtd - mtb @ sol[:, 9]
-    k = dtd - btd @ sol[:, 9]
-    return ReducedForm(q, g, float(k))
+    return ReducedForm(q, g, float(dtd - btd @ sol[:, 9]))
 
 
 def super_fibonacci(n):

@@ -101,8 +101,7 @@ def _system(q, c, r):
     dist = np.linalg.norm(diff, axis=1)
     n = diff / np.where(dist > 0, dist, 1.0)[:, None]
     d = dist - r
-    jac = np.hstack([-n, -np.ones((len(q), 1))])
-    return d, n, jac
+    return d, n, np.hstack([-n, -np.ones((len(q), 1))])
 
 
 def fit(points, max_iter=100, tol=1e-12):

@@ -148,8 +148,7 @@ def thesis_orientations(n_poses=36, max_tilt_deg=90.0):
             items.append((f"{name}{angle:+g}", matrix_from_rotvec(np.radians(angle) * u) @ base))
     if not 1 <= n_poses <= len(items):
         raise SimulationError(f"the thesis strategy has 1 to {len(items)} poses, asked for {n_poses}")
-    keep = np.unique(np.round(np.linspace(0, len(items) - 1, n_poses)).astype(int))
-    return [items[k] for k in keep]
+    return [items[k] for k in np.unique(np.round(np.linspace(0, len(items) - 1, n_poses)).astype(int))]
 
 
 def random_view(setup, rng, size=()):
