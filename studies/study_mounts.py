@@ -91,8 +91,7 @@ def run(out, quick=False):
 
 def _frame(ax, t, size, alpha=1.0):
     for k, colour in enumerate((figure_style.VERMILLION, figure_style.GREEN, figure_style.BLUE)):
-        end = t[:3, 3] + size * t[:3, k]
-        ax.plot(*np.c_[t[:3, 3], end], color=colour, alpha=alpha, lw=1.2)
+        ax.plot(*np.c_[t[:3, 3], t[:3, 3] + size * t[:3, k]], color=colour, alpha=alpha, lw=1.2)
 
 
 def _fan(ax, sensor2base, z=(190.0, 290.0), half=50.0):
@@ -141,8 +140,7 @@ def draw(out, label, data, res, n_show=8):
     ax.scatter(*f2b[:, :3, 3].T, color=figure_style.PURPLE, s=8, label="flange origins")
     if res.positioner is not None:
         for axis in res.positioner.axes:
-            line = axis.point + np.outer([-250.0, 250.0], axis.direction)
-            ax.plot(*line.T, color=figure_style.BLACK, lw=2.5)
+            ax.plot(*(axis.point + np.outer([-250.0, 250.0], axis.direction)).T, color=figure_style.BLACK, lw=2.5)
             ax.text(*(axis.point + 270 * axis.direction), f"axis {axis.name}", fontsize=9)
     every = np.vstack([f2b[:, :3, 3], centres, [s[:3, 3] for s in sensors]])
     mid, span = every.mean(axis=0), (every.max(axis=0) - every.min(axis=0)).max() / 2 + 60

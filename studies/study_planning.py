@@ -43,8 +43,7 @@ def run(out, quick=False):
     thesis = [k for k, i in enumerate(ids) if i.endswith("@15")]
     rows, summary = [], {"N": {}}
     for n in (6, 8, 12, 18, 24, 36):
-        pick = np.unique(np.round(np.linspace(0, 35, n)).astype(int))
-        t_sel = [thesis[k] for k in pick]
+        t_sel = [thesis[k] for k in np.unique(np.round(np.linspace(0, 35, n)).astype(int))]
         p_sel, value = planning.select(info, n)
         t_sd = planning.predicted_sd(info[t_sel].sum(axis=0))
         p_sd = planning.predicted_sd(info[p_sel].sum(axis=0))

@@ -114,8 +114,7 @@ def quaternion_from_matrix(rot):
                   1 + 2 * r[..., 2, 2] - tr], -1),
     ], -2)
     diag = np.stack([tr, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1)
-    best = np.argmax(diag, axis=-1)
-    q = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
+    q = np.take_along_axis(cand, np.argmax(diag, axis=-1)[..., None, None], axis=-2)[..., 0, :]
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
 

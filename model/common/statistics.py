@@ -231,8 +231,7 @@ def f_survival_array(x, d1, d2):
         if np.any(large):
             out[large] = _gammainc_upper(d1[large] / 2.0, d1[large] * x[large] / 2.0)
     out = np.where(x <= 0, 1.0, out)
-    bad = np.isnan(x) | np.isnan(d1) | np.isnan(d2) | (d1 <= 0) | (d2 <= 0)
-    return np.where(bad, np.nan, out)
+    return np.where(np.isnan(x) | np.isnan(d1) | np.isnan(d2) | (d1 <= 0) | (d2 <= 0), np.nan, out)
 
 
 def chi2_survival_array(x, k):
@@ -405,8 +404,7 @@ def prediction_test(e_all, j_all, fitted):
     scale = 3.0 * float(ef @ ef) / (m - p) if m > p else float("nan")
 
     def test(e, j):
-        h = j @ info_inv @ j.T
-        stat = float(e @ np.linalg.solve(np.eye(3) + h, e)) / scale
+        stat = float(e @ np.linalg.solve(np.eye(3) + j @ info_inv @ j.T, e)) / scale
         return stat, f_survival(stat, 3, m - p)
 
     return test

@@ -123,8 +123,7 @@ def analyse(jacobian, names, rtol=RTOL, rows=None):
     m = j.shape[0] if rows is None else int(rows)
     raw = np.linalg.svd(j, compute_uv=False)
     norms = np.linalg.norm(j, axis=0)
-    scaled = j / np.where(norms > 0, norms, 1.0)
-    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
+    _, s, vt = np.linalg.svd(j / np.where(norms > 0, norms, 1.0), full_matrices=False)
     s_full = np.zeros(j.shape[1])
     s_full[: len(s)] = s
     smax = s_full[0] if s_full.size else 0.0

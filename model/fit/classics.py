@@ -299,8 +299,7 @@ def li_two_step(flange2base, centre_in_sensor, sphere_centre=None, sign="derived
     virtual = np.einsum("nij,jk,nk->ni", r0, r_s, xs) + t0
     if sphere_centre is not None:
         lhs = r0.reshape(-1, 3)
-        rhs = (np.asarray(sphere_centre, float) - virtual).reshape(-1)
-        sol = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+        sol = np.linalg.lstsq(lhs, (np.asarray(sphere_centre, float) - virtual).reshape(-1), rcond=None)[0]
         centre = None
     else:
         if np.max(rotation_angle_deg(r0[0], r0)) < 1.0:

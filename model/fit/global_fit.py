@@ -323,8 +323,7 @@ def _complete(f2b, p, rot, reached):
     n = len(p)
     rots, t = f2b[:, :3, :3], f2b[:, :3, 3]
     lhs = np.concatenate([rots, np.broadcast_to(-np.eye(3), (n, 3, 3))], axis=2).reshape(3 * n, 6)
-    rhs = (-t - np.einsum("nab,bc,nc->na", rots, rot, p)).ravel()
-    s, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    s, *_ = np.linalg.lstsq(lhs, (-t - np.einsum("nab,bc,nc->na", rots, rot, p)).ravel(), rcond=None)
     x = np.eye(4)
     x[:3, :3], x[:3, 3] = rot, s[:3]
     return Minimum(x, s[3:6], centre_cost(f2b, p, x, s[3:6]), reached)

@@ -87,8 +87,7 @@ def algebraic(points):
     mean = q.mean(axis=0)
     d = q - mean  # centred for conditioning
     a = np.hstack([2 * d, np.ones((len(d), 1))])
-    b = np.sum(d * d, axis=1)
-    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    sol, *_ = np.linalg.lstsq(a, np.sum(d * d, axis=1), rcond=None)
     c = sol[:3]
     r2 = sol[3] + c @ c
     if not np.isfinite(r2) or r2 <= 0:
