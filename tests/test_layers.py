@@ -427,6 +427,7 @@ LOCAL_IMPORTS = {
         ("app/present/plotting.py", "figure", "matplotlib"),
         ("app/present/plotting.py", "figure", "matplotlib.pyplot"),
         ("app/present/web/figures.py", "new_figure", "matplotlib.figure"),
+        ("studies/study.py", "save", "matplotlib.pyplot"),
         ("studies/study_testfunction.py", "_draw", "matplotlib.colors"),
         ("studies/study_testfunction.py", "_draw", "matplotlib.patches"),
     ],
