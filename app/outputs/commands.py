@@ -22,11 +22,12 @@ from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F40
 from handeye.app.outputs import formats as exports
 from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
 from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.result_parts import AsDict
 from handeye.model.chain.mounts import FRAME
 
 
 @dataclasses.dataclass(frozen=True)
-class ExportResult(ResultProtocol):
+class ExportResult(AsDict, ResultProtocol):
     """The text of ``handeye export`` and where it was written (None: not written)."""
 
     caption = 'handeye export'
@@ -34,9 +35,6 @@ class ExportResult(ResultProtocol):
     format: str
     text: str
     out: str | None
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @options.COMMANDS["export"].documented

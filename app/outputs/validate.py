@@ -32,7 +32,7 @@ import numpy as np
 
 from handeye.app.common.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import _list
+from handeye.app.present.result_parts import AsDict, _list, fields
 from handeye.model.geometry import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
@@ -92,27 +92,20 @@ class SphereCheck:
     points: np.ndarray = dataclasses.field(repr=False, default=None)
 
     def to_dict(self):
-        return {"label": self.label, "radius_mm": self.radius_mm, "radius_sd_mm": self.radius_sd_mm,
-                "centre": _list(self.centre), "centre_sd_mm": _list(self.centre_sd_mm),
-                "centre_offset_mm": _list(self.centre_offset_mm), "setup_centre": _list(self.setup_centre),
-                "setup_diameter_mm": self.setup_diameter_mm, "form_error_mm": self.form_error_mm,
-                "size_error_mm": self.size_error_mm, "size_error_sd_mm": self.size_error_sd_mm,
-                "rms_mm": self.rms_mm, "max_abs_deviation_mm": self.max_abs_deviation_mm,
-                "n_points": self.n_points, "n_poses": self.n_poses, "excluded_points": self.excluded_points,
-                "sd_sources": self.sd_sources}
+        lists = ("centre", "centre_sd_mm", "centre_offset_mm", "setup_centre")
+        return fields(self, "label", "radius_mm", "radius_sd_mm", *lists, "setup_diameter_mm", "form_error_mm",
+                      "size_error_mm", "size_error_sd_mm", "rms_mm", "max_abs_deviation_mm", "n_points", "n_poses",
+                      "excluded_points", "sd_sources", lists=lists)
 
 
 @dataclasses.dataclass(frozen=True)
-class SpacingCheck:
+class SpacingCheck(AsDict):
     """Sphere-spacing error SD: measured minus setup distance of the two centres, mm."""
 
     distance_mm: float
     setup_distance_mm: float
     error_mm: float
     error_sd_mm: float
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,13 +119,12 @@ class CentreCheck:
 
     def to_dict(self):
         norms = np.linalg.norm(self.epsilon, axis=1)
+        sds = [None] * len(self.ids) if self.predicted_sd_mm is None else self.predicted_sd_mm
         return {"mean_offset_mm": _list(self.epsilon.mean(axis=0)), "rms_mm": float(np.sqrt(np.mean(norms ** 2))),
                 "median_mm": float(np.median(norms)), "max_mm": float(norms.max()), "setup_centre": _list(self.setup_centre),
                 "poses": [{"id": i, "epsilon_mm": _list(e), "norm_mm": float(n),
-                           "predicted_sd_mm": None if self.predicted_sd_mm is None else float(s)}
-                          for i, e, n, s in zip(self.ids, self.epsilon, norms,
-                                                self.predicted_sd_mm if self.predicted_sd_mm is not None
-                                                else [None] * len(self.ids))]}
+                           "predicted_sd_mm": None if s is None else float(s)}
+                          for i, e, n, s in zip(self.ids, self.epsilon, norms, sds)]}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import AsDict, Uncertainty, _list, frame_keys, user_poses, user_std
+from handeye.app.present.result_parts import AsDict, Uncertainty, _list, fields, frame_keys, user_poses, user_std
 from handeye.model import effects
 
 
@@ -167,23 +167,15 @@ class DiagnosisResult(ResultProtocol):
         if user is not self:
             return user.to_dict()
         return {
-            "dataset": self.dataset,
-            "unknowns": self.unknowns,
-            "against_calibrate": self.against_calibrate,
+            **fields(self, "dataset", "unknowns", "against_calibrate"),
             "effects": [e.to_dict() for e in self.effects],
             "outliers": list(self.outliers),
             "inconsistent": [e.to_dict() for e in self.inconsistent],
             "not_identifiable": self.not_identifiable,
             "absorbed_by": {k: list(v) for k, v in self.absorbed_by.items()},
-            "rms_before_mm": self.rms_before_mm,
-            "rms_after_mm": self.rms_after_mm,
-            "heldout_rms_before_mm": self.heldout_rms_before_mm,
-            "heldout_rms_after_mm": self.heldout_rms_after_mm,
-            "chi2_dof_before": self.chi2_dof_before,
-            "chi2_dof_after": self.chi2_dof_after,
-            "nominal_sigma_mm": self.nominal_sigma_mm,
-            "sigma_after_mm": self.sigma_after_mm,
-            "sensor_pose": _list(self.sensor_pose),
+            **fields(self, "rms_before_mm", "rms_after_mm", "heldout_rms_before_mm", "heldout_rms_after_mm",
+                     "chi2_dof_before", "chi2_dof_after", "nominal_sigma_mm", "sigma_after_mm", "sensor_pose",
+                     lists=("sensor_pose",)),
             "sensor_matrix": _list(self.sensor2flange),
             **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
@@ -192,14 +184,12 @@ class DiagnosisResult(ResultProtocol):
             "tests": [[t.to_dict() for t in round_] for round_ in self.tests],
             "residuals": [r.to_dict() for r in self.residuals],
             "screened_out_first": list(self.screened_out_first),
-            "unexplained": self.unexplained,
-            "robot_alternatives": self.robot_alternatives,
+            **fields(self, "unexplained", "robot_alternatives"),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
                                              else self.sensor_pose)},
             "std": None if self.std is None else self.std.to_dict(),
-            "absorbed_explained": self.absorbed_explained,
-            "cleaning": self.cleaning,
+            **fields(self, "absorbed_explained", "cleaning"),
             **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 

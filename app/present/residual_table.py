@@ -109,11 +109,6 @@ class ResidualTable:
                                                     loo)]
 
 
-def residual_dicts(residuals):
-    """The JSON entries of a list of :class:`SampleResidual` or a :class:`ResidualTable`."""
-    return residuals.to_dicts() if isinstance(residuals, ResidualTable) else [r.to_dict() for r in residuals]
-
-
 def residuals_json(residuals):
     """Compact JSON text of the residual list, one row a line (a report of a million rows stays
     readable line by line and is written in seconds)."""

@@ -18,6 +18,11 @@ def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
 
 
+def fields(record, *names, lists=()):
+    """``{name: record.name}`` of ``names`` in their order, those in ``lists`` as :func:`_list` (JSON-ready)."""
+    return {n: _list(getattr(record, n)) if n in lists else getattr(record, n) for n in names}
+
+
 class AsDict:
     """Mixin of a flat record (a dataclass) whose JSON object is :func:`dataclasses.asdict` of it."""
 
@@ -191,9 +196,8 @@ class Uncertainty:
     sphere_center_mm: np.ndarray | None = None
 
     def to_dict(self):
-        return {"sensor_translation_mm": _list(self.sensor_translation_mm),
-                "sensor_rotation_deg": _list(self.sensor_rotation_deg),
-                "sphere_center_mm": _list(self.sphere_center_mm)}
+        names = ("sensor_translation_mm", "sensor_rotation_deg", "sphere_center_mm")
+        return fields(self, *names, lists=names)
 
 
 @dataclasses.dataclass(frozen=True)

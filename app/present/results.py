@@ -25,7 +25,7 @@ import numpy as np
 
 from handeye.app.common.jsonio import dumps
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.residual_table import residual_dicts, residuals_json
+from handeye.app.present.residual_table import residuals_json
 from handeye.app.present.result_parts import (
     FLAT,
     AsDict,
@@ -34,6 +34,7 @@ from handeye.app.present.result_parts import (
     ScreeningRecord,
     UncertaintyRecord,
     _list,
+    fields,
     frame_keys,
     user_poses,
     user_std,
@@ -377,19 +378,8 @@ class CalibrationResult(ResultProtocol):
 
     def _request_keys(self):
         """The JSON keys of what was asked: the dataset, method, model and start."""
-        return {
-            "dataset": self.dataset,
-            "dataset_path": self.dataset_path,
-            "dataset_sha256": self.dataset_sha256,
-            "method": self.method,
-            "rotation": self.rotation,
-            "unknowns": self.unknowns,
-            "model": self.model,
-            "robot_sigma_mm": self.robot_sigma_mm,
-            "start_pose": _list(self.start_pose),
-            "start_pose_kuka": _list(self.start_pose_kuka),
-            "start_used": self.start_used,
-        }
+        return fields(self, "dataset", "dataset_path", "dataset_sha256", "method", "rotation", "unknowns", "model",
+                      "robot_sigma_mm", "start_pose", "start_pose_kuka", "start_used", lists=("start_pose", "start_pose_kuka"))
 
     def _pose_keys(self):
         """The JSON keys of the calibrated pose, its mounts and frames."""
@@ -421,16 +411,10 @@ class CalibrationResult(ResultProtocol):
             "excluded": [e.to_dict() for e in self.excluded],
             "before": None if self.before is None else self.before.to_dict(),
             "warnings": list(self.warnings),
-            "history": _list(self.history),
-            "solver_point": _list(self.solver_point),
-            "solver_extra": self.solver_extra,
-            "n_used": self.n_used,
-            "rms_mm": self.rms_mm,
-            "max_residual_mm": self.max_residual_mm,
-            "cost_mm2": self.cost_mm2,
-            "residuals": residual_dicts(self.residuals) if residuals else None,
-            "sigma_mm": self.sigma_mm,
-            "sigma_scale": self.sigma_scale,
+            **fields(self, "history", "solver_point", "solver_extra", "n_used", "rms_mm", "max_residual_mm", "cost_mm2",
+                     lists=("history", "solver_point")),
+            "residuals": [r.to_dict() for r in self.residuals] if residuals else None,
+            **fields(self, "sigma_mm", "sigma_scale"),
         }
 
     def _uncertainty_keys(self):
@@ -444,18 +428,13 @@ class CalibrationResult(ResultProtocol):
                 "matrix": _list(self.covariance)},
             "loo_error_mm": self.loo_error_mm,
             "identifiability": None if self.identifiability is None else self.identifiability.to_dict(),
-            "hessian_eigenvalues": _list(self.hessian_eigenvalues),
-            "noise_model": self.noise_model,
+            **fields(self, "hessian_eigenvalues", "noise_model", lists=("hessian_eigenvalues",)),
             "closed_form": None if self.closed_form is None else self.closed_form.to_dict(),
             "noise_test": None if self.noise_test is None else self.noise_test.to_dict(),
             "effect_tests": None if self.effect_tests is None else [t.to_dict() for t in self.effect_tests],
             "effects": None if self.effects is None else [e.to_dict() for e in self.effects],
             "global": None if self.global_check is None else self.global_check.to_dict(),
-            "rms_what": self.rms_what,
-            "objective": self.objective,
-            "loo": self.loo,
-            "rms_note": self.rms_note,
-            "cleaning": self.cleaning,
+            **fields(self, "rms_what", "objective", "loo", "rms_note", "cleaning"),
         }
 
     def to_json(self, indent=1):
