@@ -317,7 +317,7 @@ LOCAL_IMPORTS = {
         ("app/present/report.py", "_centres_seen", "handeye.app.present.figure_style"),
         ("app/present/report.py", "_effect_lines", "handeye.model.effects"),
         ("app/present/report.py", "_residual_bars", "handeye.app.present.figure_style"),
-        ("app/present/report.py", "calibration_plot", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "_saved", "handeye.app.present.figure_style"),
         ("app/present/report.py", "calibration_plot", "handeye.app.present.plotting"),
         ("app/present/report.py", "diagnosis_figures", "handeye.app.present.figure_style"),
         ("app/present/report.py", "diagnosis_figures", "handeye.app.present.plotting"),
@@ -426,8 +426,8 @@ LOCAL_IMPORTS = {
     "start-up: would load matplotlib at import, which the module does not load yet": [
         ("app/present/figure_style.py", "_colour_ok", "matplotlib.colors"),
         ("app/present/figure_style.py", "_mappables", "matplotlib.cm"),
-        ("app/present/figure_style.py", "_name", "matplotlib.colors"),
         ("app/present/figure_style.py", "_off_palette", "matplotlib.collections"),
+        ("app/present/figure_style.py", "_off_palette", "matplotlib.colors"),
         ("app/present/figure_style.py", "_off_palette", "matplotlib.lines"),
         ("app/present/figure_style.py", "_off_palette", "matplotlib.patches"),
         ("app/present/figure_style.py", "_points", "matplotlib.collections"),

@@ -219,14 +219,9 @@ def _colour_ok(colour):
     return _is_grey(rgba) or to_hex(rgba).lower() in {c.lower() for c in OKABE_ITO}
 
 
-def _name(colour):
-    from matplotlib.colors import to_hex
-
-    return to_hex(colour)
-
-
 def _off_palette(ax):
     from matplotlib.collections import Collection
+    from matplotlib.colors import to_hex
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -242,7 +237,7 @@ def _off_palette(ax):
             colours = [*a.get_facecolor(), *a.get_edgecolor()]
         else:
             continue
-        bad.update(_name(c) for c in colours if not (isinstance(c, str) and c in ("none", "auto")) and not _colour_ok(c))
+        bad.update(to_hex(c) for c in colours if not (isinstance(c, str) and c in ("none", "auto")) and not _colour_ok(c))
     return [f"colours outside the Okabe-Ito palette and greys in {ax.get_title()!r}: " + ", ".join(sorted(bad))] if bad else []
 
 
