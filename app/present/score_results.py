@@ -23,6 +23,11 @@ def _rms_dict(score):
     return {k: float(v) for k, v in score.rms_mm.items()}
 
 
+def _rms(score, model):
+    """The RMS of ``score`` (a PoseScore) in ``model``, or of the centre model when it has none of that."""
+    return score.rms_mm.get(model, score.rms_mm["centre"])
+
+
 @dataclasses.dataclass(frozen=True)
 class ScoreResult(ResultProtocol):
     """A given sensor pose scored on a dataset (module docstring of :mod:`handeye.app.engine.score`).
@@ -117,18 +122,14 @@ class ScoreResult(ResultProtocol):
     def verdict(self):
         """One sentence: does the data contradict the pose?"""
         f, p, bad = self.f_test
-        g, e = self.given.rms_mm.get(self.model, self.given.rms_mm["centre"]), self.estimate_score.rms_mm.get(
-            self.model, self.estimate_score.rms_mm["centre"])
-        per = _PER[self.model]
+        g, e = _rms(self.given, self.model), _rms(self.estimate_score, self.model)
         if not self.converged:
             return self.error
         if not np.isfinite(f):
             return "no comparison: the data's own calibration has no residual degrees of freedom"
-        if bad:
-            return (f"the data contradict the given pose: RMS {g:.4f} mm per {per} against {e:.4f} mm at the data's own "
-                    f"calibration (F = {f:.3g}, p = {p:.2g}); it lies {self._far()} from it")
-        return (f"the data do not contradict the given pose: RMS {g:.4f} mm per {per} against {e:.4f} mm at the data's "
-                f"own calibration (F = {f:.3g}, p = {p:.2g}); it lies {self._far()} from it")
+        return (f"the data {'contradict' if bad else 'do not contradict'} the given pose: RMS {g:.4f} mm per "
+                f"{_PER[self.model]} against {e:.4f} mm at the data's own calibration (F = {f:.3g}, p = {p:.2g}); it "
+                f"lies {self._far()} from it")
 
     def _far(self):
         d = self.distance
@@ -186,8 +187,8 @@ class ScoreResult(ResultProtocol):
                  + (" (fitted with the pose held)" if self.centre_fitted else " (given)"), "",
                  f"RMS per residual model over the {n_used} samples the data's own calibration keeps "
                  "(given pose | data's own calibration):"]
-        for name, value in self.given.rms_mm.items():
-            lines.append(f"  {name:<12} {value:9.4f} | {self.estimate_score.rms_mm[name]:9.4f} mm per {_PER[name]}")
+        lines += [f"  {name:<12} {value:9.4f} | {self.estimate_score.rms_mm[name]:9.4f} mm per {_PER[name]}"
+                  for name, value in self.given.rms_mm.items()]
         if self.noise_test is not None:
             t = self.noise_test
             lines.append(f"noise test of the given pose ({self.model}): sd {t.ratio:.2f} x the stated {t.nominal} "
@@ -240,7 +241,7 @@ class CompareResult(ResultProtocol):
 
     def verdict(self):
         model = self.scores[0].model
-        rms = [s.given.rms_mm.get(model, s.given.rms_mm["centre"]) for s in self.scores]
+        rms = [_rms(s.given, model) for s in self.scores]
         if self.better is None or self.vuong is None:
             return f"{self.sources[0]} and {self.sources[1]} fit these data equally well"
         bad = [s.contradicted for s in self.scores]
