@@ -87,16 +87,13 @@ def representations(sensor2flange):
         The sensor frame in its mount's frame (flange or robot base), mm.
     """
     t = np.asarray(sensor2flange, float)
-    kuka = conventions.pose_from("kuka", t)
-    fanuc = conventions.pose_from("fanuc", t)
-    ur = conventions.pose_from("ur", t)
-    abb = conventions.pose_from("abb", t)
+    fanuc, abb = conventions.pose_from("fanuc", t), conventions.pose_from("abb", t)
     return {
         "translation_mm": t[:3, 3].copy(),
         "translation_m": t[:3, 3] / 1000.0,
-        "kuka_abc_deg": kuka[3:],
+        "kuka_abc_deg": conventions.pose_from("kuka", t)[3:],
         "fanuc_wpr_deg": fanuc[3:],
-        "ur_rotvec_rad": ur[3:],
+        "ur_rotvec_rad": conventions.pose_from("ur", t)[3:],
         "quaternion_wxyz": abb[3:],
         "quaternion_xyzw": np.r_[abb[4:], abb[3]],
         "rpy_rad": np.radians(fanuc[3:]),  # URDF: fixed-axis roll, pitch, yaw == FANUC's W, P, R
