@@ -434,7 +434,6 @@ LOCAL_IMPORTS = {
         ("app/present/figure_style.py", "_points", "matplotlib.container"),
         ("app/present/figure_style.py", "_points", "matplotlib.lines"),
         ("app/present/figure_style.py", "_small_text", "matplotlib.text"),
-        ("app/present/figure_style.py", "_unlabelled_maps", "matplotlib.cm"),
         ("app/present/figure_style.py", "apply", "matplotlib"),
         ("app/present/figure_style.py", "style", "matplotlib"),
         ("app/present/plotting.py", "figure", "matplotlib"),

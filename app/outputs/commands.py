@@ -52,10 +52,7 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
     {parameters}
     """
     request = ExportRequest.from_options(options.COMMANDS["export"].given(locals()))
-    if format in ROBOT_FORMATS:
-        text = robot_text(*request.held, format)
-    else:
-        text = exports.text(request.held, format, request.names)
+    text = robot_text(*request.held, format) if format in ROBOT_FORMATS else exports.text(request.held, format, request.names)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -219,9 +216,8 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     request = CloudRequest.from_options(given, scans.load(dataset))
     cal, data = request.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
-    sd = None
-    if cal.covariance is not None:
-        sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)
+    sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
+                                                              cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
                          cal.source, FRAME[data.mounts.sphere])
     if out is not None:
@@ -257,10 +253,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
     cal, data = request.calibration, request.data
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
-    if with_profiles:
-        result = validation.validate_scan(data, cal, request.exclude, own)
-    else:
-        result = validation.validate_centres(data, cal, own)
+    result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
+              else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
         data.mounts.sphere])
     if request.limits is not None:

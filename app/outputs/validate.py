@@ -217,8 +217,7 @@ class ValidationResult(ResultProtocol):
     def to_dict(self):
         failed = self.passed is False  # the exit 1 of handeye validate
         return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if failed else None,
-                "calibration": self.calibration, "n_points": self.n_points,
-                "n_poses": self.n_poses,
+                **fields(self, "calibration", "n_points", "n_poses"),
                 "sphere": self.spheres[0].to_dict() if self.spheres else None,
                 "spheres": [s.to_dict() for s in self.spheres],
                 "spacing": None if self.spacing is None else self.spacing.to_dict(),
@@ -395,25 +394,19 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
     xz = np.concatenate(scan.profiles, axis=0)
     which, reasons = assign(points, index, scan.spheres, scan.ids)
     per_point = which[index]
-    checks, a_cals, infos, totals = [], [], [], []
+    fits = []  # check_sphere's (check, a_cal, info, total) per setup sphere
     for k, setup in enumerate(scan.spheres):
         mask = per_point == k
         if not mask.any():
             raise RequestError(f"no pose of {scan.name} saw [{'sphere' if k == 0 else 'sphere2'}] (centre "
                                f"{_list(setup.centre)}): check the setup's centres and the calibration")
         try:
-            check, a_cal, info, total = check_sphere("sphere" if k == 0 else "sphere2",
-                                                     SphereCloud(points[mask], xz[mask], f2b, index[mask]), calib, setup,
-                                                     scan.robot_sigma_mm, exclude)
+            fits.append(check_sphere("sphere" if k == 0 else "sphere2", SphereCloud(points[mask], xz[mask], f2b, index[mask]),
+                                     calib, setup, scan.robot_sigma_mm, exclude))
         except sphere.SphereFitError as exc:
             raise RequestError(f"{scan.path}: {exc}") from None
-        checks.append(check)
-        a_cals.append(a_cal)
-        infos.append(info)
-        totals.append(total)
-    gap = None
-    if len(checks) == 2:
-        gap = spacing(checks, a_cals, infos, totals, calib.covariance)
+    checks, a_cals, infos, totals = (list(column) for column in zip(*fits))
+    gap = spacing(checks, a_cals, infos, totals, calib.covariance) if len(checks) == 2 else None
     used = int(sum(c.n_points for c in checks))
     skipped = [f"{i}: no profile" for i in scan.skipped] + reasons
     return ValidationResult(scan.name, calib.source, used, int(sum(c.n_poses for c in checks)), checks, gap, None,

@@ -168,7 +168,7 @@ def violations(fig):
     """
     fig.draw_without_rendering()
     found = _small_text(fig)
-    bars = {id(a) for m in _mappables(fig) if m.colorbar is not None for a in (m.colorbar.ax,)}
+    bars = {id(m.colorbar.ax) for ax in fig.axes for m in _mappables(ax) if m.colorbar is not None}
     for ax in fig.axes:
         if id(ax) in bars:
             continue
@@ -187,19 +187,16 @@ def _small_text(fig):
             + (f" and {len(texts) - 4} more" if len(texts) > 4 else "") for size, texts in small.items()]
 
 
-def _mappables(fig):
+def _mappables(ax):
+    """The artists of ``ax`` whose colour encodes a value (a ScalarMappable with an array)."""
     from matplotlib.cm import ScalarMappable
 
-    return [a for ax in fig.axes for a in ax.get_children() if isinstance(a, ScalarMappable) and a.get_array() is not None]
+    return [a for a in ax.get_children() if isinstance(a, ScalarMappable) and a.get_array() is not None]
 
 
 def _unlabelled_maps(ax):
-    from matplotlib.cm import ScalarMappable
-
     found = []
-    for a in ax.get_children():
-        if not isinstance(a, ScalarMappable) or a.get_array() is None or not a.get_visible():
-            continue
+    for a in (m for m in _mappables(ax) if m.get_visible()):
         cmap = a.get_cmap().name
         if cmap not in MAPS and not cmap.startswith("okabe-ito"):
             found.append(f"colour map {cmap!r} (use one of {', '.join(MAPS)}, or an Okabe-Ito category map)")

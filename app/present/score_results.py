@@ -114,10 +114,8 @@ class ScoreResult(ResultProtocol):
     def residuals(self):
         """Every sample's residual at the given pose (used: the estimate's screening)."""
         est = self.estimate
-        used = np.array([r.used for r in est.residuals], bool)
-        norms = np.linalg.norm(self.given.residuals, axis=1)
-        return ResidualTable([r.id for r in est.residuals], [r.row for r in est.residuals], self.given.residuals, norms,
-                             used)
+        return ResidualTable([r.id for r in est.residuals], [r.row for r in est.residuals], self.given.residuals,
+                             np.linalg.norm(self.given.residuals, axis=1), [r.used for r in est.residuals])
 
     def verdict(self):
         """One sentence: does the data contradict the pose?"""
