@@ -262,10 +262,9 @@ def data(calibration, parent, child):
     and ``sensor_frame`` "own" when that is the sensor's own), with the frame names; a sensor fixed in the
     cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
     matrix = calibration.user_frame().sensor2flange
-    rep = representations(matrix)
     mount = {"sensor_mount": "world"} if _world(calibration) else {}
     own = {} if calibration.own_axes is None else {"sensor_frame": "own", "own_axes": np.asarray(calibration.own_axes).tolist()}
     out = {**mount, **own, "parent": parent, "child": child, "sensor_matrix": matrix.tolist()}
-    out.update({k: v.tolist() for k, v in rep.items()})
+    out.update({k: v.tolist() for k, v in representations(matrix).items()})
     out["calibration"] = calibration.to_dict()
     return out

@@ -282,14 +282,11 @@ def check_sphere(label, seen, calib, setup, robot_sigma, exclude=0.0):
     if np.any(np.diff(index) < 0):
         raise ValueError("points must be grouped by pose (index non-decreasing)")
     fit = sphere.fit(points)
-    dropped = 0
-    if exclude > 0:
-        dropped = int(np.floor(exclude * len(points)))
-        if dropped:
-            keep = np.argsort(np.abs(fit.deviations))[: len(points) - dropped]
-            keep.sort()
-            points, xz, index = points[keep], xz[keep], index[keep]
-            fit = sphere.fit(points)
+    dropped = int(np.floor(exclude * len(points))) if exclude > 0 else 0
+    if dropped:
+        keep = np.sort(np.argsort(np.abs(fit.deviations))[: len(points) - dropped])
+        points, xz, index = points[keep], xz[keep], index[keep]
+        fit = sphere.fit(points)
     jac = np.hstack([-fit.normals, -np.ones((len(points), 1))])  # (M, 4)
     a_cal = jac.T @ cloud.radial_jacobian(fit.normals, xz, f2b, index, calib.sensor2flange)  # (4, 6)
     starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])  # points are grouped by pose
@@ -361,8 +358,7 @@ def spacing(checks, a_cals, infos, totals, covariance):
     ref = float(np.linalg.norm(c1.setup_centre - c2.setup_centre))
     var = float(u @ (totals[0][:3, :3] + totals[1][:3, :3]) @ u)
     if covariance is not None:
-        s1 = (infos[0] @ a_cals[0])[:3]
-        s2 = (infos[1] @ a_cals[1])[:3]
+        s1, s2 = ((info @ a_cal)[:3] for info, a_cal in zip(infos, a_cals))
         var -= 2.0 * float(u @ s1 @ covariance @ s2.T @ u)
     return SpacingCheck(dist, ref, dist - ref, float(np.sqrt(max(var, 0.0))))
 

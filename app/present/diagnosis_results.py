@@ -45,11 +45,9 @@ def absorbed_sentence(name, by, centre_fitted=True, always=False):
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
     structural = always or effects.get(name.split(".")[0]).KIND == "structural"
     by_centre = any(p.startswith("c") for p in by)
-    if by_centre and not centre_fitted:
-        held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
-                "offset (which diagnose would name)")
-    else:
-        held = "which the calibration fits anyway, so those fitted values already contain it"
+    held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
+            "offset (which diagnose would name)" if by_centre and not centre_fitted
+            else "which the calibration fits anyway, so those fitted values already contain it")
     return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
             f"{' and '.join(what)} ({', '.join(by)}); {held}; "
             + ("no choice of poses can separate it (it is part of what they describe)"

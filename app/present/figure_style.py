@@ -279,9 +279,7 @@ def _off_axes(ax):
               & _inside(pts[:, 1], ax.get_ylim(), ax.get_yscale() == "log"))
     arrows = sum(1 for t in ax.texts if t.get_gid() == "edge-arrow")
     off = int(np.sum(~inside))
-    if off > arrows:
-        return [f"{off} data points outside the axes of {ax.get_title()!r} with {arrows} edge arrows"]
-    return []
+    return [f"{off} data points outside the axes of {ax.get_title()!r} with {arrows} edge arrows"] if off > arrows else []
 
 
 def edge_arrows(ax, x, y, labels, xlim=None, ylim=None):

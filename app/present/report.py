@@ -307,9 +307,8 @@ def validation_text(res):
                   f"  mean offset {_fmt(c['mean_offset_mm']).strip()} mm; |eps|: RMS {c['rms_mm']:.4f} mm, median "
                   f"{c['median_mm']:.4f} mm, max {c['max_mm']:.4f} mm",
                   "  id            eps_x      eps_y      eps_z      |eps|   1 sd (calibration)"]
-        for p in c["poses"]:
-            sd = "" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}"
-            lines.append(f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}{sd}")
+        lines += [f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}"
+                  + ("" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}") for p in c["poses"]]
     if res.acceptance is not None:
         a = res.acceptance
         lim = ", ".join(f"{k} {v:g}" for k, v in a.limits.items())
@@ -398,18 +397,12 @@ def diagnosis_text(res):
     lines = [f"handeye diagnose: dataset {res.dataset}, unknowns {res.unknowns}"
              + (" (the sphere centre estimated with the pose in every model)" if res.unknowns == "sensor+sphere" else ""),
              ""]
-    if res.effects:
-        lines.append("effects named:")
-        for eff in res.effects:
-            if eff.std is None:
-                lines.append(f"  {eff.name}: {', '.join(eff.parameters['ids'])}")
-            else:
-                lines.append(f"  {eff.name}: " + ", ".join(
-                    f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items()))
-            if eff.note:
-                lines.append(f"    {eff.note}")
-    else:
-        lines.append("effects named: none")
+    lines.append("effects named:" if res.effects else "effects named: none")
+    for eff in res.effects:
+        lines.append(f"  {eff.name}: " + (", ".join(eff.parameters["ids"]) if eff.std is None else ", ".join(
+            f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items())))
+        if eff.note:
+            lines.append(f"    {eff.note}")
     if res.robot_alternatives:
         lines.append(f"  {res.robot_alternatives}")
     lines += cleaning_lines(getattr(res, "cleaning", None))[1:]
