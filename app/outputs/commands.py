@@ -149,10 +149,8 @@ class CloudResult(ResultProtocol):
         if d["bounds_mm"]:
             lo, hi = d["bounds_mm"]["min"], d["bounds_mm"]["max"]
             lines.append("bounds: " + ", ".join(f"{a} {x:.2f}..{y:.2f}" for a, x, y in zip("xyz", lo, hi)))
-        if d["sd_mm"]:
-            lines.append(f"1 sd from the calibration: median {d['sd_mm']['median']:.3f} mm, max {d['sd_mm']['max']:.3f} mm")
-        else:
-            lines.append("1 sd: unknown (the calibration has no covariance)")
+        lines.append(f"1 sd from the calibration: median {d['sd_mm']['median']:.3f} mm, max {d['sd_mm']['max']:.3f} mm"
+                     if d["sd_mm"] else "1 sd: unknown (the calibration has no covariance)")
         if self.out:
             lines.append(f"written: {self.out} ({self.format})")
         return "\n".join(lines)

@@ -149,18 +149,11 @@ def accept(result, mpe):
     (checked by :class:`handeye.app.outputs.request.ValidateRequest`)."""
     names = ("PF", "PS", "SD")[: len(mpe)]
     limits = dict(zip(names, map(float, mpe)))
-    measured, failed = {}, []
-    for s in result.spheres:
-        for name, value in (("PF", s.form_error_mm), ("PS", s.size_error_mm)):
-            key = f"{name} [{s.label}]"
-            measured[key] = value
-            if abs(value) > limits[name]:
-                failed.append(key)
-    if "SD" in limits:
-        measured["SD"] = result.spacing.error_mm
-        if abs(result.spacing.error_mm) > limits["SD"]:
-            failed.append("SD")
-    return Acceptance(limits, measured, failed)
+    checks = [(f"{name} [{s.label}]", name, value) for s in result.spheres
+              for name, value in (("PF", s.form_error_mm), ("PS", s.size_error_mm))]
+    checks += [("SD", "SD", result.spacing.error_mm)] if "SD" in limits else []  # (key, limit's name, measured)
+    return Acceptance(limits, {key: value for key, _, value in checks},
+                      [key for key, name, value in checks if abs(value) > limits[name]])
 
 
 @dataclasses.dataclass(frozen=True)

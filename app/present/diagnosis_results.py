@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import AsDict, Uncertainty, _list, fields, frame_keys, user_poses, user_std
+from handeye.app.present.result_parts import AsDict, Uncertainty, _list, fields, frame_keys, of_user_frame, user_poses, user_std
 from handeye.model import effects
 
 
@@ -159,11 +159,9 @@ class DiagnosisResult(ResultProtocol):
         return dataclasses.replace(self, sensor2flange=matrix, sensor_pose=kuka, sensor_pose_as=pose,
                                    std=user_std(self.std, None, self.own_axes)[0], pose_frame="own")
 
+    @of_user_frame
     def to_dict(self):
         """The ``handeye diagnose --json`` object (its pose of the user's frame: :meth:`in_user_frame`)."""
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict()
         return {
             **fields(self, "dataset", "unknowns", "against_calibrate"),
             "effects": [e.to_dict() for e in self.effects],

@@ -36,6 +36,7 @@ from handeye.app.present.result_parts import (
     _list,
     fields,
     frame_keys,
+    of_user_frame,
     user_poses,
     user_std,
 )
@@ -313,7 +314,6 @@ class CalibrationResult(ResultProtocol):
                           and not self.effects)
         if same_samples and same_objective:
             return None
-        diff = self.rms_mm - self.before.rms_mm
         parts = []
         if not same_samples:
             n_out = self.before.n - (self.n_used or 0)
@@ -328,7 +328,7 @@ class CalibrationResult(ResultProtocol):
                          f"minimises {self.objective.get('short', 'another objective')}, so on the same samples its "
                          "per-centre RMS cannot be smaller")
         return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
-                f"({diff:+.2g} mm): " + "; and ".join(parts))
+                f"({self.rms_mm - self.before.rms_mm:+.2g} mm): " + "; and ".join(parts))
 
     def in_user_frame(self):
         """The result with every pose the user reads in the frame of the user's files: the
@@ -364,13 +364,11 @@ class CalibrationResult(ResultProtocol):
             self, fit=fit, uncertainty=dataclasses.replace(self.uncertainty, std=std, covariance=cov, correlation=corr),
             start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, identifiability=ident, pose_frame="own")
 
+    @of_user_frame
     def to_dict(self, residuals=True):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without
         ``residuals`` their entry is None (:meth:`to_json` writes them column-wise). Its poses are
         of the user's frame (:meth:`in_user_frame`)."""
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict(residuals)
         out = {**self._request_keys(), **self._pose_keys(), **self._fit_keys(residuals), **self._uncertainty_keys()}
         if self.provenance is not None:
             out["provenance"] = self.provenance
@@ -450,9 +448,9 @@ class CalibrationResult(ResultProtocol):
 
         return report.calibration_text(self.in_user_frame())
 
+    @of_user_frame
     def _html_rows(self):
         """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`), of the user's frame."""
-        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
             ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
@@ -473,8 +471,8 @@ class CalibrationResult(ResultProtocol):
             rows.append(("1 sd rotation (deg)", " ".join(f"{v:.4f}" for v in self.std.sensor_rotation_deg)))
         return rows + [("warning", w) for w in self.warnings]
 
+    @of_user_frame
     def __repr__(self):
-        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
         return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "

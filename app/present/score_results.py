@@ -13,7 +13,7 @@ import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.residual_table import ResidualTable
-from handeye.app.present.result_parts import _list, frame_keys, user_poses
+from handeye.app.present.result_parts import _list, frame_keys, of_user_frame, user_poses
 
 #: Residual model -> what one of its rows is.
 _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points": "profile point"}
@@ -134,10 +134,8 @@ class ScoreResult(ResultProtocol):
         sd = "" if d["sd"] is None else f", {d['sd']:.1f} sd of that calibration"
         return f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg{sd}"
 
+    @of_user_frame
     def to_dict(self):
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict()
         f, p, bad = self.f_test
         est = self.estimate
         out = {
@@ -166,12 +164,10 @@ class ScoreResult(ResultProtocol):
             out["provenance"] = self.provenance
         return out
 
+    @of_user_frame
     def summary(self):
         from handeye.app.present.report import residual_lines
 
-        user = self.in_user_frame()
-        if user is not self:
-            return user.summary()
         est = self.estimate
         n_used = int(np.sum([r.used for r in est.residuals]))
         lines = [f"handeye calibrate (score): dataset {self.dataset}, the sensor pose given by {self.source} held"

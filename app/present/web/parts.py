@@ -182,9 +182,8 @@ def verdict_strip(result):
     boxes.append(_box("warn" if warns else "ok", "warnings", f"{len(warns)}"))
     items = "".join(f"<li>{esc(w)}</li>" for w in warns)
     state, sentence = headline([(b[1], b[2]) for b in boxes], result)
-    boxes = [b[0] for b in boxes]
     return (f"<section id='verdict'><h2>Verdict</h2><p class='headline {state}'>{esc(sentence)}</p>"
-            f"<div class='strip'>{''.join(boxes)}</div>"
+            f"<div class='strip'>{''.join(b[0] for b in boxes)}</div>"
             + (f"<ul class='warnings'>{items}</ul>" if items else "") + "</section>")
 
 
