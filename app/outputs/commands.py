@@ -210,8 +210,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.datasets import scan as scans
     from handeye.model.geometry import cloud as clouds
 
-    given = options.COMMANDS["cloud"].given(locals())
-    request = CloudRequest.from_options(given, scans.load(dataset))
+    request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
     cal, data = request.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,

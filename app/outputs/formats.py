@@ -149,8 +149,7 @@ class _Job:
 
 
 def _ur(job):
-    m, rep = job.rep["translation_m"], job.rep
-    values = ", ".join(_f(m, 10) + _f(rep["ur_rotvec_rad"], 10))
+    values = ", ".join(_f(job.rep["translation_m"], 10) + _f(job.rep["ur_rotvec_rad"], 10))
     head = job.header("URScript pose: x, y, z in metres, rotation vector rx, ry, rz in radians", "m")
     if not job.world:
         return _comment("# ", head) + f"\nset_tcp(p[{values}])\n"

@@ -208,8 +208,8 @@ class ValidationResult(ResultProtocol):
         return None if self.acceptance is None else self.acceptance.passed
 
     def to_dict(self):
-        failed = self.passed is False  # the exit 1 of handeye validate
-        return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if failed else None,
+        # "error" when a limit is exceeded: the exit 1 of handeye validate
+        return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if self.passed is False else None,
                 **fields(self, "calibration", "n_points", "n_poses"),
                 "sphere": self.spheres[0].to_dict() if self.spheres else None,
                 "spheres": [s.to_dict() for s in self.spheres],
@@ -227,10 +227,9 @@ class ValidationResult(ResultProtocol):
 def _sources(fit, a_cal, cov_cal, g_robot, robot_sigma):
     """Covariance (4x4) of (centre, radius) from each source (module docstring)."""
     inv = np.linalg.inv(fit.information)
-    out = {"points": fit.noise_covariance()}
-    out["robot"] = robot_sigma ** 2 * inv @ np.einsum("nij,nkj->ik", g_robot, g_robot) @ inv
-    out["calibration"] = None if cov_cal is None else inv @ a_cal @ cov_cal @ a_cal.T @ inv
-    return out
+    return {"points": fit.noise_covariance(),
+            "robot": robot_sigma ** 2 * inv @ np.einsum("nij,nkj->ik", g_robot, g_robot) @ inv,
+            "calibration": None if cov_cal is None else inv @ a_cal @ cov_cal @ a_cal.T @ inv}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -382,10 +381,9 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
     points, index = cloud.points_in_base(f2b, calib.sensor2flange, scan.profiles)
     xz = np.concatenate(scan.profiles, axis=0)
     which, reasons = assign(points, index, scan.spheres, scan.ids)
-    per_point = which[index]
     fits = []  # check_sphere's (check, a_cal, info, total) per setup sphere
     for k, setup in enumerate(scan.spheres):
-        mask = per_point == k
+        mask = which[index] == k
         if not mask.any():
             raise RequestError(f"no pose of {scan.name} saw [{'sphere' if k == 0 else 'sphere2'}] (centre "
                                f"{_list(setup.centre)}): check the setup's centres and the calibration")
@@ -396,10 +394,9 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
             raise RequestError(f"{scan.path}: {exc}") from None
     checks, a_cals, infos, totals = (list(column) for column in zip(*fits))
     gap = spacing(checks, a_cals, infos, totals, calib.covariance) if len(checks) == 2 else None
-    used = int(sum(c.n_points for c in checks))
-    skipped = [f"{i}: no profile" for i in scan.skipped] + reasons
-    return ValidationResult(scan.name, calib.source, used, int(sum(c.n_poses for c in checks)), checks, gap, None,
-                            skipped, [NOTES_OWN[own], NOTE_SPHERE], own)
+    return ValidationResult(scan.name, calib.source, int(sum(c.n_points for c in checks)), int(sum(c.n_poses for c in checks)),
+                            checks, gap, None, [f"{i}: no profile" for i in scan.skipped] + reasons,
+                            [NOTES_OWN[own], NOTE_SPHERE], own)
 
 
 def validate_centres(data, calib, own=None):
@@ -407,11 +404,9 @@ def validate_centres(data, calib, own=None):
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}: validation without profiles compares sphere centres: "
                            "[sphere] needs its center (or base_pose and center_in_plate)")
-    f2b = data.motions()
     x = calib.sensor2flange
     centre_h = np.c_[data.centre_in_sensor, np.ones(len(data))]
-    q = np.einsum("nij,nj->ni", f2b @ x, centre_h)[:, :3]
-    eps = q - data.sphere_centre
+    eps = np.einsum("nij,nj->ni", data.motions() @ x, centre_h)[:, :3] - data.sphere_centre
     predicted = None if calib.covariance is None else cloud.point_sd(data.centre_in_sensor, x, calib.covariance)
     return ValidationResult(data.name, calib.source, 0, len(data), [], None,
                             CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], [NOTE_CENTRE, NOTES_OWN[own]],

@@ -44,9 +44,8 @@ def absorbed_sentence(name, by, centre_fitted=True, always=False):
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
     structural = always or effects.get(name.split(".")[0]).KIND == "structural"
-    by_centre = any(p.startswith("c") for p in by)
     held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
-            "offset (which diagnose would name)" if by_centre and not centre_fitted
+            "offset (which diagnose would name)" if any(p.startswith("c") for p in by) and not centre_fitted
             else "which the calibration fits anyway, so those fitted values already contain it")
     return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
             f"{' and '.join(what)} ({', '.join(by)}); {held}; "

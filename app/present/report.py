@@ -107,8 +107,7 @@ def cell_lines(res):
     """The sensor's 4x4 and the sphere centre in their mounts' frames, the positioner's axes, and in
     words what was calibrated (the seed's cell: the lines of earlier versions, unchanged)."""
     sensor_mount, sphere_mount = getattr(res, "sensor_mount", "flange"), getattr(res, "sphere_mount", "world")
-    lines = [f"sensor2{_MOUNT_FRAME[sensor_mount]} (4x4):"]
-    lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
+    lines = [f"sensor2{_MOUNT_FRAME[sensor_mount]} (4x4):"] + ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
     lines.append(f"sphere centre in {_MOUNT_FRAME[sphere_mount]} (mm): " + _fmt(res.sphere_centre, 12, 4))
     positioner = getattr(res, "positioner", None)
     if (sensor_mount, sphere_mount) == ("flange", "world") and positioner is None:
@@ -270,8 +269,7 @@ def _centres_seen(fig, ax, res, d, used):
     frame = _MOUNT_FRAME[getattr(res, "sphere_mount", "world")]
     ax.set(xlabel=f"dx (mm, {frame})", ylabel=f"dy (mm, {frame})", aspect="equal",
            title="sphere centres through the chain")
-    ids = [r.id for r in res.residuals]
-    style.edge_arrows(ax, d[:, 0], d[:, 1], ids, xlim=(-lim, lim), ylim=(-lim, lim))
+    style.edge_arrows(ax, d[:, 0], d[:, 1], [r.id for r in res.residuals], xlim=(-lim, lim), ylim=(-lim, lim))
     ax.legend(loc="best")
 
 

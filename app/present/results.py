@@ -451,13 +451,12 @@ class CalibrationResult(ResultProtocol):
     @of_user_frame
     def _html_rows(self):
         """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`), of the user's frame."""
-        verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
             ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
                         f" used, {len(self.excluded)} excluded)"),
             ("method", f"{self.method}" + (f", rotation {self.rotation}" if self.rotation else "")
              + f", unknowns {self.unknowns}" + (f", model {self.model}" if self.model else "")),
-            ("status", f"{verdict}: {self.message}"),
+            ("status", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message}"),
             (f"sensor pose ({self.convention}: {','.join(self.columns)})",
              " ".join(f"{v:.4f}" for v in self.sensor_pose)),
             ("sphere centre (base, mm)", " ".join(f"{v:.3f}" for v in self.sphere_centre)),

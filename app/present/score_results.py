@@ -158,7 +158,7 @@ class ScoreResult(ResultProtocol):
                          "ssr": self.estimate_score.ssr},
             "n_used": int(np.sum([r.used for r in est.residuals])), "outliers": list(est.outliers),
             "excluded": [e.to_dict() for e in est.excluded],
-            "residuals": self.residuals.to_dicts(),
+            "residuals": [r.to_dict() for r in self.residuals],
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance

@@ -131,12 +131,11 @@ def cell_geometry(result, dataset):
     local = [_thinned(p) for p in dataset.profiles or (None,) * len(xs)]
     profiles = [_to_base(s2b[i], p) for i, p in enumerate(local)]
     fans = np.stack([_fan(s2b[i], local[i], xs[i], radius) for i in range(len(xs))])
-    used = _used(result, dataset)
     if result.get("sensor_frame") == "own":  # drawn and tabled in the frame the user reads: the sensor's own
         rot = np.asarray(result["own_axes"], float)
         s2b, e_sensor = s2b @ own_frame.to_own(np.eye(4), rot), e_sensor @ rot
-    return CellGeometry(list(dataset.ids), used, f2b, s2b, measured, sphere, e_base, e_sensor, fans, profiles,
-                        radius, mounts)
+    return CellGeometry(list(dataset.ids), _used(result, dataset), f2b, s2b, measured, sphere, e_base, e_sensor, fans,
+                        profiles, radius, mounts)
 
 
 def _used(result, dataset):

@@ -99,7 +99,6 @@ def figure(cell, title):
     """
     import plotly.graph_objects as go
 
-    length = 0.06 * cell.extent
     scale = default_scale(cell)
     traces, index = [], {}
 
@@ -107,7 +106,7 @@ def figure(cell, title):
         index[name] = len(traces)
         traces.append(trace)
 
-    _frames(add, go, cell, length)
+    _frames(add, go, cell, 0.06 * cell.extent)
     _laser(add, go, cell)
     _sphere(add, go, cell)
     _points(add, go, cell, scale)
@@ -208,9 +207,8 @@ def static_png(cell, title):
     """The cell as a matplotlib 3-D picture (PNG bytes): the report without plotly."""
     fig = new_figure(figsize=(10, 8))
     ax = fig.add_subplot(projection="3d")
-    length = 0.06 * cell.extent
     for frames in (cell.flange2base, cell.sensor2base):
-        for k, xyz in enumerate(_triads(frames, length)):
+        for k, xyz in enumerate(_triads(frames, 0.06 * cell.extent)):
             ax.plot(*(np.array(c, dtype=float) for c in xyz), color=AXIS_COLOURS[k], lw=1)
     scale = default_scale(cell)
     used, _ = residual_segments(cell, scale)
