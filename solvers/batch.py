@@ -97,6 +97,17 @@ class Stacked:
         return np.stack(cols, axis=-1)
 
 
+def _counted(counter, name):
+    """A :class:`Runs` method ``(x, rows)``: ``Stacked.<name>(x)``, counted once per row in ``counter``."""
+
+    def method(self, x, rows):
+        getattr(self, counter)[rows] += 1
+        return getattr(self.stacked, name)(x)
+
+    method.__name__ = name
+    return method
+
+
 class Runs:
     """The rows of a batch run: iterates, statuses, counters, and (``trace=True``) histories.
 
@@ -114,10 +125,7 @@ class Runs:
         self.f = np.full(self.n_rows, np.nan)
         self.g = np.full((self.n_rows, stacked.n), np.nan)
         self.status = np.full(self.n_rows, RUNNING)
-        self.iterations = np.zeros(self.n_rows, dtype=int)
-        self.nfev = np.zeros(self.n_rows, dtype=int)
-        self.njev = np.zeros(self.n_rows, dtype=int)
-        self.nhev = np.zeros(self.n_rows, dtype=int)
+        self.iterations, self.nfev, self.njev, self.nhev = (np.zeros(self.n_rows, dtype=int) for _ in range(4))
         self.messages = {}
         self.trace = trace
         self.history = [[row.copy()] for row in self.x] if trace else None
@@ -125,29 +133,12 @@ class Runs:
         self.counts = {}  # name -> per-row counters, reported in extra when > 0
 
     # -- evaluations, counted per row ---------------------------------------------------
-    def cost(self, x, rows):
-        self.nfev[rows] += 1
-        return self.stacked.cost(x)
-
-    def residual(self, x, rows):
-        self.nfev[rows] += 1
-        return self.stacked.residual(x)
-
-    def grad(self, x, rows):
-        self.njev[rows] += 1
-        return self.stacked.grad(x)
-
-    def jacobian(self, x, rows):
-        self.njev[rows] += 1
-        return self.stacked.jacobian(x)
-
-    def normal(self, x, rows):
-        self.njev[rows] += 1
-        return self.stacked.normal(x)
-
-    def hessian(self, x, rows):
-        self.nhev[rows] += 1
-        return self.stacked.hessian(x)
+    cost = _counted("nfev", "cost")
+    residual = _counted("nfev", "residual")
+    grad = _counted("njev", "grad")
+    jacobian = _counted("njev", "jacobian")
+    normal = _counted("njev", "normal")
+    hessian = _counted("nhev", "hessian")
 
     # -- bookkeeping ----------------------------------------------------------------------
     def active(self):

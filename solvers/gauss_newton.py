@@ -70,7 +70,6 @@ def run(stacked, x0, opts, trace=False):
         runs.stop(rows, small_step, 3, k + 1)
         runs.stop(rows, reduced, 2, k + 1)
     rows = runs.active()
-    if rows.size:
-        settle(rows)
+    settle(rows)  # no rows: the gradient of none (Stacked.grad returns (0, n) at once)
     runs.stop(rows, True, 0, opts.max_iter)
     return runs

@@ -113,8 +113,7 @@ def wolfe(phi, dphi, f0, slope, alpha_max=1e6, max_steps=60):
         s.phase[grow[s.steps[grow] >= max_steps]] = s.FAILED
         # zooming: shrink the bracket [lo, hi] (its ends in either order)
         zm = zoom & ~curvature
-        zh = rows[zm & high]
-        s.hi[zh] = trial[zm & high]
+        s.hi[rows[zm & high]] = trial[zm & high]
         zl = zm & ~high
         flip = rows[zl & (d * (s.hi[rows] - s.lo[rows]) >= 0)]
         s.hi[flip] = s.lo[flip]

@@ -256,8 +256,7 @@ def _evaluate(runs, model, x, rows):
 
 def _cost(runs, model, x, rows):
     if model == "gauss-newton":
-        r = runs.residual(x, rows)
-        return half_squares(r)
+        return half_squares(runs.residual(x, rows))
     return runs.cost(x, rows)
 
 

@@ -11,10 +11,13 @@ import importlib
 import json
 import pathlib
 
+import numpy as np
+
 from handeye.app.common.errors import RequestError
 from handeye.app.common.registry import STUDIES, StudyClaimFailed
 from handeye.app.present import figure_style
 from handeye.app.present.plotting import figure  # noqa: F401 - the studies' figures
+from handeye.model.common.rotation import rotvec_from_matrix
 
 
 def claim(condition, text):
@@ -23,9 +26,20 @@ def claim(condition, text):
         raise StudyClaimFailed(f"claim not supported by the data: {text}")
 
 
-def save(fig, path):
-    """Write a study's figure in the one style (:func:`handeye.app.present.figure_style.save`)."""
+def save(fig, path, rect=None):
+    """Lay ``fig`` out (``tight_layout(rect=rect)``), write it in the one style
+    (:func:`handeye.app.present.figure_style.save`) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout(rect=rect)
     figure_style.save(fig, path, option="--out")
+    plt.close(fig)
+
+
+def pose_error(est, truth):
+    """Errors of an estimated 4 x 4 transform: translation (3,) mm and rotation (3,) deg, the
+    rotation vector of ``truth^T est``."""
+    return est[:3, 3] - truth[:3, 3], np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))
 
 
 def write_table(out, name, header, rows):

@@ -24,11 +24,10 @@ import numpy as np
 import handeye
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
 from handeye.model.datasets.dataset import load
 from handeye.model.design import bounds
 from handeye.model.simulation import simulate
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 KINDS = ("centre", "measurement", "points")
 NAMES = ["tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg"]
@@ -70,9 +69,7 @@ def _replicates(setup, design, reps):
                     pred = transform_from_pose(new.flange_poses) @ res.sensor2flange @ np.column_stack(
                         [new.centre_in_sensor, np.ones(len(new.ids))])[..., None]
                     heldout.append(np.sqrt(np.mean(np.sum((pred[:, :3, 0] - new.true_centre) ** 2, axis=1))))
-                est = res.sensor2flange
-                errors[kind].append(np.concatenate([
-                    est[:3, 3] - truth[:3, 3], np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
+                errors[kind].append(np.concatenate(pose_error(res.sensor2flange, truth)))
                 reported[kind].append([*res.std.sensor_translation_mm, *res.std.sensor_rotation_deg])
     return errors, reported, loo, heldout
 
@@ -97,8 +94,7 @@ def _tabulate(out, errors, reported, bound_sd, reps):
 
 
 def _plot(out, summary, reps):
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = figure().subplots(figsize=(8, 4))
     width = 0.25
     for i, kind in enumerate(KINDS):
         ax.bar(np.arange(6) + (i - 1) * width, summary["models"][kind]["rmse_over_crlb"], width, label=kind)
@@ -106,9 +102,7 @@ def _plot(out, summary, reps):
     ax.set_xticks(range(6), NAMES)
     ax.set(ylabel="RMSE / CRLB", title=f"accuracy against the bound ({reps} noisy replicates, 36 poses)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "accuracy.png")
-    plt.close(fig)
 
 
 def _claims(b, best, fig_ratio, reps, quick):

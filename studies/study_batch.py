@@ -138,15 +138,12 @@ def run(out, quick=False):
     summary = {"starts_per_method": n, "seed": 16, "ipopt": "no batch form: one solver object, starts in a loop",
                "options": {m: options_for(m) for m in METHODS}, "methods": {c.method: c.to_dict() for c in results}}
     write_summary(out, summary)
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+    fig, ax = figure().subplots(figsize=(7, 3.5))
     ax.bar(range(len(results)), [c.to_dict()["speedup"] for c in results])
     ax.set_xticks(range(len(results)), [c.method for c in results])
     ax.set(yscale="log", ylabel="single-start time / batch time",
            title=f"same ends from {n} starts per method; the batch's speed-up")
-    fig.tight_layout()
     save(fig, out / "batch_speedup.png")
-    plt.close(fig)
     for c in results:
         d = c.to_dict()
         claim(d["same_end"] >= 0.999, f"{c.method}: batch and single starts end at the same stationary point "

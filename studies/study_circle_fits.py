@@ -43,8 +43,7 @@ def run(out, quick=False):
             for m, e in errs.items():
                 rows.append((m, arc, sigma, float(e.mean()), float(e.std()), float(e.std() / np.sqrt(reps))))
     write_table(out, "circle_fits", ["fit", "arc_deg", "noise_mm", "bias_mm", "spread_mm", "se_mm"], rows)
-    plt = figure()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = figure().subplots(1, 2, figsize=(10, 4))
     for m in circle.FITS:
         sel = [r for r in rows if r[0] == m and r[2] == 0.05]
         axes[0].plot([r[1] for r in sel], [r[3] for r in sel], "o-", label=m)
@@ -54,9 +53,7 @@ def run(out, quick=False):
     for ax in axes:
         ax.axhline(0, color="grey", lw=0.5)
         ax.legend()
-    fig.tight_layout()
     save(fig, out / "circle_fits.png")
-    plt.close(fig)
     pick = {m: next(r for r in rows if r[0] == m and r[1] == 30 and r[2] == 0.05) for m in circle.FITS}
     summary = {m: {"bias_mm": r[3], "spread_mm": r[4], "se_mm": r[5]} for m, r in pick.items()}
     write_summary(out, {"arc30_noise005": summary, "replicates": reps})

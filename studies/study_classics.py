@@ -255,8 +255,7 @@ def _table_4_1(entry, basin):
 
 
 def _plot(out, table):
-    plt = figure()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = figure().subplots(1, 2, figsize=(10, 4))
     noise = [k for k in NOISE]
     for m, style in zip(METHODS, ("o-", "s--", "^--")):
         axes[0].loglog(noise, [table[f"k={k:g},n=36"][m]["rmse_mm"] for k in noise], style, label=m)
@@ -273,6 +272,4 @@ def _plot(out, table):
     axes[0].set_xticks(noise, [f"{k:g}" for k in noise])
     axes[0].minorticks_off()
     fig.suptitle("Closed-form baselines against nonlinear least squares")
-    fig.tight_layout()
     save(fig, out / "classics.png")
-    plt.close(fig)

@@ -25,8 +25,7 @@ import handeye
 from handeye.app.tools import sweep
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 CONVENTIONS = ("kuka", "ur", "abb", "fanuc")
 DIAMETERS = (25.4, 50.8, 59.94507, 76.2)
@@ -43,9 +42,7 @@ def cell(seed):
 
 def errors_in_sd(result, truth):
     """|error| / sd per component (translation mm in the flange, rotation about the sensor axes)."""
-    est = result.sensor2flange
-    dt = est[:3, 3] - truth[:3, 3]
-    dr = np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))
+    dt, dr = pose_error(result.sensor2flange, truth)
     sd = np.concatenate([result.std.sensor_translation_mm, result.std.sensor_rotation_deg])
     err = np.abs(np.concatenate([dt, dr]))
     floor = np.array([0.01] * 3 + [0.001] * 3)
@@ -88,16 +85,13 @@ def run(out, quick=False):
                "max_error_in_sd": max(r[8] for r in rows), "polished": sum("polish" in r[12] for r in rows),
                "effect_warnings": sum(r[14] for r in rows), "noise_warnings": sum(r[15] for r in rows)}
     write_summary(out, summary)
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = figure().subplots(figsize=(6, 3.5))
     ax.hist([r[8] for r in rows], bins=30, color="C0")
     ax.axvline(5.0, color="C3", ls="--", label="5 sd")
     ax.set(xlabel="largest |error| / sd over the six components", ylabel="runs",
            title=f"no start pose, random mounts: {summary['converged_at_truth']}/{len(rows)} at the truth, exit 0")
     ax.legend()
-    fig.tight_layout()
     save(fig, f"{out}/honest_default.png")
-    plt.close(fig)
     claim(summary["converged_at_truth"] == len(rows),
           f"every run converges at the truth ({summary['converged_at_truth']} of {len(rows)})")
     claim(false_alarms == 0 and false_successes == 0,

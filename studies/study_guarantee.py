@@ -196,8 +196,7 @@ HEADER = ["seed", "slip", "plan", "convention", "diameter_mm", "poses", "profile
 
 
 def run(out, quick=False):
-    n_cells = 8 if quick else 232
-    rows = sweep.run(one, _tasks(n_cells, quick), label="global guarantee")
+    rows = sweep.run(one, _tasks(8 if quick else 232, quick), label="global guarantee")
     write_table(out, "guarantee", HEADER, rows)
     recs = [dict(zip(HEADER, r)) for r in rows]
     beyond = [r for r in recs if not r["slip"] and r["plan"] == "plan, CAD beyond the margin"]
@@ -227,8 +226,7 @@ def run(out, quick=False):
         "by_slip": {s: [r["exit"] for r in slipped if r["slip"] == s] for s in SLIPS},
     }
     write_summary(out, summary)
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    fig, ax = figure().subplots(figsize=(6.4, 3.6))
     labels = ["correct", "CAD beyond margin"] + list(SLIPS)
     outcome = {0: "exit 0 at the truth", 1: "exit 1", 2: "exit 2 (slip named)", 3: "exit 0 WRONG"}
     left = np.zeros(len(labels))
@@ -241,9 +239,7 @@ def run(out, quick=False):
         left += counts
     ax.set(xlabel="datasets", title=f"exit 0 at a wrong pose: {summary['clean_exit0_wrong'] + summary['slips_exit0_wrong']}")
     ax.legend(loc="lower right")
-    fig.tight_layout()
     save(fig, f"{out}/guarantee.png")
-    plt.close(fig)
     claim(summary["clean_exit0_at_truth"] == len(clean),
           f"every correct dataset exits 0 at the truth ({summary['clean_exit0_at_truth']} of {len(clean)})")
     claim(summary["clean_exit0_wrong"] == 0 and summary["slips_exit0_wrong"] == 0

@@ -22,8 +22,7 @@ from handeye.app.present import figure_style
 from handeye.model.chain.mounts import table2base
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 #: (label, sensor mount, sphere mount, unknowns)
 CELLS = (
@@ -36,9 +35,8 @@ CELLS = (
 def _errors(res, truth):
     """Errors and reported sd of one calibration: (parts -> (errors, sd)) in mm and degrees."""
     est, sd = res.sensor2flange, res.std
-    out = {"sensor t (mm)": (est[:3, 3] - truth["sensor"][:3, 3], sd.sensor_translation_mm),
-           "sensor r (deg)": (np.degrees(rotvec_from_matrix(truth["sensor"][:3, :3].T @ est[:3, :3])),
-                              sd.sensor_rotation_deg),
+    dt, dr = pose_error(est, truth["sensor"])
+    out = {"sensor t (mm)": (dt, sd.sensor_translation_mm), "sensor r (deg)": (dr, sd.sensor_rotation_deg),
            "sphere (mm)": (res.sphere_centre - truth["centre"], sd.sphere_center_mm)}
     if res.positioner is not None and res.positioner.calibrated:
         dist, pred = [], []
@@ -93,8 +91,7 @@ def run(out, quick=False):
 
 def _frame(ax, t, size, alpha=1.0):
     for k, colour in enumerate((figure_style.VERMILLION, figure_style.GREEN, figure_style.BLUE)):
-        end = t[:3, 3] + size * t[:3, k]
-        ax.plot(*np.c_[t[:3, 3], end], color=colour, alpha=alpha, lw=1.2)
+        ax.plot(*np.c_[t[:3, 3], t[:3, 3] + size * t[:3, k]], color=colour, alpha=alpha, lw=1.2)
 
 
 def _fan(ax, sensor2base, z=(190.0, 290.0), half=50.0):
@@ -127,8 +124,7 @@ def draw(out, label, data, res, n_show=8):
     """The cell in 3-D (robot base, mm), around where it measures: flange and sensor frames and laser
     windows of ``n_show`` poses, the sphere at each pose (one drawn), the positioner's axes, and the
     direction to the robot's base."""
-    plt = figure()
-    fig = plt.figure(figsize=(7.5, 6.5))
+    fig = figure().figure(figsize=(7.5, 6.5))
     ax = fig.add_subplot(projection="3d")
     f2b = data.flange2base()
     show = np.linspace(0, len(data) - 1, min(n_show, len(data))).round().astype(int)
@@ -144,8 +140,7 @@ def draw(out, label, data, res, n_show=8):
     ax.scatter(*f2b[:, :3, 3].T, color=figure_style.PURPLE, s=8, label="flange origins")
     if res.positioner is not None:
         for axis in res.positioner.axes:
-            line = axis.point + np.outer([-250.0, 250.0], axis.direction)
-            ax.plot(*line.T, color=figure_style.BLACK, lw=2.5)
+            ax.plot(*(axis.point + np.outer([-250.0, 250.0], axis.direction)).T, color=figure_style.BLACK, lw=2.5)
             ax.text(*(axis.point + 270 * axis.direction), f"axis {axis.name}", fontsize=9)
     every = np.vstack([f2b[:, :3, 3], centres, [s[:3, 3] for s in sensors]])
     mid, span = every.mean(axis=0), (every.max(axis=0) - every.min(axis=0)).max() / 2 + 60
@@ -157,6 +152,4 @@ def draw(out, label, data, res, n_show=8):
     ax.set_title(f"{label}: {data.mounts.describe()}\n(frames: x vermillion, y green, z blue; laser window orange; "
                  "robot base frame)", fontsize=10)
     ax.legend(loc="upper left")
-    fig.tight_layout()
     save(fig, out / f"cell_{label}.png")
-    plt.close(fig)

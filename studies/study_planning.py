@@ -17,11 +17,10 @@ import numpy as np
 import handeye
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common import scratch
-from handeye.model.common.rotation import rotvec_from_matrix
 from handeye.model.datasets.dataset import load
 from handeye.model.design import bounds, planning
 from handeye.model.simulation import simulate
-from handeye.studies.study import claim, figure, save, write_summary, write_table
+from handeye.studies.study import claim, figure, pose_error, save, write_summary, write_table
 
 
 def _rmse(setup, ids, poses, reps):
@@ -32,9 +31,7 @@ def _rmse(setup, ids, poses, reps):
             sim = simulate.simulate(setup, seed=500 + r, flange_poses=poses, ids=ids)
             d = load(simulate.write(sim, f"{tmp}/r{r}", profiles=True))
             res = handeye.calibrate(d, method="lm", model="measurement", no_loo=True, keep_all=True)
-            est = res.sensor2flange
-            errs.append(np.concatenate([est[:3, 3] - truth[:3, 3],
-                                        np.degrees(rotvec_from_matrix(truth[:3, :3].T @ est[:3, :3]))]))
+            errs.append(np.concatenate(pose_error(res.sensor2flange, truth)))
     return np.sqrt(np.mean(np.array(errs) ** 2, axis=0))
 
 
@@ -46,8 +43,7 @@ def run(out, quick=False):
     thesis = [k for k, i in enumerate(ids) if i.endswith("@15")]
     rows, summary = [], {"N": {}}
     for n in (6, 8, 12, 18, 24, 36):
-        pick = np.unique(np.round(np.linspace(0, 35, n)).astype(int))
-        t_sel = [thesis[k] for k in pick]
+        t_sel = [thesis[k] for k in np.unique(np.round(np.linspace(0, 35, n)).astype(int))]
         p_sel, value = planning.select(info, n)
         t_sd = planning.predicted_sd(info[t_sel].sum(axis=0))
         p_sd = planning.predicted_sd(info[p_sel].sum(axis=0))
@@ -73,8 +69,7 @@ def run(out, quick=False):
     predicted = planning.predicted_sd(info[p12].sum(axis=0))
     summary["planned12"] = {"predicted_sd": predicted.tolist(), "observed_rmse": observed.tolist(), "replicates": reps,
                             "ids": [ids[k] for k in p12]}
-    plt = figure()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = figure().subplots(1, 2, figsize=(10, 4))
     ns = [r[0] for r in rows]
     axes[0].plot(ns, [r[3] for r in rows], "o-", label="thesis strategy (cut 15 mm)")
     axes[0].plot(ns, [r[4] for r in rows], "s-", label="D-optimal from 108 candidates")
@@ -88,9 +83,7 @@ def run(out, quick=False):
     axes[1].set(xlabel="distance of the laser plane from the centre (mm)", ylabel="largest sd bound",
                 title="36 thesis poses against the cut distance")
     axes[1].legend()
-    fig.tight_layout()
     save(fig, out / "planning.png")
-    plt.close(fig)
     write_summary(out, summary)
     ratio = observed / predicted
     tol = 0.35 * (1 + 2 / np.sqrt(reps)) if quick else 0.35

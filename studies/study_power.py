@@ -67,9 +67,8 @@ UNITS = {"sphere_center": ("offset (mm)", 1.0), "sensor_scale": ("scale error s 
 
 def _draw(out, summary, seeds):
     """Detection rate against size per effect, with Wilson 95 % intervals (n = seeds per size)."""
-    plt = figure()
     effects = summary["effects"]
-    fig, axes = plt.subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)
+    fig, axes = figure().subplots(1, len(effects), figsize=(4.4 * len(effects), 4.0), sharey=True, squeeze=False)
     for ax, (name, s) in zip(axes[0], effects.items()):
         label, scale = UNITS[name]
         sizes, rates = np.asarray(s["sizes"]) * scale, np.asarray(s["rates"])
@@ -83,6 +82,4 @@ def _draw(out, summary, seeds):
     axes[0, 0].set_ylabel("detection rate")
     fig.suptitle(f"power of handeye diagnose ({seeds} datasets per size, 36 thesis poses; "
                  "bars: Wilson 95 % intervals; dashed: 90 %)")
-    fig.tight_layout()
     save(fig, out / "power.png")
-    plt.close(fig)

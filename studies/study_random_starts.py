@@ -145,12 +145,11 @@ PARAM_STYLE = {"euler": (figure_style.BLUE, "o", -1), "local": (figure_style.VER
 def _draw(out, rows, methods, n_starts):
     """Small multiples: one panel per method, the success rate of each parametrisation against
     the start's rotation error (Wilson 95 % intervals), beside the rate with the closed-form restart."""
-    plt = figure()
     families = sorted({m.split("/")[0] for m in methods})
     cols = min(4, len(families))
     nrows = -(-len(families) // cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(3.4 * cols, 3.2 * nrows + 0.8), sharex=True, sharey=True,
-                             squeeze=False)
+    fig, axes = figure().subplots(nrows, cols, figsize=(3.4 * cols, 3.2 * nrows + 0.8), sharex=True, sharey=True,
+                                  squeeze=False)
     bins = np.linspace(0, 180, 7)
     mid, width = 0.5 * (bins[1:] + bins[:-1]), bins[1] - bins[0]
     for ax, family in zip(axes.flat, families):
@@ -179,9 +178,7 @@ def _draw(out, rows, methods, n_starts):
     axes[0, 0].set_ylim(-0.04, 1.06)
     fig.suptitle(f"convergence from {n_starts} random starts (translations 0-500 mm off; "
                  "bars: Wilson 95 % intervals)")
-    fig.tight_layout()
     save(fig, out / "random_starts.png")
-    plt.close(fig)
 
 
 def _rate(ax, x, idx, ok, nbins, label, **style):

@@ -47,17 +47,14 @@ def run(out, quick=False):
                "screened_rms_mm": float(screened[0][1][0].rms_mm),
                "unscreened_rms_mm": [float(v[0].rms_mm) for k, v in results.items() if not k[0]],
                "table_7_4_distance": [float(x) for x in transform_distance(ref, thesis)]}
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = figure().subplots(figsize=(10, 4))
     for screened_flag, label in ((False, "every sample (as the thesis)"), (True, "gross errors screened")):
         res = results[(screened_flag, "ipopt", "matrix")][0]
         ax.semilogy([r.norm for r in res.residuals], "o-" if screened_flag else "s--", label=label, ms=4)
     ax.set_xticks(range(len(d)), d.ids, rotation=90)
     ax.set(ylabel="|e_i| (mm)", title="thesis-real: residual per measurement (IPOPT, matrix)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "real_data.png")
-    plt.close(fig)
     write_summary(out, summary)
     claim(spread < 1e-4, f"every screened fit lands on the same transform (spread {spread:.1e})")
     claim(summary["screened_rms_mm"] < 10 and min(summary["unscreened_rms_mm"]) > 300,

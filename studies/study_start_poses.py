@@ -54,16 +54,12 @@ def run(out, quick=False):
             ok = [r for r in sel if r[4] and r[5] < 1e-6 and r[6] < 1e-6]
             summary[f"{method}/{rotation}"] = {"reached_truth": len(ok), "of": len(sel),
                                                "iterations": [r[3] for r in sel]}
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = figure().subplots(figsize=(10, 4))
     labels = list(summary)
-    data = [summary[k]["iterations"] for k in labels]
-    ax.boxplot(data)
+    ax.boxplot([summary[k]["iterations"] for k in labels])
     ax.set_xticks(range(1, len(labels) + 1), labels, rotation=45, ha="right", rotation_mode="anchor")
     ax.set(ylabel="iterations", title="thesis-sim from Table 7-2's ten starts")
-    fig.tight_layout()
     save(fig, out / "start_poses.png")
-    plt.close(fig)
     write_summary(out, summary)
     for key, s in summary.items():
         claim(s["reached_truth"] == s["of"], f"{key} reaches the truth from all ten starts")

@@ -134,10 +134,6 @@ def x0max(method, minimum, step=0.05, reach=50.0):
             "converges_beyond": bool(ok[last:].any())}
 
 
-def _x0max_task(method, minimum, step):
-    return x0max(method, minimum, step=step)
-
-
 def run(out, quick=False):
     n = 15 if quick else 301
     stride = 1 if quick else IPOPT_STRIDE
@@ -148,7 +144,7 @@ def run(out, quick=False):
     t0 = time.perf_counter()
     step = 1.0 if quick else 0.05
     pairs = [(m, mn) for m in METHODS for mn in ("global", "local")]  # one task each: IPOPT's two run side by side
-    found = sweep.run(_x0max_task, [(m, mn, step) for m, mn in pairs], label="x0max")
+    found = sweep.run(x0max, [(m, mn, step) for m, mn in pairs], label="x0max")
     table = {m: {} for m in METHODS}
     for (m, mn), entry in zip(pairs, found):
         table[m][mn] = entry
@@ -225,6 +221,4 @@ def _draw(out, maps, grids, n):
                                                        for k in KINDS],
                    loc="lower center", ncol=4, frameon=False)
         fig.suptitle(f"basins of attraction on (6-16), {n} x {n} starts over [{axis[0]:g}, {axis[-1]:g}]^2")
-        fig.tight_layout(rect=(0, 0.05, 1, 1))
-        save(fig, out / f"basins_{label}.png")
-        plt.close(fig)
+        save(fig, out / f"basins_{label}.png", rect=(0, 0.05, 1, 1))

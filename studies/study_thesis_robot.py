@@ -58,8 +58,7 @@ def _with_joints(src, folder, joints, keep):
 
 def run(out, quick=False):
     data = handeye.load_dataset("thesis-real")
-    model = robots.load("kr60ha")
-    joints, ok = sr.inverse_kinematics(model, np.asarray(data.flange2base()), "kr60ha")
+    joints, ok = sr.inverse_kinematics(robots.load("kr60ha"), np.asarray(data.flange2base()), "kr60ha")
     claim(ok.mean() >= 0.9, f"the KR 60 HA's inverse kinematics reproduces {ok.sum()} of {len(ok)} printed poses")
     keep = {i: q for i, q, k in zip(data.ids, joints, ok) if k}
     with scratch.temporary_folder() as tmp:
@@ -84,8 +83,7 @@ def run(out, quick=False):
 
 def _draw(out, plain, with_joints):
     """Each sample's residual after diagnose without and with the reconstructed joint angles."""
-    plt = figure()
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = figure().subplots(figsize=(10, 4))
     ids = [r.id for r in plain.residuals]
     after = {r.id: r.after_mm for r in with_joints.residuals}
     k = np.arange(len(ids))
@@ -97,6 +95,4 @@ def _draw(out, plain, with_joints):
     ax.set(ylabel="|e_i| after diagnose (mm, log; the tall bars are the gross errors diagnose excludes)", yscale="log",
            title="thesis-real: what joint offsets can explain (angles reconstructed)")
     ax.legend()
-    fig.tight_layout()
     save(fig, out / "thesis_robot.png")
-    plt.close(fig)

@@ -55,12 +55,12 @@ def _sizes(text, option):
 
 
 def _bench(args):
+    from handeye.app.common.errors import RequestError
+
     if args.solvers:
         from handeye.app.tools import bench_solvers
 
         if args.plot:
-            from handeye.app.common.errors import RequestError
-
             raise RequestError("--plot draws the calibration bench; the solver bench (--solvers) prints tables")
         res = bench_solvers.run(quick=args.quick, with_study=not args.no_study)
         print(dumps(res) if args.json else bench_solvers.text(res))
@@ -70,8 +70,6 @@ def _bench(args):
     try:
         import scipy.optimize  # noqa: F401 - the baseline of every ratio
     except ImportError:
-        from handeye.app.common.errors import RequestError
-
         raise RequestError("handeye bench compares against scipy, which is not installed: "
                            "pip install 'handeye[bench]'") from None
 
@@ -223,9 +221,7 @@ def _json_error(args, exc, code):
     if not getattr(args, "json", False):
         return
     out = {"error": str(exc), "exit_code": code, "command": args.command, "dataset": getattr(args, "dataset", None)}
-    for key in ("file", "row", "column"):
-        if getattr(exc, key, None) is not None:
-            out[key] = getattr(exc, key)
+    out.update({key: getattr(exc, key) for key in ("file", "row", "column") if getattr(exc, key, None) is not None})
     print(dumps(out))
 
 

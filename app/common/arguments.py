@@ -36,9 +36,7 @@ def load_dataset(name_or_folder, clean=True):
     """
     from handeye.model.datasets.dataset import Dataset, load
 
-    if isinstance(name_or_folder, Dataset):
-        return name_or_folder
-    return load(_path_argument(name_or_folder), clean=bool(clean))
+    return name_or_folder if isinstance(name_or_folder, Dataset) else load(_path_argument(name_or_folder), clean=bool(clean))
 
 
 def _path_argument(value):

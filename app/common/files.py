@@ -67,22 +67,26 @@ def _writable(folder, option, path):
         raise RequestError(f"{option} {path}: cannot write in {folder}: {exc.strerror or exc}") from None
 
 
+def _existing_folder(path, option):
+    """The folder a file ``path`` goes into; RequestError naming ``option`` when it does not exist."""
+    folder = pathlib.Path(path).parent
+    if not folder.is_dir():
+        raise RequestError(f"{option} {path}: folder {folder} does not exist")
+    return folder
+
+
 def check_output_path(path, option, inputs=(), plot=False):
     """Refuse, before any work, an output file that cannot be written or that is an input.
 
     The folder must exist and take a new file; the path must not be a folder, nor resolve
     (symlinks followed) to one of ``inputs``. Raises :class:`RequestError` naming ``option``.
     """
-    target = pathlib.Path(path)
-    folder = target.parent if str(target.parent) else pathlib.Path(".")
-    if not folder.is_dir():
-        raise RequestError(f"{option} {path}: folder {folder} does not exist")
+    target, folder = pathlib.Path(path), _existing_folder(path, option)
     if target.is_dir():
         raise RequestError(f"{option} {path}: is a folder; give a file name")
     if target.exists() and not target.is_file():
         raise RequestError(f"{option} {path}: is not a regular file (a device or a pipe); give a file name")
-    resolved = target.resolve()
-    if resolved in {pathlib.Path(i).resolve() for i in inputs} or any(_same_file(target, i) for i in inputs):
+    if target.resolve() in {pathlib.Path(i).resolve() for i in inputs} or any(_same_file(target, i) for i in inputs):
         raise RequestError(f"{option} {path}: is a file this command reads; it would be overwritten -- choose another")
     if plot and target.suffix.lower().lstrip(".") not in PLOT_FORMATS:
         raise RequestError(f"{option} {path}: a figure needs one of the extensions {', '.join(PLOT_FORMATS)}")
@@ -101,10 +105,7 @@ def check_output_folder(path, option, empty=False):
             raise RequestError(f"{option} {path}: exists and is not an empty folder; choose a new one")
         _writable(target, option, path)
         return target
-    parent = target.parent if str(target.parent) else pathlib.Path(".")
-    if not parent.is_dir():
-        raise RequestError(f"{option} {path}: folder {parent} does not exist")
-    _writable(parent, option, path)
+    _writable(_existing_folder(path, option), option, path)
     return target
 
 
@@ -114,9 +115,8 @@ def write_folder_atomically(folder, write, option="--out"):
     what was there before (:mod:`handeye.model.common.scratch` removes the temporary folder). The
     folder gets the umask's mode, as ``mkdir`` would give it. Raises :class:`RequestError`."""
     target = pathlib.Path(folder)
-    parent = target.parent if str(target.parent) else pathlib.Path(".")
     try:
-        with scratch.temporary_folder(dir=parent, prefix=f".{target.name}.", ignore_cleanup_errors=True) as tmp:
+        with scratch.temporary_folder(dir=target.parent, prefix=f".{target.name}.", ignore_cleanup_errors=True) as tmp:
             write(pathlib.Path(tmp))
             os.chmod(tmp, 0o777 & ~_umask())
             with scratch.signals_held():
@@ -155,10 +155,7 @@ def _atomically(path, option, mode, write):
     temporary file removed when anything fails or a signal ends the run (:mod:`handeye.model.common.scratch`).
     The file gets :func:`output_mode`'s permissions, not the temporary file's private 0600.
     Raises :class:`RequestError` naming ``option``."""
-    target = pathlib.Path(path)
-    folder = target.parent if str(target.parent) else pathlib.Path(".")
-    if not folder.is_dir():
-        raise RequestError(f"{option} {path}: folder {folder} does not exist")
+    target, folder = pathlib.Path(path), _existing_folder(path, option)
     name = None
     try:
         with scratch.signals_held():

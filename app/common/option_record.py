@@ -111,9 +111,7 @@ def _rst(text):
 
 def _plain(text):
     """A help text as the command line prints it: no markup (argparse's ``%`` escaped)."""
-    if text is None:
-        return None
-    return re.sub(r":\w+:`~?([^`]+)`", r"\1", _rst(text)).replace("``", "").replace("%", "%%")
+    return None if text is None else re.sub(r":\w+:`~?([^`]+)`", r"\1", _rst(text)).replace("``", "").replace("%", "%%")
 
 
 def _markdown(text):

@@ -40,6 +40,11 @@ def _json(text=None):
     return Opt("--json", action="store_true", help=text, keyword="")
 
 
+def _dataset(help=None, kind="value"):
+    """A command's dataset, by default thesis-real: an embedded dataset's name, a folder or a Dataset."""
+    return Opt("dataset", "thesis-real", nargs="?", help=help, kind=kind, pytype="str, pathlib.Path or Dataset")
+
+
 def _held(flag):
     """A saved calibration (``--calibration``, or export's positional RESULT.json) or a sensor pose typed
     in, its convention, and ``--force``: what export, cloud and validate use."""
@@ -54,9 +59,7 @@ def _held(flag):
 
 
 _CALIBRATE = (
-    Opt('dataset', 'thesis-real', kind='path', nargs='?',
-        help='an embedded dataset (`handeye datasets`: `thesis-real`, `thesis-sim`) or a folder',
-        pytype='str, pathlib.Path or Dataset'),
+    _dataset('an embedded dataset (`handeye datasets`: `thesis-real`, `thesis-sim`) or a folder', kind='path'),
     Opt('--unknowns', 'sensor', metavar='PARTS',
         help="what to estimate, `+`-joined in any order: `sensor` (6: the sensor frame in its mount's frame), `sphere` (3: the"
              " centre in its mount's frame), `positioner` (4 per axis); e.g. `sensor+sphere`, `sphere+positioner`, "
@@ -185,8 +188,7 @@ _SIMULATE = (
 )
 
 _DIAGNOSE = (
-    Opt('dataset', 'thesis-real', kind='path', nargs='?',
-        pytype='str, pathlib.Path or Dataset'),
+    _dataset(kind='path'),
     Opt('--alpha', ALPHA, check=('level',), type='float', help=f'family-wise level of the tests (default {ALPHA:g})'),
     _json(),
     Opt('--no-clean', action='store_true', help='fit every profile point: no profile cleaning'),
@@ -266,8 +268,7 @@ _COMPARE = (
     _json(),
 )
 _REPORT = (
-    Opt('dataset', 'thesis-real', nargs='?', help='embedded dataset name or folder',
-        pytype='str, pathlib.Path or Dataset'),
+    _dataset('embedded dataset name or folder'),
     Opt('--html', metavar='OUT.html', required=True, help='The HTML file to write (atomically; never over an input).',
         kind='path'),
     Opt('--calibration', metavar='FILE', kind='path',

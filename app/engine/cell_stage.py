@@ -97,8 +97,7 @@ def turning_axes(dataset, least=3):
 def fit(dataset, free, sensor, centre, mask, axes=None):
     """Fit the ``free`` parts from the sensor 4x4 and centre given, on the samples of ``mask``
     (``axes``: with the positioner free, the axes estimated; None: all)."""
-    model = cell_model(dataset, free, axes)
-    model = model.subset(np.asarray(mask, bool))
+    model = cell_model(dataset, free, axes).subset(np.asarray(mask, bool))
     axes = dataset.mounts.axes if "positioner" in free else ()
     x0 = pack(sensor, centre, axes)
     check_determined(model, x0, dataset.path)
@@ -118,10 +117,9 @@ def fit(dataset, free, sensor, centre, mask, axes=None):
 
 def _block_sd(fitted, part_names):
     """1-sd of the named step coordinates (zeros where a part was held)."""
-    names = fitted.model.names
     if fitted.covariance is None:
         return np.full(len(part_names), np.nan)
-    sd = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None))
+    sd, names = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)), fitted.model.names
     return np.array([sd[names.index(n)] if n in names else 0.0 for n in part_names])
 
 
@@ -165,7 +163,7 @@ def extend(request, dataset, stages):
     centre = result.sphere_centre if "sphere" in free else dataset.sphere_centre  # held: the setup's
     fitted = fit(dataset, free, result.sensor2flange if held is None else held, centre, mask_of(result))
     for _ in range(PASSES - 1 if "positioner" in free else 0):
-        dataset = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted))
+        dataset = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes))  # the fitted axes: the next start
         mask = mask_of(result)
         result = stages(request, dataset)
         if not solved(result):
@@ -182,21 +180,15 @@ def solved(result):
     return result.rms_mm is not None and bool(np.all(np.isfinite(result.sensor2flange)))
 
 
-def refined_mounts(dataset, fitted):
-    """The mounts with the fitted axes as the cell fit's start (refining from where it stopped)."""
-    return dataset.mounts.at(fitted.axes)
-
-
 def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
-    data = dataclasses.replace(dataset, mounts=refined_mounts(dataset, fitted)) if fitted.axes else dataset
+    data = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes)) if fitted.axes else dataset
     xs = np.column_stack([data.centre_in_sensor, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
     norms, used = np.linalg.norm(e, axis=1), mask_of(result)
     loo = getattr(result.residuals, "loo", None)
-    if loo is None:
-        loo = [getattr(r, "loo", float("nan")) for r in result.residuals]
+    loo = [getattr(r, "loo", float("nan")) for r in result.residuals] if loo is None else loo
     return {"residuals": ResidualTable(data.ids, data.rows, e, norms, used, loo),
             "rms_mm": float(np.sqrt(np.mean(norms[used] ** 2))), "max_residual_mm": float(norms[used].max()),
             "cost_mm2": float(0.5 * np.sum(norms[used] ** 2))}
@@ -205,14 +197,11 @@ def final_residuals(dataset, result, fitted):
 def reversed_axes(fitted, nominal):
     """Warnings for fitted axes that point against their set-up direction (the same rotations with the
     angles counted the other way round: right, but the setup's sign is not the controller's)."""
-    out = []
-    for axis, nom in zip(fitted.axes, nominal):
-        turn = float(np.degrees(np.arccos(np.clip(axis.direction @ nom.direction, -1.0, 1.0))))
-        if turn > 90.0:
-            out.append(f"positioner axis {axis.name} points {turn:.1f} deg from its direction in [positioner] axes: its "
-                       "angles count the other way round (negate its direction in setup.toml, or check the "
-                       "controller's sign of that axis)")
-    return out
+    turns = ((axis, float(np.degrees(np.arccos(np.clip(axis.direction @ nom.direction, -1.0, 1.0)))))
+             for axis, nom in zip(fitted.axes, nominal))
+    return [f"positioner axis {axis.name} points {turn:.1f} deg from its direction in [positioner] axes: its angles count "
+            "the other way round (negate its direction in setup.toml, or check the controller's sign of that axis)"
+            for axis, turn in turns if turn > 90.0]
 
 
 #: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...
@@ -282,9 +271,7 @@ def compose(request, dataset, result, fitted, free, nominal):
     warnings += reversed_axes(fitted, nominal)
     if not fitted.ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {fitted.ident.describe_null()}")
-    positioner = None
-    if dataset.mounts.sphere == "positioner":
-        positioner = positioner_record(fitted, nominal, "positioner" in free)
+    positioner = positioner_record(fitted, nominal, "positioner" in free) if dataset.mounts.sphere == "positioner" else None
     return dataclasses.replace(result, unknowns=request.parts, fit=fit_part, uncertainty=unc,
                                identifiability=fitted.ident, warnings=warnings, positioner=positioner)
 

@@ -86,9 +86,8 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
     if est.details.get("orthogonality_error", 0) > 0.01:
         warnings.append(f"the linear solution's rotation block was {est.details['orthogonality_error']:.3g} from "
                         "orthogonal (|R^T R - I|) before projection onto SO(3)")
-    pose = pose_from_transform(est.sensor2flange)
     fit = FitRecord(
-        sensor2flange=est.sensor2flange, sensor_pose_kuka=pose,
+        sensor2flange=est.sensor2flange, sensor_pose_kuka=pose_from_transform(est.sensor2flange),
         sensor_pose=conventions.pose_from(convention, est.sensor2flange), sphere_centre=np.asarray(centre, float),
         converged=True, status=None, message="closed-form estimate (no iterations)",
         n_used=int(mask.sum()), rms_mm=float(np.sqrt(np.mean(norms[mask] ** 2))),

@@ -59,9 +59,7 @@ def outputs_checked(data, paths):
     from handeye.app.common.files import check_output_folder, check_output_path, input_files
 
     inputs = input_files(data) if any(path is not None for path in paths.values()) else ()
-    for option, path in paths.items():
-        if path is None:
-            continue
+    for option, path in ((option, path) for option, path in paths.items() if path is not None):
         if option == "--figures":  # a folder, with the two files it will write
             check_output_folder(path, option)
             if pathlib.Path(path).is_dir():

@@ -106,11 +106,9 @@ def _deletion_steps(model, x, mask):
     try:
         inv_l = np.linalg.inv(np.linalg.cholesky(info))
     except np.linalg.LinAlgError:
-        nan = np.full(jtr.shape, np.nan)
-        return nan, np.full(len(jtr), np.nan), others, info
+        return np.full(jtr.shape, np.nan), np.full(len(jtr), np.nan), others, info
     leverage = np.linalg.eigvalsh(inv_l @ jtj @ inv_l.T)[:, -1]
-    step = _deletion_step(info, jtj, jtr)
-    return step, leverage, others, info
+    return _deletion_step(info, jtj, jtr), leverage, others, info
 
 
 @dataclasses.dataclass(frozen=True)

@@ -47,15 +47,9 @@ def gross_error_warnings(ids, norms):
     med = float(np.median(norms))
     spread = 1.4826 * float(np.median(np.abs(norms - med)))
     limit = med + GROSS_ERROR_Z * max(spread, 1e-9)
-    out = []
-    for i, n in zip(ids, norms):
-        if n > limit:
-            out.append(
-                f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
-                f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
-                "the whole calibration is pulled by it -- check or remove that sample"
-            )
-    return out
+    return [f"measurement {i!r} has residual {n:.2f} mm, above {limit:.2f} mm (median {med:.2f} mm + "
+            f"{GROSS_ERROR_Z:g} robust sd): a gross error is likely (misprint, wrong side, bad profile); "
+            "the whole calibration is pulled by it -- check or remove that sample" for i, n in zip(ids, norms) if n > limit]
 
 
 def rms(values):
@@ -92,9 +86,7 @@ def command_argument(dataset):
     command would read instead) is given by its full path.
     """
     path = pathlib.Path(dataset.path)
-    if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists():
-        return shlex.quote(dataset.name)
-    return shlex.quote(str(path))
+    return shlex.quote(dataset.name if path.parent == DATA_DIR and not pathlib.Path(dataset.name).exists() else str(path))
 
 
 def diagnose_advice(dataset, centre_given=True):
@@ -385,9 +377,7 @@ def describe_fit(final):
     dataset, mask, fit, warnings = final.dataset, final.mask, final.fit, final.warnings
     loo, outliers_on, sigma = final.request.loo, final.request.outliers, final.request.sigma
     advice = diagnose_advice(dataset, final.centre_given)
-    note = robot_choice.unmodelled(dataset)
-    if note:
-        warnings.append(note)
+    warnings.extend(filter(None, [robot_choice.unmodelled(dataset)]))
     local, sensor, centre = fit.local, fit.sensor, fit.centre
     e = _all_residuals(dataset, local.unknowns, sensor, centre)
     norms = np.linalg.norm(e, axis=1)
@@ -520,20 +510,14 @@ def _fit_record(prep, verified):
         solver_extra={k: v for k, v in result.extra.items() if k in ("rank_deficient_steps", "return_status")})
 
 
-def _nominal_positioner(dataset):
-    """The positioner's axes as set up (held: the stages work at these axes), or None."""
-    if dataset.mounts.sphere != "positioner":
-        return None
-
-    return PositionerRecord(dataset.mounts.axes, dataset.mounts.axes)
-
-
 def result(prep, screened, verified, warnings):
     """The :class:`CalibrationResult` of the stages' records (:mod:`handeye.app.engine.calibrate`)."""
     request, dataset, mask = prep.request, prep.dataset, screened.mask
     warnings = [*prep.warnings, *screened.warnings, *warnings, *verified.warnings]
     base = _fit_record(prep, verified)
     start = prep.start_pose
+    # a positioner's axes as set up (held: the stages work at these axes)
+    positioner = PositionerRecord(dataset.mounts.axes, dataset.mounts.axes) if dataset.mounts.sphere == "positioner" else None
     header = dict(
         dataset=dataset.name, dataset_path=str(dataset.path), dataset_sha256=dataset.content_hash(),
         method=request.method, rotation=request.rotation, unknowns=request.unknowns, model=prep.kind,
@@ -542,7 +526,7 @@ def result(prep, screened, verified, warnings):
         start_pose_kuka=start, start_used=verified.start_used, convention=request.convention,
         columns=conventions.columns(request.convention), global_check=verified.global_check,
         screening=ScreeningRecord(list(screened.excluded), screened.before), warnings=warnings,
-        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=_nominal_positioner(dataset),
+        sensor_mount=dataset.mounts.sensor, sphere_mount=dataset.mounts.sphere, positioner=positioner,
         robot_model=None if getattr(dataset, "robot_model", None) is None else dataset.robot_model.spec)
     fit = verified.fit
     if fit.local is None:  # numerical failure: nothing to describe, but the same complete type

@@ -74,19 +74,16 @@ def _euler(sequence, reverse, radians):
 
 
 def _known(sequence, reverse, radians):
-    if sequence == "zyx" and not radians:
-        return "fanuc" if reverse else "kuka"
-    return None
+    return ("fanuc" if reverse else "kuka") if sequence == "zyx" and not radians else None
 
 
 def _euler_name(sequence, reverse, radians, columns):
     known = {"kuka": "KUKA A,B,C", "fanuc": "FANUC W,P,R"}.get(_known(sequence, reverse, radians))
-    unit = "rad" if radians else "deg"
-    if known and not radians:
+    if known:  # (only in degrees)
         return known
-    cols = ",".join(columns[::-1] if reverse else columns)
-    return (f"Euler angles {'-'.join(sequence.upper())} (intrinsic, R = R{sequence[0]}({cols.split(',')[0]}) "
-            f"R{sequence[1]}({cols.split(',')[1]}) R{sequence[2]}({cols.split(',')[2]}), {unit})")
+    c = columns[::-1] if reverse else columns
+    return (f"Euler angles {'-'.join(sequence.upper())} (intrinsic, R = R{sequence[0]}({c[0]}) R{sequence[1]}({c[1]}) "
+            f"R{sequence[2]}({c[2]}), {'rad' if radians else 'deg'})")
 
 
 def readings(k, columns):
@@ -152,9 +149,8 @@ def _chain(dataset, flange2base):
 
 def raw_poses(dataset):
     """The file's pose numbers (N, 3 + k) in the dataset's convention."""
-    if dataset.raw_poses is not None:
-        return np.asarray(dataset.raw_poses, float)
-    return conventions.pose_from(dataset.convention, dataset.flange2base())
+    return (np.asarray(dataset.raw_poses, float) if dataset.raw_poses is not None
+            else conventions.pose_from(dataset.convention, dataset.flange2base()))
 
 
 def candidates(dataset):
@@ -308,15 +304,12 @@ def fix(candidate, dataset):
         cols = ",".join(conventions.columns(dataset.convention)[3:])
         steps.append(f"convert the orientation columns of {measurements} from {candidate.reading.name} to "
                      f"{dataset.convention} {cols} (handeye reads kuka, fanuc, abb and ur; see model/chain/conventions.py)")
-    if candidate.inverted and dataset.mounts.default:
+    if candidate.inverted:
         steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
-                     "flange, as a tf lookup of base in flange gives it) -- unless the sensor is fixed in the cell and "
-                     f'the robot carries the sphere: then the poses are right, and {setup} needs [sensor] mount = '
-                     '"world" and [sphere] mount = "flange" (the same data fit either way: only you know which cell '
-                     "it is)")
-    elif candidate.inverted:
-        steps.append("write the flange in the robot base (the inverse of each pose: the file holds the base in the "
-                     "flange, as a tf lookup of base in flange gives it)")
+                     "flange, as a tf lookup of base in flange gives it)" + (
+                         " -- unless the sensor is fixed in the cell and the robot carries the sphere: then the poses "
+                         f'are right, and {setup} needs [sensor] mount = "world" and [sphere] mount = "flange" (the same '
+                         "data fit either way: only you know which cell it is)" if dataset.mounts.default else ""))
     if candidate.unit:
         steps.append(f"write the positions{' and the [sphere] center' if candidate.centre_scaled else ''} in "
                      f"millimetres (x {candidate.scale:g}: they look like {candidate.unit})")

@@ -108,9 +108,8 @@ class Procedure:
 
 
 def _summaries(prob, structure, fit, mask):
-    e = fit.e[mask]
     return {
-        "rms_mm": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
+        "rms_mm": _rms(fit, mask),
         "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
         "heldout_rms_mm": prob.heldout_rms(structure, mask, fit),
@@ -155,7 +154,6 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
         dataset, prob = axes.dataset, run.prob
         fit = prob.fit(structure, mask, fit.x)
         run.steps.append({"step": "+ positioner_axes", **_summaries(prob, structure, fit, mask)})
-    flips, outliers = [], []
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
         structure, fit = _search(run, structure, fit)
         previous = (mask.copy(), structure.flips)
@@ -327,18 +325,10 @@ def _outlier_step_label(dataset, previous, mask, flips):
     """What the final outlier test changed, said: a step that raises the RMS says that it
     reinstates samples (more data, not a worse model)."""
     before_mask, before_flips = previous
-    ids = dataset.ids
-    parts = []
     new_flips = sorted(set(flips) - set(before_flips))
-    if new_flips:
-        parts.append("sign_flip " + ",".join(ids[i] for i in new_flips))
     back = [i for i in np.where(mask & ~before_mask)[0] if i not in new_flips]
-    if back:
-        parts.append("reinstated " + ",".join(ids[i] for i in back))
-    out = np.where(~mask & before_mask)[0]
-    if len(out):
-        parts.append("excluded " + ",".join(ids[i] for i in out))
-    return "outliers: " + "; ".join(parts)
+    changes = (("sign_flip", new_flips), ("reinstated", back), ("excluded", np.where(~mask & before_mask)[0]))
+    return "outliers: " + "; ".join(f"{what} " + ",".join(dataset.ids[i] for i in rows) for what, rows in changes if len(rows))
 
 
 def _extend(structure, name):
@@ -363,9 +353,7 @@ def _confirmed(run, base_structure, base, structure, new):
     f_stat = ((base.ssr - new.ssr) / k) / (new.ssr / (new.m - new.p))
     p_f = f_survival(f_stat, k, new.m - new.p)
     d_bic = new.m * np.log(new.ssr / base.ssr) + k * np.log(new.m)
-    if not (p_f < alpha and d_bic < 0):
-        return False
-    return prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
+    return p_f < alpha and d_bic < 0 and prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
 
 
 def _backward(prob, structure, fit, mask, alpha, centre_unknown=False):
@@ -446,41 +434,26 @@ def _report(run, structure, fit, flips, outliers):
     if flips:
         named.append(NamedEffect("sign_flip", {"ids": [d.ids[i] for i in flips]}, None))
     sensor = prob.transform(fit.x)
-    after_norms = np.linalg.norm(fit.e, axis=1)
-
     return DiagnosisResult(
-        centre_fitted=bool(structure.centre),
-        convention=d.convention,
-        columns=conventions.columns(d.convention),
+        centre_fitted=bool(structure.centre), convention=d.convention, columns=conventions.columns(d.convention),
         sensor_pose_as=conventions.pose_from(d.convention, sensor),
         std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        dataset=d.name,
-        effects=named,
-        outliers=[d.ids[i] for i in outliers],
-        absorbed_by=run.absorbed,
-        rms_before_mm=before["rms_mm"],
-        rms_after_mm=after["rms_mm"],
-        heldout_rms_before_mm=before["heldout_rms_mm"],
-        heldout_rms_after_mm=after["heldout_rms_mm"],
-        chi2_dof_before=before["chi2_dof"],
-        chi2_dof_after=after["chi2_dof"],
-        nominal_sigma_mm=prob.sigma,
-        sigma_after_mm=after["sigma_mm"],
-        sensor_pose=pose_from_transform(sensor),
-        sensor2flange=sensor,
+        dataset=d.name, effects=named, outliers=[d.ids[i] for i in outliers], absorbed_by=run.absorbed,
+        rms_before_mm=before["rms_mm"], rms_after_mm=after["rms_mm"],
+        heldout_rms_before_mm=before["heldout_rms_mm"], heldout_rms_after_mm=after["heldout_rms_mm"],
+        chi2_dof_before=before["chi2_dof"], chi2_dof_after=after["chi2_dof"],
+        nominal_sigma_mm=prob.sigma, sigma_after_mm=after["sigma_mm"],
+        sensor_pose=pose_from_transform(sensor), sensor2flange=sensor,
         sphere_centre=np.asarray(prob.centre(structure, fit.x), float),
         effect_correlations={"names": [fit.names[k] for k in all_cols],
                              "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
-        steps=[Step(**s) for s in run.steps],
-        tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
+        steps=[Step(**s) for s in run.steps], tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
-                   for i, b, a, u in zip(d.ids, run.before_norms, after_norms, mask)],
+                   for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(fit.e, axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
-        robot_alternatives=run.robot_alternatives,
-        always_absorbed=tuple(sorted(prob.robot_always)),
-        cleaning=cleaning_summary(d),
-    )
+        robot_alternatives=run.robot_alternatives, always_absorbed=tuple(sorted(prob.robot_always)),
+        cleaning=cleaning_summary(d))
 
 
 def _unexplained(after, sigma):

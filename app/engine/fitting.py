@@ -64,20 +64,10 @@ class Verdict:
     hess_eig: np.ndarray | None = None
 
 
-def _orthogonality(rot):
-    return float(np.linalg.norm(rot.T @ rot - np.eye(3))), float(np.linalg.det(rot))
-
-
-def _polish(local, point):
-    """Trust-region Newton (exact Hessian) on the local chart from ``point``: the minimum to
-    machine precision when ``point`` is in its basin; None when it does not converge."""
-    res = solvers.solve(calibration_problem(local), point, "tr", {"max_iter": POLISH_ITER})
-    return res if res.converged and np.all(np.isfinite(res.x)) else None
-
-
 def _matrix_checks(model, result, converged, message, notes):
     if model.rotation == "matrix":
-        orth, det = _orthogonality(model.sensor_rotation(result.x))
+        rot = model.sensor_rotation(result.x)
+        orth, det = float(np.linalg.norm(rot.T @ rot - np.eye(3))), float(np.linalg.det(rot))
         if det <= 0:
             converged, message = False, f"{message}; but det R = {det:.3g} <= 0: a reflection, not a rotation"
         if orth > 1e-6:
@@ -86,9 +76,12 @@ def _matrix_checks(model, result, converged, message, notes):
 
 
 def _polished(local, final, sensor, result):
-    """(point, message, note) after a trust-region Newton polish, or None when it moved too far."""
-    polished = _polish(local, final)
-    dt, dr = (np.inf, np.inf) if polished is None else transform_distance(local.sensor2flange(polished.x), sensor)
+    """(point, message, note) after a trust-region Newton polish (exact Hessian, on the local chart:
+    the minimum to machine precision when ``final`` is in its basin), or None when it did not
+    converge or moved too far."""
+    polished = solvers.solve(calibration_problem(local), final, "tr", {"max_iter": POLISH_ITER})
+    converged = polished.converged and np.all(np.isfinite(polished.x))
+    dt, dr = transform_distance(local.sensor2flange(polished.x), sensor) if converged else (np.inf, np.inf)
     if dt > POLISH_MAX_MM or dr > POLISH_MAX_DEG:
         return None
     note = (f"{result.method} stopped before its convergence test ({result.message}) {dt:.2g} mm and {dr:.2g} deg from "
@@ -122,13 +115,11 @@ def judge(model, result, polish=True):
     hess_eig = np.linalg.eigvalsh(local.cost_hessian(final))
     grad_local = float(np.max(np.abs(local.gradient(final))))
     if converged and grad_local > LOCAL_GTOL * max(1.0, local.cost(final)):
-        converged = False
-        message = (f"{message}; but the gradient on the local chart is {grad_local:.3g}: stationary only in the "
-                   f"{model.rotation} chart, which is singular here (gimbal lock), not a minimum")
+        converged, message = False, (f"{message}; but the gradient on the local chart is {grad_local:.3g}: stationary only "
+                                     f"in the {model.rotation} chart, which is singular here (gimbal lock), not a minimum")
     elif converged and hess_eig[0] < -1e-9 * max(1.0, abs(hess_eig[-1])):
-        converged = False
-        message = (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): a saddle "
-                   "point, not a minimum (local Newton converges to any stationary point)")
+        converged, message = False, (f"{message}; but the cost Hessian has a negative eigenvalue ({hess_eig[0]:.3g}): "
+                                     "a saddle point, not a minimum (local Newton converges to any stationary point)")
     return Verdict(model, result, sensor, centre, converged, message, notes, local, hess_eig)
 
 

@@ -118,7 +118,8 @@ def lowest(fit, basin, solve, exact_centre_model=False):
         The final fit from the user's (or the closed-form) start.
     basin : handeye.model.fit.global_fit.CentreMinima or None
     solve : callable
-        ``solve(sensor2flange, centre) -> Verdict``: the final fit from a start.
+        ``solve(sensor2flange, centre, exact=...) -> Verdict``: the final fit from a start
+        (``exact``: ``exact_centre_model``).
     exact_centre_model : bool
         The final objective is the unweighted centre model with the centre known: the SVD
         solution is its minimum, reported exactly.
@@ -131,12 +132,7 @@ def lowest(fit, basin, solve, exact_centre_model=False):
     """
     if basin is None:
         return fit, None, GlobalCheck("none: the centre model's minimum is not determined by these data", 1, 1, None, 0)
-    ends = [fit]
-    for minimum in basin.minima[:FINAL_STARTS]:
-        if exact_centre_model:
-            ends.append(solve(minimum.sensor2flange, minimum.centre, exact=True))
-        else:
-            ends.append(solve(minimum.sensor2flange, minimum.centre))
+    ends = [fit, *(solve(m.sensor2flange, m.centre, exact=exact_centre_model) for m in basin.minima[:FINAL_STARTS])]
     good = [e for e in ends if e.local is not None and e.converged]
     if not good:
         return fit, None, GlobalCheck(f"{basin.method}; no start of the final fit converged", len(ends), 0, None,
@@ -160,17 +156,13 @@ def lowest(fit, basin, solve, exact_centre_model=False):
                                    len(ends), len(reached), min(others) if others else None, len(basin.minima))
 
 
-def _centre_rms(dataset, sensor2flange, centre):
-    cost = global_fit.centre_cost(dataset.motions(), dataset.centre_in_sensor, sensor2flange, centre)
-    return float(np.sqrt(2 * cost / len(dataset)))
-
-
 def cross_check(dataset, verdict, basin, sigma):
     """A message when the final fit's centres scatter far more than at the centre model's
     global minimum on the same samples (a wrong basin, never a result), else None."""
     if basin is None or verdict.local is None:
         return None
-    rms_fit = _centre_rms(dataset, verdict.sensor, verdict.centre)
+    cost = global_fit.centre_cost(dataset.motions(), dataset.centre_in_sensor, verdict.sensor, verdict.centre)
+    rms_fit = float(np.sqrt(2 * cost / len(dataset)))
     rms_best = float(np.sqrt(2 * basin.best.cost / len(dataset)))
     if rms_fit <= CROSS_CHECK_RATIO * rms_best + CROSS_CHECK_SIGMAS * sigma:
         return None
@@ -241,7 +233,8 @@ def two_groups(dataset, mask, verdict, sigma):
     (or the stated noise) at a pose far from the reported one, the data hold two calibrations
     and neither is reported.
     """
-    excluded = ~np.asarray(mask, bool)
+    used = np.asarray(mask, bool)
+    excluded = ~used
     if verdict.local is None or excluded.sum() < 4:
         return None
     f2b, p = dataset.motions(), dataset.centre_in_sensor
@@ -249,7 +242,6 @@ def two_groups(dataset, mask, verdict, sigma):
         other = global_fit.centre_minima(f2b[excluded], p[excluded], verdict.centre).best
     except global_fit.GlobalFitError:
         return None
-    used = np.asarray(mask, bool)
     rms_used = float(np.sqrt(2 * global_fit.centre_cost(f2b[used], p[used], verdict.sensor, verdict.centre) / used.sum()))
     rms_other = float(np.sqrt(2 * other.cost / excluded.sum()))
     dt, dr = transform_distance(other.sensor2flange, verdict.sensor)

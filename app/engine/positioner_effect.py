@@ -57,7 +57,7 @@ def heldout_rms(dataset, free, fitted, mask):
     idx = np.where(mask)[0]
     folds = np.array_split(np.random.default_rng(0).permutation(idx), min(FOLDS, len(idx)))
     errs = []
-    start = cell_stage.refined_mounts(dataset, fitted) if fitted.axes else dataset.mounts
+    start = dataset.mounts.at(fitted.axes) if fitted.axes else dataset.mounts
     for fold in folds:
         train = mask.copy()
         train[fold] = False
@@ -121,7 +121,7 @@ def examine(dataset, mask, sensor, sigma, alpha, centre=None):
     if after["heldout_rms_mm"] >= before["heldout_rms_mm"]:
         return None
     params, sd = axis_offsets(dataset.mounts.axes, new)
-    refined = dataclasses.replace(dataset, mounts=cell_stage.refined_mounts(dataset, new))
+    refined = dataclasses.replace(dataset, mounts=dataset.mounts.at(new.axes))
     note = ("the refined axes, for [positioner] in setup.toml (or calibrate with --unknowns "
             "sensor+sphere+positioner): " + toml_axes(refined.mounts.axes))
     return AxesFinding(refined, NamedEffect("positioner_axes", params, sd, note), before, after, p_f)
@@ -146,10 +146,8 @@ def with_positioner_hint(result, dataset, parts, alpha):
     if dataset.mounts.sphere != "positioner" or "positioner" in (parts or "") or test is None or test.passed:
         return result
     more = "+".join(p for p in ("sensor", "sphere", "positioner") if p in (parts or "").split("+") or p == "positioner")
-    found = None
-    if cell_stage.solved(result):
-        found = examine(dataset, cell_stage.mask_of(result), result.sensor2flange, dataset.noise_centre_mm,
-                                          alpha, centre=result.sphere_centre)
+    found = examine(dataset, cell_stage.mask_of(result), result.sensor2flange, dataset.noise_centre_mm, alpha,
+                    centre=result.sphere_centre) if cell_stage.solved(result) else None
     if found is None:
         hint = (f"the positioner's axes are held as set up ([positioner] axes in {dataset.path / 'setup.toml'}); "
                 f"residuals {test.ratio:.3g} x the stated noise may be their error: calibrate them with --unknowns {more}")

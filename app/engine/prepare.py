@@ -65,10 +65,9 @@ def prepare(request, dataset):
     kind = request.model or observations.default_kind(dataset)
     observed = observations.build(dataset, kind, request.rotation, unknowns, request.robot_sigma)  # refuses early
     start_pose, start_used = resolve_start(dataset, unknowns, request.start)
-    if observed.kind == "centre" and observed.whiten is None and observed.rotation == "local":
-        everything = observed  # the same model of every sample: not built (and held) twice
-    else:
-        everything = CalibrationModel.from_dataset(dataset, "local", unknowns)
+    # the same model of every sample when the final one is the plain centre model: not built (and held) twice
+    same = observed.kind == "centre" and observed.whiten is None and observed.rotation == "local"
+    everything = observed if same else CalibrationModel.from_dataset(dataset, "local", unknowns)
     check_identifiable(dataset, unknowns, transform_from_pose(start_pose), probe=everything)
     warnings = tuple(note for note in (*request.notes, centre_note) if note)
     return Prepared(request, dataset, kind, observed, everything, guarantee.centre_basin(dataset, unknowns),

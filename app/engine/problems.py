@@ -17,16 +17,9 @@ def calibration_problem(model):
     """
     nlp = model.nlp() if model.rotation in ("euler", "matrix") else None
     smooth = model.rotation != "matrix"  # the matrix entries need the constraints (IPOPT)
-    return Problem(
-        n=model.n,
-        residual=model.residual if smooth else None,
-        jacobian=model.jacobian if smooth else None,
-        hessian=model.cost_hessian if smooth else None,
-        retract=model.retract if model.rotation == "local" else None,
-        nlp=nlp,
-        vectorised=True,
-        normal=model.normal_equations if smooth and chunked(model) else None,
-    )
+    return Problem(n=model.n, residual=model.residual if smooth else None, jacobian=model.jacobian if smooth else None,
+                   hessian=model.cost_hessian if smooth else None, retract=model.retract if model.rotation == "local" else None,
+                   nlp=nlp, vectorised=True, normal=model.normal_equations if smooth and chunked(model) else None)
 
 
 def chunked(model):
@@ -61,16 +54,9 @@ def testfunction_problem():
     evaluates all running starts at once. Note that ``objective`` is f itself, so costs reported by Newton-type and least-squares
     methods differ by the constant and the factor: compare points, not costs.
     """
-    return Problem(
-        n=2,
-        objective=testfunction.value,
-        gradient=testfunction.gradient,
-        hessian=testfunction.hessian,
-        residual=testfunction.residual,
-        jacobian=testfunction.residual_jacobian,
-        nlp=testfunction_nlp(),
-        vectorised=True,
-    )
+    return Problem(n=2, objective=testfunction.value, gradient=testfunction.gradient, hessian=testfunction.hessian,
+                   residual=testfunction.residual, jacobian=testfunction.residual_jacobian, nlp=testfunction_nlp(),
+                   vectorised=True)
 
 
 #: The solver-comparison studies' options: steepest descent needs more iterations

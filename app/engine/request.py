@@ -23,14 +23,7 @@ from handeye.model.readers.tables import GUESS_LIMITS, LIMIT_POSITION_MM
 # METHODS (and UNKNOWNS) are defined without numpy, for the command line's choices
 
 #: Which rotation parametrisations each method can use.
-SUPPORTED = {
-    "ipopt": ("matrix", "euler"),
-    "gn": ("local", "euler"),
-    "lm": ("local", "euler"),
-    "tr": ("local", "euler"),
-    "dogleg": ("local", "euler"),
-    "newton": ("local", "euler"),
-}
+SUPPORTED = {"ipopt": ("matrix", "euler"), **dict.fromkeys(("gn", "lm", "tr", "dogleg", "newton"), ("local", "euler"))}
 #: Parametrisation used when none is asked for.
 DEFAULT_ROTATION = {"ipopt": "matrix"}
 
@@ -290,9 +283,7 @@ def _robot_effects_possible(effects, dataset):
     """Raise CalibrationInputError when a robot effect is asked of a dataset that cannot show it."""
     from handeye.model import effects as catalogue
 
-    for name in (n for n in effects if catalogue.get(n).KIND == "robot"):
-        if catalogue.get(name).available(dataset):
-            continue
+    for name in (n for n in effects if catalogue.get(n).KIND == "robot" and not catalogue.get(n).available(dataset)):
         if dataset.joints is not None and dataset.robot_model is not None:
             raise CalibrationInputError(
                 f"--effects {name}: not with the sphere on a positioner ({dataset.path / 'setup.toml'}): the turning "
@@ -337,16 +328,6 @@ def parse_pose(text, what="--start", convention="kuka"):
     return pose
 
 
-def _numbers(parts, what, text):
-    try:
-        values = np.array([float(p) for p in parts])
-    except ValueError:
-        raise CalibrationInputError(f"{what}: not a number in {text!r}") from None
-    if not np.all(np.isfinite(values)):
-        raise CalibrationInputError(f"{what}: values must be finite, got {text!r}")
-    return values
-
-
 def _parse_pose(text, what, convention):
     cols = conventions.columns(convention)
     parts = [p.strip() for p in str(text).split(",")]
@@ -354,7 +335,12 @@ def _parse_pose(text, what, convention):
         if convention == "kuka":
             raise CalibrationInputError(f"{what}: needs six comma-separated numbers X,Y,Z,A,B,C, got {text!r}")
         raise CalibrationInputError(f"{what}: needs {len(cols)} numbers {','.join(cols)} ({convention}), got {text!r}")
-    values = _numbers(parts, what, text)
+    try:
+        values = np.array([float(p) for p in parts])
+    except ValueError:
+        raise CalibrationInputError(f"{what}: not a number in {text!r}") from None
+    if not np.all(np.isfinite(values)):
+        raise CalibrationInputError(f"{what}: values must be finite, got {text!r}")
     if convention != "kuka":
         try:
             return conventions.convert(values, convention, "kuka")

@@ -174,9 +174,8 @@ def _label(c):
 def unmodelled(dataset):
     """What to say when a dataset has the robot's joint angles but its cell does not let the robot's
     errors be modelled (the sphere on a positioner), or None."""
-    if getattr(dataset, "joints", None) is None or getattr(dataset, "robot_model", None) is None:
-        return None
-    if any(e.available(dataset) for e in effects.catalogue("robot")):
+    if (getattr(dataset, "joints", None) is None or getattr(dataset, "robot_model", None) is None
+            or any(e.available(dataset) for e in effects.catalogue("robot"))):
         return None
     return ("the robot's own errors (joint offsets, lengths, sag) are not modelled with the sphere on a positioner: "
             "the turning axes and the sphere centre absorb them in part, so a centre offset or axes named here may be "

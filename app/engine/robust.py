@@ -67,13 +67,9 @@ class Screening:
 
 def _weighted_problem(model, weights):
     sw = np.sqrt(np.repeat(weights, model.m))  # one weight per row, over the row's m components
-    return solvers.Problem(
-        n=model.n,
-        residual=lambda x: sw * model.residual(x),
-        jacobian=lambda x: sw[:, None] * model.jacobian(x),
-        retract=model.retract,
-        normal=(lambda x: model.normal_equations(x, weights)) if chunked(model) else None,
-    )
+    return solvers.Problem(n=model.n, residual=lambda x: sw * model.residual(x),
+                           jacobian=lambda x: sw[:, None] * model.jacobian(x), retract=model.retract,
+                           normal=(lambda x: model.normal_equations(x, weights)) if chunked(model) else None)
 
 
 def least_squares(model, x0, max_iter=200, lm_iter=50):
@@ -126,10 +122,9 @@ def robust_fit(model, x0, max_rounds=50):
         norms = np.linalg.norm(model.residuals(x), axis=1)
         sigma = max(float(np.median(norms)) / med3, 1e-12)
         new = 1.0 / (1.0 + (norms / (CAUCHY_K * sigma)) ** 2)
-        if np.max(np.abs(new - weights)) < 1e-6:
-            weights = new
+        change, weights = np.max(np.abs(new - weights)), new
+        if change < 1e-6:
             break
-        weights = new
     return x, sigma, weights
 
 
@@ -138,15 +133,11 @@ def n_samples(model):
     return model.n_meas if model.groups is None else int(model.groups.max()) + 1
 
 
-def _rows(model, mask):
-    """Row mask of the samples in ``mask`` (one entry per sample)."""
-    mask = np.asarray(mask, bool)
-    return mask if model.groups is None else mask[model.groups]
-
-
 def _subset(model, mask):
-    """The model of the samples in ``mask``: the same residual kind, whitening and unknowns."""
-    return _subset_rows(model, _rows(model, mask))
+    """The model of the samples in ``mask`` (one entry per sample): the same residual kind,
+    whitening and unknowns."""
+    mask = np.asarray(mask, bool)
+    return _subset_rows(model, mask if model.groups is None else mask[model.groups])
 
 
 def _subset_rows(model, rows):
@@ -294,12 +285,8 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
     norms = np.linalg.norm(full.residuals(x_rob), axis=1)
     inliers, note = _robust_inliers(norms, sigma, alpha, min_keep)
     x, stopped = _test_on_the_fit(full, x_rob, inliers, alpha, min_keep)
-    return Screening(
-        inliers=inliers,
-        excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
-        robust_sensor2flange=full.sensor2flange(x_rob),
-        note=note or stopped,
-    )
+    return Screening(inliers=inliers, excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
+                     robust_sensor2flange=full.sensor2flange(x_rob), note=note or stopped)
 
 
 def _robust_inliers(norms, sigma, alpha, min_keep):
@@ -350,10 +337,7 @@ def _exclude_or_reinstate(inliers, stat, adj, alpha, min_keep):
         else:  # one at a time: a gross error can mask another
             inliers[fitted_bad[np.argmax(stat[fitted_bad])]] = False
     elif len(excluded_ok):
-        if many:
-            inliers[excluded_ok] = True
-        else:
-            inliers[excluded_ok[np.argmin(stat[excluded_ok])]] = True
+        inliers[excluded_ok if many else excluded_ok[np.argmin(stat[excluded_ok])]] = True
     else:
         return ""
     return None
@@ -363,15 +347,12 @@ def _screened_out(dataset, full, x, inliers, norms, alpha):
     """The records of the samples not in ``inliers``, by the deletion test at the final fit ``x``
     (``norms`` their robust residuals)."""
     stat, adj, e = _deletion(full, x, inliers)
-    excluded = []
-    for k in np.where(~inliers)[0]:
-        excluded.append(ExcludedSample(
-            id=dataset.ids[k], row=int(dataset.rows[k]), residual_mm=float(np.linalg.norm(e[k])),
-            robust_residual_mm=float(norms[k]), statistic=float(stat[k]), p_bonferroni=float(adj[k]),
-            reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
-                    f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"),
-        ))
-    return excluded
+    return [ExcludedSample(
+        id=dataset.ids[k], row=int(dataset.rows[k]), residual_mm=float(np.linalg.norm(e[k])),
+        robust_residual_mm=float(norms[k]), statistic=float(stat[k]), p_bonferroni=float(adj[k]),
+        reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
+                f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"))
+        for k in np.where(~inliers)[0]]
 
 
 #: Up to this many samples leave-one-out refits every sample exactly; above, the deletion formula
@@ -396,8 +377,7 @@ def centre_predictor(model):
 
 def _prediction_error(predictor, x, i):
     """|T1_i T2(x) xs_i - c(x)| of sample i, mm."""
-    t2 = predictor.sensor2flange(x)
-    pred = predictor.flange2base[i] @ t2 @ np.append(predictor.centre_in_sensor[i], 1.0)
+    pred = predictor.flange2base[i] @ predictor.sensor2flange(x) @ np.append(predictor.centre_in_sensor[i], 1.0)
     return float(np.linalg.norm(pred[:3] - predictor.sphere_centre(x)))
 
 

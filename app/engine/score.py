@@ -136,12 +136,9 @@ class Scorer:
         x = self.model.point_from(s, c)
         r = self.model.residual(x)
         per_row = (r.reshape(-1, self.model.m) ** 2).sum(axis=1)
-        groups = self.model.groups
-        per_sample = per_row if groups is None else np.bincount(groups, weights=per_row)
-        rms = {}
-        for name, plain in self.plain.items():
-            e = plain.residuals(plain.point_from(s, c))
-            rms[name] = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+        per_sample = per_row if self.model.groups is None else np.bincount(self.model.groups, weights=per_row)
+        rms = {name: float(np.sqrt(np.mean(np.sum(plain.residuals(plain.point_from(s, c)) ** 2, axis=1))))
+               for name, plain in self.plain.items()}
         xs = np.column_stack([self.dataset.centre_in_sensor, np.ones(len(self.dataset))])
         e_all = (np.asarray(self.dataset.motions()) @ s @ xs[..., None])[:, :3, 0] - c
         return PoseScore(s, c, e_all, rms, float(r @ r), per_sample, len(r))
@@ -186,8 +183,7 @@ def run_score(request, dataset, sensor2flange, source):
     :class:`~handeye.app.present.score_results.ScoreResult`."""
     from handeye.app.engine.calibrate import run
 
-    estimate = run(request, dataset)
-    return score_against(estimate, dataset, request, sensor2flange, source)
+    return score_against(run(request, dataset), dataset, request, sensor2flange, source)
 
 
 def score_against(estimate, dataset, request, sensor2flange, source, scorer=None):
@@ -204,9 +200,8 @@ def score_against(estimate, dataset, request, sensor2flange, source, scorer=None
     distance = pose_distance(s, np.asarray(estimate.sensor2flange, float), cov, estimate.parameter_names)
     tested = f_test(given, own, scorer.n_params) if estimate.converged else (float("nan"), float("nan"), None)
     whitened = scorer.model.whiten is not None
-    test = None
-    if whitened or scorer.kind == "centre":
-        test = noise_test(given.ssr, given.m - 3 * scorer.centre_free, request.sigma, whitened, [], "")
+    test = (noise_test(given.ssr, given.m - 3 * scorer.centre_free, request.sigma, whitened, [], "")
+            if whitened or scorer.kind == "centre" else None)
     return ScoreResult(dataset.name, str(dataset.path), source, request.convention,
                        conventions.columns(request.convention), conventions.pose_from(request.convention, s), s,
                        given, estimate, own, scorer.kind, tested, distance, test,

@@ -399,8 +399,6 @@ def _robot_alternative(dataset, effects, given, sigma):
     from handeye.model import effects as catalogue
 
     robot = [e.NAME for e in catalogue.catalogue("robot") if e.available(dataset) and e.NAME not in effects]
-    if not robot:
-        return None
     for k in range(1, len(robot) + 1):  # the fewest first
         for names in itertools.combinations(robot, k):
             if _effects_keep_centre(dataset, tuple(effects) + names, given, sigma):
@@ -476,19 +474,18 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
     depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
     """
-    from handeye.model.fit import extended, global_fit
+    from handeye.model.fit import extended
 
     if "sphere_radius" in effects or not any(dataset.reconstructed or ()) or unknowns not in ("sensor", "sensor+sphere"):
         return
     free_centre, n = unknowns == "sensor+sphere", len(dataset)
     sigma = dataset.noise_centre_mm if sigma is None else float(sigma)
-    if free_centre or dataset.sphere_centre is not None:
-        try:
-            given = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor,
-                                             None if free_centre else dataset.sphere_centre).best
-        except global_fit.GlobalFitError:
-            return
-    else:
+    if not free_centre and dataset.sphere_centre is None:
+        return
+    try:
+        given = global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor,
+                                         None if free_centre else dataset.sphere_centre).best
+    except global_fit.GlobalFitError:
         return
     if 3 * n - 7 - 3 * free_centre <= 0 or chi2_survival(2 * given.cost / sigma**2, 3 * n - 6 - 3 * free_centre) >= P_SUSPECT:
         return

@@ -23,7 +23,7 @@ import numpy as np
 
 from handeye.app.ingest import opencv_storage
 from handeye.app.ingest.poses import canonical
-from handeye.app.ingest.tables import Table, is_number, read_bytes, read_table
+from handeye.app.ingest.tables import is_number, read_bytes, read_table
 from handeye.model.readers.tables import DatasetError
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
@@ -31,24 +31,23 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
               "double": "f8", "float64": "f8"}
 
 
+#: the first bytes of the binary formats (and PLY's header)
+_MAGIC = ((b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"), (b"ply\n", "ply"), (b"ply\r\n", "ply"))
+
+
 def detect(raw):
     """The format of a profile file's bytes (table above)."""
     head = raw[:4096]
-    if head.startswith(b"\x93NUMPY"):
-        return "npy"
-    if head.startswith(b"PK\x03\x04"):
-        return "npz"
-    if head.startswith(b"ply\n") or head.startswith(b"ply\r\n"):
-        return "ply"
+    for magic, fmt in _MAGIC:
+        if head.startswith(magic):
+            return fmt
     flavour = opencv_storage.sniff(head)
     if flavour is not None:
         return "FileStorage " + flavour.upper()
     text = head.lstrip().upper()
     if text.startswith(b"# .PCD") or text.startswith(b"VERSION") or re.match(rb"(#[^\n]*\n)*\s*FIELDS", text):
         return "pcd"
-    if b"\x00" in head:
-        return None
-    return "text"
+    return None if b"\x00" in head else "text"
 
 
 def read_profile_file(path):
@@ -129,10 +128,7 @@ def _ply(path, raw):
         elif words[:1] == ["element"]:
             elements.append([words[1], int(words[2]), []])
         elif words[:1] == ["property"] and elements:
-            if words[1] == "list":
-                elements[-1][2].append((words[-1], None))
-            else:
-                elements[-1][2].append((words[2], _PLY_TYPES.get(words[1])))
+            elements[-1][2].append((words[-1], None) if words[1] == "list" else (words[2], _PLY_TYPES.get(words[1])))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise DatasetError(path, f"PLY format {fmt!r} unknown")
     names = [e[0] for e in elements]
@@ -190,7 +186,7 @@ def _pcd(path, raw):
         starts = np.cumsum([0] + counts[:-1])
         cols = {f: table[:, s] for f, s in zip(fields, starts)}
     elif data == "binary":
-        dtype = np.dtype([(f if c == 1 else f, f"<{t.lower()}{s}", (c,) if c > 1 else ())
+        dtype = np.dtype([(f, f"<{t.lower()}{s}", (c,) if c > 1 else ())
                           for f, s, t, c in zip(fields, sizes, types, counts)])
         if len(raw) - offset < points * dtype.itemsize:
             raise DatasetError(path, f"PCD: {points} points announced, the file is shorter")
@@ -205,19 +201,15 @@ def _text(path, raw):
     table = read_table(path, known_name=lambda c: canonical(c) in ("x", "y", "z"))
     if table.kind.startswith("JSON"):
         raise DatasetError(path, "a JSON table is not a profile (FileStorage JSON has opencv-matrix nodes)")
-    return [("table", _text_points(table))]
-
-
-def _text_points(table: Table):
-    path = table.file
     if table.header is not None:  # names as the poses' (``X [mm]``, ``pos_z``): x, y, z by the canonical name
         names = [canonical(h) or h for h in table.header]
-        return _fields(path, {n: _column(table, k) for k, n in enumerate(names) if n in ("x", "y", "z")}, names)
+        return [("table", _fields(table.file, {n: _column(table, k) for k, n in enumerate(names) if n in ("x", "y", "z")},
+                                  names))]
     width = len(table.rows[0])
     if width not in (2, 3):
-        raise DatasetError(path, f"{width} columns: a profile has 2 (x, z) or 3 (x, y, z); name them in a header",
+        raise DatasetError(table.file, f"{width} columns: a profile has 2 (x, z) or 3 (x, y, z); name them in a header",
                            table.lines[0])
-    return np.column_stack([_column(table, k) for k in range(width)])
+    return [("table", np.column_stack([_column(table, k) for k in range(width)]))]
 
 
 def _column(table, k):

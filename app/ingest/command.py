@@ -163,15 +163,14 @@ def _from_bag(req):
     data = read_bag(req.bag, req.pose_topic, req.profile_topic, req.base_frame, req.flange_frame, req.max_dt)
     convention = req.convention or "abb"
     profiles = sources.bag_profiles(data.profiles, req.profile_topic)
-    ids = [p.name for p in profiles]
     inputs = {"bag": {"path": str(req.bag), "pose_topic": req.pose_topic, "profile_topic": req.profile_topic,
                       "types": list(data.types), "counts": data.counts}}
     notes = ["ROS positions m -> mm", "ROS quaternions (x, y, z, w)" + (" -> abb (w, x, y, z)" if convention == "abb"
                                                                           else f" -> {convention}")]
     how = f"by time: each profile with the nearest pose within {req.max_dt:g} s"
     roles = [("bag", f, "ROS 2 bag") for f in writer.source_files(req.bag)]
-    return _Read(ids, conventions.pose_from(convention, data.flange2base), convention, profiles, inputs, notes, how, roles,
-                 None)
+    return _Read([p.name for p in profiles], conventions.pose_from(convention, data.flange2base), convention, profiles, inputs,
+                 notes, how, roles, None)
 
 
 def _joints(file, table):
@@ -232,11 +231,9 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
 
 def _files(result, read, req, start_pose):
     """Relative path -> text of every file of the dataset."""
-    taken, files, rels = set(), {}, []
-    for ident, p in zip(result.ids, read.profiles):
-        rel = f"profiles/{writer.safe_name(ident, taken)}.csv"
-        files[rel] = writer.profile_text(p.xz)
-        rels.append(rel)
+    taken = set()
+    rels = [f"profiles/{writer.safe_name(ident, taken)}.csv" for ident in result.ids]
+    files = {rel: writer.profile_text(p.xz) for rel, p in zip(rels, read.profiles)}
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     sections = {"options": req.options, "inputs": dict(result.inputs), "conversions": {"made": list(result.conversions)},

@@ -43,10 +43,15 @@ def _value(token, file):
         raise DatasetError(file, f"FileStorage matrix: not a number: {t[:30]!r}") from None
 
 
-def _matrix(name, rows, cols, dt, values, file):
-    """The points of one matrix: (K, c) with c the columns (or channels)."""
+def _matrix(name, node, file, numbers):
+    """The points of one matrix node (``rows``, ``cols``, ``dt``, ``data``; ``numbers(data)`` its values):
+    (K, c) with c the columns (or channels)."""
+    missing = [k for k in ("rows", "cols", "dt", "data") if k not in node]
+    if missing:
+        raise DatasetError(file, f"FileStorage matrix {name!r}: no {missing[0]}")
+    values, dt = numbers(node["data"]), node["dt"]
     try:
-        rows, cols = int(rows), int(cols)
+        rows, cols = int(node["rows"]), int(node["cols"])
     except (TypeError, ValueError):
         raise DatasetError(file, f"FileStorage matrix {name!r}: rows and cols must be integers") from None
     match = re.fullmatch(r"(\d*)([ucwsifdh])", str(dt).strip())
@@ -94,10 +99,9 @@ def _yaml(text, file):
         return _yaml_sequences(text, file)
     parts = text.split("!!opencv-matrix")
     out = []
-    for k in range(1, len(parts)):
+    for k, block in enumerate(parts[1:], start=1):
         before = parts[k - 1].rsplit("\n", 1)[-1].strip().rstrip(":").strip()
         name = before.lstrip("-").strip() or f"item{k}"
-        block = parts[k]
         fields = {}
         for key in ("rows", "cols", "dt"):
             m = re.search(rf"^\s*{key}\s*:\s*(\S+)", block, re.MULTILINE)
@@ -108,7 +112,7 @@ def _yaml(text, file):
         if m is None:
             raise DatasetError(file, f"FileStorage matrix {name!r}: no data [ ... ]")
         values = [_value(v, file) for v in m.group(1).replace("\n", " ").split(",") if v.strip()]
-        out.append(_matrix(name, fields["rows"], fields["cols"], fields["dt"], values, file))
+        out.append(_matrix(name, {**fields, "data": values}, file, list))
     return out
 
 
@@ -122,11 +126,7 @@ def _xml(text, file):
         if node.get("type_id") != "opencv-matrix":
             continue
         get = {child.tag: (child.text or "").strip() for child in node}
-        missing = [k for k in ("rows", "cols", "dt", "data") if k not in get]
-        if missing:
-            raise DatasetError(file, f"FileStorage matrix {node.tag!r}: no {missing[0]}")
-        values = [_value(v, file) for v in get["data"].split()]
-        out.append(_matrix(node.tag, get["rows"], get["cols"], get["dt"], values, file))
+        out.append(_matrix(node.tag, get, file, lambda data: [_value(v, file) for v in data.split()]))
     return out
 
 
@@ -142,11 +142,8 @@ def _json(text, file):
     def walk(node, name):
         if isinstance(node, dict):
             if node.get("type_id") == "opencv-matrix":
-                missing = [k for k in ("rows", "cols", "dt", "data") if k not in node]
-                if missing:
-                    raise DatasetError(file, f"FileStorage matrix {name!r}: no {missing[0]}")
-                values = [_value(str(v), file) if isinstance(v, str) else v for v in node["data"]]
-                out.append(_matrix(name, node["rows"], node["cols"], node["dt"], values, file))
+                out.append(_matrix(name, node, file, lambda data: [_value(v, file) if isinstance(v, str) else v
+                                                                   for v in data]))
                 return
             for key, value in node.items():
                 walk(value, key)

@@ -107,12 +107,11 @@ def pair(labels, names, pose_ids, n_poses, pose_file, asked=AUTO):
     index = _by_id(labels, names, ids, tokens, pose_file)
     missing = sorted(set(range(len(ids))) - set(index))
     if missing:
-        numbered = pose_ids is None
         raise DatasetError(pose_file, f"pose {ids[missing[0]]!r} has no profile ({len(missing)} of {len(ids)} poses have "
                                       "none): add its file, or leave the pose out by deleting its row"
                                       + (" and giving the poses an id column (the numbers in the file names), since "
                                          "without ids the poses are numbered in order and the rest would shift"
-                                         if numbered else "") + " (--pair order only pairs equal counts)")
+                                         if pose_ids is None else "") + " (--pair order only pairs equal counts)")
     how = f"--match {match!r}" if match else "last digits of the name"
     return index, list(ids), f"by id in the file name ({how})"
 

@@ -84,8 +84,7 @@ def normal_axis(points, file):
             raise DatasetError(file, f"the profile lies in the plane {AXES[axis]} = {offset:.6g}, not {AXES[axis]} = 0: "
                                      "the laser plane must pass through the sensor frame's origin")
         return axis
-    centred = points - points.mean(axis=0)
-    sv = np.linalg.svd(centred, compute_uv=False) if len(points) >= 3 else np.ones(3)
+    sv = np.linalg.svd(points - points.mean(axis=0), compute_uv=False) if len(points) >= 3 else np.ones(3)
     spreads = ", ".join(f"{a} {s:.3g}" for a, s in zip(AXES, spread))
     if sv[-1] <= PLANAR_TOLERANCE * sv[0]:
         raise DatasetError(file, f"the profile is planar but its plane is not a coordinate plane (spreads {spreads} mm): "
@@ -178,9 +177,8 @@ def to_xz(points, mapping):
 
 
 def check_scale(xz, diameter, file, units_option="--profile-units"):
-    """Profile coordinates in mm plausible against the sphere's diameter (mm)."""
-    if not len(xz):
-        return
+    """Profile coordinates in mm plausible against the sphere's diameter (mm); ``xz`` has points
+    (:func:`handeye.app.ingest.sources.map_to_plane` refuses fewer than 3)."""
     top = float(np.max(np.abs(xz)))
     if diameter is not None and diameter > 5 and top < 1.0:
         raise DatasetError(file, f"every coordinate is within +-{top:.3g}: metres, not mm? give {units_option} m")

@@ -225,9 +225,7 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
     width = len(table.header) if table.header is not None and columns is None else len(table.rows[0])
     names = _names(table, columns, convention, width)
     kind = _kind(names, table.file)
-    cols = ("x", "y", "z") + KINDS[kind]
-    raw = _numbers(table, names, cols)
-    values, notes = _check_units(raw, units, table.file)
+    values, notes = _check_units(_numbers(table, names, ("x", "y", "z") + KINDS[kind]), units, table.file)
     values, more = _check_angles(values, kind, angles, table.file)
     notes += more
     if kind == "abb" and [n for n in names if n in KINDS["abb"]] != list(KINDS["abb"]):
@@ -249,13 +247,12 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
 def _in_reading_ranges(values, kind):
     """Angles outside the controller's ranges (A, C in +-180, B in +-90) re-expressed in them
     (the same rotations)."""
-    lim = np.array([180.0, 90.0, 180.0])
-    if np.all(np.abs(values[:, 3:]) <= lim + 1e-9):
+    if np.all(np.abs(values[:, 3:]) <= np.array([180.0, 90.0, 180.0]) + 1e-9):
         return values, []
     return conventions.convert(values, kind, kind), [f"{kind} angles re-expressed in the controller's ranges"]
 
 
-def read_joints(path, units="deg"):
+def read_joints(path):
     """Joint angles j1..j6 (degrees) of a CSV, whitespace-separated or JSON file; returns
     ``(ids or None, (N, 6) array, lines)``. A header (``j1..j6``, ``joint_1``, ``axis1``, ``id``) is
     optional; without one, 6 numbers per row or an id and 6."""
@@ -267,8 +264,6 @@ def read_joints(path, units="deg"):
     if missing:
         raise DatasetError(table.file, f"no column {missing[0]!r} (joint angles j1..j6, degrees)", 1)
     values = _numbers(table, names, cols)
-    if units == "rad":
-        values = np.degrees(values)
-    elif np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
+    if np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
         raise DatasetError(table.file, "every joint angle is within +-pi: radians, not degrees? convert them to degrees")
     return _ids(table, names), values, table.lines

@@ -36,8 +36,6 @@ class BagData:
         The pose matched to each kept profile, mm.
     profiles : list of ndarray (K, 3)
         Points in the sensor message's frame, mm (NaN rows still in).
-    stamps : ndarray, shape (N,)
-        Profile times, s.
     counts : dict
         ``poses``, ``profiles``, ``unmatched`` (profiles without a pose within max_dt), ``max_dt_used``.
     types : tuple of str
@@ -46,7 +44,6 @@ class BagData:
 
     flange2base: np.ndarray
     profiles: list
-    stamps: np.ndarray
     counts: dict
     types: tuple
 
@@ -122,13 +119,14 @@ def _tf_poses(reader, conns, base, flange, file):
     return np.array(stamps), np.array(poses)
 
 
-def _pose_stamped(reader, conns):
-    stamps, poses = [], []
+def _stamped(reader, conns, read):
+    """``(stamps, [read(message, its type)])`` of every message on ``conns``."""
+    stamps, items = [], []
     for conn, bag_ns, raw in reader.messages(connections=conns):
         msg = reader.deserialize(raw, conn.msgtype)
         stamps.append(_stamp(msg, bag_ns))
-        poses.append(_transform(msg.pose.position, msg.pose.orientation))
-    return np.array(stamps), np.array(poses).reshape(-1, 4, 4)
+        items.append(read(msg, conn.msgtype))
+    return np.array(stamps), items
 
 
 def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None, max_dt=0.05):
@@ -155,17 +153,15 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
             if pconns[0].msgtype == POSE_TYPES[1]:
                 pstamps, poses = _tf_poses(reader, pconns, base_frame, flange_frame, file)
             else:
-                pstamps, poses = _pose_stamped(reader, pconns)
-            stamps, clouds = [], []
-            for conn, bag_ns, raw in reader.messages(connections=sconns):
-                msg = reader.deserialize(raw, conn.msgtype)
-                stamps.append(_stamp(msg, bag_ns))
-                clouds.append(_scan_points(msg) if conn.msgtype == PROFILE_TYPES[1] else _cloud_points(msg, file))
+                pstamps, poses = _stamped(reader, pconns, lambda msg, _: _transform(msg.pose.position, msg.pose.orientation))
+                poses = np.array(poses).reshape(-1, 4, 4)
+            stamps, clouds = _stamped(reader, sconns, lambda msg, kind: _scan_points(msg) if kind == PROFILE_TYPES[1]
+                                      else _cloud_points(msg, file))
     except DatasetError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a broken bag) are bad input here
         raise DatasetError(file, f"cannot be read as a ROS 2 bag: {type(exc).__name__}: {exc}") from None
-    return _match(file, _Stamped(pstamps, poses, pconns[0].msgtype), _Stamped(np.array(stamps), clouds, sconns[0].msgtype),
+    return _match(file, _Stamped(pstamps, poses, pconns[0].msgtype), _Stamped(stamps, clouds, sconns[0].msgtype),
                   max_dt)
 
 
@@ -198,4 +194,4 @@ def _match(file, pose, profile, max_dt):
                                  f"{len(pstamps)} poses)")
     counts = {"poses": int(len(pstamps)), "profiles": int(len(stamps)), "unmatched": int(len(stamps) - len(keep)),
               "max_dt_s": float(max_dt)}
-    return BagData(poses[chosen], [clouds[k] for k in keep], stamps[keep], counts, (pose.msgtype, profile.msgtype))
+    return BagData(poses[chosen], [clouds[k] for k in keep], counts, (pose.msgtype, profile.msgtype))

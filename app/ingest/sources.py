@@ -62,8 +62,7 @@ def read_profiles(files, units="mm"):
             skipped.append((str(f), exc.problem))
             continue
         for key, pts in matrices:
-            several = len(matrices) > 1
-            label, name = (f"{f}[{key}]", key) if several else (str(f), f.stem)
+            label, name = (f"{f}[{key}]", key) if len(matrices) > 1 else (str(f), f.stem)
             out.append(_profile(label, name, f, fmt, pts, units))
     if not out:
         raise DatasetError(skipped[0][0], f"no profile in the --profiles folders ({len(skipped)} files skipped; this "

@@ -83,10 +83,7 @@ def read_table(path, known_name=None):
     """
     path = pathlib.Path(path)
     text = decode(path, read_bytes(path))
-    stripped = text.lstrip()
-    if stripped[:1] in ("[", "{"):
-        return _json_table(path, text)
-    return _text_table(path, text, known_name)
+    return _json_table(path, text) if text.lstrip()[:1] in ("[", "{") else _text_table(path, text, known_name)
 
 
 def _split(line, sep):
@@ -178,8 +175,6 @@ def _json_table(path, text):
         return Table(path, tuple(header), tuple(rows), tuple(range(1, len(rows) + 1)), "JSON list of objects")
     if all(isinstance(d, list) for d in doc):
         rows = [tuple(_json_value(path, v, item) for v in d) for item, d in enumerate(doc, start=1)]
-        header = None
-        if rows and not any(is_number(c) for c in rows[0]):
-            header = rows.pop(0)
+        header = rows.pop(0) if rows and not any(is_number(c) for c in rows[0]) else None
         return Table(path, header, tuple(rows), tuple(range(1, len(rows) + 1)), "JSON list of lists")
     raise DatasetError(path, "JSON: expected a list of lists or a list of objects, not a mixture")

@@ -28,11 +28,9 @@ def safe_name(ident, taken):
 
 def measurements_text(ids, values, convention, profile_paths, joints=None):
     """``measurements.csv``: id, the convention's pose columns, empty ``xs,ys,zs``, [j1..j6,] profile."""
-    header = ["id", *conventions.columns(convention), "xs", "ys", "zs", *(JOINTS if joints is not None else ()),
-              "profile"]
     buffer = io.StringIO()
     out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted
-    out.writerow(header)
+    out.writerow(["id", *conventions.columns(convention), "xs", "ys", "zs", *(JOINTS if joints is not None else ()), "profile"])
     for k, (ident, pose, path) in enumerate(zip(ids, values, profile_paths)):
         row = [str(ident), *(f"{v:.10g}" for v in pose), "", "", ""]
         row += [f"{v:.6f}" for v in joints[k]] if joints is not None else []
@@ -74,11 +72,8 @@ def setup_text(result, request, start=None):
 
 def sha256(path):
     """SHA-256 of a file (streamed)."""
-    h = hashlib.sha256()
     with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def source_files(path):

@@ -22,11 +22,12 @@ from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F40
 from handeye.app.outputs import formats as exports
 from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
 from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.result_parts import AsDict
 from handeye.model.chain.mounts import FRAME
 
 
 @dataclasses.dataclass(frozen=True)
-class ExportResult(ResultProtocol):
+class ExportResult(AsDict, ResultProtocol):
     """The text of ``handeye export`` and where it was written (None: not written)."""
 
     caption = 'handeye export'
@@ -34,9 +35,6 @@ class ExportResult(ResultProtocol):
     format: str
     text: str
     out: str | None
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @options.COMMANDS["export"].documented
@@ -54,10 +52,7 @@ def export(calibration=None, *, format="json", parent=None, child="sensor", tool
     {parameters}
     """
     request = ExportRequest.from_options(options.COMMANDS["export"].given(locals()))
-    if format in ROBOT_FORMATS:
-        text = robot_text(*request.held, format)
-    else:
-        text = exports.text(request.held, format, request.names)
+    text = robot_text(*request.held, format) if format in ROBOT_FORMATS else exports.text(request.held, format, request.names)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -154,10 +149,8 @@ class CloudResult(ResultProtocol):
         if d["bounds_mm"]:
             lo, hi = d["bounds_mm"]["min"], d["bounds_mm"]["max"]
             lines.append("bounds: " + ", ".join(f"{a} {x:.2f}..{y:.2f}" for a, x, y in zip("xyz", lo, hi)))
-        if d["sd_mm"]:
-            lines.append(f"1 sd from the calibration: median {d['sd_mm']['median']:.3f} mm, max {d['sd_mm']['max']:.3f} mm")
-        else:
-            lines.append("1 sd: unknown (the calibration has no covariance)")
+        lines.append(f"1 sd from the calibration: median {d['sd_mm']['median']:.3f} mm, max {d['sd_mm']['max']:.3f} mm"
+                     if d["sd_mm"] else "1 sd: unknown (the calibration has no covariance)")
         if self.out:
             lines.append(f"written: {self.out} ({self.format})")
         return "\n".join(lines)
@@ -217,13 +210,11 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.datasets import scan as scans
     from handeye.model.geometry import cloud as clouds
 
-    given = options.COMMANDS["cloud"].given(locals())
-    request = CloudRequest.from_options(given, scans.load(dataset))
+    request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
     cal, data = request.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
-    sd = None
-    if cal.covariance is not None:
-        sd = clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange, cal.covariance)
+    sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
+                                                              cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
                          cal.source, FRAME[data.mounts.sphere])
     if out is not None:
@@ -259,10 +250,8 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
     cal, data = request.calibration, request.data
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
-    if with_profiles:
-        result = validation.validate_scan(data, cal, request.exclude, own)
-    else:
-        result = validation.validate_centres(data, cal, own)
+    result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
+              else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
         data.mounts.sphere])
     if request.limits is not None:

@@ -87,16 +87,13 @@ def representations(sensor2flange):
         The sensor frame in its mount's frame (flange or robot base), mm.
     """
     t = np.asarray(sensor2flange, float)
-    kuka = conventions.pose_from("kuka", t)
-    fanuc = conventions.pose_from("fanuc", t)
-    ur = conventions.pose_from("ur", t)
-    abb = conventions.pose_from("abb", t)
+    fanuc, abb = conventions.pose_from("fanuc", t), conventions.pose_from("abb", t)
     return {
         "translation_mm": t[:3, 3].copy(),
         "translation_m": t[:3, 3] / 1000.0,
-        "kuka_abc_deg": kuka[3:],
+        "kuka_abc_deg": conventions.pose_from("kuka", t)[3:],
         "fanuc_wpr_deg": fanuc[3:],
-        "ur_rotvec_rad": ur[3:],
+        "ur_rotvec_rad": conventions.pose_from("ur", t)[3:],
         "quaternion_wxyz": abb[3:],
         "quaternion_xyzw": np.r_[abb[4:], abb[3]],
         "rpy_rad": np.radians(fanuc[3:]),  # URDF: fixed-axis roll, pitch, yaw == FANUC's W, P, R
@@ -152,8 +149,7 @@ class _Job:
 
 
 def _ur(job):
-    m, rep = job.rep["translation_m"], job.rep
-    values = ", ".join(_f(m, 10) + _f(rep["ur_rotvec_rad"], 10))
+    values = ", ".join(_f(job.rep["translation_m"], 10) + _f(job.rep["ur_rotvec_rad"], 10))
     head = job.header("URScript pose: x, y, z in metres, rotation vector rx, ry, rz in radians", "m")
     if not job.world:
         return _comment("# ", head) + f"\nset_tcp(p[{values}])\n"
@@ -265,10 +261,9 @@ def data(calibration, parent, child):
     and ``sensor_frame`` "own" when that is the sensor's own), with the frame names; a sensor fixed in the
     cell adds ``"sensor_mount": "world"`` (the matrix is then sensor2base)."""
     matrix = calibration.user_frame().sensor2flange
-    rep = representations(matrix)
     mount = {"sensor_mount": "world"} if _world(calibration) else {}
     own = {} if calibration.own_axes is None else {"sensor_frame": "own", "own_axes": np.asarray(calibration.own_axes).tolist()}
     out = {**mount, **own, "parent": parent, "child": child, "sensor_matrix": matrix.tolist()}
-    out.update({k: v.tolist() for k, v in rep.items()})
+    out.update({k: v.tolist() for k, v in representations(matrix).items()})
     out["calibration"] = calibration.to_dict()
     return out

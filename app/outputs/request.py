@@ -232,8 +232,7 @@ class CloudRequest:
         """The request of the options ``v`` (the public function's keywords) on the scan ``data``."""
         out, fmt = v["out"], v["format"]
         suffix = "" if out is None else pathlib.Path(out).suffix.lower().lstrip(".")
-        if fmt is None:
-            fmt = "csv" if suffix == "csv" else "ply"
+        fmt = ("csv" if suffix == "csv" else "ply") if fmt is None else fmt
         if fmt not in CLOUD_FORMATS:
             raise RequestError(f"--format {fmt!r}: choose one of {', '.join(CLOUD_FORMATS)}")
         if suffix in CLOUD_FORMATS and suffix != fmt:

@@ -173,18 +173,13 @@ def _covariance(doc, file):
         names = cov.get("names")
         if isinstance(names, list) and "tx" not in names:
             return None  # the sensor was held (--unknowns without sensor): no covariance of it here
-        if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
-            raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "covariance")
-        m = _matrix(cov["matrix"], (len(names), len(names)), file, "covariance")[:6, :6]
+        m = _named_matrix(names, cov["matrix"], file, "covariance")
     elif isinstance(doc.get("std"), dict) and isinstance(doc.get("correlation"), dict):
         std = doc["std"]  # an older result: rebuild it from sd and (rounded) correlations
         trans = _matrix([std.get("sensor_translation_mm")], (1, 3), file, "std")[0]
         rot = _matrix([std.get("sensor_rotation_deg")], (1, 3), file, "std")[0]
         sd = np.r_[trans, np.radians(rot)]
-        names = doc["correlation"].get("names")
-        if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
-            raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", "correlation")
-        corr = _matrix(doc["correlation"].get("matrix"), (len(names), len(names)), file, "correlation")[:6, :6]
+        corr = _named_matrix(doc["correlation"].get("names"), doc["correlation"].get("matrix"), file, "correlation")
         m = corr * np.outer(sd, sd)
     else:
         return None
@@ -192,6 +187,13 @@ def _covariance(doc, file):
     if np.min(np.linalg.eigvalsh(m)) < -1e-9 * max(float(np.max(np.abs(m))), 1e-300):
         raise CalibrationFileError(file, "not a covariance (a negative eigenvalue)", "covariance")
     return m
+
+
+def _named_matrix(names, matrix, file, key):
+    """The sensor's 6x6 block of a matrix over ``names`` (which must begin with the sensor's six), or an error."""
+    if not isinstance(names, list) or names[:6] != ["tx", "ty", "tz", "wx", "wy", "wz"]:
+        raise CalibrationFileError(file, "names must begin tx, ty, tz, wx, wy, wz", key)
+    return _matrix(matrix, (len(names), len(names)), file, key)[:6, :6]
 
 
 def document(file):

@@ -32,7 +32,7 @@ import numpy as np
 
 from handeye.app.common.errors import RequestError
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import _list
+from handeye.app.present.result_parts import AsDict, _list, fields
 from handeye.model.geometry import cloud, sphere
 
 #: A pose's points whose mean lies farther than this many radii from every setup centre are of
@@ -92,27 +92,20 @@ class SphereCheck:
     points: np.ndarray = dataclasses.field(repr=False, default=None)
 
     def to_dict(self):
-        return {"label": self.label, "radius_mm": self.radius_mm, "radius_sd_mm": self.radius_sd_mm,
-                "centre": _list(self.centre), "centre_sd_mm": _list(self.centre_sd_mm),
-                "centre_offset_mm": _list(self.centre_offset_mm), "setup_centre": _list(self.setup_centre),
-                "setup_diameter_mm": self.setup_diameter_mm, "form_error_mm": self.form_error_mm,
-                "size_error_mm": self.size_error_mm, "size_error_sd_mm": self.size_error_sd_mm,
-                "rms_mm": self.rms_mm, "max_abs_deviation_mm": self.max_abs_deviation_mm,
-                "n_points": self.n_points, "n_poses": self.n_poses, "excluded_points": self.excluded_points,
-                "sd_sources": self.sd_sources}
+        lists = ("centre", "centre_sd_mm", "centre_offset_mm", "setup_centre")
+        return fields(self, "label", "radius_mm", "radius_sd_mm", *lists, "setup_diameter_mm", "form_error_mm",
+                      "size_error_mm", "size_error_sd_mm", "rms_mm", "max_abs_deviation_mm", "n_points", "n_poses",
+                      "excluded_points", "sd_sources", lists=lists)
 
 
 @dataclasses.dataclass(frozen=True)
-class SpacingCheck:
+class SpacingCheck(AsDict):
     """Sphere-spacing error SD: measured minus setup distance of the two centres, mm."""
 
     distance_mm: float
     setup_distance_mm: float
     error_mm: float
     error_sd_mm: float
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,13 +119,12 @@ class CentreCheck:
 
     def to_dict(self):
         norms = np.linalg.norm(self.epsilon, axis=1)
+        sds = [None] * len(self.ids) if self.predicted_sd_mm is None else self.predicted_sd_mm
         return {"mean_offset_mm": _list(self.epsilon.mean(axis=0)), "rms_mm": float(np.sqrt(np.mean(norms ** 2))),
                 "median_mm": float(np.median(norms)), "max_mm": float(norms.max()), "setup_centre": _list(self.setup_centre),
                 "poses": [{"id": i, "epsilon_mm": _list(e), "norm_mm": float(n),
-                           "predicted_sd_mm": None if self.predicted_sd_mm is None else float(s)}
-                          for i, e, n, s in zip(self.ids, self.epsilon, norms,
-                                                self.predicted_sd_mm if self.predicted_sd_mm is not None
-                                                else [None] * len(self.ids))]}
+                           "predicted_sd_mm": None if s is None else float(s)}
+                          for i, e, n, s in zip(self.ids, self.epsilon, norms, sds)]}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -157,18 +149,11 @@ def accept(result, mpe):
     (checked by :class:`handeye.app.outputs.request.ValidateRequest`)."""
     names = ("PF", "PS", "SD")[: len(mpe)]
     limits = dict(zip(names, map(float, mpe)))
-    measured, failed = {}, []
-    for s in result.spheres:
-        for name, value in (("PF", s.form_error_mm), ("PS", s.size_error_mm)):
-            key = f"{name} [{s.label}]"
-            measured[key] = value
-            if abs(value) > limits[name]:
-                failed.append(key)
-    if "SD" in limits:
-        measured["SD"] = result.spacing.error_mm
-        if abs(result.spacing.error_mm) > limits["SD"]:
-            failed.append("SD")
-    return Acceptance(limits, measured, failed)
+    checks = [(f"{name} [{s.label}]", name, value) for s in result.spheres
+              for name, value in (("PF", s.form_error_mm), ("PS", s.size_error_mm))]
+    checks += [("SD", "SD", result.spacing.error_mm)] if "SD" in limits else []  # (key, limit's name, measured)
+    return Acceptance(limits, {key: value for key, _, value in checks},
+                      [key for key, name, value in checks if abs(value) > limits[name]])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,10 +208,9 @@ class ValidationResult(ResultProtocol):
         return None if self.acceptance is None else self.acceptance.passed
 
     def to_dict(self):
-        failed = self.passed is False  # the exit 1 of handeye validate
-        return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if failed else None,
-                "calibration": self.calibration, "n_points": self.n_points,
-                "n_poses": self.n_poses,
+        # "error" when a limit is exceeded: the exit 1 of handeye validate
+        return {"scan": self.scan, "error": "a maximum permissible error (--mpe) is exceeded" if self.passed is False else None,
+                **fields(self, "calibration", "n_points", "n_poses"),
                 "sphere": self.spheres[0].to_dict() if self.spheres else None,
                 "spheres": [s.to_dict() for s in self.spheres],
                 "spacing": None if self.spacing is None else self.spacing.to_dict(),
@@ -243,10 +227,9 @@ class ValidationResult(ResultProtocol):
 def _sources(fit, a_cal, cov_cal, g_robot, robot_sigma):
     """Covariance (4x4) of (centre, radius) from each source (module docstring)."""
     inv = np.linalg.inv(fit.information)
-    out = {"points": fit.noise_covariance()}
-    out["robot"] = robot_sigma ** 2 * inv @ np.einsum("nij,nkj->ik", g_robot, g_robot) @ inv
-    out["calibration"] = None if cov_cal is None else inv @ a_cal @ cov_cal @ a_cal.T @ inv
-    return out
+    return {"points": fit.noise_covariance(),
+            "robot": robot_sigma ** 2 * inv @ np.einsum("nij,nkj->ik", g_robot, g_robot) @ inv,
+            "calibration": None if cov_cal is None else inv @ a_cal @ cov_cal @ a_cal.T @ inv}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -291,14 +274,11 @@ def check_sphere(label, seen, calib, setup, robot_sigma, exclude=0.0):
     if np.any(np.diff(index) < 0):
         raise ValueError("points must be grouped by pose (index non-decreasing)")
     fit = sphere.fit(points)
-    dropped = 0
-    if exclude > 0:
-        dropped = int(np.floor(exclude * len(points)))
-        if dropped:
-            keep = np.argsort(np.abs(fit.deviations))[: len(points) - dropped]
-            keep.sort()
-            points, xz, index = points[keep], xz[keep], index[keep]
-            fit = sphere.fit(points)
+    dropped = int(np.floor(exclude * len(points))) if exclude > 0 else 0
+    if dropped:
+        keep = np.sort(np.argsort(np.abs(fit.deviations))[: len(points) - dropped])
+        points, xz, index = points[keep], xz[keep], index[keep]
+        fit = sphere.fit(points)
     jac = np.hstack([-fit.normals, -np.ones((len(points), 1))])  # (M, 4)
     a_cal = jac.T @ cloud.radial_jacobian(fit.normals, xz, f2b, index, calib.sensor2flange)  # (4, 6)
     starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])  # points are grouped by pose
@@ -370,8 +350,7 @@ def spacing(checks, a_cals, infos, totals, covariance):
     ref = float(np.linalg.norm(c1.setup_centre - c2.setup_centre))
     var = float(u @ (totals[0][:3, :3] + totals[1][:3, :3]) @ u)
     if covariance is not None:
-        s1 = (infos[0] @ a_cals[0])[:3]
-        s2 = (infos[1] @ a_cals[1])[:3]
+        s1, s2 = ((info @ a_cal)[:3] for info, a_cal in zip(infos, a_cals))
         var -= 2.0 * float(u @ s1 @ covariance @ s2.T @ u)
     return SpacingCheck(dist, ref, dist - ref, float(np.sqrt(max(var, 0.0))))
 
@@ -402,30 +381,22 @@ def validate_scan(scan, calib, exclude=0.0, own=None):
     points, index = cloud.points_in_base(f2b, calib.sensor2flange, scan.profiles)
     xz = np.concatenate(scan.profiles, axis=0)
     which, reasons = assign(points, index, scan.spheres, scan.ids)
-    per_point = which[index]
-    checks, a_cals, infos, totals = [], [], [], []
+    fits = []  # check_sphere's (check, a_cal, info, total) per setup sphere
     for k, setup in enumerate(scan.spheres):
-        mask = per_point == k
+        mask = which[index] == k
         if not mask.any():
             raise RequestError(f"no pose of {scan.name} saw [{'sphere' if k == 0 else 'sphere2'}] (centre "
                                f"{_list(setup.centre)}): check the setup's centres and the calibration")
         try:
-            check, a_cal, info, total = check_sphere("sphere" if k == 0 else "sphere2",
-                                                     SphereCloud(points[mask], xz[mask], f2b, index[mask]), calib, setup,
-                                                     scan.robot_sigma_mm, exclude)
+            fits.append(check_sphere("sphere" if k == 0 else "sphere2", SphereCloud(points[mask], xz[mask], f2b, index[mask]),
+                                     calib, setup, scan.robot_sigma_mm, exclude))
         except sphere.SphereFitError as exc:
             raise RequestError(f"{scan.path}: {exc}") from None
-        checks.append(check)
-        a_cals.append(a_cal)
-        infos.append(info)
-        totals.append(total)
-    gap = None
-    if len(checks) == 2:
-        gap = spacing(checks, a_cals, infos, totals, calib.covariance)
-    used = int(sum(c.n_points for c in checks))
-    skipped = [f"{i}: no profile" for i in scan.skipped] + reasons
-    return ValidationResult(scan.name, calib.source, used, int(sum(c.n_poses for c in checks)), checks, gap, None,
-                            skipped, [NOTES_OWN[own], NOTE_SPHERE], own)
+    checks, a_cals, infos, totals = (list(column) for column in zip(*fits))
+    gap = spacing(checks, a_cals, infos, totals, calib.covariance) if len(checks) == 2 else None
+    return ValidationResult(scan.name, calib.source, int(sum(c.n_points for c in checks)), int(sum(c.n_poses for c in checks)),
+                            checks, gap, None, [f"{i}: no profile" for i in scan.skipped] + reasons,
+                            [NOTES_OWN[own], NOTE_SPHERE], own)
 
 
 def validate_centres(data, calib, own=None):
@@ -433,11 +404,9 @@ def validate_centres(data, calib, own=None):
     if data.sphere_centre is None:
         raise RequestError(f"{data.path / 'setup.toml'}: validation without profiles compares sphere centres: "
                            "[sphere] needs its center (or base_pose and center_in_plate)")
-    f2b = data.motions()
     x = calib.sensor2flange
     centre_h = np.c_[data.centre_in_sensor, np.ones(len(data))]
-    q = np.einsum("nij,nj->ni", f2b @ x, centre_h)[:, :3]
-    eps = q - data.sphere_centre
+    eps = np.einsum("nij,nj->ni", data.motions() @ x, centre_h)[:, :3] - data.sphere_centre
     predicted = None if calib.covariance is None else cloud.point_sd(data.centre_in_sensor, x, calib.covariance)
     return ValidationResult(data.name, calib.source, 0, len(data), [], None,
                             CentreCheck(tuple(data.ids), eps, predicted, data.sphere_centre), [], [NOTE_CENTRE, NOTES_OWN[own]],

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.result_parts import AsDict, Uncertainty, _list, frame_keys, user_poses, user_std
+from handeye.app.present.result_parts import AsDict, Uncertainty, _list, fields, frame_keys, of_user_frame, user_poses, user_std
 from handeye.model import effects
 
 
@@ -44,12 +44,9 @@ def absorbed_sentence(name, by, centre_fitted=True, always=False):
     groups = {"t": "the sensor position", "w": "the sensor orientation", "c": "the sphere centre"}
     what = list(dict.fromkeys(groups.get(p[0], p) if len(p) == 2 else p for p in by))
     structural = always or effects.get(name.split(".")[0]).KIND == "structural"
-    by_centre = any(p.startswith("c") for p in by)
-    if by_centre and not centre_fitted:
-        held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
-                "offset (which diagnose would name)")
-    else:
-        held = "which the calibration fits anyway, so those fitted values already contain it"
+    held = ("the given sphere centre is not fitted here, so where the data hold it, it shows as a sphere_center "
+            "offset (which diagnose would name)" if any(p.startswith("c") for p in by) and not centre_fitted
+            else "which the calibration fits anyway, so those fitted values already contain it")
     return (f"{name}: not measurable here -- any amount of it is reproduced exactly by a change of "
             f"{' and '.join(what)} ({', '.join(by)}); {held}; "
             + ("no choice of poses can separate it (it is part of what they describe)"
@@ -166,29 +163,19 @@ class DiagnosisResult(ResultProtocol):
         return dataclasses.replace(self, sensor2flange=matrix, sensor_pose=kuka, sensor_pose_as=pose,
                                    std=user_std(self.std, None, self.own_axes)[0], pose_frame="own")
 
+    @of_user_frame
     def to_dict(self):
         """The ``handeye diagnose --json`` object (its pose of the user's frame: :meth:`in_user_frame`)."""
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict()
         return {
-            "dataset": self.dataset,
-            "unknowns": self.unknowns,
-            "against_calibrate": self.against_calibrate,
+            **fields(self, "dataset", "unknowns", "against_calibrate"),
             "effects": [e.to_dict() for e in self.effects],
             "outliers": list(self.outliers),
             "inconsistent": [e.to_dict() for e in self.inconsistent],
             "not_identifiable": self.not_identifiable,
             "absorbed_by": {k: list(v) for k, v in self.absorbed_by.items()},
-            "rms_before_mm": self.rms_before_mm,
-            "rms_after_mm": self.rms_after_mm,
-            "heldout_rms_before_mm": self.heldout_rms_before_mm,
-            "heldout_rms_after_mm": self.heldout_rms_after_mm,
-            "chi2_dof_before": self.chi2_dof_before,
-            "chi2_dof_after": self.chi2_dof_after,
-            "nominal_sigma_mm": self.nominal_sigma_mm,
-            "sigma_after_mm": self.sigma_after_mm,
-            "sensor_pose": _list(self.sensor_pose),
+            **fields(self, "rms_before_mm", "rms_after_mm", "heldout_rms_before_mm", "heldout_rms_after_mm",
+                     "chi2_dof_before", "chi2_dof_after", "nominal_sigma_mm", "sigma_after_mm", "sensor_pose",
+                     lists=("sensor_pose",)),
             "sensor_matrix": _list(self.sensor2flange),
             **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
@@ -197,14 +184,12 @@ class DiagnosisResult(ResultProtocol):
             "tests": [[t.to_dict() for t in round_] for round_ in self.tests],
             "residuals": [r.to_dict() for r in self.residuals],
             "screened_out_first": list(self.screened_out_first),
-            "unexplained": self.unexplained,
-            "robot_alternatives": self.robot_alternatives,
+            **fields(self, "unexplained", "robot_alternatives"),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
                                              else self.sensor_pose)},
             "std": None if self.std is None else self.std.to_dict(),
-            "absorbed_explained": self.absorbed_explained,
-            "cleaning": self.cleaning,
+            **fields(self, "absorbed_explained", "cleaning"),
             **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 

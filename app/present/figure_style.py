@@ -168,7 +168,7 @@ def violations(fig):
     """
     fig.draw_without_rendering()
     found = _small_text(fig)
-    bars = {id(a) for m in _mappables(fig) if m.colorbar is not None for a in (m.colorbar.ax,)}
+    bars = {id(m.colorbar.ax) for ax in fig.axes for m in _mappables(ax) if m.colorbar is not None}
     for ax in fig.axes:
         if id(ax) in bars:
             continue
@@ -187,19 +187,16 @@ def _small_text(fig):
             + (f" and {len(texts) - 4} more" if len(texts) > 4 else "") for size, texts in small.items()]
 
 
-def _mappables(fig):
+def _mappables(ax):
+    """The artists of ``ax`` whose colour encodes a value (a ScalarMappable with an array)."""
     from matplotlib.cm import ScalarMappable
 
-    return [a for ax in fig.axes for a in ax.get_children() if isinstance(a, ScalarMappable) and a.get_array() is not None]
+    return [a for a in ax.get_children() if isinstance(a, ScalarMappable) and a.get_array() is not None]
 
 
 def _unlabelled_maps(ax):
-    from matplotlib.cm import ScalarMappable
-
     found = []
-    for a in ax.get_children():
-        if not isinstance(a, ScalarMappable) or a.get_array() is None or not a.get_visible():
-            continue
+    for a in (m for m in _mappables(ax) if m.get_visible()):
         cmap = a.get_cmap().name
         if cmap not in MAPS and not cmap.startswith("okabe-ito"):
             found.append(f"colour map {cmap!r} (use one of {', '.join(MAPS)}, or an Okabe-Ito category map)")
@@ -219,14 +216,9 @@ def _colour_ok(colour):
     return _is_grey(rgba) or to_hex(rgba).lower() in {c.lower() for c in OKABE_ITO}
 
 
-def _name(colour):
-    from matplotlib.colors import to_hex
-
-    return to_hex(colour)
-
-
 def _off_palette(ax):
     from matplotlib.collections import Collection
+    from matplotlib.colors import to_hex
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -242,7 +234,7 @@ def _off_palette(ax):
             colours = [*a.get_facecolor(), *a.get_edgecolor()]
         else:
             continue
-        bad.update(_name(c) for c in colours if not (isinstance(c, str) and c in ("none", "auto")) and not _colour_ok(c))
+        bad.update(to_hex(c) for c in colours if not (isinstance(c, str) and c in ("none", "auto")) and not _colour_ok(c))
     return [f"colours outside the Okabe-Ito palette and greys in {ax.get_title()!r}: " + ", ".join(sorted(bad))] if bad else []
 
 
@@ -287,9 +279,7 @@ def _off_axes(ax):
               & _inside(pts[:, 1], ax.get_ylim(), ax.get_yscale() == "log"))
     arrows = sum(1 for t in ax.texts if t.get_gid() == "edge-arrow")
     off = int(np.sum(~inside))
-    if off > arrows:
-        return [f"{off} data points outside the axes of {ax.get_title()!r} with {arrows} edge arrows"]
-    return []
+    return [f"{off} data points outside the axes of {ax.get_title()!r} with {arrows} edge arrows"] if off > arrows else []
 
 
 def edge_arrows(ax, x, y, labels, xlim=None, ylim=None):

@@ -105,7 +105,7 @@ class Panel:
     def __init__(self, draw: Callable, controls: dict):
         self.draw = draw
         self.values = {name: c.value for name, c in controls.items()}
-        self.png = png_from_figure(self._drawn())
+        self.png = png_from_figure(self.draw(**self.values))
         self.widgets, self.box, self._image = None, None, None
         try:
             import ipywidgets
@@ -117,10 +117,6 @@ class Panel:
         for name, w in self.widgets.items():
             w.observe(self._changed(name), names="value")
 
-    def _drawn(self):
-        """The figure at the current values."""
-        return self.draw(**self.values)
-
     def _changed(self, name):
         def handler(change):
             self.update(**{name: change["new"]})
@@ -129,7 +125,7 @@ class Panel:
     def update(self, **values):
         """Redraw with some controls' values changed (what moving a slider does)."""
         self.values = {**self.values, **values}
-        self.png = png_from_figure(self._drawn())
+        self.png = png_from_figure(self.draw(**self.values))
         if self._image is not None:
             self._image.value = self.png
 

@@ -46,13 +46,8 @@ class ResultProtocol:
     def _html_rows(self):
         """The Jupyter table's ``(name, value)`` rows: the summary's ``name: value`` lines (a result
         type may give its own)."""
-        rows = []
-        for line in self.summary().splitlines():
-            if not line.strip():
-                continue
-            key, sep, value = line.partition(": ")
-            rows.append((key.strip(), value) if sep and len(key) <= 60 else ("", line))
-        return rows
+        split = [(line, *line.partition(": ")) for line in self.summary().splitlines() if line.strip()]
+        return [(key.strip(), value) if sep and len(key) <= 60 else ("", line) for line, key, sep, value in split]
 
     def _repr_html_(self):
         body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"

@@ -107,10 +107,8 @@ def cell_lines(res):
     """The sensor's 4x4 and the sphere centre in their mounts' frames, the positioner's axes, and in
     words what was calibrated (the seed's cell: the lines of earlier versions, unchanged)."""
     sensor_mount, sphere_mount = getattr(res, "sensor_mount", "flange"), getattr(res, "sphere_mount", "world")
-    lines = [f"sensor2{_MOUNT_FRAME[sensor_mount]} (4x4):"]
-    lines += ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
-    where = "base" if sphere_mount == "world" else f"{_MOUNT_FRAME[sphere_mount]}"
-    lines.append(f"sphere centre in {where} (mm): " + _fmt(res.sphere_centre, 12, 4))
+    lines = [f"sensor2{_MOUNT_FRAME[sensor_mount]} (4x4):"] + ["  " + _fmt(row, 12, 6) for row in res.sensor2flange]
+    lines.append(f"sphere centre in {_MOUNT_FRAME[sphere_mount]} (mm): " + _fmt(res.sphere_centre, 12, 4))
     positioner = getattr(res, "positioner", None)
     if (sensor_mount, sphere_mount) == ("flange", "world") and positioner is None:
         return lines
@@ -214,7 +212,6 @@ def calibration_plot(res, dataset, path):
         :func:`handeye.app.engine.cell_stage.dataset_at`).
     path : str or pathlib.Path
     """
-    from handeye.app.present import figure_style as style
     from handeye.app.present.plotting import figure
 
     plt = figure()
@@ -222,8 +219,7 @@ def calibration_plot(res, dataset, path):
         fig, ax = plt.subplots(figsize=(6, 2))
         ax.axis("off")
         ax.text(0.5, 0.5, f"{res.dataset}: no finite solution ({res.message})", ha="center", va="center", wrap=True)
-        style.save(fig, path)
-        plt.close(fig)
+        _saved(plt, fig, path, tight=False)
         return
     fig, axes = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.7, 1]})
     used = np.array([r.used for r in res.residuals])
@@ -231,8 +227,16 @@ def calibration_plot(res, dataset, path):
     sensor = np.asarray(res.sensor2flange)
     seen = (dataset.motions() @ sensor @ np.column_stack([dataset.centre_in_sensor, np.ones(len(dataset))])[..., None])
     _centres_seen(fig, axes[1], res, seen[:, :3, 0] - np.asarray(res.sphere_centre), used)
-    fig.tight_layout()
-    style.save(fig, path)
+    _saved(plt, fig, path)
+
+
+def _saved(plt, fig, path, option="--plot", tight=True):
+    """``fig`` laid out (``tight``), saved in the one style (:func:`handeye.app.present.figure_style.save`) and closed."""
+    from handeye.app.present import figure_style as style
+
+    if tight:
+        fig.tight_layout()
+    style.save(fig, path, option=option)
     plt.close(fig)
 
 
@@ -262,11 +266,10 @@ def _centres_seen(fig, ax, res, d, used):
     fig.colorbar(sc, ax=ax, label="dz (mm)", shrink=0.9)
     ax.scatter(d[~used, 0], d[~used, 1], marker="x", s=40, color=style.VERMILLION, label="excluded")
     lim = max(1.15 * np.abs(d[used, :2]).max() if used.any() else 0.0, 1e-3)
-    frame = {"world": "base", "flange": "flange", "positioner": "table"}[getattr(res, "sphere_mount", "world")]
+    frame = _MOUNT_FRAME[getattr(res, "sphere_mount", "world")]
     ax.set(xlabel=f"dx (mm, {frame})", ylabel=f"dy (mm, {frame})", aspect="equal",
            title="sphere centres through the chain")
-    ids = [r.id for r in res.residuals]
-    style.edge_arrows(ax, d[:, 0], d[:, 1], ids, xlim=(-lim, lim), ylim=(-lim, lim))
+    style.edge_arrows(ax, d[:, 0], d[:, 1], [r.id for r in res.residuals], xlim=(-lim, lim), ylim=(-lim, lim))
     ax.legend(loc="best")
 
 
@@ -302,16 +305,14 @@ def validation_text(res):
                   f"  mean offset {_fmt(c['mean_offset_mm']).strip()} mm; |eps|: RMS {c['rms_mm']:.4f} mm, median "
                   f"{c['median_mm']:.4f} mm, max {c['max_mm']:.4f} mm",
                   "  id            eps_x      eps_y      eps_z      |eps|   1 sd (calibration)"]
-        for p in c["poses"]:
-            sd = "" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}"
-            lines.append(f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}{sd}")
+        lines += [f"  {p['id']:<10}" + _fmt(p["epsilon_mm"]) + f"{p['norm_mm']:10.4f}"
+                  + ("" if p["predicted_sd_mm"] is None else f"{p['predicted_sd_mm']:10.4f}") for p in c["poses"]]
     if res.acceptance is not None:
         a = res.acceptance
         lim = ", ".join(f"{k} {v:g}" for k, v in a.limits.items())
         lines.append(f"acceptance (MPE {lim} mm): " + ("PASSED" if a.passed else "FAILED: " + ", ".join(
             f"{k} = {a.measured[k]:+.4f}" for k in a.failed)))
-    for s in res.skipped:
-        lines.append(f"skipped {s}")
+    lines += [f"skipped {s}" for s in res.skipped]
     lines += [f"note: {n}" for n in res.notes]
     return "\n".join(lines)
 
@@ -334,9 +335,7 @@ def validation_figure(res, path, max_points=20_000):
         ax.set_xticks(k, c.ids, rotation=90)
         ax.set(ylabel="mm", yscale="log", title=f"{res.scan}: sphere centres through the calibration")
         ax.legend()
-        fig.tight_layout()
-        style.save(fig, path)
-        plt.close(fig)
+        _saved(plt, fig, path)
         return
     n = len(res.spheres)
     fig = plt.figure(figsize=(11, 4.8 * n))
@@ -361,9 +360,7 @@ def validation_figure(res, path, max_points=20_000):
                title=f"RMS {s.rms_mm:.4f} mm over {s.n_points:,} points, {s.n_poses} poses")
     fig.suptitle(f"{res.scan}: radial deviations from the least-squares sphere (robot base, calibration "
                  f"{res.calibration})", fontsize=11)
-    fig.tight_layout()
-    style.save(fig, path)
-    plt.close(fig)
+    _saved(plt, fig, path)
 
 
 def classic_text(res):
@@ -398,18 +395,12 @@ def diagnosis_text(res):
     lines = [f"handeye diagnose: dataset {res.dataset}, unknowns {res.unknowns}"
              + (" (the sphere centre estimated with the pose in every model)" if res.unknowns == "sensor+sphere" else ""),
              ""]
-    if res.effects:
-        lines.append("effects named:")
-        for eff in res.effects:
-            if eff.std is None:
-                lines.append(f"  {eff.name}: {', '.join(eff.parameters['ids'])}")
-            else:
-                lines.append(f"  {eff.name}: " + ", ".join(
-                    f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items()))
-            if eff.note:
-                lines.append(f"    {eff.note}")
-    else:
-        lines.append("effects named: none")
+    lines.append("effects named:" if res.effects else "effects named: none")
+    for eff in res.effects:
+        lines.append(f"  {eff.name}: " + (", ".join(eff.parameters["ids"]) if eff.std is None else ", ".join(
+            f"{k} = {v:.5g} +- {eff.std[k]:.2g}" for k, v in eff.parameters.items())))
+        if eff.note:
+            lines.append(f"    {eff.note}")
     if res.robot_alternatives:
         lines.append(f"  {res.robot_alternatives}")
     lines += cleaning_lines(getattr(res, "cleaning", None))[1:]
@@ -418,8 +409,7 @@ def diagnosis_text(res):
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
     lines += [f"  {sentence}" for sentence in res.absorbed_explained]
     lines += ["", f"{'step':<34} {'RMS mm':>9} {'held-out':>9} {'chi2/dof':>9}"]
-    for step in res.steps:
-        lines.append(f"{step.step:<34} {step.rms_mm:9.4f} {step.heldout_rms_mm:9.4f} {step.chi2_dof:9.2f}")
+    lines += [f"{step.step:<34} {step.rms_mm:9.4f} {step.heldout_rms_mm:9.4f} {step.chi2_dof:9.2f}" for step in res.steps]
     lines += ["", f"chi2/dof against a nominal sigma of {res.nominal_sigma_mm} mm per component",
               f"sensor pose ({res.convention}: {','.join(res.columns)}): "
               + " ".join(f"{v:.4f}" for v in (res.sensor_pose_as if res.sensor_pose_as is not None else res.sensor_pose)),
@@ -473,14 +463,10 @@ def diagnosis_figures(res, out):
     ax.set(ylabel="|residual| (mm)", yscale="log", title=f"{res.dataset}: residuals per measurement")
     ax.set_ylim(top=ax.get_ylim()[1] * 30)  # room for the labels above the tallest bars
     ax.legend()
-    fig.tight_layout()
-    style.save(fig, out / "residuals.png", option="--figures")
-    plt.close(fig)
+    _saved(plt, fig, out / "residuals.png", option="--figures")
     fig, ax = plt.subplots(figsize=(8.4, 4.8))
     draw_gap(ax, [s.to_dict() for s in res.steps], res.nominal_sigma_mm)
-    fig.tight_layout()
-    style.save(fig, out / "gap.png", option="--figures")
-    plt.close(fig)
+    _saved(plt, fig, out / "gap.png", option="--figures")
     return [out / "residuals.png", out / "gap.png"]
 
 

@@ -88,13 +88,9 @@ class ResidualTable:
     def __iter__(self):
         return (self._one(k) for k in range(len(self)))
 
-    def to_dicts(self):
-        """The ``residuals`` entries of the JSON report, one dict per row (as :meth:`SampleResidual.to_dict`)."""
-        return [r.to_dict() for r in self]
-
     def json_rows(self):
-        """Strict compact JSON of each row's dict (same keys and numbers as :meth:`to_dicts`; non-finite
-        numbers as null), formatted column-wise: a list of N strings."""
+        """Strict compact JSON of each row's dict (same keys and numbers as :meth:`SampleResidual.to_dict`;
+        non-finite numbers as null), formatted column-wise: a list of N strings."""
         def numbers(a):  # repr: the shortest text that parses to the same float; one finiteness test per column
             out = list(map(float.__repr__, a.tolist()))
             for k in np.flatnonzero(~np.isfinite(a)).tolist():
@@ -102,16 +98,10 @@ class ResidualTable:
             return out
 
         x, y, z = (numbers(self.vectors[:, i]) for i in range(3))
-        loo = numbers(self.loo)
         used = ["true" if u else "false" for u in self.used.tolist()]
         return [f'{{"id":{quote(i)},"row":{r},"vector":[{a},{b},{c}],"norm":{n},"used":{u},"loo_error_mm":{lo}}}'
                 for i, r, a, b, c, n, u, lo in zip(self.ids, self.rows.tolist(), x, y, z, numbers(self.norms), used,
-                                                    loo)]
-
-
-def residual_dicts(residuals):
-    """The JSON entries of a list of :class:`SampleResidual` or a :class:`ResidualTable`."""
-    return residuals.to_dicts() if isinstance(residuals, ResidualTable) else [r.to_dict() for r in residuals]
+                                                    numbers(self.loo))]
 
 
 def residuals_json(residuals):

@@ -10,12 +10,26 @@ Every attribute of a part is also an attribute of the result (``result.rms_mm`` 
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
 
 def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
+
+
+def fields(record, *names, lists=()):
+    """``{name: record.name}`` of ``names`` in their order, those in ``lists`` as :func:`_list` (JSON-ready)."""
+    return {n: _list(getattr(record, n)) if n in lists else getattr(record, n) for n in names}
+
+
+def of_user_frame(method):
+    """``method`` run on the result in the user's frame (its ``in_user_frame()``: itself without a turn)."""
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        return method(self.in_user_frame(), *args, **kwargs)
+    return run
 
 
 class AsDict:
@@ -160,16 +174,11 @@ class PositionerRecord:
     calibrated: bool = False
 
     def to_dict(self):
-        out = []
-        for j, (axis, nom) in enumerate(zip(self.axes, self.nominal)):
-            entry = axis.to_dict()
-            entry["nominal"] = nom.to_dict()
-            entry["point_sd"] = None if self.point_sd is None else [float(v) for v in self.point_sd[j]]
-            entry["direction_sd"] = None if self.direction_sd is None else [float(v) for v in self.direction_sd[j]]
-            entry["tilt_sd_deg"] = None if self.tilt_sd_deg is None else float(self.tilt_sd_deg[j])
-            entry["calibrated"] = self.calibrated
-            out.append(entry)
-        return out
+        return [{**axis.to_dict(), "nominal": nom.to_dict(),
+                 "point_sd": None if self.point_sd is None else [float(v) for v in self.point_sd[j]],
+                 "direction_sd": None if self.direction_sd is None else [float(v) for v in self.direction_sd[j]],
+                 "tilt_sd_deg": None if self.tilt_sd_deg is None else float(self.tilt_sd_deg[j]), "calibrated": self.calibrated}
+                for j, (axis, nom) in enumerate(zip(self.axes, self.nominal))]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,9 +200,8 @@ class Uncertainty:
     sphere_center_mm: np.ndarray | None = None
 
     def to_dict(self):
-        return {"sensor_translation_mm": _list(self.sensor_translation_mm),
-                "sensor_rotation_deg": _list(self.sensor_rotation_deg),
-                "sphere_center_mm": _list(self.sphere_center_mm)}
+        names = ("sensor_translation_mm", "sensor_rotation_deg", "sphere_center_mm")
+        return fields(self, *names, lists=names)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -25,7 +25,7 @@ import numpy as np
 
 from handeye.app.common.jsonio import dumps
 from handeye.app.present.protocol import ResultProtocol
-from handeye.app.present.residual_table import residual_dicts, residuals_json
+from handeye.app.present.residual_table import residuals_json
 from handeye.app.present.result_parts import (
     FLAT,
     AsDict,
@@ -34,7 +34,9 @@ from handeye.app.present.result_parts import (
     ScreeningRecord,
     UncertaintyRecord,
     _list,
+    fields,
     frame_keys,
+    of_user_frame,
     user_poses,
     user_std,
 )
@@ -312,7 +314,6 @@ class CalibrationResult(ResultProtocol):
                           and not self.effects)
         if same_samples and same_objective:
             return None
-        diff = self.rms_mm - self.before.rms_mm
         parts = []
         if not same_samples:
             n_out = self.before.n - (self.n_used or 0)
@@ -327,7 +328,7 @@ class CalibrationResult(ResultProtocol):
                          f"minimises {self.objective.get('short', 'another objective')}, so on the same samples its "
                          "per-centre RMS cannot be smaller")
         return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
-                f"({diff:+.2g} mm): " + "; and ".join(parts))
+                f"({self.rms_mm - self.before.rms_mm:+.2g} mm): " + "; and ".join(parts))
 
     def in_user_frame(self):
         """The result with every pose the user reads in the frame of the user's files: the
@@ -363,13 +364,11 @@ class CalibrationResult(ResultProtocol):
             self, fit=fit, uncertainty=dataclasses.replace(self.uncertainty, std=std, covariance=cov, correlation=corr),
             start_pose=start, start_pose_kuka=start_kuka, closed_form=closed, identifiability=ident, pose_frame="own")
 
+    @of_user_frame
     def to_dict(self, residuals=True):
         """The ``handeye calibrate --json`` object (JSON-ready: lists, floats, str, None); without
         ``residuals`` their entry is None (:meth:`to_json` writes them column-wise). Its poses are
         of the user's frame (:meth:`in_user_frame`)."""
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict(residuals)
         out = {**self._request_keys(), **self._pose_keys(), **self._fit_keys(residuals), **self._uncertainty_keys()}
         if self.provenance is not None:
             out["provenance"] = self.provenance
@@ -377,19 +376,8 @@ class CalibrationResult(ResultProtocol):
 
     def _request_keys(self):
         """The JSON keys of what was asked: the dataset, method, model and start."""
-        return {
-            "dataset": self.dataset,
-            "dataset_path": self.dataset_path,
-            "dataset_sha256": self.dataset_sha256,
-            "method": self.method,
-            "rotation": self.rotation,
-            "unknowns": self.unknowns,
-            "model": self.model,
-            "robot_sigma_mm": self.robot_sigma_mm,
-            "start_pose": _list(self.start_pose),
-            "start_pose_kuka": _list(self.start_pose_kuka),
-            "start_used": self.start_used,
-        }
+        return fields(self, "dataset", "dataset_path", "dataset_sha256", "method", "rotation", "unknowns", "model",
+                      "robot_sigma_mm", "start_pose", "start_pose_kuka", "start_used", lists=("start_pose", "start_pose_kuka"))
 
     def _pose_keys(self):
         """The JSON keys of the calibrated pose, its mounts and frames."""
@@ -398,8 +386,7 @@ class CalibrationResult(ResultProtocol):
             "sensor_pose_kuka": _list(self.sensor_pose_kuka),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose)},
-            "sensor_mount": self.sensor_mount,
-            "sphere_mount": self.sphere_mount,
+            **fields(self, "sensor_mount", "sphere_mount"),
             "sensor_matrix": _list(self.sensor2flange),
             **frame_keys(self.own_axes),
             "sphere_center": _list(self.sphere_centre),
@@ -416,21 +403,14 @@ class CalibrationResult(ResultProtocol):
             "converged": bool(self.converged),
             "error": None if self.converged else self.message,
             "status": None if self.status is None else int(self.status),
-            "message": self.message,
-            "outliers": self.outliers,
+            **fields(self, "message", "outliers"),
             "excluded": [e.to_dict() for e in self.excluded],
             "before": None if self.before is None else self.before.to_dict(),
             "warnings": list(self.warnings),
-            "history": _list(self.history),
-            "solver_point": _list(self.solver_point),
-            "solver_extra": self.solver_extra,
-            "n_used": self.n_used,
-            "rms_mm": self.rms_mm,
-            "max_residual_mm": self.max_residual_mm,
-            "cost_mm2": self.cost_mm2,
-            "residuals": residual_dicts(self.residuals) if residuals else None,
-            "sigma_mm": self.sigma_mm,
-            "sigma_scale": self.sigma_scale,
+            **fields(self, "history", "solver_point", "solver_extra", "n_used", "rms_mm", "max_residual_mm", "cost_mm2",
+                     lists=("history", "solver_point")),
+            "residuals": [r.to_dict() for r in self.residuals] if residuals else None,
+            **fields(self, "sigma_mm", "sigma_scale"),
         }
 
     def _uncertainty_keys(self):
@@ -444,18 +424,13 @@ class CalibrationResult(ResultProtocol):
                 "matrix": _list(self.covariance)},
             "loo_error_mm": self.loo_error_mm,
             "identifiability": None if self.identifiability is None else self.identifiability.to_dict(),
-            "hessian_eigenvalues": _list(self.hessian_eigenvalues),
-            "noise_model": self.noise_model,
+            **fields(self, "hessian_eigenvalues", "noise_model", lists=("hessian_eigenvalues",)),
             "closed_form": None if self.closed_form is None else self.closed_form.to_dict(),
             "noise_test": None if self.noise_test is None else self.noise_test.to_dict(),
             "effect_tests": None if self.effect_tests is None else [t.to_dict() for t in self.effect_tests],
             "effects": None if self.effects is None else [e.to_dict() for e in self.effects],
             "global": None if self.global_check is None else self.global_check.to_dict(),
-            "rms_what": self.rms_what,
-            "objective": self.objective,
-            "loo": self.loo,
-            "rms_note": self.rms_note,
-            "cleaning": self.cleaning,
+            **fields(self, "rms_what", "objective", "loo", "rms_note", "cleaning"),
         }
 
     def to_json(self, indent=1):
@@ -473,16 +448,15 @@ class CalibrationResult(ResultProtocol):
 
         return report.calibration_text(self.in_user_frame())
 
+    @of_user_frame
     def _html_rows(self):
         """The Jupyter table's rows (:class:`~handeye.app.present.protocol.ResultProtocol`), of the user's frame."""
-        self = self.in_user_frame()
-        verdict = "converged" if self.converged else "NOT CONVERGED"
         rows = [
             ("dataset", f"{self.dataset} ({len(self.residuals)} samples, {self.n_used if self.n_used is not None else '?'}"
                         f" used, {len(self.excluded)} excluded)"),
             ("method", f"{self.method}" + (f", rotation {self.rotation}" if self.rotation else "")
              + f", unknowns {self.unknowns}" + (f", model {self.model}" if self.model else "")),
-            ("status", f"{verdict}: {self.message}"),
+            ("status", f"{'converged' if self.converged else 'NOT CONVERGED'}: {self.message}"),
             (f"sensor pose ({self.convention}: {','.join(self.columns)})",
              " ".join(f"{v:.4f}" for v in self.sensor_pose)),
             ("sphere centre (base, mm)", " ".join(f"{v:.3f}" for v in self.sphere_centre)),
@@ -496,8 +470,8 @@ class CalibrationResult(ResultProtocol):
             rows.append(("1 sd rotation (deg)", " ".join(f"{v:.4f}" for v in self.std.sensor_rotation_deg)))
         return rows + [("warning", w) for w in self.warnings]
 
+    @of_user_frame
     def __repr__(self):
-        self = self.in_user_frame()
         verdict = "converged" if self.converged else "NOT CONVERGED"
         rms = "n/a" if self.rms_mm is None else f"{self.rms_mm:.4f} mm"
         return (f"CalibrationResult(dataset={self.dataset!r}, method={self.method!r}, {verdict}, RMS {rms}, "

@@ -13,7 +13,7 @@ import numpy as np
 
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.residual_table import ResidualTable
-from handeye.app.present.result_parts import _list, frame_keys, user_poses
+from handeye.app.present.result_parts import _list, frame_keys, of_user_frame, user_poses
 
 #: Residual model -> what one of its rows is.
 _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points": "profile point"}
@@ -21,6 +21,11 @@ _PER = {"centre": "sphere centre", "measurement": "circle (xc, zc, r)", "points"
 
 def _rms_dict(score):
     return {k: float(v) for k, v in score.rms_mm.items()}
+
+
+def _rms(score, model):
+    """The RMS of ``score`` (a PoseScore) in ``model``, or of the centre model when it has none of that."""
+    return score.rms_mm.get(model, score.rms_mm["centre"])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,36 +114,28 @@ class ScoreResult(ResultProtocol):
     def residuals(self):
         """Every sample's residual at the given pose (used: the estimate's screening)."""
         est = self.estimate
-        used = np.array([r.used for r in est.residuals], bool)
-        norms = np.linalg.norm(self.given.residuals, axis=1)
-        return ResidualTable([r.id for r in est.residuals], [r.row for r in est.residuals], self.given.residuals, norms,
-                             used)
+        return ResidualTable([r.id for r in est.residuals], [r.row for r in est.residuals], self.given.residuals,
+                             np.linalg.norm(self.given.residuals, axis=1), [r.used for r in est.residuals])
 
     def verdict(self):
         """One sentence: does the data contradict the pose?"""
         f, p, bad = self.f_test
-        g, e = self.given.rms_mm.get(self.model, self.given.rms_mm["centre"]), self.estimate_score.rms_mm.get(
-            self.model, self.estimate_score.rms_mm["centre"])
-        per = _PER[self.model]
+        g, e = _rms(self.given, self.model), _rms(self.estimate_score, self.model)
         if not self.converged:
             return self.error
         if not np.isfinite(f):
             return "no comparison: the data's own calibration has no residual degrees of freedom"
-        if bad:
-            return (f"the data contradict the given pose: RMS {g:.4f} mm per {per} against {e:.4f} mm at the data's own "
-                    f"calibration (F = {f:.3g}, p = {p:.2g}); it lies {self._far()} from it")
-        return (f"the data do not contradict the given pose: RMS {g:.4f} mm per {per} against {e:.4f} mm at the data's "
-                f"own calibration (F = {f:.3g}, p = {p:.2g}); it lies {self._far()} from it")
+        return (f"the data {'contradict' if bad else 'do not contradict'} the given pose: RMS {g:.4f} mm per "
+                f"{_PER[self.model]} against {e:.4f} mm at the data's own calibration (F = {f:.3g}, p = {p:.2g}); it "
+                f"lies {self._far()} from it")
 
     def _far(self):
         d = self.distance
         sd = "" if d["sd"] is None else f", {d['sd']:.1f} sd of that calibration"
         return f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg{sd}"
 
+    @of_user_frame
     def to_dict(self):
-        user = self.in_user_frame()
-        if user is not self:
-            return user.to_dict()
         f, p, bad = self.f_test
         est = self.estimate
         out = {
@@ -161,18 +158,16 @@ class ScoreResult(ResultProtocol):
                          "ssr": self.estimate_score.ssr},
             "n_used": int(np.sum([r.used for r in est.residuals])), "outliers": list(est.outliers),
             "excluded": [e.to_dict() for e in est.excluded],
-            "residuals": self.residuals.to_dicts(),
+            "residuals": [r.to_dict() for r in self.residuals],
         }
         if self.provenance is not None:
             out["provenance"] = self.provenance
         return out
 
+    @of_user_frame
     def summary(self):
         from handeye.app.present.report import residual_lines
 
-        user = self.in_user_frame()
-        if user is not self:
-            return user.summary()
         est = self.estimate
         n_used = int(np.sum([r.used for r in est.residuals]))
         lines = [f"handeye calibrate (score): dataset {self.dataset}, the sensor pose given by {self.source} held"
@@ -186,8 +181,8 @@ class ScoreResult(ResultProtocol):
                  + (" (fitted with the pose held)" if self.centre_fitted else " (given)"), "",
                  f"RMS per residual model over the {n_used} samples the data's own calibration keeps "
                  "(given pose | data's own calibration):"]
-        for name, value in self.given.rms_mm.items():
-            lines.append(f"  {name:<12} {value:9.4f} | {self.estimate_score.rms_mm[name]:9.4f} mm per {_PER[name]}")
+        lines += [f"  {name:<12} {value:9.4f} | {self.estimate_score.rms_mm[name]:9.4f} mm per {_PER[name]}"
+                  for name, value in self.given.rms_mm.items()]
         if self.noise_test is not None:
             t = self.noise_test
             lines.append(f"noise test of the given pose ({self.model}): sd {t.ratio:.2f} x the stated {t.nominal} "
@@ -240,7 +235,7 @@ class CompareResult(ResultProtocol):
 
     def verdict(self):
         model = self.scores[0].model
-        rms = [s.given.rms_mm.get(model, s.given.rms_mm["centre"]) for s in self.scores]
+        rms = [_rms(s.given, model) for s in self.scores]
         if self.better is None or self.vuong is None:
             return f"{self.sources[0]} and {self.sources[1]} fit these data equally well"
         bad = [s.contradicted for s in self.scores]

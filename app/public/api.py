@@ -181,12 +181,10 @@ def compare(dataset, a, b, *, unknowns=None, model=None, alpha=None, sigma=None,
     values = options.COMMANDS["compare"].given(locals())
     data = load_dataset(dataset)
     request, level = compare_request(values, data)
-    poses, sources = [], []
-    for given in (a, b):
-        cal = held_request.same_mount(held_request.given_calibration(_path_argument(given) if isinstance(given, str) else given,
-                                                             own_axes=data.own_axes), data, "compare")
-        poses.append(np.asarray(cal.sensor2flange, float))
-        sources.append(cal.source + ("" if cal.converged else " (converged: false in the file)"))
+    cals = [held_request.same_mount(held_request.given_calibration(_path_argument(given) if isinstance(given, str) else given,
+                                                                   own_axes=data.own_axes), data, "compare") for given in (a, b)]
+    poses = [np.asarray(cal.sensor2flange, float) for cal in cals]
+    sources = [cal.source + ("" if cal.converged else " (converged: false in the file)") for cal in cals]
     if sources[0] == sources[1]:
         sources = [f"A ({sources[0]})", f"B ({sources[1]})"]
     result = score.compare(request, data, poses, sources, level)

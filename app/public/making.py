@@ -171,9 +171,8 @@ class PlanResult(ResultProtocol):
         followed by their joint angles j1..j6, degrees)."""
         from handeye.model.datasets.dataset import pose_list_text
 
-        if self.robot is not None:
-            return pose_list_text(self.ids, self.poses, self.convention, self.joint_columns, self.joints)
-        return pose_list_text(self.ids, self.poses, self.convention, self.axis_names, self.axis_angles)
+        names, values = (self.joint_columns, self.joints) if self.robot is not None else (self.axis_names, self.axis_angles)
+        return pose_list_text(self.ids, self.poses, self.convention, names, values)
 
     def summary(self):
         lines = self._robot_summary() if self.robot is not None else self._sensor_summary()
@@ -182,10 +181,8 @@ class PlanResult(ResultProtocol):
 
     def _sensor_summary(self):
         """:meth:`summary`'s lines of a plan of the sensor pose (and a positioner's axes)."""
-        if self.scored:
-            head = f"scored {self.n} given poses (log det {self.logdet:.2f})"
-        else:
-            head = f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})"
+        head = (f"scored {self.n} given poses (log det {self.logdet:.2f})" if self.scored else
+                f"chose {self.n} of {self.usable} usable candidate poses (D-optimal, log det {self.logdet:.2f})")
         if any(self.margin):
             head += f"; each still sees the sphere with the sensor off by {self.margin[0]:g} mm / {self.margin[1]:g} deg"
         lines = [head,
@@ -202,18 +199,14 @@ class PlanResult(ResultProtocol):
         from handeye.model.design.planning_robot import UNITS, absorbed_why
 
         r = self.robot
-        if self.scored:
-            head = f"scored {self.n} given poses for the {r.model}'s {', '.join(r.effects)} (log det {self.logdet:.2f})"
-        else:
-            head = (f"chose {self.n} of {self.usable} usable candidate poses for the {r.model}'s {', '.join(r.effects)} "
-                    f"(D-optimal, log det {self.logdet:.2f}; {r.flips} in the other wrist, {r.unreachable} unreachable)")
+        head = (f"scored {self.n} given poses for the {r.model}'s {', '.join(r.effects)} (log det {self.logdet:.2f})"
+                if self.scored else
+                f"chose {self.n} of {self.usable} usable candidate poses for the {r.model}'s {', '.join(r.effects)} "
+                f"(D-optimal, log det {self.logdet:.2f}; {r.flips} in the other wrist, {r.unreachable} unreachable)")
         targets = ", ".join(f"{e} {v:g} {UNITS[e]}" for e, v in r.targets.items())
-        if r.n_needed is None:
-            needed = f"no plan of these candidates reaches the targets ({targets}; full rank from {r.n_min} poses)"
-        else:
-            needed = (f"{r.n_needed} (the targets {targets} alone: {r.n_targets}; full rank: {r.n_min}"
-                      + ("; a residual that can test the fit: " + str(r.n_needed) if r.n_needed > r.n_targets else "")
-                      + ")")
+        needed = (f"no plan of these candidates reaches the targets ({targets}; full rank from {r.n_min} poses)"
+                  if r.n_needed is None else f"{r.n_needed} (the targets {targets} alone: {r.n_targets}; full rank: {r.n_min}"
+                  + ("; a residual that can test the fit: " + str(r.n_needed) if r.n_needed > r.n_targets else "") + ")")
         lines = [head, f"poses needed: {needed}; these {self.n} {'meet' if r.reached else 'miss'} the targets",
                  f"predicted sd (Cramer-Rao bound, {r.sigma_mm:g} mm per centre component): translation mm "
                  + " ".join(f"{v:.4f}" for v in r.sd[:3]) + "; rotation deg " + " ".join(f"{v:.4f}" for v in r.sd[3:6])

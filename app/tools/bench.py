@@ -29,13 +29,13 @@ import os
 import pathlib
 import subprocess
 import sys
-import time
 
 import numpy as np
 
 from handeye import solvers
 from handeye.app.engine import robust
-from handeye.app.tools.peak import timed
+from handeye.app.tools import bench_guarantee, bench_peers, bench_pipeline, bench_points
+from handeye.app.tools.peak import machine, machine_line, once, timed
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common import scratch
 from handeye.model.common.rotation import nearest_transform, transform_distance
@@ -93,7 +93,6 @@ def _methods(f2b, xs, centre, start, n):
     report them, evaluations, cost)."""
     euler = CalibrationModel(f2b, xs, centre, "euler")
     x0 = euler.point_from_pose(pose_from_transform(start))
-    out = {}
 
     def thesis():
         res = solvers.solve(solvers.Problem(n=6, residual=euler.residual, jacobian=euler.jacobian), x0, "gn",
@@ -112,10 +111,8 @@ def _methods(f2b, xs, centre, start, n):
         res = fast.calibrate_fast(f2b, xs, centre, start, compiled=compiled)
         return res.sensor2flange, res.iterations, res.evaluations, res.cost
 
-    out["fast"] = lambda: fast_path(True)
-    out["thesis"] = thesis
-    out["scipy-2point"] = lambda: scipy_fit("2-point")
-    out["scipy-exact"] = lambda: scipy_fit(lambda x: euler.jacobian(x))
+    out = {"fast": lambda: fast_path(True), "thesis": thesis, "scipy-2point": lambda: scipy_fit("2-point"),
+           "scipy-exact": lambda: scipy_fit(lambda x: euler.jacobian(x))}
     if n <= 3000:
         out["fast-vm"] = lambda: fast_path(False)
         matrix = CalibrationModel(f2b, xs, centre, "matrix")
@@ -137,9 +134,7 @@ def compare(cases, reps):
         methods = _methods(f2b, xs, centre, start, len(xs))
         methods["fast"]()  # compile (or load) outside the timing
         table, ref = {}, None
-        for method in ORDER:
-            if method not in methods:
-                continue
+        for method in (m for m in ORDER if m in methods):
             times, (t, its, evals, cost) = timed(methods[method], reps)
             ref = t if ref is None else ref
             dt, dr = transform_distance(t, ref)
@@ -173,8 +168,7 @@ def scaling(sizes=SCALING, reps=5):
     iteration's time per evaluation of the normal equations (1 = linear in n)."""
     rows = []
     for n in sizes:
-        case = simulated_case(n, seed=1)
-        f2b, xs, centre, start = case
+        f2b, xs, centre, start = case = simulated_case(n, seed=1)
         fast.calibrate_fast(f2b, xs, centre, start)
         times, res = timed(lambda: fast.calibrate_fast(f2b, xs, centre, start), reps)
         row = {"n": int(n), "median_ms": float(np.median(times) * 1e3), "evaluations": res.evaluations}
@@ -221,9 +215,7 @@ def _monte_carlo(seed, m, n=31):
     """Simulate m datasets and calibrate them; (converged, seconds spent calibrating, RMS
     translation error to the truth in mm)."""
     flanges, xs, centre, start, truth = simulated_batch(m, n, seed)
-    t0 = time.perf_counter()
-    poses, info = fast.calibrate_many(flanges, xs, centre, np.broadcast_to(start, (m, 4, 4)))
-    spent = time.perf_counter() - t0
+    spent, (poses, info) = once(lambda: fast.calibrate_many(flanges, xs, centre, np.broadcast_to(start, (m, 4, 4))))
     err = np.linalg.norm(poses[:, :3, 3] - truth[:3, 3], axis=1)
     return int(np.sum(info[:, 3] > 0)), spent, float(np.sqrt(np.mean(err**2)))
 
@@ -238,9 +230,7 @@ def throughput(quick=False, n=None, chunk=1000):
     jobs = sweep.n_jobs()
     sizes = [min(chunk, n - k) for k in range(0, n, chunk)]
     sweep.run(_monte_carlo, [(0, 2)] * jobs, label="warm workers")  # start the pool outside the timing
-    t0 = time.perf_counter()
-    parts = sweep.run(_monte_carlo, [(1000 + k, m) for k, m in enumerate(sizes)], label="monte carlo")
-    wall = time.perf_counter() - t0
+    wall, parts = once(lambda: sweep.run(_monte_carlo, [(1000 + k, m) for k, m in enumerate(sizes)], label="monte carlo"))
     ok, spent = sum(p[0] for p in parts), sum(p[1] for p in parts)
     return {"calibrations": n, "converged": int(ok), "all_cores_per_s": n / wall, "jobs": jobs,
             "calibration_only_per_s_one_core": n / spent, "rms_translation_error_mm": float(
@@ -255,9 +245,7 @@ def startup():
     with scratch.temporary_folder() as cache:
         env = dict(os.environ, HANDEYE_CACHE=cache)
         for label in ("cold", "warm", "warm again"):
-            t0 = time.perf_counter()
-            proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-            out[label + "_s"] = time.perf_counter() - t0
+            out[label + "_s"], proc = once(lambda: subprocess.run(cmd, env=env, capture_output=True, text=True))
             out[label + "_exit"] = proc.returncode
     return out
 
@@ -269,10 +257,9 @@ PIPELINE = (1_000, 10_000, 100_000, 1_000_000)
 def write_dataset(folder, n, seed=0):
     """A simulated dataset of ``n`` measurements (thesis orientations, 0.02 mm noise) in ``folder``."""
     flanges, xs, centre, start, _ = simulated_batch(1, n, seed)
-    poses = pose_from_transform(flanges[0])
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    table = np.column_stack([poses, xs[0]])
+    table = np.column_stack([pose_from_transform(flanges[0]), xs[0]])
     body = "\n".join(f"m{k}," + ",".join(f"{v:.8f}" for v in row) for k, row in enumerate(table))
     (folder / "measurements.csv").write_text("id,x,y,z,a,b,c,xs,ys,zs\n" + body + "\n")
     s = ", ".join(repr(float(v)) for v in pose_from_transform(start))
@@ -297,8 +284,7 @@ def measure_python(setup="pass", call="0", args=()):
     or of the child itself, which on Linux carry this process's size over fork and exec
     (:mod:`handeye.app.tools.peak`). Seconds and peak are None when the child died before reporting.
     """
-    probe = _PROBE.format(setup=setup, call=call)
-    out = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-c", _PROBE.format(setup=setup, call=call), *args], capture_output=True, text=True)
     line = [x for x in out.stderr.splitlines() if x.startswith("PEAK")]
     if not line:
         return {"seconds": None, "peak_mb": None, "exit": out.returncode}
@@ -354,8 +340,7 @@ def write_scan(folder, n_points, per_profile=1280, seed=0):
         phi = np.linspace(np.pi + 0.2, 2 * np.pi - 0.2, per_profile)
         xz = np.c_[in_sensor[0] + r * np.cos(phi), in_sensor[2] + r * np.sin(phi) + rng.normal(0, 0.01, per_profile)]
         (folder / "p" / f"{k}.csv").write_text("x,z\n" + "\n".join(f"{a:.5f},{b:.5f}" for a, b in xz) + "\n")
-        pose = pose_from_transform(s2b @ np.linalg.inv(x))
-        rows.append(f"s{k}," + ",".join(f"{v:.9f}" for v in pose) + f",p/{k}.csv")
+        rows.append(f"s{k}," + ",".join(f"{v:.9f}" for v in pose_from_transform(s2b @ np.linalg.inv(x))) + f",p/{k}.csv")
     (folder / "measurements.csv").write_text("\n".join(rows) + "\n")
     (folder / "setup.toml").write_text(f"[sphere]\ndiameter = {2 * radius}\ncenter = {centre.tolist()}\n")
     cov = np.diag(np.square([0.05, 0.05, 0.05, 5e-4, 5e-4, 5e-4]))
@@ -396,8 +381,6 @@ def use_scaling(sizes=CLOUD):
 
 def peers(reps=20):
     """Ceres and GTSAM beside the fast path and scipy on thesis-real (:mod:`handeye.app.tools.bench_peers`)."""
-    from handeye.app.tools import bench_peers
-
     case = real_case()
     return bench_peers.measure(case, _methods(*case, len(case[1])), reps)
 
@@ -405,42 +388,29 @@ def peers(reps=20):
 def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True, scaling_sizes=None,
         pipeline_sizes=None, cloud_sizes=None):
     """Run the benchmark; returns the JSON-ready result."""
-    from handeye.app.tools.peak import machine
-
     reps = reps or (5 if quick else 20)
     started = machine()
-    cases = {"thesis-real": real_case()}
-    for n in sizes if sizes is not None else (SIZES[:2] if quick else SIZES):
-        cases[f"sim-{n}"] = simulated_case(n)
+    cases = {"thesis-real": real_case(),
+             **{f"sim-{n}": simulated_case(n) for n in (sizes if sizes is not None else (SIZES[:2] if quick else SIZES))}}
     result = {"reps": reps, "cases": compare(cases, reps)}
     real = result["cases"]["thesis-real"]
     result["speedup_vs_scipy"] = real["scipy-2point"]["median_ms"] / real["fast"]["median_ms"]
-    if scaling_sizes is None:
-        scaling_sizes = SCALING[:4] if quick else SCALING
+    scaling_sizes = (SCALING[:4] if quick else SCALING) if scaling_sizes is None else scaling_sizes
     result["scaling"] = scaling(scaling_sizes, reps=3 if quick else 5)
     result["profile"] = profile(cases["thesis-real"], reps=50 if quick else 500)
-    tp = throughput(quick, throughput_n)
-    result["throughput"] = tp
+    result["throughput"] = tp = throughput(quick, throughput_n)
     result["throughput_per_s"] = tp["all_cores_per_s"]
-    from handeye.app.tools import bench_guarantee
-
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=min(reps, 3 if quick else 9), unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
-    from handeye.app.tools import bench_pipeline
-
     result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=min(reps, 3 if quick else 9))
-    from handeye.app.tools import bench_points
-
     result["peers"] = peers(reps)
     result["points"] = bench_points.measure(reps=min(reps, 5))
     if with_startup:
         result["startup"] = startup()
-    if pipeline_sizes is None:
-        pipeline_sizes = (10_000, 30_000) if quick else PIPELINE
+    pipeline_sizes = ((10_000, 30_000) if quick else PIPELINE) if pipeline_sizes is None else pipeline_sizes
     if pipeline_sizes:
         result["pipeline"] = pipeline(pipeline_sizes)
-    if cloud_sizes is None:
-        cloud_sizes = CLOUD[:2] if quick else CLOUD
+    cloud_sizes = (CLOUD[:2] if quick else CLOUD) if cloud_sizes is None else cloud_sizes
     if cloud_sizes:
         result["use"] = use_scaling(cloud_sizes)
     result["machine"] = {**started, "load_at_end": machine()["load"]}
@@ -449,9 +419,6 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
 
 def text(res):
     """The report: one table with ratios to scipy-2point, then scaling, profile, throughput, start-up."""
-    from handeye.app.tools import bench_guarantee, bench_peers, bench_pipeline, bench_points
-    from handeye.app.tools.peak import machine_line
-
     lines = [machine_line(res["machine"]), ""] if "machine" in res else []
     lines += [*_cases_text(res), "", *_scaling_text(res["scaling"]), "", *_profile_text(res["profile"]), "",
               _throughput_text(res["throughput"])]
@@ -512,12 +479,9 @@ def _startup_text(s):
 
 def _pipeline_text(pl):
     lines = ["", "handeye calibrate, default options (screening, fit, covariance, leave-one-out), by size:"]
-    for r in pl["rows"]:
-        if r["seconds"] is None:
-            lines.append(f"  {r['n']:>9} measurements: failed (exit {r['exit']})")
-        else:
-            lines.append(f"  {r['n']:>9} measurements: {r['seconds']:8.2f} s, peak {r['peak_mb']:8.0f} MB, "
-                         f"exit {r['exit']}")
+    lines += [f"  {r['n']:>9} measurements: failed (exit {r['exit']})" if r["seconds"] is None else
+              f"  {r['n']:>9} measurements: {r['seconds']:8.2f} s, peak {r['peak_mb']:8.0f} MB, exit {r['exit']}"
+              for r in pl["rows"]]
     if pl["time_slope"] is not None:
         lines.append(f"  log-log slope above {pl['slope_above']} measurements (lm, deletion-formula leave-one-out): "
                      f"time {pl['time_slope']:.2f}, peak memory {pl['memory_slope']:.2f} (1 = linear; below, "
@@ -528,12 +492,9 @@ def _pipeline_text(pl):
 def _use_text(u):
     lines = ["", "handeye cloud (binary PLY, per-point sd) and validate (sphere fit, PF/PS, 1-sd), by points:"]
     for r in u["rows"]:
-        cells = []
-        for what in ("cloud", "validate"):
-            c = r[what]
-            cells.append(f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
-                         f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, "
-                         f"peak {c['peak_mb']:6.0f} MB")
+        cells = [f"{what} failed (exit {c['exit']})" if c["seconds"] is None else
+                 f"{what} {c['seconds']:6.2f} s, {c['points_per_s'] / 1e6:5.2f} M points/s, peak {c['peak_mb']:6.0f} MB"
+                 for what, c in (("cloud", r["cloud"]), ("validate", r["validate"]))]
         lines.append(f"  {r['points']:>9} points: " + "; ".join(cells))
     if "cloud_time_slope" in u:
         lines.append(f"  log-log slopes from {u['slope_from']:,} points: cloud time {u['cloud_time_slope']:.2f}, "

@@ -66,8 +66,7 @@ def measure(dataset="thesis-real", reps=7, unknowns="sensor"):
 
 def text(rows):
     lines = ["global guarantee (centre-model search, extra final fits, convention detective) in the default run:"]
-    for r in rows:
-        lines.append(f"  {r['dataset']} ({r['unknowns']}): {r['with_ms']:.0f} ms with, {r['without_ms']:.0f} ms without "
-                     f"({100 * r['overhead']:+.1f} %); alone: centre search {r['centre_search_ms']:.2f} ms, detective "
-                     f"{r['detective_ms']:.1f} ms (median of {r['reps']})")
+    lines += [f"  {r['dataset']} ({r['unknowns']}): {r['with_ms']:.0f} ms with, {r['without_ms']:.0f} ms without "
+              f"({100 * r['overhead']:+.1f} %); alone: centre search {r['centre_search_ms']:.2f} ms, detective "
+              f"{r['detective_ms']:.1f} ms (median of {r['reps']})" for r in rows]
     return "\n".join(lines)

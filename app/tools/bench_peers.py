@@ -22,8 +22,6 @@ Timing is measured here, never in tests.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from handeye.app.tools.peak import timed
@@ -38,7 +36,8 @@ ROW_DOUBLES = 15
 
 
 def _ceres(f2b, xs, centre, start):
-    """Callable: Ceres' LM on the Euler model (exact generated Jacobian); ImportError without pyceres."""
+    """Callable: Ceres' LM on the Euler model (exact generated Jacobian), returning ``(pose, iterations, None,
+    cost)`` as the bench's methods do (Ceres reports no evaluations); ImportError without pyceres."""
     import pyceres
 
     euler = CalibrationModel(f2b, xs, centre, "euler")
@@ -68,14 +67,15 @@ def _ceres(f2b, xs, centre, start):
         problem.add_residual_block(Rows(), None, [x])
         summary = pyceres.SolverSummary()
         pyceres.solve(options, problem, summary)
-        return euler.sensor2flange(x), summary.num_successful_steps + summary.num_unsuccessful_steps, float(
+        return euler.sensor2flange(x), summary.num_successful_steps + summary.num_unsuccessful_steps, None, float(
             summary.final_cost)
 
     return solve
 
 
 def _gtsam_align(f2b, xs, centre, start):
-    """Callable: GTSAM's ``Pose3.Align`` of the measured centres onto the flange-frame centres."""
+    """Callable: GTSAM's ``Pose3.Align`` of the measured centres onto the flange-frame centres, returning
+    ``(pose, None, None, cost)``: a closed form has no iterations and no evaluations."""
     import gtsam
 
     euler = CalibrationModel(f2b, xs, centre, "euler")
@@ -85,30 +85,16 @@ def _gtsam_align(f2b, xs, centre, start):
         flange_points = np.einsum("nji,nj->in", f2b[:, :3, :3], centre - f2b[:, :3, 3])  # R1^T (c - t1)
         pose = gtsam.Pose3.Align(np.ascontiguousarray(flange_points), sensor_points)  # flange = pose * sensor
         t = pose.matrix()
-        return t, None, euler.cost(euler.point_from(t))  # closed form: no iterations
+        return t, None, None, euler.cost(euler.point_from(t))  # closed form: no iterations
 
     return solve
-
-
-def _builders():
-    return {"ceres": _ceres, "gtsam-align": _gtsam_align}
 
 
 def memory_bandwidth(megabytes=256, reps=5):
     """Bytes per second of a large numpy copy (read and write counted), the best of ``reps``."""
     a = np.ones(megabytes * 2**20 // 8)
     b = np.empty_like(a)
-    best = np.inf
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        np.copyto(b, a)
-        best = min(best, time.perf_counter() - t0)
-    return 2 * a.nbytes / best
-
-
-def _timed(solve, reps):
-    times, out = timed(solve, reps)
-    return float(np.median(times)), out
+    return 2 * a.nbytes / min(timed(lambda: np.copyto(b, a), reps)[0])
 
 
 def measure(case, own, reps=20):
@@ -134,7 +120,7 @@ def measure(case, own, reps=20):
     f2b, xs, centre, start = case
     methods = {"fast": own["fast"], "scipy-exact": own["scipy-exact"]}
     missing = {}
-    for name, build in _builders().items():
+    for name, build in {"ceres": _ceres, "gtsam-align": _gtsam_align}.items():
         try:
             methods[name] = build(f2b, xs, centre, start)
         except ImportError:
@@ -142,25 +128,18 @@ def measure(case, own, reps=20):
     rows, ref, evaluations = [], None, 0
     for name, solve in methods.items():
         solve()  # warm: compile or load the fast path, import and set up the peer
-        seconds, (t, its, evals, cost) = _timed(solve, reps) if name in ("fast", "scipy-exact") else _peer(solve, reps)
+        times, (t, its, evals, cost) = timed(solve, reps)
         if name == "fast":
             ref, evaluations = t, evals
         dt, dr = transform_distance(t, ref)
-        rows.append({"name": name, "installed": True, "median_ms": seconds * 1e3, "iterations": its, "cost": cost,
+        rows.append({"name": name, "installed": True, "median_ms": float(np.median(times)) * 1e3, "iterations": its, "cost": cost,
                      "distance_mm": float(dt), "distance_deg": float(dr)})
     rows += [{"name": name, "installed": False, "package": package} for name, package in missing.items()]
-    fast_row = rows[0]
     bytes_per_solve = evaluations * len(xs) * ROW_DOUBLES * 8
     bandwidth = memory_bandwidth()
     return {"n": len(xs), "rows": rows, "bandwidth": {
         "bytes_per_solve": bytes_per_solve, "evaluations": evaluations, "bytes_per_s": bandwidth,
-        "floor_us": bytes_per_solve / bandwidth * 1e6, "fast_us": fast_row["median_ms"] * 1e3}}
-
-
-def _peer(solve, reps):
-    """Time a peer returning ``(pose, iterations, cost)``, shaped like the bench's methods."""
-    seconds, (t, its, cost) = _timed(solve, reps)
-    return seconds, (t, its, None, cost)
+        "floor_us": bytes_per_solve / bandwidth * 1e6, "fast_us": rows[0]["median_ms"] * 1e3}}
 
 
 def text(res):

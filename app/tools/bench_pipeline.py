@@ -13,6 +13,8 @@ import time
 
 import numpy as np
 
+from handeye.app.tools.peak import once
+
 STAGES = ("request", "prepare", "screen", "fit", "verify", "describe")
 
 
@@ -21,19 +23,13 @@ def _stage_times(dataset, loo):
     from handeye.app.engine import describe
     from handeye.app.engine.request import CalibrationRequest
 
-    times, t = {}, time.perf_counter()
-    request = CalibrationRequest(loo=loo).checked(dataset)
-    times["request"], t = time.perf_counter() - t, time.perf_counter()
-    prep = engine.prepare(request, dataset)
-    times["prepare"], t = time.perf_counter() - t, time.perf_counter()
-    screened = engine.screen(prep)
-    times["screen"], t = time.perf_counter() - t, time.perf_counter()
-    final, verdict, start_used, warnings = engine.fit(prep, screened)
-    times["fit"], t = time.perf_counter() - t, time.perf_counter()
-    verified = engine.verify(prep, screened, final, verdict, start_used)
-    times["verify"], t = time.perf_counter() - t, time.perf_counter()
-    describe.result(prep, screened, verified, warnings)
-    times["describe"] = time.perf_counter() - t
+    times = {}
+    times["request"], request = once(lambda: CalibrationRequest(loo=loo).checked(dataset))
+    times["prepare"], prep = once(lambda: engine.prepare(request, dataset))
+    times["screen"], screened = once(lambda: engine.screen(prep))
+    times["fit"], (final, verdict, start_used, warnings) = once(lambda: engine.fit(prep, screened))
+    times["verify"], verified = once(lambda: engine.verify(prep, screened, final, verdict, start_used))
+    times["describe"], _ = once(lambda: describe.result(prep, screened, verified, warnings))
     return times, prep, screened
 
 
@@ -85,6 +81,4 @@ def text(res):
              f"from scratch, {res['ipopt'] * ms:.1f} ms); without leave-one-out {res['total_no_loo'] * ms:.1f} ms "
              f"({res['ratio_no_loo']:.1f}x)",
              "  stage       with LOO   without   (ms)"]
-    for name in STAGES:
-        lines.append(f"  {name:<10} {res['stages'][name] * ms:9.1f} {res['stages_no_loo'][name] * ms:9.1f}")
-    return lines
+    return lines + [f"  {name:<10} {res['stages'][name] * ms:9.1f} {res['stages_no_loo'][name] * ms:9.1f}" for name in STAGES]

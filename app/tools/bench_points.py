@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
-import time
 import warnings
 
 import numpy as np
 
+from handeye.app.tools.peak import once
 from handeye.model.simulation import simulate
 
 POSES = 15
@@ -62,9 +62,7 @@ def measure(quick=False, reps=None, seed=0):
             results = {name: run() for name, run in runs.items()}  # warm: generated code, imports
             for _ in range(reps):
                 for name, run in runs.items():
-                    t0 = time.perf_counter()
-                    run()
-                    times[name].append(time.perf_counter() - t0)
+                    times[name].append(once(run)[0])
     med = {name: float(np.median(t)) for name, t in times.items()}
     return {"poses": POSES, "points": n_points, "default_s": med["default"], "points_s": med["points"],
             "ratio": med["points"] / med["default"], "target": TARGET_RATIO, "reps": reps,

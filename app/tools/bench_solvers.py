@@ -25,15 +25,16 @@ from __future__ import annotations
 
 import json
 import os
+import pathlib
 import subprocess
 import sys
-import time
 import tracemalloc
 
 import numpy as np
 
 from handeye import solvers
 from handeye.app.engine.problems import calibration_problem, testfunction_options, testfunction_problem, testfunction_starts
+from handeye.app.tools.peak import machine, machine_line, once, timed
 from handeye.model.chain import testfunction
 from handeye.model.common import scratch
 from handeye.model.compiled import fast_starts
@@ -55,16 +56,11 @@ def study(quick=False):
     with scratch.temporary_folder() as tmp:
         cmd = [sys.executable, "-m", "handeye.app.command.cli", "study", "testfunction", "--out",
                tmp] + (["--quick"] if quick else [])
-        t0 = time.perf_counter()
-        done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
-        seconds = time.perf_counter() - t0
-        folder = os.path.join(tmp, "testfunction")
+        seconds, done = once(lambda: subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ)))
         if done.returncode != 0:
             return {"seconds": seconds, "exit_code": done.returncode, "error": done.stderr.strip()[-2000:]}
-        with open(os.path.join(folder, "timing.json")) as fh:
-            phases = json.load(fh)
-        with open(os.path.join(folder, "summary.json")) as fh:
-            summary = json.load(fh)
+        phases, summary = (json.loads(pathlib.Path(tmp, "testfunction", name).read_text())
+                           for name in ("timing.json", "summary.json"))
     return {"seconds": seconds, "exit_code": 0, "phases": phases, "solves": summary["solves"],
             "grids": summary["grids"], "quick": quick}
 
@@ -72,6 +68,18 @@ def study(quick=False):
 def _sample(starts, k):
     """``k`` of ``starts`` spread evenly over both windows."""
     return starts[np.linspace(0, len(starts) - 1, min(k, len(starts))).astype(int)]
+
+
+def _single_and_batch(problem, starts, method, opts, n_single):
+    """``(seconds per start of the single-start path on a sample of n_single of starts, seconds per
+    start of the batch over them all, the batch, whether the sample's single and batch ends agree
+    within 1e-8)``."""
+    sample = _sample(starts, n_single)
+    single_s, single = once(lambda: np.array([solvers.solve(problem, x0, method, opts).x for x0 in sample]))
+    batch_s, batch = once(lambda: solvers.solve_many(problem, starts, method, opts))
+    picked = np.linspace(0, len(starts) - 1, len(sample)).astype(int)
+    same = bool(np.allclose(batch.x[picked], single, rtol=0, atol=1e-8))
+    return single_s / len(sample), batch_s / len(starts), batch, same
 
 
 def per_start(methods=METHODS, n_batch=20000, n_single=200, seed=SEED):
@@ -97,18 +105,10 @@ def per_start(methods=METHODS, n_batch=20000, n_single=200, seed=SEED):
     for method in methods:
         opts = testfunction_options(method)
         starts = testfunction_starts(n_single if method == "ipopt" else n_batch, seed)
-        sample = _sample(starts, n_single)
-        t0 = time.perf_counter()
-        single = np.array([solvers.solve(problem, x0, method, opts).x for x0 in sample])
-        single_s = (time.perf_counter() - t0) / len(sample)
-        t0 = time.perf_counter()
-        batch = solvers.solve_many(problem, starts, method, opts)
-        batch_s = (time.perf_counter() - t0) / len(starts)
-        rows_of_sample = np.linspace(0, len(starts) - 1, len(sample)).astype(int)
-        same = np.allclose(batch.x[rows_of_sample], single, rtol=0, atol=1e-8)
-        rows.append({"method": method, "single_per_start": single_s, "single_starts": len(sample),
+        single_s, batch_s, _, same = _single_and_batch(problem, starts, method, opts, n_single)
+        rows.append({"method": method, "single_per_start": single_s, "single_starts": len(_sample(starts, n_single)),
                      "batch_per_start": batch_s, "batch_starts": len(starts), "speedup": single_s / batch_s,
-                     "same_ends": bool(same)})
+                     "same_ends": same})
     return rows
 
 
@@ -126,14 +126,11 @@ def compiled(methods=fast_starts.METHODS, n=20000, seed=SEED):
     fast_starts.library()  # built (or loaded) before the clock starts
     for method in methods:
         opts = testfunction_options(method)
-        t0 = time.perf_counter()
-        batch = solvers.solve_many(problem, starts, method, opts)
-        numpy_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        loop = fast_starts.solve_many(starts, method, opts)
-        loop_s = time.perf_counter() - t0 if loop is not None else None
-        same = None
-        if loop is not None:
+        numpy_s, batch = once(lambda: solvers.solve_many(problem, starts, method, opts))
+        loop_s, loop = once(lambda: fast_starts.solve_many(starts, method, opts))
+        if loop is None:
+            loop_s = same = None
+        else:
             kinds = [testfunction.end_kind(r.x, r.converged) for r in (batch, loop)]
             same = float(np.mean(kinds[0] == kinds[1]))
         rows.append({"method": method, "numpy_seconds": numpy_s, "compiled_seconds": loop_s,
@@ -148,9 +145,8 @@ def _compiled_text(res):
     rows = res["rows"]
     if any(r["compiled_seconds"] is None for r in rows):
         return lines + ["  no C compiler: the compiled loop is not available (the studies use the numpy batch)"]
-    for r in rows:
-        lines.append(f"{r['method']:10s} {r['numpy_seconds']:14.3f} {r['compiled_seconds']:11.3f} {r['ratio']:7.1f} "
-                     f"{100 * r['same_ends']:9.2f}%")
+    lines += [f"{r['method']:10s} {r['numpy_seconds']:14.3f} {r['compiled_seconds']:11.3f} {r['ratio']:7.1f} "
+              f"{100 * r['same_ends']:9.2f}%" for r in rows]
     numpy_s, loop_s = sum(r["numpy_seconds"] for r in rows), sum(r["compiled_seconds"] for r in rows)
     lines.append(f"{'all':10s} {numpy_s:14.3f} {loop_s:11.3f} {numpy_s / loop_s:7.1f}")
     return lines
@@ -186,11 +182,7 @@ def scaling(methods=("newton", "bfgs", "lm", "tr"), sizes=SCALING, seed=SEED):
         seconds, peaks = [], []
         for n in sizes:
             starts = testfunction_starts(n, seed)
-            best = np.inf
-            for _ in range(3 if n < max(sizes) else 1):
-                t0 = time.perf_counter()
-                solvers.solve_many(problem, starts, method, opts)
-                best = min(best, time.perf_counter() - t0)
+            best = min(timed(lambda: solvers.solve_many(problem, starts, method, opts), 3 if n < max(sizes) else 1)[0])
             tracemalloc.start()
             solvers.solve_many(problem, starts, method, opts)
             peaks.append(tracemalloc.get_traced_memory()[1])
@@ -251,26 +243,15 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
         model = models[rotation]
         problem = calibration_problem(model)
         points = np.stack([model.point_from(s) for s in starts])
-        sample = _sample(points, n_single)
-        t0 = time.perf_counter()
-        single = np.array([solvers.solve(problem, x0, method).x for x0 in sample])
-        single_s = (time.perf_counter() - t0) / len(sample)
-        t0 = time.perf_counter()
-        batch = solvers.solve_many(problem, points, method)
-        batch_s = (time.perf_counter() - t0) / len(points)
-        picked = np.linspace(0, len(points) - 1, len(sample)).astype(int)
+        single_s, batch_s, batch, same = _single_and_batch(problem, points, method, None, n_single)
         rows.append({"method": f"{method}/{rotation}", "single_per_start": single_s, "batch_per_start": batch_s,
-                     "speedup": single_s / batch_s, "converged": float(np.mean(batch.converged)),
-                     "same_ends": bool(np.allclose(batch.x[picked], single, rtol=0, atol=1e-8))})
+                     "speedup": single_s / batch_s, "converged": float(np.mean(batch.converged)), "same_ends": same})
     m = len(starts)
-    t0 = time.perf_counter()
-    for s in _sample(starts, n_single):
-        fast.calibrate_fast(f2b, xs, centre, s)
-    single_s = (time.perf_counter() - t0) / min(n_single, m)
-    t0 = time.perf_counter()
-    _, info = fast.calibrate_many(np.broadcast_to(f2b, (m,) + f2b.shape), np.broadcast_to(xs, (m,) + xs.shape), centre,
-                                  starts)
-    batch_s = (time.perf_counter() - t0) / m
+    single_s, _ = once(lambda: [fast.calibrate_fast(f2b, xs, centre, s) for s in _sample(starts, n_single)])
+    single_s /= min(n_single, m)
+    batch_s, (_, info) = once(lambda: fast.calibrate_many(np.broadcast_to(f2b, (m,) + f2b.shape),
+                                                           np.broadcast_to(xs, (m,) + xs.shape), centre, starts))
+    batch_s /= m
     rows.append({"method": "lm-fast/local", "single_per_start": single_s, "batch_per_start": batch_s,
                  "speedup": single_s / batch_s, "converged": float(np.mean(np.isin(info[:, 3], sorted(solvers.CONVERGED)))),
                  "same_ends": None, "compiled": fast.library() is not None})
@@ -279,11 +260,8 @@ def calibration(n_batch=400, n_single=40, seed=SEED):
 
 def run(quick=False, with_study=True):
     """Every section. ``quick``: the 15 x 15 study, 2000 batch starts, 40 single, N up to 3000."""
-    from handeye.app.tools.peak import machine
-
     res = {"quick": quick, "machine": machine()}
-    rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
-    res["per_start"] = rows
+    res["per_start"] = rows = per_start(n_batch=2000 if quick else 20000, n_single=40 if quick else 200)
     res["calibration"] = calibration(n_batch=100 if quick else 400, n_single=20 if quick else 40)
     res["compiled"] = compiled(n=2000 if quick else 20000)
     res["scaling"] = scaling(sizes=SCALING[:-1] if quick else SCALING)
@@ -296,24 +274,20 @@ def run(quick=False, with_study=True):
 
 def text(res):
     """The bench as plain-text tables."""
-    from handeye.app.tools.peak import machine_line
-
     lines = ["solver-comparison bench (test function 6-16; one core unless said)",
              *([machine_line(res["machine"])] if "machine" in res else []), "",
              f"{'method':10s} {'single ms/start':>16s} {'batch ms/start':>15s} {'speed-up':>9s} {'same ends':>10s}"]
-    for r in res["per_start"]:
-        lines.append(f"{r['method']:10s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
-                     f"{r['speedup']:9.1f} {str(r['same_ends']):>10s}")
+    lines += [f"{r['method']:10s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
+              f"{r['speedup']:9.1f} {str(r['same_ends']):>10s}" for r in res["per_start"]]
     lines.append(f"(single: {res['per_start'][0]['single_starts']} starts one by one; batch: "
                  f"{res['per_start'][0]['batch_starts']} starts at once; IPOPT has no batch form: its batch is a loop)")
     if res.get("calibration"):
         lines += ["", "one calibration (36 simulated poses) from many starts (rotations 0-90 deg, 0-200 mm off)",
                   f"{'method':14s} {'single ms/start':>16s} {'batch ms/start':>15s} {'speed-up':>9s} "
                   f"{'same ends':>10s} {'converged':>10s}"]
-        for r in res["calibration"]:
-            lines.append(f"{r['method']:14s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
-                         f"{r['speedup']:9.1f} {str(r['same_ends']) if r['same_ends'] is not None else '-':>10s} "
-                         f"{100 * r['converged']:9.1f}%")
+        lines += [f"{r['method']:14s} {1e3 * r['single_per_start']:16.3f} {1e3 * r['batch_per_start']:15.4f} "
+                  f"{r['speedup']:9.1f} {str(r['same_ends']) if r['same_ends'] is not None else '-':>10s} "
+                  f"{100 * r['converged']:9.1f}%" for r in res["calibration"]]
         lines.append("(lm-fast: the compiled fast path, calibrate_fast one by one against calibrate_many; "
                      "its own LM, so its ends are not compared)")
     if res.get("compiled"):
@@ -337,8 +311,6 @@ def text(res):
     for method, d in sc["methods"].items():
         t = " ".join(f"{s:8.3f}s" for s in d["seconds"])
         m = " ".join(f"{b / 2**20:7.2f}MB" for b in d["peak_bytes"])
-        ts = f"{d['time_slope']:6.2f}" if d["time_slope"] is not None else "     -"
-        ms = f"{d['memory_slope']:6.2f}" if d["memory_slope"] is not None else "     -"
-        lines.append(f"{method:10s} {t} {ts}")
-        lines.append(f"{'':10s} {m} {ms}")
+        ts, ms = (f"{d[key]:6.2f}" if d[key] is not None else "     -" for key in ("time_slope", "memory_slope"))
+        lines += [f"{method:10s} {t} {ts}", f"{'':10s} {m} {ms}"]
     return "\n".join(lines)

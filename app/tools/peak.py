@@ -7,7 +7,7 @@ maximum over every child, each at least as large. The high-water mark of the add
 (``VmHWM`` in ``/proc/self/status``) starts afresh at ``exec``: that is the child's own peak.
 This module imports nothing heavy, so that a child measuring itself stays small. It also
 says which machine a measurement was taken on (:func:`machine`): a time or a memory figure
-means little without it; and times repeated calls (:func:`timed`, the bench's one timing loop).
+means little without it; and times calls (:func:`timed`, the bench's one timing loop, and :func:`once`).
 """
 from __future__ import annotations
 
@@ -27,6 +27,12 @@ def timed(function, reps):
         value = function()
         times.append(time.perf_counter() - t0)
     return times, value
+
+
+def once(function):
+    """``(wall time of one call of function in s, what it returned)``."""
+    (seconds,), value = timed(function, 1)
+    return seconds, value
 
 
 def own_peak_kb():

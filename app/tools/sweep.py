@@ -29,7 +29,6 @@ import dataclasses
 import os
 import signal
 import sys
-from typing import Optional
 
 from handeye.app.common.errors import RequestError
 
@@ -47,8 +46,8 @@ class Backend:
         ``"local"`` or a scheduler address; None: joblib.
     """
 
-    jobs: Optional[int] = None
-    dask: Optional[str] = None
+    jobs: int | None = None
+    dask: str | None = None
 
     def __post_init__(self):
         if self.jobs is not None and self.jobs < 1:
@@ -117,8 +116,7 @@ def _dask_client(b):
 
 def _progress(label, k, total):
     if sys.stderr.isatty() or k == total:  # a live bar on a terminal, one line in a log
-        bar = "#" * int(30 * k / total)
-        print(f"\r{label}: [{bar:<30}] {k}/{total}", end="\n" if k == total else "", file=sys.stderr)
+        print(f"\r{label}: [{'#' * int(30 * k / total):<30}] {k}/{total}", end="\n" if k == total else "", file=sys.stderr)
 
 
 def _scatter_shared(client, tasks):

@@ -40,8 +40,7 @@ class CacheWarning(UserWarning):
 
 
 def _user_cache():
-    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
-    return pathlib.Path(base) / "handeye"
+    return pathlib.Path(os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache") / "handeye"
 
 
 def _writable(folder):
@@ -111,8 +110,7 @@ def _print_function(inputs, outputs):
     printer = sp.printing.str.StrPrinter({"full_prec": True})
     flat = [sp.sympify(e) for e in outputs]
     subs, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c"))
-    args = ", ".join(str(s) for s in inputs)
-    lines = [f"def generated({args}):"]
+    lines = [f"def generated({', '.join(str(s) for s in inputs)}):"]
     lines += [f"    {s} = {printer.doprint(v)}" for s, v in subs]
     lines.append("    return [" + ", ".join(printer.doprint(v) for v in reduced) + "]")
     return "\n".join(lines) + "\n"

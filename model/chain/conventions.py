@@ -84,8 +84,7 @@ def matrix_from(convention, values):
     """Rotation matrices (..., 3, 3) of orientation values (..., k) in a convention."""
     v = validate(check(convention), values)
     batch = v.shape[:-1]
-    out = codegen.stack_outputs(_function(convention)(*np.moveaxis(v, -1, 0)), batch)
-    return out.reshape(batch + (3, 3))
+    return codegen.stack_outputs(_function(convention)(*np.moveaxis(v, -1, 0)), batch).reshape(batch + (3, 3))
 
 
 def values_from_matrix(convention, rot):
@@ -115,8 +114,7 @@ def quaternion_from_matrix(rot):
                   1 + 2 * r[..., 2, 2] - tr], -1),
     ], -2)
     diag = np.stack([tr, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1)
-    best = np.argmax(diag, axis=-1)
-    q = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
+    q = np.take_along_axis(cand, np.argmax(diag, axis=-1)[..., None, None], axis=-2)[..., 0, :]
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
 

@@ -91,11 +91,9 @@ def kuka_from_matrix(rot):
     cb, sb = np.cos(b), np.sin(b)
     row0 = ca_ * r[..., 0, :] + sa * r[..., 1, :]  # rows of Rz(A)^T R
     row1 = -sa * r[..., 0, :] + ca_ * r[..., 1, :]
-    row2 = r[..., 2, :]
-    c = np.arctan2(sb * row0[..., 1] + cb * row2[..., 1], row1[..., 1])
+    c = np.arctan2(sb * row0[..., 1] + cb * r[..., 2, 1], row1[..., 1])
     out = np.degrees(np.stack([a, b, c], axis=-1))
-    out = np.where(out <= -180.0, out + 360.0, out)
-    return out
+    return np.where(out <= -180.0, out + 360.0, out)
 
 
 def pose_from_transform(transform):

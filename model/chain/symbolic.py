@@ -79,8 +79,7 @@ def rotation_from(convention):
     ``ur`` uses ``R = I + sinc(t) [r]x + sinc(t/2)^2 / 2 [r]x^2`` with ``t = |r|``, which is
     Rodrigues' formula written without a division by t, so it is exact and finite at t = 0.
     """
-    names = CONVENTIONS[convention]
-    sym = sp.symbols(" ".join(names), real=True)
+    sym = sp.symbols(" ".join(CONVENTIONS[convention]), real=True)
     k = sp.pi / 180
     if convention == "kuka":
         a, b, c = sym

@@ -60,8 +60,7 @@ def _eval(part, x):
     shape = _PARTS[part][1]
     if x.shape == (2,):  # one point: plain floats are faster than arrays
         return np.array(scalar(float(x[0]), float(x[1]))).reshape(shape)
-    out = codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1])
-    return out.reshape(x.shape[:-1] + shape)
+    return codegen.stack_outputs(vectorised(x[..., 0], x[..., 1]), x.shape[:-1]).reshape(x.shape[:-1] + shape)
 
 
 def value(x):
@@ -144,8 +143,7 @@ def stationary_points(digits=30):
     for root in poly.nroots(n=digits):
         if abs(sp.im(root)) > 10 ** (-digits // 2):
             continue
-        sr = float(sp.re(root))
-        x = A_POINT + sr * (B_POINT - A_POINT)
+        x = A_POINT + float(sp.re(root)) * (B_POINT - A_POINT)
         w = np.linalg.eigvalsh(hessian(x))
         points.append(StationaryPoint(x=x, value=float(value(x)), eigenvalues=w, kind=classify(w)))
     return tuple(sorted(points, key=lambda p: p.value))
@@ -174,6 +172,5 @@ def end_kind(x, converged, tol=1e-4):
     x = np.asarray(x, dtype=float)
     kind = np.full(len(x), len(END_KINDS) - 1)
     for k, point in enumerate(stationary_points()[:3]):
-        near = np.linalg.norm(x - point.x, axis=1) < tol
-        kind[near & np.asarray(converged, dtype=bool)] = k
+        kind[(np.linalg.norm(x - point.x, axis=1) < tol) & np.asarray(converged, dtype=bool)] = k
     return kind

@@ -231,15 +231,13 @@ def f_survival_array(x, d1, d2):
         if np.any(large):
             out[large] = _gammainc_upper(d1[large] / 2.0, d1[large] * x[large] / 2.0)
     out = np.where(x <= 0, 1.0, out)
-    bad = np.isnan(x) | np.isnan(d1) | np.isnan(d2) | (d1 <= 0) | (d2 <= 0)
-    return np.where(bad, np.nan, out)
+    return np.where(np.isnan(x) | np.isnan(d1) | np.isnan(d2) | (d1 <= 0) | (d2 <= 0), np.nan, out)
 
 
 def chi2_survival_array(x, k):
     """P(chi^2_k > x), vectorised; NaN in, NaN out; agrees with :func:`chi2_survival` (tested)."""
     x, k = np.broadcast_arrays(np.asarray(x, float), np.asarray(k, float))
-    out = _gammainc_upper(k / 2.0, x / 2.0)
-    return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, out)
+    return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, _gammainc_upper(k / 2.0, x / 2.0))
 
 
 def _threshold(survival, p, lo=0.0, hi=1.0):
@@ -288,14 +286,12 @@ def bonferroni_survival(stat, n_tests, d1, d2=None):
     for dof in np.unique(d2):  # NaN d2: chi-square (np.unique keeps one NaN per NaN)
         same = np.isnan(d2) if np.isnan(dof) else d2 == dof
         if np.isnan(dof):
-            def tail(x, d1=d1):
-                return chi2_survival_array(x, d1)
+            tail = functools.partial(chi2_survival_array, k=d1)
         elif dof <= 0:
             out[same] = np.nan
             continue
         else:
-            def tail(x, d1=d1, dof=dof):
-                return f_survival_array(x, d1, dof)
+            tail = functools.partial(f_survival_array, d1=d1, d2=dof)
         if same.sum() <= BONFERRONI_ALL_UP_TO:  # few: every tail (the bisection would cost more)
             need = same & ~np.isnan(stat)
         else:
@@ -408,8 +404,7 @@ def prediction_test(e_all, j_all, fitted):
     scale = 3.0 * float(ef @ ef) / (m - p) if m > p else float("nan")
 
     def test(e, j):
-        h = j @ info_inv @ j.T
-        stat = float(e @ np.linalg.solve(np.eye(3) + h, e)) / scale
+        stat = float(e @ np.linalg.solve(np.eye(3) + j @ info_inv @ j.T, e)) / scale
         return stat, f_survival(stat, 3, m - p)
 
     return test

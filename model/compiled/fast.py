@@ -104,8 +104,7 @@ def _per_measurement():
     e = ca.vertcat(*out[:3])
     jac = ca.reshape(ca.vertcat(*out[3:]), 9, 3).T[:, :6]  # row-major (3 x 9) -> first 6 columns
     h = ca.mtimes(jac.T, jac)
-    g = ca.mtimes(jac.T, e)
-    return ca.Function("normal_one", [t2, ref, c, d], [ca.vec(h), g, 0.5 * ca.sumsqr(e)])
+    return ca.Function("normal_one", [t2, ref, c, d], [ca.vec(h), ca.mtimes(jac.T, e), 0.5 * ca.sumsqr(e)])
 
 
 @functools.lru_cache(maxsize=None)

@@ -345,9 +345,7 @@ def _read_rows(folder, st, limits, clean=True):
         if any(f.strip() for f in fields):
             for column, value in zip(out, reader.row(line, fields, seen)):
                 column.append(value)
-    ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles, cleaning = out
-    return ids, rows, poses, centres, profiles, reconstructed, [f for f in profile_files if f is not None], raw, angles, \
-        raw_profiles, cleaning
+    return (*out[:6], [f for f in out[6] if f is not None], *out[7:])
 
 
 def _header(table, file, convention, axes):
@@ -452,8 +450,7 @@ def _robot_model(st, folder, joints, poses, file):
                                                       f"nominal model (built in: {', '.join(robots.builtin_names())}, "
                                                       "or a model file)", column="[robot] model")
         return None
-    name = st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model
-    model = robots.load(name)
+    model = robots.load(st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model)
     if joints is not None and len(joints):
         robots.check_reported(model, joints, transform_from_pose(poses), file)
     return model

@@ -96,8 +96,7 @@ class Scan(dataset.FlangePoses):
 
 
 def _convention_from_header(header, file):
-    cols = [c for c in header if c not in ("profile", "xs", "ys", "zs")]
-    found = tables.pose_list_convention(cols)
+    found = tables.pose_list_convention([c for c in header if c not in ("profile", "xs", "ys", "zs")])
     if found is None:
         known = "; ".join(",".join(["id", *conventions.columns(c)]) + f" ({c})" for c in conventions.CONVENTIONS)
         raise DatasetError(file, f"header must hold id, a convention's pose columns and profile: {known}", 1)

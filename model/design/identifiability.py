@@ -123,8 +123,7 @@ def analyse(jacobian, names, rtol=RTOL, rows=None):
     m = j.shape[0] if rows is None else int(rows)
     raw = np.linalg.svd(j, compute_uv=False)
     norms = np.linalg.norm(j, axis=0)
-    scaled = j / np.where(norms > 0, norms, 1.0)
-    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
+    _, s, vt = np.linalg.svd(j / np.where(norms > 0, norms, 1.0), full_matrices=False)
     s_full = np.zeros(j.shape[1])
     s_full[: len(s)] = s
     smax = s_full[0] if s_full.size else 0.0
@@ -198,5 +197,4 @@ def plate_pose_analysis(flange2base, centre_in_sensor, sensor2flange, plate_pose
     m = CalibrationModel(flange2base, centre_in_sensor, c, "local", "sensor+sphere")
     j = m.jacobian(m.point_from(sensor2flange, c))
     j12 = np.hstack([j[:, :6], j[:, 6:9] @ dc])
-    names = m.names[:6] + ["x3", "y3", "z3", "A3", "B3", "C3"]
-    return analyse(j12, names, rtol)
+    return analyse(j12, m.names[:6] + ["x3", "y3", "z3", "A3", "B3", "C3"], rtol)

@@ -68,8 +68,7 @@ def select(info, n, exchange=True, ridge=1e-9):
             trials = (m - info[a]) + info[others]
             better = np.flatnonzero(logdet(trials) > current + 1e-12)
             if len(better):  # the first unchosen candidate that raises log det replaces a
-                b = int(others[better[0]])
-                chosen[chosen.index(a)] = b
+                chosen[chosen.index(a)] = int(others[better[0]])
                 m = trials[better[0]]
                 current, improved = logdet(m), True
     return sorted(chosen), float(logdet(m - base))

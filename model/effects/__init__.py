@@ -95,8 +95,7 @@ def _correction_function(name):
         radius = sp.Symbol("R", positive=True)
         params = sp.symbols(" ".join(f"p_{p}" for p in effect.PARAMS) + ",", real=True)
         corrected = sp.Matrix(effect.correction(xm, ym, zm, radius, params))
-        jac = corrected.jacobian(params)
-        return (xm, ym, zm, radius, *params), list(corrected) + list(jac)
+        return (xm, ym, zm, radius, *params), list(corrected) + list(corrected.jacobian(params))
 
     return codegen.numpy_function(codegen.generated_source(f"effect_{name}", build))
 
@@ -107,5 +106,4 @@ def correct(name, xs, radius, params):
     xs = np.asarray(xs, float)
     vals = codegen.stack_outputs(_correction_function(name)(xs[:, 0], xs[:, 1], xs[:, 2], radius, *params),
                                  (len(xs),))
-    k = len(effect.PARAMS)
-    return vals[:, :3], vals[:, 3:].reshape(len(xs), 3, k)
+    return vals[:, :3], vals[:, 3:].reshape(len(xs), 3, len(effect.PARAMS))

@@ -416,8 +416,7 @@ class CalibrationModel:
         batch = np.shape(x)[:-1]
         vals = self._evaluate(hess, x, rows)
         n_theta = int(round(np.sqrt(vals.shape[-1] / self.m)))
-        d2 = vals.reshape(batch + (vals.shape[-2], self.m, n_theta, n_theta))
-        return d2[..., self._cols, self._cols]
+        return vals.reshape(batch + (vals.shape[-2], self.m, n_theta, n_theta))[..., self._cols, self._cols]
 
     def cost(self, x):
         """``1/2 sum |W_i e_i|^2`` (mm^2 without whitening); a float, or (...) for a stack."""
@@ -542,8 +541,7 @@ class CalibrationModel:
                 out[k] = rows[c] @ v[:, 0] if v.shape[-1] == 1 and v.ndim == 2 else np.einsum(
                     "i,i->", comps[c].ravel(), np.ravel(v))  # einsum, not a BLAS dot (see cost)
         n_theta = int(round(np.sqrt(per)))
-        d2 = out.reshape(batch + (self.m, n_theta, n_theta)).sum(axis=-3)
-        return d2[..., self._cols, self._cols]
+        return out.reshape(batch + (self.m, n_theta, n_theta)).sum(axis=-3)[..., self._cols, self._cols]
 
     def _profile_layout(self):
         """Rows of the ``points`` model as a (profiles, longest profile) table: the row indices,

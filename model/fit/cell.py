@@ -146,8 +146,7 @@ class CellModel:
     def evaluate(self, x):
         """Residuals (N, 3) and the full Jacobian (N, 3, 9 + 4k) at the point ``x``."""
         out = codegen.stack_outputs(_resjac(self.n_axes)(*self._inputs(x)), (len(self.centre_in_sensor),))
-        n_full = 9 + 4 * self.n_axes
-        return out[:, :3], out[:, 3:].reshape(-1, 3, n_full)
+        return out[:, :3], out[:, 3:].reshape(-1, 3, 9 + 4 * self.n_axes)
 
     def residual(self, x):
         """Stacked residual (3N,), mm."""

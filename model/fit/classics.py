@@ -161,8 +161,7 @@ def _solve_linear(d, f, what):
     sv = np.linalg.svd(d / scale, compute_uv=False)
     if sv[-1] <= CONDITION_LIMIT_INV * sv[0]:
         raise MissingMotions(what(sv))
-    u = np.linalg.lstsq(d / scale, f, rcond=None)[0] / scale
-    return u, sv
+    return np.linalg.lstsq(d / scale, f, rcond=None)[0] / scale, sv
 
 
 def kim_cho(flange2base, centre_in_sensor, pairs="auto"):
@@ -300,8 +299,7 @@ def li_two_step(flange2base, centre_in_sensor, sphere_centre=None, sign="derived
     virtual = np.einsum("nij,jk,nk->ni", r0, r_s, xs) + t0
     if sphere_centre is not None:
         lhs = r0.reshape(-1, 3)
-        rhs = (np.asarray(sphere_centre, float) - virtual).reshape(-1)
-        sol = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+        sol = np.linalg.lstsq(lhs, (np.asarray(sphere_centre, float) - virtual).reshape(-1), rcond=None)[0]
         centre = None
     else:
         if np.max(rotation_angle_deg(r0[0], r0)) < 1.0:

@@ -73,5 +73,4 @@ def closed_form_estimate(flange2base, centre_in_sensor, sphere_centre=None, rtol
     out = np.eye(4)
     out[:3, :3] = r_x
     out[:3, 3] = sol2[:3]
-    centre = sol2[3:6] if unknown_centre else np.asarray(sphere_centre, float).copy()
-    return out, centre
+    return out, (sol2[3:6] if unknown_centre else np.asarray(sphere_centre, float).copy())

@@ -354,8 +354,7 @@ def candidate_rows(prob, structure, fit, rows, name):
         with np.errstate(invalid="ignore", divide="ignore"):
             _, dxs = effects.correct(name, xs, prob.radius, np.zeros(len(effect.PARAMS)))
         return np.einsum("nij,njk->nik", r12, dxs)
-    t2 = fit.x[:3]
-    u = np.einsum("ij,nj->ni", r2, xs) + t2
+    u = np.einsum("ij,nj->ni", r2, xs) + fit.x[:3]
     q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
 

@@ -184,10 +184,7 @@ def centre_minima(flange2base, centre_in_sensor, sphere_centre=None):
             raise GlobalFitError("the centres seen from the flange do not span a plane: the rotation is not determined")
         best = Minimum(x, c.copy(), centre_cost(f2b, p, x, c))
         return CentreMinima((best,), "absolute orientation (Kabsch/Umeyama SVD): the unique local minimum", 1)
-    form = reduced_form(f2b, p)
-    rots = _search(form)
-    minima = [_complete(f2b, p, rot, n) for rot, n in rots]
-    minima.sort(key=lambda m: m.cost)
+    minima = sorted((_complete(f2b, p, rot, n) for rot, n in _search(reduced_form(f2b, p))), key=lambda m: m.cost)
     return CentreMinima(tuple(minima), f"(t, c) eliminated in closed form; {COVER} rotations covering SO(3), "
                                        f"{SEEDS} polished by Newton on SO(3)", SEEDS)
 
@@ -224,8 +221,7 @@ def reduced_form(flange2base, centre_in_sensor):
     q = mtm - mtb @ sol[:, :9]
     q = 0.5 * (q + q.T)
     g = mtd - mtb @ sol[:, 9]
-    k = dtd - btd @ sol[:, 9]
-    return ReducedForm(q, g, float(k))
+    return ReducedForm(q, g, float(dtd - btd @ sol[:, 9]))
 
 
 def super_fibonacci(n):
@@ -327,8 +323,7 @@ def _complete(f2b, p, rot, reached):
     n = len(p)
     rots, t = f2b[:, :3, :3], f2b[:, :3, 3]
     lhs = np.concatenate([rots, np.broadcast_to(-np.eye(3), (n, 3, 3))], axis=2).reshape(3 * n, 6)
-    rhs = (-t - np.einsum("nab,bc,nc->na", rots, rot, p)).ravel()
-    s, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    s, *_ = np.linalg.lstsq(lhs, (-t - np.einsum("nab,bc,nc->na", rots, rot, p)).ravel(), rcond=None)
     x = np.eye(4)
     x[:3, :3], x[:3, 3] = rot, s[:3]
     return Minimum(x, s[3:6], centre_cost(f2b, p, x, s[3:6]), reached)

@@ -78,8 +78,7 @@ def _callback_class():
             """Shapes of the inputs and outputs of this order (CasADi's Jacobian convention)."""
             n = self.n
             ins = [(n, 1), (1, 1), (1, n)][: self.order + 1]
-            outs = [[(1, 1)], [(1, n)], [(n, n), (n, 1)]][self.order]
-            return ins, outs
+            return ins, [[(1, 1)], [(1, n)], [(n, n), (n, 1)]][self.order]
 
         def get_n_in(self):
             return len(self._shapes()[0])

@@ -71,5 +71,4 @@ def _graph(model, resjac, n_rot):
         cfix = ca.SX.sym("c", 3)
         p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
         p_value = np.concatenate([p_value, model.fixed_centre])
-    e_all = one.map(model.n_meas)(full, data)
-    return {"x": x, "f": 0.5 * ca.sumsqr(e_all), "p": p, "p_value": p_value}
+    return {"x": x, "f": 0.5 * ca.sumsqr(one.map(model.n_meas)(full, data)), "p": p, "p_value": p_value}

@@ -68,8 +68,7 @@ def gate(jac_cur, cand, names, q=None, absorbers=True):
     # strongest first; weights equal to 6 digits (a frame shift absorbed by cx, cy, cz alike)
     # keep the parameters' order, so the list does not follow the last bits of the solve
     strength = np.round(weight.max(axis=1) / max(weight.max(), 1e-300), 6)
-    top = np.argsort(-strength, kind="stable")
-    absorbers = [names[k] for k in top if strength[k] > 0.1][:6]
+    absorbers = [names[k] for k in np.argsort(-strength, kind="stable") if strength[k] > 0.1][:6]
     return frac, absorbers
 
 

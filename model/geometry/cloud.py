@@ -80,8 +80,7 @@ def point_sd(points_in_sensor, sensor2flange, covariance):
     k = np.array([[np.trace(a @ c @ b.T) for b in g] for a in g])  # tr(Ga C Gb^T): coefficient of (a, b)
     p = _in_sensor(points_in_sensor)
     w = np.hstack([np.ones((len(p), 1)), p])  # (1, x, y, z)
-    var = np.einsum("ma,ab,mb->m", w, k, w)
-    return np.sqrt(np.clip(var, 0.0, None))
+    return np.sqrt(np.clip(np.einsum("ma,ab,mb->m", w, k, w), 0.0, None))
 
 
 def _in_sensor(points):

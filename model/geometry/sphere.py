@@ -87,8 +87,7 @@ def algebraic(points):
     mean = q.mean(axis=0)
     d = q - mean  # centred for conditioning
     a = np.hstack([2 * d, np.ones((len(d), 1))])
-    b = np.sum(d * d, axis=1)
-    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    sol, *_ = np.linalg.lstsq(a, np.sum(d * d, axis=1), rcond=None)
     c = sol[:3]
     r2 = sol[3] + c @ c
     if not np.isfinite(r2) or r2 <= 0:
@@ -101,8 +100,7 @@ def _system(q, c, r):
     dist = np.linalg.norm(diff, axis=1)
     n = diff / np.where(dist > 0, dist, 1.0)[:, None]
     d = dist - r
-    jac = np.hstack([-n, -np.ones((len(q), 1))])
-    return d, n, jac
+    return d, n, np.hstack([-n, -np.ones((len(q), 1))])
 
 
 def fit(points, max_iter=100, tol=1e-12):

@@ -199,8 +199,7 @@ def always_absorbed(model, name, samples=24, seed=0):
     last-joint offset, a length along the last axis). Checked at ``samples`` random
     configurations; returns ``{parameter: 'base' | 'flange'}``."""
     q = np.random.default_rng(seed).uniform(-170.0, 170.0, (samples, 6))
-    values = {name: np.zeros(len(param_names(model, name)))}
-    fk, d = perturbed(model, q, values)
+    fk, d = perturbed(model, q, {name: np.zeros(len(param_names(model, name)))})
     inv = np.linalg.inv(fk)
     out = {}
     for k, param in enumerate(param_names(model, name)):

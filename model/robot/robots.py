@@ -210,9 +210,9 @@ def check_reported(model, joints_deg, flange2base, file):
             raise DatasetError(file, f"{said}; read as radians the joint angles agree ({rp:.2f} mm): write j1..j6 "
                                      "in degrees", column="j1")
     tcp = np.linalg.solve(fk, f2b)  # reported = fk . tcp: constant for a TCP that is not the flange
-    spread = np.linalg.norm(tcp[:, :3, 3] - np.median(tcp[:, :3, 3], axis=0), axis=1).max()
-    if spread <= AGREE_MM and np.linalg.norm(np.median(tcp[:, :3, 3], axis=0)) > AGREE_MM:
-        off = np.median(tcp[:, :3, 3], axis=0)
+    off = np.median(tcp[:, :3, 3], axis=0)
+    spread = np.linalg.norm(tcp[:, :3, 3] - off, axis=1).max()
+    if spread <= AGREE_MM and np.linalg.norm(off) > AGREE_MM:
         raise DatasetError(file, f"{said}, by one constant offset ({', '.join(f'{v:.1f}' for v in off)} mm in the "
                                  "flange): the poses are of a TCP, not the flange; record them with the TCP at zero",
                            column="x")

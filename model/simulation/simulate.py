@@ -142,15 +142,13 @@ def thesis_orientations(n_poses=36, max_tilt_deg=90.0):
     for name in ("x", "y", "x*", "y*"):
         u = _axis(name)
         z_s = np.array([0.0, 0.0, -1.0])
-        x_s = u
-        base = np.column_stack([x_s, np.cross(z_s, x_s), z_s])
+        base = np.column_stack([u, np.cross(z_s, u), z_s])
         for n in range(-4, 5):
             angle = max_tilt_deg / 4 * n
             items.append((f"{name}{angle:+g}", matrix_from_rotvec(np.radians(angle) * u) @ base))
     if not 1 <= n_poses <= len(items):
         raise SimulationError(f"the thesis strategy has 1 to {len(items)} poses, asked for {n_poses}")
-    keep = np.unique(np.round(np.linspace(0, len(items) - 1, n_poses)).astype(int))
-    return [items[k] for k in keep]
+    return [items[k] for k in np.unique(np.round(np.linspace(0, len(items) - 1, n_poses)).astype(int))]
 
 
 def random_view(setup, rng, size=()):

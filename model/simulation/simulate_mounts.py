@@ -140,8 +140,7 @@ def default_truth(cell):
     """(sensor pose KUKA in its mount's frame or None, sphere centre in its mount's frame or None):
     this mount's defaults, None where the seed's default applies."""
     pose = WORLD_SENSOR if cell.sensor == "world" else None
-    centre = {"flange": FLANGE_SPHERE, "positioner": TABLE_SPHERE}.get(cell.sphere)
-    return pose, centre
+    return pose, {"flange": FLANGE_SPHERE, "positioner": TABLE_SPHERE}.get(cell.sphere)
 
 
 def draw_axis_angles(n, k, rng):

@@ -67,8 +67,7 @@ def _jacobian(model, q):
     """Flange poses (N, 4, 4) and the pose error's Jacobian (N, 6, 6): d(position mm, rotation deg)
     per degree of the reported joint angles ``q`` (N, 6)."""
     fk, dfk = robots.offset_derivatives(model, q, np.zeros(6))  # per degree of the chain's angles
-    rot_t = np.swapaxes(fk[:, :3, :3], 1, 2)
-    omega = dfk[:, :, :3, :3] @ rot_t[:, None]  # [w]x per degree, base frame
+    omega = dfk[:, :, :3, :3] @ np.swapaxes(fk[:, :3, :3], 1, 2)[:, None]  # [w]x per degree, base frame
     w = np.stack([omega[..., 2, 1], omega[..., 0, 2], omega[..., 1, 0]], -1)
     jac = np.concatenate([dfk[:, :, :3, 3], np.degrees(w)], -1)  # (N, chain joint, 6)
     return fk, np.swapaxes(jac, 1, 2) @ model.coupling
@@ -152,8 +151,7 @@ def inverse_kinematics(model, target, model_name=None):
             break
         q, dpos, drot = _levenberg_marquardt(model, target[todo], seed[todo] + flip)
         q = _wrap(q)
-        fk = model.flange2base(q)
-        err = pose_error(target[todo], fk)
+        err = pose_error(target[todo], model.flange2base(q))
         good = (np.linalg.norm(err[:, :3], axis=1) < TOL_MM) & (np.linalg.norm(err[:, 3:], axis=1) < TOL_DEG)
         idx = np.flatnonzero(todo)[good]
         best[idx], ok[idx] = q[good], True

@@ -128,15 +128,14 @@ def cell_geometry(result, dataset):
     e_base = measured - sphere
     e_sensor = np.einsum("nji,nj->ni", s2b[:, :3, :3], e_base)
     radius = dataset.sphere_diameter / 2.0
-    local = _profile_points(dataset, xs, radius)
+    local = [_thinned(p) for p in dataset.profiles or (None,) * len(xs)]
     profiles = [_to_base(s2b[i], p) for i, p in enumerate(local)]
     fans = np.stack([_fan(s2b[i], local[i], xs[i], radius) for i in range(len(xs))])
-    used = _used(result, dataset)
     if result.get("sensor_frame") == "own":  # drawn and tabled in the frame the user reads: the sensor's own
         rot = np.asarray(result["own_axes"], float)
         s2b, e_sensor = s2b @ own_frame.to_own(np.eye(4), rot), e_sensor @ rot
-    return CellGeometry(list(dataset.ids), used, f2b, s2b, measured, sphere, e_base, e_sensor, fans, profiles,
-                        radius, mounts)
+    return CellGeometry(list(dataset.ids), _used(result, dataset), f2b, s2b, measured, sphere, e_base, e_sensor, fans,
+                        profiles, radius, mounts)
 
 
 def _used(result, dataset):
@@ -145,18 +144,13 @@ def _used(result, dataset):
     return np.array([by_id.get(i, True) for i in dataset.ids], bool)
 
 
-def _profile_points(dataset, xs, radius):
-    """Each sample's profile points in its sensor frame (K, 3), thinned; empty without a profile."""
-    out = []
-    profiles = dataset.profiles or (None,) * len(xs)
-    for prof in profiles:
-        if prof is None or len(prof) == 0:
-            out.append(np.zeros((0, 3)))
-            continue
-        prof = np.asarray(prof, float)
-        keep = np.unique(np.linspace(0, len(prof) - 1, min(len(prof), MAX_PROFILE_POINTS)).round().astype(int))
-        out.append(np.column_stack([prof[keep, 0], np.zeros(len(keep)), prof[keep, 1]]))
-    return out
+def _thinned(prof):
+    """A sample's profile points in its sensor frame (K, 3), thinned; empty without a profile."""
+    if prof is None or len(prof) == 0:
+        return np.zeros((0, 3))
+    prof = np.asarray(prof, float)
+    keep = np.unique(np.linspace(0, len(prof) - 1, min(len(prof), MAX_PROFILE_POINTS)).round().astype(int))
+    return np.column_stack([prof[keep, 0], np.zeros(len(keep)), prof[keep, 1]])
 
 
 def _to_base(s2b, points):

@@ -12,13 +12,10 @@ import io
 import numpy as np
 
 from handeye.app.present import figure_style
+from handeye.app.present.figure_style import BLUE, GREEN, PURPLE, VERMILLION
 
-#: Okabe-Ito by name (:data:`handeye.app.present.figure_style.OKABE_ITO`).
-OKABE_ITO = {"orange": figure_style.ORANGE, "sky": figure_style.SKY, "green": figure_style.GREEN,
-             "yellow": figure_style.YELLOW, "blue": figure_style.BLUE, "vermillion": figure_style.VERMILLION,
-             "purple": figure_style.PURPLE, "black": figure_style.BLACK}
 #: Frame axes x, y, z.
-AXIS_COLOURS = (OKABE_ITO["vermillion"], OKABE_ITO["green"], OKABE_ITO["blue"])
+AXIS_COLOURS = (VERMILLION, GREEN, BLUE)
 #: Every report figure's resolution (dots per inch).
 DPI = figure_style.MIN_DPI
 
@@ -78,7 +75,7 @@ def residuals_against_angles(cell, poses, columns):
         for c in range(3):
             ax = axes[r, c]
             ang = poses[:, 3 + c]
-            ax.scatter(ang[used], e[used, r], s=18, color=OKABE_ITO["blue"], label="used")
+            ax.scatter(ang[used], e[used, r], s=18, color=BLUE, label="used")
             _edge_points(ax, ang[~used], e[~used, r], lims)
             ax.axhline(0.0, color="0.5", lw=0.8)
             ax.set_ylim(*lims)
@@ -95,13 +92,12 @@ def residuals_against_angles(cell, poses, columns):
 def _edge_points(ax, x, y, lims):
     """Excluded samples: inside the limits as crosses, outside as triangles at the edge with the value."""
     inside = (y >= lims[0]) & (y <= lims[1])
-    ax.scatter(x[inside], y[inside], s=40, marker="x", color=OKABE_ITO["purple"], label="excluded")
+    ax.scatter(x[inside], y[inside], s=40, marker="x", color=PURPLE, label="excluded")
     for xv, yv in zip(x[~inside], y[~inside]):
         top = yv > lims[1]
         edge = lims[1] if top else lims[0]
-        ax.scatter([xv], [edge], s=60, marker="^" if top else "v", color=OKABE_ITO["purple"], clip_on=False)
-        ax.annotate(f"{yv:.3g}", (xv, edge), textcoords="offset points", xytext=(4, -12 if top else 4), fontsize=9,
-                    color=OKABE_ITO["purple"])
+        ax.scatter([xv], [edge], s=60, marker="^" if top else "v", color=PURPLE, clip_on=False)
+        ax.annotate(f"{yv:.3g}", (xv, edge), textcoords="offset points", xytext=(4, -12 if top else 4), fontsize=9, color=PURPLE)
 
 
 @styled

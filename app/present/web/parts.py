@@ -50,12 +50,10 @@ def result_card(result, snippets):
     centre, and the export snippets (``snippets``: format -> text)."""
     pose_as = result.get("sensor_pose_as") or {}
     own = result.get("sensor_frame") == "own"  # profiles turned by dataset new: the sensor's own frame
-    cols = pose_as.get("columns") or []
-    pose = pose_as.get("pose") or []
     std = result.get("std") or {}
     frame = "robot base" if result.get("sensor_mount") == "world" else "flange"
-    cells = "".join(f"<th>{esc(c)}</th>" for c in cols)
-    vals = "".join(f"<td>{_num(v)}</td>" for v in pose)
+    cells = "".join(f"<th>{esc(c)}</th>" for c in pose_as.get("columns") or [])
+    vals = "".join(f"<td>{_num(v)}</td>" for v in pose_as.get("pose") or [])
     sd_t, sd_r = std.get("sensor_translation_mm"), std.get("sensor_rotation_deg")
     sd_line = ("<p class='sd'>1 sd: translation " + " ".join(_num(v) for v in sd_t) + " mm (x, y, z in the "
                f"{esc(frame)} frame); rotation " + " ".join(_num(v) for v in sd_r) + " deg (about the sensor's own x, y, z)</p>"
@@ -65,10 +63,10 @@ def result_card(result, snippets):
                     "writes): the profiles were turned into the laser plane by <code>[profile] own_axes</code>; the "
                     "drawn sensor frames and the residual columns below are of the sensor's own frame too.</p>")
     matrix = result.get("sensor_matrix")
-    mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
-    centre = result.get("sphere_center") or []
     csd = result.get("sphere_center_sd")
-    ctext = " ".join(_num(v, 3) for v in centre) + (" ± " + " ".join(_num(v, 3) for v in csd) if csd else " (given)")
+    mtext = "\n".join(" ".join(f"{v: .9f}" for v in row) for row in matrix) if matrix else "none"
+    ctext = (" ".join(_num(v, 3) for v in result.get("sphere_center") or [])
+             + (" ± " + " ".join(_num(v, 3) for v in csd) if csd else " (given)"))
     if result.get("converged"):
         snips = "".join(f"<details><summary>{esc(k)}</summary><pre>{esc(v)}</pre></details>" for k, v in snippets.items())
     else:
@@ -91,7 +89,7 @@ def _effects(result):
         for k, v in (e.get("parameters") or {}).items():
             if isinstance(v, (int, float)):
                 rows.append(f"<tr><td>{esc(e.get('name'))}</td><td>{esc(k)}</td><td>{v:.6g}</td>"
-                            f"<td>{_num(std.get(k), 6) if std.get(k) is not None else '–'}</td></tr>")
+                            f"<td>{_num(std.get(k), 6)}</td></tr>")
     if not rows:
         return ""
     return ("<h3>Effects calibrated with the pose</h3><table class='pose'><tr><th>effect</th><th>parameter</th>"
@@ -184,9 +182,8 @@ def verdict_strip(result):
     boxes.append(_box("warn" if warns else "ok", "warnings", f"{len(warns)}"))
     items = "".join(f"<li>{esc(w)}</li>" for w in warns)
     state, sentence = headline([(b[1], b[2]) for b in boxes], result)
-    boxes = [b[0] for b in boxes]
     return (f"<section id='verdict'><h2>Verdict</h2><p class='headline {state}'>{esc(sentence)}</p>"
-            f"<div class='strip'>{''.join(boxes)}</div>"
+            f"<div class='strip'>{''.join(b[0] for b in boxes)}</div>"
             + (f"<ul class='warnings'>{items}</ul>" if items else "") + "</section>")
 
 

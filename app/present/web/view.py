@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.app.present.web.figures import AXIS_COLOURS, OKABE_ITO, new_figure, png_bytes, styled
+from handeye.app.present.figure_style import BLACK, BLUE, ORANGE, PURPLE, SKY, YELLOW
+from handeye.app.present.web.figures import AXIS_COLOURS, new_figure, png_bytes, styled
 
 #: At most this many flange and sensor frames and laser fans are drawn (evenly spaced over the samples):
 #: a cell of thousands of poses stays a scene a browser turns smoothly; every centre is still drawn.
@@ -98,7 +99,6 @@ def figure(cell, title):
     """
     import plotly.graph_objects as go
 
-    length = 0.06 * cell.extent
     scale = default_scale(cell)
     traces, index = [], {}
 
@@ -106,15 +106,14 @@ def figure(cell, title):
         index[name] = len(traces)
         traces.append(trace)
 
-    _frames(add, go, cell, length)
+    _frames(add, go, cell, 0.06 * cell.extent)
     _laser(add, go, cell)
     _sphere(add, go, cell)
     _points(add, go, cell, scale)
     if cell.mounts.axes:
         _positioner(add, go, cell)
     add("selected", go.Scatter3d(x=[], y=[], z=[], mode="lines+markers", name="picked sample",
-                                 line=dict(color=OKABE_ITO["black"], width=7),
-                                 marker=dict(size=7, color=OKABE_ITO["black"]), hoverinfo="skip"))
+                                 line=dict(color=BLACK, width=7), marker=dict(size=7, color=BLACK), hoverinfo="skip"))
     fig = go.Figure(traces)
     fig.update_layout(title=dict(text=title, font=dict(size=14)), height=640, margin=dict(l=0, r=0, t=40, b=0),
                       font=dict(size=13), legend=dict(itemsizing="constant", font=dict(size=12)),
@@ -147,13 +146,13 @@ def _laser(add, go, cell):
     tri = cell.fans[near].reshape(-1, 3)
     n = int(near.sum())
     add("fans", go.Mesh3d(x=tri[:, 0], y=tri[:, 1], z=tri[:, 2], i=3 * np.arange(n), j=3 * np.arange(n) + 1,
-                          k=3 * np.arange(n) + 2, color=OKABE_ITO["sky"], opacity=0.18, name="laser fans",
+                          k=3 * np.arange(n) + 2, color=SKY, opacity=0.18, name="laser fans",
                           showlegend=True, hoverinfo="skip"))
     pts = [p for p, ok in zip(cell.profiles, near) if len(p) and ok]
     if pts:
         allp = np.vstack(pts)
         add("profiles", go.Scatter3d(x=allp[:, 0], y=allp[:, 1], z=allp[:, 2], mode="markers", name="profile points",
-                                     marker=dict(size=1.6, color=OKABE_ITO["black"]), hoverinfo="skip"))
+                                     marker=dict(size=1.6, color=BLACK), hoverinfo="skip"))
 
 
 def _sphere(add, go, cell):
@@ -170,12 +169,12 @@ def _sphere(add, go, cell):
 def _points(add, go, cell, scale):
     used, excl = residual_segments(cell, scale)
     add("residuals", go.Scatter3d(x=used[0], y=used[1], z=used[2], mode="lines", name=f"residuals {scale_text(scale)}",
-                                  line=dict(color=OKABE_ITO["orange"], width=5), hoverinfo="skip"))
+                                  line=dict(color=ORANGE, width=5), hoverinfo="skip"))
     idx = np.arange(len(cell.ids))
     norms = np.linalg.norm(cell.residual_base, axis=1)
     shown = cell.sphere + scale * capped_residuals(cell)  # at the end of its drawn residual; |e| in the text
-    for name, mask, style in (("centres", cell.used, dict(size=4, color=OKABE_ITO["blue"], symbol="circle")),
-                              ("centres_excluded", ~cell.used, dict(size=5, color=OKABE_ITO["purple"], symbol="diamond"))):
+    for name, mask, style in (("centres", cell.used, dict(size=4, color=BLUE, symbol="circle")),
+                              ("centres_excluded", ~cell.used, dict(size=5, color=PURPLE, symbol="diamond"))):
         label = "measured centres" if name == "centres" else "excluded samples"
         add(name, go.Scatter3d(
             x=shown[mask, 0], y=shown[mask, 1], z=shown[mask, 2], mode="markers", name=label,
@@ -183,17 +182,15 @@ def _points(add, go, cell, scale):
             hovertemplate="%{text}<extra></extra>", visible=True if mask.any() else "legendonly"))
     add("residuals_excluded", go.Scatter3d(
         x=excl[0], y=excl[1], z=excl[2], mode="lines", name="excluded residuals (capped)",
-        line=dict(color=OKABE_ITO["purple"], width=4, dash="dash"), hoverinfo="skip",
+        line=dict(color=PURPLE, width=4, dash="dash"), hoverinfo="skip",
         visible=True if (~cell.used).any() else "legendonly"))
 
 
 def _positioner(add, go, cell):
-    size = cell.extent
-    segs = [(a.point - 0.3 * size * a.direction, a.point + 0.3 * size * a.direction) for a in cell.mounts.axes]
-    start, end = np.array([s for s, _ in segs]), np.array([e for _, e in segs])
+    start, end = (np.array([a.point + sign * 0.3 * cell.extent * a.direction for a in cell.mounts.axes]) for sign in (-1, 1))
     xyz = _segments(start, end)
     add("positioner", go.Scatter3d(x=xyz[0], y=xyz[1], z=xyz[2], mode="lines", name="positioner axes",
-                                   line=dict(color=OKABE_ITO["yellow"], width=6), hoverinfo="skip"))
+                                   line=dict(color=YELLOW, width=6), hoverinfo="skip"))
     add("positioner_names", go.Scatter3d(x=end[:, 0], y=end[:, 1], z=end[:, 2], mode="text", showlegend=False,
                                          text=[a.name for a in cell.mounts.axes], textfont=dict(size=14),
                                          hoverinfo="skip"))
@@ -210,18 +207,16 @@ def static_png(cell, title):
     """The cell as a matplotlib 3-D picture (PNG bytes): the report without plotly."""
     fig = new_figure(figsize=(10, 8))
     ax = fig.add_subplot(projection="3d")
-    length = 0.06 * cell.extent
     for frames in (cell.flange2base, cell.sensor2base):
-        for k, xyz in enumerate(_triads(frames, length)):
+        for k, xyz in enumerate(_triads(frames, 0.06 * cell.extent)):
             ax.plot(*(np.array(c, dtype=float) for c in xyz), color=AXIS_COLOURS[k], lw=1)
     scale = default_scale(cell)
     used, _ = residual_segments(cell, scale)
     shown = cell.sphere + scale * capped_residuals(cell)  # as the interactive view: at the end of each drawn residual
-    ax.plot(*(np.array(c, dtype=float) for c in used), color=OKABE_ITO["orange"], lw=2,
-            label=f"residuals {scale_text(scale)}")
-    ax.scatter(*shown[cell.used].T, color=OKABE_ITO["blue"], s=12, label="measured centres")
+    ax.plot(*(np.array(c, dtype=float) for c in used), color=ORANGE, lw=2, label=f"residuals {scale_text(scale)}")
+    ax.scatter(*shown[cell.used].T, color=BLUE, s=12, label="measured centres")
     if (~cell.used).any():
-        ax.scatter(*shown[~cell.used].T, color=OKABE_ITO["purple"], marker="x", s=40, label="excluded (capped)")
+        ax.scatter(*shown[~cell.used].T, color=PURPLE, marker="x", s=40, label="excluded (capped)")
     ax.scatter(*cell.sphere[cell.used].T, color="0.5", s=30, label="sphere centre")
     ax.set(xlabel="x base (mm)", ylabel="y base (mm)", zlabel="z base (mm)", title=title)
     ax.legend(loc="upper left")

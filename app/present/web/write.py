@@ -5,10 +5,11 @@ from __future__ import annotations
 import dataclasses
 
 from handeye.app.present.protocol import ResultProtocol
+from handeye.app.present.result_parts import AsDict
 
 
 @dataclasses.dataclass(frozen=True)
-class ReportResult(ResultProtocol):
+class ReportResult(AsDict, ResultProtocol):
     """What ``handeye report`` wrote.
 
     Attributes
@@ -37,9 +38,6 @@ class ReportResult(ResultProtocol):
     samples: int
     excluded: int
     diagnosed: bool
-
-    def to_dict(self):
-        return dataclasses.asdict(self)
 
     def summary(self):
         view = ("interactive 3-D view (plotly)" if self.interactive
