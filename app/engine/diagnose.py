@@ -105,18 +105,20 @@ class Procedure:
     implausible: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
     centre_unknown: bool = False
+    detail: bool = True
 
 
-def _summaries(prob, structure, fit, mask):
+def _summaries(prob, structure, fit, mask, heldout=True):
+    """A step's figures; without ``heldout`` its 5-fold held-out RMS is NaN (not computed)."""
     return {
         "rms_mm": _rms(fit, mask),
         "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
-        "heldout_rms_mm": prob.heldout_rms(structure, mask, fit),
+        "heldout_rms_mm": prob.heldout_rms(structure, mask, fit) if heldout else float("nan"),
     }
 
 
-def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False):
+def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False, detail=True):
     """Run the procedure (module docstring) on a dataset.
 
     Parameters
@@ -133,6 +135,10 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
         The sphere centre is estimated with the pose (``--unknowns sensor+sphere``): free in the
         base model and in every model after it (never tested, named or removed as an effect);
         ``dataset.sphere_centre`` is its start.
+    detail : bool
+        Without it (calibrate's search, :mod:`handeye.app.engine.search`) the same decisions,
+        but the steps' held-out RMS (NaN) and the structural effects' identifiability
+        (``absorbed_by``) -- the report's figures -- are not computed (~40 % of the time).
 
     Returns
     -------
@@ -146,14 +152,15 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
     allowed = ~np.isin(dataset.rows, [e.row for e in inconsistent])  # never reinstated
     structure = Structure(centre=centre_unknown)
     fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
-    before = _summaries(prob, structure, fit, mask)
-    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1), centre_unknown=centre_unknown)
+    before = _summaries(prob, structure, fit, mask, detail)
+    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1), centre_unknown=centre_unknown,
+                    detail=detail)
     run.steps.append({"step": "base model", **before})
     axes = _positioner_axes(run, fit, sigma)
     if axes is not None:  # the rest runs at the refined axes
         dataset, prob = axes.dataset, run.prob
         fit = prob.fit(structure, mask, fit.x)
-        run.steps.append({"step": "+ positioner_axes", **_summaries(prob, structure, fit, mask)})
+        run.steps.append({"step": "+ positioner_axes", **_summaries(prob, structure, fit, mask, detail)})
     for _ in range(3):  # effects, then discrete samples, until neither changes the other
         structure, fit = _search(run, structure, fit)
         previous = (mask.copy(), structure.flips)
@@ -161,12 +168,13 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False)
         run.mask = mask
         if not (np.array_equal(previous[0], mask) and previous[1] == structure.flips):
             run.steps.append({"step": _outlier_step_label(dataset, previous, mask, structure.flips),
-                          **_summaries(prob, structure, fit, mask)})
+                          **_summaries(prob, structure, fit, mask, detail)})
         structure, fit = _backward(prob, structure, fit, mask, alpha, centre_unknown)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
     structure, fit = _robot_choice(run, structure, fit)
-    _absorbed_structural(run, structure, fit, mask)
+    if detail:
+        _absorbed_structural(run, structure, fit, mask)
     result = _report(run, structure, fit, flips, outliers)
     if axes is not None:
         result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
@@ -185,7 +193,7 @@ def _robot_choice(run, structure, fit):
     if set(chosen.data_effects) != set(structure.data_effects) or chosen.centre != structure.centre:
         robot = [n for n in chosen.data_effects if effects.get(n).KIND == "robot"]
         label = "+".join(("sphere_center",) * (chosen.centre and not run.centre_unknown) + tuple(robot))
-        run.steps.append({"step": f"robot effects: {label}", **_summaries(run.prob, chosen, new, run.mask)})
+        run.steps.append({"step": f"robot effects: {label}", **_summaries(run.prob, chosen, new, run.mask, run.detail)})
     return chosen, new
 
 
@@ -274,7 +282,7 @@ def _search(run, structure, fit):
             break
         name, structure, fit = accepted
         structure, fit = _backward(prob, structure, fit, mask, alpha, run.centre_unknown)
-        steps.append({"step": f"+ {name}", **_summaries(prob, structure, fit, mask)})
+        steps.append({"step": f"+ {name}", **_summaries(prob, structure, fit, mask, run.detail)})
     return structure, fit
 
 
@@ -414,7 +422,7 @@ def _final_outliers(prob, structure, fit, mask, alpha, allowed=None):
 def _report(run, structure, fit, flips, outliers):
     """The :class:`DiagnosisResult` of the final ``structure`` and ``fit`` (``run`` the :class:`Procedure`)."""
     prob, mask, before = run.prob, run.mask, run.before
-    after = _summaries(prob, structure, fit, mask)
+    after = _summaries(prob, structure, fit, mask, run.detail)
     d = prob.d
     std, corr = fit.uncertainty(mask)
     index = {name: k for k, name in enumerate(fit.names)}

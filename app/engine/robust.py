@@ -187,7 +187,7 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     from handeye.app.engine.request import min_measurements
     from handeye.model.datasets import consistency
 
-    check = consistency.check_rows(dataset)
+    check = dataset.once("row_consistency", lambda: consistency.check_rows(dataset))
     if not check.inconsistent:
         return mask, excluded
     keep = np.asarray(mask, bool) & check.consistent

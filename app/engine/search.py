@@ -64,7 +64,7 @@ def search(request, dataset, result):
     if request.unknowns == "sensor+sphere":
         data = dataclasses.replace(dataset, sphere_centre=np.asarray(result.sphere_centre, float))
     return diagnose.diagnose(data, alpha=request.alpha, start=result.sensor_pose_kuka, sigma=request.sigma,
-                             centre_unknown=request.unknowns == "sensor+sphere")
+                             centre_unknown=request.unknowns == "sensor+sphere", detail=False)
 
 
 def chosen(request, dataset, result, refit):
@@ -109,7 +109,7 @@ def _with_effects(request, dataset, result, refit, names, found):
     """The fit with the effects the search named (a warning says it chose them, and why)."""
     asked = dataclasses.replace(_unchecked(request), effects=names)
     fitted = refit(asked, dataset)
-    steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm (held-out {s.heldout_rms_mm:.3g})" for s in found.steps)
+    steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm" for s in found.steps)
     note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
             f"{'it' if len(names) == 1 else 'them'} ({steps}); calibrated with "
             f"{'it' if len(names) == 1 else 'them'}, the same as `{_command('calibrate', dataset, request)} "

@@ -205,6 +205,18 @@ class Dataset(FlangePoses):
     own_axes: np.ndarray | None = None
     poses_read: str | None = None
 
+    @functools.cached_property
+    def _once(self):
+        return {}
+
+    def once(self, key, compute):
+        """``compute()``, computed once for this dataset under ``key`` (a dataset is frozen: a
+        function of it alone is the same each time it is asked; calibrate's stages, its search
+        and diagnose ask some of them several times)."""
+        if key not in self._once:
+            self._once[key] = compute()
+        return self._once[key]
+
     def subset(self, mask):
         """The dataset restricted to the measurements where ``mask`` is true."""
         mask = np.asarray(mask, bool)
