@@ -57,7 +57,8 @@ def profiled(tmp_path_factory):
     return load(handeye.simulate(tmp_path_factory.mktemp("loo-batch") / "d", seed=3, n_poses=8, profiles=True).path)
 
 
-@pytest.mark.parametrize("unknowns", ["sensor", "sensor+sphere"])
+@pytest.mark.parametrize("unknowns", [pytest.param("sensor", marks=pytest.mark.slow(
+    sibling="test_thesis_real_with_its_gross_errors[sensor+sphere]")), "sensor+sphere"])
 def test_thesis_real_with_its_gross_errors(unknowns):
     """All 31 samples, the 2 m misprint among them: the exact-Hessian path (Gauss-Newton's rate
     at the fit is far above LOO_GN_MAX_RATE)."""

@@ -403,7 +403,8 @@ def test_a_huge_axis_direction_is_a_direction(tmp_path):
     np.testing.assert_allclose(d.mounts.axes[1].direction, np.full(3, 1 / np.sqrt(3)))
 
 
-@pytest.mark.parametrize("sensor, sphere", [("world", "flange"), ("flange", "positioner")])
+@pytest.mark.parametrize("sensor, sphere", [("world", "flange"), pytest.param("flange", "positioner", marks=pytest.mark.slow(
+    sibling="test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate[world-flange]"))])
 def test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate(tmp_path, sensor, sphere):
     """The discrepancy workflow on a stationary sensor and on a positioner: the scale is named, added, the gap
     shrinks; calibrated with it the pose is within 3 sd; export, cloud and validate take the result."""
