@@ -145,7 +145,7 @@ class CalibrateRequest:
             unknowns=free.parts, method=v["method"], rotation=v["rotation"], start=start,
             options={} if v["max_iter"] is None else {"max_iter": v["max_iter"]}, outliers=not v["keep_all"],
             alpha=v["alpha"], loo=not v["no_loo"], model=v["model"], convention=convention, sigma=v["sigma"],
-            robot_sigma=v["robot_sigma"], effects=free.effects, chosen=free.chosen)
+            robot_sigma=v["robot_sigma"], effects=free.effects, chosen=free.chosen or None)
         return cls(request, free, closed_form, COMMANDS["calibrate"].record(values))
 
     def holding(self, sensor2flange, data):

@@ -477,7 +477,9 @@ def against_calibrate(result, own):
     if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
     (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
     if not own.converged:
-        return f"calibrate did not converge on these data ({own.message}); nothing to compare"
+        verb = "refuses these data" if own.message.startswith(("not a calibration", "unexplained")) else \
+            "did not converge on these data"
+        return f"calibrate {verb} ({own.message}); nothing to compare"
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
                       own.parameter_names)
     far = (f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg" + ("" if d["sd"] is None else

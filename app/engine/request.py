@@ -105,7 +105,7 @@ class Free:
         if calibration is not None and sensor_pose is not None:
             raise CalibrationInputError("give --calibration or --sensor-pose, not both")
         given = "--calibration" if calibration is not None else "--sensor-pose" if sensor_pose is not None else None
-        return cls(unknown_parts(unknowns), effect_names(effects), given, effects is not None)
+        return cls(unknown_parts(unknowns), effect_names(effects), given, effects not in (None, ()))
 
     @property
     def scored(self):
@@ -163,7 +163,7 @@ class CalibrationRequest:
     chosen : bool or None
         Whether the model (``effects``, none included) is the user's choice, which the
         discrepancy search then checks instead of choosing (:mod:`handeye.app.engine.search`);
-        None: chosen when ``effects`` names any.
+        None: chosen when ``effects`` is given (``'none'`` included) or ``model`` is a profile model.
     notes : tuple of str
         What :meth:`checked` decided that the user should read (a default method changed).
     resolved : str or None
@@ -227,7 +227,7 @@ class CalibrationRequest:
         start = None if self.start is None else np.asarray(self.start, float).copy()
         checked = dataclasses.replace(
             self, method=method, rotation=rotation, effects=effects, unknowns=unknowns, model=model, start=start,
-            chosen=bool(effects) if self.chosen is None else bool(self.chosen),
+            chosen=_chosen(self.chosen, self.effects, model),
             options=copy.deepcopy(_solver_options(self.options)), alpha=float(self.alpha),
             convention=conventions.check(self.convention or dataset.convention),
             sigma=dataset.noise_centre_mm if self.sigma is None else float(self.sigma),
@@ -265,6 +265,15 @@ def _rotation(method, rotation):
             + (" IPOPT has no retraction for the local parametrisation" if rotation == "local" else "")
         )
     return rotation
+
+
+def _chosen(chosen, effects, model):
+    """Whether the model is the user's (the search checks it, never changes it): said so
+    (``chosen``), ``--effects`` given (``none`` included), or a profile residual model asked
+    for (``--model measurement|points``: the search's effects need the centre residual)."""
+    if chosen is not None:
+        return bool(chosen)
+    return (effects is not None and effects != ()) or model in ("measurement", "points")
 
 
 def _effects(effects, unknowns, model):

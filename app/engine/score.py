@@ -181,9 +181,15 @@ def run_score(request, dataset, sensor2flange, source):
     """Score ``sensor2flange`` (4x4) on ``dataset`` with a checked ``request`` whose unknowns hold
     the sensor (the data's own calibration): a
     :class:`~handeye.app.present.score_results.ScoreResult`."""
+    return score_against(own_calibration(request, dataset), dataset, request, sensor2flange, source)
+
+
+def own_calibration(request, dataset):
+    """The data's own calibration under the requested model: the search checks it but never
+    changes it (a score is of one model; data that contradict the model give no verdict)."""
     from handeye.app.engine.calibrate import run
 
-    return score_against(run(request, dataset), dataset, request, sensor2flange, source)
+    return run(dataclasses.replace(request, chosen=True).checked(dataset), dataset)
 
 
 def score_against(estimate, dataset, request, sensor2flange, source, scorer=None):
@@ -211,10 +217,9 @@ def score_against(estimate, dataset, request, sensor2flange, source, scorer=None
 def compare(request, dataset, poses, sources, alpha):
     """Two poses (4x4 each) scored against one calibration of the data and against each other:
     a :class:`~handeye.app.present.score_results.CompareResult`."""
-    from handeye.app.engine.calibrate import run
     from handeye.app.present.score_results import CompareResult
 
-    estimate = run(request, dataset)
+    estimate = own_calibration(request, dataset)
     scorer = scorer_for(estimate, dataset, request)
     scores = tuple(score_against(estimate, dataset, request, p, src, scorer) for p, src in zip(poses, sources))
     cov = estimate.covariance if estimate.converged else None

@@ -6,26 +6,27 @@ catalogue's score tests, each candidate confirmed by an F test, Delta BIC and a 
 plausibility, the robot effects compared as alternatives) runs on the same data, at the same
 level and stated noise, from calibrate's pose. Its outcome decides calibrate's:
 
-- it names no effect: the requested model is the one the data choose; the result stands (its
-  residual model may weigh the data otherwise than the search's centre model, so the two poses
-  are not compared);
+- it names no effect: the requested model is the one the data choose; the result stands;
 - it names catalogue effects: the result is the fit *with* them (the same as ``handeye calibrate
   --effects NAMES``), each effect named with its sd and a warning saying the search chose it; a
   fit with them that fails (an implausible value, no convergence) is refused;
 - the nearest effect to the discrepancy lies beyond the catalogue's physical range (a pairing
   shift, profiles of no sphere, a scale of ten per cent): "unexplained structure", refused
-  (exit 1) with the search's evidence;
-- where it names effects, the reported pose is tested against the search's: where it lies more than
-  :data:`handeye.app.engine.diagnose.AGREE_SD` of the reported pose's own sd away (Mahalanobis distance on 6 dof), the
-  data contradict the reported model and the result is refused (exit 1).
+  (exit 1) with the search's evidence.
 
-With ``--effects`` (``none`` for no effect) the model is the user's: the search checks it (the
-last two rules) instead of choosing. So calibrate never exits 0 at a pose its own diagnosis
-puts beyond its sd, and ``handeye diagnose``, which prints the same search step by step, says
-"the same pose within 1 sd" of every calibration that exits 0. Left to their own checks: the
-cell stage (positioner axes or a sphere estimated in a cell), a sphere on a positioner (the
-positioner's own test, :mod:`handeye.app.engine.positioner_effect`) and a fit that did not
-converge.
+The model is the user's where ``--effects`` is given (``none`` for no effect) or a profile
+residual model is asked for (``--model measurement|points``: the effects need the centre
+residual); the search then checks it instead of choosing: where the search's model differs
+(or ``--keep-all`` keeps samples the search excludes), a pose the search puts more than
+:data:`handeye.app.engine.diagnose.AGREE_SD` of the reported pose's own sd away (Mahalanobis
+distance on 6 dof) is refused (exit 1). Poses of one model are not compared: they differ only
+by the samples each excludes or flips back, and a 1-sd limit would refuse good data for that.
+
+So calibrate does not exit 0 with a model its search replaces. Left to other checks: the cell
+stage (positioner axes or a sphere estimated in a cell), a sphere on a positioner (the
+positioner's own test, :mod:`handeye.app.engine.positioner_effect`), the closed-form methods, a
+fit that did not converge, and data of more than ``ROW_CHUNK`` samples (the search holds the
+whole Jacobian; a warning says the model is unchecked).
 """
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ import numpy as np
 from handeye.app.engine import diagnose
 from handeye.app.engine.describe import command_argument
 from handeye.model.common.rotation import pose_distance
+from handeye.model.fit.calibration import ROW_CHUNK
 
 #: Effects the search names that are not a model the fit can take (handled as samples).
 NOT_A_MODEL = ("sign_flip",)
@@ -86,23 +88,29 @@ def chosen(request, dataset, result, refit):
     """
     if not searchable(request, dataset, result):
         return result
+    if len(dataset) > ROW_CHUNK:
+        return _unchecked_result(result, f"the data have {len(dataset):,} samples, more than the search's "
+                                         f"{ROW_CHUNK:,} (it holds the whole Jacobian)")
     try:
         found = search(request, dataset, result)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
-        return dataclasses.replace(result, warnings=[*result.warnings, "the discrepancy search failed numerically "
-                                                     f"({exc}): the requested model is reported unchecked"])
+        return _unchecked_result(result, f"the search failed numerically ({exc})")
     if found.beyond_catalogue:
         return refused(result, "unexplained structure, not a calibration: the discrepancy search finds the residuals "
                                f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"
                                f" ({_command('diagnose', dataset, request)} prints its steps)")
     names = tuple(e.name for e in found.effects if e.name not in NOT_A_MODEL)
-    if not names:  # the requested model is the one the data choose (its own weights: no pose to compare)
-        return result
-    if not request.chosen:
+    if names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
-    if not result.converged:
-        return result
-    return _against_search(result, found, dataset, request)
+    elif names_differ(found, request) or (found.outliers and not request.outliers):
+        result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
+    return result
+
+
+def _unchecked_result(result, why):
+    """``result`` with a warning that the search did not check it (and why)."""
+    return dataclasses.replace(result, warnings=[*result.warnings, f"the model is not checked by the discrepancy "
+                                                                   f"search: {why}"])
 
 
 def _with_effects(request, dataset, result, refit, names, found):
@@ -127,11 +135,19 @@ def _against_search(result, found, dataset, request):
     if diagnose.same_pose(d):
         return result
     named = ", ".join(e.name for e in found.effects) or "no effect"
-    return refused(result, f"not a calibration: the discrepancy search (with {named}) puts the pose "
-                           f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.1f} sd "
+    kept = f" and the {len(found.outliers)} samples it excludes" if found.outliers and not request.outliers else ""
+    advice = ("calibrate without --effects fits the model it chooses" if request.effects or request.chosen and
+              request.model in (None, "centre") else "calibrate --model centre fits the model it chooses")
+    advice = "without --keep-all its exclusions apply" if kept and not names_differ(found, request) else advice
+    return refused(result, f"not a calibration: the discrepancy search (with {named}{kept}) puts the pose "
+                           f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.2f} sd "
                            f"of its own (more than {diagnose.AGREE_SD:g}): these data contradict this model; "
-                           f"`{_command('diagnose', dataset, request)}` prints the search, and calibrate without "
-                           "--effects fits the model it chooses")
+                           f"`{_command('diagnose', dataset, request)}` prints the search; {advice}")
+
+
+def names_differ(found, request):
+    """Whether the search's model (its named effects) is not the request's."""
+    return {e.name for e in found.effects if e.name not in NOT_A_MODEL} != set(request.effects)
 
 
 def _command(verb, dataset, request):

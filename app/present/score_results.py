@@ -107,8 +107,9 @@ class ScoreResult(ResultProtocol):
         """Why there is no verdict (exit 1), or None."""
         if self.converged:
             return None
-        return (f"no verdict: the data's own calibration did not converge ({self.estimate.message}), so there is no "
-                "minimum to test the given pose against")
+        refused = self.estimate.message.startswith(("not a calibration", "unexplained"))
+        return (f"no verdict: the data's own calibration {'is refused' if refused else 'did not converge'} "
+                f"({self.estimate.message}), so there is no minimum of this model to test the given pose against")
 
     @property
     def residuals(self):

@@ -1,0 +1,80 @@
+"""calibrate is the search (app/engine/search.py): the model the data choose, or a refusal; the
+user's model (--effects, --model measurement|points) checked, never changed; the cases the
+search leaves to other checks said in a warning."""
+import numpy as np
+import pytest
+
+import handeye
+from handeye.app.command.cli import EXIT_NOT_CONVERGED, EXIT_OK, main
+from handeye.app.engine import calibrate as engine
+from handeye.app.engine import search
+from handeye.model.chain.pose import transform_from_pose
+from handeye.model.common.rotation import transform_distance
+
+
+@pytest.fixture(scope="module")
+def scale_cell(tmp_path_factory):
+    """A profiled cell whose sensor reads 0.2 % long: the plain model is wrong by many sd."""
+    made = handeye.simulate(tmp_path_factory.mktemp("search") / "scale", seed=2, n_poses=20, profiles=True,
+                            effect="sensor_scale=0.002")
+    return made.path, transform_from_pose(made.dataset.truth["sensor_pose"])
+
+
+def test_the_default_calibrates_the_model_the_search_chooses(scale_cell):
+    folder, truth = scale_cell
+    r = handeye.calibrate(folder, no_loo=True)
+    assert r.converged and [e.name for e in r.effects] == ["sensor_scale"]
+    assert r.warnings[0].startswith("the data choose the model with sensor_scale")
+    dt, dr = transform_distance(r.sensor2flange, truth)
+    assert dt < 0.15 and dr < 0.05
+    assert handeye.diagnose(folder).against_calibrate.startswith("the same pose as `handeye calibrate`'s within 1 sd")
+
+
+@pytest.mark.parametrize("options", [["--effects", "none"], ["--model", "measurement"]])
+def test_the_users_model_is_checked_not_changed(scale_cell, capsys, options):
+    """--effects none and a profile residual model are the user's: refused where the search puts
+    the pose beyond 1 sd, the advice naming what lets calibrate choose."""
+    folder, _ = scale_cell
+    assert main(["calibrate", str(folder), "--no-loo", *options]) == EXIT_NOT_CONVERGED
+    out = capsys.readouterr().out
+    assert "not a calibration: the discrepancy search (with sensor_scale)" in out
+    assert ("calibrate without --effects" if options[0] == "--effects" else "calibrate --model centre") in out
+
+
+def test_the_engine_reads_effects_none_as_the_users_model(scale_cell):
+    data = handeye.load_dataset(scale_cell[0])
+    assert not engine.calibrate(data, effects="none", loo=False).converged
+    assert engine.calibrate(data, loo=False).converged
+
+
+def test_a_score_is_of_the_requested_model(scale_cell):
+    """The data's own calibration of a score is the requested model's: where the search replaces
+    it, there is no verdict (not a verdict against a fit of another model)."""
+    folder, truth = scale_cell
+    scored = handeye.calibrate(folder, sensor_pose=handeye.calibrate(folder, no_loo=True, effects="none").sensor_pose,
+                               no_loo=True)
+    assert not scored.converged and scored.error.startswith("no verdict: the data's own calibration is refused")
+
+
+def test_sign_flips_beside_an_effect_are_not_a_reason_to_refuse(tmp_path):
+    """The search flips samples back, the fit with its effects excludes them: poses of one model are
+    not compared (a 1-sd limit refused such cells at 1.0-1.3 sd)."""
+    made = handeye.simulate(tmp_path / "f", seed=5, effect=["sphere_radius=0.2", "sign_flip=x-45,y+45"])
+    r = handeye.calibrate(made.path, no_loo=True)
+    assert r.converged and "sphere_radius" in [e.name for e in r.effects]
+
+
+def test_data_beyond_the_searchs_size_are_said_to_be_unchecked(monkeypatch):
+    monkeypatch.setattr(search, "ROW_CHUNK", 10)
+    r = handeye.calibrate("thesis-sim", no_loo=True, method="lm")
+    assert r.converged and any(w.startswith("the model is not checked by the discrepancy search: the data have")
+                               for w in r.warnings)
+
+
+def test_clean_data_keep_the_requested_model(tmp_path):
+    made = handeye.simulate(tmp_path / "c", seed=1, n_poses=16, profiles=True)
+    r = handeye.calibrate(made.path, no_loo=True)
+    assert r.converged and not r.effects and r.model == "measurement"
+    assert main(["calibrate", str(made.path), "--no-loo", "--effects", "none"]) == EXIT_OK
+    dt, _ = transform_distance(r.sensor2flange, transform_from_pose(made.dataset.truth["sensor_pose"]))
+    assert np.isfinite(dt) and dt < 0.2
