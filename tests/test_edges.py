@@ -298,7 +298,8 @@ def _suggested_commands(text):
     return [c for c in text.split("`")[1::2] if c.startswith("handeye ")]
 
 
-@pytest.mark.parametrize("name", ["thesis-real", "folder with space"])
+@pytest.mark.parametrize("name", [pytest.param("thesis-real", marks=pytest.mark.slow(
+    sibling="test_suggested_commands_are_complete_and_run[folder with space]")), "folder with space"])
 def test_suggested_commands_are_complete_and_run(tmp_path, capsys, name):
     """The warnings name the dataset as the user did (the embedded name, not its installed path;
     a folder by its path, quoted), with calibrate's dataset argument; pasted, each runs."""
@@ -381,6 +382,7 @@ def _worker_cpu(pgid):
 
 
 @pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="needs /proc to see the workers")
+@pytest.mark.slow(sibling="test_a_signal_while_the_output_is_written_removes_the_temporary_file[SIGINT]")
 def test_ctrl_c_in_a_terminal_stops_the_workers_of_a_study_too(tmp_path):
     """The terminal's Ctrl-C goes to the whole process group, the sweep's workers included: the
     run still ends with the one line (no worker's IPOPT warning, no report of the pool's

@@ -87,6 +87,7 @@ def test_simulated_every_kind(profiled, kind, unknowns):
     assert np.max(np.abs(got - _independent_loo(model, x, predictor))) < 1e-6
 
 
+@pytest.mark.slow(sibling="test_thesis_real_with_its_gross_errors[sensor+sphere]")
 def test_simulated_gross_error_and_a_mask(tmp_path):
     """A 2 m misprint in simulated centres, one sample masked out: the exact-Hessian path on
     the samples of the mask."""

@@ -446,8 +446,8 @@ def _check(result, truth, plants):
     assert result.rms_after_mm < 1.3 * np.sqrt(3) * noise  # the 3-d residual of isotropic noise: sqrt(3) sd
 
 
-#: The default tier plants the cells with lengths absorbed too (each also plants visible ones); the
-#: plainer cells run in the full suite.
+#: The default tier plants the KR 60 HA's cell with lengths absorbed too (it also plants visible
+#: ones); the plainer cells and the UR10e's run in the full suite.
 _PLAIN_LENGTHS = pytest.mark.slow(sibling="test_diagnose_names_link_lengths_within_3_sd[kr60ha-lengths1]")
 
 
@@ -455,7 +455,7 @@ _PLAIN_LENGTHS = pytest.mark.slow(sibling="test_diagnose_names_link_lengths_with
     pytest.param("kr60ha", {"j3_x": 0.5, "j4_x": -0.4, "j4_z": 0.3}, marks=_PLAIN_LENGTHS),
     ("kr60ha", {"j2_x": 0.4, "j5_x": 0.3, "j2_z": 0.5, "j6_x": -0.4}),  # j5_x on j4_x's line; j2_z, j6_x absorbed
     pytest.param("ur10e", {"a2": 0.4, "a3": -0.5, "d5": 0.2}, marks=_PLAIN_LENGTHS),
-    ("ur10e", {"d4": -0.3, "d1": 0.4, "d6": 0.3}),  # d1, d6 absorbed
+    pytest.param("ur10e", {"d4": -0.3, "d1": 0.4, "d6": 0.3}, marks=_PLAIN_LENGTHS),  # d1, d6 absorbed
 ])
 def test_diagnose_names_link_lengths_within_3_sd(tmp_path, model, lengths):
     """Hidden length errors of 0.2-0.5 mm: ``link_lengths`` named, every visible planted length estimated (or
@@ -500,7 +500,8 @@ COMBINED = {"kr60ha": {"joint_offsets": {"j3": 0.04}, "link_lengths": {"j3_x": 0
                       "joint_compliance": {"j2": 0.03, "j3": 0.02}}}
 
 
-@pytest.mark.parametrize("model", ["kr60ha", "ur10e"])
+@pytest.mark.parametrize("model", ["kr60ha", pytest.param("ur10e", marks=pytest.mark.slow(
+    sibling="test_diagnose_recovers_the_definitions_without_noise[kr60ha]"))])
 def test_diagnose_recovers_the_definitions_without_noise(tmp_path, model):
     """The definitions agree, not only the statistics: with 1e-6 mm of noise, offsets, lengths and compliance
     hidden together (30 poses, the wider spread), all three named, every estimated robot parameter equals
