@@ -113,6 +113,14 @@ def test_the_json_keys_listed_are_exactly_calibrates(calibration):
     assert listed == set(calibration), (sorted(listed - set(calibration)), sorted(set(calibration) - listed))
 
 
+def test_out_adds_the_provenance_the_readme_names(tmp_path):
+    """`--out` adds ``provenance`` to calibrate's JSON: the README's key table names it and what it holds."""
+    code, out = run_cli("calibrate", "thesis-sim", "--json", "--no-loo", "--out", str(tmp_path / "c.json"))
+    assert code == 0 and "`--out` adds `provenance`" in FLAT
+    assert set(json.loads(out)["provenance"]) >= {"tool", "version", "dataset_path", "dataset_sha256", "options",
+                                                   "created_utc"}
+
+
 # --- the thesis's real data, calibrated ----------------------------------------------------------
 
 
