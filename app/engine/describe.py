@@ -144,6 +144,10 @@ class Described:
     centre_given: bool = True
 
 
+#: How the score tests' warning begins (calibrate's search replaces it with its own outcome).
+STRUCTURE_WARNING = "the residuals show structure the model lacks"
+
+
 def effect_tests(final):
     """Score tests of the catalogue's effects at the fit ``final`` (a :class:`Described`); a warning
     naming diagnose for a significant one (the test uses the fit's own scale, not the stated noise)."""
@@ -152,7 +156,7 @@ def effect_tests(final):
     significant = [t for t in tests if t.p_bonferroni < request.alpha]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
-        warnings.append(f"the residuals show structure the model lacks: {names}; "
+        warnings.append(f"{STRUCTURE_WARNING}: {names}; "
                         f"{diagnose_advice(dataset, final.centre_given)} to confirm and name it, then `handeye calibrate "
                         f"{command_argument(dataset)} --effects {significant[0].name}`")
     return tests

@@ -158,5 +158,4 @@ def with_positioner_hint(result, dataset, parts, alpha):
                f"{found.before['heldout_rms_mm']:.3g} -> {found.after['heldout_rms_mm']:.3g} mm, F test p = "
                f"{found.p_value:.2g}), so the pose at the set-up axes is wrong; calibrate with --unknowns {more} "
                "(or correct [positioner] axes: handeye diagnose prints them)")
-    return dataclasses.replace(result, fit=dataclasses.replace(result.fit, converged=False, message=refusal),
-                               warnings=[*result.warnings, refusal])
+    return result.refused(refusal)

@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import diagnose
-from handeye.app.engine.describe import command_argument
+from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 
@@ -43,14 +43,6 @@ from handeye.model.fit.calibration import ROW_CHUNK
 NOT_A_MODEL = ("sign_flip",)
 
 
-#: The warning of the score tests at the requested model, replaced by the search's outcome.
-SCORE_ADVICE = "the residuals show structure the model lacks"
-
-
-def refused(result, why):
-    """``result`` not a calibration (exit 1): not converged, ``why`` its message and a warning."""
-    return dataclasses.replace(result, fit=dataclasses.replace(result.fit, converged=False, message=why),
-                               warnings=[*result.warnings, why])
 
 
 def searchable(request, dataset, result):
@@ -96,10 +88,10 @@ def chosen(request, dataset, result, refit):
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         return _unchecked_result(result, f"the search failed numerically ({exc})")
     if found.beyond_catalogue:
-        return refused(result, "unexplained structure, not a calibration: the discrepancy search finds the residuals "
+        return result.refused("unexplained structure, not a calibration: the discrepancy search finds the residuals "
                                f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"
                                f" ({_command('diagnose', dataset, request)} prints its steps)")
-    names = tuple(e.name for e in found.effects if e.name not in NOT_A_MODEL)
+    names = _model_of(found)
     if names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
     elif names_differ(found, request) or (found.outliers and not request.outliers):
@@ -115,14 +107,14 @@ def _unchecked_result(result, why):
 
 def _with_effects(request, dataset, result, refit, names, found):
     """The fit with the effects the search named (a warning says it chose them, and why)."""
-    asked = dataclasses.replace(_unchecked(request), effects=names)
+    asked = dataclasses.replace(request, effects=names)  # resolved reset: checked again by the refit
     fitted = refit(asked, dataset)
     steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm" for s in found.steps)
     note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
             f"{'it' if len(names) == 1 else 'them'} ({steps}); calibrated with "
             f"{'it' if len(names) == 1 else 'them'}, the same as `{_command('calibrate', dataset, request)} "
             f"--effects {','.join(names)}`")
-    kept = [w for w in fitted.warnings if not w.startswith(SCORE_ADVICE)]
+    kept = [w for w in fitted.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
     return dataclasses.replace(fitted, warnings=[note, *kept])
 
 
@@ -139,15 +131,20 @@ def _against_search(result, found, dataset, request):
     advice = ("calibrate without --effects fits the model it chooses" if request.effects or request.chosen and
               request.model in (None, "centre") else "calibrate --model centre fits the model it chooses")
     advice = "without --keep-all its exclusions apply" if kept and not names_differ(found, request) else advice
-    return refused(result, f"not a calibration: the discrepancy search (with {named}{kept}) puts the pose "
+    return result.refused(f"not a calibration: the discrepancy search (with {named}{kept}) puts the pose "
                            f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.2f} sd "
                            f"of its own (more than {diagnose.AGREE_SD:g}): these data contradict this model; "
                            f"`{_command('diagnose', dataset, request)}` prints the search; {advice}")
 
 
+def _model_of(found):
+    """The effects of the search's model (the named ones a fit can take)."""
+    return tuple(e.name for e in found.effects if e.name not in NOT_A_MODEL)
+
+
 def names_differ(found, request):
     """Whether the search's model (its named effects) is not the request's."""
-    return {e.name for e in found.effects if e.name not in NOT_A_MODEL} != set(request.effects)
+    return set(_model_of(found)) != set(request.effects)
 
 
 def _command(verb, dataset, request):
@@ -155,8 +152,3 @@ def _command(verb, dataset, request):
     free = " --unknowns sensor+sphere" if request.unknowns == "sensor+sphere" else ""
     return f"handeye {verb} {command_argument(dataset)}{free}"
 
-
-def _unchecked(request):
-    """A request with the checked one's values, to be checked again (with other effects)."""
-    fields = {f.name: getattr(request, f.name) for f in dataclasses.fields(request) if f.init}
-    return type(request)(**fields)

@@ -330,6 +330,11 @@ class CalibrationResult(ResultProtocol):
         return (f"RMS {self.rms_mm:.4f} mm here against {self.before.rms_mm:.4f} mm before exclusion "
                 f"({self.rms_mm - self.before.rms_mm:+.2g} mm): " + "; and ".join(parts))
 
+    def refused(self, why):
+        """This result, not a calibration (exit 1): not converged, ``why`` its message and a warning."""
+        return dataclasses.replace(self, fit=dataclasses.replace(self.fit, converged=False, message=why),
+                                   warnings=[*self.warnings, why])
+
     def in_user_frame(self):
         """The result with every pose the user reads in the frame of the user's files: the
         sensor's own frame when the profiles were turned (``own_axes``; :mod:`handeye.model.chain.own_frame`):
