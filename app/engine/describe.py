@@ -22,7 +22,6 @@ from handeye.app.present.result_parts import (
     NoiseTest,
     PositionerRecord,
     ScreeningRecord,
-    Uncertainty,
     UncertaintyRecord,
 )
 from handeye.app.present.results import RMS_PER_CENTRE, CalibrationResult
@@ -190,10 +189,8 @@ def with_effects(final, base):
         base, sensor2flange=sensor, sphere_centre=np.asarray(prob.centre(structure, efit.x), float),
         sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(final.request.convention, sensor),
         converged=converged, message=message, **_effects_fit_fields(final, efit))
-    uncertainty = UncertaintyRecord(
-        std=Uncertainty(std[:3], np.degrees(std[3:6]), std[6:9] if structure.centre else None),
-        sigma_mm=float(np.sqrt(efit.sigma2)), parameter_names=tuple(efit.names), correlation=corr,
-        covariance=corr * np.outer(std, std))
+    uncertainty = UncertaintyRecord.of_fit(corr * np.outer(std, std), efit.names, efit.m - efit.p,
+                                           sigma_mm=float(np.sqrt(efit.sigma2)))
     return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
 
 
@@ -405,10 +402,9 @@ def describe_fit(final):
         noise_model=_noise_model_text(local),
         noise_test=None if local.kind == "points" else noise_test(ssr, local.n_meas * local.m - local.n, sigma,
                                                                    local.whiten is not None, warnings, advice))
-    uncertainty = UncertaintyRecord(
-        std=Uncertainty(cov.std[:3], np.degrees(cov.std[3:6]), cov.std[6:9] if local.unknowns == "sensor+sphere" else None),
-        sigma_mm=cov.sigma if local.whiten is None else None, sigma_scale=cov.sigma if local.whiten is not None else None,
-        parameter_names=tuple(local.names), correlation=np.asarray(cov.correlation), covariance=np.asarray(cov.matrix))
+    uncertainty = UncertaintyRecord.of_fit(cov.matrix, local.names, cov.dof,
+                                           sigma_mm=cov.sigma if local.whiten is None else None,
+                                           sigma_scale=cov.sigma if local.whiten is not None else None)
     return stats, uncertainty, ident
 
 

@@ -40,7 +40,7 @@ import numpy as np
 from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
-from handeye.app.present.result_parts import NamedEffect, Uncertainty, cleaning_summary
+from handeye.app.present.result_parts import NamedEffect, PowerStatement, Uncertainty, cleaning_summary
 from handeye.model import effects
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
@@ -48,6 +48,7 @@ from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
+from handeye.model.fit import power
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
@@ -173,9 +174,11 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False,
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
     structure, fit = _robot_choice(run, structure, fit)
+    unseen = power_statement(run, structure, fit)
     if detail:
         _absorbed_structural(run, structure, fit, mask)
     result = _report(run, structure, fit, flips, outliers)
+    result = dataclasses.replace(result, power=unseen)
     if axes is not None:
         result = dataclasses.replace(result, effects=[axes.effect, *result.effects])
     if run.implausible:
@@ -225,13 +228,47 @@ def _positioner_axes(run, fit, sigma):
     return found
 
 
+def _continuous(prob):
+    """The catalogue's continuous candidates on these samples: data and centre effects, and the robot
+    effects the dataset allows (joints given)."""
+    return [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")
+            or (e.KIND == "robot" and e.available(prob.d))]
+
+
+def power_statement(run, structure, fit):
+    """What the data could not see at the final fit (:mod:`handeye.model.fit.power`): per continuous
+    candidate not in ``structure`` and separable from it (the gate), the size its score test would
+    detect with :data:`~handeye.model.fit.power.POWER` at the search's level (``run.alpha`` over the
+    candidates, Bonferroni, as :func:`_search` tests them) and the shift it would cause if missed.
+
+    Returns
+    -------
+    handeye.app.present.result_parts.PowerStatement
+    """
+    prob, mask = run.prob, run.mask
+    jac = fit.jac[mask].reshape(-1, fit.p)
+    columns = {}
+    for name in _continuous(prob):
+        if name in structure.data_effects or (name == "sphere_center" and structure.centre) or (
+                effects.get(name).KIND == "robot" and not prob.robot_free.get(name, True)):
+            continue
+        cols = candidate_columns(prob, structure, fit, mask, name)
+        if np.all(np.isfinite(cols)) and gate(jac, cols, fit.names, absorbers=False)[0] >= GATE:
+            columns[name] = cols
+    level = run.alpha / max(len(columns), 1)
+    found = [power.missable(name, getattr(effects.get(name), "UNIT", ""), jac, cols, fit.sigma2, level)
+             for name, cols in columns.items()]
+    found = sorted((m for m in found if m is not None), key=lambda m: -max(m.shift_mm / power.SHIFT_FLOOR[0],
+                                                                          m.shift_deg / power.SHIFT_FLOOR[1]))
+    return PowerStatement(tuple(found), tuple(fit.names), level)
+
+
 def _search(run, structure, fit):
     """Steps 3-5: test every continuous candidate, confirm the best, repeat (``run`` the
     :class:`Procedure`, its record extended)."""
     prob, mask, alpha = run.prob, run.mask, run.alpha
     absorbed, tested, steps, implausible = run.absorbed, run.tested, run.steps, run.implausible
-    continuous = [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")
-                  or (e.KIND == "robot" and e.available(prob.d))]
+    continuous = _continuous(prob)
     for _ in range(len(continuous)):
         jac_cur = fit.jac[mask].reshape(-1, fit.p)
         candidates = []

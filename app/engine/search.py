@@ -41,6 +41,8 @@ from handeye.model.fit.calibration import ROW_CHUNK
 
 #: Effects the search names that are not a model the fit can take (handled as samples).
 NOT_A_MODEL = ("sign_flip",)
+#: How the warning of a widened uncertainty begins (:func:`with_power`).
+POWER_WARNING = "too few poses or too much noise to see every effect, the 1 sd is widened"
 
 
 
@@ -96,7 +98,19 @@ def chosen(request, dataset, result, refit):
         result = _with_effects(request, dataset, result, refit, names, found)
     elif names_differ(found, request) or (found.outliers and not request.outliers):
         result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
-    return result
+    return with_power(result, found.power)
+
+
+def with_power(result, statement):
+    """``result`` with what its data could not see (a
+    :class:`~handeye.app.present.result_parts.PowerStatement`): its uncertainty widened by the effects
+    the statement says could move the pose beyond the floor unseen, and a warning saying which; a
+    refused result unchanged."""
+    if statement is None or not result.converged:
+        return result
+    uncertainty = result.uncertainty.with_power(statement)
+    warnings = [*result.warnings, f"{POWER_WARNING}: {statement.text}"] if statement.widening else result.warnings
+    return dataclasses.replace(result, uncertainty=uncertainty, warnings=warnings)
 
 
 def _unchecked_result(result, why):

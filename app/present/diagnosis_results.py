@@ -101,6 +101,9 @@ class DiagnosisResult(ResultProtocol):
         Why the nearest effects to the discrepancy were not named (their fitted values beyond
         the catalogue's physical range): structure no catalogue effect explains (also at the
         head of ``unexplained``).
+    power : handeye.app.present.result_parts.PowerStatement or None
+        What the data could not see at the final fit: the effects not named, the size each would
+        be detected at with 80 % power, and the pose shift it would cause if missed.
     """
 
     caption = "handeye diagnosis"
@@ -141,6 +144,7 @@ class DiagnosisResult(ResultProtocol):
     cleaning: dict | None = None
     pose_frame: str = "handeye"
     beyond_catalogue: tuple = ()
+    power: object | None = None
 
     @property
     def absorbed_explained(self):
@@ -190,6 +194,7 @@ class DiagnosisResult(ResultProtocol):
                                              else self.sensor_pose)},
             "std": None if self.std is None else self.std.to_dict(),
             **fields(self, "absorbed_explained", "cleaning"),
+            "power": None if self.power is None else self.power.to_dict(),
             **({"provenance": self.provenance} if self.provenance is not None else {}),
         }
 

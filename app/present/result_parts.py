@@ -14,6 +14,8 @@ import functools
 
 import numpy as np
 
+from handeye.model.fit import power
+
 
 def _list(value):
     return None if value is None else np.asarray(value, float).tolist()
@@ -107,6 +109,14 @@ class UncertaintyRecord:
         Ratio of the residuals to their stated sd, for a weighted fit.
     parameter_names : tuple of str or None
     correlation, covariance : ndarray, shape (p, p), or None
+        The covariance as reported: the fit's, scaled by ``t_factor`` squared and widened by the
+        effects ``power`` says the data could have missed (:meth:`with_power`).
+    dof : int or None
+        Residual degrees of freedom of the noise estimate.
+    t_factor : float or None
+        The Student-t factor of ``dof`` the fit's sd are scaled by (:func:`handeye.model.fit.power.t_factor`).
+    power : PowerStatement or None
+        What the data could not see; None where the discrepancy search did not run.
     """
 
     std: object | None = None
@@ -115,6 +125,85 @@ class UncertaintyRecord:
     parameter_names: tuple | None = None
     correlation: np.ndarray | None = None
     covariance: np.ndarray | None = None
+    dof: int | None = None
+    t_factor: float | None = None
+    power: object | None = None
+
+    @classmethod
+    def of_fit(cls, covariance, names, dof, sigma_mm=None, sigma_scale=None):
+        """The record of a fit's covariance ``s^2 (J^T J)^-1`` (local chart, parameters ``names``; the
+        noise ``s`` estimated on ``dof`` residual degrees of freedom), scaled by the Student-t factor
+        of ``dof`` (:func:`handeye.model.fit.power.t_factor`: +-3 reported sd cover as the normal's
+        3 sd do); NaN entries (a fit stopped against a bound) stay NaN."""
+        factor = power.t_factor(dof)
+        cov = np.asarray(covariance, float) * factor**2
+        return cls(sigma_mm=sigma_mm, sigma_scale=sigma_scale, parameter_names=tuple(names), dof=dof,
+                   t_factor=factor)._with_covariance(cov)
+
+    def _with_covariance(self, cov):
+        """This record with covariance ``cov`` (its own names) and the 1-sd and correlation of it."""
+        names = self.parameter_names
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        scale = np.where(std > 0, std, 1.0)
+        centre = std[list(names).index("cx"):][:3] if "cx" in names else None
+        return dataclasses.replace(self, std=Uncertainty(std[:3], np.degrees(std[3:6]), centre), covariance=cov,
+                                   correlation=cov / np.outer(scale, scale))
+
+    def with_power(self, statement):
+        """This record with the power statement ``statement`` (:class:`PowerStatement`), its covariance
+        widened by the covariances of the effects it says widen it (:attr:`PowerStatement.widening`:
+        each on the parameters it shares with this record, by name)."""
+        if self.covariance is None or self.parameter_names is None:
+            return dataclasses.replace(self, power=statement)
+        cov = np.array(self.covariance, float)
+        index = {n: k for k, n in enumerate(self.parameter_names)}
+        for missed in statement.widening:
+            ks = [(index[n], j) for j, n in enumerate(statement.names) if n in index]
+            ours, theirs = [k for k, _ in ks], [j for _, j in ks]
+            cov[np.ix_(ours, ours)] += np.asarray(missed.covariance, float)[np.ix_(theirs, theirs)]
+        return dataclasses.replace(self, power=statement)._with_covariance(cov)
+
+
+@dataclasses.dataclass(frozen=True)
+class PowerStatement:
+    """What the data could not see (:mod:`handeye.model.fit.power`): per catalogue effect the search
+    did not name, the size its score test would detect with 80 % power at the search's level, and
+    the pose shift an effect of that size would cause if left out.
+
+    Attributes
+    ----------
+    effects : tuple of handeye.model.fit.power.Missable
+        Largest pose shift first.
+    names : tuple of str
+        Parameter names of their covariances (the search's fit: ``tx, ty, tz, wx, wy, wz``, ...).
+    level : float
+        The test's level (the search's alpha over its candidates, Bonferroni).
+    """
+
+    effects: tuple
+    names: tuple
+    level: float
+
+    @property
+    def widening(self):
+        """The effects whose shift is beyond :data:`handeye.model.fit.power.SHIFT_FLOOR`: they widen the uncertainty."""
+        return tuple(m for m in self.effects if m.beyond_floor)
+
+    @property
+    def text(self):
+        """One line: the largest effects the data could have missed and whether the sd includes them."""
+        if not self.effects:
+            return "every catalogue effect is named or absorbed: nothing left unseen"
+        head = "; ".join(m.text() for m in self.effects[:2])
+        wide = ("the 1 sd includes the shift" if self.widening else
+                f"below {power.SHIFT_FLOOR[0]:g} mm / {power.SHIFT_FLOOR[1]:g} deg: the 1 sd is the fit's")
+        return (f"the data could have missed (80 % power at level {self.level:.2g}): {head}; {wide}")
+
+    def to_dict(self):
+        return {"text": self.text, "level": self.level, "power": power.POWER,
+                "widened": [m.name for m in self.widening],
+                "effects": [{"name": m.name, "size": m.size, "unit": m.unit, "shift_mm": m.shift_mm,
+                             "shift_deg": m.shift_deg, "shift_sd": m.shift_sd} for m in self.effects]}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -427,6 +427,9 @@ class CalibrationResult(ResultProtocol):
             "covariance": None if self.covariance is None else {
                 "names": list(self.parameter_names), "units": [_unit(n) for n in self.parameter_names],
                 "matrix": _list(self.covariance)},
+            "sd_dof": self.dof,
+            "sd_t_factor": self.t_factor,
+            "power": None if self.power is None else self.power.to_dict(),
             "loo_error_mm": self.loo_error_mm,
             "identifiability": None if self.identifiability is None else self.identifiability.to_dict(),
             **fields(self, "hessian_eigenvalues", "noise_model", lists=("hessian_eigenvalues",)),

@@ -240,14 +240,14 @@ def chi2_survival_array(x, k):
     return np.where(np.isnan(x) | np.isnan(k) | (k <= 0), np.nan, _gammainc_upper(k / 2.0, x / 2.0))
 
 
-def _threshold(survival, p, lo=0.0, hi=1.0):
+def threshold(survival, p, lo=0.0, hi=1.0, rtol=1e-12):
     """The statistic ``x`` where the decreasing tail ``survival(x)`` (a scalar function) falls
-    to ``p``, to 1e-12 relative, by doubling and bisection; ``inf`` when it never does."""
+    to ``p``, to ``rtol`` relative, by doubling and bisection; ``inf`` when it never does."""
     while survival(hi) > p:
         lo, hi = hi, 2.0 * hi
         if hi > 1e300:
             return math.inf
-    while hi - lo > 1e-12 * hi:
+    while hi - lo > rtol * hi:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if survival(mid) > p else (lo, mid)
     return lo
@@ -295,7 +295,7 @@ def bonferroni_survival(stat, n_tests, d1, d2=None):
         if same.sum() <= BONFERRONI_ALL_UP_TO:  # few: every tail (the bisection would cost more)
             need = same & ~np.isnan(stat)
         else:
-            bound = _threshold(lambda x: float(tail(x)), 1.0 / max(n_tests, 1))
+            bound = threshold(lambda x: float(tail(x)), 1.0 / max(n_tests, 1))
             need = same & (stat >= bound * (1.0 - 1e-9))  # margin: the bisection's and the tail's rounding
         out[need] = np.minimum(tail(stat[need]) * n_tests, 1.0)
     return out

@@ -15,6 +15,8 @@ from handeye.model.robot import robot_errors
 KIND = "robot"
 NAME = "joint_compliance"
 PARAMS = ("j2", "j3")
+#: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
+UNIT = "deg/m"
 DOC = "gravity deflection of shoulder and elbow (degrees per metre of lever)"
 
 

@@ -13,6 +13,8 @@ sensor pose and the sphere centre are estimated, the others are reported as abso
 KIND = "robot"
 NAME = "joint_offsets"
 PARAMS = ("j1", "j2", "j3", "j4", "j5", "j6")
+#: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
+UNIT = "deg"
 DOC = "zero offsets of the robot's joints (degrees)"
 
 

@@ -18,6 +18,8 @@ KIND = "robot"
 NAME = "link_lengths"
 #: Parameters depend on the robot model (:func:`params`): these are the KR 60 HA's.
 PARAMS = ("j2_x", "j2_z", "j3_x", "j4_x", "j4_z", "j5_x", "j6_x")
+#: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
+UNIT = "mm"
 DOC = "errors of the robot's nominal link lengths and offsets (mm)"
 
 

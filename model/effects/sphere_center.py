@@ -6,4 +6,6 @@ making the centre an unknown (``--unknowns sensor+sphere``); reported as ``c_est
 KIND = "centre"
 NAME = "sphere_center"
 PARAMS = ("dx", "dy", "dz")
+#: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
+UNIT = "mm"
 DOC = "sphere centre offset from the setup's, mm (in its mount's frame: the robot base, the flange or the table)"

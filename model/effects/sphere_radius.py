@@ -18,6 +18,8 @@ import numpy as np
 KIND = "data"
 NAME = "sphere_radius"
 PARAMS = ("dr",)
+#: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
+UNIT = "mm"
 DOC = "true radius minus the setup's, mm"
 #: A radius this many of a circle's 1-sd below the circle's fitted radius contradicts the profile.
 CIRCLE_SD = 3.0

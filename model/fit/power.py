@@ -1,0 +1,183 @@
+"""What the data could not see: the score test's power, the effects it would miss, and the
+Student-t scale of an interval whose noise is estimated from the fit.
+
+**The score test's local power.** At a least-squares fit with Jacobian ``J`` (m, p) and noise
+``sigma^2`` per residual, a candidate effect with Jacobian columns ``A`` (m, k) and true size
+``theta`` leaves the residual ``r = (I - P) A theta + noise`` (``P`` the projection on the span of
+``J``: the fitted parameters absorb the rest). The score statistic
+``S = r^T a (a^T a)^-1 a^T r / sigma^2`` (``a = (I - P) A``, :func:`handeye.model.fit.score_tests.score_test`)
+is then noncentral chi-square on k dof with noncentrality
+
+    ``lambda = theta^T M theta``,  ``M = a^T a / sigma^2``
+
+(the effect's information after projecting out the fitted parameters; Cox & Hinkley 1974,
+*Theoretical Statistics*, sections 9.3 and 9.4: the score test's local power; the same as the Wald and
+likelihood-ratio tests' to first order). At the search's level (``alpha`` over the ``n_tests``
+candidates of its round, Bonferroni) the test rejects above ``c = chi2_k^-1(1 - alpha / n_tests)``;
+it detects with probability :data:`POWER` when ``lambda >= lambda_P``, the root of
+``P(chi2_k(lambda) > c) = POWER`` (:func:`detectable_noncentrality`; the noncentral tail is the
+Poisson mixture ``sum_j e^-l/2 (l/2)^j / j! P(chi2_(k+2j) > c)``, Johnson, Kotz & Balakrishnan 1995,
+*Continuous Univariate Distributions* 2, ch. 29). So the effects the test misses more often than
+``1 - POWER`` form the ellipsoid ``theta^T M theta < lambda_P``: along its least-seen direction the
+effect may be ``sqrt(lambda_P / mu_min(M))`` (effect units) and go unseen.
+
+**What a missed effect does to the pose.** Left out of the model, ``theta`` moves the fitted
+parameters by ``B theta``, ``B = (J^T J)^-1 J^T A`` (the alias matrix; omitted-variable bias). Over
+the ellipsoid of missed effects the shifts fill ``{B theta}``, whose support in a direction ``u`` is
+``sqrt(lambda_P u^T B M^-1 B^T u)``: the largest translation (mm) and rotation (deg) of the pose a
+missed effect can cause are the square roots of the largest eigenvalues of ``lambda_P B M^-1 B^T`` on
+those blocks (:func:`missable`). In the pose's own sd the largest shift is
+``sqrt(lambda_P) |PA theta| / |(I - P) A theta|``: a geometric ratio that more poses of the same
+geometry do not shrink -- but in mm and degrees it falls as ``1 / sqrt(n)``.
+
+**The widened uncertainty.** The covariance ``lambda_P B M^-1 B^T / WIDEN_SD^2`` has that ellipsoid as
+its :data:`WIDEN_SD`-sd region: added to the fit's covariance, every shift a missed effect can cause
+lies within ``WIDEN_SD`` of the added sd in every direction. It is added where the largest shift is
+beyond :data:`SHIFT_FLOOR` (mm, deg): below the floor a shift is within what the calibration's
+promise tolerates anyway (a pose is wrong only beyond 3 sd *and* beyond 0.2 mm / 0.05 deg, issue 39),
+so where the power is high (many poses, low noise) the widening vanishes.
+
+**Student-t scale.** The fit's covariance is ``s^2 (J^T J)^-1`` with ``s^2 = SSR / (m - p)`` estimated
+from the fit: a component's error over its sd is then Student-t on ``m - p`` dof, not normal. The
+reported sd is scaled by :func:`t_factor` ``= t_dof^-1(Phi(3)) / 3`` so that ``+-3`` reported sd is
+the exact t interval of the normal 3-sd coverage (99.73 %): 1.25 at 12 dof (6 poses, sensor only),
+1.03 at 102 (36 poses). Units: ``J`` and ``B`` in the fit's step units (mm, rad, effect units).
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+
+from handeye.model.common.statistics import threshold, chi2_survival, chi2_survival_array, f_survival
+
+#: The power at which a size is called detectable (80 %: the convention of power analysis, Cohen
+#: 1988; an effect of that size is missed one time in five).
+POWER = 0.8
+#: The interval the promise is about: +-3 sd (its normal coverage 99.73 % is kept at low dof by
+#: :func:`t_factor`; the widening puts every missed shift within this many sd).
+WIDEN_SD = 3.0
+#: Shifts of the pose below both (mm, deg) are within the promise's floor (issue 39: a pose is wrong
+#: only beyond 3 sd and beyond 0.2 mm or 0.05 deg): no widening for them.
+SHIFT_FLOOR = (0.2, 0.05)
+#: Relative precision of the detectable noncentrality (a power of 0.8 to ~1e-5: far below what a
+#: Monte Carlo of the power can see).
+_RTOL = 1e-4
+#: The Poisson mixture of the noncentral tail is summed to this many sd of its Poisson weights beyond
+#: their mean ``lambda / 2`` (the weights beyond are below 1e-30), and at least 30 terms.
+_MIXTURE_SD = 12.0
+
+
+def _normal_cdf(z):
+    return 0.5 * math.erfc(-z / math.sqrt(2.0))
+
+
+@functools.lru_cache(maxsize=1024)
+def t_factor(dof, sd=WIDEN_SD):
+    """``t_dof^-1(Phi(sd)) / sd``: the factor by which a sd from a fit with ``dof`` residual degrees of
+    freedom is scaled so that +-``sd`` of it covers as +-``sd`` normal sd do (module docstring); 1 for
+    no or infinite dof (a noise not estimated)."""
+    if dof is None or not math.isfinite(dof) or dof <= 0:
+        return 1.0
+    tail = 2.0 * (1.0 - _normal_cdf(sd))  # two-sided: P(|T| > t) = P(F(1, dof) > t^2)
+    t2 = threshold(lambda x: f_survival(x, 1, dof), tail)
+    return float(math.sqrt(t2) / sd)
+
+
+def noncentral_survival(x, k, lam):
+    """P(chi2_k(lam) > x): the Poisson mixture of central tails (module docstring)."""
+    if lam <= 0:
+        return chi2_survival(x, k)
+    j = np.arange(int(lam / 2.0 + _MIXTURE_SD * math.sqrt(lam / 2.0)) + 30)
+    log_w = -lam / 2.0 + j * math.log(lam / 2.0) - np.array([math.lgamma(v + 1.0) for v in j])
+    return float(np.sum(np.exp(log_w) * chi2_survival_array(x, k + 2.0 * j)))
+
+
+@functools.lru_cache(maxsize=256)
+def detectable_noncentrality(k, level, power=POWER):
+    """``lambda_P``: the noncentrality at which a chi2_k test at ``level`` rejects with ``power``."""
+    crit = threshold(lambda x: chi2_survival(x, k), level)
+    return threshold(lambda lam: 1.0 - noncentral_survival(crit, k, lam), 1.0 - power, rtol=_RTOL)
+
+
+@dataclasses.dataclass(frozen=True)
+class Missable:
+    """An effect the score test could have missed, and what it would do to the fit.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name.
+    size : float
+        Its detectable size (80 % power) along its least-seen direction, effect units (``unit``).
+    unit : str
+        ``mm``, ``deg``, ``deg/m``, or ``""`` (dimensionless: a scale, 0.001 = 0.1 %).
+    shift_mm : float
+        Largest translation of the pose a missed effect can cause, mm.
+    shift_deg : float
+        Largest rotation of the pose, degrees.
+    shift_sd : float
+        Largest shift in the pose's own sd (Mahalanobis, 6 dof, the fit's covariance).
+    covariance : ndarray, shape (p, p)
+        ``lambda_P B M^-1 B^T / WIDEN_SD^2`` in the fit's step units (its names).
+    """
+
+    name: str
+    size: float
+    unit: str
+    shift_mm: float
+    shift_deg: float
+    shift_sd: float
+    covariance: np.ndarray
+
+    @property
+    def beyond_floor(self):
+        """Whether its shift passes :data:`SHIFT_FLOOR` (then it widens the uncertainty)."""
+        return self.shift_mm > SHIFT_FLOOR[0] or self.shift_deg > SHIFT_FLOOR[1]
+
+    def text(self):
+        """One phrase: the size and the shift."""
+        size = f"{100 * self.size:.2g} %" if self.unit == "" else f"{self.size:.2g} {self.unit}"
+        return f"{self.name} up to {size} (moving the pose up to {self.shift_mm:.2g} mm / {self.shift_deg:.2g} deg)"
+
+
+def missable(name, unit, jac, cols, sigma2, level):
+    """The :class:`Missable` of a candidate effect at a fit (module docstring).
+
+    Parameters
+    ----------
+    name, unit : str
+    jac : ndarray, shape (m, p)
+        The fit's Jacobian on the samples used; its first six columns ``tx, ty, tz`` (mm) and
+        ``wx, wy, wz`` (rad) of the pose.
+    cols : ndarray, shape (m, k)
+        The effect's Jacobian columns at the fit.
+    sigma2 : float
+        Noise variance per residual component (mm^2), as the score test uses it.
+    level : float
+        The test's level (the search's, over its candidates).
+
+    Returns
+    -------
+    Missable or None
+        None where the effect is not separable from the fit's parameters (no information after
+        projecting them out) or the noise is zero.
+    """
+    info = jac.T @ jac
+    alias = np.linalg.lstsq(jac, cols, rcond=None)[0]  # B (p, k)
+    perp = cols - jac @ alias
+    m_eff = perp.T @ perp / sigma2
+    eig = np.linalg.eigvalsh(m_eff) if sigma2 > 0 else np.zeros(1)
+    if not np.all(np.isfinite(m_eff)) or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
+        return None
+    lam = detectable_noncentrality(cols.shape[1], level)
+    shifts = lam * alias @ np.linalg.solve(m_eff, alias.T)  # the ellipsoid of shifts, as a (p, p) form
+    cov = sigma2 * np.linalg.pinv(info)
+    pose = slice(0, 6)
+    sd = math.sqrt(max(float(np.max(np.linalg.eigvals(np.linalg.pinv(cov[pose, pose]) @ shifts[pose, pose]).real)), 0.0))
+    return Missable(name, float(math.sqrt(lam / eig[0])), unit,
+                    float(math.sqrt(max(np.linalg.eigvalsh(shifts[:3, :3])[-1], 0.0))),
+                    float(np.degrees(math.sqrt(max(np.linalg.eigvalsh(shifts[3:6, 3:6])[-1], 0.0)))),
+                    sd, shifts / WIDEN_SD**2)
