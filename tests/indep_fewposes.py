@@ -36,9 +36,8 @@ from __future__ import annotations
 import math
 import pathlib
 
-import numpy as np
-
 import indep_mounts as im
+import numpy as np
 
 CLASSES = ("clean", "centre", "gross", "scale")
 MOUNTS = ("eye_in_hand", "fixed")
@@ -93,7 +92,7 @@ def _csv_text(flanges, measured):
     return "\n".join(rows) + "\n"
 
 
-def make(folder, kind, mount, seed, n_poses=None, noise=None):
+def make(folder, kind, mount, seed, **drawn):
     """Draw one few-pose cell of class ``kind`` on ``mount``, write its folder, return the truth.
 
     Parameters
@@ -103,11 +102,14 @@ def make(folder, kind, mount, seed, n_poses=None, noise=None):
     kind : {"clean", "centre", "gross", "scale"}
     mount : {"eye_in_hand", "fixed"}
     seed : int
-    n_poses : int, optional
-        Default drawn in :data:`N_POSES`.
-    noise : float, optional
-        Per-component sd (mm) of the measured centres, stated in ``[noise] centre_mm``; default drawn
-        in :data:`NOISE_MM`.
+    **drawn
+        What is otherwise drawn from ``seed``: ``n_poses`` (int, in :data:`N_POSES`), ``noise`` (the
+        per-component sd of the measured centres, mm, stated in ``[noise] centre_mm``; in
+        :data:`NOISE_MM`), ``scale`` (the sensor's scale error, for any class: default :data:`SCALE` for
+        ``scale``, else 0), ``circle_y`` (with a scale: the centre's y as a triangulation sensor
+        reconstructs it, from the radius of the scaled circle, ``sqrt(R^2 - scale^2 (R^2 - y^2))``,
+        instead of scaled with x and z), ``noise_seed`` (the seed of the noise alone: the same cell geometry, another
+        draw of its noise; default ``seed``).
 
     Returns
     -------
@@ -119,11 +121,18 @@ def make(folder, kind, mount, seed, n_poses=None, noise=None):
     if kind not in CLASSES or mount not in MOUNTS:
         raise ValueError(f"class {kind!r} / mount {mount!r}: one of {CLASSES} / {MOUNTS}")
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(N_POSES[0], N_POSES[1] + 1)) if n_poses is None else int(n_poses)
-    noise = float(rng.uniform(*NOISE_MM)) if noise is None else float(noise)
+    n = int(rng.integers(N_POSES[0], N_POSES[1] + 1))
+    noise = float(rng.uniform(*NOISE_MM))
+    n, noise = int(drawn.get("n_poses", n)), float(drawn.get("noise", noise))
     cell = im._BUILDERS[_BUILD[mount]](rng, n)
-    scale = 1.0 + SCALE if kind == "scale" else 1.0
-    measured = scale * cell["points"] + rng.normal(scale=noise, size=cell["points"].shape)
+    scale = 1.0 + float(drawn.get("scale", SCALE if kind == "scale" else 0.0))
+    if drawn.get("noise_seed") is not None:
+        rng = np.random.default_rng([seed, int(drawn["noise_seed"])])
+    seen = scale * cell["points"]
+    if drawn.get("circle_y"):  # y from the circle the scaled profile gives: R^2 - y^2 = r^2 grows by scale^2
+        radius, y = im.DIAMETER / 2.0, cell["points"][:, 1]
+        seen[:, 1] = np.sign(y) * np.sqrt(radius**2 - scale**2 * (radius**2 - y**2))
+    measured = seen + rng.normal(scale=noise, size=cell["points"].shape)
     bad = []
     if kind == "gross":
         bad = sorted(int(i) for i in rng.choice(n, size=GROSS_ROWS, replace=False))

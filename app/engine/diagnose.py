@@ -47,8 +47,8 @@ from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
-from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit import power
+from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
@@ -239,7 +239,9 @@ def power_statement(run, structure, fit):
     """What the data could not see at the final fit (:mod:`handeye.model.fit.power`): per continuous
     candidate not in ``structure`` and separable from it (the gate), the size its score test would
     detect with :data:`~handeye.model.fit.power.POWER` at the search's level (``run.alpha`` over the
-    candidates, Bonferroni, as :func:`_search` tests them) and the shift it would cause if missed.
+    candidates, Bonferroni, as :func:`_search` tests them) and the shift it would cause if missed;
+    and the gross error the final outlier test (its level over the samples) could miss on the sample
+    where it moves the pose most (:func:`handeye.model.fit.power.missable_sample`).
 
     Returns
     -------
@@ -256,8 +258,11 @@ def power_statement(run, structure, fit):
         if np.all(np.isfinite(cols)) and gate(jac, cols, fit.names, absorbers=False)[0] >= GATE:
             columns[name] = cols
     level = run.alpha / max(len(columns), 1)
-    found = [power.missable(name, getattr(effects.get(name), "UNIT", ""), jac, cols, fit.sigma2, level)
+    dof = fit.m - fit.p
+    found = [power.missable(name, getattr(effects.get(name), "UNIT", ""), jac, cols, fit.sigma2, level, dof)
              for name, cols in columns.items()]
+    used = [prob.d.ids[i] for i in np.flatnonzero(mask)]
+    found.append(power.missable_sample(fit.jac[mask], fit.sigma2, run.alpha / prob.n, used, dof))
     found = sorted((m for m in found if m is not None), key=lambda m: -max(m.shift_mm / power.SHIFT_FLOOR[0],
                                                                           m.shift_deg / power.SHIFT_FLOOR[1]))
     return PowerStatement(tuple(found), tuple(fit.names), level)

@@ -172,6 +172,10 @@ def calibration_text(res):
                   "  sensor rotation (deg, about sensor x y z): " + _fmt(res.std.sensor_rotation_deg)]
     if res.std.sphere_center_mm is not None:
         lines.append("  sphere centre (mm):           " + _fmt(res.std.sphere_center_mm))
+    if getattr(res, "t_factor", None) is not None and res.t_factor > 1.0:
+        lines.append(f"  (Student-t on {res.dof} dof: the fit's sd x {res.t_factor:.3f}, so that 3 sd cover as a normal's)")
+    if getattr(res, "power", None) is not None:
+        lines.append(f"  {res.power.text}")
     lines += _effect_lines(res)
     ident = res.identifiability
     lines += [

@@ -160,7 +160,7 @@ class UncertaintyRecord:
         for missed in statement.widening:
             ks = [(index[n], j) for j, n in enumerate(statement.names) if n in index]
             ours, theirs = [k for k, _ in ks], [j for _, j in ks]
-            cov[np.ix_(ours, ours)] += np.asarray(missed.covariance, float)[np.ix_(theirs, theirs)]
+            cov[np.ix_(ours, ours)] += np.asarray(missed.widening, float)[np.ix_(theirs, theirs)]
         return dataclasses.replace(self, power=statement)._with_covariance(cov)
 
 

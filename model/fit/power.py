@@ -32,10 +32,15 @@ geometry do not shrink -- but in mm and degrees it falls as ``1 / sqrt(n)``.
 
 **The widened uncertainty.** The covariance ``lambda_P B M^-1 B^T / WIDEN_SD^2`` has that ellipsoid as
 its :data:`WIDEN_SD`-sd region: added to the fit's covariance, every shift a missed effect can cause
-lies within ``WIDEN_SD`` of the added sd in every direction. It is added where the largest shift is
-beyond :data:`SHIFT_FLOOR` (mm, deg): below the floor a shift is within what the calibration's
-promise tolerates anyway (a pose is wrong only beyond 3 sd *and* beyond 0.2 mm / 0.05 deg, issue 39),
-so where the power is high (many poses, low noise) the widening vanishes.
+lies within ``WIDEN_SD`` of the added sd in every direction. Only the part beyond :data:`SHIFT_FLOOR`
+(mm, deg) is added (the covariance scaled by ``(1 - 1/q)^2``, ``q`` the largest shift over the floor,
+:attr:`Missable.widening`): below the floor a shift is within what the calibration's promise
+tolerates anyway (a pose is wrong only beyond 3 sd *and* beyond 0.2 mm / 0.05 deg, issue 39), so
+where the power is high (many poses, low noise) the widening vanishes, and it grows from zero,
+without a step, as the power falls. A gross error is such an effect too: its columns are one
+sample's indicator, its information ``(I - H_ii) / sigma^2`` (``H_ii`` the sample's hat block), its
+alias ``(J^T J)^-1 J_i^T`` (the sample's influence), tested at the outlier test's level over the
+samples (:func:`missable_sample`: the sample where it moves the pose most).
 
 **Student-t scale.** The fit's covariance is ``s^2 (J^T J)^-1`` with ``s^2 = SSR / (m - p)`` estimated
 from the fit: a component's error over its sd is then Student-t on ``m - p`` dof, not normal. The
@@ -51,7 +56,7 @@ import math
 
 import numpy as np
 
-from handeye.model.common.statistics import threshold, chi2_survival, chi2_survival_array, f_survival
+from handeye.model.common.statistics import chi2_survival, chi2_survival_array, f_survival, f_survival_array, threshold
 
 #: The power at which a size is called detectable (80 %: the convention of power analysis, Cohen
 #: 1988; an effect of that size is missed one time in five).
@@ -95,11 +100,30 @@ def noncentral_survival(x, k, lam):
     return float(np.sum(np.exp(log_w) * chi2_survival_array(x, k + 2.0 * j)))
 
 
+def noncentral_f_survival(x, k, d2, lam):
+    """P(F'(k, d2; lam) > x): the Poisson mixture of central F tails, ``F(k + 2j, d2)`` at ``x k / (k + 2j)``."""
+    j = np.arange(int(lam / 2.0 + _MIXTURE_SD * math.sqrt(lam / 2.0)) + 30)
+    log_w = -lam / 2.0 + j * math.log(max(lam, 1e-300) / 2.0) - np.array([math.lgamma(v + 1.0) for v in j])
+    return float(np.sum(np.exp(log_w) * f_survival_array(x * k / (k + 2.0 * j), k + 2.0 * j, d2)))
+
+
 @functools.lru_cache(maxsize=256)
-def detectable_noncentrality(k, level, power=POWER):
-    """``lambda_P``: the noncentrality at which a chi2_k test at ``level`` rejects with ``power``."""
+def detectable_noncentrality(k, level, dof=None, power=POWER):
+    """``lambda_P``: the noncentrality at which the score test of k columns at ``level`` rejects with
+    ``power``; ``inf`` where it never does.
+
+    With the noise known (``dof`` None) the statistic is chi2_k(lambda). With the noise estimated from
+    the fit on ``dof = m - p`` residual dof, ``S = dof Q1 / (Q1 + Q2)`` (``Q1 ~ chi2_k(lambda)`` the part
+    of the residual along the effect's columns, ``Q2 ~ chi2_(dof - k)`` the rest): S exceeds the
+    chi-square critical value ``c`` exactly when ``(Q1 / k) / (Q2 / (dof - k)) > c (dof - k) / (k (dof - c))``,
+    a noncentral F(k, dof - k) (its power lower than the chi-square's: the effect inflates the estimated noise)."""
     crit = threshold(lambda x: chi2_survival(x, k), level)
-    return threshold(lambda lam: 1.0 - noncentral_survival(crit, k, lam), 1.0 - power, rtol=_RTOL)
+    if dof is None:
+        return threshold(lambda lam: 1.0 - noncentral_survival(crit, k, lam), 1.0 - power, rtol=_RTOL)
+    if dof <= k or crit >= dof:
+        return math.inf
+    f_crit = crit * (dof - k) / (k * (dof - crit))
+    return threshold(lambda lam: 1.0 - noncentral_f_survival(f_crit, k, dof - k, lam), 1.0 - power, rtol=_RTOL)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,6 +146,8 @@ class Missable:
         Largest shift in the pose's own sd (Mahalanobis, 6 dof, the fit's covariance).
     covariance : ndarray, shape (p, p)
         ``lambda_P B M^-1 B^T / WIDEN_SD^2`` in the fit's step units (its names).
+    sample : str or None
+        The sample of a gross error (``outlier``, :func:`missable_sample`), else None.
     """
 
     name: str
@@ -131,19 +157,33 @@ class Missable:
     shift_deg: float
     shift_sd: float
     covariance: np.ndarray
+    sample: str | None = None
+
+    @property
+    def over_floor(self):
+        """Its largest shift over :data:`SHIFT_FLOOR`: ``max(shift_mm / 0.2 mm, shift_deg / 0.05 deg)``."""
+        return max(self.shift_mm / SHIFT_FLOOR[0], self.shift_deg / SHIFT_FLOOR[1])
 
     @property
     def beyond_floor(self):
         """Whether its shift passes :data:`SHIFT_FLOOR` (then it widens the uncertainty)."""
-        return self.shift_mm > SHIFT_FLOOR[0] or self.shift_deg > SHIFT_FLOOR[1]
+        return self.over_floor > 1.0
+
+    @property
+    def widening(self):
+        """The covariance it adds to the fit's (the fit's step units): :attr:`covariance` scaled by
+        ``(1 - 1 / over_floor)^2``, zero up to the floor -- the shift's part beyond the floor lies within
+        :data:`WIDEN_SD` of the added sd, and the widening grows from zero as the power falls."""
+        return self.covariance * max(1.0 - 1.0 / self.over_floor, 0.0) ** 2
 
     def text(self):
         """One phrase: the size and the shift."""
         size = f"{100 * self.size:.2g} %" if self.unit == "" else f"{self.size:.2g} {self.unit}"
-        return f"{self.name} up to {size} (moving the pose up to {self.shift_mm:.2g} mm / {self.shift_deg:.2g} deg)"
+        what = self.name if self.sample is None else f"a gross error of sample {self.sample}"
+        return f"{what} up to {size} (moving the pose up to {self.shift_mm:.2g} mm / {self.shift_deg:.2g} deg)"
 
 
-def missable(name, unit, jac, cols, sigma2, level):
+def missable(name, unit, jac, cols, sigma2, level, dof=None):
     """The :class:`Missable` of a candidate effect at a fit (module docstring).
 
     Parameters
@@ -158,6 +198,8 @@ def missable(name, unit, jac, cols, sigma2, level):
         Noise variance per residual component (mm^2), as the score test uses it.
     level : float
         The test's level (the search's, over its candidates).
+    dof : int, optional
+        Residual dof of ``sigma2`` when it is estimated from the fit (:func:`detectable_noncentrality`).
 
     Returns
     -------
@@ -172,7 +214,9 @@ def missable(name, unit, jac, cols, sigma2, level):
     eig = np.linalg.eigvalsh(m_eff) if sigma2 > 0 else np.zeros(1)
     if not np.all(np.isfinite(m_eff)) or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
         return None
-    lam = detectable_noncentrality(cols.shape[1], level)
+    lam = detectable_noncentrality(cols.shape[1], level, dof)
+    if not math.isfinite(lam):
+        lam = detectable_noncentrality(cols.shape[1], level)  # (no dof to spare: the known-noise bound)
     shifts = lam * alias @ np.linalg.solve(m_eff, alias.T)  # the ellipsoid of shifts, as a (p, p) form
     cov = sigma2 * np.linalg.pinv(info)
     pose = slice(0, 6)
@@ -181,3 +225,47 @@ def missable(name, unit, jac, cols, sigma2, level):
                     float(math.sqrt(max(np.linalg.eigvalsh(shifts[:3, :3])[-1], 0.0))),
                     float(np.degrees(math.sqrt(max(np.linalg.eigvalsh(shifts[3:6, 3:6])[-1], 0.0)))),
                     sd, shifts / WIDEN_SD**2)
+
+
+def missable_sample(jac, sigma2, level, ids, dof=None):
+    """The gross error the deletion test could miss on the sample where it moves the pose most: a
+    :class:`Missable` named ``outlier`` (module docstring, the effect's columns the sample's
+    indicator: ``M_i = (I - H_ii) / sigma^2``, ``B_i = (J^T J)^-1 J_i^T``), or None.
+
+    Parameters
+    ----------
+    jac : ndarray, shape (n, 3, p)
+        The fit's Jacobian of each used sample (pose first: mm, rad).
+    sigma2 : float
+        Noise variance per residual component, mm^2.
+    level : float
+        The deletion test's level per sample (the family-wise level over the samples, Bonferroni).
+    ids : sequence of str
+        The samples' ids.
+    dof : int, optional
+        Residual dof of ``sigma2`` when it is estimated from the fit.
+
+    Returns
+    -------
+    Missable or None
+        None where no sample's gross error is separable from the fit (every sample of leverage 1).
+    """
+    flat = jac.reshape(-1, jac.shape[2])
+    inv = np.linalg.pinv(flat.T @ flat)
+    alias = np.einsum("pq,niq->npi", inv, jac)  # B_i (n, p, 3)
+    m_eff = (np.eye(3) - np.einsum("nip,npj->nij", jac, alias)) / sigma2
+    eig = np.linalg.eigvalsh(m_eff)
+    seen = eig[:, 0] > 1e-9 * max(float(np.max(eig)), 1e-300)
+    if not np.any(seen) or sigma2 <= 0:
+        return None
+    lam = detectable_noncentrality(3, level, dof)
+    lam = lam if math.isfinite(lam) else detectable_noncentrality(3, level)
+    alias, m_eff, eig = alias[seen], m_eff[seen], eig[seen]
+    shifts = lam * alias @ np.linalg.solve(m_eff, np.swapaxes(alias, 1, 2))
+    shift_mm = np.sqrt(np.clip(np.linalg.eigvalsh(shifts[:, :3, :3])[:, -1], 0.0, None))
+    shift_deg = np.degrees(np.sqrt(np.clip(np.linalg.eigvalsh(shifts[:, 3:6, 3:6])[:, -1], 0.0, None)))
+    k = int(np.argmax(np.maximum(shift_mm / SHIFT_FLOOR[0], shift_deg / SHIFT_FLOOR[1])))
+    cov = sigma2 * inv[:6, :6]
+    sd = math.sqrt(max(float(np.max(np.linalg.eigvals(np.linalg.pinv(cov) @ shifts[k, :6, :6]).real)), 0.0))
+    return Missable("outlier", float(math.sqrt(lam / eig[k, 0])), "mm", float(shift_mm[k]), float(shift_deg[k]), sd,
+                    shifts[k] / WIDEN_SD**2, str(np.asarray(ids)[seen][k]))
