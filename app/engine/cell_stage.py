@@ -263,7 +263,8 @@ def compose(request, dataset, result, fitted, free, nominal):
     cov = fitted.covariance
     corr = None if cov is None else cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
     unc = dataclasses.replace(result.uncertainty, std=Uncertainty(trans, rot, centre_sd), sigma_mm=fitted.sigma,
-                              parameter_names=tuple(fitted.model.names), covariance=cov, correlation=corr)
+                              parameter_names=tuple(fitted.model.names), covariance=cov, correlation=corr,
+                              dof=None, t_factor=None)  # the cell fit's sd: not Student-t scaled (yet)
     warnings = list(result.warnings) + ([refusal] if refusal else [])
     if held:
         warnings.append("the sensor pose is held at the one given (its sd is not in this result's; add it from its "
