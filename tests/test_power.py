@@ -24,7 +24,7 @@ from handeye.model.fit import power
 #: Few-pose cells per class and mount of the rate check (24 per class per mount: 48 per class).
 RATE_CELLS = 24
 #: A correct sd puts the largest of six components beyond 3 sd in 1 - (1 - 0.0027)^6 = 1.6 % of
-#: cells by chance; the clean class may show that many "wrong" exits (3 sd above the binomial mean).
+#: cells by chance: a class may show that many "wrong" exits (3 sd above the binomial mean).
 CHANCE = 1.0 - (1.0 - 2.0 * stats.norm.sf(3.0)) ** 6
 
 
@@ -56,8 +56,9 @@ def _cells(tmp_path, kind, seeds):
 
 
 def _check_rates(kind, rows):
-    """The promise over a class's cells: no exit 0 away from the truth (the clean class: no more than
-    chance allows a correct sd), no exit 1 or 2 on a clean cell."""
+    """The promise over a class's cells: no more exits 0 away from the truth than chance gives a correct
+    sd (:data:`CHANCE`, 3 binomial sd above its mean: 3 of 48 cells; main's code had 3-5 of 48 in each
+    class, 55 of 576 over 72 seeds per class and mount), no exit 1 or 2 on a clean cell."""
     n = len(rows)
     wrong = [f"{label}: {o['why']}" for label, o in rows if o["wrong"]]
     alarms = [f"{label}: exit {o['exit']} {o['why']}" for label, o in rows if kind == "clean" and o["exit"] != 0]
@@ -65,7 +66,7 @@ def _check_rates(kind, rows):
     exits = {e: sum(o["exit"] == e for _, o in rows) for e in (0, 1, 2)}
     print(f"\n{kind}: {n} cells, exit 0/1/2 {exits[0]}/{exits[1]}/{exits[2]}, exit 0 wrong {len(wrong)}, "
           f"good sample lost {lost}")
-    allowed = math.floor(n * CHANCE + 3.0 * math.sqrt(n * CHANCE)) if kind == "clean" else 0
+    allowed = math.floor(n * CHANCE + 3.0 * math.sqrt(n * CHANCE))
     assert len(wrong) <= allowed, "exit 0 away from the truth:\n" + "\n".join(wrong)
     assert not alarms, "false alarms on clean cells:\n" + "\n".join(alarms)
 

@@ -19,7 +19,11 @@ it detects with probability :data:`POWER` when ``lambda >= lambda_P``, the root 
 Poisson mixture ``sum_j e^-l/2 (l/2)^j / j! P(chi2_(k+2j) > c)``, Johnson, Kotz & Balakrishnan 1995,
 *Continuous Univariate Distributions* 2, ch. 29). So the effects the test misses more often than
 ``1 - POWER`` form the ellipsoid ``theta^T M theta < lambda_P``: along its least-seen direction the
-effect may be ``sqrt(lambda_P / mu_min(M))`` (effect units) and go unseen.
+effect may be ``sqrt(lambda_P / mu_min(M))`` (effect units) and go unseen. With the noise estimated
+from the fit on ``dof`` residual degrees of freedom (as the search estimates it) the statistic is a
+noncentral F's, less powerful (:func:`detectable_noncentrality`); where it cannot reject at all
+(its critical value beyond ``dof``: a 3-column effect at 12 dof, six poses with the sensor alone),
+the size stated is the known-noise test's -- a lower bound of what such data can miss.
 
 **What a missed effect does to the pose.** Left out of the model, ``theta`` moves the fitted
 parameters by ``B theta``, ``B = (J^T J)^-1 J^T A`` (the alias matrix; omitted-variable bias). Over
