@@ -112,7 +112,8 @@ _CALIBRATE = (
         help="robot repeatability per axis (default `[noise] robot_mm`, else 0.025), which with each circle fit's own "
              "covariance weights and tests the profile models"),
     Opt('--effects', metavar='NAME[,NAME]',
-        help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
+        help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale` (a line scanner\'s), '
+             '`centre_scale` (the three coordinates of a centre), `sphere_radius`, '
              '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
              'angles and `[robot] model`); their parameters and 1-sd in `effects`. Without it calibrate adds the '
              'effects the data choose (the search `handeye diagnose` prints); with it (`none`: no effect) the model is '
