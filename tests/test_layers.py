@@ -203,7 +203,7 @@ ROOMS = {
         "common": set(),
         "engine": {"common", "present"},
         "ingest": {"common", "engine", "present"},
-        "outputs": {"common", "present"},
+        "outputs": {"common", "engine", "present"},
         "present": {"common"},
         "present.web": {"common", "outputs", "present"},
         "public": {"common", "engine", "outputs", "present", "present.web"},

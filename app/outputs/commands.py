@@ -20,6 +20,7 @@ import numpy as np
 from handeye.app.common import files, options
 from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.outputs import formats as exports
+from handeye.app.outputs import verdict as verdicts
 from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.result_parts import AsDict
@@ -132,11 +133,14 @@ class CloudResult(ResultProtocol):
     format: str
     calibration: str
     frame: str = "robot base"
+    notes: tuple = ()
+    status: str | None = None
 
     def to_dict(self):
         lo, hi = (self.points.min(axis=0), self.points.max(axis=0)) if len(self.points) else (None, None)
         return {"n_points": int(len(self.points)), "n_poses": len(self.ids), "skipped": list(self.skipped),
                 "out": self.out, "format": self.format, "calibration": self.calibration, "frame": self.frame,
+                "verdict": self.status, "notes": list(self.notes),
                 "bounds_mm": None if lo is None else {"min": lo.tolist(), "max": hi.tolist()},
                 "sd_mm": None if self.sd is None or not len(self.sd) else {
                     "median": float(np.median(self.sd)), "max": float(self.sd.max())}}
@@ -144,6 +148,8 @@ class CloudResult(ResultProtocol):
     def summary(self):
         d = self.to_dict()
         lines = [f"{d['n_points']:,} points from {d['n_poses']} poses ({self.frame}, mm; calibration {self.calibration})"]
+        lines += [f"calibration: {self.status}"] if self.status else []
+        lines += [f"note: {n}" for n in self.notes]
         if d["skipped"]:
             lines.append(f"skipped {len(d['skipped'])} rows without a profile: {', '.join(d['skipped'][:10])}")
         if d["bounds_mm"]:
@@ -211,12 +217,13 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.geometry import cloud as clouds
 
     request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
-    cal, data = request.calibration, request.data
+    checked = verdicts.check(calibration, request.calibration, folder=dataset)
+    cal, data = checked.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
                                                               cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
-                         cal.source, FRAME[data.mounts.sphere])
+                         cal.source, FRAME[data.mounts.sphere], checked.notes, checked.status)
     if out is not None:
         _write_cloud(result, out, request.format)
     return result
@@ -248,12 +255,13 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
-    cal, data = request.calibration, request.data
+    checked = verdicts.check(calibration, request.calibration, folder=folder)
+    cal, data = checked.calibration, request.data
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
     result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
               else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
-        data.mounts.sphere])
+        data.mounts.sphere], notes=[*checked.notes, *result.notes], status=checked.status)
     if request.limits is not None:
         result = dataclasses.replace(result, acceptance=validation.accept(result, request.limits))
     if plot is not None:
