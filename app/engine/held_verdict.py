@@ -149,11 +149,10 @@ class HeldVerdict:
         """The recomputed verdict in one line."""
         noise = "" if self.noise is None else (f", noise test {'passed' if self.noise.passed else 'FAILED'} (sd "
                                                f"{self.noise.ratio:.2f} x stated)")
-        status = ("data's minimum" if self.contradicted is False else "CONTRADICTED by the data"
-                  if self.contradicted else "not tested")
+        status = {None: "not tested", False: "the data's minimum"}.get(
+            self.contradicted, f"CONTRADICTED by the data (their minimum {_far(self.distance)} away)")
         return (f"recomputed from {self.dataset} at the file's pose: RMS {self.rms_mm:.4g} mm per sphere centre over "
                 f"{int(self.used.sum())} samples{noise}; pose: {status}"
-                + (f" ({_far(self.distance)} away)" if self.distance and self.contradicted is not None else "")
                 + (f"; {self.not_recomputed}" if self.not_recomputed else ""))
 
 

@@ -40,20 +40,27 @@ class ExportResult(AsDict, ResultProtocol):
 
 @options.COMMANDS["export"].documented
 def export(calibration=None, *, format="json", parent=None, child="sensor", tool=None, register=99, out=None,
-           sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None):
+           sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None, dataset=None):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
 
     A sensor on the flange is written as a tool (number ``tool``, default 1), a sensor fixed in
     the cell (the calibration's ``sensor_mount`` "world") as a base / user frame (number
     ``base``, default 1); ``parent`` defaults to ``flange`` or ``base_link`` accordingly.
     ``sensor_mount`` ("flange" or "world"; default flange) is where a ``sensor_pose`` is given.
+    Every format carries the calibration's verdict and its failed checks as comments (JSON: the
+    key ``verdict``), recomputed from its dataset where one is at hand (``dataset``, else the
+    file's ``dataset_path``; :mod:`handeye.app.outputs.verdict`); a calibration that did not
+    converge is written only with ``force``, and its first comment line says so.
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
 
     {parameters}
     """
     request = ExportRequest.from_options(options.COMMANDS["export"].given(locals()))
-    text = robot_text(*request.held, format) if format in ROBOT_FORMATS else exports.text(request.held, format, request.names)
+    if format in ROBOT_FORMATS:
+        text = robot_text(*request.held, format, request.comments)
+    else:
+        text = exports.text(request.held, format, request.names, request.comments)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -84,11 +91,12 @@ def _robot_values(doc, model):
     return values, said
 
 
-def robot_text(calibration, doc, format):
+def robot_text(calibration, doc, format, comments=()):
     """The robot's nominal model corrected by the calibrated ``joint_offsets`` and ``link_lengths``
     of a saved calibration (the file ``calibration``, its JSON object ``doc``), as the model TOML
     (``robot-toml``) or a URDF (``robot-urdf``); :mod:`handeye.model.robot.robots`.
-    ``joint_compliance`` depends on the pose: said in a comment."""
+    ``joint_compliance`` depends on the pose: said in a comment; ``comments``: the verdict's lines
+    (:func:`handeye.app.outputs.verdict.comment_lines`), the first one first."""
     from handeye.model.robot import robot_errors, robots
 
     nominal = robots.load(doc["robot_model"])
@@ -96,9 +104,10 @@ def robot_text(calibration, doc, format):
     model = robot_errors.corrected_model(nominal, values)
     note = f"{model.name} corrected by the robot effects of {calibration} ({'; '.join(said) or 'none'})"
     if format == "robot-toml":
-        return robots.to_toml(model, note)
+        return "".join(f"# {exports.one_line(c)}\n" for c in comments) + robots.to_toml(model, note)
     head, rest = robots.to_urdf(model, "".join(c if c.isalnum() else "_" for c in model.name).lower()).split("\n", 1)
-    return f"{head}\n<!-- {note.replace('--', '- -')} -->\n{rest}"  # the XML declaration first
+    said = "".join(f"<!-- {exports.one_line(c).replace('--', '- -')} -->\n" for c in comments)
+    return f"{head}\n{said}<!-- {note.replace('--', '- -')} -->\n{rest}"  # the XML declaration first
 
 
 @dataclasses.dataclass(frozen=True)

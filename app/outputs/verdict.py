@@ -16,6 +16,7 @@ import pathlib
 
 from handeye.app.common.arguments import load_dataset
 from handeye.app.engine import held_verdict
+from handeye.app.engine.describe import NOISE_WARNING
 from handeye.app.outputs import saved
 from handeye.model.common.errors import InputError
 
@@ -52,7 +53,9 @@ class Checked:
     def failed(self):
         """The failed checks: the file's warnings, the recomputation's and the notes, each one short line."""
         again = () if self.verdict is None else tuple(self.verdict.failed())
-        return tuple(shorten(w) for w in (*self.warnings, *again)) + self.notes
+        mine = self.warnings if self.verdict is None or self.verdict.noise is None else tuple(
+            w for w in self.warnings if not w.startswith(NOISE_WARNING))  # the recomputed test says it
+        return tuple(shorten(w) for w in (*mine, *again)) + self.notes
 
 
 def shorten(text, limit=WARNING_CHARS):
@@ -97,10 +100,13 @@ def check(calibration, cal, folder=None, dataset=None):
     """The :class:`Checked` verdict of ``cal`` (held from ``calibration``: a saved file's name, or
     anything else: a pose typed in or a result in memory, checked by nothing here), on the
     command's ``folder`` or ``dataset`` (module docstring)."""
-    if not isinstance(calibration, (str, pathlib.Path)):
+    if hasattr(calibration, "to_dict") and hasattr(calibration, "sensor2flange"):  # a result in memory
+        file, doc = cal.source, calibration.to_dict()
+    elif isinstance(calibration, (str, pathlib.Path)):
+        file = pathlib.Path(calibration)
+        doc = saved.document(file)
+    else:
         return Checked(cal, status=_typed_status(cal))
-    file = pathlib.Path(calibration)
-    doc = saved.document(file)
     data, changed = _own_dataset(doc, folder, dataset)
     warnings = tuple(w for w in doc.get("warnings") or [] if isinstance(w, str))
     if data is None:
@@ -139,6 +145,14 @@ def _file_status(doc):
     rms = f", RMS {rms:.4g} mm" if isinstance(rms, (int, float)) else ""
     return (f"{'converged' if converged else 'NOT CONVERGED'}{rms} as the file says, not recomputed (no dataset of its "
             "SHA-256 at hand: give --dataset, or keep the file's dataset_path)")
+
+
+def comment_lines(checked, forced=None):
+    """The lines an export writes as comments: ``FORCED ...`` first when ``forced`` (why the
+    calibration is no calibration: it is written only because of ``--force``), the status, and
+    every failed check, one short line each."""
+    lines = [f"FORCED (written with the force option): NOT a calibration: {shorten(forced)}"] if forced else []
+    return lines + [f"verdict: {checked.status}"] + [f"failed check: {w}" for w in checked.failed]
 
 
 def _typed_status(cal):
