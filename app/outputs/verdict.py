@@ -84,7 +84,7 @@ def _own_dataset(doc, folder, given):
         except (InputError, OSError, TypeError, ValueError):
             continue  # not a calibration dataset (a scan without a sphere), or gone
         if data.content_hash() == sha:
-            return data, None
+            return data, changed
         if named and changed is None:
             changed = held_verdict.Disagreement("dataset_sha256", f"{sha[:12]}...", f"{path} hashes to "
                                                 f"{data.content_hash()[:12]}... (another dataset, or changed since)")
@@ -108,13 +108,15 @@ def check(calibration, cal, folder=None, dataset=None):
     else:
         return Checked(cal, status=_typed_status(cal))
     data, changed = _own_dataset(doc, folder, dataset)
+    changed = [changed] if changed else []
     warnings = tuple(w for w in doc.get("warnings") or [] if isinstance(w, str))
     if data is None:
-        found = held_verdict.own_disagreements(doc) + ([changed] if changed else [])
+        found = held_verdict.own_disagreements(doc) + changed
         _refuse(file, found, None)
         return Checked(cal, None, tuple(d.line(file) for d in found), warnings, _file_status(doc))
     data = _at_axes(cal, data)
     verdict = held_verdict.recompute(doc, cal.for_dataset(data.own_axes).sensor2flange, data)
+    verdict = dataclasses.replace(verdict, disagreements=(*verdict.disagreements, *changed))
     _refuse(file, verdict.disagreements, verdict)
     keep = verdict.not_recomputed or cal.positioner_axes  # the file's sd holds what the plain chain cannot
     held = cal if keep or cal.covariance is None else dataclasses.replace(cal, covariance=verdict.covariance)
