@@ -31,7 +31,7 @@ MOVE_MM = 5.0
 def cells(tmp_path_factory):
     """dataset folder or name -> (its folder, its saved calibration, that file's JSON object)."""
     root = tmp_path_factory.mktemp("verdict")
-    handeye.simulate(root / "profiles", seed=7, profiles=True, n_poses=14)
+    handeye.simulate(root / "profiles", seed=7, profiles=True, n_poses=10)
     indep_mounts.make(root / "fixed", "eye_to_hand", seed=3, n=14)
     out = {}
     for name, folder in (("profiles", root / "profiles"), ("thesis-real", "thesis-real"), ("fixed", root / "fixed")):

@@ -291,10 +291,12 @@ def _covariance_disagreement(doc, verdict):
 
 def own_disagreements(doc):
     """What the file's own fields say against each other, no data needed: its ``sensor_matrix``
-    against its ``sensor_pose_as`` (fatal beyond :data:`POSE_AGREES`), its ``dataset_sha256``
-    against its ``provenance``'s."""
+    against its ``sensor_pose_as`` (fatal beyond :data:`POSE_AGREES`; not in an older file of turned
+    profiles, whose frames the file does not say), its ``dataset_sha256`` against its ``provenance``'s."""
     out = []
     pose_as = doc.get("sensor_pose_as") if isinstance(doc.get("sensor_pose_as"), dict) else {}
+    if doc.get("own_axes") is not None and doc.get("sensor_frame") != "own":
+        pose_as = {}  # an older file of turned profiles: its matrix of handeye's frame, its poses maybe not
     values, convention = pose_as.get("pose"), pose_as.get("convention")
     try:
         written = conventions.transform_from(convention, np.asarray(values, float))
