@@ -33,6 +33,7 @@ from handeye.app.engine.describe import _fit_statistics, noise_test
 from handeye.app.engine.score import Scorer, f_test
 from handeye.model.chain import conventions
 from handeye.model.common.rotation import pose_distance
+from handeye.model.datasets import observations
 
 #: Relative difference of the file's RMS from the data's beyond which the file's ``rms_mm`` is
 #: named. The same samples at the same pose give the same RMS to rounding (17 digits written;
@@ -207,6 +208,9 @@ def recompute(doc, sensor2flange, data):
     given = scorer.score(s, centre)
     x = scorer.model.point_from(s, given.centre)
     _, cov, ssr = _fit_statistics(scorer.model, x)
+    if kind == "points":  # the tests are of its circles (Scorer); the covariance is of the points, as the fit's
+        points = observations.build(data.subset(mask), kind, "local", scorer.model.unknowns, robot_sigma, given.centre)
+        cov = _fit_statistics(points, points.point_from(s, given.centre))[1]
     whitened = scorer.model.whiten is not None
     noise = (noise_test(ssr, given.m - scorer.model.n, sigma, whitened, [], "")
              if whitened or scorer.kind == "centre" else None)
