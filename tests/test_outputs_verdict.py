@@ -20,7 +20,8 @@ from handeye.app.command.cli import main
 from handeye.app.outputs import formats as export
 from handeye.app.outputs import saved
 from handeye.app.outputs import verdict as verdicts
-from tests import indep_mounts
+from tests import indep_cells, indep_mounts
+from tests import shards as sh
 from tests.test_export_world import _is_comment
 from tests.test_use import _close, parse
 
@@ -178,3 +179,53 @@ def test_a_forced_export_says_so_in_its_first_comment_line(cells, tmp_path, fmt)
     first = next(line for line in text.splitlines() if line.strip() != "<!--" and (
         line.lstrip().startswith(("#", ";", "!", "<!--")) or line.startswith("  ") or re.match(r"\s*\d+:  !", line)))
     assert "FORCED" in first and ("unexplained structure" in first or fmt == "fanuc"), (fmt, first)
+
+
+def _independent_cells():
+    """(tag, how to make its folder, calibrate's options) of the rate check: the independent mounts
+    generator's three mounts, clean and with a hidden sensor scale (calibrated with it every other seed:
+    a file with effects), and the independent generator's profile cells under both profile models."""
+    cells = []
+    for seed in range(10):
+        for mount in indep_mounts.MOUNTS:
+            for effect in indep_mounts.EFFECTS:
+                options = {"unknowns": "sensor+positioner"} if mount == "positioner" else {}
+                if effect and seed % 2 and mount != "positioner":
+                    options["effects"] = effect
+                cells.append((f"{mount}-{effect}-{seed}", (mount, seed, effect), options))
+        for model in ("points", "measurement"):
+            cells.append((f"profiles-{model}-{seed}", (None, 100 + seed, None), {"model": model}))
+    return cells
+
+
+def _make(folder, how):
+    mount, seed, effect = how
+    if mount is None:
+        indep_cells.correct_dataset(folder, seed, profiles="profile")
+    else:
+        indep_mounts.make(folder, mount, seed, n=20, effect=effect)
+
+
+CELL_SHARDS = 6
+
+
+@pytest.mark.slow(sibling="test_a_good_file_is_recomputed_to_its_own_verdict_with_no_note[fixed]")
+@pytest.mark.parametrize("shard", range(CELL_SHARDS))
+def test_no_false_alarm_and_every_moved_pose_refused_over_independent_cells(tmp_path, shard):
+    """Over 90 cells no generator here wrote: a good file is never named (0 false alarms), and the same
+    file with its pose moved 5 mm by hand (matrix and its own sensor_pose_as) is refused naming
+    sensor_matrix wherever the file claims to have converged (with effects: the matrix alone moved)."""
+    cells = _independent_cells()
+    for k in sh.shards(len(cells), CELL_SHARDS)[shard]:
+        tag, how, options = cells[k]
+        folder, path = tmp_path / tag, tmp_path / f"{tag}.json"
+        _make(folder, how)
+        handeye.calibrate(folder, out=path, no_loo=True, **options)
+        doc = json.loads(path.read_text())
+        assert _checked(folder, path).notes == (), tag
+        if doc["converged"] is not True:
+            continue
+        careful = not doc.get("effects")  # the plain chain cannot re-evaluate effects: a careful edit passes
+        bad = _edited(tmp_path, doc, f"{tag}-moved.json", **_moved(doc, with_its_pose=careful))
+        with pytest.raises(saved.CalibrationFileError, match="'sensor_matrix'"):
+            _checked(folder, bad)
