@@ -137,7 +137,10 @@ class HeldVerdict:
         return [d for d in self.disagreements if d.fatal]
 
     def failed(self):
-        """The recomputed checks that fail, one short line each."""
+        """The recomputed checks that fail, one short line each (none where the plain chain cannot
+        recompute the file's model: :attr:`not_recomputed`)."""
+        if self.not_recomputed:
+            return []
         out = []
         if self.contradicted:
             out.append(f"the data contradict the pose: their minimum lies {_far(self.distance)} from it")
@@ -148,6 +151,8 @@ class HeldVerdict:
 
     def line(self):
         """The recomputed verdict in one line."""
+        if self.not_recomputed:
+            return f"{self.not_recomputed}; its mount, dataset and pose's own numbers checked"
         noise = "" if self.noise is None else (f", noise test {'passed' if self.noise.passed else 'FAILED'} (sd "
                                                f"{self.noise.ratio:.2f} x stated)")
         status = {None: "not tested", False: "the data's minimum"}.get(
@@ -225,8 +230,8 @@ def recompute(doc, sensor2flange, data):
     effects = _effects(doc)
     verdict = HeldVerdict(data.name, mask, given.residuals, float(given.rms_mm["centre"]), float(norms[mask].max()),
                           given.centre, np.asarray(cov.matrix)[:6, :6], noise, contradicted, distance,
-                          not_recomputed=(f"the file's effects ({', '.join(effects)}) are not re-evaluated: the "
-                                          "recomputation is of the plain chain" if effects else None))
+                          not_recomputed=(f"not recomputed: the file's effects ({', '.join(effects)}) are beyond the "
+                                          "held-pose path, which is of the plain chain" if effects else None))
     return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
 
 

@@ -53,7 +53,7 @@ class Checked:
     def failed(self):
         """The failed checks: the file's warnings, the recomputation's and the notes, each one short line."""
         again = () if self.verdict is None else tuple(self.verdict.failed())
-        mine = self.warnings if self.verdict is None or self.verdict.noise is None else tuple(
+        mine = self.warnings if self.verdict is None or self.verdict.noise is None or self.verdict.not_recomputed else tuple(
             w for w in self.warnings if not w.startswith(NOISE_WARNING))  # the recomputed test says it
         return tuple(shorten(w) for w in (*mine, *again)) + self.notes
 
@@ -120,8 +120,8 @@ def check(calibration, cal, folder=None, dataset=None):
     _refuse(file, verdict.disagreements, verdict)
     keep = verdict.not_recomputed or cal.positioner_axes  # the file's sd holds what the plain chain cannot
     held = cal if keep or cal.covariance is None else dataclasses.replace(cal, covariance=verdict.covariance)
-    converged = verdict.converged and doc.get("converged", True) is True
-    status = (f"{'converged' if converged else 'NOT CONVERGED'}: {verdict.line()}")
+    converged = doc.get("converged", True) is True and (verdict.converged or bool(verdict.not_recomputed))
+    status = f"{'converged' if converged else 'NOT CONVERGED'}{_said(doc, verdict)}: {verdict.line()}"
     return Checked(held, verdict, tuple(d.line(file) for d in verdict.disagreements), warnings, status)
 
 
@@ -139,6 +139,14 @@ def _refuse(file, disagreements, verdict):
     if fatal:
         more = "" if verdict is None or fatal[0].key == "sensor_mount" else f"; {verdict.line()}"
         raise saved.CalibrationFileError(file, fatal[0].text() + more, fatal[0].key)
+
+
+def _said(doc, verdict):
+    """What the status is of where the data could not recompute it (effects): the file's RMS, its word."""
+    if not verdict.not_recomputed:
+        return ""
+    rms = doc.get("rms_mm")
+    return (f", RMS {rms:.4g} mm" if isinstance(rms, (int, float)) else "") + " as the file says"
 
 
 def _file_status(doc):
