@@ -332,6 +332,7 @@ LOCAL_IMPORTS = {
         ("app/present/web/page.py", "build", "handeye.app.present.web.cell"),
         ("app/present/web/page.py", "snippets", "handeye.app.outputs.formats"),
         ("app/present/web/page.py", "snippets", "handeye.app.outputs.saved"),
+        ("app/present/web/page.py", "snippets", "handeye.app.outputs.verdict"),
         ("app/present/web/parts.py", "header", "handeye.app.common.files"),
         ("app/present/web/parts.py", "header", "handeye.model.chain.mounts"),
         ("app/present/web/write.py", "write_report", "handeye.app.common.files"),
