@@ -226,7 +226,7 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.geometry import cloud as clouds
 
     request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
-    checked = verdicts.check(calibration, request.calibration, folder=dataset)
+    checked = verdicts.check(calibration, request.calibration, folder=dataset, folder_hash=request.data.content_hash())
     cal, data = checked.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
@@ -264,9 +264,10 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
-    checked = verdicts.check(calibration, request.calibration, folder=folder)
+    sha = request.data.content_hash()
+    checked = verdicts.check(calibration, request.calibration, folder=folder, folder_hash=sha)
     cal, data = checked.calibration, request.data
-    own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
+    own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == sha
     result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
               else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[

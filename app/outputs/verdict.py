@@ -67,7 +67,7 @@ def shorten(text, limit=WARNING_CHARS):
     return (text[:cut] if cut > limit // 3 else text[:limit - 4]).rstrip() + " ..."
 
 
-def _own_dataset(doc, folder, given):
+def _own_dataset(doc, folder, given, folder_hash=None):
     """The Dataset to recompute on (module docstring), or None; and a :class:`Disagreement` when
     the dataset given (``--dataset``) or the file's own ``dataset_path`` hashes to another SHA-256
     (a foreign file, or a dataset changed since). The command's own folder may be other data (a
@@ -77,8 +77,8 @@ def _own_dataset(doc, folder, given):
         return None, None
     changed = None
     for path, named in ((given, True), (folder, False), (doc.get("dataset_path"), True)):
-        if path is None:
-            continue
+        if path is None or (path is folder and folder_hash is not None and folder_hash != sha):
+            continue  # the command's own data, hashed already: another dataset (a scan held out), not loaded
         try:
             data = load_dataset(path, clean=not _no_clean(doc))
         except (InputError, OSError, TypeError, ValueError):
@@ -96,10 +96,11 @@ def _no_clean(doc):
     return bool(isinstance(options, dict) and options.get("no_clean"))
 
 
-def check(calibration, cal, folder=None, dataset=None):
+def check(calibration, cal, folder=None, dataset=None, folder_hash=None):
     """The :class:`Checked` verdict of ``cal`` (held from ``calibration``: a saved file's name, or
     anything else: a pose typed in or a result in memory, checked by nothing here), on the
-    command's ``folder`` or ``dataset`` (module docstring)."""
+    command's ``folder`` (its SHA-256 ``folder_hash`` when the command has it: another one is not
+    loaded again) or ``dataset`` (module docstring)."""
     if hasattr(calibration, "to_dict") and hasattr(calibration, "sensor2flange"):  # a result in memory
         file, doc = cal.source, calibration.to_dict()
     elif isinstance(calibration, (str, pathlib.Path)):
@@ -107,7 +108,7 @@ def check(calibration, cal, folder=None, dataset=None):
         doc = saved.document(file)
     else:
         return Checked(cal, status=_typed_status(cal))
-    data, changed = _own_dataset(doc, folder, dataset)
+    data, changed = _own_dataset(doc, folder, dataset, folder_hash)
     changed = [changed] if changed else []
     warnings = tuple(w for w in doc.get("warnings") or [] if isinstance(w, str))
     if data is None:
