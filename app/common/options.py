@@ -300,6 +300,9 @@ _EXPORT = (
         help='where the --sensor-pose is: on the flange (default) or fixed in the cell, the pose in the robot base (a saved '
              'calibration says itself)'),
     Opt('--out', metavar='FILE', help='write to FILE (atomically) instead of stdout'),
+    Opt('--dataset', metavar='DIR', kind='path',
+        help="the calibration's dataset: its verdict is recomputed from it at the pose and written with the failed checks "
+             "(default: the file's dataset_path, when it still has the file's SHA-256)"),
 )
 
 _CLOUD = (
