@@ -258,11 +258,12 @@ def power_statement(run, structure, fit):
         if np.all(np.isfinite(cols)) and gate(jac, cols, fit.names, absorbers=False)[0] >= GATE:
             columns[name] = cols
     level = run.alpha / max(len(columns), 1)
-    dof = fit.m - fit.p
-    found = [power.missable(name, getattr(effects.get(name), "UNIT", ""), jac, cols, fit.sigma2, level, dof)
+    setting = power.Setting(fit.sigma2, level, fit.m - fit.p)
+    found = [power.missable(name, getattr(effects.get(name), "UNIT", ""), jac, cols, setting)
              for name, cols in columns.items()]
     used = [prob.d.ids[i] for i in np.flatnonzero(mask)]
-    found.append(power.missable_sample(fit.jac[mask], fit.sigma2, run.alpha / prob.n, used, dof))
+    samples = dataclasses.replace(setting, level=run.alpha / prob.n)
+    found.append(power.missable_sample(fit.jac[mask], samples, used))
     found = sorted((m for m in found if m is not None), key=lambda m: -max(m.shift_mm / power.SHIFT_FLOOR[0],
                                                                           m.shift_deg / power.SHIFT_FLOOR[1]))
     return PowerStatement(tuple(found), tuple(fit.names), level)

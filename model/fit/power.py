@@ -131,6 +131,32 @@ def detectable_noncentrality(k, level, dof=None, power=POWER):
 
 
 @dataclasses.dataclass(frozen=True)
+class Setting:
+    """The test whose power is stated, as the search runs it.
+
+    Attributes
+    ----------
+    sigma2 : float
+        Noise variance per residual component (mm^2), as the test uses it.
+    level : float
+        The test's level (the search's alpha over its candidates; the outlier test's over the samples).
+    dof : int or None
+        Residual dof of ``sigma2`` when it is estimated from the fit (:func:`detectable_noncentrality`);
+        None for a known noise.
+    """
+
+    sigma2: float
+    level: float
+    dof: int | None = None
+
+    def noncentrality(self, k):
+        """``lambda_P`` of a k-column test in this setting; the known-noise one where the estimated-noise
+        test cannot reject at all (module docstring)."""
+        lam = detectable_noncentrality(k, self.level, self.dof)
+        return lam if math.isfinite(lam) else detectable_noncentrality(k, self.level)
+
+
+@dataclasses.dataclass(frozen=True)
 class Missable:
     """An effect the score test could have missed, and what it would do to the fit.
 
@@ -187,7 +213,7 @@ class Missable:
         return f"{what} up to {size} (moving the pose up to {self.shift_mm:.2g} mm / {self.shift_deg:.2g} deg)"
 
 
-def missable(name, unit, jac, cols, sigma2, level, dof=None):
+def missable(name, unit, jac, cols, setting):
     """The :class:`Missable` of a candidate effect at a fit (module docstring).
 
     Parameters
@@ -198,12 +224,8 @@ def missable(name, unit, jac, cols, sigma2, level, dof=None):
         ``wx, wy, wz`` (rad) of the pose.
     cols : ndarray, shape (m, k)
         The effect's Jacobian columns at the fit.
-    sigma2 : float
-        Noise variance per residual component (mm^2), as the score test uses it.
-    level : float
-        The test's level (the search's, over its candidates).
-    dof : int, optional
-        Residual dof of ``sigma2`` when it is estimated from the fit (:func:`detectable_noncentrality`).
+    setting : Setting
+        The score test's noise, its dof and level.
 
     Returns
     -------
@@ -211,6 +233,7 @@ def missable(name, unit, jac, cols, sigma2, level, dof=None):
         None where the effect is not separable from the fit's parameters (no information after
         projecting them out) or the noise is zero.
     """
+    sigma2 = setting.sigma2
     info = jac.T @ jac
     alias = np.linalg.lstsq(jac, cols, rcond=None)[0]  # B (p, k)
     perp = cols - jac @ alias
@@ -218,9 +241,7 @@ def missable(name, unit, jac, cols, sigma2, level, dof=None):
     eig = np.linalg.eigvalsh(m_eff) if sigma2 > 0 else np.zeros(1)
     if not np.all(np.isfinite(m_eff)) or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
         return None
-    lam = detectable_noncentrality(cols.shape[1], level, dof)
-    if not math.isfinite(lam):
-        lam = detectable_noncentrality(cols.shape[1], level)  # (no dof to spare: the known-noise bound)
+    lam = setting.noncentrality(cols.shape[1])
     shifts = lam * alias @ np.linalg.solve(m_eff, alias.T)  # the ellipsoid of shifts, as a (p, p) form
     cov = sigma2 * np.linalg.pinv(info)
     pose = slice(0, 6)
@@ -231,7 +252,7 @@ def missable(name, unit, jac, cols, sigma2, level, dof=None):
                     sd, shifts / WIDEN_SD**2)
 
 
-def missable_sample(jac, sigma2, level, ids, dof=None):
+def missable_sample(jac, setting, ids):
     """The gross error the deletion test could miss on the sample where it moves the pose most: a
     :class:`Missable` named ``outlier`` (module docstring, the effect's columns the sample's
     indicator: ``M_i = (I - H_ii) / sigma^2``, ``B_i = (J^T J)^-1 J_i^T``), or None.
@@ -240,21 +261,18 @@ def missable_sample(jac, sigma2, level, ids, dof=None):
     ----------
     jac : ndarray, shape (n, 3, p)
         The fit's Jacobian of each used sample (pose first: mm, rad).
-    sigma2 : float
-        Noise variance per residual component, mm^2.
-    level : float
-        The deletion test's level per sample (the family-wise level over the samples, Bonferroni).
+    setting : Setting
+        The noise, its dof, and the deletion test's level per sample (the family-wise level over the
+        samples, Bonferroni).
     ids : sequence of str
         The samples' ids.
-    dof : int, optional
-        Residual dof of ``sigma2`` when it is estimated from the fit.
 
     Returns
     -------
     Missable or None
         None where no sample's gross error is separable from the fit (every sample of leverage 1).
     """
-    flat = jac.reshape(-1, jac.shape[2])
+    sigma2, flat = setting.sigma2, jac.reshape(-1, jac.shape[2])
     inv = np.linalg.pinv(flat.T @ flat)
     alias = np.einsum("pq,niq->npi", inv, jac)  # B_i (n, p, 3)
     m_eff = (np.eye(3) - np.einsum("nip,npj->nij", jac, alias)) / sigma2
@@ -262,8 +280,7 @@ def missable_sample(jac, sigma2, level, ids, dof=None):
     seen = eig[:, 0] > 1e-9 * max(float(np.max(eig)), 1e-300)
     if not np.any(seen) or sigma2 <= 0:
         return None
-    lam = detectable_noncentrality(3, level, dof)
-    lam = lam if math.isfinite(lam) else detectable_noncentrality(3, level)
+    lam = setting.noncentrality(3)
     alias, m_eff, eig = alias[seen], m_eff[seen], eig[seen]
     shifts = lam * alias @ np.linalg.solve(m_eff, np.swapaxes(alias, 1, 2))
     shift_mm = np.sqrt(np.clip(np.linalg.eigvalsh(shifts[:, :3, :3])[:, -1], 0.0, None))
