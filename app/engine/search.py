@@ -50,7 +50,7 @@ from handeye.model.fit.calibration import ROW_CHUNK
 #: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
 NOT_A_MODEL = ("sign_flip", "positioner_axes")
 #: How the warning of a widened uncertainty begins (:func:`with_power`).
-POWER_WARNING = "too few poses or too much noise to see every effect, the 1 sd is widened"
+POWER_WARNING = "the data lack the power to see every effect (few samples, much noise): the 1 sd is widened"
 #: The warning is given where the widening grows a pose component's sd by more than this factor: the
 #: upper end of the band in which a reported sd counts as right (observed / reported 0.8-1.25, the
 #: independent generators' checks); a smaller widening (30 poses at 0.05 mm: 1-5 %) is said in the
