@@ -48,7 +48,7 @@ from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
-from handeye.model.fit.extended import GATE, Samples, ScoreTest, Structure, candidate_columns
+from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
@@ -267,6 +267,20 @@ def power_statement(run, structure, fit):
     found = sorted((m for m in found if m is not None), key=lambda m: -max(m.shift_mm / power.SHIFT_FLOOR[0],
                                                                           m.shift_deg / power.SHIFT_FLOOR[1]))
     return PowerStatement(tuple(found), tuple(fit.names), level)
+
+
+def held_power(dataset, mask, sensor2flange, centre, centre_unknown, alpha=ALPHA):
+    """The :func:`power_statement` of a pose held (a saved calibration's, :mod:`handeye.app.engine.held_verdict`)
+    on the samples of ``mask``: the plain chain (the sphere centre free with ``centre_unknown``) evaluated
+    at the pose, never fitted. ``centre``: the sphere centre (robot base or its mount's frame, mm)."""
+    prob = Samples(dataset)
+    structure = Structure(centre=bool(centre_unknown))
+    x = prob.point(structure, np.asarray(sensor2flange, float), centre)
+    e, jac, _ = prob.evaluate(structure, x, {})
+    fit = Fit(x, {}, e, jac, prob.names(structure), float(np.sum(e[mask] ** 2)), 3 * int(mask.sum()), jac.shape[2])
+    held = Procedure(prob, np.asarray(mask, bool), alpha, None, {}, np.linalg.norm(e, axis=1),
+                     centre_unknown=bool(centre_unknown), detail=False)
+    return power_statement(held, structure, fit)
 
 
 def _search(run, structure, fit):

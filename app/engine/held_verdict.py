@@ -5,7 +5,8 @@ A ``calibrate --out`` file's fields (``converged``, ``rms_mm``, ``noise_test``, 
 ``sensor_mount``, ``dataset_sha256``) are claims. What an output shows of a verdict is computed
 here from the data and the file's pose by the held-pose score path
 (:class:`handeye.app.engine.score.Scorer`, what ``calibrate --calibration FILE`` scores with): the
-residuals, RMS, covariance and noise test at the pose held (the sphere centre refitted with it
+residuals, RMS, covariance (as a calibration reports it: Student-t scaled and widened by what the
+data could not see at the pose, :mod:`handeye.model.fit.power`) and noise test at the pose held (the sphere centre refitted with it
 when the file's unknowns free it), and one Gauss-Newton step from the pose, whose sum of squares
 tests whether the pose is the data's minimum (:func:`handeye.app.engine.score.f_test`, the rule
 for any part held: the data *contradict* the pose). That is one evaluation of residuals and
@@ -30,7 +31,9 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine.describe import _fit_statistics, noise_test
+from handeye.app.engine.diagnose import held_power
 from handeye.app.engine.score import Scorer, f_test
+from handeye.app.present.result_parts import UncertaintyRecord
 from handeye.model.chain import conventions
 from handeye.model.common.rotation import pose_distance
 from handeye.model.datasets import observations
@@ -216,6 +219,7 @@ def recompute(doc, sensor2flange, data):
     if kind == "points":  # the tests are of its circles (Scorer); the covariance is of the points, as the fit's
         points = observations.build(data.subset(mask), kind, "local", scorer.model.unknowns, robot_sigma, given.centre)
         cov = _fit_statistics(points, points.point_from(s, given.centre))[1]
+    cov = _as_reported(cov, scorer.model.names, data, mask, s, given.centre, "sphere" in unknowns.split("+"))
     whitened = scorer.model.whiten is not None
     noise = (noise_test(ssr, given.m - scorer.model.n, sigma, whitened, [], "")
              if whitened or scorer.kind == "centre" else None)
@@ -233,6 +237,19 @@ def recompute(doc, sensor2flange, data):
                           not_recomputed=(f"not recomputed: the file's effects ({', '.join(effects)}) are beyond the "
                                           "held-pose path, which is of the plain chain" if effects else None))
     return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+
+
+def _as_reported(cov, names, data, mask, sensor2flange, centre, centre_free):
+    """The recomputed covariance as a calibration reports it (one place:
+    :class:`~handeye.app.present.result_parts.UncertaintyRecord`): Student-t scaled to its dof and
+    widened by what the data could not see at the pose (:func:`handeye.app.engine.diagnose.held_power`);
+    a :class:`~handeye.model.common.statistics.Covariance` with that matrix."""
+    record = UncertaintyRecord.of_fit(cov.matrix, names, cov.dof)
+    try:
+        record = record.with_power(held_power(data, mask, sensor2flange, centre, centre_free))
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        pass  # no statement where the plain chain cannot be evaluated at the pose: the fit's sd, t-scaled
+    return dataclasses.replace(cov, matrix=record.covariance)
 
 
 def _vector(value):
