@@ -2,15 +2,16 @@
 ``cloud``, ``validate`` with ``--calibration FILE``): the tool never knows more than it computed.
 
 A ``calibrate --out`` file's fields (``converged``, ``rms_mm``, ``noise_test``, ``covariance``,
-``sensor_mount``, ``dataset_sha256``) are claims. What an output shows of a verdict is computed
-here from the data and the file's pose by the held-pose score path
+``sensor_mount``, ``dataset_sha256``) are claims. What an output shows of a verdict is computed here
+from the data and the file's pose by the held-pose score path
 (:class:`handeye.app.engine.score.Scorer`, what ``calibrate --calibration FILE`` scores with): the
 residuals, RMS, covariance (as a calibration reports it: Student-t scaled and widened by what the
-data could not see at the pose, :mod:`handeye.model.fit.power`) and noise test at the pose held (the sphere centre refitted with it
-when the file's unknowns free it), and one Gauss-Newton step from the pose, whose sum of squares
-tests whether the pose is the data's minimum (:func:`handeye.app.engine.score.f_test`, the rule
-for any part held: the data *contradict* the pose). That is one evaluation of residuals and
-Jacobian, never a calibration (milliseconds; thesis-real 6 ms).
+data could not see at the pose, :mod:`handeye.model.fit.power`) and noise test at the pose held (the
+sphere centre refitted with it when the file's unknowns free it), and one Gauss-Newton step from the
+pose, whose sum of squares tests whether the pose is the data's minimum
+(:func:`handeye.app.engine.score.f_test`, the rule for any part held: the data *contradict* the
+pose). That is one evaluation of residuals and Jacobian, never a calibration (milliseconds;
+thesis-real 6 ms).
 
 Where a field disagrees with what the data give, the file is named as hand-edited or foreign,
 with the field and both values (:class:`Disagreement`, one line). Fatal (the caller exits 2,

@@ -114,7 +114,17 @@ def chosen(request, dataset, result, refit):
         result = _with_effects(request, dataset, result, refit, names, found)
     elif names_differ(found, request) or (found.outliers and not request.outliers):
         result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
-    return with_power(result, found.power)
+    return with_power(result, _statement(result, found, cell_stage.dataset_at(result, dataset)))
+
+
+def _statement(result, found, data):
+    """What the data could not see at ``result``'s pose: the search's statement at its fit for a result
+    with effects, else the plain chain's at the result's own pose and samples
+    (:func:`handeye.app.engine.diagnose.held_power`: what the held verdict of a saved file recomputes)."""
+    if result.effects or not result.converged:
+        return found.power
+    return diagnose.held_power(data, cell_stage.mask_of(result), result.sensor2flange, result.sphere_centre,
+                               "sphere" in result.unknowns.split("+"))
 
 
 def with_power(result, statement):
