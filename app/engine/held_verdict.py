@@ -220,7 +220,7 @@ def recompute(doc, sensor2flange, data):
     if kind == "points":  # the tests are of its circles (Scorer); the covariance is of the points, as the fit's
         points = observations.build(data.subset(mask), kind, "local", scorer.model.unknowns, robot_sigma, given.centre)
         cov = _fit_statistics(points, points.point_from(s, given.centre))[1]
-    cov = _as_reported(cov, scorer.model.names, data, mask, s, given.centre, "sphere" in unknowns.split("+"))
+    cov = _as_reported(cov, scorer, s, given.centre)
     whitened = scorer.model.whiten is not None
     noise = (noise_test(ssr, given.m - scorer.model.n, sigma, whitened, [], "")
              if whitened or scorer.kind == "centre" else None)
@@ -240,14 +240,15 @@ def recompute(doc, sensor2flange, data):
     return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
 
 
-def _as_reported(cov, names, data, mask, sensor2flange, centre, centre_free):
+def _as_reported(cov, scorer, sensor2flange, centre):
     """The recomputed covariance as a calibration reports it (one place:
     :class:`~handeye.app.present.result_parts.UncertaintyRecord`): Student-t scaled to its dof and
     widened by what the data could not see at the pose (:func:`handeye.app.engine.diagnose.held_power`);
-    a :class:`~handeye.model.common.statistics.Covariance` with that matrix."""
-    record = UncertaintyRecord.of_fit(cov.matrix, names, cov.dof)
+    a :class:`~handeye.model.common.statistics.Covariance` with that matrix (``scorer``: the samples
+    and model the verdict is of, :class:`~handeye.app.engine.score.Scorer`)."""
+    record = UncertaintyRecord.of_fit(cov.matrix, scorer.model.names, cov.dof)
     try:
-        record = record.with_power(held_power(data, mask, sensor2flange, centre, centre_free))
+        record = record.with_power(held_power(scorer.dataset, scorer.mask, sensor2flange, centre, scorer.centre_free))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         pass  # no statement where the plain chain cannot be evaluated at the pose: the fit's sd, t-scaled
     return dataclasses.replace(cov, matrix=record.covariance)
