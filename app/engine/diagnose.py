@@ -273,7 +273,8 @@ def held_power(dataset, mask, sensor2flange, centre, centre_unknown, alpha=ALPHA
     """The :func:`power_statement` of a pose held (a saved calibration's, :mod:`handeye.app.engine.held_verdict`)
     on the samples of ``mask``: the plain chain (the sphere centre free with ``centre_unknown``) evaluated
     at the pose, never fitted. ``centre``: the sphere centre (robot base or its mount's frame, mm)."""
-    prob = Samples(dataset)
+    centre = np.asarray(centre if centre is not None else dataset.sphere_centre, float)
+    prob = Samples(dataclasses.replace(dataset, sphere_centre=centre))  # a free centre's start: the one given
     structure = Structure(centre=bool(centre_unknown))
     x = prob.point(structure, np.asarray(sensor2flange, float), centre)
     e, jac, _ = prob.evaluate(structure, x, {})

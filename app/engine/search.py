@@ -123,8 +123,11 @@ def _statement(result, found, data):
     (:func:`handeye.app.engine.diagnose.held_power`: what the held verdict of a saved file recomputes)."""
     if result.effects or not result.converged:
         return found.power
-    return diagnose.held_power(data, cell_stage.mask_of(result), result.sensor2flange, result.sphere_centre,
-                               "sphere" in result.unknowns.split("+"))
+    try:
+        return diagnose.held_power(data, cell_stage.mask_of(result), result.sensor2flange, result.sphere_centre,
+                                   "sphere" in result.unknowns.split("+"))
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return found.power  # the plain chain not evaluable at the pose: the search's statement at its fit
 
 
 def with_power(result, statement):
