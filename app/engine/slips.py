@@ -59,6 +59,9 @@ class Slip:
     name: str
     dataset: object
     fix: str
+    #: Where the slip undone has fewer samples (a pairing shift): the given pairing on as many
+    #: samples, each compared in its place of the given dataset (the lowest RMS of them counts).
+    baseline: tuple = ()
 
 
 def _side_in_files(dataset, side):
@@ -120,6 +123,38 @@ def _candidates(dataset):
         out.append(Slip("positioner angles in radians", dataclasses.replace(d, axis_angles=np.degrees(d.axis_angles)),
                         f"write the positioner axis columns {', '.join(d.mounts.axis_names)} of "
                         f"{d.path / 'measurements.csv'} in degrees"))
+    return out + _pairing_shifts(d)
+
+
+#: The pairing shifts tried (rows): each pose with the next row's measurement, and with the previous one's.
+SHIFTS = (1, -1)
+
+
+def _pairing_shifts(d):
+    """A pairing shift of one row undone (:data:`SHIFTS`), each against the given pairing on as many
+    samples: the rows without the last and without the first (module docstring)."""
+    out, n = [], len(d)
+    if n < 3:
+        return out
+    csv = d.path / "measurements.csv"
+    columns = " and ".join(c for c, used in (("xs, ys, zs", d.reconstructed is None or not all(d.reconstructed)),
+                                             ("profile", d.profiles is not None)) if used)
+    rows = d.rows
+    for step in SHIFTS:
+        pose, meas = (rows[0], rows[1]) if step > 0 else (rows[1], rows[0])
+        way, drop = ("up", "first row's measurement and the last row's pose") if step > 0 else (
+            "down", "last row's measurement and the first row's pose")
+        ends = np.ones(n, bool), np.ones(n, bool)
+        ends[0][-1], ends[1][0] = False, False
+        out.append(Slip(
+            f"a pairing shift, each row's measurement belongs to the pose {'above' if step > 0 else 'below'} it "
+            f"(row {meas}'s measurement to row {pose}'s pose, and so on: the measurements "
+            f"{'lag one row behind' if step > 0 else 'run one row ahead of'} the poses)", d.paired(step),
+            f"move the {columns} column{'s' if ',' in columns else ''} of {csv} {way} one row (dropping the {drop}); "
+            "where `handeye dataset new` made the folder, pair the files again (--pair id with --match, or --pair order "
+            f"with one {'missing' if step > 0 else 'extra'} entry at the start of the pose list or one "
+            f"{'extra' if step > 0 else 'missing'} at the start of the measurements)",
+            baseline=tuple(d.subset(e) for e in ends)))
     return out
 
 
@@ -243,16 +278,30 @@ def _check_slips(dataset, unknowns, rms_given, dof):
         if slip.dataset.sphere_centre is None and unknowns == "sensor":
             continue
         rms = free_axes_rms(slip.dataset, unknowns)
-        if rms is None or rms <= 0 or rms * FACTOR > rms_given or rms > EXPLAINED_RMS_MM:
+        if rms is None or rms <= 0 or rms > EXPLAINED_RMS_MM:
             continue
-        if f_survival((rms_given / rms) ** 2, dof, dof) < P_SLIP and (best is None or rms < best[1]):
-            best = (slip, rms)
+        given, k = _baseline(slip, unknowns, rms_given, dof - 3 * (len(dataset) - len(slip.dataset)))
+        if given is None or k <= 0 or rms * FACTOR > given:
+            continue
+        if f_survival((given / rms) ** 2, k, k) < P_SLIP and (best is None or rms < best[1]):
+            best = (slip, rms, given)
     if best is not None:
-        slip, rms = best
+        slip, rms, given = best
         raise CalibrationInputError(
-            f"{dataset.path}: the data look like a setup slip, {slip.name}: as given, the plain fit of every sample has "
-            f"RMS {rms_given:.3g} mm; with that slip undone, {rms:.3g} mm. {slip.fix[0].upper() + slip.fix[1:]}, "
-            "and calibrate again")
+            f"{dataset.path}: the data look like a setup slip, {slip.name}: as given, the plain fit of "
+            f"{'every sample' if given == rms_given else f'{len(slip.dataset)} samples'} has RMS {given:.3g} mm; with "
+            f"that slip undone, {rms:.3g} mm. {slip.fix[0].upper() + slip.fix[1:]}, and calibrate again")
+
+
+def _baseline(slip, unknowns, rms_given, dof):
+    """The given data's RMS (mm) to compare ``slip`` with, and the degrees of freedom ``dof`` of
+    both fits (the slip undone's): every sample's RMS, or where the slip undone has fewer
+    samples, the lowest of its baselines' on as many (a fair comparison: the same number of
+    samples and unknowns, and the given pairing's best); (None, dof) when not determined."""
+    if not slip.baseline:
+        return rms_given, dof
+    fits = [r for r in (free_axes_rms(b, unknowns) for b in slip.baseline) if r is not None]
+    return (min(fits) if fits else None), dof
 
 
 def _check_conventions(dataset, unknowns, rms_given, dof):
