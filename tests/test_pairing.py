@@ -198,10 +198,10 @@ def _cells(mount, profiles, tmp_path):
 
 
 def test_a_few_cells_of_the_rate_check(tmp_path):
-    """The rate check's cheap sibling: a shifted and a clean cell of profiles, the sphere on the flange (the
-    mount whose shifted tours exited 0 away from the truth)."""
-    for shift, allowed in ((-1, ("named", "refused", "truth")), (0, ("truth",))):
-        truth = ip.make(tmp_path / f"c{shift}", "eye_to_hand", 5300 + shift, n=16, shift=shift, profiles=True)
+    """The rate check's cheap sibling: a shifted cell of profiles with the sphere on the flange (the mount
+    whose shifted tours exited 0 away from the truth) is named; a clean cell of profiles exits 0 at the truth."""
+    for mount, shift, allowed in (("eye_to_hand", -1, ("named",)), ("eye_in_hand", 0, ("truth",))):
+        truth = ip.make(tmp_path / f"c{shift}", mount, 5300 + shift, n=16, shift=shift, profiles=True)
         kind, detail = outcome(truth)
         assert kind in allowed, (shift, kind, detail)
 
