@@ -157,13 +157,12 @@ def _pairing_shifts(d):
     csv = d.path / "measurements.csv"
     columns = " and ".join(c for c, used in (("xs, ys, zs", d.reconstructed is None or not all(d.reconstructed)),
                                              ("profile", d.profiles is not None)) if used)
-    rows = d.rows
+    rows, ends = d.rows, (np.arange(n) < n - 1, np.arange(n) > 0)
+    baseline = tuple(d.subset(e) for e in ends)  # the given pairing without the last row, without the first
     for step in SHIFTS:
         pose, meas = (rows[0], rows[1]) if step > 0 else (rows[1], rows[0])
         way, drop = ("up", "first row's measurement and the last row's pose") if step > 0 else (
             "down", "last row's measurement and the first row's pose")
-        ends = np.ones(n, bool), np.ones(n, bool)
-        ends[0][-1], ends[1][0] = False, False
         out.append(Slip(
             f"a pairing shift, each row's measurement belongs to the pose {'above' if step > 0 else 'below'} it "
             f"(row {meas}'s measurement to row {pose}'s pose, and so on: the measurements "
@@ -172,7 +171,7 @@ def _pairing_shifts(d):
             "where `handeye dataset new` made the folder, pair the files again (--pair id with --match, or --pair order "
             f"with one {'missing' if step > 0 else 'extra'} entry at the start of the pose list or one "
             f"{'extra' if step > 0 else 'missing'} at the start of the measurements)",
-            baseline=tuple(d.subset(e) for e in ends)))
+            baseline=baseline))
     return out
 
 
@@ -318,7 +317,8 @@ def _baseline(slip, unknowns, rms_given, dof):
     samples and unknowns, and the given pairing's best); (None, dof) when not determined."""
     if not slip.baseline:
         return rms_given, dof
-    fits = [r for r in (free_axes_rms(b, unknowns) for b in slip.baseline) if r is not None]
+    fits = [b.once(("free_axes_rms", unknowns), lambda b=b: free_axes_rms(b, unknowns)) for b in slip.baseline]
+    fits = [r for r in fits if r is not None]  # each baseline's fit once (both shifts share them)
     return (min(fits) if fits else None), dof
 
 
