@@ -245,3 +245,20 @@ def test_shifted_cells_never_exit_0_away_from_the_truth(tmp_path, tmp_path_facto
           f"{sum(c['kind'] in ('refused', 'input') for c in clean)} refused for other reasons")
     assert len(shifted) >= 30 and sum(not c["profiles"] for c in clean) >= 30
     assert not [c for c in cells if _wrong(c)]
+
+
+def test_a_constant_step_tour_shifted_fits_exactly_one_step_off():
+    """The module docstring's limit (app/engine/slips.py), numerically: every pose the previous one times
+    one fixed motion D, each pose with the next row's centre: the centre model fits exactly at D X, so no
+    test can tell the shift (nor is it claimed)."""
+    X = im.transform(im.rodrigues([0.2, 1.0, -0.4], 35.0), [60.0, -40.0, 150.0])
+    D = im.transform(im.rodrigues([1.0, -0.3, 0.5], 6.0), [8.0, 3.0, -5.0])
+    M = [im.transform(im.rodrigues([0.0, 1.0, 0.0], 180.0), [900.0, 100.0, 600.0])]
+    for _ in range(11):
+        M.append(M[-1] @ D)
+    M = np.array(M)
+    c = (M[0] @ X @ np.array([5.0, -10.0, 230.0, 1.0]))[:3]
+    seen = np.array([np.linalg.solve(m @ X, np.append(c, 1.0))[:3] for m in M])
+    best = global_fit.centre_minima(M[:-1], seen[1:], c).best
+    assert best.cost < 1e-12
+    np.testing.assert_allclose(best.sensor2flange, D @ X, atol=1e-6)
