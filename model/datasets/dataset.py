@@ -243,6 +243,33 @@ class Dataset(FlangePoses):
                 out.__dict__[key] = rows
         return out
 
+    def paired(self, step):
+        """The dataset with each row's pose paired with the measurement ``step`` rows below it
+        (``step`` = +1: row i's pose with row i+1's measurement; -1: with row i-1's), one sample
+        per pose that has such a row (``len(self) - |step|``).
+
+        The pose side -- ``flange_poses``, ``raw_poses``, ``axis_angles``, ``joints`` (what the
+        robot and the positioner report) and ``ids``, ``rows`` (a row's id names its pose, as
+        ``dataset new --pair id`` matches profile names to pose ids; its line is the pose's) --
+        stays; the measurement side -- ``centre_in_sensor``, ``profiles``, ``raw_profiles``,
+        ``cleaning``, ``reconstructed`` (what the sensor reports) -- moves.
+        """
+        n, step = len(self), int(step)
+        if step == 0 or abs(step) >= n:
+            raise ValueError(f"a pairing step of {step} rows on {n} rows")
+        poses = np.arange(max(0, -step), n - max(0, step))
+        mask = np.zeros(n, bool)
+        mask[poses] = True
+        measured = np.zeros(n, bool)
+        measured[poses + step] = True
+        posed, m = self.subset(mask), self.subset(measured)
+        out = dataclasses.replace(posed, centre_in_sensor=m.centre_in_sensor, profiles=m.profiles,
+                                  raw_profiles=m.raw_profiles, cleaning=m.cleaning, reconstructed=m.reconstructed)
+        for key in ("_flange2base", "_motions"):  # the pose side's, computed already: kept
+            if key in posed.__dict__:
+                out.__dict__[key] = posed.__dict__[key]
+        return out
+
     def content_hash(self):
         """SHA-256 of the files that make the dataset (setup, measurements, profiles)."""
         return folder_hash(self.path, self.profile_files)
