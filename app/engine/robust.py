@@ -1,23 +1,36 @@
 """Bad samples: a robust first pass, then a statistical test on the least-squares fit.
 
-1. **Robust pass.** Iteratively reweighted least squares with Cauchy's loss on the residual
-   norms, ``w_i = 1 / (1 + (|e_i| / k)^2)``, ``k = 2.385 sqrt(3) sigma`` (95 % efficiency per
-   component), with the robust scale ``sigma = median |e_i| / median(chi_3)``. A single
-   gross error (the thesis's misprint of 2 m) cannot pull this fit.
-2. **Screening.** A sample whose robust residual is improbable under ``|e|^2 / sigma^2 ~
+Every step judges a sample's centre residual ``e_i`` (mm, robot base) in the model's own metric,
+whitened by its covariance ``C_i`` (:func:`handeye.model.datasets.observations.centre_whitening`):
+``W_i e_i`` with ``W_i^T W_i = C_i^-1``, where ``C_i`` is the circle fit's covariance of a centre
+reconstructed from its profile plus the robot's repeatability, and the stated isotropic noise of a
+centre the sensor reported. Centres rebuilt from profiles are neither equal nor isotropic (near
+the sphere's equator y's sd is many times x's and z's); a test that took them as equal called the
+centres with a large sd gross errors (27 of 51 clean profile-only cells lost 1-5 good samples at
+``--alpha 0.01``). Where no centre was rebuilt every ``C_i`` is the same multiple of I and the
+metric is the plain one.
+
+1. **Robust pass.** Iteratively reweighted least squares with Cauchy's loss on the whitened
+   residual norms, ``w_i = 1 / (1 + (|W_i e_i| / k)^2)``, ``k = 2.385 sqrt(3) sigma`` (95 %
+   efficiency per component), with the robust scale ``sigma = median |W_i e_i| / median(chi_3)``.
+   A single gross error (the thesis's misprint of 2 m) cannot pull this fit.
+2. **Screening.** A sample whose robust residual is improbable under ``|W_i e_i|^2 / sigma^2 ~
    chi^2_3`` after a Bonferroni correction over the N samples starts out excluded.
 3. **Test on the fit.** Least squares on the remaining samples; externally studentised
-   deletion statistics for every sample (:func:`handeye.model.common.statistics.deletion_statistics`),
-   Bonferroni-adjusted. The worst significant fitted sample is excluded, or the most
+   deletion statistics for every sample (:func:`handeye.model.common.statistics.deletion_statistics`
+   on the whitened residuals and Jacobians: the generalised least-squares F, its scale estimated
+   from the fit), Bonferroni-adjusted. The worst significant fitted sample is excluded, or the most
    plausible excluded sample reinstated, one at a time, until no change is called for.
 
-Nothing is excluded silently: every excluded sample is returned with its residual, its
-statistic, its adjusted p-value and the reason. Exclusion stops before fewer than half the
-samples (or fewer than the unknowns need) would remain; the result then says so.
+Nothing is excluded silently: every excluded sample is returned with its residual (mm), its
+statistic, its adjusted p-value and the reason (with its profile file when it has one).
+Exclusion stops before fewer than half the samples (or fewer than the unknowns need) would
+remain; the result then says so.
 """
 from __future__ import annotations
 
 import dataclasses
+import pathlib
 
 import numpy as np
 
@@ -37,6 +50,7 @@ from handeye.app.engine.deletion import (  # noqa: F401 - LOO_* and the helpers 
 from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
 from handeye.model.common.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
+from handeye.model.datasets import observations
 from handeye.model.fit import global_fit
 from handeye.model.fit.calibration import CalibrationModel
 
@@ -119,13 +133,87 @@ def robust_fit(model, x0, max_rounds=50):
     sigma = np.nan
     for _ in range(max_rounds):
         x = weighted_fit(model, x, weights)
-        norms = np.linalg.norm(model.residuals(x), axis=1)
+        norms = whitened_norms(model, x)
         sigma = max(float(np.median(norms)) / med3, 1e-12)
         new = 1.0 / (1.0 + (norms / (CAUCHY_K * sigma)) ** 2)
         change, weights = np.max(np.abs(new - weights)), new
         if change < 1e-6:
             break
     return x, sigma, weights
+
+
+def whitened_norms(model, x):
+    """``|W_i e_i|`` (N,) of a centre model's rows at ``x``: mm without whitening."""
+    return np.linalg.norm(model.residual(x).reshape(model.n_meas, -1), axis=1)
+
+
+def screening_model(dataset, unknowns, sensor2flange, chain_sd, profile_cov=None):
+    """The centre model of every sample of ``dataset`` on the local chart, whitened by each
+    centre's covariance (module docstring).
+
+    Parameters
+    ----------
+    dataset : handeye.model.datasets.dataset.Dataset
+    unknowns : {'sensor', 'sensor+sphere'}
+    sensor2flange : ndarray, shape (4, 4)
+        The sensor pose that turns a centre's covariance from the sensor frame into the robot
+        base (where the residual is), mm.
+    chain_sd : float
+        The isotropic sd of a centre through the chain (robot, and a reported centre's own), mm.
+    profile_cov : ndarray, shape (N, 3, 3), optional
+        :func:`handeye.model.datasets.observations.profile_covariance` of ``dataset`` (sensor frame,
+        mm^2); None: no centre was rebuilt, no whitening.
+    """
+    whiten = None
+    if profile_cov is not None:
+        w = observations.whitening(profile_cov + max(chain_sd, CHAIN_SD_FLOOR_MM) ** 2 * np.eye(3))
+        turn = dataset.motions()[:, :3, :3] @ np.asarray(sensor2flange, float)[:3, :3]  # sensor frame -> base
+        whiten = np.einsum("nij,nkj->nik", w, turn)  # W_i R_i^T: (R C R^T)^-1 = (W R^T)^T (W R^T)
+    return CalibrationModel(dataset.motions(), dataset.centre_in_sensor, dataset.sphere_centre, "local", unknowns,
+                            whiten=whiten)
+
+
+#: The chain's isotropic sd in the screening metric is estimated from the data (:func:`chain_sd`);
+#: this floor (0.1 micron, below any robot's repeatability) only keeps the covariances invertible
+#: where a centre has no profile part.
+CHAIN_SD_FLOOR_MM = 1e-4
+
+
+def chain_sd(e_sensor, profile_cov, n_params):
+    """The isotropic sd (mm) of the chain's part of the centres' covariance that makes their
+    residuals' whitened sum of squares its expectation: ``sum_i e_i^T (A_i + s^2 I)^-1 e_i =
+    3 n - p`` (``A_i`` the profile's part; the left side falls as s grows), at least
+    :data:`CHAIN_SD_FLOOR_MM`.
+
+    Why estimated, not the stated ``[noise] robot_mm``: the stated repeatability is a bound (the
+    KR 60 HA's +-0.05 mm read as 2 sigma), a calibration run's robot often does better, and the
+    metric's shape (how much more a centre near the equator may err than one near the pole)
+    rests on the ratio of the two parts: with 0.025 mm stated where the robot gave 0.008 mm, a
+    rebuilt centre 1.7 of its own sd off tested as F ~ 60 against the others (indep_arcs seed 8).
+
+    Parameters
+    ----------
+    e_sensor : ndarray, shape (n, 3)
+        Residuals of the samples trusted (the robust pass's probable ones), turned into the
+        sensor frame, mm.
+    profile_cov : ndarray, shape (n, 3, 3)
+        Their profile parts, mm^2.
+    n_params : int
+        The fit's unknowns.
+    """
+    lam, u = np.linalg.eigh(profile_cov)
+    proj = np.einsum("nkj,nk->nj", u, e_sensor) ** 2  # the residual along each principal axis, squared
+    target = max(e_sensor.size - n_params, 1)
+    lo, hi = CHAIN_SD_FLOOR_MM**2, max(float(proj.sum()) / target, CHAIN_SD_FLOOR_MM**2)
+    with np.errstate(divide="ignore"):
+        if np.sum(proj / (lam + lo)) <= target:
+            return CHAIN_SD_FLOOR_MM
+    for _ in range(100):  # bisection on log s^2: the root lies in [lo, hi]
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if np.sum(proj / (lam + mid)) > target else (lo, mid)
+        if hi <= lo * (1 + 1e-6):
+            break
+    return float(np.sqrt(hi))
 
 
 def n_samples(model):
@@ -259,7 +347,7 @@ def _deletion(model, x, fitted, chunk=None):
     return deletion_statistics_chunked(lambda: model.chunks(x, chunk), fitted, n_tests=model.n_meas)
 
 
-def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
+def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None, robot_sigma=None):
     """Find gross errors (module docstring).
 
     Parameters
@@ -273,20 +361,44 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None):
         Family-wise significance level.
     min_keep : int, optional
         Never keep fewer samples; default ``max(N // 2 + 1, 4)``.
+    robot_sigma : float, optional
+        The robot's repeatability per axis (mm) in the covariance of a centre rebuilt from its
+        profile; default the dataset's ``[noise] robot_mm``.
 
     Returns
     -------
     Screening
     """
-    full = CalibrationModel.from_dataset(dataset, "local", unknowns)
-    n = full.n_meas
+    n = len(dataset)
     min_keep = min(min_keep or max(n // 2 + 1, 4), n)
-    x_rob, sigma, _ = robust_fit(full, full.point_from(start))
-    norms = np.linalg.norm(full.residuals(x_rob), axis=1)
+    full, x_rob, sigma = _robust_metric_fit(dataset, unknowns, start, robot_sigma, (alpha, min_keep))
+    norms = whitened_norms(full, x_rob)
     inliers, note = _robust_inliers(norms, sigma, alpha, min_keep)
     x, stopped = _test_on_the_fit(full, x_rob, inliers, alpha, min_keep)
-    return Screening(inliers=inliers, excluded=_screened_out(dataset, full, x, inliers, norms, alpha),
+    robust_mm = np.linalg.norm(full.residuals(x_rob), axis=1)
+    return Screening(inliers=inliers, excluded=_screened_out(dataset, full, x, inliers, robust_mm, alpha),
                      robust_sensor2flange=full.sensor2flange(x_rob), note=note or stopped)
+
+
+def _robust_metric_fit(dataset, unknowns, start, robot_sigma, level):
+    """The robust pass (step 1 of the module docstring) in the samples' metric: with the stated
+    repeatability ``robot_sigma`` (mm; default the dataset's) as the chain's part first, then, where
+    centres were rebuilt from profiles, with the part the robust fit's probable samples show
+    (:func:`chain_sd`; ``level`` is ``(alpha, min_keep)`` of :func:`_robust_inliers`); the model, the
+    robust fit and its scale."""
+    cov = observations.profile_covariance(dataset)
+    chain = getattr(dataset, "noise_robot_mm", observations.ROBOT_SIGMA) if robot_sigma is None else float(robot_sigma)
+    full = screening_model(dataset, unknowns, start, chain, cov)
+    x_rob, sigma, _ = robust_fit(full, full.point_from(start))
+    if cov is None:
+        return full, x_rob, sigma
+    ok, _ = _robust_inliers(whitened_norms(full, x_rob), sigma, *level)
+    turn = dataset.motions()[:, :3, :3] @ full.sensor2flange(x_rob)[:3, :3]
+    e_sensor = np.einsum("nji,nj->ni", turn, full.residuals(x_rob))  # R_i^T e_i
+    chain = chain_sd(e_sensor[ok], cov[ok], full.n)
+    full = screening_model(dataset, unknowns, full.sensor2flange(x_rob), chain, cov)
+    x_rob, sigma, _ = robust_fit(full, x_rob)
+    return full, x_rob, sigma
 
 
 def _robust_inliers(norms, sigma, alpha, min_keep):
@@ -345,14 +457,33 @@ def _exclude_or_reinstate(inliers, stat, adj, alpha, min_keep):
 
 def _screened_out(dataset, full, x, inliers, norms, alpha):
     """The records of the samples not in ``inliers``, by the deletion test at the final fit ``x``
-    (``norms`` their robust residuals)."""
-    stat, adj, e = _deletion(full, x, inliers)
+    (``norms`` their robust residuals, mm)."""
+    stat, adj, _ = _deletion(full, x, inliers)
+    e = np.linalg.norm(full.residuals(x), axis=1)  # mm (the test's residuals are whitened)
+    metric = "" if full.whiten is None else ", each centre weighted by its covariance"
     return [ExcludedSample(
-        id=dataset.ids[k], row=int(dataset.rows[k]), residual_mm=float(np.linalg.norm(e[k])),
+        id=dataset.ids[k], row=int(dataset.rows[k]), residual_mm=float(e[k]),
         robust_residual_mm=float(norms[k]), statistic=float(stat[k]), p_bonferroni=float(adj[k]),
-        reason=(f"prediction error {np.linalg.norm(e[k]):.2f} mm is improbable under the fit of the other "
-                f"samples (F = {stat[k]:.1f}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"))
+        reason=(f"prediction error {e[k]:.2f} mm{profile_named(dataset, k)} is improbable under the fit of the other "
+                f"samples (F = {stat[k]:.1f}{metric}, Bonferroni p = {adj[k]:.2g} < {alpha:g})"))
         for k in np.where(~inliers)[0]]
+
+
+def profile_named(dataset, k):
+    """`` (its profile FILE)`` for sample ``k`` of ``dataset`` when it names a profile file (the
+    path relative to the dataset's folder where it lies inside), else empty."""
+    files = getattr(dataset, "profile_of", None)
+    if files is None or len(files) != len(dataset) or files[k] is None:
+        return ""
+    return f" (its profile {profile_path(dataset, files[k])})"
+
+
+def profile_path(dataset, file):
+    """``file`` relative to the dataset's folder when inside it, else as it is."""
+    try:
+        return str(pathlib.Path(file).relative_to(pathlib.Path(dataset.path).resolve()))
+    except ValueError:
+        return str(file)
 
 
 #: Up to this many samples leave-one-out refits every sample exactly; above, the deletion formula

@@ -166,6 +166,9 @@ class Dataset(FlangePoses):
         in the frame of the profiles (laser plane y = 0) that the calibration is of; None: the same.
         ``start_pose`` and ``sensor_pose`` are of handeye's frame (turned on load); the results
         turn the calibrated pose back to the own frame (:mod:`handeye.model.chain.own_frame`).
+    profile_of : tuple or None
+        Per measurement the profile file it names (a resolved path) or None; None when no row
+        names one. What a message about a profile names.
     poses_read : str or None
         How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
         with ``own_axes`` and no ``poses = "own"``: in handeye's turned frame), else None.
@@ -204,6 +207,7 @@ class Dataset(FlangePoses):
     cleaning: tuple | None = None
     own_axes: np.ndarray | None = None
     poses_read: str | None = None
+    profile_of: tuple | None = None
 
     @functools.cached_property
     def _once(self):
@@ -231,6 +235,7 @@ class Dataset(FlangePoses):
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
             raw_profiles=None if self.raw_profiles is None else tuple(p for p, k in zip(self.raw_profiles, mask) if k),
             cleaning=None if self.cleaning is None else tuple(c for c, k in zip(self.cleaning, mask) if k),
+            profile_of=None if self.profile_of is None else tuple(f for f, k in zip(self.profile_of, mask) if k),
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
@@ -357,7 +362,7 @@ def _read_rows(folder, st, limits, clean=True):
         if any(f.strip() for f in fields):
             for column, value in zip(out, reader.row(line, fields, seen)):
                 column.append(value)
-    return (*out[:6], [f for f in out[6] if f is not None], *out[7:])
+    return (*out[:6], list(out[6]), *out[7:])
 
 
 def _header(table, file, convention, axes):
@@ -533,7 +538,8 @@ def load(name_or_path, clean=True):
         raw_profiles=tuple(raw_profiles) if any(p is not None for p in profiles) else None,
         cleaning=tuple(cleaning) if clean and any(p is not None for p in profiles) else None,
         reconstructed=tuple(reconstructed),
-        profile_files=tuple(sorted(set(profile_files))),
+        profile_files=tuple(sorted({f for f in profile_files if f is not None})),
+        profile_of=tuple(profile_files) if any(f is not None for f in profile_files) else None,
         raw_poses=np.array(raw, dtype=float),
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),

@@ -13,6 +13,10 @@ Three residual models (:mod:`handeye.model.fit.calibration`):
 
 The robot's repeatability (``robot_sigma``, mm per axis, default 0.025 mm: the KR 60 HA's
 +-0.05 mm read as 2 sigma) is an assumption, stated in every result that uses it.
+
+The gross-error test (:mod:`handeye.app.engine.robust`) judges every sample in this metric too:
+a centre reconstructed from its profile carries its circle fit's covariance
+(:func:`profile_covariance`) plus an isotropic part, the chain's.
 """
 from __future__ import annotations
 
@@ -68,6 +72,37 @@ def circle_noise(cov_circle, r, radius, robot_sigma):
     isotropically and so the radius residual by ``-(p_y / r) dp_y``."""
     y_squared = max(radius**2 - r**2, 1e-12)
     return cov_circle + robot_sigma**2 * np.diag([1.0, 1.0, y_squared / r**2])
+
+
+def profile_covariance(dataset):
+    """The part of each sphere centre's covariance that its profile gives (N, 3, 3), or None
+    when no centre was reconstructed from its profile.
+
+    Parameters
+    ----------
+    dataset : handeye.model.datasets.dataset.Dataset
+
+    Returns
+    -------
+    ndarray, shape (N, 3, 3), or None
+        For a centre reconstructed from its profile the circle fit's covariance (the profile's
+        own scatter, :func:`handeye.model.geometry.circle.circle_covariance`) propagated to the
+        centre (:func:`handeye.model.geometry.circle.centre_covariance`), sensor frame, mm^2; zero
+        for a centre the sensor reported (its noise is the chain's, isotropic). Computed once per
+        dataset.
+    """
+    rebuilt = np.asarray(getattr(dataset, "reconstructed", None) or (False,) * len(dataset), bool)
+    if getattr(dataset, "profiles", None) is None or not rebuilt.any():
+        return None
+
+    def compute():
+        cov = np.zeros((len(dataset), 3, 3))
+        circ, covs = circles(dataset.subset(rebuilt))
+        radius = dataset.sphere_diameter / 2
+        cov[rebuilt] = [circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)]
+        return cov
+
+    return dataset.once("profile_covariance", compute) if hasattr(dataset, "once") else compute()
 
 
 def whitening(cov):
