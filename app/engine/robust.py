@@ -125,12 +125,16 @@ def weighted_fit(model, x0, weights, max_iter=100):
     return solvers.solve(_weighted_problem(model, weights), x0, "lm", {"max_iter": max_iter}).x
 
 
-def robust_fit(model, x0, max_rounds=50):
-    """IRLS with Cauchy weights (module docstring); returns (x, sigma, weights)."""
+def robust_fit(model, x0, max_rounds=50, warm=False):
+    """IRLS with Cauchy weights (module docstring); returns (x, sigma, weights). ``warm``: ``x0`` is
+    a robust fit already (in another metric): the first weights are those at ``x0``, not all ones."""
     x = np.asarray(x0, float)
     weights = np.ones(model.n_meas)
     med3 = chi_median(3)
     sigma = np.nan
+    if warm:
+        norms = whitened_norms(model, x)
+        weights = 1.0 / (1.0 + (norms / (CAUCHY_K * max(float(np.median(norms)) / med3, 1e-12))) ** 2)
     for _ in range(max_rounds):
         x = weighted_fit(model, x, weights)
         norms = whitened_norms(model, x)
@@ -261,7 +265,8 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     -------
     mask : ndarray of bool, shape (N,)
     excluded : list of ExcludedSample
-        The inconsistent rows first (``statistic`` the chi-square on 3 dof of the row against
+        The rows set aside on load because their profile is no arc of the sphere first
+        (:func:`not_arc_records`; not among the N samples), then the inconsistent rows (``statistic`` the chi-square on 3 dof of the row against
         itself, ``residual_mm`` and ``robust_residual_mm`` NaN: no fit is involved; the
         screening's numbers where it excluded the row too), then the others.
 
@@ -275,13 +280,25 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     from handeye.app.engine.request import min_measurements
     from handeye.model.datasets import consistency
 
+    aside = not_arc_records(dataset)  # rows set aside on load: no sample, named here with the rest
     check = dataset.once("row_consistency", lambda: consistency.check_rows(dataset))
     if not check.inconsistent:
-        return mask, excluded
+        return mask, aside + list(excluded)
     keep = np.asarray(mask, bool) & check.consistent
     if len(check.inconsistent) > len(dataset) // 2 or keep.sum() < min_measurements(unknowns):
         raise _contradiction_error(dataset, check, keep, unknowns)
-    return keep, _contradiction_records(check.inconsistent, excluded)
+    return keep, aside + _contradiction_records(check.inconsistent, excluded)
+
+
+def not_arc_records(dataset):
+    """The records (list of ExcludedSample) of the rows ``dataset`` set aside on load because their
+    profile is no arc of the stated sphere (:mod:`handeye.model.datasets.arcs`): residuals NaN (they
+    give no centre), the one-circle test's F and p where it decided."""
+    return [ExcludedSample(
+        id=b.id, row=b.row, residual_mm=float("nan"), robust_residual_mm=float("nan"), statistic=b.statistic,
+        p_bonferroni=b.p_bonferroni,
+        reason=f"row {b.row}: its profile {b.file} is not an arc of the {dataset.sphere_diameter:g} mm sphere: {b.reason}")
+        for b in getattr(dataset, "not_arcs", ())]
 
 
 def with_geometry(dataset, excluded):
@@ -381,23 +398,24 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None, robot_sigma=Non
 
 
 def _robust_metric_fit(dataset, unknowns, start, robot_sigma, level):
-    """The robust pass (step 1 of the module docstring) in the samples' metric: with the stated
-    repeatability ``robot_sigma`` (mm; default the dataset's) as the chain's part first, then, where
-    centres were rebuilt from profiles, with the part the robust fit's probable samples show
-    (:func:`chain_sd`; ``level`` is ``(alpha, min_keep)`` of :func:`_robust_inliers`); the model, the
-    robust fit and its scale."""
+    """The robust pass (step 1 of the module docstring) in the samples' metric; the model, the
+    robust fit and its scale. Where centres were rebuilt from profiles the chain's part of their
+    covariance is the one the plain robust fit's probable samples show (:func:`chain_sd`; ``level``
+    is ``(alpha, min_keep)`` of :func:`_robust_inliers`), at least ``robot_sigma`` (mm, default the
+    dataset's ``[noise] robot_mm``) when those samples are too few to say."""
     cov = observations.profile_covariance(dataset)
-    chain = getattr(dataset, "noise_robot_mm", observations.ROBOT_SIGMA) if robot_sigma is None else float(robot_sigma)
-    full = screening_model(dataset, unknowns, start, chain, cov)
-    x_rob, sigma, _ = robust_fit(full, full.point_from(start))
+    plain = screening_model(dataset, unknowns, start, 0.0)
+    x_rob, sigma, _ = robust_fit(plain, plain.point_from(start))  # exact and fast (one SVD per round)
     if cov is None:
-        return full, x_rob, sigma
-    ok, _ = _robust_inliers(whitened_norms(full, x_rob), sigma, *level)
-    turn = dataset.motions()[:, :3, :3] @ full.sensor2flange(x_rob)[:3, :3]
-    e_sensor = np.einsum("nji,nj->ni", turn, full.residuals(x_rob))  # R_i^T e_i
-    chain = chain_sd(e_sensor[ok], cov[ok], full.n)
-    full = screening_model(dataset, unknowns, full.sensor2flange(x_rob), chain, cov)
-    x_rob, sigma, _ = robust_fit(full, x_rob)
+        return plain, x_rob, sigma
+    ok, _ = _robust_inliers(whitened_norms(plain, x_rob), sigma, *level)
+    pose = plain.sensor2flange(x_rob)
+    turn = dataset.motions()[:, :3, :3] @ pose[:3, :3]
+    e_sensor = np.einsum("nji,nj->ni", turn, plain.residuals(x_rob))  # R_i^T e_i
+    chain = (chain_sd(e_sensor[ok], cov[ok], plain.n) if ok.sum() * 3 > 2 * plain.n else
+             getattr(dataset, "noise_robot_mm", observations.ROBOT_SIGMA) if robot_sigma is None else float(robot_sigma))
+    full = screening_model(dataset, unknowns, pose, chain, cov)
+    x_rob, sigma, _ = robust_fit(full, x_rob, warm=True)
     return full, x_rob, sigma
 
 

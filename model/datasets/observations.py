@@ -86,7 +86,8 @@ def profile_covariance(dataset):
     -------
     ndarray, shape (N, 3, 3), or None
         For a centre reconstructed from its profile the circle fit's covariance (the profile's
-        own scatter, :func:`handeye.model.geometry.circle.circle_covariance`) propagated to the
+        own scatter, :func:`handeye.model.geometry.circle.circle_covariance`, evaluated at the
+        Hyper circle the centre was reconstructed from) propagated to the
         centre (:func:`handeye.model.geometry.circle.centre_covariance`), sensor frame, mm^2; zero
         for a centre the sensor reported (its noise is the chain's, isotropic). Computed once per
         dataset.
@@ -97,7 +98,7 @@ def profile_covariance(dataset):
 
     def compute():
         cov = np.zeros((len(dataset), 3, 3))
-        circ, covs = circles(dataset.subset(rebuilt))
+        circ, covs = circles(dataset.subset(rebuilt), "hyper")  # the covariance at the Hyper circle: no iterations
         radius = dataset.sphere_diameter / 2
         cov[rebuilt] = [circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)]
         return cov
