@@ -9,6 +9,8 @@ as a sphere calibrated at RMS 5 mm and exit 0). Two checks, each against the noi
 circle fit already has (independent points about one circle, their scatter estimated from the
 profile itself):
 
+0. **Scatter.** Its points scatter about their circle by more than :data:`MAX_SCATTER_MM` RMS:
+   no sensor's noise on a sphere does (speckle or background an uncleaned profile kept).
 1. **Wider than the sphere.** The fitted circle's radius exceeds R by more than its tolerance
    (:data:`RADIUS_TOL`, :data:`RADIUS_BAND_MM`, the cleaning's, :mod:`handeye.model.geometry.profile_clean`):
    no plane cuts this sphere so (a straight line is a circle of radius ~infinity).
@@ -53,6 +55,10 @@ MIN_FORM_MM = 0.02
 #: A circle is wider than the sphere when ``r > R (1 + RADIUS_TOL) + RADIUS_BAND_MM`` (the cleaning's rule).
 RADIUS_TOL = profile_clean.RADIUS_TOL
 RADIUS_BAND_MM = profile_clean.BAND_MM
+#: A profile whose points scatter more than this RMS about their circle (mm) is no arc: the
+#: cleaning's window (:data:`profile_clean.WINDOW_MM`, the distances it takes for an arc's scale);
+#: real profiles scatter 0.01 mm (RobCalibrator's R 40 mm scanner) to 0.17 mm (its 1-in ball's).
+MAX_SCATTER_MM = profile_clean.WINDOW_MM
 #: A half of the arc is flatter than any cut of the sphere when its own circle's radius exceeds
 #: HALF_WIDER R (module docstring).
 HALF_WIDER = 1.5
@@ -156,6 +162,11 @@ def check(points, radius, n_tests=1, alpha=ALPHA, min_form_mm=MIN_FORM_MM):
         form, f_stat, p, fitted, half = one_circle(pts)
     except circle.CircleFitError as exc:
         return ArcVerdict(False, f"no circle fits its {len(pts)} points ({exc})", float("inf"))
+    scatter = float(np.sqrt(np.mean(circle.distance_jacobian(pts[:, 0], pts[:, 1], fitted)[0] ** 2)))
+    if scatter > MAX_SCATTER_MM:
+        return ArcVerdict(False, f"its points scatter {scatter:.3g} mm RMS about their circle, more than "
+                                 f"{MAX_SCATTER_MM:g} mm: not one arc (speckle, background, another object)",
+                          fitted.r, form, f_stat, p)
     wide = radius * (1 + RADIUS_TOL) + RADIUS_BAND_MM
     if fitted.r > wide:
         return ArcVerdict(False, f"fitted circle radius {fitted.r:.3f} mm exceeds the sphere radius {radius:.3f} mm "
