@@ -3,8 +3,9 @@
 
 The poses, the sensor mount and the sphere come from :func:`indep_cells.make_cell` (its exact
 centres in the sensor frame, ``true_points``, drawn as for centre-only cells: ``|ys|`` from 0.08 R
-to 0.9 R, so that some cuts lie near the equator, where the centre's y is poorly determined); the profiles are drawn here, another way than
-``indep_cells`` draws them, from the physics of a laser-line triangulation sensor:
+to 0.9 R, so that some cuts lie near the equator, where the centre's y is poorly determined); the
+profiles are drawn here, another way than ``indep_cells`` draws them, from the physics of a
+laser-line triangulation sensor:
 
 * the laser plane is the sensor's y = 0; it cuts the sphere (radius R, centre ``p = (xs, ys, zs)``
   in the sensor frame after the robot's repeatability moved it by ``N(0, robot_sd^2)`` per

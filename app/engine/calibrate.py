@@ -110,10 +110,8 @@ def screen(prep):
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
     if request.outliers:
         start = transform_from_pose(prep.start_pose)
-        screening = (effect_screen.screen_with_effects(dataset, unknowns, start, request.effects, alpha=request.alpha,
-                                                       robot_sigma=request.robot_sigma)
-                     if request.effects else robust.screen(dataset, unknowns, start, alpha=request.alpha,
-                                                           robot_sigma=request.robot_sigma))
+        screening = (effect_screen.screen_with_effects(dataset, unknowns, start, request.effects, alpha=request.alpha)
+                     if request.effects else robust.screen(dataset, unknowns, start, alpha=request.alpha))
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []
     mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves

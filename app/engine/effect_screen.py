@@ -71,7 +71,7 @@ def corrected(dataset, params):
     return out
 
 
-def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, min_keep=None, robot_sigma=None):
+def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, min_keep=None):
     """:func:`handeye.app.engine.robust.screen` against the model with the data effects ``effects``.
 
     A sample is judged on its centre corrected by the effects of a robust preliminary fit
@@ -87,8 +87,6 @@ def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, m
     effects : sequence of str
     alpha : float
     min_keep : int, optional
-    robot_sigma : float, optional
-        Robot repeatability per axis, mm (:func:`~handeye.app.engine.robust.screen`).
 
     Returns
     -------
@@ -96,5 +94,4 @@ def screen_with_effects(dataset, unknowns, start, effects, alpha=robust.ALPHA, m
     """
     effects = [e for e in effects if catalogue.get(e).KIND == "data"]  # a robot effect moves poses, not centres
     fixed = corrected(dataset, robust_effects(dataset, unknowns, start, effects)) if effects else None
-    return robust.screen(dataset if fixed is None else fixed, unknowns, start, alpha=alpha, min_keep=min_keep,
-                         robot_sigma=robot_sigma)
+    return robust.screen(dataset if fixed is None else fixed, unknowns, start, alpha=alpha, min_keep=min_keep)

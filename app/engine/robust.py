@@ -30,7 +30,6 @@ remain; the result then says so.
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 
 import numpy as np
 
@@ -51,6 +50,7 @@ from handeye.app.engine.problems import chunked
 from handeye.app.present.results import ExcludedSample
 from handeye.model.common.statistics import bonferroni_survival, chi_median, deletion_statistics, deletion_statistics_chunked
 from handeye.model.datasets import observations
+from handeye.model.datasets.dataset import relative_name
 from handeye.model.fit import global_fit
 from handeye.model.fit.calibration import CalibrationModel
 
@@ -151,75 +151,6 @@ def whitened_norms(model, x):
     return np.linalg.norm(model.residual(x).reshape(model.n_meas, -1), axis=1)
 
 
-def screening_model(dataset, unknowns, sensor2flange, chain_sd, profile_cov=None):
-    """The centre model of every sample of ``dataset`` on the local chart, whitened by each
-    centre's covariance (module docstring).
-
-    Parameters
-    ----------
-    dataset : handeye.model.datasets.dataset.Dataset
-    unknowns : {'sensor', 'sensor+sphere'}
-    sensor2flange : ndarray, shape (4, 4)
-        The sensor pose that turns a centre's covariance from the sensor frame into the robot
-        base (where the residual is), mm.
-    chain_sd : float
-        The isotropic sd of a centre through the chain (robot, and a reported centre's own), mm.
-    profile_cov : ndarray, shape (N, 3, 3), optional
-        :func:`handeye.model.datasets.observations.profile_covariance` of ``dataset`` (sensor frame,
-        mm^2); None: no centre was rebuilt, no whitening.
-    """
-    whiten = None
-    if profile_cov is not None:
-        w = observations.whitening(profile_cov + max(chain_sd, CHAIN_SD_FLOOR_MM) ** 2 * np.eye(3))
-        turn = dataset.motions()[:, :3, :3] @ np.asarray(sensor2flange, float)[:3, :3]  # sensor frame -> base
-        whiten = np.einsum("nij,nkj->nik", w, turn)  # W_i R_i^T: (R C R^T)^-1 = (W R^T)^T (W R^T)
-    return CalibrationModel(dataset.motions(), dataset.centre_in_sensor, dataset.sphere_centre, "local", unknowns,
-                            whiten=whiten)
-
-
-#: The chain's isotropic sd in the screening metric is estimated from the data (:func:`chain_sd`);
-#: this floor (0.1 micron, below any robot's repeatability) only keeps the covariances invertible
-#: where a centre has no profile part.
-CHAIN_SD_FLOOR_MM = 1e-4
-
-
-def chain_sd(e_sensor, profile_cov, n_params):
-    """The isotropic sd (mm) of the chain's part of the centres' covariance that makes their
-    residuals' whitened sum of squares its expectation: ``sum_i e_i^T (A_i + s^2 I)^-1 e_i =
-    3 n - p`` (``A_i`` the profile's part; the left side falls as s grows), at least
-    :data:`CHAIN_SD_FLOOR_MM`.
-
-    Why estimated, not the stated ``[noise] robot_mm``: the stated repeatability is a bound (the
-    KR 60 HA's +-0.05 mm read as 2 sigma), a calibration run's robot often does better, and the
-    metric's shape (how much more a centre near the equator may err than one near the pole)
-    rests on the ratio of the two parts: with 0.025 mm stated where the robot gave 0.008 mm, a
-    rebuilt centre 1.7 of its own sd off tested as F ~ 60 against the others (indep_arcs seed 8).
-
-    Parameters
-    ----------
-    e_sensor : ndarray, shape (n, 3)
-        Residuals of the samples trusted (the robust pass's probable ones), turned into the
-        sensor frame, mm.
-    profile_cov : ndarray, shape (n, 3, 3)
-        Their profile parts, mm^2.
-    n_params : int
-        The fit's unknowns.
-    """
-    lam, u = np.linalg.eigh(profile_cov)
-    proj = np.einsum("nkj,nk->nj", u, e_sensor) ** 2  # the residual along each principal axis, squared
-    target = max(e_sensor.size - n_params, 1)
-    lo, hi = CHAIN_SD_FLOOR_MM**2, max(float(proj.sum()) / target, CHAIN_SD_FLOOR_MM**2)
-    with np.errstate(divide="ignore"):
-        if np.sum(proj / (lam + lo)) <= target:
-            return CHAIN_SD_FLOOR_MM
-    for _ in range(100):  # bisection on log s^2: the root lies in [lo, hi]
-        mid = np.sqrt(lo * hi)
-        lo, hi = (mid, hi) if np.sum(proj / (lam + mid)) > target else (lo, mid)
-        if hi <= lo * (1 + 1e-6):
-            break
-    return float(np.sqrt(hi))
-
-
 def n_samples(model):
     """Samples of a model: its rows, or for ``points`` its profiles (row groups)."""
     return model.n_meas if model.groups is None else int(model.groups.max()) + 1
@@ -266,7 +197,8 @@ def exclude_inconsistent(dataset, unknowns, mask, excluded):
     mask : ndarray of bool, shape (N,)
     excluded : list of ExcludedSample
         The rows set aside on load because their profile is no arc of the sphere first
-        (:func:`not_arc_records`; not among the N samples), then the inconsistent rows (``statistic`` the chi-square on 3 dof of the row against
+        (:func:`not_arc_records`; not among the N samples), then the inconsistent rows
+        (``statistic`` the chi-square on 3 dof of the row against
         itself, ``residual_mm`` and ``robust_residual_mm`` NaN: no fit is involved; the
         screening's numbers where it excluded the row too), then the others.
 
@@ -400,11 +332,12 @@ def screen(dataset, unknowns, start, alpha=ALPHA, min_keep=None, robot_sigma=Non
 def _robust_metric_fit(dataset, unknowns, start, robot_sigma, level):
     """The robust pass (step 1 of the module docstring) in the samples' metric; the model, the
     robust fit and its scale. Where centres were rebuilt from profiles the chain's part of their
-    covariance is the one the plain robust fit's probable samples show (:func:`chain_sd`; ``level``
-    is ``(alpha, min_keep)`` of :func:`_robust_inliers`), at least ``robot_sigma`` (mm, default the
+    covariance is the one the plain robust fit's probable samples show
+    (:func:`~handeye.model.datasets.observations.chain_sd`; ``level``
+    is ``(alpha, min_keep)`` of :func:`_robust_inliers`); the stated ``robot_sigma`` (mm, default the
     dataset's ``[noise] robot_mm``) when those samples are too few to say."""
     cov = observations.profile_covariance(dataset)
-    plain = screening_model(dataset, unknowns, start, 0.0)
+    plain = observations.screening_model(dataset, unknowns, start, 0.0)
     x_rob, sigma, _ = robust_fit(plain, plain.point_from(start))  # exact and fast (one SVD per round)
     if cov is None:
         return plain, x_rob, sigma
@@ -412,9 +345,9 @@ def _robust_metric_fit(dataset, unknowns, start, robot_sigma, level):
     pose = plain.sensor2flange(x_rob)
     turn = dataset.motions()[:, :3, :3] @ pose[:3, :3]
     e_sensor = np.einsum("nji,nj->ni", turn, plain.residuals(x_rob))  # R_i^T e_i
-    chain = (chain_sd(e_sensor[ok], cov[ok], plain.n) if ok.sum() * 3 > 2 * plain.n else
+    chain = (observations.chain_sd(e_sensor[ok], cov[ok], plain.n) if ok.sum() * 3 > 2 * plain.n else
              getattr(dataset, "noise_robot_mm", observations.ROBOT_SIGMA) if robot_sigma is None else float(robot_sigma))
-    full = screening_model(dataset, unknowns, pose, chain, cov)
+    full = observations.screening_model(dataset, unknowns, pose, chain, cov)
     x_rob, sigma, _ = robust_fit(full, x_rob, warm=True)
     return full, x_rob, sigma
 
@@ -493,15 +426,7 @@ def profile_named(dataset, k):
     files = getattr(dataset, "profile_of", None)
     if files is None or len(files) != len(dataset) or files[k] is None:
         return ""
-    return f" (its profile {profile_path(dataset, files[k])})"
-
-
-def profile_path(dataset, file):
-    """``file`` relative to the dataset's folder when inside it, else as it is."""
-    try:
-        return str(pathlib.Path(file).relative_to(pathlib.Path(dataset.path).resolve()))
-    except ValueError:
-        return str(file)
+    return f" (its profile {relative_name(files[k], dataset.path)})"
 
 
 #: Up to this many samples leave-one-out refits every sample exactly; above, the deletion formula

@@ -511,7 +511,7 @@ def _set_aside(columns, folder, diameter):
     ids, rows, profiles, files = kept[0], kept[1], kept[4], kept[6]
     verdicts = arcs.judge(profiles, problems, diameter / 2)
     base = pathlib.Path(folder).resolve()
-    bad = [arcs.NotArc(ids[k], int(rows[k]), _relative(files[k], base), why, f_stat, p)
+    bad = [arcs.NotArc(ids[k], int(rows[k]), relative_name(files[k], base), why, f_stat, p)
            for k, (why, f_stat, p) in enumerate(verdicts) if why is not None]
     if not bad:
         return kept, ()
@@ -521,10 +521,10 @@ def _set_aside(columns, folder, diameter):
     return [[v for v, k in zip(column, keep) if k] for column in kept], tuple(bad)
 
 
-def _relative(file, base):
+def relative_name(file, base):
     """``file`` relative to the folder ``base`` when inside it, else as it is (str)."""
     try:
-        return str(pathlib.Path(file).relative_to(base))
+        return str(pathlib.Path(file).relative_to(pathlib.Path(base).resolve()))
     except ValueError:
         return str(file)
 
