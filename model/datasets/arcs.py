@@ -87,7 +87,7 @@ def judge(profiles, problems, radius):
             out.append((problem, float("nan"), float("nan")))
             continue
         v = arc_check.check(points, radius, n_tests)
-        out.append((None if v.arc else v.reason, v.f_stat, min(v.p_value * n_tests, 1.0)))
+        out.append((None if v.arc else v.reason, v.f_stat, v.p_value))
     return out
 
 

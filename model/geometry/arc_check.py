@@ -83,7 +83,8 @@ class ArcVerdict:
     f_stat : float
         Its F statistic on (3, K - 6) degrees of freedom (NaN when not tested).
     p_value : float
-        Its tail probability, not adjusted (NaN when not tested).
+        Its tail probability, Bonferroni-adjusted (NaN when not needed: the structure is no flat
+        piece, or too small).
     """
 
     arc: bool
@@ -104,39 +105,36 @@ def _ssr(x, z):
     return float(d @ d), c
 
 
-def one_circle(points):
-    """The F test of one circle against one circle per half (module docstring, 2).
+def halves(x, z, whole, s1):
+    """One circle per half of the arc against ``whole`` (module docstring, 2).
 
     Parameters
     ----------
-    points : array_like, shape (K, 2)
-        Sensor x, z, mm.
+    x, z : ndarray, shape (K,)
+        The points, sensor x and z, mm.
+    whole : handeye.model.geometry.circle.Circle
+        Their one circle.
+    s1 : float
+        Its sum of squared distances, mm^2.
 
     Returns
     -------
-    (form_mm, f_stat, p_value, circle, half_mm) : (float, float, float, Circle, float)
-        The RMS of the structure one circle misses (mm), F, its tail probability, the one circle
-        and the larger of the halves' radii (mm); NaN statistics when a half has fewer than
-        :data:`MIN_HALF_POINTS` points.
+    (form_mm, f_stat, half_mm) : (float, float, float)
+        The RMS of the structure one circle misses (mm), F on (3, K - 6) degrees of freedom and the
+        larger of the halves' radii (mm); NaN when a half has fewer than :data:`MIN_HALF_POINTS` points.
     """
-    pts = np.asarray(points, float).reshape(-1, 2)
-    x, z = pts[:, 0], pts[:, 1]
-    s1, whole = _ssr(x, z)
     k = len(x)
     angle = np.arctan2(z - whole.z, x - whole.x)
     order = np.argsort(angle)
     theta = angle[order]
     gaps = np.diff(np.r_[theta, theta[0] + 2 * np.pi])
-    start = (int(np.argmax(gaps)) + 1) % k  # the arc begins after its largest empty stretch
-    along = np.roll(order, -start)
+    along = np.roll(order, -((int(np.argmax(gaps)) + 1) % k))  # the arc begins after its largest empty stretch
     first, second = along[: k // 2], along[k // 2:]
     if min(len(first), len(second)) < MIN_HALF_POINTS:
-        return float("nan"), float("nan"), float("nan"), whole, float("nan")
+        return float("nan"), float("nan"), float("nan")
     (sa, ca), (sb, cb) = _ssr(x[first], z[first]), _ssr(x[second], z[second])
-    s2 = sa + sb
-    drop = max(s1 - s2, 0.0)
-    f_stat = (drop / 3.0) / max(s2 / (k - 6), 1e-300)
-    return float(np.sqrt(drop / k)), float(f_stat), float(f_survival(f_stat, 3, k - 6)), whole, max(ca.r, cb.r)
+    drop = max(s1 - sa - sb, 0.0)
+    return float(np.sqrt(drop / k)), float((drop / 3.0) / max((sa + sb) / (k - 6), 1e-300)), max(ca.r, cb.r)
 
 
 def check(points, radius, n_tests=1, alpha=ALPHA, min_form_mm=MIN_FORM_MM):
@@ -158,22 +156,26 @@ def check(points, radius, n_tests=1, alpha=ALPHA, min_form_mm=MIN_FORM_MM):
     ArcVerdict
     """
     pts = np.asarray(points, float).reshape(-1, 2)
+    x, z = pts[:, 0], pts[:, 1]
     try:
-        form, f_stat, p, fitted, half = one_circle(pts)
+        s1, fitted = _ssr(x, z)
     except circle.CircleFitError as exc:
         return ArcVerdict(False, f"no circle fits its {len(pts)} points ({exc})", float("inf"))
-    scatter = float(np.sqrt(np.mean(circle.distance_jacobian(pts[:, 0], pts[:, 1], fitted)[0] ** 2)))
+    scatter = float(np.sqrt(s1 / len(x)))
     if scatter > MAX_SCATTER_MM:
         return ArcVerdict(False, f"its points scatter {scatter:.3g} mm RMS about their circle, more than "
-                                 f"{MAX_SCATTER_MM:g} mm: not one arc (speckle, background, another object)",
-                          fitted.r, form, f_stat, p)
-    wide = radius * (1 + RADIUS_TOL) + RADIUS_BAND_MM
-    if fitted.r > wide:
+                                 f"{MAX_SCATTER_MM:g} mm: not one arc (speckle, background, another object)", fitted.r)
+    if fitted.r > radius * (1 + RADIUS_TOL) + RADIUS_BAND_MM:
         return ArcVerdict(False, f"fitted circle radius {fitted.r:.3f} mm exceeds the sphere radius {radius:.3f} mm "
-                                 "(no plane cuts the sphere so: a flat or wider surface)", fitted.r, form, f_stat, p)
-    if np.isfinite(p) and p * n_tests < alpha and form > min_form_mm and half > HALF_WIDER * radius:
-        return ArcVerdict(False, f"its halves are not one circle: a half is flatter than any cut of the sphere "
-                                 f"(radius {half:.3g} mm), one circle misses {form:.3f} mm RMS (F = {f_stat:.3g}, "
-                                 f"Bonferroni p = {min(p * n_tests, 1.0):.2g} < {alpha:g}): a corner, an edge or a step",
-                          fitted.r, form, f_stat, p)
-    return ArcVerdict(True, "", fitted.r, form, f_stat, p)
+                                 "(no plane cuts the sphere so: a flat or wider surface)", fitted.r)
+    if scatter <= min_form_mm:  # the structure a circle misses is at most its scatter: an arc
+        return ArcVerdict(True, "", fitted.r)
+    form, f_stat, half = halves(x, z, fitted, s1)
+    if not (form > min_form_mm and half > HALF_WIDER * radius):
+        return ArcVerdict(True, "", fitted.r, form, f_stat)
+    p = min(f_survival(f_stat, 3, len(x) - 6) * n_tests, 1.0)
+    if p >= alpha:
+        return ArcVerdict(True, "", fitted.r, form, f_stat, p)
+    return ArcVerdict(False, f"its halves are not one circle: a half is flatter than any cut of the sphere (radius "
+                             f"{half:.3g} mm), one circle misses {form:.3f} mm RMS (F = {f_stat:.3g}, Bonferroni p = "
+                             f"{p:.2g} < {alpha:g}): a corner, an edge or a step", fitted.r, form, f_stat, p)
