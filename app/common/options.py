@@ -112,7 +112,8 @@ _CALIBRATE = (
         help="robot repeatability per axis (default `[noise] robot_mm`, else 0.025), which with each circle fit's own "
              "covariance weights and tests the profile models"),
     Opt('--effects', metavar='NAME[,NAME]',
-        help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale`, `sphere_radius`, '
+        help='calibrate with catalogue effects, as `handeye diagnose` names them: `sensor_scale` (a line scanner\'s), '
+             '`centre_scale` (the three coordinates of a centre), `sphere_radius`, '
              '`sphere_center` (= `--unknowns sensor+sphere`), `joint_offsets`, `link_lengths`, `joint_compliance` (with joint '
              'angles and `[robot] model`); their parameters and 1-sd in `effects`. Without it calibrate adds the '
              'effects the data choose (the search `handeye diagnose` prints); with it (`none`: no effect) the model is '
@@ -299,6 +300,9 @@ _EXPORT = (
         help='where the --sensor-pose is: on the flange (default) or fixed in the cell, the pose in the robot base (a saved '
              'calibration says itself)'),
     Opt('--out', metavar='FILE', help='write to FILE (atomically) instead of stdout'),
+    Opt('--dataset', metavar='DIR', kind='path',
+        help="the calibration's dataset: its verdict is recomputed from it at the pose and written with the failed checks "
+             "(default: the file's dataset_path, when it still has the file's SHA-256)"),
 )
 
 _CLOUD = (

@@ -38,6 +38,9 @@ from handeye.model.fit import extended
 from handeye.model.fit.calibration import CalibrationModel
 from handeye.model.geometry import circle
 
+#: How the warning of a failed noise test begins (:func:`noise_test`; an output that recomputes
+#: the test, :mod:`handeye.app.engine.held_verdict`, writes its own instead of a saved one).
+NOISE_WARNING = "the residuals are larger than the stated noise"
 #: A residual this many robust standard deviations above the median is flagged.
 GROSS_ERROR_Z = 10.0
 
@@ -108,7 +111,7 @@ def noise_test(ssr, dof, sigma, whitened, warnings, advice):
     passed = not (p_value < NOISE_ALPHA and ratio > 1)
     if not passed:
         warnings.append(
-            f"the residuals are larger than the stated noise: sd {ratio:.1f} x the stated {nominal} (chi2 = "
+            f"{NOISE_WARNING}: sd {ratio:.1f} x the stated {nominal} (chi2 = "
             f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
             f"than [noise] in setup.toml says); {advice} to find and name it, "
             "then calibrate with the effect it names (--effects NAME)")

@@ -283,6 +283,36 @@ def _search(run, structure, fit):
         name, structure, fit = accepted
         structure, fit = _backward(prob, structure, fit, mask, alpha, run.centre_unknown)
         steps.append({"step": f"+ {name}", **_summaries(prob, structure, fit, mask, run.detail)})
+    return _swapped(run, structure, fit)
+
+
+def _swapped(run, structure, fit):
+    """The named data effects, each exchanged for an unnamed one of as many parameters where that
+    fits clearly better (an SSR lower by one unit of the residual variance, a chi-square of one),
+    or as well (within one unit) and the other comes first in the catalogue's order (its physical
+    prior); its value physical. Equal-size models: the lower SSR is the lower BIC. One at a time, the forward
+    search can take the wrong one of effects that span nearly the same: a line scanner's
+    ``sensor_scale`` is, to first order, ``centre_scale`` plus a ``sphere_radius`` of R s."""
+    prob, mask = run.prob, run.mask
+    order = [e.NAME for e in effects.catalogue() if e.KIND == "data"]
+    for _ in range(len(order)):
+        best, unit = None, fit.ssr / max(fit.m - fit.p, 1)
+        for name in (n for n in structure.data_effects if n in order):
+            for other in (o for o in order if o not in structure.data_effects):
+                if len(effects.get(other).PARAMS) != len(effects.get(name).PARAMS):
+                    continue
+                trial = dataclasses.replace(structure, data_effects=tuple(
+                    other if n == name else n for n in structure.data_effects))
+                with np.errstate(all="ignore"):  # a trial may leave its domain (a root of a negative): rejected steps
+                    new = prob.fit(trial, mask, fit.x, {k: v for k, v in fit.params.items() if k != name})
+                bar = fit.ssr + (unit if order.index(other) < order.index(name) else -unit)  # no cycle
+                if (new.ssr < bar and (best is None or new.ssr < best[2].ssr)
+                        and effects.implausible(other, new.params.get(other, []), prob.radius) is None):
+                    best = (f"{name} -> {other}", trial, new)
+        if best is None:
+            return structure, fit
+        label, structure, fit = best
+        run.steps.append({"step": f"swap {label}", **_summaries(prob, structure, fit, mask, run.detail)})
     return structure, fit
 
 

@@ -33,7 +33,7 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
-EFFECTS = ("sensor_scale", "sphere_radius", "sphere_center", "joint_offsets", "link_lengths", "joint_compliance")
+EFFECTS = ("sensor_scale", "centre_scale", "sphere_radius", "sphere_center", "joint_offsets", "link_lengths", "joint_compliance")
 
 
 def fingerprint(dataset):

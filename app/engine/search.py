@@ -22,11 +22,18 @@ residual); the search then checks it instead of choosing: where the search's mod
 distance on 6 dof) is refused (exit 1). Poses of one model are not compared: they differ only
 by the samples each excludes or flips back, and a 1-sd limit would refuse good data for that.
 
-So calibrate does not exit 0 with a model its search replaces. Left to other checks: the cell
-stage (positioner axes or a sphere estimated in a cell), a sphere on a positioner (the
-positioner's own test, :mod:`handeye.app.engine.positioner_effect`), the closed-form methods, a
-fit that did not converge, and data of more than ``ROW_CHUNK`` samples (the search holds the
-whole Jacobian; a warning says the model is unchecked).
+A sphere on a positioner is searched at the axes the result stands on (set up, or calibrated by
+``--unknowns ...+positioner``: :func:`handeye.app.engine.cell_stage.dataset_at`). Where the search
+finds the set-up axes off, the positioner's own test refuses next
+(:func:`handeye.app.engine.positioner_effect.with_positioner_hint`, naming ``--unknowns
+...+positioner``); where it names catalogue effects on top of calibrated axes, the result is
+refused: the cell stage cannot yet estimate effects with the axes (its fit would leave them in the
+pose: a 0.2 % sensor scale put a calibrated-axes pose 0.66 mm, 42 sd, from the truth).
+
+So calibrate does not exit 0 with a model its search replaces. Left to other checks: a held sensor
+(the cell stage's own test of held parts), the closed-form methods, a fit that did not converge,
+and data of more than ``ROW_CHUNK`` samples (the search holds the whole Jacobian; a warning says
+the model is unchecked).
 """
 from __future__ import annotations
 
@@ -34,21 +41,20 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import diagnose
+from handeye.app.engine import cell_stage, diagnose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 
-#: Effects the search names that are not a model the fit can take (handled as samples).
-NOT_A_MODEL = ("sign_flip",)
-
-
+#: Effects the search names that are not a model the stages can take: sign flips are samples; the
+#: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
+NOT_A_MODEL = ("sign_flip", "positioner_axes")
 
 
 def searchable(request, dataset, result):
     """Whether the search decides or checks this result (module docstring: what is left to other checks)."""
-    return (result.converged and not request.cell
-            and dataset.mounts.sphere != "positioner" and np.all(np.isfinite(result.sensor2flange)))
+    return (result.converged and "sensor" in request.parts.split("+")
+            and bool(np.all(np.isfinite(result.sensor2flange))))
 
 
 def search(request, dataset, result):
@@ -84,15 +90,20 @@ def chosen(request, dataset, result, refit):
         return _unchecked_result(result, f"the data have {len(dataset):,} samples, more than the search's "
                                          f"{ROW_CHUNK:,} (it holds the whole Jacobian)")
     try:
-        found = search(request, dataset, result)
+        found = search(request, cell_stage.dataset_at(result, dataset), result)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         return _unchecked_result(result, f"the search failed numerically ({exc})")
     if found.beyond_catalogue:
         return result.refused("unexplained structure, not a calibration: the discrepancy search finds the residuals "
                                f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"
                                f" ({_command('diagnose', dataset, request)} prints its steps)")
+    if any(e.name == "positioner_axes" for e in found.effects) and "positioner" not in request.parts:
+        return result  # held axes that are off: the positioner's own test refuses next, naming the option
     names = _model_of(found)
-    if names and not request.chosen:  # the model the data choose: the same model as the search's from here
+    if names and request.cell and not request.chosen:
+        result = result.refused(_beside_axes(found, names, dataset, request))
+        result = dataclasses.replace(result, warnings=[w for w in result.warnings if not w.startswith(STRUCTURE_WARNING)])
+    elif names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
     elif names_differ(found, request) or (found.outliers and not request.outliers):
         result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
@@ -116,6 +127,20 @@ def _with_effects(request, dataset, result, refit, names, found):
             f"--effects {','.join(names)}`")
     kept = [w for w in fitted.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
     return dataclasses.replace(fitted, warnings=[note, *kept])
+
+
+def _beside_axes(found, names, dataset, request):
+    """Why a calibration of the positioner's axes is refused when the search names effects beside them."""
+    named = "; ".join(f"{e.name} ({_values(e)})" for e in found.effects if e.name in names)
+    return (f"not a calibration: at the positioner's calibrated axes the discrepancy search names {named}, which the "
+            f"cell stage cannot estimate together with the axes, and the pose without {'it' if len(names) == 1 else 'them'} "
+            f"is not right; `{_command('diagnose', dataset, request)}` prints the search and its pose under that model")
+
+
+def _values(effect):
+    """``k = v +- sd, ...`` of a named effect."""
+    sd = effect.std or {}
+    return ", ".join(f"{k} = {v:.4g}" + (f" +- {sd[k]:.2g}" if sd.get(k) else "") for k, v in effect.parameters.items())
 
 
 def _against_search(result, found, dataset, request):

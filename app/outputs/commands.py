@@ -20,6 +20,7 @@ import numpy as np
 from handeye.app.common import files, options
 from handeye.app.common.choices import CLOUD_FORMATS, ROBOT_FORMATS  # noqa: F401 - the names, defined without numpy
 from handeye.app.outputs import formats as exports
+from handeye.app.outputs import verdict as verdicts
 from handeye.app.outputs.request import CloudRequest, ExportRequest, ValidateRequest
 from handeye.app.present.protocol import ResultProtocol
 from handeye.app.present.result_parts import AsDict
@@ -39,20 +40,27 @@ class ExportResult(AsDict, ResultProtocol):
 
 @options.COMMANDS["export"].documented
 def export(calibration=None, *, format="json", parent=None, child="sensor", tool=None, register=99, out=None,
-           sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None):
+           sensor_pose=None, convention=None, force=False, base=None, sensor_mount=None, dataset=None):
     """The calibration in a robot's, ROS 2's or URDF's terms (:mod:`handeye.app.outputs.formats`).
 
     A sensor on the flange is written as a tool (number ``tool``, default 1), a sensor fixed in
     the cell (the calibration's ``sensor_mount`` "world") as a base / user frame (number
     ``base``, default 1); ``parent`` defaults to ``flange`` or ``base_link`` accordingly.
     ``sensor_mount`` ("flange" or "world"; default flange) is where a ``sensor_pose`` is given.
+    Every format carries the calibration's verdict and its failed checks as comments (JSON: the
+    key ``verdict``), recomputed from its dataset where one is at hand (``dataset``, else the
+    file's ``dataset_path``; :mod:`handeye.app.outputs.verdict`); a calibration that did not
+    converge is written only with ``force``, and its first comment line says so.
 
     Returns :class:`ExportResult`; with ``out`` the text is also written there (atomically).
 
     {parameters}
     """
     request = ExportRequest.from_options(options.COMMANDS["export"].given(locals()))
-    text = robot_text(*request.held, format) if format in ROBOT_FORMATS else exports.text(request.held, format, request.names)
+    if format in ROBOT_FORMATS:
+        text = robot_text(*request.held, format, request.comments)
+    else:
+        text = exports.text(request.held, format, request.names, request.comments)
     if out is not None:
         files.write_text_atomically(out, text)
     return ExportResult(format, text, None if out is None else str(out))
@@ -83,11 +91,12 @@ def _robot_values(doc, model):
     return values, said
 
 
-def robot_text(calibration, doc, format):
+def robot_text(calibration, doc, format, comments=()):
     """The robot's nominal model corrected by the calibrated ``joint_offsets`` and ``link_lengths``
     of a saved calibration (the file ``calibration``, its JSON object ``doc``), as the model TOML
     (``robot-toml``) or a URDF (``robot-urdf``); :mod:`handeye.model.robot.robots`.
-    ``joint_compliance`` depends on the pose: said in a comment."""
+    ``joint_compliance`` depends on the pose: said in a comment; ``comments``: the verdict's lines
+    (:func:`handeye.app.outputs.verdict.comment_lines`), the first one first."""
     from handeye.model.robot import robot_errors, robots
 
     nominal = robots.load(doc["robot_model"])
@@ -95,9 +104,10 @@ def robot_text(calibration, doc, format):
     model = robot_errors.corrected_model(nominal, values)
     note = f"{model.name} corrected by the robot effects of {calibration} ({'; '.join(said) or 'none'})"
     if format == "robot-toml":
-        return robots.to_toml(model, note)
+        return "".join(f"# {exports.one_line(c)}\n" for c in comments) + robots.to_toml(model, note)
     head, rest = robots.to_urdf(model, "".join(c if c.isalnum() else "_" for c in model.name).lower()).split("\n", 1)
-    return f"{head}\n<!-- {note.replace('--', '- -')} -->\n{rest}"  # the XML declaration first
+    said = "".join(f"<!-- {exports.one_line(c).replace('--', '- -')} -->\n" for c in comments)
+    return f"{head}\n{said}<!-- {note.replace('--', '- -')} -->\n{rest}"  # the XML declaration first
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,11 +142,14 @@ class CloudResult(ResultProtocol):
     format: str
     calibration: str
     frame: str = "robot base"
+    notes: tuple = ()
+    status: str | None = None
 
     def to_dict(self):
         lo, hi = (self.points.min(axis=0), self.points.max(axis=0)) if len(self.points) else (None, None)
         return {"n_points": int(len(self.points)), "n_poses": len(self.ids), "skipped": list(self.skipped),
                 "out": self.out, "format": self.format, "calibration": self.calibration, "frame": self.frame,
+                "verdict": self.status, "notes": list(self.notes),
                 "bounds_mm": None if lo is None else {"min": lo.tolist(), "max": hi.tolist()},
                 "sd_mm": None if self.sd is None or not len(self.sd) else {
                     "median": float(np.median(self.sd)), "max": float(self.sd.max())}}
@@ -144,6 +157,8 @@ class CloudResult(ResultProtocol):
     def summary(self):
         d = self.to_dict()
         lines = [f"{d['n_points']:,} points from {d['n_poses']} poses ({self.frame}, mm; calibration {self.calibration})"]
+        lines += [f"calibration: {self.status}"] if self.status else []
+        lines += [f"note: {n}" for n in self.notes]
         if d["skipped"]:
             lines.append(f"skipped {len(d['skipped'])} rows without a profile: {', '.join(d['skipped'][:10])}")
         if d["bounds_mm"]:
@@ -211,12 +226,13 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
     from handeye.model.geometry import cloud as clouds
 
     request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
-    cal, data = request.calibration, request.data
+    checked = verdicts.check(calibration, request.calibration, folder=dataset, folder_hash=request.data.content_hash())
+    cal, data = checked.calibration, request.data
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
                                                               cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
-                         cal.source, FRAME[data.mounts.sphere])
+                         cal.source, FRAME[data.mounts.sphere], checked.notes, checked.status)
     if out is not None:
         _write_cloud(result, out, request.format)
     return result
@@ -248,12 +264,14 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     with_profiles = "profile" in header and any(
         len(r) == len(header) and r[header.index("profile")].strip() for r in table[1:])
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
-    cal, data = request.calibration, request.data
-    own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == data.content_hash()
+    sha = request.data.content_hash()
+    checked = verdicts.check(calibration, request.calibration, folder=folder, folder_hash=sha)
+    cal, data = checked.calibration, request.data
+    own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == sha
     result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
               else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
-        data.mounts.sphere])
+        data.mounts.sphere], notes=[*checked.notes, *result.notes], status=checked.status)
     if request.limits is not None:
         result = dataclasses.replace(result, acceptance=validation.accept(result, request.limits))
     if plot is not None:

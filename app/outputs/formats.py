@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import textwrap
 
 import numpy as np
 
@@ -115,10 +116,25 @@ def _world(calibration):
     return getattr(calibration, "sensor_mount", "flange") == "world"
 
 
-def _one_line(text):
+def one_line(text, limit=200):
     """Text safe inside a one-line comment of any format: no control characters (a newline in a
-    file name or a hand-edited dataset name would end the comment and start robot code)."""
-    return re.sub(r"[\x00-\x1f\x7f]", " ", str(text))[:200]
+    file name or a hand-edited dataset name would end the comment and start robot code), at most
+    ``limit`` characters."""
+    return re.sub(r"[\x00-\x1f\x7f]", " ", str(text))[:limit]
+
+
+#: A verdict line in a comment holds at most this many characters (the status and the shortened
+#: warnings of :mod:`handeye.app.outputs.verdict` fit; a FANUC TP comment line holds 29).
+VERDICT_CHARS = 240
+#: FANUC TP comments: 29 characters a line; a verdict line is wrapped over at most this many.
+FANUC_LINES_PER_NOTE = 3
+
+
+def _verdict_parts(lines):
+    """The verdict's comment lines (:func:`handeye.app.outputs.verdict.comment_lines`): the
+    ``FORCED`` line, which goes first, and the others, after the header."""
+    first = [one_line(line, VERDICT_CHARS) for line in lines if line.startswith("FORCED")]
+    return first, [line for line in lines if not line.startswith("FORCED")]
 
 
 def _comment(prefix, lines, suffix=""):
@@ -136,6 +152,7 @@ class _Job:
     calibration: object
     rep: dict
     names: Names
+    verdict: tuple = ()
 
     @property
     def world(self):
@@ -143,9 +160,11 @@ class _Job:
 
     def header(self, what, unit="mm"):
         cal = self.calibration
-        source = _one_line(cal.source) + (f" (dataset {_one_line(cal.dataset)})" if cal.dataset else "")
+        source = one_line(cal.source) + (f" (dataset {one_line(cal.dataset)})" if cal.dataset else "")
         where = "in the robot base, fixed in the cell" if self.world else "on the robot flange"
-        return [f"handeye: the sensor frame {where} ({what})", f"from {source}"] + _sd_lines(cal, unit)
+        first, rest = _verdict_parts(self.verdict)
+        return (first + [f"handeye: the sensor frame {where} ({what})", f"from {source}"] + _sd_lines(cal, unit)
+                + [one_line(line, VERDICT_CHARS) for line in rest])
 
 
 def _ur(job):
@@ -212,11 +231,13 @@ def _fanuc(job):
     values = _f(job.rep["translation_mm"], 6) + _f(job.rep["fanuc_wpr_deg"], 8)
     sd = job.calibration.sd()
     where = "fixed in cell" if job.world else "on flange"
-    notes = [f"handeye: sensor {where}", f"frame {job.names.child}"[:29], f"{kind}: X Y Z mm, W P R deg",
+    first, rest = _verdict_parts(job.verdict)
+    notes = [*_wrapped(first), f"handeye: sensor {where}", f"frame {job.names.child}"[:29], f"{kind}: X Y Z mm, W P R deg",
              "Direct Entry: the PR values"]
     if sd is not None:  # a TP comment holds 32 characters: one number per line, rounded
         notes += [f"1sd {a} {v:.3g} mm" for a, v in zip("XYZ", sd[0])]
         notes += [f"1sd rot {a} {v:.3g} deg" for a, v in zip("xyz", sd[1])]
+    notes += _wrapped(rest)
     prog = [f"! {note[:29]} ;" for note in notes]
     constants = [f"({v})" if v.startswith("-") else v for v in values]  # TP writes a negative constant (-1)
     prog += [f"PR[{register}]=LPOS-LPOS ;"] + [f"PR[{register},{k}]={v} ;" for k, v in enumerate(constants, 1)]
@@ -224,6 +245,18 @@ def _fanuc(job):
     body = "\n".join(f"{k:4d}:  {line}" for k, line in enumerate(prog, 1))
     title = "handeye sensor frame" if job.world else "handeye sensor tool"
     return f"/PROG HANDEYE_{kind}{n}\n/ATTR\nCOMMENT = \"{title}\";\n/MN\n{body}\n/POS\n/END\n"
+
+
+def _wrapped(lines):
+    """Verdict lines as FANUC TP comments: each wrapped at 29 characters over at most
+    :data:`FANUC_LINES_PER_NOTE` lines (``..`` where cut); ``;`` and ``!`` out (TP syntax)."""
+    out = []
+    for line in lines:
+        parts = textwrap.wrap(one_line(line).replace(";", ",").replace("!", "."), 29) or [""]
+        cut = len(parts) > FANUC_LINES_PER_NOTE
+        parts = parts[:FANUC_LINES_PER_NOTE]
+        out += parts[:-1] + [parts[-1][:26] + " .." if cut else parts[-1]]
+    return out
 
 
 def _matrix(job):
@@ -235,7 +268,7 @@ def _matrix(job):
 _WRITERS = {"ur": _ur, "ros2": _ros2, "urdf": _urdf, "kuka": _kuka, "abb": _abb, "fanuc": _fanuc, "matrix": _matrix}
 
 
-def text(calibration, fmt, names=Names()):
+def text(calibration, fmt, names=Names(), verdict=()):
     """The calibration as ``fmt`` text (module docstring), ending with a newline.
 
     Parameters
@@ -248,12 +281,18 @@ def text(calibration, fmt, names=Names()):
     names : Names
         The frame names, the tool or base number and the FANUC register (default: ``sensor`` on
         the mount's parent, number 1, register 99).
+    verdict : sequence of str
+        The calibration's verdict and failed checks, one comment line each
+        (:func:`handeye.app.outputs.verdict.comment_lines`; a ``FORCED`` line is the first comment
+        line); JSON: the key ``verdict``.
     """
     parent = DEFAULT_PARENT[calibration.sensor_mount] if names.parent is None else names.parent
     if fmt == "json":
-        return dumps(data(calibration, parent, names.child)) + "\n"
+        out = data(calibration, parent, names.child)
+        return dumps({**out, "verdict": list(verdict)} if verdict else out) + "\n"
     user = calibration.user_frame()
-    return _WRITERS[fmt](_Job(user, representations(user.sensor2flange), dataclasses.replace(names, parent=parent)))
+    job = _Job(user, representations(user.sensor2flange), dataclasses.replace(names, parent=parent), tuple(verdict))
+    return _WRITERS[fmt](job)
 
 
 def data(calibration, parent, child):

@@ -22,6 +22,7 @@ from handeye.app.common.arguments import _path_argument, numbers
 from handeye.app.common.choices import CLOUD_FORMATS, FORMATS, ROBOT_FORMATS
 from handeye.app.common.errors import RequestError
 from handeye.app.outputs import saved
+from handeye.app.outputs import verdict as verdicts
 from handeye.app.outputs.formats import Names
 from handeye.model.chain.names import SENSOR_MOUNTS
 
@@ -152,10 +153,12 @@ def _file(calibration):
 @dataclasses.dataclass(frozen=True)
 class ExportRequest:
     """``handeye export``'s options, checked: the calibration (a robot format: the saved file's name
-    and JSON object) and the names and numbers written (:class:`Names`)."""
+    and JSON object), the names and numbers written (:class:`Names`) and the verdict's comment
+    lines (:func:`handeye.app.outputs.verdict.comment_lines`)."""
 
     held: object
     names: Names
+    comments: tuple = ()
 
     @classmethod
     def from_options(cls, v):
@@ -166,11 +169,23 @@ class ExportRequest:
         if v["out"] is not None:
             files.check_output_path(v["out"], "--out", _file(calibration))
         if fmt in ROBOT_FORMATS:
-            return cls(_robot_file(calibration, fmt, v["force"]), Names())
+            name, doc = _robot_file(calibration, fmt, v["force"])
+            checked = verdicts.check(calibration, saved.from_document(doc, name), dataset=v["dataset"])
+            forced = None if doc.get("converged") is True else _why(doc)
+            return cls((name, doc), Names(), tuple(verdicts.comment_lines(checked, forced)))
         cal = held(v, name="the saved calibration")
         if fmt not in FORMATS:
             raise RequestError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
-        return cls(cal, _names(v, cal.sensor_mount == "world"))
+        checked = verdicts.check(calibration, cal, dataset=v["dataset"])
+        forced = None if cal.converged else _why(saved.document(pathlib.Path(calibration)) if _file(calibration) else {})
+        return cls(checked.calibration, _names(v, cal.sensor_mount == "world"),
+                   tuple(verdicts.comment_lines(checked, forced)))
+
+
+def _why(doc):
+    """Why a saved calibration is no calibration (its ``converged`` false), in words."""
+    message = doc.get("message") if isinstance(doc, dict) else None
+    return "the calibration did not converge" + (f": {message}" if isinstance(message, str) and message else "")
 
 
 def _robot_file(calibration, fmt, force):

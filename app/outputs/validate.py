@@ -185,6 +185,9 @@ class ValidationResult(ResultProtocol):
         The verdict against stated maximum permissible errors (``mpe``).
     frame : str
         The frame of the centres and points: the sphere mount's (``base``, ``flange``, ``table``).
+    status : str or None
+        The calibration's verdict, recomputed from its dataset or said to be the file's
+        (:mod:`handeye.app.outputs.verdict`).
     """
 
     caption = 'handeye validate'
@@ -201,6 +204,7 @@ class ValidationResult(ResultProtocol):
     own_data: bool | None = None
     acceptance: Acceptance | None = None
     frame: str = "base"
+    status: str | None = None
 
     @property
     def passed(self):
@@ -216,6 +220,7 @@ class ValidationResult(ResultProtocol):
                 "spacing": None if self.spacing is None else self.spacing.to_dict(),
                 "centres": None if self.centres is None else self.centres.to_dict(),
                 "skipped": list(self.skipped), "notes": list(self.notes), "own_data": self.own_data,
+                "verdict": self.status,
                 "acceptance": None if self.acceptance is None else self.acceptance.to_dict()}
 
     def summary(self):

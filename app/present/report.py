@@ -282,6 +282,7 @@ def _pm(value, sd, prec=4):
 def validation_text(res):
     """The text report of ``handeye validate`` (:class:`handeye.app.outputs.validate.ValidationResult`)."""
     lines = [f"validation of {res.scan} through {res.calibration}"]
+    lines += [f"calibration: {res.status}"] if getattr(res, "status", None) else []
     for s in res.spheres:
         lines += [f"[{s.label}] {s.n_points:,} points from {s.n_poses} poses"
                   + (f" ({s.excluded_points} largest deviations left out)" if s.excluded_points else ""),

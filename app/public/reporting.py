@@ -11,10 +11,13 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 
+import numpy as np
+
 from handeye.app.common import options
 from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_path, input_files
 from handeye.app.engine.request import UNKNOWNS, unknown_parts
+from handeye.app.outputs import verdict as verdicts
 from handeye.app.outputs.saved import CalibrationFileError, document, from_document
 from handeye.app.present.web.write import Page, write_report
 
@@ -43,6 +46,30 @@ def saved_result(path, dataset):
     if not (isinstance(centre, list) and len(centre) == 3 and all(isinstance(v, (int, float)) for v in centre)):
         raise CalibrationFileError(file, "needs three numbers (mm)", "sphere_center")
     return doc
+
+
+def recomputed(doc, file, data):
+    """The page's object of a saved calibration ``doc`` (the file ``file``) of ``data``: its verdict
+    (status, RMS and residuals, noise test, sensor sd) recomputed from the data at its pose
+    (:func:`handeye.app.outputs.verdict.check`), each field that disagrees named in ``warnings``,
+    the recomputation in ``recomputed``; :class:`CalibrationFileError` (exit 2) when that makes the
+    file unusable (a mount not the dataset's, a pose the data contradict)."""
+    checked = verdicts.check(file, from_document(doc, file).for_dataset(data.own_axes), dataset=data)
+    v = checked.verdict
+    out = {**doc, "warnings": [*checked.notes, *(doc.get("warnings") or [])],
+           "recomputed": {"verdict": checked.status, "notes": list(checked.notes), "failed": v.failed()}}
+    if v.not_recomputed:
+        return out
+    rows = {sid: k for k, sid in enumerate(data.ids)}
+    out["residuals"] = [r if not isinstance(r, dict) or r.get("id") not in rows else
+                        {**r, "vector": v.residuals[rows[r["id"]]].tolist(),
+                         "norm": float(np.linalg.norm(v.residuals[rows[r["id"]]]))} for r in doc.get("residuals") or []]
+    out.update(rms_mm=v.rms_mm, max_residual_mm=v.max_mm, n_used=int(v.used.sum()),
+               noise_test=None if v.noise is None else v.noise.to_dict())
+    sd = checked.calibration.user_frame().sd()
+    if sd is not None and isinstance(doc.get("std"), dict):
+        out["std"] = {**doc["std"], "sensor_translation_mm": sd[0].tolist(), "sensor_rotation_deg": sd[1].tolist()}
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,7 +128,7 @@ def report(dataset="thesis-real", *, html, calibration=None, diagnose=False, unk
     data = api.load_dataset(dataset, clean=not no_clean)
     request = ReportRequest.from_options(given, data)
     if request.saved is not None:
-        result, text = request.saved, None
+        result, text = recomputed(request.saved, request.source, data), None
     else:
         res = api.calibrate(data, unknowns=unknowns or "sensor", model=model, convention=convention, keep_all=keep_all)
         result, text = res.to_dict(), res.to_json()

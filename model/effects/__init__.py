@@ -4,7 +4,8 @@ Every effect's parameters are zero when it is absent, so models nest. Three kind
 
 * ``data`` -- the effect changes what the sensor reports; the module gives the symbolic
   *correction* ``xs_true = g(xs_measured; params)`` (sympy, from which the Jacobian with respect
-  to the parameters is generated like the base model's). ``sensor_scale``, ``sphere_radius``.
+  to the parameters is generated like the base model's). ``sensor_scale``, ``centre_scale``,
+  ``sphere_radius``.
 * ``centre`` -- ``sphere_center``: the true centre is the setup's plus (dx, dy, dz); estimated by
   making the centre an unknown.
 * ``discrete`` -- ``sign_flip`` and ``outlier``: per-sample, decided by the final outlier test.
@@ -16,6 +17,10 @@ Every effect's parameters are zero when it is absent, so models nest. Three kind
 * ``structural`` -- effects the poses can never separate from the sensor pose and the sphere
   centre (a constant error of the robot base frame or of the flange frame, a laser-plane
   offset or tilt). They are in the catalogue to be *reported* as absorbed, never named.
+
+The order of :data:`MODULES` is the physical prior: of two sets of effects the data cannot tell
+apart (a line scanner's ``sensor_scale`` is, to first order, ``centre_scale`` plus a
+``sphere_radius`` of R s), the search names the one whose effects come first.
 
 Adding an effect is one small module with ``NAME``, ``KIND``, ``PARAMS``, ``DOC`` and, for
 ``data`` effects, ``correction(xm, ym, zm, R, params)`` returning the corrected centre
@@ -30,7 +35,7 @@ import numpy as np
 
 from handeye.model.chain import codegen
 
-MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "sign_flip", "outlier",
+MODULES = ("sphere_center", "sensor_scale", "sphere_radius", "centre_scale", "sign_flip", "outlier",
            "base_frame", "flange_frame", "laser_plane", "joint_offsets", "link_lengths", "joint_compliance")
 
 
@@ -46,6 +51,7 @@ def get(name):
 #: the effect but absorbs something else (a wrong side, diameter or unit).
 LIMITS = {
     "sensor_scale": ("a scale error of at most 5 %", lambda params, radius: abs(params[0]) <= 0.05),
+    "centre_scale": ("a scale error of at most 5 %", lambda params, radius: abs(params[0]) <= 0.05),
     "sphere_radius": ("a radius error of at most 20 % of the radius", lambda params, radius: abs(params[0]) <= 0.2 * radius),
     # a robot's errors: mastering within a degree or two, lengths within millimetres, a sag of a
     # few tenths of a degree at a metre's lever (a controller's nominal model is that close)

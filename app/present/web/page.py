@@ -41,13 +41,22 @@ def image(png, alt):
 
 def snippets(result, source="the calibration"):
     """The export formats' text of the result's pose (:mod:`handeye.app.outputs.formats`), in the
-    sensor's own frame when the profiles were turned (as ``handeye export`` writes it)."""
+    sensor's own frame when the profiles were turned, with the verdict and the failed checks as
+    comments (as ``handeye export`` writes it: :func:`handeye.app.outputs.verdict.comment_lines`;
+    a saved file's verdict as the page recomputed it)."""
     from handeye.app.outputs import formats, saved
+    from handeye.app.outputs import verdict as verdicts
 
     if result.get("sensor_matrix") is None:
         return {}
     cal = saved.from_document(result, source)
-    return {fmt: formats.text(cal, fmt) for fmt in parts.SNIPPETS}
+    rms = result.get("rms_mm")
+    status = (result.get("recomputed") or {}).get("verdict") or (
+        f"{'converged' if result.get('converged') else 'NOT CONVERGED'}: calibrated now"
+        + (f", RMS {rms:.4g} mm per sphere centre" if isinstance(rms, (int, float)) else ""))
+    warnings = tuple(w for w in result.get("warnings") or [] if isinstance(w, str))
+    lines = verdicts.comment_lines(verdicts.Checked(cal, warnings=warnings, status=status))
+    return {fmt: formats.text(cal, fmt, verdict=lines) for fmt in parts.SNIPPETS}
 
 
 def effects_note(result):

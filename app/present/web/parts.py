@@ -38,6 +38,9 @@ def header(result, title, generated):
             ("method", f"{result.get('method')}, rotation {result.get('rotation')}, unknowns {result.get('unknowns')}, "
                        f"model {result.get('model')}"),
             ("made by", f"handeye {tool_version()}, {generated}")]
+    again = result.get("recomputed") or {}
+    if again.get("verdict"):  # a saved file's verdict, recomputed from the data at its pose
+        rows.append(("verdict", again["verdict"]))
     prov = result.get("provenance") or {}
     if prov.get("options"):
         rows.append(("options", ", ".join(f"{k}={v}" for k, v in prov["options"].items() if v not in (None, False))))
