@@ -31,9 +31,10 @@ sensor) and 0.097 mm (the 1-in ball's sensor), but their halves stay circles of 
 flatter half at most 1.03 R. An edge target's faces or a step's pieces are straight: of 40
 independent corner profiles (tests/indep_arcs.py) after cleaning, 7 are circles wider than the
 sphere, 8 scatter over 1 mm, and the other 25 have a flatter half of at least 65 R and a
-structure of at least 0.18 mm. HALF_WIDER = 1.5 lies between, with room on both sides; the structure floor MIN_FORM_MM = 0.02 mm is the
-cleaning's scale floor (:data:`profile_clean.SCALE_FLOOR_MM`: a laser-line sensor's point noise is
-not below it), so that noise alone never names a profile.
+structure of at least 0.18 mm. HALF_WIDER = 1.5 lies between, with room on both sides; the
+structure floor MIN_FORM_MM = 0.02 mm is the cleaning's scale floor
+(:data:`profile_clean.SCALE_FLOOR_MM`: a laser-line sensor's point noise is not below it), so that
+noise alone never names a profile.
 
 Why ``ALPHA = 1e-3`` with Bonferroni: a profile judged no arc is excluded (and a set of them
 refused), so the test is strict, as the row-consistency check (:mod:`handeye.model.datasets.consistency`)
