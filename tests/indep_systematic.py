@@ -13,8 +13,8 @@ Frames and units (mm; angles in degrees unless said):
   ``eye_in_hand`` and ``positioner``, the base for ``eye_to_hand``); ``centre`` the sphere centre in its
   mount's frame (base, flange, or the positioner's table = the base at zero angles).
 * Sensor frame: the laser plane is y = 0, x along the line, z the measuring direction; the sphere centre is
-  seen at ``p = (x, side * f * R, z)`` with |x| <= 25 mm, f in [0.3, 0.75], z in [170, 280] + R.  A profile
-  is the arc of the circle of radius ``sqrt(R^2 - y^2)`` about ``(x, z)`` that faces the sensor, 120-170 deg
+  seen at ``p = (x, side * f * R, z)`` with |x| <= 25 mm, f in [0.15, 0.85], z in [170, 280] + R.  A profile
+  is the arc of the circle of radius ``sqrt(R^2 - y^2)`` about ``(x, z)`` that faces the sensor, 60-170 deg
   of it, points 0.08-0.2 mm apart, each coordinate with N(0, point_sd^2), point_sd 0.01-0.04 mm.
 * The chains: ``eye_in_hand`` ``F_i X p_i = c``; ``eye_to_hand`` ``S p_i = F_i c``; ``positioner``
   ``F_i X p_i = table2base(theta_i) c`` with two revolute axes (e1 a horizontal tilt, e2 the table's turn),
@@ -61,8 +61,13 @@ CLEAN = ("clean", "clean-robot")
 MOUNTS = ("eye_in_hand", "eye_to_hand", "positioner")
 #: the issue's "wrong": more than 3 reported sd AND more than 0.2 mm / 0.05 deg from the truth
 WRONG_SD, WRONG_MM, WRONG_DEG = 3.0, 0.2, 0.05
-#: the sensor's view: |x| <= X_HALF, y = side * f * R with f in Y_FRACTION, z in STANDOFF + R (mm)
-X_HALF, Y_FRACTION, STANDOFF = 25.0, (0.3, 0.75), (170.0, 280.0)
+#: the sensor's view: |x| <= X_HALF, y = side * f * R with f in Y_FRACTION, z in STANDOFF + R (mm); f from
+#: near the equator (0.15: the side still settled by the data, README "calibrate": 0.1 R is where it is not)
+#: to a small cut (0.85: a circle of half the sphere's radius)
+X_HALF, Y_FRACTION, STANDOFF = 25.0, (0.15, 0.85), (170.0, 280.0)
+#: half the angle (deg) a profile's arc spans about the direction to the sensor: from a profile cut short by
+#: the measuring window (60 deg of arc) to nearly the whole half circle the sensor sees (170 deg)
+ARC_HALF = (30.0, 85.0)
 #: lengths neither the sensor nor the centre absorbs (tests/indep_robots.py names): along the last axis
 #: (KR 60 HA j6_x, UR d6) the sensor takes it, so the sensor's truth itself would move
 LENGTHS = {"kr60ha": ("j2_x", "j3_x", "j4_x", "j4_z"), "ur5e": ("a2", "a3", "d4", "d5"),
@@ -261,10 +266,10 @@ def _geometry(rng, spec, layout, radius, side, accept=None):
 
 # ----------------------------------------------------------------------------- what the sensor measures
 def arc(rng, centre_xz, r, point_sd):
-    """A sphere's profile: the arc (120-170 deg) of the circle (centre (x, z), radius r, mm) that faces the
+    """A sphere's profile: the arc (60-170 deg, :data:`ARC_HALF`) of the circle (centre (x, z), radius r, mm) that faces the
     sensor's origin, points 0.08-0.2 mm apart, each coordinate with N(0, point_sd^2); (k, 2) array of (x, z)."""
     cx, cz = centre_xz
-    half = math.radians(rng.uniform(60.0, 85.0))
+    half = math.radians(rng.uniform(*ARC_HALF))
     phi = math.atan2(-cz, -cx) + np.linspace(-half, half, max(30, int(2 * half * r / rng.uniform(0.08, 0.2))))
     pts = np.column_stack([cx + r * np.cos(phi), cz + r * np.sin(phi)])
     return pts + rng.normal(scale=point_sd, size=pts.shape)
@@ -616,12 +621,13 @@ def read_back(folder):
                 measured=np.array(measured), angles=angles, profiles=profiles)
 
 
-def chain_residuals(truth):
-    """Per row of the written files (own reading, :func:`read_back`), how far the chain misses at the truth
-    (n, 3, mm, base): ``F X m - c`` (sensor on the flange), ``F X m - table2base(theta) c`` (positioner),
-    ``S m - F c`` (fixed sensor).  At the truth of a clean cell: the injected noise, turned into the base
-    (centres), or the robot's noise and the circle fit's own error (profiles)."""
-    back = read_back(truth.folder)
+def chain_residuals(truth, back=None):
+    """Per row of the written files (own reading, :func:`read_back`, or ``back`` as it returns), how far the
+    chain misses at the truth (n, 3, mm, base): ``F X m - c`` (sensor on the flange), ``F X m -
+    table2base(theta) c`` (positioner), ``S m - F c`` (fixed sensor).  At the truth of a clean cell: the
+    injected noise, turned into the base (centres), or the robot's noise and the circle fit's own error
+    (profiles)."""
+    back = read_back(truth.folder) if back is None else back
     X, c = truth.sensor, np.append(truth.centre, 1.0)
     axes = truth.data.get("axes")
     out = []

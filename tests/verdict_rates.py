@@ -11,8 +11,9 @@ classes the false-alarm rate (any exit but 0), the rate of cells that lose a sam
 data), and the sd ratio (the RMS over cells of error / reported sd, per component, translation and rotation);
 then the wrong exits 0 cell by cell (seed, cell, distance in sd and mm).
 
-    python -m tests.verdict_rates --cells 10 [--classes clean,scale] [--out rates.md] [--json rows.json]
+    python -m tests.verdict_rates --cells 10 [--classes clean:60,scale] [--out rates.md] [--json rows.json]
     python tests/verdict_rates.py --cells 10
+    python -m tests.verdict_rates --rows rows.json [more.json ...]     # the table of saved rows
 
 Importable: :func:`run_cell` (one cell -> a JSON-able row), :func:`study` (rows of many), :func:`table`.
 """
@@ -71,12 +72,14 @@ def run_cell(kind, seed, root):
 
 def study(classes, cells, root=None, first=0, log=None):
     """Rows of :func:`run_cell` for seeds ``first .. first + cells - 1`` of every class (in ``root``, else a
-    temporary folder); ``log(row)`` called after each."""
+    temporary folder); ``classes`` names, or ``name:N`` for N cells of that class; ``log(row)`` called after
+    each."""
     with tempfile.TemporaryDirectory(prefix="verdict-rates-") as scratch:
         root = pathlib.Path(root or scratch)
         rows = []
-        for kind in classes:
-            for seed in range(first, first + cells):
+        for item in classes:
+            kind, _, count = item.partition(":")
+            for seed in range(first, first + (int(count) if count else cells)):
                 rows.append(run_cell(kind, seed, root))
                 if log:
                     log(rows[-1])
@@ -133,12 +136,18 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=10, help="cells per class (seeds first .. first + cells - 1)")
     ap.add_argument("--first", type=int, default=0, help="first seed")
-    ap.add_argument("--classes", default=",".join(gen.CLASSES), help="comma-separated classes")
+    ap.add_argument("--classes", default=",".join(gen.CLASSES),
+                    help="comma-separated classes, each NAME or NAME:N (N cells of it, else --cells)")
+    ap.add_argument("--rows", nargs="+", help="no run: the table of rows saved by --json (one or more files)")
     ap.add_argument("--out", help="write the table (markdown) here too")
     ap.add_argument("--json", help="write every row (JSON) here")
     ap.add_argument("--root", help="keep the datasets in this folder")
     args = ap.parse_args(argv)
     rows = []
+    if args.rows:
+        rows = [r for f in args.rows for r in json.loads(pathlib.Path(f).read_text())]
+        print(table(rows))
+        return 0
 
     def log(row):
         rows.append(row)
