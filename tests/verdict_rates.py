@@ -9,7 +9,8 @@ criterion (``Truth.wrong``: beyond 3 reported sd and 0.2 mm / 0.05 deg from the 
 One table, one row per class: cells, exit 0 at the truth, exit 0 WRONG, exit 1, exit 2, other; on the clean
 classes the false-alarm rate (any exit but 0), the rate of cells that lose a sample (an exclusion on good
 data), and the sd ratio (the RMS over cells of error / reported sd, per component, translation and rotation);
-then the wrong exits 0 cell by cell (seed, cell, distance in sd and mm).
+then the wrong exits 0 cell by cell (seed, cell, distance in sd and mm); an exit 0 beyond 4.5 sd
+(:data:`FAR_SD`) is counted apart: the issue's 3 sd is crossed by chance.
 
     python -m tests.verdict_rates --cells 10 [--classes clean:60,scale] [--out rates.md] [--json rows.json]
     python tests/verdict_rates.py --cells 10
@@ -33,6 +34,20 @@ import indep_systematic as gen  # noqa: E402
 import numpy as np  # noqa: E402
 
 import handeye  # noqa: E402
+
+#: beyond this many reported sd (and the issue's 0.2 mm / 0.05 deg) an exit 0 is wrong beyond any chance: a
+#: right answer lies there with probability 7e-6 per component, 0.02 expected over the ~3,000 components of a
+#: study of 500 cells (the issue's 3 sd is crossed by chance in 1.6 % of right cells: 6 components)
+FAR_SD = 4.5
+
+
+def far(row):
+    """Whether a row's pose lies beyond :data:`FAR_SD` reported sd and the issue's 0.2 mm (translation) or
+    0.05 deg (rotation) from the truth."""
+    if row["z"] is None:
+        return False
+    z = np.abs(row["z"])
+    return bool((z[:3].max() > FAR_SD and row["mm"] > gen.WRONG_MM) or (z[3:].max() > FAR_SD and row["deg"] > gen.WRONG_DEG))
 
 
 def run_cell(kind, seed, root):
@@ -87,14 +102,16 @@ def study(classes, cells, root=None, first=0, log=None):
 
 
 def summary(rows):
-    """Per class: ``cells``, ``at_truth``, ``wrong``, ``exit1``, ``exit2``, ``other``; on the clean classes
-    also ``false_alarms`` (any exit but 0), ``losing`` (exit-0 cells that excluded a sample), ``sd_ratio_t`` and
-    ``sd_ratio_r`` (RMS of error / sd over the exit-0 cells, translation and rotation components)."""
+    """Per class: ``cells``, ``at_truth``, ``wrong`` (``far``: of them beyond :data:`FAR_SD`), ``exit1``,
+    ``exit2``, ``other``; on the clean classes also ``false_alarms`` (any exit but 0), ``losing`` (exit-0
+    cells that excluded a sample), ``sd_ratio_t`` and ``sd_ratio_r`` (RMS of error / sd over the exit-0
+    cells, translation and rotation components)."""
     out = {}
     for kind in dict.fromkeys(r["kind"] for r in rows):
         mine = [r for r in rows if r["kind"] == kind]
         ok = [r for r in mine if r["exit"] == 0]
         s = dict(cells=len(mine), at_truth=sum(not r["wrong"] for r in ok), wrong=sum(r["wrong"] for r in ok),
+                 far=sum(r["wrong"] and far(r) for r in ok),
                  exit1=sum(r["exit"] == 1 for r in mine), exit2=sum(r["exit"] == 2 for r in mine),
                  other=sum(r["exit"] == 3 for r in mine))
         if kind in gen.CLEAN:
@@ -112,12 +129,12 @@ def _rms(values):
 
 def table(rows):
     """The study's table (markdown) and the wrong exits 0, cell by cell."""
-    lines = ["| class | cells | exit 0 at the truth | exit 0 WRONG | exit 1 | exit 2 | other | false alarms |"
+    lines = ["| class | cells | exit 0 at the truth | exit 0 WRONG (> 4.5 sd) | exit 1 | exit 2 | other | false alarms |"
              " cells losing samples | sd ratio t / r |", "|---|---|---|---|---|---|---|---|---|---|"]
     for kind, s in summary(rows).items():
         clean = "false_alarms" in s
         rate = lambda k, of: f"{s[k]} / {of} ({s[k] / of:.0%})" if of else "-"  # noqa: E731
-        lines.append(f"| {kind} | {s['cells']} | {s['at_truth']} | {s['wrong']} | {s['exit1']} | {s['exit2']} | "
+        lines.append(f"| {kind} | {s['cells']} | {s['at_truth']} | {s['wrong']} ({s['far']}) | {s['exit1']} | {s['exit2']} | "
                      f"{s['other']} | {rate('false_alarms', s['cells']) if clean else ''} | "
                      f"{rate('losing', s['cells'] - s['false_alarms']) if clean else ''} | "
                      + (f"{s['sd_ratio_t']:.2f} / {s['sd_ratio_r']:.2f} |" if clean else " |"))
