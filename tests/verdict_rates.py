@@ -10,7 +10,9 @@ One table, one row per class: cells, exit 0 at the truth, exit 0 WRONG, exit 1, 
 classes the false-alarm rate (any exit but 0), the rate of cells that lose a sample (an exclusion on good
 data), and the sd ratio (the RMS over cells of error / reported sd, per component, translation and rotation);
 then the wrong exits 0 cell by cell (seed, cell, distance in sd and mm); an exit 0 beyond 4.5 sd
-(:data:`FAR_SD`) is counted apart: the issue's 3 sd is crossed by chance.
+(:data:`FAR_SD`) is counted apart: the issue's 3 sd is crossed by chance; so is an exit 0 "at the truth"
+only by its wide sd (beyond 0.2 mm / 0.05 deg, within 3 sd: right by the issue's criterion, but a pairing
+shift answered at 20-160 mm with an sd to match is worth knowing).
 
     python -m tests.verdict_rates --cells 10 [--classes clean:60,scale] [--out rates.md] [--json rows.json]
     python tests/verdict_rates.py --cells 10
@@ -108,7 +110,8 @@ def study(classes, cells, root=None, first=0, log=None):
 
 
 def summary(rows):
-    """Per class: ``cells``, ``at_truth``, ``wrong`` (``far``: of them beyond :data:`FAR_SD`), ``exit1``,
+    """Per class: ``cells``, ``at_truth`` (``loose``: of them beyond 0.2 mm / 0.05 deg, within 3 sd only by a
+    wide reported sd), ``wrong`` (``far``: of them beyond :data:`FAR_SD`), ``exit1``,
     ``exit2``, ``other``; on the clean classes also ``false_alarms`` (any exit but 0), ``losing`` (exit-0
     cells that excluded a sample), ``sd_ratio_t`` and ``sd_ratio_r`` (RMS of error / sd over the exit-0
     cells, translation and rotation components)."""
@@ -118,6 +121,7 @@ def summary(rows):
         ok = [r for r in mine if r["exit"] == 0]
         s = dict(cells=len(mine), at_truth=sum(not r["wrong"] for r in ok), wrong=sum(r["wrong"] for r in ok),
                  far=sum(r["wrong"] and far(r) for r in ok),
+                 loose=sum(not r["wrong"] and (r["mm"] > gen.WRONG_MM or r["deg"] > gen.WRONG_DEG) for r in ok),
                  exit1=sum(r["exit"] == 1 for r in mine), exit2=sum(r["exit"] == 2 for r in mine),
                  other=sum(r["exit"] == 3 for r in mine))
         if kind in gen.CLEAN:
@@ -135,13 +139,13 @@ def _rms(values):
 
 def table(rows):
     """The study's table (markdown) and the wrong exits 0, cell by cell."""
-    lines = ["| class | cells | exit 0 at the truth | exit 0 WRONG (> 4.5 sd) | exit 1 | exit 2 | other | false alarms |"
-             " cells losing samples | sd ratio t / r |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| class | cells | exit 0 at the truth (> 0.2 mm / 0.05 deg) | exit 0 WRONG (> 4.5 sd) | exit 1 | exit 2 |"
+             " other | false alarms | cells losing samples | sd ratio t / r |", "|---|---|---|---|---|---|---|---|---|---|"]
     for kind, s in summary(rows).items():
         clean = "false_alarms" in s
         rate = lambda k, of: f"{s[k]} / {of} ({s[k] / of:.0%})" if of else "-"  # noqa: E731
-        lines.append(f"| {kind} | {s['cells']} | {s['at_truth']} | {s['wrong']} ({s['far']}) | {s['exit1']} | {s['exit2']} | "
-                     f"{s['other']} | {rate('false_alarms', s['cells']) if clean else ''} | "
+        lines.append(f"| {kind} | {s['cells']} | {s['at_truth']} ({s['loose']}) | {s['wrong']} ({s['far']}) | "
+                     f"{s['exit1']} | {s['exit2']} | {s['other']} | {rate('false_alarms', s['cells']) if clean else ''} | "
                      f"{rate('losing', s['cells'] - s['false_alarms']) if clean else ''} | "
                      + (f"{s['sd_ratio_t']:.2f} / {s['sd_ratio_r']:.2f} |" if clean else " |"))
     bad = [r for r in rows if r["wrong"] or (r["kind"] in gen.CLEAN and r["exit"] != 0) or r["exit"] == 3]
