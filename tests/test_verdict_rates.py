@@ -179,19 +179,11 @@ PER_SHARD = 10
 #: flips it; drop the entry).  The rates: ``wrong`` (exit 0 away from the truth), ``false_alarms``,
 #: ``losing`` (clean cells losing a good sample), ``sd_ratio``.
 KNOWN_FAILING = {
-    ("clean", "losing"): "main 2026-12-07: 6 of 60 clean cells lose one good sample (5 of them profile-only: seeds "
-                         "1, 17, 43, 51, 58; allowance 3 at alpha 0.01): the deletion test's metric (issue 39)",
-    ("scale", "wrong"): "main: 15 of 30 sensor-scale cells (0.24-0.49 %) exit 0 away from the truth (allowance 3)",
-    ("scale", "far"): "main: 13 of them beyond 4.5 sd, every one with the sphere on a positioner (0.59-1.40 mm, "
-                      "5.1-49 sd; seeds 0, 3, 4, 25: 7.1, 9.9, 12.9, 49 sd): the positioner cell is not searched",
-    ("diameter", "far"): "main: 3 of 30 diameter cells (1.8-2.8 % off), all on a positioner, exit 0 0.47-3.2 mm / "
-                         "0.50-1.30 deg from the truth at 4.6-6.6 sd (seeds 1, 19, 20)",
+    # Fixed since main bdd4729 (the same seeds): clean cells losing a sample 6 -> 2 of 60 (the centres' own metric),
+    # scale wrong 15 -> 1 of 30 (the search on a positioner, centre_scale), diameter far 3 -> 0, pairing shift
+    # wrong 6 -> 0 (a pairing shift is a slip: all 30 exit 2).
     ("link-lengths", "far"): "main: seed 4 (UR5e, a2 +0.37 and a3 +0.34 mm, KUKA columns, centre free, 21 poses) "
                              "exits 0 0.38 mm / 0.09 deg from the truth at 6.0 sd",
-    ("pairing-shift", "wrong"): "main: 6 of 30 smooth tours paired one row off exit 0 31-182 mm / 7-83 deg from the "
-                                "truth (allowance 3)",
-    ("pairing-shift", "far"): "main: 5 of them beyond 4.5 sd, 4 with the sensor fixed in the cell (seeds 5, 14, 19, "
-                              "22: 168, 64, 98, 182 mm at 17, 7, 10, 9 sd), one on the flange (seed 27: 57 mm, 8.4 sd)",
 }
 
 
