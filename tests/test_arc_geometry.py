@@ -1,6 +1,6 @@
 """The geometric cause of an exclusion (model/geometry/arc_geometry.py): a profile cut by the measuring
-window -- a short, one-sided arc near the sphere's equator -- is named beside the statistical
-reason; a good profile excluded for another reason (a robot pose error) is not."""
+window -- a short, one-sided arc near the sphere's equator -- is named (and, judged in its own metric,
+kept); a good profile excluded for another reason (a robot pose error) gets no geometric cause."""
 from __future__ import annotations
 
 import shutil
@@ -42,6 +42,10 @@ def _near_equator(folder):
 
 
 def test_a_window_cut_arc_is_named(simulated, tmp_path):
+    """A window-cut arc near the equator: its centre's geometry is named (short, one-sided, its sd along
+    y many times the others'); since issue 39 the screening weighs each centre by its covariance, so
+    this good but poorly determined centre is kept (its error is within its own sd), not excluded as a
+    gross error, and the calibration uses it at its small weight."""
     folder = tmp_path / "d"
     shutil.copytree(simulated, folder)
     ident = _near_equator(folder)
@@ -51,14 +55,13 @@ def test_a_window_cut_arc_is_named(simulated, tmp_path):
     angle = np.degrees(np.arctan2(pts[:, 0] - fitted.x, fitted.z - pts[:, 1]))  # 0: the point nearest the sensor
     cut = pts[(angle > 30) & (angle < 68)]  # 38 deg on one side: the window's edge
     np.savetxt(path, cut, fmt="%.9f", delimiter=",", header="x,z", comments="")
+    data = handeye.load_dataset(folder)
+    k = data.ids.index(ident)
+    (named,) = arc_geometry.causes(data.profiles, data.sphere_diameter / 2, data.side, [k]).values()
+    assert named.startswith("short (38 deg), one-sided")
+    assert "mm from the equator: the centre's sd along y is" in named
     r = handeye.calibrate(folder, no_loo=True)
-    assert r.converged
-    (e,) = r.excluded
-    assert e.id == ident and e.geometry is not None
-    assert e.geometry.startswith("short (38 deg), one-sided")
-    assert "mm from the equator: the centre's sd along y is" in e.geometry
-    assert "improbable under the fit" in e.reason and e.geometry in e.reason
-    assert e.geometry in r.summary() and r.to_dict()["excluded"][0]["geometry"] == e.geometry
+    assert r.converged and ident not in [e.id for e in r.excluded], r.summary()
 
 
 def test_a_robot_pose_error_on_a_good_profile_gets_no_geometric_cause(simulated, tmp_path):

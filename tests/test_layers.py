@@ -389,6 +389,7 @@ LOCAL_IMPORTS = {
         ("model/datasets/dataset.py", "_centre_from_profile", "handeye.model.geometry.circle"),
         ("model/datasets/dataset.py", "_check_truth_params", "handeye.model.robot.robot_errors"),
         ("model/datasets/dataset.py", "_clean_profile", "handeye.model.geometry.profile_clean"),
+        ("model/datasets/dataset.py", "_set_aside", "handeye.model.datasets.arcs"),
         ("model/design/bounds.py", "information", "handeye.model.simulation.simulate"),
         ("model/design/identifiability.py", "plate_pose_analysis", "handeye.model.fit.calibration"),
         ("model/design/identifiability.py", "structural", "handeye.model.fit.calibration"),

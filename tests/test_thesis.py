@@ -77,10 +77,20 @@ def test_thesis_real_as_printed_is_ruined_by_one_misprint():
     assert worst["id"] == "x+22.5" and worst["norm"] > 1500
 
 
+def solved(res):
+    """The solver reached its minimum: converged, or refused by the verdict ("explains nothing") after its
+    solver ended by its own test."""
+    return res["converged"] or ("explains nothing" in res["message"] and "(the solver: " in res["message"]
+                                and "iteration limit" not in res["message"])
+
+
 def test_thesis_real_with_the_misprint_corrected_against_table_7_4(tmp_path):
     d = fixed_copy(tmp_path)
     res = fit_as_asked(d, method="gn", rotation="euler", options={"max_iter": 250}, outliers=False, loo=False).to_dict()
-    assert res["converged"]
+    # Gauss-Newton ends by its own test, well inside the seed's 250 iterations (where the verdict refuses the
+    # taught-centre fit with its three gross errors -- RMS 11.8 mm against 103 mm of the motion the sensor sees --
+    # it says the solver's own end too)
+    assert solved(res) and res["iterations"] < 50
     ours = np.array(res["sensor_matrix"])
     thesis = transform_from_pose(TABLE_7_4_END)
     dt, dr = transform_distance(ours, thesis)
@@ -93,7 +103,7 @@ def test_thesis_real_with_the_misprint_corrected_against_table_7_4(tmp_path):
     # every method agrees on that minimum
     for method in ("lm", "tr", "ipopt"):
         other = fit_as_asked(d, method=method, outliers=False, loo=False).to_dict()
-        assert other["converged"]
+        assert solved(other)
         dt, dr = transform_distance(np.array(other["sensor_matrix"]), ours)
         assert dt < 1e-5 and dr < 1e-5
 

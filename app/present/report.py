@@ -155,7 +155,8 @@ def calibration_text(res):
     lines += [""] + residual_lines(res.residuals)
     lines += cleaning_lines(res.cleaning)
     if res.excluded:
-        lines += ["", "excluded samples (gross errors, rows that contradict themselves; not used in the fit):"]
+        lines += ["", "excluded samples (gross errors, rows that contradict themselves, profiles that are no arc; "
+                  "not used in the fit):"]
         lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.excluded[:REPORT_ROWS]]
         if len(res.excluded) > REPORT_ROWS:
             lines.append(f"  ... and {len(res.excluded) - REPORT_ROWS:,} more (the JSON report, --json, lists every one)")

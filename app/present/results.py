@@ -58,7 +58,8 @@ class ExcludedSample(AsDict):
     row : int
     residual_mm : float
         Prediction error from the fit of the other samples, mm (NaN for a row excluded only
-        because it contradicts itself: no fit decides that).
+        because it contradicts itself, or set aside because its profile is no arc of the sphere:
+        no fit decides that).
     robust_residual_mm : float
         Residual of the robust pass, mm (NaN likewise).
     statistic : float

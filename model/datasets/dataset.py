@@ -166,6 +166,12 @@ class Dataset(FlangePoses):
         in the frame of the profiles (laser plane y = 0) that the calibration is of; None: the same.
         ``start_pose`` and ``sensor_pose`` are of handeye's frame (turned on load); the results
         turn the calibrated pose back to the own frame (:mod:`handeye.model.chain.own_frame`).
+    profile_of : tuple or None
+        Per measurement the profile file it names (a resolved path) or None; None when no row
+        names one. What a message about a profile names.
+    not_arcs : tuple of handeye.model.datasets.arcs.NotArc
+        The rows set aside because their profile is no arc of the stated sphere (not among the
+        measurements; :mod:`handeye.model.datasets.arcs`).
     poses_read : str or None
         How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
         with ``own_axes`` and no ``poses = "own"``: in handeye's turned frame), else None.
@@ -204,6 +210,8 @@ class Dataset(FlangePoses):
     cleaning: tuple | None = None
     own_axes: np.ndarray | None = None
     poses_read: str | None = None
+    profile_of: tuple | None = None
+    not_arcs: tuple = ()
 
     @functools.cached_property
     def _once(self):
@@ -231,6 +239,7 @@ class Dataset(FlangePoses):
             profiles=None if self.profiles is None else tuple(p for p, k in zip(self.profiles, mask) if k),
             raw_profiles=None if self.raw_profiles is None else tuple(p for p, k in zip(self.raw_profiles, mask) if k),
             cleaning=None if self.cleaning is None else tuple(c for c, k in zip(self.cleaning, mask) if k),
+            profile_of=None if self.profile_of is None else tuple(f for f, k in zip(self.profile_of, mask) if k),
             reconstructed=None if self.reconstructed is None else tuple(r for r, k in zip(self.reconstructed, mask) if k),
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
@@ -241,6 +250,33 @@ class Dataset(FlangePoses):
                 rows = self.__dict__[key][mask]
                 rows.setflags(write=False)
                 out.__dict__[key] = rows
+        return out
+
+    def paired(self, step):
+        """The dataset with each row's pose paired with the measurement ``step`` rows below it
+        (``step`` = +1: row i's pose with row i+1's measurement; -1: with row i-1's), one sample
+        per pose that has such a row (``len(self) - |step|``).
+
+        The pose side -- ``flange_poses``, ``raw_poses``, ``axis_angles``, ``joints`` (what the
+        robot and the positioner report) and ``ids``, ``rows`` (a row's id names its pose, as
+        ``dataset new --pair id`` matches profile names to pose ids; its line is the pose's) --
+        stays; the measurement side -- ``centre_in_sensor``, ``profiles``, ``raw_profiles``,
+        ``cleaning``, ``reconstructed`` (what the sensor reports) -- moves.
+        """
+        n, step = len(self), int(step)
+        if step == 0 or abs(step) >= n:
+            raise ValueError(f"a pairing step of {step} rows on {n} rows")
+        poses = np.arange(max(0, -step), n - max(0, step))
+        mask = np.zeros(n, bool)
+        mask[poses] = True
+        measured = np.zeros(n, bool)
+        measured[poses + step] = True
+        posed, m = self.subset(mask), self.subset(measured)
+        out = dataclasses.replace(posed, centre_in_sensor=m.centre_in_sensor, profiles=m.profiles,
+                                  raw_profiles=m.raw_profiles, cleaning=m.cleaning, reconstructed=m.reconstructed)
+        for key in ("_flange2base", "_motions"):  # the pose side's, computed already: kept
+            if key in posed.__dict__:
+                out.__dict__[key] = posed.__dict__[key]
         return out
 
     def content_hash(self):
@@ -280,16 +316,21 @@ def resolve(name_or_path):
     )
 
 
-def _clean_profile(points, radius, rel, file, line):
-    """The profile's points on the sphere's arc and the :class:`~handeye.model.geometry.profile_clean.Cleaning`
-    record (:mod:`handeye.model.geometry.profile_clean`); a profile without an arc is refused, naming its
-    file (``rel``) and the row ``line`` of ``file`` (measurements.csv) that names it."""
+def _clean_profile(points, radius):
+    """The profile's points on the sphere's arc, the :class:`~handeye.model.geometry.profile_clean.Cleaning`
+    record (:mod:`handeye.model.geometry.profile_clean`) and, for a profile without an arc, why (else
+    None): its row is set aside (:mod:`handeye.model.datasets.arcs`)."""
     from handeye.model.geometry import profile_clean
 
     record = profile_clean.clean(points, radius)
     if record.status == "no arc":
-        raise DatasetError(file, f"the profile {rel}: {profile_clean.no_arc_message(record, radius)}", line, "profile")
-    return (points if record.kept.all() else points[record.kept]), record
+        return points, record, profile_clean.no_arc_message(record, radius)
+    return (points if record.kept.all() else points[record.kept]), record, None
+
+
+class NoCentre(DatasetError):
+    """A profile that gives no sphere centre (no circle, or one wider than the sphere): its row is
+    set aside as no arc (:mod:`handeye.model.datasets.arcs`)."""
 
 
 def _centre_from_profile(points, radius, side, pfile):
@@ -298,9 +339,7 @@ def _centre_from_profile(points, radius, side, pfile):
     try:
         return circle.sphere_centre_from_circle(circle.fit_circle(points[:, 0], points[:, 1], PROFILE_FIT), radius, side)
     except circle.CircleFitError as exc:
-        hint = (f"; a profile cannot be wider than the sphere: check [sphere] diameter = {2 * radius:g} mm in setup.toml "
-                "(a radius given for the diameter? inches?)" if "exceeds" in str(exc) else "")
-        raise DatasetError(pfile, str(exc) + hint) from None
+        raise NoCentre(pfile, str(exc)) from None
 
 
 #: Circle fit used to reconstruct a centre from a profile when xs, ys, zs are empty.
@@ -345,19 +384,19 @@ def load_setup(name_or_path):
 def _read_rows(folder, st, limits, clean=True):
     """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
     lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw,
-    angles, raw_profiles, cleaning)`` as lists (``angles``: the positioner axis columns of the setup
+    angles, raw_profiles, cleaning, problems)`` as lists (``angles``: the positioner axis columns of the setup
     ``st``, degrees; ``profiles`` cleaned when ``clean``, ``raw_profiles`` as read). Raises DatasetError
     naming file, row and column."""
     file = folder / "measurements.csv"
     table = read_table(file)
     reader = _RowReader(folder, file, st, limits, clean, *_header(table, file, st.convention, st.mounts.axis_names))
-    out = tuple([] for _ in range(11))
+    out = tuple([] for _ in range(12))
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if any(f.strip() for f in fields):
             for column, value in zip(out, reader.row(line, fields, seen)):
                 column.append(value)
-    return (*out[:6], [f for f in out[6] if f is not None], *out[7:])
+    return out
 
 
 def _header(table, file, convention, axes):
@@ -400,7 +439,7 @@ class _RowReader:
 
     def row(self, line, fields, seen):
         """One row: ``(id, line, pose, centre, profile, reconstructed, profile file or None, raw pose, angles,
-        raw profile, cleaning record)``."""
+        raw profile, cleaning record, why the profile is no arc or None)``."""
         file, idx, limits, convention = self.file, self.idx, self.limits, self.st.convention
         if len(fields) != len(idx):
             raise DatasetError(file, f"expected {len(idx)} fields, got {len(fields)}", line)
@@ -412,14 +451,19 @@ class _RowReader:
         if not profile and not self.centre_columns:
             raise DatasetError(file, "no profile: without xs,ys,zs columns every row needs one", line, "profile")
         points = read_points(self.folder, profile, file, line, limits["sensor_mm"]) if profile else None
-        raw_points, record = points, None
+        raw_points, record, problem = points, None, None
         if profile and self.clean:
-            points, record = _clean_profile(points, self.st.diameter / 2, profile, file, line)
-        xs = self._centre(cells, profile, points, line)
+            points, record, problem = _clean_profile(points, self.st.diameter / 2)
+        xs = [np.nan] * 3  # a profile that is no arc gives no centre: the row is set aside (arcs.py)
+        if problem is None:
+            try:
+                xs = self._centre(cells, profile, points, line)
+            except NoCentre as exc:
+                problem = exc.problem
         angles = ([axis_angle(fields[idx[a]], file, line, a) for a in self.st.mounts.axis_names]
                   + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints])
         return (ident, line, pose, xs, points, bool(profile) and not all(cells),
-                (self.folder / profile).resolve() if profile else None, raw, angles, raw_points, record)
+                (self.folder / profile).resolve() if profile else None, raw, angles, raw_points, record, problem)
 
     def _centre(self, cells, profile, points, line):
         """The row's sphere centre in the sensor frame: its columns, else from its profile."""
@@ -484,6 +528,34 @@ def _check_truth_params(truth, model, file):
                                      f"{', '.join(robot_errors.param_names(model, name))})", column=f"[truth] {name}")
 
 
+def _set_aside(columns, folder, diameter):
+    """The columns of :func:`_read_rows` without the rows whose profile is no arc of the sphere, and
+    their records (:mod:`handeye.model.datasets.arcs`); raises DatasetError when they are most of the
+    rows with a profile."""
+    from handeye.model.datasets import arcs
+
+    *kept, problems = columns
+    ids, rows, profiles, files = kept[0], kept[1], kept[4], kept[6]
+    verdicts = arcs.judge(profiles, problems, diameter / 2)
+    base = pathlib.Path(folder).resolve()
+    bad = [arcs.NotArc(ids[k], int(rows[k]), relative_name(files[k], base), why, f_stat, p)
+           for k, (why, f_stat, p) in enumerate(verdicts) if why is not None]
+    if not bad:
+        return kept, ()
+    if len(bad) > sum(p is not None for p in profiles) // 2:
+        raise DatasetError(pathlib.Path(folder) / "measurements.csv", arcs.refusal(bad, diameter))
+    keep = arcs.keep_mask([b.row for b in bad], rows)
+    return [[v for v, k in zip(column, keep) if k] for column in kept], tuple(bad)
+
+
+def relative_name(file, base):
+    """``file`` relative to the folder ``base`` when inside it, else as it is (str)."""
+    try:
+        return str(pathlib.Path(file).relative_to(pathlib.Path(base).resolve()))
+    except ValueError:
+        return str(file)
+
+
 def load(name_or_path, clean=True):
     """Read and check a dataset (module docstring); raises :class:`DatasetError`.
 
@@ -504,11 +576,11 @@ def load(name_or_path, clean=True):
     plain = read_plain_rows(file, pose_columns, convention, limits, axes)  # a large plain file: column-wise
     if plain is None:
         (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles,
-         cleaning) = _read_rows(folder, st, limits, clean)
+         cleaning), not_arcs = _set_aside(_read_rows(folder, st, limits, clean), folder, st.diameter)
     else:
         ids, rows, poses, centres, raw, angles = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw", "extra"))
         profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
-        raw_profiles, cleaning = profiles, profiles
+        raw_profiles, cleaning, not_arcs = profiles, profiles, ()
     if not ids:
         raise DatasetError(file, "no measurements", 2)
     angles = np.array(angles, float).reshape(len(ids), -1)
@@ -533,7 +605,8 @@ def load(name_or_path, clean=True):
         raw_profiles=tuple(raw_profiles) if any(p is not None for p in profiles) else None,
         cleaning=tuple(cleaning) if clean and any(p is not None for p in profiles) else None,
         reconstructed=tuple(reconstructed),
-        profile_files=tuple(sorted(set(profile_files))),
+        profile_files=tuple(sorted({f for f in profile_files if f is not None})),
+        profile_of=tuple(profile_files) if any(f is not None for f in profile_files) else None,
         raw_poses=np.array(raw, dtype=float),
         convention=convention,
         noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
@@ -545,4 +618,5 @@ def load(name_or_path, clean=True):
         robot_model=model,
         own_axes=st.own_axes,
         poses_read=st.poses_read,
+        not_arcs=not_arcs,
     )
