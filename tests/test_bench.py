@@ -98,6 +98,7 @@ def test_bench_reports_every_method():
     assert [r["exit"] for r in pipe["rows"]] == [0, 0] and np.isfinite(pipe["time_slope"]) and "by size" in text
 
 
+@pytest.mark.slow(sibling="test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve")
 def test_guarantee_overhead_is_measured():
     """The guarantee section's measurement, once (the benchmark repeats it nine times for both
     unknowns)."""

@@ -18,6 +18,7 @@ def _errors_in_sd(r, truth):
     return np.abs(e) / np.concatenate([r.std.sensor_translation_mm, r.std.sensor_rotation_deg])
 
 
+@pytest.mark.slow(sibling="test_screening_with_effects_keeps_clean_samples_and_excludes_a_gross_error")
 def test_a_hidden_scale_error_warns_is_named_and_is_calibrated(tmp_path):
     s = handeye.simulate(tmp_path / "scale", seed=11, effect="sensor_scale=0.002")
     truth = transform_from_pose(s.dataset.truth["sensor_pose"])

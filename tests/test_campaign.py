@@ -156,6 +156,7 @@ def _calibrate_in_subprocess(cache, env_extra=None):
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow(sibling="test_a_broken_library_is_rebuilt_and_a_bad_compiler_never_cached")
 def test_a_damaged_cache_heals_itself(tmp_path):
     cache = tmp_path / "cache"
     first = _calibrate_in_subprocess(cache)
@@ -315,6 +316,7 @@ def test_more_bad_options_and_cells(tmp_path, capsys):
     assert code == cli.EXIT_BAD_INPUT
 
 
+@pytest.mark.slow(sibling="test_a_broken_library_is_rebuilt_and_a_bad_compiler_never_cached")
 def test_a_truncated_library_is_never_loaded(tmp_path):
     cache = tmp_path / "cache"
     assert "OK True True" in _calibrate_in_subprocess(cache).stdout

@@ -252,7 +252,8 @@ def _calibrate_with(env):
                           env=env, capture_output=True, text=True, timeout=600, cwd="/")
 
 
-@pytest.mark.parametrize("xdg", [True, False], ids=["XDG_CACHE_HOME", "HOME"])
+@pytest.mark.parametrize("xdg", [pytest.param(True, id="XDG_CACHE_HOME", marks=pytest.mark.slow(
+    sibling="test_an_unwritable_cache_falls_back_to_the_user_cache[HOME]")), pytest.param(False, id="HOME")])
 def test_an_unwritable_cache_falls_back_to_the_user_cache(tmp_path, xdg):
     """HANDEYE_CACHE read-only: the code goes to $XDG_CACHE_HOME/handeye (or ~/.cache/handeye),
     silently, and the next run is warm (no sympy)."""
@@ -433,6 +434,7 @@ def test_an_interrupted_simulate_leaves_no_half_written_dataset(tmp_path, sig):
     assert done.returncode == 0 and (tmp_path / "d" / "measurements.csv").exists(), done.stderr
 
 
+@pytest.mark.slow(sibling="test_a_signal_while_the_output_is_written_removes_the_temporary_file[SIGINT]")
 def test_advice_without_a_sphere_centre_names_diagnose_with_the_centre_free(tmp_path):
     """Where calibrate estimated the centre, its advice to run diagnose says --unknowns sensor+sphere
     (diagnose estimates it too), diagnose without it refuses naming the option, and with it names

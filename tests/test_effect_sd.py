@@ -35,7 +35,8 @@ def _replicate(template, made):
                                profiles=None, reconstructed=None)
 
 
-@pytest.mark.parametrize("dr_true, nearest", [(-0.3, None), (0.0, 1.0)])
+@pytest.mark.parametrize("dr_true, nearest", [pytest.param(-0.3, None, marks=pytest.mark.slow(
+    sibling="test_the_sphere_radius_sd_agrees_with_a_monte_carlo[0.0-1.0]")), (0.0, 1.0)])
 def test_the_sphere_radius_sd_agrees_with_a_monte_carlo(tmp_path, dr_true, nearest):
     """Ten poses, 25.4 mm sphere, known truth: the reported 1 sd of dr against the spread of dr
     over 200 noise realisations of the same poses (the same estimator, diagnose's extended fit

@@ -125,6 +125,7 @@ def test_the_student_edition_has_no_solutions_and_clears_the_exercise_cells(tmp_
         assert "Student edition" in _source(student[0])
 
 
+@pytest.mark.slow(sibling="test_the_student_edition_has_no_solutions_and_clears_the_exercise_cells")
 def test_the_student_edition_runs_in_a_kernel(tmp_path):
     pytest.importorskip("nbclient")
     pytest.importorskip("ipykernel")

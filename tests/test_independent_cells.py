@@ -184,6 +184,7 @@ def _cli(folder):
     return p.returncode, doc, p.stderr
 
 
+@pytest.mark.slow(sibling="test_correct_cells_converge_at_the_truth")
 def test_cli_exit_codes(tmp_path):
     """The command line: a correct cell of each convention exits 0 with the JSON's
     sensor_matrix at the truth; slips exit 2 (named), 1, or 0 only at the truth; never 3."""

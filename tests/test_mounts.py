@@ -176,6 +176,7 @@ def test_unknowns_in_any_order_is_one_request(tmp_path):
     assert "sensor2base (4x4):" in a.summary() and "sphere centre in flange" in a.summary()
 
 
+@pytest.mark.slow(sibling="test_positioner_axes_calibrated_within_three_sd")
 def test_axes_far_from_the_setup_are_still_found(tmp_path):
     """Set-up axes 36 mm and 4 deg off: the conditional fit "explains nothing" (refused), the cell fit
     starts from it all the same and the refined passes reach the truth within 3 sd."""
@@ -374,6 +375,7 @@ def test_positioner_alone_holds_the_setups_centre(tmp_path):
         assert _line_distance(axis.point, AXES[j]) < 3 * np.linalg.norm(res.positioner.point_sd[j])
 
 
+@pytest.mark.slow(sibling="test_validate_uses_the_positioner_axes_the_calibration_holds")
 def test_calibration_option_is_checked(tmp_path):
     import json
 

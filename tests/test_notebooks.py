@@ -68,7 +68,7 @@ def _outputs(cells):
 #: The five slowest notebooks (6-20 s each here) run in the full suite only; the default tier
 #: runs the other two through the same kernel and comparison.
 SLOW_NOTEBOOKS = ("solver_paths.ipynb", "hand_eye_calibration.ipynb", "linear_versus_nonlinear.ipynb",
-                  "discrepancy_thesis_real.ipynb", "least_squares.ipynb")
+                  "discrepancy_thesis_real.ipynb", "least_squares.ipynb", "optimality_conditions.ipynb")
 SIBLING = "test_notebook_runs_in_a_kernel_and_is_committed_with_its_outputs[constrained_optimality.ipynb]"
 
 

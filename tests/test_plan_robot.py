@@ -203,6 +203,7 @@ def test_without_a_robot_plan_is_unchanged(tmp_path):
     assert handeye.plan().n == 12
 
 
+@pytest.mark.slow(sibling="test_the_number_of_poses_it_takes_identifies_hidden_offsets")
 def test_a_plan_replays_in_simulate_with_its_joints_and_identifies_the_offsets(tmp_path, capsys):
     """plan --robot writes j1..j6; simulate --poses takes those angles (the other wrist stays the
     other wrist, no inverse kinematics) and diagnose names the hidden offsets on them within 3 sd.

@@ -129,6 +129,7 @@ def test_a_missing_peer_says_not_installed(peer, package, without_package):
     assert {r["name"] for r in res["rows"] if r["installed"]} >= {"fast", "scipy-exact"}
 
 
+@pytest.mark.slow(sibling="test_a_profile_from_two_poses_is_evaluated_row_by_row")
 def test_points_section_reports_both_runs_and_their_ratio(monkeypatch):
     monkeypatch.setattr(bench_points, "LINE_POINTS", 300)  # small: the section, not the timing, is tested
     res = bench_points.measure(reps=1)

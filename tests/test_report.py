@@ -206,6 +206,7 @@ def test_a_calibration_that_did_not_converge_offers_no_controller_code(tmp_path)
     assert "set_tcp" not in text and "TOOL_DATA" not in text
 
 
+@pytest.mark.slow(sibling="test_a_fit_with_effects_says_the_view_draws_the_plain_chain")
 def test_the_card_shows_calibrated_positioner_axes_and_effects(tmp_path):
     pos = tmp_path / "pos"
     handeye.simulate(out=pos, sphere_mount="positioner", seed=2)

@@ -77,6 +77,7 @@ def test_the_thesis_report_opens_in_chromium_without_a_console_error(driver, tmp
     _check(driver, out, len(res.residuals), tmp_path / "thesis.png")
 
 
+@pytest.mark.slow(sibling="test_the_thesis_report_opens_in_chromium_without_a_console_error")
 def test_sample_ids_that_are_html_cannot_break_the_page(driver, tmp_path):
     """An id like ``<!--<script>`` inside the embedded JSON once left the page's script dead."""
     import csv

@@ -281,6 +281,7 @@ def test_a_robot_error_the_centre_check_would_blame_is_named_beside_it(tmp_path)
     assert fixed.converged and abs(fixed.effects[0].parameters["j3_x"] - 0.4) < 3 * fixed.effects[0].std["j3_x"]
 
 
+@pytest.mark.slow(sibling="test_a_robot_error_the_centre_check_would_blame_is_named_beside_it")
 def test_joint_angles_on_a_positioner_cell_are_said_to_leave_the_robot_unmodelled(tmp_path):
     folder = tmp_path / "pos"
     api.simulate(folder, robot="kr60ha", sphere_mount="positioner", n_poses=12, effect=["link_lengths=j3_x:0.4"])

@@ -108,6 +108,7 @@ def test_rows_without_both_are_not_checked(tmp_path):
     assert consistency.check_rows(rebuilt).checked == ()
 
 
+@pytest.mark.slow(sibling="test_the_test_statistic_is_the_mahalanobis_distance_of_the_circles")
 def test_centres_with_the_stated_noise_are_not_flagged(tmp_path):
     """The false-alarm rate where it could bite: the sensor's centres computed independently of
     the profile, with exactly the stated noise ([noise] centre_mm) -- 10 datasets x 5 draws."""

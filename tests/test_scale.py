@@ -57,6 +57,7 @@ def test_screening_finds_the_same_gross_errors_one_at_a_time_or_together(monkeyp
     assert {"x+22.5", "x+45", "x*+90", "y*+112.5"} <= {e.id for e in s.excluded}
 
 
+@pytest.mark.slow(sibling="test_screening_finds_the_same_gross_errors_one_at_a_time_or_together[True]")
 def test_text_report_summarises_beyond_fifty_rows_and_the_json_keeps_them_all(tmp_path, capsys):
     import json
 

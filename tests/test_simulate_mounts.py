@@ -120,7 +120,8 @@ def test_without_positioner_error_sensor_and_sphere_suffice(tmp_path, capsys):
     _within_3_sd(result, data)
 
 
-@pytest.mark.parametrize("cell", ["world/flange", "flange/positioner"])
+@pytest.mark.parametrize("cell", ["world/flange", pytest.param("flange/positioner", marks=pytest.mark.slow(
+    sibling="test_effects_and_profiles_work_for_every_mount[world/flange]"))])
 def test_effects_and_profiles_work_for_every_mount(tmp_path, cell):
     sensor, sphere, unknowns, seed = CELLS[cell]
     made = _simulate(tmp_path, sensor, sphere, seed, profiles=True,

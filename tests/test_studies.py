@@ -31,13 +31,17 @@ NARROWED = {
 RATES = ("accuracy", "circle-fits", "discrepancy-power", "real-data", "start-poses", "testfunction", "thesis-robot")
 #: the default-tier study a rate study names as its sibling
 _RUNS = "test_quick_study_runs_and_its_claims_hold[pose-planning]"
+#: Studies of 4-5 CPU-s each that tell one story the default tier's others share (the global guarantee's
+#: second minima, the honest default's refusals): in the full suite since calibrate's search, which both run
+#: on every cell, put the default tier over its budget.
+WHOLE_ONLY = ("global-guarantee", "honest-default")
 
 
 def _quick(names):
     def mark(n):
         if n in NARROWED:
             return pytest.mark.slow(sibling=f"test_narrowed_quick_study_runs_and_its_claims_hold[{n}]")
-        return pytest.mark.slow(sibling=_RUNS) if n in RATES else ()
+        return pytest.mark.slow(sibling=_RUNS) if n in RATES + WHOLE_ONLY else ()
     return [pytest.param(n, marks=mark(n)) for n in names]
 
 

@@ -334,6 +334,7 @@ def test_validate_spacing_of_two_spheres_and_a_wrong_diameter(tmp_path):
     assert bad.form_error_mm > 0.2 and np.linalg.norm(bad.centre_offset_mm) > 0.3
 
 
+@pytest.mark.slow(sibling="test_point_jacobian_and_sd_against_central_differences")
 def test_validation_sd_matches_monte_carlo_of_the_calibration(tmp_path):
     """The calibration part of the 1-sd: draw calibrations from the covariance, refit."""
     scan = _scan(tmp_path / "mc", X_TRUE, [(C1, 25.0)], noise=0.0, seed=4, n_poses=12)

@@ -93,19 +93,26 @@ class Verified:
     warnings: tuple
 
 
-def screen(prep):
-    """The plain fit of every sample, slips named (exit 2) and gross errors excluded."""
-    request, dataset, unknowns = prep.request, prep.dataset, prep.request.unknowns
+def _plain(prep):
+    """The plain fit of every sample: its RMS (mm) and leave-one-out RMS (None without ``loo``), after
+    the setup slips it would show are named (exit 2)."""
     everything, basin = prep.everything, prep.basin
     plain_start = (everything.point_from(transform_from_pose(prep.start_pose)) if basin is None
                    else everything.point_from(basin.best.sensor2flange, basin.best.centre))
     plain = robust.least_squares(everything, plain_start).x
     plain_rms = float(np.sqrt(np.mean(np.sum(everything.residuals(plain) ** 2, axis=1))))
-    slips.check(dataset, unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
+    slips.check(prep.dataset, prep.request.unknowns, plain_rms)  # side, units: named (exit 2), never calibrated
+    return plain_rms, describe.rms(robust.leave_one_out(everything, plain)) if prep.request.loo else None
+
+
+def screen(prep):
+    """The plain fit of every sample, slips named (exit 2) and gross errors excluded."""
+    request, dataset, unknowns = prep.request, prep.dataset, prep.request.unknowns
+    key = ("plain", unknowns, prep.kind, tuple(prep.start_pose), request.sigma, request.robot_sigma, request.loo)
+    plain_rms, loo = dataset.once(key, lambda: _plain(prep))  # the search's refit asks again: the same answer
     slips.check_radius(dataset, unknowns, request.sigma, request.effects)  # a wrong diameter the pose would absorb
     if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
         slips.check_centre(dataset, request.sigma, request.effects)
-    loo = describe.rms(robust.leave_one_out(everything, plain)) if request.loo else None
     before = Before(len(dataset), plain_rms, loo)
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
     if request.outliers:
