@@ -50,6 +50,20 @@ def run(out, quick=False):
     return summary
 
 
+def _statistical_sd(res):
+    """The reported sd of the sensor pose (mm, deg) without the power statement's widening: that is a bound on
+    what the data could not see (:mod:`handeye.model.fit.power`), not scatter; the rest is what the observed
+    scatter of replicates measures."""
+    cov, names = np.array(res.covariance, float), list(res.parameter_names)
+    statement = res.power
+    for missed in (statement.widening if statement is not None else ()):
+        pairs = [(names.index(n), j) for j, n in enumerate(statement.names) if n in names]
+        ours, theirs = [k for k, _ in pairs], [j for _, j in pairs]
+        cov[np.ix_(ours, ours)] -= np.asarray(missed.widening, float)[np.ix_(theirs, theirs)]
+    sd = np.sqrt(np.clip(np.diag(cov)[:6], 0.0, None))
+    return [*sd[:3], *np.degrees(sd[3:])]
+
+
 def _replicates(setup, design, reps):
     """Each model calibrated on ``reps`` noisy replicates of the design: ``(errors, reported sd, leave-one-out
     errors, held-out errors)``, the first two by model."""
@@ -70,7 +84,7 @@ def _replicates(setup, design, reps):
                         [new.centre_in_sensor, np.ones(len(new.ids))])[..., None]
                     heldout.append(np.sqrt(np.mean(np.sum((pred[:, :3, 0] - new.true_centre) ** 2, axis=1))))
                 errors[kind].append(np.concatenate(pose_error(res.sensor2flange, truth)))
-                reported[kind].append([*res.std.sensor_translation_mm, *res.std.sensor_rotation_deg])
+                reported[kind].append(_statistical_sd(res))
     return errors, reported, loo, heldout
 
 

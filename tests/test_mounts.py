@@ -417,9 +417,11 @@ def test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_vali
     assert "sensor_scale" in named and abs(named["sensor_scale"].parameters["s"] - 0.003) < 4 * named["sensor_scale"].std["s"]
     assert d.rms_after_mm < 0.6 * d.rms_before_mm and d.heldout_rms_after_mm < d.heldout_rms_before_mm
     unknowns = "sensor+positioner" if sphere == "positioner" else "sensor"
-    if sphere == "positioner":
+    if sphere == "positioner":  # the cell stage cannot fit the scale with the axes: refused, naming it
         assert list(named)[0] == "positioner_axes"
-        res = handeye.calibrate(made.path, unknowns=unknowns, out=tmp_path / "cal.json", no_loo=True)
+        res = handeye.calibrate(made.path, unknowns=unknowns, no_loo=True)
+        assert not res.converged and "the discrepancy search names sensor_scale" in res.message
+        return  # (the outputs of a positioner calibration: test_cloud_and_validate_of_profiles_in_every_mount)
     else:
         res = handeye.calibrate(made.path, effects="sensor_scale", out=tmp_path / "cal.json", no_loo=True)
         assert abs(res.effects[0].parameters["s"] - 0.003) < 4 * res.effects[0].std["s"]

@@ -118,3 +118,4 @@ def test_calibrated_axes_with_an_effect_beside_them_are_refused(positioner_scale
     r = handeye.calibrate(positioner_scale["off"].path, unknowns="sensor+positioner", no_loo=True)
     assert not r.converged
     assert "at the positioner's calibrated axes the discrepancy search names sensor_scale (s = " in r.message
+    assert "sd of its own (more than 1)" in r.message

@@ -108,8 +108,7 @@ def chosen(request, dataset, result, refit):
         return result  # held axes that are off: the positioner's own test refuses next, naming the option
     names = _model_of(found)
     if names and request.cell and not request.chosen:
-        result = result.refused(_beside_axes(found, names, dataset, request))
-        result = dataclasses.replace(result, warnings=[w for w in result.warnings if not w.startswith(STRUCTURE_WARNING)])
+        result = _beside_axes(result, found, names, dataset, request)
     elif names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
     elif names_differ(found, request) or (found.outliers and not request.outliers):
@@ -166,12 +165,23 @@ def _with_effects(request, dataset, result, refit, names, found):
     return dataclasses.replace(fitted, warnings=[note, *kept])
 
 
-def _beside_axes(found, names, dataset, request):
-    """Why a calibration of the positioner's axes is refused when the search names effects beside them."""
+def _beside_axes(result, found, names, dataset, request):
+    """A calibration of the positioner's axes beside which the search names effects: refused where the
+    search's pose (with them, at the calibrated axes) lies beyond :data:`diagnose.AGREE_SD` of the
+    result's own sd; else kept, with a warning naming them (a 0.007 % scale on a clean cell, 3 of its sd,
+    moves the pose by a fraction of its sd)."""
     named = "; ".join(f"{e.name} ({_values(e)})" for e in found.effects if e.name in names)
-    return (f"not a calibration: at the positioner's calibrated axes the discrepancy search names {named}, which the "
-            f"cell stage cannot estimate together with the axes, and the pose without {'it' if len(names) == 1 else 'them'} "
-            f"is not right; `{_command('diagnose', dataset, request)}` prints the search and its pose under that model")
+    d = pose_distance(np.asarray(found.sensor2flange, float), np.asarray(result.sensor2flange, float),
+                      result.covariance, result.parameter_names)
+    kept = [w for w in result.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
+    far = f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.2f} sd of its own"
+    if diagnose.same_pose(d):
+        return dataclasses.replace(result, warnings=[*kept, f"at the positioner's calibrated axes the discrepancy search "
+                                                             f"names {named}; with it the pose is {far}: within its sd"])
+    return dataclasses.replace(result, warnings=kept).refused(
+        f"not a calibration: at the positioner's calibrated axes the discrepancy search names {named}, which the cell "
+        f"stage cannot estimate together with the axes; with {'it' if len(names) == 1 else 'them'} the pose is {far} "
+        f"(more than {diagnose.AGREE_SD:g}); `{_command('diagnose', dataset, request)}` prints the search")
 
 
 def _values(effect):
