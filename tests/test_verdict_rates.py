@@ -169,8 +169,11 @@ def test_one_cell_exits_as_promised(tmp_path, kind, seed):
 
 # ----------------------------------------------------------------------------- (c) the rates, slow
 #: cells per class of the slow rates: the clean classes more (their false-alarm and lost-sample rates are
-#: bounded near 0), 30 for every other class (a class failing in 10 % of its cells fails here with 96 %)
-CELLS = {"clean": 60, "clean-robot": 40}
+#: bounded near 0), 30 for every other class (a class failing in 10 % of its cells fails here with 96 %) but
+#: those whose rates other generators hold over more cells in the full suite: pairing shifts
+#: (tests/test_pairing.py, 60 shifted cells), profiles of no arc (tests/test_arcs.py) and setup
+#: slips (tests/test_independent_cells.py, 12 seeds per slip) -- the full suite's 20 minutes
+CELLS = {"clean": 60, "clean-robot": 40, "pairing-shift": 10, "non-arc": 10, "slip": 20}
 DEFAULT_CELLS = 30
 #: cells per shard (tests/shards.py): about 10 s of test time each
 PER_SHARD = 10
