@@ -26,9 +26,10 @@ A sphere on a positioner is searched at the axes the result stands on (set up, o
 ``--unknowns ...+positioner``: :func:`handeye.app.engine.cell_stage.dataset_at`). Where the search
 finds the set-up axes off, the positioner's own test refuses next
 (:func:`handeye.app.engine.positioner_effect.with_positioner_hint`, naming ``--unknowns
-...+positioner``); where it names catalogue effects on top of calibrated axes, the result is
-refused: the cell stage cannot yet estimate effects with the axes (its fit would leave them in the
-pose: a 0.2 % sensor scale put a calibrated-axes pose 0.66 mm, 42 sd, from the truth).
+...+positioner``); where it names catalogue effects on top of calibrated axes and its pose with
+them lies beyond ``AGREE_SD`` of the result's sd, the result is refused: the cell stage cannot yet
+estimate effects with the axes (its fit leaves them in the pose: a 0.2 % sensor scale put a
+calibrated-axes pose 0.66 mm, 42 sd, from the truth); within it, a warning names them.
 
 So calibrate does not exit 0 with a model its search replaces. Left to other checks: a held sensor
 (the cell stage's own test of held parts), the closed-form methods, a fit that did not converge,
@@ -174,7 +175,8 @@ def _beside_axes(result, found, names, dataset, request):
     d = pose_distance(np.asarray(found.sensor2flange, float), np.asarray(result.sensor2flange, float),
                       result.covariance, result.parameter_names)
     kept = [w for w in result.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
-    far = f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.2f} sd of its own"
+    far = f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one" + (
+        f", {d['sd']:.2f} sd of its own" if d["sd"] is not None else " (it has no sd to compare with)")
     if diagnose.same_pose(d):
         return dataclasses.replace(result, warnings=[*kept, f"at the positioner's calibrated axes the discrepancy search "
                                                              f"names {named}; with it the pose is {far}: within its sd"])
