@@ -36,7 +36,7 @@ from handeye.app.engine.diagnose import held_power
 from handeye.app.engine.score import Scorer, f_test
 from handeye.app.present.result_parts import UncertaintyRecord
 from handeye.model.chain import conventions
-from handeye.model.common.rotation import pose_distance
+from handeye.model.common.rotation import pose_distance, pose_sd
 from handeye.model.datasets import observations
 
 #: Relative difference of the file's RMS from the data's beyond which the file's ``rms_mm`` is
@@ -131,10 +131,7 @@ class HeldVerdict:
 
     def sd(self):
         """1-sd ``(translation (3,) mm, rotation (3,) deg)`` of the recomputed covariance, or None."""
-        if self.covariance is None:
-            return None
-        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
-        return sd[:3], np.degrees(sd[3:6])
+        return pose_sd(self.covariance)
 
     def fatal(self):
         """The disagreements that make the file unusable."""

@@ -31,6 +31,7 @@ from handeye.app.common.arguments import typed_pose
 from handeye.app.common.errors import RequestError
 from handeye.model.chain import own_frame
 from handeye.model.chain.names import SENSOR_MOUNTS
+from handeye.model.common.rotation import pose_sd
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
 ORTHONORMAL_TOLERANCE = 1e-6
@@ -128,10 +129,7 @@ class Calibration:
 
     def sd(self):
         """1-sd ``(translation (3,) mm, rotation (3,) deg)``, or None without a covariance."""
-        if self.covariance is None:
-            return None
-        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
-        return sd[:3], np.degrees(sd[3:6])
+        return pose_sd(self.covariance)
 
     def to_dict(self):
         """The calibration as JSON-ready numbers of the user's frame (:meth:`user_frame`; ``own_axes`` and

@@ -91,6 +91,15 @@ def transform_distance(t_a, t_b):
     return dt, rotation_angle_deg(t_a[..., :3, :3], t_b[..., :3, :3])
 
 
+def pose_sd(covariance):
+    """1-sd ``(translation (3,) mm, rotation (3,) deg)`` of a covariance whose first six parameters are
+    ``tx, ty, tz`` (mm) and ``wx, wy, wz`` (rad, about the sensor's axes); None without one."""
+    if covariance is None:
+        return None
+    sd = np.sqrt(np.clip(np.diag(np.asarray(covariance, float)), 0.0, None))
+    return sd[:3], np.degrees(sd[3:6])
+
+
 def pose_distance(given, estimate, covariance=None, names=None):
     """How far ``given`` (4x4) lies from ``estimate`` (4x4): translation (mm), rotation (deg) and,
     with the estimate's covariance on the local chart (``names`` tx..wz), the Mahalanobis
