@@ -90,8 +90,13 @@ def sample_chunks(mask, chunk=None):
 class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
 
-    def __init__(self, dataset, sigma=None):
+    def __init__(self, dataset, sigma=None, metric=None):
         self.d = dataset
+        #: whitening (N, 3, 3) of every sample's centre residual, in mm
+        #: (:func:`handeye.model.datasets.observations.centre_metric`: centres rebuilt from profiles are
+        #: not equal, isotropic noise), or None: equal weights. Every residual, Jacobian and candidate
+        #: column is in this metric; :meth:`raw` turns residuals back into mm.
+        self.whiten = None if metric is None else np.asarray(metric, float)
         self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
         self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
@@ -101,6 +106,20 @@ class Samples:
         self.robot_free = {}
         #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
         self.robot_always = set()
+
+    def whitened(self, arr, rows=None):
+        """Rows ``arr`` (k, 3) or (k, 3, q) of the samples ``rows`` (default all) in the samples' metric."""
+        if self.whiten is None:
+            return arr
+        w = self.whiten if rows is None else self.whiten[rows]
+        return np.einsum("nij,nj...->ni...", w, arr)
+
+    def raw(self, e, rows=None):
+        """Residuals ``e`` (k, 3) in the samples' metric back in mm (the carrier's frame)."""
+        if self.whiten is None:
+            return e
+        w = self.whiten if rows is None else self.whiten[rows]
+        return np.linalg.solve(w, e[..., None])[..., 0]
 
     def params_of(self, name):
         """The parameter names an effect has on these samples (a robot effect: those it estimates)."""
@@ -182,7 +201,8 @@ class Samples:
         in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
         extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
                  for c in cols]
-        return e, np.concatenate([j] + extra, axis=2) if extra else j, model
+        jac = np.concatenate([j] + extra, axis=2) if extra else j
+        return self.whitened(e, rows), self.whitened(jac, rows), model
 
     def names(self, structure):
         base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
@@ -333,7 +353,12 @@ def candidate_columns(prob, structure, fit, mask, name):
 
 def candidate_rows(prob, structure, fit, rows, name):
     """Jacobian columns (k, 3, q) of a candidate effect at the fit, of the samples ``rows`` (an
-    index array; None: every sample)."""
+    index array; None: every sample), in the samples' metric (:meth:`Samples.whitened`)."""
+    return prob.whitened(_candidate_rows(prob, structure, fit, rows, name), rows)
+
+
+def _candidate_rows(prob, structure, fit, rows, name):
+    """:func:`candidate_rows` in mm (unweighted)."""
     effect = effects.get(name)
     xs = prob.measured(structure, rows)
     f2b = prob.f2b if rows is None else prob.f2b[rows]
