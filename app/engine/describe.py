@@ -185,7 +185,7 @@ def with_effects(final, base):
         jac = np.where(np.isfinite(jac), jac, 0.0)
     named = _named_effects(final, efit, std, stuck, final.centre_given and structure.centre)
     converged, message = _effects_verdict(final, efit, base, stuck)
-    ident = identifiability.analyse(jac, efit.names)
+    ident = identifiability.analyse(jac, efit.names, rows=efit.m)
     final.warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; "
                           "no leave-one-out error (the effects are fitted to every sample used)")
     sensor = prob.transform(efit.x)
@@ -216,11 +216,12 @@ def _choose_joints(final, prob, structure):
 
 def _fit_with_effects(final, prob, structure):
     """The extended fit ``structure`` of ``prob`` from the final fit, and its Jacobian of the used
-    samples; a CalibrationInputError when the effects cannot be fitted on these data."""
+    samples (many samples, fitted chunk by chunk: its triangular factor R, ``R^T R = J^T J``); a
+    CalibrationInputError when the effects cannot be fitted on these data."""
     dataset, mask, fit = final.dataset, final.mask, final.fit
     with np.errstate(all="ignore"):
         efit = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
-    jac = efit.jac[mask].reshape(-1, efit.p)
+    jac = efit.jac[mask].reshape(-1, efit.p) if efit.jac is not None else efit.r_factor(mask)
     on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
     if not np.all(np.isfinite(efit.x)) or (on_plane and not np.all(np.isfinite(jac))):
         raise CalibrationInputError(
@@ -342,9 +343,7 @@ def _not_a_minimum(dataset, mask, extended, names, radius):
     is the fit stopped against the bound ``R + dr >= r_i`` (a corrected y of 0): the data ask
     for a sphere smaller than a circle measured on it."""
     e = extended.e[mask].ravel()
-    jac = extended.jac[mask].reshape(-1, extended.p)
-    with np.errstate(all="ignore"):
-        cos = np.abs(jac.T @ e) / (np.linalg.norm(jac, axis=0) * np.linalg.norm(e))
+    cos = extended.gradient_cosines(mask)
     worst = float(np.max(np.where(np.isfinite(cos), cos, np.inf)))
     if worst <= EFFECT_COS or not np.linalg.norm(e) > 0:
         return None

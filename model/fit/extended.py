@@ -64,19 +64,41 @@ class Fit:
     p: int
     converged: bool = True
     message: str = ""
+    #: ``(J^T J, J^T r)`` over the fit's samples where the Fit holds no Jacobian (``jac`` None: many
+    #: samples, summed chunk by chunk), else None
+    normal: tuple | None = None
 
     @property
     def sigma2(self):
         return self.ssr / max(self.m - self.p, 1)
 
+    def _jtj_jtr(self, mask):
+        """``(J^T J, J^T r)`` over the samples in ``mask`` (the fit's own when it holds no Jacobian)."""
+        if self.jac is None:
+            return self.normal
+        jac = self.jac[mask].reshape(-1, self.p)
+        return jac.T @ jac, jac.T @ self.e[mask].ravel()
+
     def uncertainty(self, mask):
         """1-sd (step units: mm, rad, effect units) and correlation of every parameter, from
         ``sigma^2 (J^T J)^+`` over the samples in ``mask``."""
-        jac = self.jac[mask].reshape(-1, self.p)
-        cov = self.sigma2 * np.linalg.pinv(jac.T @ jac)
+        cov = self.sigma2 * np.linalg.pinv(self._jtj_jtr(mask)[0])
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         scale = np.where(std > 0, std, 1.0)
         return std, cov / np.outer(scale, scale)
+
+    def gradient_cosines(self, mask):
+        """Per parameter ``|J_k^T r| / (|J_k| |r|)`` over the samples in ``mask``: 0 at a minimum."""
+        jtj, jtr = self._jtj_jtr(mask)
+        with np.errstate(all="ignore"):
+            return np.abs(jtr) / (np.sqrt(np.diag(jtj)) * np.sqrt(np.sum(self.e[mask] ** 2)))
+
+    def r_factor(self, mask):
+        """A factor R (p, p) with ``R^T R = J^T J`` over the samples in ``mask`` (the same singular values,
+        right singular vectors and column norms as J: what
+        :func:`handeye.model.design.identifiability.analyse` takes with ``rows``)."""
+        w, v = np.linalg.eigh(self._jtj_jtr(mask)[0])
+        return np.sqrt(np.clip(w, 0.0, None))[:, None] * v.T
 
 
 def sample_chunks(mask, chunk=None):
@@ -238,13 +260,15 @@ class Samples:
         problem = self._problem(structure, mask, (n, split, retract), chunk, big)
         solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
         x, params = split(solved.x)
+        normal = None
         if big:
             e, jac = self.residuals(structure, x, params, None, chunk), None
+            normal = self.normal_equations(structure, x, params, mask, chunk)[:2]
         else:
             e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
         return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n, bool(solved.converged),
-                   solved.message)
+                   solved.message, normal)
 
     def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
         """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
