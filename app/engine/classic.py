@@ -24,6 +24,7 @@ import numpy as np
 from handeye.app.common.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robust, slips
+from handeye.app.engine.levels import AWAY, AWAY_SD  # the verdict's levels, one place
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
 from handeye.app.present.residual_table import SampleResidual
@@ -43,13 +44,6 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
     if method == "li-two-step":
         return classics.li_two_step(flange2base, centre_in_sensor, sphere_centre)
     raise CalibrationInputError(f"unknown closed-form method {method!r}; choose one of {', '.join(METHODS)}")
-
-
-#: A baseline lies away from the data's own calibration beyond this many of its sd (Mahalanobis, 6 dof)
-#: *and* beyond these (mm, deg): the issue's "away from the truth" (3 sd and 0.2 mm / 0.05 deg), with the
-#: data's best estimate in the truth's place -- what the tool knows is better than the baseline.
-AWAY_SD = 3.0
-AWAY = (0.2, 0.05)
 
 
 def judged(result, own):

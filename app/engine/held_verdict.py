@@ -37,25 +37,12 @@ import numpy as np
 from handeye.app.engine import held_effects
 from handeye.app.engine.describe import _fit_statistics, noise_test
 from handeye.app.engine.diagnose import held_power
+from handeye.app.engine.levels import POSE_AGREES, RMS_AGREES, SD_BAND  # the verdict's levels, one place
 from handeye.app.engine.score import Scorer, f_test
 from handeye.app.present.result_parts import UncertaintyRecord
 from handeye.model.chain import conventions
 from handeye.model.common.rotation import pose_distance, pose_sd
 from handeye.model.datasets import observations
-
-#: Relative difference of the file's RMS from the data's beyond which the file's ``rms_mm`` is
-#: named. The same samples at the same pose give the same RMS to rounding (17 digits written;
-#: a freed centre refitted with the pose held lands on the file's to the solver's tolerance,
-#: where the RMS is stationary): a thousandth is far above both and far below any edit that matters.
-RMS_AGREES = 1e-3
-#: The band of (file's sd / data's sd) per pose component within which the file's covariance
-#: agrees: the band in which the project calls an sd calibrated (0.8-1.25, issue 39); the same
-#: model at the same pose gives the same covariance to rounding.
-SD_BAND = (0.8, 1.25)
-#: The file's ``sensor_matrix`` against its own ``sensor_pose_as`` (both written from one 4x4 with
-#: 17 digits): beyond this (mm, deg) one of them was edited. A file re-saved with 6 significant
-#: digits moves a 2 m translation by 1e-3 mm; a calibration's sd is rarely below 0.01 mm.
-POSE_AGREES = (0.01, 0.01)
 
 
 @dataclasses.dataclass(frozen=True)
