@@ -12,7 +12,7 @@ from handeye.app.command import cli
 from handeye.app.engine import classic
 from handeye.model.chain import symbolic
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
-from handeye.model.common.rotation import matrix_from_rotvec, pose_distance, transform_distance
+from handeye.model.common.rotation import matrix_from_rotvec, transform_distance
 from handeye.model.fit import classics
 from handeye.model.simulation import motions, simulate
 
@@ -242,6 +242,19 @@ def test_cli_kim_cho_on_thesis_real_screens_the_misprint_first(capsys):
     assert raw["outliers"] == [] and raw["rms_mm"] > 100  # the 2,000 mm misprint ruins the linear fit
 
 
+def test_a_baseline_exits_0_only_within_the_floor_of_the_truth(tmp_path):
+    """A baseline has no sd: it is right only within 0.2 mm / 0.05 deg of the truth. Few poses (12, three pure
+    translations at two orientations), six seeds: every exit 0 lies within that floor of the truth (before, Kim &
+    Cho exited 0 up to 0.075 deg from it, the data's own calibration 0.044 deg away)."""
+    for seed in range(6):
+        made = handeye.simulate(tmp_path / f"s{seed}", seed=seed, n_poses=12, translations=3)
+        truth = transform_from_pose(made.dataset.truth["sensor_pose"])
+        for method in ("kim-cho", "li-two-step"):
+            r = handeye.calibrate(made.path, method=method)
+            dt, dr = transform_distance(r.sensor2flange, truth)
+            assert not r.converged or (dt <= classic.AWAY[0] and dr <= classic.AWAY[1]), (seed, method, dt, dr)
+
+
 def test_a_baseline_on_data_that_choose_another_model_is_refused(tmp_path):
     """A sensor scale the default calibration's search names: the baselines fit the plain chain these data
     contradict, exit 1 naming the model the data choose (before: exit 0, 0.32 and 0.72 mm from the truth)."""
@@ -255,13 +268,11 @@ def test_cli_classics_on_a_simulated_dataset(tmp_path, capsys):
     out = tmp_path / "sim"
     assert cli.main(["simulate", "--out", str(out), "--translations", "3", "--seed", "5"]) == 0
     capsys.readouterr()
-    own = handeye.calibrate(out, no_loo=True)
     for method in ("li-two-step", "kim-cho"):
         code = cli.main(["calibrate", str(out), "--method", method, "--json"])
         res = json.loads(capsys.readouterr().out)
-        d = pose_distance(np.array(res["sensor_matrix"]), own.sensor2flange, own.covariance, own.parameter_names)
-        away = d["sd"] > classic.AWAY_SD and (d["translation_mm"] > classic.AWAY[0] or d["rotation_deg"] > classic.AWAY[1])
-        assert code == (cli.EXIT_NOT_CONVERGED if away else cli.EXIT_OK), (method, d)
+        assert code in (cli.EXIT_OK, cli.EXIT_NOT_CONVERGED)
+        assert code == cli.EXIT_OK or "a baseline with no sd of its own may miss" in res["message"], res["message"]
         assert res["method"] == method and len(res["residuals"]) == 36 + 2 * 4
         truth = transform_from_pose(np.array([190.0, 100.0, 125.0, 180.0, -88.0, 0.0]))
         dt, dr = transform_distance(np.array(res["sensor_matrix"]), truth)

@@ -9,10 +9,11 @@ optimum. No uncertainty: these are baselines, and the report says so.
 
 A baseline's verdict is the data's own (:func:`judged`): its plain chain is the model of the default
 calibration, so where that calibration refuses the data, or its search chooses another model (a sensor
-scale, a wrong radius, the robot's errors) or puts the pose away from the baseline's (beyond 3 of its sd and
-0.2 mm / 0.05 deg: the issue's "away from the truth", the data's best estimate in the truth's place), the
-baseline is refused too (exit 1), naming why; the tool never exits 0 with an answer its own calibration of
-the same data knows to be worse.
+scale, a wrong radius, the robot's errors) or cannot vouch for the baseline: a baseline has no sd, so it is
+right only within 0.2 mm / 0.05 deg of the truth (the issue's "away from the truth" with no sd), and the
+truth lies within 3 sd of the data's own calibration -- the baseline's distance from it plus 3 of its sd
+must stay within that floor. Otherwise the baseline is refused (exit 1), naming why; the tool never exits 0
+with an answer its own calibration of the same data cannot vouch for.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleanin
 from handeye.app.present.results import CalibrationResult, ClosedFormDetails
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
-from handeye.model.common.rotation import pose_distance, transform_distance
+from handeye.model.common.rotation import pose_distance, pose_sd, transform_distance
 from handeye.model.fit import classics
 from handeye.model.fit.calibration import CalibrationModel
 
@@ -49,8 +50,8 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
 def judged(result, own):
     """The closed-form ``result`` under the verdict of ``own``, the default calibration of the same data and
     unknowns (module docstring): refused where ``own`` is, where ``own`` names catalogue effects, or where the
-    baseline lies away from ``own`` (:data:`AWAY_SD`, :data:`AWAY`); else ``result`` with a line saying where
-    the data's own calibration lies from it."""
+    truth may lie beyond :data:`AWAY` of the baseline (its distance from ``own`` plus :data:`AWAY_SD` of ``own``'s
+    sd); else ``result`` with a line saying where the data's own calibration lies from it."""
     if not own.converged:
         return result.refused(f"not a calibration: the data's own calibration (nonlinear least squares, searched) "
                               f"refuses these data: {own.message}")
@@ -63,12 +64,25 @@ def judged(result, own):
                       own.parameter_names)
     far = f"{d['translation_mm']:.3g} mm / {d['rotation_deg']:.3g} deg" + (
         "" if d["sd"] is None else f", {d['sd']:.3g} of its sd (Mahalanobis)")
-    if d["sd"] is not None and d["sd"] > AWAY_SD and (d["translation_mm"] > AWAY[0] or d["rotation_deg"] > AWAY[1]):
+    reach = _reach(d, own.covariance)
+    if reach is None or reach[0] > AWAY[0] or reach[1] > AWAY[1]:
         return result.refused(f"not a calibration: the data's own calibration (the default, searched: the plain chain) "
-                              f"lies {far} from this baseline, beyond what its noise explains; calibrate without "
-                              "--method gives it")
+                              f"lies {far} from this baseline; with {AWAY_SD:g} of its sd the truth may lie "
+                              + ("an unknown distance" if reach is None else f"{reach[0]:.3g} mm / {reach[1]:.3g} deg")
+                              + f" from it, beyond the {AWAY[0]:g} mm / {AWAY[1]:g} deg a baseline with no sd of its own "
+                              "may miss; calibrate without --method gives the calibration")
     return dataclasses.replace(result, warnings=[*result.warnings, (
         f"the data's own calibration (the default, searched: the plain chain) lies {far} from this baseline")])
+
+
+def _reach(distance, covariance):
+    """How far (mm, deg) the truth may lie from the baseline: its distance from the data's own calibration
+    plus :data:`AWAY_SD` of that calibration's sd (the length of the per-axis sd vector); None without one."""
+    sd = pose_sd(covariance)
+    if sd is None or not all(np.all(np.isfinite(s)) for s in sd):
+        return None
+    return (distance["translation_mm"] + AWAY_SD * float(np.linalg.norm(sd[0])),
+            distance["rotation_deg"] + AWAY_SD * float(np.linalg.norm(sd[1])))
 
 
 def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA, convention=None):

@@ -16,8 +16,10 @@ pose, sphere centre and effect parameters are held in that model, in the samples
   :mod:`handeye.app.engine.cell_stage`);
 - the distance of the held pose from that minimum (mm, deg, and in the minimum's sd).
 
-Robot effects (their parameters are the ones the poses separate, a choice the file does not record) and
-the positioner's axes stay beyond this path: the caller says so.
+Robot effects are held with the parameters the file names (those its calibration estimated); the
+positioner's axes are held where the caller puts the data (its axes). A file whose effects this path cannot
+read (an unknown name, a parameter missing or not a number, a robot effect on data without joints) is no
+calibration of these data: :class:`UnreadEffects`, which the caller names as a hand-edited or foreign field.
 """
 from __future__ import annotations
 
@@ -61,24 +63,54 @@ class HeldEffects:
     distance: dict
 
 
-def file_effects(doc):
-    """The file's catalogue effects as ``{name: parameters (k,)}`` in the catalogue's parameter order, or None
-    when one of them is beyond this path (a robot effect, the positioner's axes, an unknown name, a missing
-    parameter); sign flips are data, not effects here."""
-    out = {}
-    for effect in doc.get("effects") or []:
-        name = effect.get("name") if isinstance(effect, dict) else None
-        if name == "sign_flip":
+class UnreadEffects(ValueError):
+    """The file's ``effects`` cannot be held on these data (why, in words)."""
+
+
+#: Named effects that are no parameters of the extended model's effects: sign flips are samples; the
+#: positioner's axes are the data's (the caller holds them); the sphere centre is held as the file's own
+#: (its offset named as an effect frees it: :func:`centre_freed`).
+NOT_HELD = ("sign_flip", "positioner_axes", "sphere_center")
+
+
+def centre_freed(doc):
+    """Whether the file's calibration estimated the sphere centre: its unknowns free it, or it names the
+    centre's offset as an effect."""
+    named = [e.get("name") for e in doc.get("effects") or [] if isinstance(e, dict)]
+    return "sphere" in str(doc.get("unknowns") or "sensor").split("+") or "sphere_center" in named
+
+
+def file_effects(doc, data):
+    """The file's catalogue effects on ``data``: ``({name: parameters (k,)}, {robot effect: indices of its
+    parameters the file estimated})``, each effect's parameters in the catalogue's order (a robot effect's:
+    the ones the file names); raises :class:`UnreadEffects` naming what cannot be read."""
+    effects = doc.get("effects")
+    if not isinstance(effects, list) or not all(isinstance(e, dict) for e in effects):
+        raise UnreadEffects(f"effects {str(effects)[:60]!r} is not a list of named effects")
+    values, robot_free = {}, {}
+    for effect in effects:
+        name, given = effect.get("name"), effect.get("parameters")
+        if name in NOT_HELD:
             continue
+        if not isinstance(name, str) or name not in catalogue.MODULES or not isinstance(given, dict):
+            raise UnreadEffects(f"effect {str(name)[:40]!r} is not one of the catalogue's with its parameters")
+        known = catalogue.get(name)
+        if known.KIND == "robot" and not known.available(data):
+            raise UnreadEffects(f"effect {name!r} needs the joint angles, which {data.name} lacks")
+        names = known.params(data.robot_model) if known.KIND == "robot" else known.PARAMS
+        keys = list(given) if known.KIND == "robot" else list(names)
         try:
-            known = catalogue.get(name)
-            values = np.array([float(effect["parameters"][p]) for p in known.PARAMS])
+            values[name] = np.array([float(given[k]) for k in keys])
+            if known.KIND == "robot":
+                robot_free[name] = [list(names).index(k) for k in keys]
         except (KeyError, TypeError, ValueError):
-            return None
-        if known.KIND != "data" or not np.all(np.isfinite(values)):
-            return None
-        out[name] = values
-    return out
+            raise UnreadEffects(f"effect {name!r} parameters {str(given)[:60]} are not {', '.join(names)} as numbers") from None
+        if not np.all(np.isfinite(values[name])):
+            raise UnreadEffects(f"effect {name!r} has a parameter that is not finite")
+        why = catalogue.implausible(name, values[name], data.sphere_diameter / 2, names=keys)
+        if why is not None:
+            raise UnreadEffects(why)
+    return values, robot_free
 
 
 def recompute(data, mask, sensor2flange, centre, held, stated):
@@ -94,33 +126,35 @@ def recompute(data, mask, sensor2flange, centre, held, stated):
     centre : ndarray, shape (3,)
         The file's sphere centre, mm.
     held : tuple
-        ``(effects, centre_free)``: :func:`file_effects` of the file, and whether its unknowns free the centre.
+        ``(file_effects, centre_free)``: :func:`file_effects` of the file, and whether its unknowns free the
+        centre.
     stated : float
         The stated noise the file's calibration ran with, mm per component.
     """
-    effects, centre_free = held
+    (effects, robot_free), centre_free = held
     structure = Structure(centre=bool(centre_free), data_effects=tuple(effects))
-    n_pose = 9 if centre_free else 6
-    prob = Samples(data, stated, observations.centre_metric(data, sensor2flange, centre, mask, n_pose))
+    metric = observations.centre_metric(data, sensor2flange, centre, mask, 9 if centre_free else 6)
+    prob = Samples(data, stated, metric)
+    prob.robot_free.update(robot_free)
     x = prob.point(structure, sensor2flange, centre)
-    e, jac, _ = prob.evaluate(structure, x, effects)
-    flat = jac[mask].reshape(-1, jac.shape[2])
-    ssr, m, p = float(np.sum(e[mask] ** 2)), 3 * int(mask.sum()), jac.shape[2]
     with np.errstate(all="ignore"):
+        e = prob.residuals(structure, x, effects)
+        jtj, _, ssr = prob.normal_equations(structure, x, effects, mask)
         best = prob.fit(structure, mask, x, effects)
-    cov = ssr / max(m - p, 1) * np.linalg.pinv(flat.T @ flat)
-    raw = prob.raw(e)
-    norms = np.linalg.norm(raw, axis=1)
-    return HeldEffects(raw, float(np.sqrt(np.mean(norms[mask] ** 2))), float(norms[mask].max()), cov[:6, :6],
+    m, p = 3 * int(mask.sum()), jtj.shape[0]
+    if not (np.isfinite(ssr) and np.all(np.isfinite(jtj))):
+        raise UnreadEffects("the chain with the file's effects is not finite on these data")
+    cov = ssr / max(m - p, 1) * np.linalg.pinv(jtj)
+    norms = np.linalg.norm(prob.raw(e), axis=1)
+    return HeldEffects(prob.raw(e), float(np.sqrt(np.mean(norms[mask] ** 2))), float(norms[mask].max()), cov[:6, :6],
                        noise_test(ssr, m - p, stated, False, [], ""), _contradicted(ssr, best.ssr, m, p),
-                       pose_distance(sensor2flange, prob.transform(best.x), best.sigma2 * np.linalg.pinv(
-                           best.jac[mask].reshape(-1, p).T @ best.jac[mask].reshape(-1, p)), best.names))
+                       pose_distance(sensor2flange, prob.transform(best.x), best.covariance(mask), best.names))
 
 
 def _contradicted(held, minimum, m, p):
     """The held point's sum of squares ``held`` against the data's ``minimum`` (module docstring)."""
     dof = m - p
-    if dof <= 0 or not minimum > 0 or not np.isfinite(held):
+    if dof <= 0 or not minimum > 0:
         return False
     f = max(held - minimum, 0.0) / p / (minimum / dof)
     return bool(f_survival(f, p, dof) < P_HELD and np.sqrt(held / minimum) > HELD_FACTOR)

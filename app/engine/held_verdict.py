@@ -20,12 +20,12 @@ that is not the file's own ``sensor_pose_as``, and a pose the data contradict in
 it converged. The others (RMS, covariance, noise test, the dataset's hash in ``provenance``) are
 said beside the recomputed values, which the output shows instead.
 
-A file with data effects (``--effects``, or those the search chose) is recomputed in the extended model
-at its pose, centre and effects (:mod:`handeye.app.engine.held_effects`): residuals, RMS, noise test and
-whether the data contradict it. What is not recomputed, and said: a file's robot effects (the held paths
-are of the data effects and the plain chain), so its RMS and covariance are not compared; the covariance
-of a file with effects (widened by what the search could not see at its fit); the
-covariance of a file that calibrated the positioner's axes (its sensor block includes the axes'
+A file with effects (``--effects``, or those the search chose; data and robot effects) is recomputed in
+the extended model at its pose, centre and effects (:mod:`handeye.app.engine.held_effects`): residuals,
+RMS, noise test and whether the data contradict it; a file whose effects cannot be held (an unknown name,
+a parameter missing or not a number, a chain not finite with them) is refused, naming ``effects``. What is
+not compared, and said: the covariance of a file with effects (widened by what the search could not see
+at its fit); the covariance of a file that calibrated the positioner's axes (its sensor block includes the axes'
 uncertainty, which a pose held at the axes has not).
 """
 from __future__ import annotations
@@ -99,7 +99,7 @@ class HeldVerdict:
         How far the data's minimum (one step) lies from the pose: mm, deg, sd.
     disagreements : tuple of Disagreement
     not_recomputed : str or None
-        What the held paths cannot recompute (robot effects, the positioner's axes), in words.
+        Why the file's model could not be recomputed (effects it names that cannot be held), in words.
     effects : tuple of str
         The file's data effects, held with its pose (:mod:`handeye.app.engine.held_effects`); the residuals
         are of the centres they correct, and the file's covariance (widened by what the search could not see
@@ -184,8 +184,9 @@ def _stated(doc, data):
 
 
 def _effects(doc):
-    """The names of the file's catalogue effects (``--effects``)."""
-    return [e.get("name") for e in doc.get("effects") or [] if isinstance(e, dict) and e.get("name")]
+    """The names of the file's catalogue effects (``--effects``, or the search's), as written."""
+    effects = doc.get("effects")
+    return [str(e.get("name")) for e in effects if isinstance(e, dict)] if isinstance(effects, list) else []
 
 
 def recompute(doc, sensor2flange, data):
@@ -207,11 +208,18 @@ def recompute(doc, sensor2flange, data):
     sigma, robot_sigma = _stated(doc, data)
     mask = used_mask(doc, data)
     centre = np.asarray(doc["sphere_center"], float) if _vector(doc.get("sphere_center")) else None
-    effects = _effects(doc)
-    held = held_effects.file_effects(doc) if effects else None
-    if held and centre is not None:
-        verdict = _with_effects(data, mask, s, centre, (held, "sphere" in unknowns.split("+")), sigma)
-        return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+    unread = None
+    if doc.get("effects") not in (None, []) and (not isinstance(doc.get("effects"), list) or any(
+            n not in held_effects.NOT_HELD for n in _effects(doc))):
+        try:
+            if centre is None:
+                raise held_effects.UnreadEffects("the file gives no sphere_center to hold its effects with")
+            read = held_effects.file_effects(doc, data)
+            verdict = _with_effects(data, mask, s, centre, (read, held_effects.centre_freed(doc)), sigma)
+            return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+        except (held_effects.UnreadEffects, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            unread = Disagreement("effects", str(doc.get("effects"))[:80], f"but {exc}: not a calibration of "
+                                  f"{data.name} this tool can hold", True)
     scorer = Scorer(data, mask, kind, robot_sigma, "sphere" in unknowns.split("+"), s)
     given = scorer.score(s, centre)
     x = scorer.model.point_from(s, given.centre)
@@ -234,9 +242,9 @@ def recompute(doc, sensor2flange, data):
     norms = np.linalg.norm(given.residuals, axis=1)
     verdict = HeldVerdict(data.name, mask, given.residuals, float(given.rms_mm["centre"]), float(norms[mask].max()),
                           given.centre, np.asarray(cov.matrix)[:6, :6], noise, contradicted, distance,
-                          not_recomputed=(f"not recomputed: the file's effects ({', '.join(effects)}) are beyond the "
-                                          "held paths (robot effects, the positioner's axes)" if effects else None))
-    return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+                          not_recomputed=None if unread is None else f"not recomputed: {unread.text()}")
+    return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data))
+                               + (() if unread is None else (unread,)))
 
 
 def _with_effects(data, mask, sensor2flange, centre, held, stated):
@@ -246,7 +254,7 @@ def _with_effects(data, mask, sensor2flange, centre, held, stated):
     dof = max(r.noise.dof if r.noise is not None else 1, 1)
     cov = UncertaintyRecord.of_fit(r.covariance, ["tx", "ty", "tz", "wx", "wy", "wz"], dof).covariance
     return HeldVerdict(data.name, mask, r.residuals, r.rms_mm, r.max_mm, centre, np.asarray(cov), r.noise,
-                       r.contradicted, r.distance, effects=tuple(held[0]))
+                       r.contradicted, r.distance, effects=tuple(held[0][0]))
 
 
 def _as_reported(cov, scorer, sensor2flange, centre):

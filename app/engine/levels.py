@@ -79,9 +79,9 @@ AMBIGUOUS = 10.0
 POSITIVE = 2.0
 
 # -- an answer the tool knows to be worse (app/engine/classic.py) -----------------------------------------
-#: A baseline lies away from the data's own calibration beyond this many of its sd (Mahalanobis, 6 dof)
-#: *and* beyond these (mm, deg): the issue's "away from the truth" (3 sd and 0.2 mm / 0.05 deg), with the
-#: data's best estimate in the truth's place.
+#: A baseline (no sd of its own) is right within AWAY (mm, deg) of the truth, the issue's floor; the truth
+#: lies within AWAY_SD of the data's own calibration's sd: the baseline's distance from that calibration
+#: plus AWAY_SD of its sd must stay within AWAY.
 AWAY_SD = 3.0
 AWAY = (0.2, 0.05)
 

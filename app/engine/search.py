@@ -46,6 +46,7 @@ from handeye.app.engine import cell_stage, diagnose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
+from handeye.model.fit.extended import spread
 
 #: Effects the search names that are not a model the stages can take: sign flips are samples; the
 #: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
@@ -94,8 +95,9 @@ def chosen(request, dataset, result, refit):
     """
     if not searchable(request, dataset, result):
         return result
+    searched = searched_samples(cell_stage.dataset_at(result, dataset))
     try:
-        found = search(request, searched_samples(cell_stage.dataset_at(result, dataset)), result)
+        found = search(request, searched, result)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         return _unchecked_result(result, f"the search failed numerically ({exc})")
     if found.beyond_catalogue:
@@ -109,7 +111,9 @@ def chosen(request, dataset, result, refit):
         result = _beside_axes(result, found, names, dataset, request)
     elif names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
-    elif names_differ(found, request) or (found.outliers and not request.outliers):
+    elif len(searched) < len(dataset) and names_differ(found, request):  # its model fitted to every sample decides
+        result = _against_search(result, _on_every_sample(request, dataset, found, refit), dataset, request)
+    elif names_differ(found, request) or (found.outliers and not request.outliers and len(searched) == len(dataset)):
         result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
     if len(dataset) > ROW_CHUNK:
         return dataclasses.replace(result, warnings=[*result.warnings, _subsample_note(len(dataset))])
@@ -124,16 +128,14 @@ def searched_samples(dataset):
     sample (chunk by chunk)."""
     if len(dataset) <= ROW_CHUNK:
         return dataset
-    keep = np.zeros(len(dataset), bool)
-    keep[np.unique(np.linspace(0, len(dataset) - 1, ROW_CHUNK).round().astype(int))] = True
-    return dataset.subset(keep)
+    return dataset.subset(spread(np.ones(len(dataset), bool), ROW_CHUNK))
 
 
 def _subsample_note(n):
     """The warning of a search that ran on a subsample (:func:`searched_samples`)."""
     return (f"the discrepancy search ran on {ROW_CHUNK:,} of the {n:,} samples, spread evenly over the rows (it holds "
-            "the whole Jacobian); its model is fitted to every sample; the sd is not widened by what it could not "
-            "see (no power statement beyond that size)")
+            "the whole Jacobian); its model is fitted to every sample (its exclusions, of the subsample, are not "
+            "compared); the sd is not widened by what it could not see (no power statement beyond that size)")
 
 
 def _statement(result, found, data):
@@ -209,6 +211,18 @@ def _values(effect):
     """``k = v +- sd, ...`` of a named effect."""
     sd = effect.std or {}
     return ", ".join(f"{k} = {v:.4g}" + (f" +- {sd[k]:.2g}" if sd.get(k) else "") for k, v in effect.parameters.items())
+
+
+def _on_every_sample(request, dataset, found, refit):
+    """The search's model (its effects) fitted to every sample (``refit``), in ``found``'s place: a search on a
+    subsample (:func:`searched_samples`) has a pose that scatters about the full fit's by its own sd, which the
+    1-sd rule of one model fitted twice would take for a contradiction."""
+    names = _model_of(found)
+    asked = dataclasses.replace(request, effects=names, chosen=True, model="centre" if names else request.model)
+    fitted = refit(asked, dataset)
+    if not fitted.converged:
+        return found
+    return dataclasses.replace(found, sensor2flange=np.asarray(fitted.sensor2flange, float), outliers=[])
 
 
 def _against_search(result, found, dataset, request):

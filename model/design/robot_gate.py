@@ -58,7 +58,8 @@ def robot_free(prob, structure, fit, mask, name="joint_offsets"):
     current = fit.jac[mask].reshape(-1, fit.p)
     names = list(fit.names)
     if not structure.centre:
-        current = np.concatenate([current, -np.tile(np.eye(3), (int(mask.sum()), 1))], axis=1)
+        centre = prob.whitened(-np.broadcast_to(np.eye(3), (prob.n, 3, 3)))[mask]  # in the samples' metric
+        current = np.concatenate([current, centre.reshape(-1, 3)], axis=1)
         names += ["cx", "cy", "cz"]
     free, absorbed = [], {}
     always = robot_errors.always_absorbed(prob.d.robot_model, name)
@@ -86,6 +87,7 @@ def gate_robot_effects(prob, structure, mask, sensor2flange, centre=None):
     ``sensor2flange`` (and ``centre``) without it. Returns ``{effect: {parameter: absorbers}}``
     of the parameters left out; an effect with none estimable has ``prob.robot_free[name] == ()``."""
     robot = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
+    mask = extended.spread(mask)  # the poses' geometry decides: a spread subsample shows it, with a Jacobian
     left_out = {}
     for k, name in enumerate(robot):
         base = dataclasses.replace(structure, data_effects=tuple(n for n in structure.data_effects if n not in robot[k:]))

@@ -79,10 +79,14 @@ class Fit:
         jac = self.jac[mask].reshape(-1, self.p)
         return jac.T @ jac, jac.T @ self.e[mask].ravel()
 
+    def covariance(self, mask):
+        """``sigma^2 (J^T J)^+`` over the samples in ``mask`` (step units: mm, rad, effect units)."""
+        return self.sigma2 * np.linalg.pinv(self._jtj_jtr(mask)[0])
+
     def uncertainty(self, mask):
         """1-sd (step units: mm, rad, effect units) and correlation of every parameter, from
         ``sigma^2 (J^T J)^+`` over the samples in ``mask``."""
-        cov = self.sigma2 * np.linalg.pinv(self._jtj_jtr(mask)[0])
+        cov = self.covariance(mask)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         scale = np.where(std > 0, std, 1.0)
         return std, cov / np.outer(scale, scale)
@@ -107,6 +111,18 @@ def sample_chunks(mask, chunk=None):
     idx, step = np.flatnonzero(mask), chunk or ROW_CHUNK
     for a in range(0, len(idx), step):
         yield idx[a : a + step]
+
+
+def spread(mask, limit=None):
+    """``mask`` (N,) bool with at most ``limit`` (default :data:`~handeye.model.fit.calibration.ROW_CHUNK`)
+    of its samples kept, spread evenly over them (a pose tour's order: every part of it)."""
+    idx = np.flatnonzero(mask)
+    limit = limit or ROW_CHUNK
+    if len(idx) <= limit:
+        return np.asarray(mask, bool)
+    out = np.zeros(len(mask), bool)
+    out[idx[np.unique(np.linspace(0, len(idx) - 1, limit).round().astype(int))]] = True
+    return out
 
 
 class Samples:
