@@ -10,6 +10,7 @@ files end with exit 2 and one line naming the file, the line and the field.
 import json
 import pathlib
 import re
+import time
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ from ingest_truth import make_cell, pose_error
 from handeye.app.command.cli import main
 from handeye.app.ingest.controllers import read_controller
 from handeye.model.chain import conventions
+from handeye.model.common.errors import InputError
 from handeye.model.readers.tables import DatasetError
 
 DATA = pathlib.Path(__file__).resolve().parent / "data" / "controllers"
@@ -278,3 +280,69 @@ def test_readme_names_the_real_files():
         if f.name != "README.md":
             assert f.name in readme
     assert len(re.findall(r"github\.com/", readme)) >= 4
+
+
+# --- cut, corrupted and mutated files: a result or one input error, never a crash ---------------------
+
+def _mutations(tmp_path, count, seed):
+    """``count`` mutated copies of every written format and every real file (cut, bytes flipped,
+    a stretch repeated or deleted, syntax junk, 5,000-digit numbers, 10^5 open brackets)."""
+    cell = make_cell(n=5, seed=seed)
+    base = tmp_path / "seed"
+    base.mkdir()
+    seeds = {f: f.read_bytes() for f in DATA.iterdir() if f.suffix != ".md"}
+    seeds.update({f: f.read_bytes() for f in (write_ls(base / "a.ls", cell.flange2base), write_mod(
+        base / "a.mod", cell.flange2base), write_urscript(base / "a.script", cell.flange2base), write_rtde(
+        base / "a.csv", cell.flange2base), write_krl(base, cell.flange2base), base / "calib.dat")})
+    rng = np.random.default_rng(seed)
+    files = sorted(seeds, key=str)
+    for k in range(count):
+        source = files[k % len(files)]
+        data, at = bytearray(seeds[source]), int(rng.integers(len(seeds[source])))
+        op = k // len(files) % 6
+        if op == 0:
+            data = data[:at]
+        elif op == 1:
+            for i in rng.integers(len(data), size=8):
+                data[i] = int(rng.integers(256))
+        elif op == 2:
+            data = data[:at] + data[at:at + 500] * 20 + data[at:]
+        elif op == 3:
+            data = data[:at] + bytes(rng.choice(list(b"[]{}(),;:=pPJ\\\"'!#\n 0123456789.eE-+"), 200)) + data[at:]
+        elif op == 4:
+            data = data[:at] + b"9" * 5000 + data[at:]
+        else:
+            data = data[:at] + b"[" * 100_000 + data[at:]
+        folder = tmp_path / f"m{k}"
+        folder.mkdir()
+        for f in (seeds if source.suffix in (".src", ".dat") else ()):  # a KUKA file beside its partner
+            if f.parent == source.parent and f.stem == source.stem:
+                (folder / f.name).write_bytes(seeds[f])
+        (folder / source.name).write_bytes(bytes(data))
+        yield folder / source.name
+
+
+@pytest.mark.parametrize("count", [66, pytest.param(3000, marks=pytest.mark.slow(
+    sibling="test_mutated_controller_files_end_in_a_result_or_an_input_error"))])
+def test_mutated_controller_files_end_in_a_result_or_an_input_error(tmp_path, count):
+    """Every mutated file is read or refused with an InputError (exit 2 at the command line):
+    no other exception, none slower than a second of CPU."""
+    outcomes = {"read": 0, "refused": 0}
+    for k, path in enumerate(_mutations(tmp_path, count, seed=40)):
+        start = time.process_time()
+        try:
+            read_controller(path, accept_frames=bool(k % 2))
+            outcomes["read"] += 1
+        except InputError:
+            outcomes["refused"] += 1
+        assert time.process_time() - start < 1.0, path
+    assert outcomes["refused"] > count // 4 and outcomes["read"] > 0, outcomes
+
+
+def test_a_dat_of_numbers_is_still_a_table(tmp_path):
+    """The suffix alone does not make a KUKA file: a whitespace pose table named ``poses.dat`` is
+    read as a table (None here), a KUKA ``.dat`` by its ``DEFDAT``."""
+    table = tmp_path / "poses.dat"
+    table.write_text("1 650 -120 310 0 0 0\n2 660 -120 310 0 0 0\n")
+    assert read_controller(table) is None
+    assert read_controller(DATA / "kuka_style1pick1opt1.dat", accept_frames=True).convention == "kuka"

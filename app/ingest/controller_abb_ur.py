@@ -120,6 +120,8 @@ def _rapid_declarations(src, clean):
             elements = value if dims else [value]
             for k, element in enumerate(elements, start=1):
                 label = f"{name}{{{k}}}" if dims else name
+                if label.lower() in targets:
+                    raise src.error(m.start(), f"{label} declared twice", "robtarget")
                 targets[label.lower()] = Point(label, src.line(m.start()), _robtarget(src, m.start(), element, label))
         elif kind == "tooldata":
             tools[name] = _is_zero_frame(value, 1) and str(value[0]).upper() == "TRUE"  # held by the robot
@@ -158,12 +160,12 @@ def _split_args(text):
 def _rapid_moves(src, clean, targets):
     """``(moved, frames, notes)``: the targets moved to in order, the (tool, wobj) of the first
     motion to each, what was left out. Inline targets are added to ``targets``."""
-    moved, frames, skipped, joint_moves = [], {}, [], 0
-    for m in _RAPID_MOVE.finditer(clean):
+    moved, frames, skipped, joint_moves, at = [], {}, [], 0, 0
+    while (m := _RAPID_MOVE.search(clean, at)) is not None:
         end = clean.find(";", m.end())
         if end < 0:
             raise src.error(m.start(), f"{m.group(1)} has no closing ';'")
-        instruction = m.group(1)
+        instruction, at = m.group(1), end + 1  # the next instruction after this one's ';': linear
         if instruction.lower().startswith(("moveabsj", "moveextj")):
             joint_moves += 1
             continue
@@ -286,23 +288,25 @@ def _ur_literals(src, clean, at, listed, name):
 
 
 def _call_args(clean, start, limit=4000):
-    """The text of a call's arguments from ``start`` (after its ``(``) to the matching ``)``."""
+    """``(text, end)``: a call's arguments from ``start`` (after its ``(``) to the matching ``)``
+    (at most ``limit`` characters), and where the scan ended."""
     depth = 0
     for i in range(start, min(len(clean), start + limit)):
         if clean[i] in "([":
             depth += 1
         elif clean[i] in ")]":
             if depth == 0:
-                return clean[start:i]
+                return clean[start:i], i
             depth -= 1
-    return clean[start:start + limit]
+    return clean[start:start + limit], min(len(clean), start + limit)
 
 
 def _ur_moves(src, clean, declared):
     """The declared poses moved to, in order (literal poses in moves added as ``line N``)."""
-    moved, skipped = [], []
-    for m in _UR_MOVE.finditer(clean):
-        for arg in _split_args(_call_args(clean, m.end()))[:2 if m.group(1) == "movec" else 1]:
+    moved, skipped, at = [], [], 0
+    while (m := _UR_MOVE.search(clean, at)) is not None:
+        args, at = _call_args(clean, m.end())
+        for arg in _split_args(args)[:2 if m.group(1) == "movec" else 1]:
             arg = arg.strip()
             inner = re.match(r"get_inverse_kin\s*\(\s*(\w+)", arg)
             key = (inner.group(1) if inner else arg).lower()

@@ -28,7 +28,7 @@ from handeye.app.ingest.controller_common import Point, Text, frames_checked, in
 _FANUC_FIELDS = ("X", "Y", "Z", "W", "P", "R")
 _FIELD = re.compile(r"\b([A-Z]+\d?)\s*(=|:)\s*([^\s,;']+)\s*(mm|deg)?", re.I)
 _P_START = re.compile(r"\bP\[\s*([^\]\n]*)\]\s*\{")
-_MN_USE = re.compile(r"\bP\[\s*(\d+)\s*(?::[^\]\n]*)?\]")
+_MN_USE = re.compile(r"\bP\[\s*(\d{1,9})\s*(?::[^\]\n]*)?\]")
 
 
 def read_fanuc(path, accept_frames=False):
@@ -43,6 +43,8 @@ def read_fanuc(path, accept_frames=False):
     declared, notes = {}, []
     for block_at, name, body in _fanuc_blocks(src, pos_at, len(text) if end < 0 else end):
         point, more = _fanuc_point(src, block_at, name, body)
+        if point.name.lower() in declared:
+            raise src.error(block_at, f"{name} declared twice (first on line {declared[point.name.lower()].line})", "P")
         declared[point.name.lower()] = point
         notes += [n for n in more if n not in notes]
     mn_at = text.find("/MN")
@@ -67,7 +69,7 @@ def _fanuc_blocks(src, start, stop):
         if close < 0:
             raise src.error(m.start(), f"P[{m.group(1)}] has no closing '}};'")
         label = m.group(1).split(":")[0].strip()
-        if not label.isdigit():
+        if not (label.isdigit() and len(label) <= 9):
             raise src.error(m.start(), f"P[{m.group(1)[:20]}]: not a position number", "P")
         yield m.start(), f"P{int(label)}", src.text[m.end():close]
         at = close + 2
@@ -108,7 +110,7 @@ def _frame_number(src, fields, key, name):
     if key not in fields:
         return None
     token, _, where = fields[key]
-    if not token.isdigit():
+    if not (token.isdigit() and len(token) <= 9):
         raise src.error(where, f"{name}: {key} {token[:20]!r} is not a frame number", key)
     return int(token)
 
@@ -127,10 +129,10 @@ _KRL_DECL = re.compile(r"^[ \t]*(?:DECL[ \t]+)?(?:GLOBAL[ \t]+)?(E6POS|POS|FRAME
                        r"[ \t]*=[ \t]*(\{[^}\n]*\}?)", re.M | re.I)
 _KRL_MOVE = re.compile(r"^[ \t]*(PTP|LIN|CIRC|SPTP|SLIN|SCIRC|PTP_REL|LIN_REL|SPTP_REL|SLIN_REL)[ \t]+([^\n;]*)",
                        re.M | re.I)
-_KRL_FRAME = re.compile(r"^[ \t]*(?:FDAT_ACT[ \t]*=[ \t]*(\w+)|BAS[ \t]*\([ \t]*#(TOOL|BASE)[ \t]*,[ \t]*(\d+)"
-                        r"|\$(TOOL|BASE)[ \t]*=[ \t]*(?:(?:TOOL|BASE)_DATA\[[ \t]*(\d+)[ \t]*\]|(\$NULLFRAME)))",
+_KRL_FRAME = re.compile(r"^[ \t]*(?:FDAT_ACT[ \t]*=[ \t]*(\w+)|BAS[ \t]*\([ \t]*#(TOOL|BASE)[ \t]*,[ \t]*(\d{1,9})"
+                        r"|\$(TOOL|BASE)[ \t]*=[ \t]*(?:(?:TOOL|BASE)_DATA\[[ \t]*(\d{1,9})[ \t]*\]|(\$NULLFRAME)))",
                         re.M | re.I)
-_KRL_FOLD = re.compile(r"^[ \t]*;FOLD[^\n]*?\bTool\[(\d+)\][^\n]*?\bBase\[(\d+)\]", re.M | re.I)
+_KRL_FOLD = re.compile(r"^[ \t]*;FOLD[^\n]*?\bTool\[(\d{1,9})\][^\n]*?\bBase\[(\d{1,9})\]", re.M | re.I)
 
 
 def read_kuka(path, accept_frames=False):
@@ -197,6 +199,8 @@ def _krl_declarations(dat):
     points, fdats = {}, {}
     for m in _KRL_DECL.finditer(dat.text):
         kind, name, body = m.group(1).upper(), m.group(2), m.group(3)
+        if name.lower() in points or name.lower() in fdats:
+            raise dat.error(m.start(), f"{name} declared twice", kind)
         if kind == "FDAT":
             _, parts = _krl_aggregate(dat, m.start(), body, (), name)
             fdats[name.lower()] = (*(_int_part(dat, m.start(), parts, k) for k in ("TOOL_NO", "BASE_NO")),
@@ -214,8 +218,8 @@ def _int_part(src, at, parts, key):
     if key not in parts:
         return None
     token = parts[key].strip()
-    if not token.isdigit():
-        raise src.error(at, f"{key} {token[:20]!r} is not a number", key)
+    if not (token.isdigit() and len(token) <= 9):
+        raise src.error(at, f"{key} {token[:20]!r} is not a frame number", key)
     return int(token)
 
 

@@ -33,19 +33,25 @@ SUFFIXES = {".ls": "fanuc", ".src": "kuka", ".dat": "kuka", ".mod": "abb", ".mod
             ".sys": "abb", ".script": "urscript", ".urscript": "urscript"}
 
 
+#: what a file of each kind has near its start (a ``.dat`` of numbers is a table, not KUKA's)
+MARKERS = {"fanuc": re.compile(r"^\s*/(PROG|POS)\b", re.M), "abb": re.compile(r"^\s*MODULE\s", re.M | re.I),
+           "kuka": re.compile(r"^\s*(DEFDAT|DEF\s|DECL\s|&ACCESS|E6POS\s|E6AXIS\s)", re.M | re.I),
+           "urscript": re.compile(r"\bp\["), "rtde": re.compile(r"\b(actual|target)_TCP_pose_0\b")}
+
+
 def kind_of(path):
     """The reader of a controller file (``fanuc``, ``kuka``, ``abb``, ``urscript``, ``rtde``) or
-    None: by suffix, else by the first 4 kB of content."""
+    None: the suffix's kind when the first 4 kB have its marks, else the kind those 4 kB show."""
     path = pathlib.Path(path)
-    by_suffix = SUFFIXES.get(path.suffix.lower())
-    if by_suffix or not path.is_file():
-        return by_suffix
     try:
         with open(path, "rb") as fh:
             head = fh.read(4096).decode("utf-8", errors="replace")
     except OSError:
-        return None
-    if re.search(r"\b(actual|target)_TCP_pose_0\b", head):
+        return SUFFIXES.get(path.suffix.lower())  # the reader names the file that cannot be read
+    by_suffix = SUFFIXES.get(path.suffix.lower())
+    if by_suffix is not None and MARKERS[by_suffix].search(head):
+        return by_suffix
+    if MARKERS["rtde"].search(head):
         return "rtde"
     if head.lstrip().startswith("/PROG") or "/POS" in head and re.search(r"\bP\[\d+", head):
         return "fanuc"
