@@ -253,12 +253,11 @@ def test_accept_frames_reads_one_tool_only(tmp_path, capsys):
 
 # --- slow: calibrated to the truth ------------------------------------------------------------------
 
-@pytest.mark.parametrize("kind", [k if k == "fanuc" else pytest.param(
-    k, marks=pytest.mark.slow(sibling="test_controller_file_calibrates_to_the_truth")) for k in sorted(WRITERS)])
+@pytest.mark.slow(sibling="test_written_programs_make_the_dataset")
+@pytest.mark.parametrize("kind", sorted(WRITERS))
 def test_controller_file_calibrates_to_the_truth(tmp_path, capsys, kind):
     """A cell's poses written as each controller writes them, profiles as CSV: ``dataset new``
-    then ``calibrate`` land within 4 sd (+5 um, +0.002 deg: the files' rounding) of the truth
-    (FANUC's, 3 decimals, in the default tier)."""
+    then ``calibrate`` land within 4 sd (+5 um, +0.002 deg: the files' rounding) of the truth."""
     cell = make_cell(n=14, seed=21)
     poses = _written(tmp_path, kind, cell)
     out, result = tmp_path / "cell", tmp_path / "result.json"
@@ -323,7 +322,7 @@ def _mutations(tmp_path, count, seed):
 
 
 @pytest.mark.parametrize("count", [66, pytest.param(3000, marks=pytest.mark.slow(
-    sibling="test_mutated_controller_files_end_in_a_result_or_an_input_error"))])
+    sibling="test_hostile_controller_files"))])
 def test_mutated_controller_files_end_in_a_result_or_an_input_error(tmp_path, count):
     """Every mutated file is read or refused with an InputError (exit 2 at the command line):
     no other exception, none slower than a second of CPU."""
@@ -346,3 +345,22 @@ def test_a_dat_of_numbers_is_still_a_table(tmp_path):
     table.write_text("1 650 -120 310 0 0 0\n2 660 -120 310 0 0 0\n")
     assert read_controller(table) is None
     assert read_controller(DATA / "kuka_style1pick1opt1.dat", accept_frames=True).convention == "kuka"
+
+
+@pytest.mark.parametrize("tool_line, ok", [("BAS (#TOOL,0)", True), ("$TOOL=TOOL_DATA[3]", False),
+                                           ("$TOOL=$NULLFRAME", True), ("", False)])
+def test_kuka_tool_from_the_program_state(tmp_path, tool_line, ok):
+    """Without FDATs (a hand-written program), a point's tool is the last ``BAS(#TOOL,t)`` or
+    ``$TOOL=...`` before its motion; none at all is a tool the program does not name."""
+    cell = make_cell(n=3, seed=15)
+    src = write_krl(tmp_path, cell.flange2base)
+    dat = src.with_suffix(".dat")
+    dat.write_bytes(re.sub(rb"DECL FDAT [^\n]*\n", b"", dat.read_bytes()))
+    text = re.sub(r"(FDAT_ACT=\w+|;FOLD [^\n]*)\r?\n", "", src.read_text())
+    src.write_text(text.replace("DEF calib( )\n", f"DEF calib( )\n{tool_line}\nBAS (#BASE,0)\n"))
+    if ok:
+        assert len(read_controller(src).values) == 3
+    else:
+        with pytest.raises(DatasetError) as err:
+            read_controller(src)
+        assert err.value.column == "TOOL_NO" and ("tool 3" in str(err.value) or "names no tool" in str(err.value))

@@ -255,14 +255,16 @@ def read_urscript(path, accept_frames=False):
             declared[label.lower()] = Point(label, src.line(at), _ur_pose(src, at, body, label))
     moved, notes = _ur_moves(src, clean, declared)
     points, order_notes = in_motion_order(declared, moved, src, "poses")
-    tcp = re.search(r"\bset_tcp\s*\(\s*p\[([^\]\n]*)\]", clean)
-    if tcp is None:
+    tcps = list(re.finditer(r"\bset_tcp\s*\(\s*p\[([^\]\n]*)\]", clean))
+    if not tcps:
         notes.append("no set_tcp in the script: the poses are of the installation's TCP, the flange only if that "
                      "TCP is zero")
         tool, ok = "the installation's", True
-    else:
-        offset = _ur_pose(src, tcp.start(), tcp.group(1), "set_tcp")
-        tool, ok = f"p[{tcp.group(1).strip()}]", bool(np.all(np.abs(offset) < 1e-9))
+    else:  # every set_tcp must be zero for the poses to be the flange's
+        offsets = [_ur_pose(src, t.start(), t.group(1), "set_tcp") for t in tcps]
+        tool = " and ".join(dict.fromkeys(f"p[{t.group(1).strip()}]" for t in tcps))
+        ok = all(bool(np.all(np.abs(o) < 1e-9)) for o in offsets)
+        notes += ["set_tcp zero: the poses are the flange's"] if ok else []
     points = [Point(p.name, p.line, p.values, tool, "base", ok, True, "set_tcp", "base") for p in points]
     notes = order_notes + notes + ["positions m -> mm (x1000)"] + frames_checked(
         points, src, accept_frames, lambda p, w: f"the script sets a TCP {p.tool} (set_tcp), not the flange")

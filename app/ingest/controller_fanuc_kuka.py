@@ -50,7 +50,10 @@ def read_fanuc(path, accept_frames=False):
     mn_at = text.find("/MN")
     mn = text[mn_at:pos_at] if 0 <= mn_at < pos_at else ""
     moved = [(f"P{int(m.group(1))}", m.start()) for m in _MN_USE.finditer(mn)]
-    moved = [(n, o) for n, o in moved if n.lower() in declared] if moved else []
+    untaught = sorted({n for n, _ in moved if n.lower() not in declared}, key=lambda n: int(n[1:]))
+    if untaught:
+        notes.append(f"motions to positions not in /POS left out: {', '.join(untaught[:6])}")
+    moved = [(n, o) for n, o in moved if n.lower() in declared]
     points, order_notes = in_motion_order(declared, moved, src, "positions")
     if re.search(r"\bPR\[", mn):
         notes.append("motions to position registers PR[...] left out (their values are not in the program)")
@@ -155,7 +158,7 @@ def read_kuka(path, accept_frames=False):
         if p.values is None:
             raise dat.error(_offset_of_line(dat, p.line), f"{p.name} is in joint form ({p.tool}): no flange pose in the "
                             "program; teach it as E6POS (Cartesian) or leave it out of the poses", p.tool)
-        out.append(_with_frames(p, frames.get(p.name.lower()), fdats))
+        out.append(_with_frames(p, frames.get(p.tool_field.lower()), fdats))
     notes = order_notes + notes + frames_checked(out, dat, accept_frames, _kuka_refusal)
     companions = [f for f in (src_path, dat_path) if f is not None and f.resolve() != path.resolve()]
     fmt = "KUKA program (.src + .dat)" if src_path is not None else "KUKA data list (.dat)"
