@@ -116,6 +116,7 @@ def write_urscript(path, flanges, tcp=None):
     for k, f in enumerate(flanges):
         t, r = f[:3, 3] / 1000.0, Rotation.from_matrix(f[:3, :3]).as_rotvec()
         lines.append(f"  global Waypoint_{k + 1}_p=p[{', '.join(f'{v:.7f}' for v in (*t, *r))}]")
+        lines.append(f"  global Waypoint_{k + 1}_q=[{', '.join(f'{0.1 * k + 0.01 * j:.6f}' for j in range(6))}]")
     lines.append("  movej([0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0], a=1.4, v=1.05)  # home")
     for k in range(len(flanges)):
         lines.append(f"  movel(Waypoint_{k + 1}_p, a=1.2, v=0.25)")

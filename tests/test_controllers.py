@@ -59,6 +59,21 @@ def test_fanuc_real_program():
     _same_rotations("fanuc", got.values, rows)
 
 
+def test_fanuc_real_programs_in_german():
+    """A German controller's export (cp1252, ``KONFIG``, groups GP2..GP4 of rails): 9 positions as
+    the independent reading has them, GP2.. said not read; a program of joint-form positions
+    (``J1=  25.000 deg``) is refused naming its first one's J1."""
+    path = DATA / "fanuc_german_up023.ls"
+    got = read_controller(path, accept_frames=True)
+    names, rows = fanuc_reading(path.read_text(encoding="cp1252"))
+    assert list(got.ids) == names and len(names) == 9 and np.allclose(got.values, rows, atol=1e-9)
+    assert any("read as cp1252" in n for n in got.notes) and any("GP2.. " in n for n in got.notes)
+    _same_rotations("fanuc", got.values, rows)
+    with pytest.raises(DatasetError) as err:
+        read_controller(DATA / "fanuc_joint_folge125.ls", accept_frames=True)
+    assert (err.value.row, err.value.column) == (43, "J1") and "joint form" in str(err.value)
+
+
 def test_kuka_real_program():
     """A KUKA KRC4 pick program (.src + .dat, CRLF): 8 points in the .src's motion order (the
     .dat declares them in another), names as the .src spells them, TOOL_NO 1 refused."""
@@ -149,6 +164,10 @@ def test_written_programs_make_the_dataset(tmp_path, capsys, kind):
         assert "calib.src" in prov and "calib.dat" in prov
     if kind == "abb":
         assert "2 joint moves (MoveAbsJ" in summary
+    if kind in ("ur", "rtde"):  # Polyscope's Waypoint_k_q, RTDE's actual_q: kept only with --robot
+        assert "joint angles not written: give --robot MODEL" in summary
+        got_joints = read_controller(poses).joints
+        assert got_joints.shape == (6, 6) and np.isclose(got_joints[1, 2], np.degrees(0.12 if kind == "ur" else -0.2))
 
 
 def test_convention_converts_a_controller_file(tmp_path, capsys):
@@ -364,3 +383,42 @@ def test_kuka_tool_from_the_program_state(tmp_path, tool_line, ok):
         with pytest.raises(DatasetError) as err:
             read_controller(src)
         assert err.value.column == "TOOL_NO" and ("tool 3" in str(err.value) or "names no tool" in str(err.value))
+
+
+@pytest.mark.slow(sibling="test_rtde_real_log")
+def test_rtde_log_with_joints_calibrates_with_its_robot(tmp_path, capsys):
+    """A UR5e cell simulated by handeye written as an RTDE log (TCP poses in metres, actual_q in
+    radians): with ``--robot ur5e`` the joint angles become j1..j6 (degrees), the loader finds them
+    agreeing with the poses, and the calibration lands within 4 sd of the simulated truth."""
+    sim = tmp_path / "sim"
+    assert main(["simulate", "--out", str(sim), "--robot", "ur5e", "--profiles", "--seed", "3", "--convention", "ur"]) == 0
+    lines = (sim / "measurements.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    rows = [dict(zip(head, line.split(","))) for line in lines[1:]]
+    pose = np.array([[float(r[c]) for c in ("x", "y", "z", "rx", "ry", "rz")] for r in rows])
+    joints = np.array([[float(r[f"j{k}"]) for k in range(1, 7)] for r in rows])
+    table = ["timestamp " + " ".join(f"actual_q_{k}" for k in range(6)) + " " + " ".join(f"actual_TCP_pose_{k}"
+                                                                                       for k in range(6))]
+    for k, (p, q) in enumerate(zip(pose, joints)):
+        table.append(" ".join(f"{v:.12g}" for v in (0.008 * k, *np.radians(q), *(p[:3] / 1000), *p[3:])))
+    (tmp_path / "log.csv").write_text("\n".join(table) + "\n")
+    setup = (sim / "setup.toml").read_text()
+    diameter = re.search(r"diameter = ([\d.]+)", setup).group(1)
+    centre = re.search(r"\[sphere\][^\[]*center = \[([^\]]+)\]", setup).group(1).replace(" ", "")
+    profiles = [a for r in rows for a in ("--profiles", str(sim / r["profile"]))]
+    out, result = tmp_path / "cell", tmp_path / "result.json"
+    assert main(["dataset", "new", str(out), "--poses", str(tmp_path / "log.csv"), *profiles, "--pair", "order",
+                 "--diameter", diameter, "--center", centre, "--robot", "ur5e"]) == 0
+    written = (out / "measurements.csv").read_text().splitlines()
+    assert written[0].split(",")[-7:-1] == [f"j{k}" for k in range(1, 7)]
+    assert np.allclose([[float(v) for v in line.split(",")[-7:-1]] for line in written[1:]], joints, atol=1e-5)
+    assert main(["calibrate", str(out), "--no-loo", "--out", str(result)]) == 0
+    capsys.readouterr()
+    res = json.loads(result.read_text())
+    truth = [float(v) for v in re.search(r"\[truth\]\nsensor_pose = \[([^\]]+)\]", setup).group(1).split(",")]
+    t_true = transforms("ur", [truth])[0]
+    got = np.array(res["sensor_matrix"])
+    dt = float(np.linalg.norm(got[:3, 3] - t_true[:3, 3]))
+    dr = float(np.degrees(np.arccos(np.clip((np.trace(t_true[:3, :3].T @ got[:3, :3]) - 1) / 2, -1, 1))))
+    sd_t, sd_r = (float(np.linalg.norm(res["std"][k])) for k in ("sensor_translation_mm", "sensor_rotation_deg"))
+    assert dt < 4 * sd_t + 0.005 and dr < 4 * sd_r + 0.002, (dt, sd_t, dr, sd_r)

@@ -255,6 +255,9 @@ def read_urscript(path, accept_frames=False):
             declared[label.lower()] = Point(label, src.line(at), _ur_pose(src, at, body, label))
     moved, notes = _ur_moves(src, clean, declared)
     points, order_notes = in_motion_order(declared, moved, src, "poses")
+    joints = _ur_joints(src, clean, points)
+    if joints is not None:
+        notes.append("joint angles of each Waypoint_k_q rad -> deg")
     tcps = list(re.finditer(r"\bset_tcp\s*\(\s*p\[([^\]\n]*)\]", clean))
     if not tcps:
         notes.append("no set_tcp in the script: the poses are of the installation's TCP, the flange only if that "
@@ -268,7 +271,25 @@ def read_urscript(path, accept_frames=False):
     points = [Point(p.name, p.line, p.values, tool, "base", ok, True, "set_tcp", "base") for p in points]
     notes = order_notes + notes + ["positions m -> mm (x1000)"] + frames_checked(
         points, src, accept_frames, lambda p, w: f"the script sets a TCP {p.tool} (set_tcp), not the flange")
-    return poses_of(points, src, "URScript program", "ur", notes)
+    return dataclasses.replace(poses_of(points, src, "URScript program", "ur", notes), joints=joints)
+
+
+def _ur_joints(src, clean, points):
+    """Degrees of the ``name_q = [6 numbers]`` (radians) that Polyscope writes beside each
+    ``name_p`` pose, when every pose has one; else None."""
+    found = {m.group(1).lower(): (m.start(), m.group(2)) for m in re.finditer(
+        r"^[ \t]*(?:global[ \t]+)?(\w+)_q[ \t]*=[ \t]*\[([^\]\n]*)\]", clean, re.M)}
+    keys = [p.name.lower()[:-2] for p in points if p.name.lower().endswith("_p")]
+    if not points or len(keys) < len(points) or any(k not in found for k in keys):
+        return None
+    out = []
+    for key in keys:
+        at, body = found[key]
+        parts = body.split(",")
+        if len(parts) != 6:
+            raise src.error(at, f"{key}_q holds {len(parts)} joint angles, not 6", f"{key}_q")
+        out.append([math.degrees(number(v, src, at, f"{key}_q")) for v in parts])
+    return np.array(out)
 
 
 def _ur_literals(src, clean, at, listed, name):
