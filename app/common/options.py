@@ -349,8 +349,14 @@ _DATASET_NEW = (
     Opt('out', metavar='OUT', help='The dataset folder to write (new or empty); written atomically (a temporary folder renamed).',
         kind='path'),
     Opt('--poses', metavar='FILE',
-        help='Flange poses in the robot base: CSV, whitespace-separated text or JSON (:mod:`handeye.app.ingest.poses`).',
+        help='Flange poses in the robot base: CSV, whitespace-separated text or JSON (:mod:`handeye.app.ingest.poses`), or '
+             'the controller\'s own file: FANUC .ls, KUKA .src/.dat, ABB .mod, URScript, UR RTDE log '
+             '(:mod:`handeye.app.ingest.controllers`).',
         kind='path'),
+    Opt('--accept-frames', action='store_true',
+        help="A controller file's poses taught in a tool other than the flange (FANUC UT, KUKA TOOL_NO, ABB tooldata, "
+             "URScript set_tcp, RTDE tcp_offset) or in a user frame other than the robot base (UF, BASE_NO, wobjdata) "
+             "read as flange poses in the base: only when that tool is zero and that frame the base (one of each)."),
     Opt('--profiles', (), action='append', metavar='FILES|GLOB|DIR',
         help='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
     Opt('--convention', check=ONE_OF, choices=tuple(CONVENTIONS),

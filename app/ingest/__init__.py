@@ -9,7 +9,10 @@ and writes ``measurements.csv``, ``setup.toml``, ``profiles/*.csv`` and ``PROVEN
 
 Modules: :mod:`~handeye.app.ingest.request` (the options, checked in one place before anything is
 read), :mod:`~handeye.app.ingest.tables` (text and JSON tables), :mod:`~handeye.app.ingest.poses`
-(pose columns, units, plausibility), :mod:`~handeye.app.ingest.opencv_storage` (FileStorage
+(pose columns, units, plausibility), :mod:`~handeye.app.ingest.controllers` (the robot controller's
+own files: FANUC ``.ls``, KUKA ``.src``/``.dat``, ABB ``.mod``, URScript, UR RTDE logs, read by
+:mod:`~handeye.app.ingest.controller_fanuc_kuka` and :mod:`~handeye.app.ingest.controller_abb_ur`
+with :mod:`~handeye.app.ingest.controller_common`), :mod:`~handeye.app.ingest.opencv_storage` (FileStorage
 YAML/XML/JSON), :mod:`~handeye.app.ingest.clouds` (CSV/TXT, .npy/.npz, PLY, PCD),
 :mod:`~handeye.app.ingest.plane` (NaN rows, the laser plane's axes), :mod:`~handeye.app.ingest.sources`
 (profiles read and mapped), :mod:`~handeye.app.ingest.pairing`,

@@ -134,7 +134,7 @@ class _Read:
 
 def _from_files(req):
     """Poses and profiles from loose files, paired."""
-    table = read_poses(req.poses, req.convention, req.columns, req.units, req.angles)
+    table = read_poses(req.poses, req.convention, req.columns, req.units, req.angles, req.accept_frames)
     profiles, skipped = sources.read_profiles(req.profiles, req.profile_units)
     try:
         index, ids, how = pair([p.label for p in profiles], [p.name for p in profiles], table.ids, len(table.values),
@@ -151,9 +151,13 @@ def _from_files(req):
                         "source_convention": table.source, "units": req.units, "angles": req.angles or "the convention's"}}
     if skipped:
         inputs["skipped"] = {f: why for f, why in skipped}
-    roles = [("poses", table.file, table.format)] + [("profile", p.file, p.format) for p in profiles]
-    return _Read(ids, table.values, table.convention, per_pose, inputs, list(table.notes), how, roles,
-                 _joints(req.joints, table))
+    roles = [("poses", f, table.format) for f in (table.file, *table.companions)]
+    roles += [("profile", p.file, p.format) for p in profiles]
+    notes = list(table.notes)
+    if req.joints is None and table.joints is not None and req.robot is None:
+        notes.append("joint angles not written: give --robot MODEL to keep them (the loader checks them)")
+    return _Read(ids, table.values, table.convention, per_pose, inputs, notes, how, roles,
+                 _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints)
 
 
 def _from_bag(req):
@@ -194,7 +198,7 @@ def _joints(file, table):
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
                 profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
-                flange_frame=None, max_dt=0.05, setup=None):
+                flange_frame=None, max_dt=0.05, setup=None, accept_frames=False):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
 
     {parameters}

@@ -16,6 +16,7 @@ import re
 
 import numpy as np
 
+from handeye.app.ingest import controllers
 from handeye.app.ingest.tables import read_table
 from handeye.model.chain import conventions
 from handeye.model.readers.tables import DatasetError
@@ -83,6 +84,10 @@ class PoseTable:
         How each file column was read (canonical names; ``-`` ignored).
     notes : tuple of str
         Conversions made (units, angles, quaternion order, convention).
+    joints : ndarray (N, 6) or None
+        Joint angles (degrees) a controller file gave with the poses.
+    companions : tuple of pathlib.Path
+        Other files read with it (a KUKA ``.src``'s ``.dat``).
     """
 
     file: object
@@ -94,6 +99,8 @@ class PoseTable:
     source: str
     columns: tuple
     notes: tuple
+    joints: np.ndarray | None = None
+    companions: tuple = ()
 
 
 def _names(table, columns, convention, width, what="pose"):
@@ -200,8 +207,9 @@ def _check_angles(values, kind, angles, file):
     return np.column_stack([values[:, :3], rot]), notes
 
 
-def read_poses(path, convention=None, columns=None, units="mm", angles=None):
-    """Flange poses of a CSV, whitespace-separated or JSON file (module docstring).
+def read_poses(path, convention=None, columns=None, units="mm", angles=None, accept_frames=False):
+    """Flange poses of a CSV, whitespace-separated or JSON file (module docstring), or of a robot
+    controller's own file (:mod:`handeye.app.ingest.controllers`).
 
     Parameters
     ----------
@@ -216,11 +224,17 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
         Units of the positions.
     angles : {'deg', 'rad'} or None
         Units of the angles (None: the convention's own).
+    accept_frames : bool
+        A controller file's poses in another tool or frame read as the flange's in the base
+        (``--accept-frames``).
 
     Returns
     -------
     PoseTable
     """
+    found = controllers.read_controller(path, accept_frames)
+    if found is not None:
+        return _from_controller(found, convention, columns, units, angles)
     table = read_table(path, known_name=lambda c: canonical(c) is not None)
     width = len(table.header) if table.header is not None and columns is None else len(table.rows[0])
     names = _names(table, columns, convention, width)
@@ -242,6 +256,25 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None):
         notes.append(f"columns ignored: {', '.join(ignored)}")
     return PoseTable(table.file, table.kind, _ids(table, names), table.lines, values, target, kind,
                      tuple(n or "-" for n in names), tuple(notes))
+
+
+def _from_controller(found, convention, columns, units, angles):
+    """The :class:`PoseTable` of a controller file's poses: the file tells its columns, units
+    and angles (the options that would say them are refused), ``convention`` converts."""
+    for given, flag in ((columns is not None, "--columns"), (units != "mm", "--units"), (angles is not None, "--angles")):
+        if given:
+            raise DatasetError(found.file, f"a {found.format} states its own columns and units: leave out {flag}")
+    values, notes = found.values, list(found.notes)
+    target = convention or found.convention
+    if target != found.convention:
+        values = conventions.convert(values, found.convention, target)
+        notes.append(f"poses converted {found.convention} -> {target}")
+    elif target in ("kuka", "fanuc"):
+        values, moved = _in_reading_ranges(values, target)
+        notes += moved
+    names = ("x", "y", "z") + KINDS[found.convention]
+    return PoseTable(found.file, found.format, found.ids, found.lines, values, target, found.convention, names,
+                     tuple(notes), found.joints, found.companions)
 
 
 def _in_reading_ranges(values, kind):

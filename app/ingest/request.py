@@ -83,6 +83,8 @@ class NewDatasetRequest:
     pairing : Pairing
     bag, pose_topic, profile_topic, base_frame, flange_frame, max_dt
         A ROS 2 bag and what to read of it (:func:`handeye.app.ingest.rosbag.read_bag`).
+    accept_frames : bool
+        ``--accept-frames``: a controller file's tool and frame taken as the flange and the base.
     options : dict
         The options as PROVENANCE.toml keeps them (the setup's values filled in; None left out).
     """
@@ -112,6 +114,7 @@ class NewDatasetRequest:
     base_frame: str | None
     flange_frame: str | None
     max_dt: float
+    accept_frames: bool
     options: dict
 
     @classmethod
