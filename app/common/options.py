@@ -346,8 +346,10 @@ _DATASET_NEW = (
     Opt('--poses', metavar='FILE',
         help='Flange poses in the robot base: CSV, whitespace-separated text or JSON (:mod:`handeye.app.ingest.poses`).',
         kind='path'),
-    Opt('--profiles', (), action='append', metavar='FILES|GLOB|DIR',
-        help='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
+    Opt('--profiles', (), action='extend', nargs='+', metavar='PATH',
+        help="Profile files (many: a shell glob as `--profiles scans/*.yml` gives them all), a quoted glob "
+             "(`'scans/*.yml'`) or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose; every word up to "
+             "the next option is one, so give OUT first."),
     Opt('--convention', check=ONE_OF, choices=tuple(CONVENTIONS),
         help="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a"
              " bag."),

@@ -224,20 +224,27 @@ def expand(specs, exclude=()):
     out = []
     for spec in specs:
         p = pathlib.Path(spec)
-        if p.is_dir():
-            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
-            where = f"folder {spec}"
-        elif any(c in str(spec) for c in "*?["):
-            files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
-            where = f"pattern {spec!r}"
-        elif p.is_file():
-            files, where = [p], spec
-        else:
-            raise RequestError(f"--profiles {spec}: no such file or folder")
+        try:
+            files, where = _files_of(spec, p, skip)
+        except OSError as exc:  # a folder that cannot be listed (permissions): bad input, named
+            raise RequestError(f"--profiles {spec}: cannot be read: {exc.strerror or exc}") from None
         if not files:
             raise RequestError(f"--profiles: {where} has no files")
         out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
     return out
+
+
+def _files_of(spec, p, skip):
+    """``(files, where)`` of one ``--profiles`` argument (unsorted); OSError where a folder cannot be
+    listed."""
+    if p.is_dir():
+        files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
+        return files, f"folder {spec}"
+    if any(c in str(spec) for c in "*?["):
+        return [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()], f"pattern {spec!r}"
+    if p.is_file():
+        return [p], spec
+    raise RequestError(f"--profiles {spec}: no such file or folder")
 
 
 def _robot(robot):
