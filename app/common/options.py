@@ -372,12 +372,22 @@ _DATASET_NEW = (
              "2-column profiles; default -1); written as ``[profile] side`` in handeye's frame "
              "(:meth:`~handeye.app.ingest.plane.PlaneMapping.side`)."),
     Opt('--center', metavar='X,Y,Z',
-        help='sphere centre in the robot base, mm (without it: calibrate with --unknowns sensor+sphere)',
+        help="sphere centre in its mount's frame, mm: the robot base (default), the flange (--sphere-mount flange) or the "
+             "table at zero angles (positioner); without it: calibrate with --unknowns sensor+sphere",
         pytype='str or sequence of 3 floats, optional'),
     Opt('--start', metavar='X,Y,Z,...',
-        help="Start sensor pose on the flange in the dataset's convention and the sensor's own frame (the frame of "
-             "the profile files; ``[sensor] start_pose``).",
+        help="Start sensor pose in its mount's frame (the flange; the robot base with --sensor-mount world) in the "
+             "dataset's convention and the sensor's own frame (the frame of the profile files; ``[sensor] start_pose``).",
         pytype='str or sequence, optional'),
+    Opt('--sensor-mount', check=ONE_OF, choices=('flange', 'world'),
+        help="where the sensor is: on the flange (default) or fixed in the cell (``[sensor] mount``)"),
+    Opt('--sphere-mount', check=ONE_OF, choices=('world', 'flange', 'positioner'),
+        help="Where the sphere is: fixed in the cell (default), on the flange or on a positioner's table (``[sphere] "
+             "mount``); the cells: flange/world, world/flange, flange/positioner (:mod:`handeye.app.ingest.mounts`)."),
+    Opt('--positioner-axes', metavar='NAME:PX,PY,PZ:DX,DY,DZ;...',
+        help="With --sphere-mount positioner: its nominal axes ``'e1:px,py,pz:dx,dy,dz;e2:...'`` (robot base at zero "
+             "angles, mm), base first (``[positioner] axes``); the pose file's columns named as the axes hold each "
+             "pose's angles, degrees."),
     Opt('--joints', metavar='FILE', help='joint angles j1..j6 per pose, degrees (needs --robot)',
         kind='path'),
     Opt('--robot', metavar='MODEL',

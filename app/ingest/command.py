@@ -10,7 +10,7 @@ import numpy as np
 
 from handeye.app.common import options
 from handeye.app.common.files import tool_version, write_folder_atomically
-from handeye.app.ingest import sources, writer
+from handeye.app.ingest import mounts, sources, writer
 from handeye.app.ingest.pairing import pair
 from handeye.app.ingest.poses import read_joints, read_poses
 from handeye.app.ingest.request import MODEL_FILE, NewDatasetRequest
@@ -122,6 +122,8 @@ class _Read:
         The joint angles of each pose (``--joints``; never with a bag).
     lines : tuple of int or None
         The line (or JSON item) of each pose in the pose file (None: a bag).
+    angles : ndarray (N, k) or None
+        The positioner's axis angles of each pose, degrees (``--sphere-mount positioner``).
     """
 
     ids: list
@@ -134,6 +136,7 @@ class _Read:
     roles: list
     joints: np.ndarray | None
     lines: tuple | None = None
+    angles: np.ndarray | None = None
 
 
 def _from_files(req):
@@ -156,8 +159,8 @@ def _from_files(req):
     if skipped:
         inputs["skipped"] = {f: why for f, why in skipped}
     roles = [("poses", table.file, table.format)] + [("profile", p.file, p.format) for p in profiles]
-    return _Read(ids, table.values, table.convention, per_pose, inputs, list(table.notes), how, roles,
-                 _joints(req.joints, table), table.lines)
+    return _Read(ids, table.values, table.convention, per_pose, inputs, mounts.notes(table.notes, req.cell), how, roles,
+                 _joints(req.joints, table), table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)))
 
 
 def _from_bag(req):
@@ -196,7 +199,8 @@ def _joints(file, table):
 
 @options.COMMANDS["dataset new"].documented
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
-                profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
+                profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, sensor_mount=None,
+                sphere_mount=None, positioner_axes=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
                 flange_frame=None, max_dt=0.05, setup=None):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
@@ -255,7 +259,8 @@ def _files(result, read, req, start_pose):
         extra.append(("robot model", req.robot_file[0], "TOML"))
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(read.roles + extra)]
-    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, rels, read.joints)
+    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, rels, read.joints,
+                                                         (req.cell.names, read.angles))
     files["setup.toml"] = writer.setup_text(result, req, start_pose)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files, rels

@@ -22,6 +22,7 @@ from handeye.app.common.arguments import numbers
 from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_folder
 from handeye.app.engine.command_request import checked_values
+from handeye.app.ingest import mounts
 from handeye.app.ingest.pairing import Pairing, natural_key
 from handeye.app.ingest.plane import AXES
 from handeye.app.ingest.poses import canonical
@@ -85,6 +86,8 @@ class NewDatasetRequest:
         A ROS 2 bag and what to read of it (:func:`handeye.app.ingest.rosbag.read_bag`).
     options : dict
         The options as PROVENANCE.toml keeps them (the setup's values filled in; None left out).
+    cell : mounts.Cell
+        ``--sensor-mount``, ``--sphere-mount``, ``--positioner-axes`` (:mod:`handeye.app.ingest.mounts`).
     """
 
     poses: object
@@ -113,6 +116,7 @@ class NewDatasetRequest:
     flange_frame: str | None
     max_dt: float
     options: dict
+    cell: mounts.Cell = mounts.Cell()
 
     @classmethod
     def from_options(cls, given):
@@ -137,6 +141,7 @@ class NewDatasetRequest:
             "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
             "center": numbers(v["center"], "--center", 3), "robot": robot, "robot_file": robot_file,
             "pairing": Pairing(v["pair"], _match(v["match"])), "side_from": side_from, "start_axes": start_axes,
+            "cell": mounts.checked(v["sensor_mount"], v["sphere_mount"], v["positioner_axes"], v["bag"] is not None),
             "options": {k: x for k, x in v.items() if k != "out" and x is not None and not (isinstance(x, list) and not x)}}
         return cls(**{**{field.name: v.get(field.name) for field in dataclasses.fields(cls)}, **resolved})
 
