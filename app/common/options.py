@@ -364,8 +364,9 @@ _DATASET_NEW = (
     Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
         help='sphere diameter, mm (required unless --setup gives it)'),
     Opt('--setup', metavar='SETUP.toml',
-        help='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] '
-             'start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.',
+        help='An existing ``setup.toml`` whose ``[sphere] diameter``, ``center`` and ``mount``, ``[profile] side``, '
+             '``[sensor] start_pose`` and ``mount``, ``[positioner] axes`` and ``[robot] convention`` and ``model`` fill '
+             'the options not given.',
         kind='path'),
     Opt('--side', check=ONE_OF, type='int', choices=(1, -1),
         help="Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y for "

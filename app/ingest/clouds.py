@@ -242,27 +242,30 @@ def _pcd_points(path, head):
 def _text(path, raw):
     """A CSV or whitespace profile: its head (:data:`HEAD_LINES`) read as a table to find the header,
     separator and columns, the body streamed by ``numpy.loadtxt`` (issue 40: a 10^6-point profile took
-    13 s and 674 MB as Python rows); a body numpy refuses is read again row by row, which names the
-    row and column at fault."""
+    13 s and 674 MB as Python rows); a body numpy refuses (a ``%`` or ``//`` comment in it too) is
+    read again row by row, which names the row and column at fault."""
     text = decode(path, raw)
     cut = -1
     for _ in range(HEAD_LINES):
         cut = text.find("\n", cut + 1)
         if cut < 0:
             break
-    if cut < 0:
+    if cut < 0 or len(text[:cut + 1].splitlines()) != text.count("\n", 0, cut + 1):  # short, or \r or \f lines
         return _text_rows(parse_table(path, text, _profile_names))
-    head = parse_table(path, text[:cut], _profile_names)
+    try:
+        head = parse_table(path, text[:cut], _profile_names)
+    except DatasetError:  # a head of comments only: the whole file tells
+        return _text_rows(parse_table(path, text, _profile_names))
     if head.kind.startswith("JSON"):
         raise DatasetError(path, "a JSON table is not a profile (FileStorage JSON has opencv-matrix nodes)")
     names = [canonical(h) or h for h in head.header] if head.header is not None else None
     cols = (tuple(names.index(n) for n in ("x", "y", "z") if n in names) if names else tuple(range(len(head.rows[0]))))
     if head.kind not in ("CSV", "whitespace-separated text") or len(cols) not in (2, 3) or (names and "x" not in names):
         return _text_rows(parse_table(path, text, _profile_names))
-    start = _line_start(raw, head.lines[0])
+    start = max(_line_start(raw, head.lines[0]), 3 if raw.startswith(b"\xef\xbb\xbf") else 0)
     try:
         body = np.loadtxt(io.BytesIO(raw[start:]), delimiter="," if head.kind == "CSV" else None,
-                          comments=("#", "%", "//"), usecols=cols, ndmin=2, dtype=float, encoding="utf-8")
+                          comments="#", usecols=cols, ndmin=2, dtype=float, encoding="utf-8")  # one char: C only
     except ValueError:
         return _text_rows(parse_table(path, text, _profile_names))
     return [("table", body)]

@@ -127,3 +127,18 @@ def notes(made, cell):
         if note:
             out.append(note)
     return out + [f"positioner axis columns {', '.join(cell.names)} kept (degrees)"]
+
+
+def axes_text(axes):
+    """``[positioner] axes`` of a setup.toml (a list of ``{ name, point, direction }``) as
+    ``--positioner-axes`` text; None for anything else."""
+    def vector(v):
+        return (isinstance(v, list) and len(v) == 3
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
+
+    if not isinstance(axes, list) or not axes:
+        return None
+    if not all(isinstance(a, dict) and isinstance(a.get("name"), str) and vector(a.get("point"))
+               and vector(a.get("direction")) for a in axes):
+        return None
+    return ";".join(f"{a['name']}:{','.join(map(repr, a['point']))}:{','.join(map(repr, a['direction']))}" for a in axes)

@@ -47,7 +47,10 @@ _SETUP = {"diameter": ("sphere", "diameter", _is_number),
           "center": ("sphere", "center", lambda v: isinstance(v, list) and len(v) == 3 and all(map(_is_number, v))),
           "start": ("sensor", "start_pose", lambda v: isinstance(v, list) and all(map(_is_number, v))),
           "convention": ("robot", "convention", lambda v: isinstance(v, str)),
-          "robot": ("robot", "model", lambda v: isinstance(v, str) and v.strip())}
+          "robot": ("robot", "model", lambda v: isinstance(v, str) and v.strip()),
+          "sensor_mount": ("sensor", "mount", lambda v: isinstance(v, str)),
+          "sphere_mount": ("sphere", "mount", lambda v: isinstance(v, str)),
+          "positioner_axes": ("positioner", "axes", lambda v: mounts.axes_text(v) is not None)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,10 +271,11 @@ def _robot(robot):
 
 def _from_setup(file, start_given):
     """``--setup FILE``: ``(values, start axes)``, the values an existing setup.toml gives for the
-    options (diameter, center, side, start pose, convention, robot model; a model file's path made
-    the setup folder's) and :attr:`NewDatasetRequest.start_axes` (the frame of the setup's start
-    pose when it gives the one used: its ``own_axes`` when its poses are of the sensor's own frame,
-    else None, handeye's). No file: ``({}, False)``."""
+    options (diameter, center, side, start pose, convention, robot model, the mounts and the
+    positioner's axes; a model file's path made the setup folder's) and
+    :attr:`NewDatasetRequest.start_axes` (the frame of the setup's start pose when it gives the one
+    used: its ``own_axes`` when its poses are of the sensor's own frame, else None, handeye's). No
+    file: ``({}, False)``."""
     if file is None:
         return {}, False
     try:
@@ -280,7 +284,7 @@ def _from_setup(file, start_given):
         raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise DatasetError(file, f"not valid TOML: {exc}") from None
-    for section in ("sphere", "sensor", "robot", "profile"):
+    for section in ("sphere", "sensor", "robot", "profile", "positioner"):
         if not isinstance(doc.get(section, {}), dict):
             raise DatasetError(file, "must be a [section] of keys (the --setup file)", column=f"[{section}]")
     found = {option: doc.get(section, {}).get(key) for option, (section, key, _) in _SETUP.items()}
@@ -288,6 +292,8 @@ def _from_setup(file, start_given):
         if found[option] is not None and not ok(found[option]):
             raise DatasetError(file, f"{str(found[option])[:40]!r} is not a value of this key (the --setup file)",
                                column=f"[{section}] {key}")
+    if found["positioner_axes"] is not None:  # the option's text, checked as --positioner-axes is
+        found["positioner_axes"] = mounts.axes_text(found["positioner_axes"])
     model = found["robot"]
     if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
         found["robot"] = str(pathlib.Path(file).parent / model)
