@@ -230,3 +230,15 @@ def test_ply_and_pcd_headers_whose_counts_lie(tmp_path, write, words):
         except DatasetError as exc:
             assert words in str(exc), str(exc)
             raise
+
+
+def test_a_folder_of_no_profiles_names_a_profile_like_file(tmp_path, capsys):
+    """Every file of the folder skipped: the error names a file of a format read (a cut FileStorage),
+    not the first stray file (a calibration report), nor the pose file."""
+    prof = tmp_path / "prof"
+    prof.mkdir()
+    (prof / "a_calibration.sec").write_bytes(b"\x00\x01binary report")
+    for k in (1, 2):
+        (prof / f"{k}_3C_line.yml").write_text("%YAML:1.0\n---\nscan_line: [ 1., 0., 240.,\n")
+    _refused(capsys, tmp_path, "--poses", str(_poses(tmp_path)), "--profiles", str(prof),
+             words=(f"error: {prof / '1_3C_line.yml'}: no profile in the --profiles folders", "never closed"))
