@@ -93,7 +93,7 @@ def test_unknown_format(tmp_path, capsys):
 def test_a_dataset_that_would_not_load_is_not_written(tmp_path, capsys):
     """Profiles wider than the sphere pass the readers but, three of four (most: one alone would be set
     aside and named, issue 39), fail the dataset's own check on the temporary folder: the message names
-    OUT's file, and OUT is not created."""
+    the source files (issue 40: not OUT's, never written), and OUT is not created."""
     poses = _poses(tmp_path)
     prof = _profiles(tmp_path, ["p1.csv", "p2.csv", "p3.csv", "p4.csv"])
     angle = np.linspace(0, 1, 20)
@@ -101,7 +101,8 @@ def test_a_dataset_that_would_not_load_is_not_written(tmp_path, capsys):
         np.savetxt(prof / name, np.column_stack([200 * np.sin(angle), 240 - 200 * np.cos(angle)]), delimiter=",",
                    header="x,z", comments="")
     line = _one_line(*_run(capsys, tmp_path, "--poses", str(poses), "--profiles", str(prof)), "the assembled dataset")
-    assert str(tmp_path / "out") in line
+    assert line.startswith(f"handeye: error: {prof / 'p2.csv'}: ") and "pose '3'" in line  # the sources, not OUT's
+    assert "profiles/" not in line and str(tmp_path / "out") not in line
 
 
 def test_rosbags_missing(tmp_path, capsys, monkeypatch):

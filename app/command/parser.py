@@ -26,6 +26,8 @@ class Parser(argparse.ArgumentParser):
         """The one line that matters and where to read more; no usage block (exit 2)."""
         if message.endswith("expected one argument"):  # `--sensor-pose -1750,...`: the value read as an option
             message += " (a value that starts with '-' is written --option=VALUE, e.g. --sensor-pose=-1750,...)"
+        if message.endswith("required: OUT"):  # `dataset new --profiles a.yml b.yml OUT`: OUT read as a profile
+            message += " (--profiles takes every word up to the next option: give OUT first)"
         sys.stderr.write(f"{self.prog}: error: {message}\nsee `{self.prog} --help`\n")
         if json_wanted:  # the JSON of every exit: this one's too
             sys.stdout.write(dumps({"error": f"{self.prog}: {message}", "exit_code": EXIT_BAD_INPUT}) + "\n")

@@ -32,7 +32,9 @@ class Opt:
         README's (markdown) alike; ``code`` is written in double backquotes.
     metavar, nargs, required
         As argparse's.
-    action : {'store_true', 'append'} or None
+    action : {'store_true', 'append', 'extend'} or None
+        ``extend`` with ``nargs='+'``: one option takes many values (a shell glob's files) and may be
+        given again.
     keyword : str or None
         The public function's keyword; None: the flag's name (``max_iter``); ``''``: none
         (``--json`` is the command line's own).
@@ -77,7 +79,7 @@ class Opt:
     def python_type(self):
         """The keyword's type as the docstring states it (``float, optional``)."""
         choices = None if callable(self.choices) else self.choices
-        guess = ("bool" if self.action == "store_true" else "str or sequence of str" if self.action == "append"
+        guess = ("bool" if self.action == "store_true" else "str or sequence of str" if self.action in ("append", "extend")
                  else "{" + ", ".join(map(repr, choices)) + "}" if choices else {"int": "int", "float": "float"}.get(
                      self.type, {"path": "str or pathlib.Path", "pose": "str or array_like"}.get(self.kind, "str")))
         optional = self.default is None and not self.required and self.flag.startswith("-")
@@ -88,7 +90,7 @@ class Opt:
         given = {"action": self.action, "help": _plain(self.help), "metavar": self.metavar, "nargs": self.nargs,
                  "type": {"int": int, "float": float}.get(self.type), "required": self.required or None,
                  "choices": self.choices() if callable(self.choices) else self.choices,
-                 "default": list(self.default) if self.action == "append" else self.default}
+                 "default": list(self.default) if self.action in ("append", "extend") else self.default}
         return (self.flag,), {key: value for key, value in given.items() if value is not None}
 
 
@@ -127,7 +129,8 @@ def _cell(opt):
     if opt.action == "store_true":
         return f"`{opt.flag}`"
     value = "|".join(map(str, choices)) if choices else opt.metavar or opt.dest.upper()
-    return f"`{opt.flag} {value}`" + (" (repeatable)" if opt.action == "append" else "")
+    many = f" [{value} ...]" if opt.nargs == "+" else ""
+    return f"`{opt.flag} {value}{many}`" + (" (repeatable)" if opt.action in ("append", "extend") else "")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -357,8 +357,10 @@ _DATASET_NEW = (
         help="A controller file's poses taught in a tool other than the flange (FANUC UT, KUKA TOOL_NO, ABB tooldata, "
              "URScript set_tcp, RTDE tcp_offset) or in a user frame other than the robot base (UF, BASE_NO, wobjdata) "
              "read as flange poses in the base: only when that tool is zero and that frame the base (one of each)."),
-    Opt('--profiles', (), action='append', metavar='FILES|GLOB|DIR',
-        help='Profile files, globs or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose.'),
+    Opt('--profiles', (), action='extend', nargs='+', metavar='PATH',
+        help="Profile files (many: a shell glob as `--profiles scans/*.yml` gives them all), a quoted glob "
+             "(`'scans/*.yml'`) or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose; every word up to "
+             "the next option is one, so give OUT first."),
     Opt('--convention', check=ONE_OF, choices=tuple(CONVENTIONS),
         help="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a"
              " bag."),
@@ -373,20 +375,31 @@ _DATASET_NEW = (
     Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
         help='sphere diameter, mm (required unless --setup gives it)'),
     Opt('--setup', metavar='SETUP.toml',
-        help='An existing ``setup.toml`` whose ``[sphere] diameter`` and ``center``, ``[profile] side``, ``[sensor] '
-             'start_pose`` and ``[robot] convention`` and ``model`` fill the options not given.',
+        help='An existing ``setup.toml`` whose ``[sphere] diameter``, ``center`` and ``mount``, ``[profile] side``, '
+             '``[sensor] start_pose`` and ``mount``, ``[positioner] axes`` and ``[robot] convention`` and ``model`` fill '
+             'the options not given.',
         kind='path'),
     Opt('--side', check=ONE_OF, type='int', choices=(1, -1),
         help="Sign of the sphere centre's coordinate along the laser plane's normal in the profiles' own frame (their y for "
              "2-column profiles; default -1); written as ``[profile] side`` in handeye's frame "
              "(:meth:`~handeye.app.ingest.plane.PlaneMapping.side`)."),
     Opt('--center', metavar='X,Y,Z',
-        help='sphere centre in the robot base, mm (without it: calibrate with --unknowns sensor+sphere)',
+        help="sphere centre in its mount's frame, mm: the robot base (default), the flange (--sphere-mount flange) or the "
+             "table at zero angles (positioner); without it: calibrate with --unknowns sensor+sphere",
         pytype='str or sequence of 3 floats, optional'),
     Opt('--start', metavar='X,Y,Z,...',
-        help="Start sensor pose on the flange in the dataset's convention and the sensor's own frame (the frame of "
-             "the profile files; ``[sensor] start_pose``).",
+        help="Start sensor pose in its mount's frame (the flange; the robot base with --sensor-mount world) in the "
+             "dataset's convention and the sensor's own frame (the frame of the profile files; ``[sensor] start_pose``).",
         pytype='str or sequence, optional'),
+    Opt('--sensor-mount', check=ONE_OF, choices=('flange', 'world'),
+        help="where the sensor is: on the flange (default) or fixed in the cell (``[sensor] mount``)"),
+    Opt('--sphere-mount', check=ONE_OF, choices=('world', 'flange', 'positioner'),
+        help="Where the sphere is: fixed in the cell (default), on the flange or on a positioner's table (``[sphere] "
+             "mount``); the cells: flange/world, world/flange, flange/positioner (:mod:`handeye.app.ingest.mounts`)."),
+    Opt('--positioner-axes', metavar='NAME:PX,PY,PZ:DX,DY,DZ;...',
+        help="With --sphere-mount positioner: its nominal axes ``'e1:px,py,pz:dx,dy,dz;e2:...'`` (robot base at zero "
+             "angles, mm), base first (``[positioner] axes``); the pose file's columns named as the axes hold each "
+             "pose's angles, degrees."),
     Opt('--joints', metavar='FILE', help='joint angles j1..j6 per pose, degrees (needs --robot)',
         kind='path'),
     Opt('--robot', metavar='MODEL',

@@ -23,13 +23,21 @@ import numpy as np
 
 from handeye.app.ingest import opencv_storage
 from handeye.app.ingest.poses import canonical
-from handeye.app.ingest.tables import is_number, read_bytes, read_table
+from handeye.app.ingest.tables import decode, is_number, parse_table, read_bytes
 from handeye.model.readers.tables import DatasetError
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
               "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4",
               "double": "f8", "float64": "f8"}
 
+
+#: the largest profile file read, bytes: 256 MiB holds 10^7 points of three float64 (a 10^6-point CSV is
+#: some 30 MB); a larger file is refused by its size before a byte is read (in a folder: skipped and
+#: listed), so a stray 1 GiB file costs nothing (issue 40: 1.08 GB to skip one)
+MAX_PROFILE_BYTES = 256 * 2**20
+#: the lines of a text profile read in Python to find its header, separator and columns; the rest is
+#: parsed by numpy's C reader (no Python object per line)
+HEAD_LINES = 64
 
 #: the first bytes of the binary formats (and PLY's header)
 _MAGIC = ((b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"), (b"ply\n", "ply"), (b"ply\r\n", "ply"))
@@ -52,7 +60,7 @@ def detect(raw):
 
 def read_profile_file(path):
     """``(format, [(name, points)])`` of a profile file; points (K, 2) as (x, z) or (K, 3)."""
-    raw = read_bytes(path)
+    raw = read_bytes(path, MAX_PROFILE_BYTES, "a profile file")
     fmt = detect(raw)
     if fmt is None:
         raise DatasetError(path, "unknown format: not FileStorage YAML/XML/JSON, .npy/.npz, PLY, PCD, CSV or text")
@@ -62,7 +70,7 @@ def read_profile_file(path):
     except DatasetError:
         raise
     except (ValueError, IndexError, KeyError, TypeError, EOFError, OSError, NotImplementedError, zipfile.BadZipFile,
-            RecursionError) as exc:  # a truncated or corrupt file: bad input, named, not a traceback
+            RecursionError, OverflowError) as exc:  # a truncated or corrupt file: bad input, named, not a traceback
         raise DatasetError(path, f"a malformed {fmt} file ({type(exc).__name__}: {str(exc)[:80]})") from None
 
 
@@ -126,7 +134,7 @@ def _ply(path, raw):
         if words[:1] == ["format"]:
             fmt = words[1]
         elif words[:1] == ["element"]:
-            elements.append([words[1], int(words[2]), []])
+            elements.append([words[1], _header_count(path, words[2], f"PLY element {words[1]}"), []])
         elif words[:1] == ["property"] and elements:
             elements[-1][2].append((words[-1], None) if words[1] == "list" else (words[2], _PLY_TYPES.get(words[1])))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
@@ -138,19 +146,37 @@ def _ply(path, raw):
     name, count, props = elements[names.index("vertex")]
     if any(t is None for _, t in props) or (fmt != "ascii" and any(n for _, n, _ in before)):
         raise DatasetError(path, "PLY: list properties in or before the vertices are not read; write the vertices first")
+    last = all(n == 0 for _, n, _ in elements[names.index("vertex") + 1:])
     if fmt == "ascii":
         skip = sum(n for _, n, _ in before)
-        body = raw[offset:].decode("ascii", errors="replace").splitlines()[skip:skip + count]
-        data = _loadtxt(path, body, len(props))
+        lines = [line for line in raw[offset:].decode("ascii", errors="replace").splitlines() if line.strip()]
+        _counts_agree(path, ("PLY", "vertices", "lines"), count, len(lines) - skip, exact=last)
+        data = _loadtxt(path, lines[skip:skip + count], len(props))
         cols = {p: data[:, k] for k, (p, _) in enumerate(props)}
     else:
         order = "<" if fmt == "binary_little_endian" else ">"
         dtype = np.dtype([(p, order + t) for p, t in props])
-        if len(raw) - offset < count * dtype.itemsize:
-            raise DatasetError(path, f"PLY: {count} vertices announced, the file is shorter")
+        _counts_agree(path, ("PLY", "vertices", "records"), count, (len(raw) - offset) // dtype.itemsize, exact=last)
         data = np.frombuffer(raw, dtype, count=count, offset=offset)
         cols = {p: data[p] for p, _ in props}
     return [("vertex", _fields(path, cols, [p for p, _ in props]))]
+
+
+def _header_count(path, word, what):
+    """A count of a PLY or PCD header (a whole number up to 10^9), else a DatasetError naming it."""
+    if not (word.isdigit() and len(word) <= 10 and int(word) <= 10**9):
+        raise DatasetError(path, f"{what}: count {word[:20]!r} is not a whole number from 0 to 10^9")
+    return int(word)
+
+
+def _counts_agree(path, what, announced, found, exact=True):
+    """A header's count against the data (``what``: ``(format, items, units)``, ``PLY``, ``vertices``,
+    ``lines``): fewer there, or (``exact``: nothing follows them) more, is a header that lies, refused
+    naming the file (issue 40: they were read silently)."""
+    fmt, items, unit = what
+    if found < announced or (exact and found > announced):
+        raise DatasetError(path, f"{fmt} header announces {announced:,} {items}, the data hold {found:,} {unit}: a cut "
+                                 "file or a header that does not match its data")
 
 
 def _loadtxt(path, lines, width):
@@ -177,19 +203,19 @@ def _pcd(path, raw):
     sizes = [int(s) for s in head.get("SIZE", [])]
     types = head.get("TYPE", [])
     counts = [int(c) for c in head.get("COUNT", ["1"] * len(fields))]
-    points = int((head.get("POINTS") or [0])[0]) or int(head["WIDTH"][0]) * int(head["HEIGHT"][0])
+    points = _pcd_points(path, head)
     if not fields or len(sizes) != len(fields) or len(types) != len(fields):
         raise DatasetError(path, "PCD header needs FIELDS, SIZE and TYPE of equal length")
     if data == "ascii":
-        body = raw[offset:].decode("ascii", errors="replace").splitlines()
-        table = _loadtxt(path, [b for b in body if b.strip()], sum(counts))
+        body = [b for b in raw[offset:].decode("ascii", errors="replace").splitlines() if b.strip()]
+        _counts_agree(path, ("PCD", "points", "lines"), points, len(body))
+        table = _loadtxt(path, body, sum(counts))
         starts = np.cumsum([0] + counts[:-1])
         cols = {f: table[:, s] for f, s in zip(fields, starts)}
     elif data == "binary":
         dtype = np.dtype([(f, f"<{t.lower()}{s}", (c,) if c > 1 else ())
                           for f, s, t, c in zip(fields, sizes, types, counts)])
-        if len(raw) - offset < points * dtype.itemsize:
-            raise DatasetError(path, f"PCD: {points} points announced, the file is shorter")
+        _counts_agree(path, ("PCD", "points", "records"), points, (len(raw) - offset) // dtype.itemsize)
         table = np.frombuffer(raw, dtype, count=points, offset=offset)
         cols = {f: table[f] for f in fields}
     else:
@@ -197,10 +223,66 @@ def _pcd(path, raw):
     return [("points", _fields(path, cols, fields))]
 
 
+def _profile_names(c):
+    return canonical(c) in ("x", "y", "z")
+
+
+def _pcd_points(path, head):
+    """POINTS of a PCD header, which must be WIDTH x HEIGHT where those are given."""
+    width, height = (_header_count(path, (head.get(k) or ["1"])[0], f"PCD {k}") for k in ("WIDTH", "HEIGHT"))
+    if "POINTS" not in head:
+        return width * height
+    points = _header_count(path, (head["POINTS"] or [""])[0], "PCD POINTS")
+    if "WIDTH" in head and points != width * height:
+        raise DatasetError(path, f"PCD header: POINTS {points:,} but WIDTH x HEIGHT {width:,} x {height:,}: a header that "
+                                 "does not match itself")
+    return points
+
+
 def _text(path, raw):
-    table = read_table(path, known_name=lambda c: canonical(c) in ("x", "y", "z"))
-    if table.kind.startswith("JSON"):
+    """A CSV or whitespace profile: its head (:data:`HEAD_LINES`) read as a table to find the header,
+    separator and columns, the body streamed by ``numpy.loadtxt`` (issue 40: a 10^6-point profile took
+    13 s and 674 MB as Python rows); a body numpy refuses (a ``%`` or ``//`` comment in it too) is
+    read again row by row, which names the row and column at fault."""
+    text = decode(path, raw)
+    cut = -1
+    for _ in range(HEAD_LINES):
+        cut = text.find("\n", cut + 1)
+        if cut < 0:
+            break
+    if cut < 0 or len(text[:cut + 1].splitlines()) != text.count("\n", 0, cut + 1):  # short, or \r or \f lines
+        return _text_rows(parse_table(path, text, _profile_names))
+    try:
+        head = parse_table(path, text[:cut], _profile_names)
+    except DatasetError:  # a head of comments only: the whole file tells
+        return _text_rows(parse_table(path, text, _profile_names))
+    if head.kind.startswith("JSON"):
         raise DatasetError(path, "a JSON table is not a profile (FileStorage JSON has opencv-matrix nodes)")
+    names = [canonical(h) or h for h in head.header] if head.header is not None else None
+    cols = (tuple(names.index(n) for n in ("x", "y", "z") if n in names) if names else tuple(range(len(head.rows[0]))))
+    if head.kind not in ("CSV", "whitespace-separated text") or len(cols) not in (2, 3) or (names and "x" not in names):
+        return _text_rows(parse_table(path, text, _profile_names))
+    start = max(_line_start(raw, head.lines[0]), 3 if raw.startswith(b"\xef\xbb\xbf") else 0)
+    try:
+        body = np.loadtxt(io.BytesIO(raw[start:]), delimiter="," if head.kind == "CSV" else None,
+                          comments="#", usecols=cols, ndmin=2, dtype=float, encoding="utf-8")  # one char: C only
+    except ValueError:
+        return _text_rows(parse_table(path, text, _profile_names))
+    return [("table", body)]
+
+
+def _line_start(raw, line):
+    """The byte offset of 1-based ``line`` of ``raw`` (within the head: a few lines searched)."""
+    pos = 0
+    for _ in range(line - 1):
+        pos = raw.find(b"\n", pos) + 1
+    return pos
+
+
+def _text_rows(table):
+    """The profile of a table read row by row (every cell checked, errors name row and column)."""
+    if table.kind.startswith("JSON"):
+        raise DatasetError(table.file, "a JSON table is not a profile (FileStorage JSON has opencv-matrix nodes)")
     if table.header is not None:  # names as the poses' (``X [mm]``, ``pos_z``): x, y, z by the canonical name
         names = [canonical(h) or h for h in table.header]
         return [("table", _fields(table.file, {n: _column(table, k) for k, n in enumerate(names) if n in ("x", "y", "z")},

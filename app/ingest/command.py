@@ -4,12 +4,13 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import pathlib
+import re
 
 import numpy as np
 
 from handeye.app.common import options
 from handeye.app.common.files import tool_version, write_folder_atomically
-from handeye.app.ingest import sources, writer
+from handeye.app.ingest import mounts, sources, writer
 from handeye.app.ingest.pairing import pair
 from handeye.app.ingest.poses import read_joints, read_poses
 from handeye.app.ingest.request import MODEL_FILE, NewDatasetRequest
@@ -119,6 +120,10 @@ class _Read:
         Role, file and format of each source file.
     joints : ndarray (N, 6) or None
         The joint angles of each pose (``--joints``; never with a bag).
+    lines : tuple of int or None
+        The line (or JSON item) of each pose in the pose file (None: a bag).
+    angles : ndarray (N, k) or None
+        The positioner's axis angles of each pose, degrees (``--sphere-mount positioner``).
     """
 
     ids: list
@@ -130,6 +135,8 @@ class _Read:
     pairing: str
     roles: list
     joints: np.ndarray | None
+    lines: tuple | None = None
+    angles: np.ndarray | None = None
 
 
 def _from_files(req):
@@ -156,8 +163,9 @@ def _from_files(req):
     notes = list(table.notes)
     if req.joints is None and table.joints is not None and req.robot is None:
         notes.append("joint angles not written: give --robot MODEL to keep them (the loader checks them)")
-    return _Read(ids, table.values, table.convention, per_pose, inputs, notes, how, roles,
-                 _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints)
+    return _Read(ids, table.values, table.convention, per_pose, inputs, mounts.notes(notes, req.cell), how, roles,
+                 _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints,
+                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)))
 
 
 def _from_bag(req):
@@ -196,7 +204,8 @@ def _joints(file, table):
 
 @options.COMMANDS["dataset new"].documented
 def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
-                profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, joints=None,
+                profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, sensor_mount=None,
+                sphere_mount=None, positioner_axes=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
                 flange_frame=None, max_dt=0.05, setup=None, accept_frames=False):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
@@ -229,12 +238,15 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
         conversions=tuple(read.notes), plane=mapping.describe(), rotation=rotation,
         dropped={i: p.dropped for i, p in zip(read.ids, read.profiles) if p.dropped}, pairing=read.pairing,
         next_command=f"handeye calibrate {out}" + (" --unknowns sensor+sphere" if req.center is None else ""), side=side)
-    _write_checked(out, _files(result, read, req, start_pose))
+    files, rels = _files(result, read, req, start_pose)
+    poses = None if read.lines is None else (read.roles[0][1], read.lines)
+    _write_checked(out, files, {rel: (p.label, i) for rel, p, i in zip(rels, read.profiles, result.ids)}, poses)
     return result
 
 
 def _files(result, read, req, start_pose):
-    """Relative path -> text of every file of the dataset."""
+    """``(files, rels)``: relative path -> text of every file of the dataset, and each measurement's
+    profile path."""
     taken = set()
     rels = [f"profiles/{writer.safe_name(ident, taken)}.csv" for ident in result.ids]
     files = {rel: writer.profile_text(p.xz) for rel, p in zip(rels, read.profiles)}
@@ -252,10 +264,11 @@ def _files(result, read, req, start_pose):
         extra.append(("robot model", req.robot_file[0], "TOML"))
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(read.roles + extra)]
-    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, rels, read.joints)
+    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, rels, read.joints,
+                                                         (req.cell.names, read.angles))
     files["setup.toml"] = writer.setup_text(result, req, start_pose)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
-    return files
+    return files, rels
 
 
 def _unique(roles):
@@ -266,9 +279,12 @@ def _unique(roles):
     return [entry for entry in first.values() if entry[1] is not None]
 
 
-def _write_checked(out, files):
+def _write_checked(out, files, sources, poses=None):
     """Write the files into a temporary folder, load it as a dataset (every check of
-    :func:`handeye.model.datasets.dataset.load`), then rename it to ``out``: never a half-written folder."""
+    :func:`handeye.model.datasets.dataset.load`), then rename it to ``out``: never a half-written folder.
+    A check that fails names the source (``sources``: profile path -> the file it was read from and
+    its pose id; ``poses``: the pose file and each measurement's line in it), never a file of the
+    folder, which is not written."""
 
     def write(tmp):
         (tmp / "profiles").mkdir()
@@ -277,10 +293,32 @@ def _write_checked(out, files):
         try:
             load(tmp)
         except DatasetError as exc:
-            rel = pathlib.Path(exc.file).resolve()
-            name = rel.relative_to(tmp.resolve()) if rel.is_relative_to(tmp.resolve()) else rel
-            problem = exc.problem.replace(" in setup.toml", " (--diameter)")  # the setup is the options' here
-            raise DatasetError(pathlib.Path(out) / name, f"the assembled dataset does not load: {problem}", exc.row,
-                               exc.column) from None
+            raise _named(exc, tmp, out, sources, poses) from None
 
     write_folder_atomically(out, write, option="OUT")
+
+
+def _source(match, sources):
+    """``profiles/7.csv (row 8`` of a load error as ``scans/p7.yml (pose '7'``."""
+    if match.group(1) not in sources:
+        return match.group(0)
+    label, ident = sources[match.group(1)]
+    return label + (f" (pose {ident!r}" if match.group(2) else "")
+
+
+def _named(exc, tmp, out, sources, poses):
+    """The load error ``exc`` of the temporary folder ``tmp`` told of the source files."""
+    where = pathlib.Path(exc.file).resolve()
+    rel = where.relative_to(tmp.resolve()).as_posix() if where.is_relative_to(tmp.resolve()) else None
+    problem = exc.problem.replace(" in setup.toml", " (--diameter)")  # the setup is the options' here
+    named = [sources[m] for m in re.findall(r"profiles/[^\s:;()]+\.csv", problem) if m in sources]
+    problem = re.sub(r"(profiles/[^\s:;()]+\.csv)( \(row \d+)?", lambda m: _source(m, sources), problem)
+    problem = f"the assembled dataset does not load: {problem}"
+    if rel in sources:
+        return DatasetError(sources[rel][0], f"{problem} (its profile, as handeye wrote it)", None, exc.column)
+    if rel == "measurements.csv" and named:
+        return DatasetError(named[0][0], problem, None, None)
+    if rel == "measurements.csv" and poses is not None:
+        k = exc.row - 2 if exc.row else -1  # measurements.csv: a header, then one row per pose in order
+        return DatasetError(poses[0], problem, poses[1][k] if 0 <= k < len(poses[1]) else None, None)
+    return DatasetError(pathlib.Path(out) / (rel or where), problem, exc.row, exc.column)

@@ -19,6 +19,10 @@ import numpy as np
 from handeye.model.readers.tables import DatasetError
 
 _SPECIAL = {".nan": np.nan, ".inf": np.inf, "-.inf": -np.inf, "+.inf": np.inf}
+#: keys of a profile file that are no profile, left alone (lower case): a newer sensor SDK writes the
+#: feature it found (``feature_point: [x, y, z]``, the sphere's apex) and the file's ``type`` beside
+#: the ``scan_line`` (issue 40); the calibration fits the profile itself, so neither is used
+IGNORED_KEYS = frozenset({"feature_point", "feature_points", "type"})
 
 
 def sniff(head):
@@ -30,6 +34,23 @@ def sniff(head):
         return "xml"
     if text.startswith(b"{") and b"opencv-matrix" in head:
         return "json"
+    return None
+
+
+#: the largest ``rows`` or ``cols`` a matrix node may state (a larger count is a corrupt header)
+MAX_COUNT = 10**9
+
+
+def _count(value):
+    """A matrix's ``rows`` or ``cols`` as an int, None unless a whole number in 0..:data:`MAX_COUNT`
+    (``1e400`` is none: JSON reads it as infinity)."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str):
+        value = value.strip()
+        return int(value) if value.isdigit() and len(value) <= 10 and int(value) <= MAX_COUNT else None
+    if isinstance(value, (int, float)) and 0 <= value <= MAX_COUNT and float(value).is_integer():
+        return int(value)
     return None
 
 
@@ -50,10 +71,11 @@ def _matrix(name, node, file, numbers):
     if missing:
         raise DatasetError(file, f"FileStorage matrix {name!r}: no {missing[0]}")
     values, dt = numbers(node["data"]), node["dt"]
-    try:
-        rows, cols = int(node["rows"]), int(node["cols"])
-    except (TypeError, ValueError):
-        raise DatasetError(file, f"FileStorage matrix {name!r}: rows and cols must be integers") from None
+    rows, cols = _count(node["rows"]), _count(node["cols"])
+    if rows is None or cols is None:
+        shown = str(node["rows"] if rows is None else node["cols"])[:30]
+        raise DatasetError(file, f"FileStorage matrix {name!r}: rows and cols must be integers from 0 to "
+                                 f"{MAX_COUNT:,}, not {shown}")
     match = re.fullmatch(r"(\d*)([ucwsifdh])", str(dt).strip())
     if match is None:
         raise DatasetError(file, f"FileStorage matrix {name!r}: unknown dt {dt!r}")
@@ -83,13 +105,32 @@ def flat_points(name, values, file):
                              "(x, y, z) triplets in a plane")
 
 
+#: a top-level ``key: [`` (the ``[`` on the key's line); ``[ \t]`` so that no match runs over lines
+_SEQUENCE_KEY = re.compile(r"^([A-Za-z_][\w.-]*)[ \t]*:[ \t]*\[", re.MULTILINE)
+_TOKEN = re.compile(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*|\s*[-+]?\.(Nan|Inf)\s*")
+
+
+def _line(text, pos):
+    return text.count("\n", 0, pos) + 1
+
+
 def _yaml_sequences(text, file):
-    """Top-level ``key: [ numbers ]`` sequences of a FileStorage YAML file."""
-    out = []
-    for m in re.finditer(r"^([A-Za-z_][\w.-]*)\s*:\s*\[(.*?)\]", text, re.MULTILINE | re.DOTALL):
-        tokens = [t for t in m.group(2).replace("\n", " ").split(",") if t.strip()]
-        if tokens and all(re.fullmatch(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*|\s*[-+]?\.(Nan|Inf)\s*", t)
-                          for t in tokens):
+    """Top-level ``key: [ numbers ]`` sequences of a FileStorage YAML file (the keys of
+    :data:`IGNORED_KEYS` and sequences that are not all numbers left alone). One pass: each key's
+    ``]`` is found with ``str.find`` from its ``[`` and the next key searched after it, so the cost
+    is linear in the file (issue 40: a lazy ``\\[(.*?)\\]`` over lines was quadratic); a ``[``
+    never closed is a cut file, refused naming its line."""
+    out, pos = [], 0
+    while (m := _SEQUENCE_KEY.search(text, pos)) is not None:
+        end = text.find("]", m.end())
+        if end < 0:
+            raise DatasetError(file, f"FileStorage sequence {m.group(1)!r}: its '[' is never closed (a cut file?)",
+                               _line(text, m.start()))
+        pos = end + 1
+        if m.group(1).lower() in IGNORED_KEYS:
+            continue
+        tokens = [t for t in text[m.end():end].split(",") if t.strip()]
+        if tokens and all(_TOKEN.fullmatch(t) for t in tokens):
             out.append(flat_points(m.group(1), [_value(t, file) for t in tokens], file))
     return out
 
@@ -104,14 +145,18 @@ def _yaml(text, file):
         name = before.lstrip("-").strip() or f"item{k}"
         fields = {}
         for key in ("rows", "cols", "dt"):
-            m = re.search(rf"^\s*{key}\s*:\s*(\S+)", block, re.MULTILINE)
+            m = re.search(rf"^[ \t]*{key}[ \t]*:[ \t]*(\S+)", block, re.MULTILINE)
             if m is None:
                 raise DatasetError(file, f"FileStorage matrix {name!r}: no {key}")
             fields[key] = m.group(1).strip("\"'")
-        m = re.search(r"^\s*data\s*:\s*\[(.*?)\]", block, re.MULTILINE | re.DOTALL)
-        if m is None:
-            raise DatasetError(file, f"FileStorage matrix {name!r}: no data [ ... ]")
-        values = [_value(v, file) for v in m.group(1).replace("\n", " ").split(",") if v.strip()]
+        m = re.search(r"^[ \t]*data[ \t]*:[ \t]*\[", block, re.MULTILINE)
+        end = -1 if m is None else block.find("]", m.end())
+        if end < 0:
+            raise DatasetError(file, f"FileStorage matrix {name!r}: no data [ ... ]" if m is None else
+                               f"FileStorage matrix {name!r}: its data '[' is never closed (a cut file?)")
+        if name.lower() in IGNORED_KEYS:
+            continue
+        values = [_value(v, file) for v in block[m.end():end].split(",") if v.strip()]
         out.append(_matrix(name, {**fields, "data": values}, file, list))
     return out
 
@@ -123,7 +168,7 @@ def _xml(text, file):
         raise DatasetError(file, f"FileStorage XML: {exc}") from None
     out = []
     for node in root.iter():
-        if node.get("type_id") != "opencv-matrix":
+        if node.get("type_id") != "opencv-matrix" or node.tag.lower() in IGNORED_KEYS:
             continue
         get = {child.tag: (child.text or "").strip() for child in node}
         out.append(_matrix(node.tag, get, file, lambda data: [_value(v, file) for v in data.split()]))
@@ -142,6 +187,8 @@ def _json(text, file):
     def walk(node, name):
         if isinstance(node, dict):
             if node.get("type_id") == "opencv-matrix":
+                if name.lower() in IGNORED_KEYS:
+                    return
                 out.append(_matrix(name, node, file, lambda data: [_value(v, file) if isinstance(v, str) else v
                                                                    for v in data]))
                 return

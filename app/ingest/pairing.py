@@ -34,7 +34,8 @@ AUTO = Pairing()
 
 def natural_key(text):
     """Sort key that orders embedded numbers by value (``p2`` < ``p10``)."""
-    return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", str(text)) if t]
+    return [(0, len(_number(t)), _number(t), t) if t.isdigit() else (1, 0, t.lower(), t)
+            for t in re.split(r"(\d+)", str(text)) if t]
 
 
 def _token(name, pattern):
@@ -42,25 +43,43 @@ def _token(name, pattern):
     return None if m is None else m.group(1)
 
 
-def _same(token, ident):
-    """A name's id matches a pose id: the same text, or the same number (``007`` is pose ``7``
-    and pose ``P7``: an id's last digits)."""
-    if token == ident:
-        return True
-    digits = re.findall(r"\d+", ident)
-    return token.isdigit() and bool(digits) and int(token) == int(digits[-1])
+def _number(digits):
+    """A run of digits as the text of its value (``007`` -> ``7``): compared as text, never made an
+    int (a 5,000-digit name stays cheap)."""
+    return digits.lstrip("0") or "0"
+
+
+class _Ids:
+    """The pose ids looked up by a name's token in a dict, not by a scan of every id (issue 40:
+    2,000 profiles took 17 s CPU): a token matches an id of the same text, or of the same number
+    as the id's last digits (``007`` is pose ``7`` and pose ``P7``)."""
+
+    def __init__(self, pose_ids):
+        self.text, self.number = {}, {}
+        for k, ident in enumerate(pose_ids):
+            self.text.setdefault(ident, []).append(k)
+            digits = re.findall(r"\d+", ident)
+            if digits:
+                self.number.setdefault(_number(digits[-1]), []).append(k)
+
+    def hits(self, token):
+        """Indices of the poses ``token`` names, in the poses' order."""
+        found = set(self.text.get(token, ()))
+        if token.isdigit():
+            found.update(self.number.get(_number(token), ()))
+        return sorted(found)
 
 
 def _by_id(labels, names, pose_ids, tokens, pose_file):
     """Pose index of each profile; errors name the file."""
-    index, taken = [], {}
+    index, taken, lookup = [], {}, _Ids(pose_ids)
     for label, name, token in zip(labels, names, tokens):
         if token is None:
             raise DatasetError(label, f"no id in the name {name!r} (--match takes a regex with one group)")
-        hits = [k for k, ident in enumerate(pose_ids) if _same(token, ident)]
+        hits = lookup.hits(token)
         if not hits:
             shown = ", ".join(pose_ids[:3]) + (", ..." if len(pose_ids) > 3 else "")
-            raise DatasetError(label, f"id {token!r} is not a pose id of {pose_file} (ids {shown})")
+            raise DatasetError(label, f"id {token[:40]!r} is not a pose id of {pose_file} (ids {shown})")
         if hits[0] in taken:
             raise DatasetError(label, f"is pose {pose_ids[hits[0]]!r}, as {taken[hits[0]]} is: two profiles of one pose")
         taken[hits[0]] = label
@@ -101,7 +120,8 @@ def pair(labels, names, pose_ids, n_poses, pose_file, asked=AUTO):
     if mode == "order" or (mode == "auto" and match is None and all(t is None for t in tokens)):
         return _by_order(labels, ids, pose_file), list(ids), "by order (natural sort of the file names)"
     if mode == "auto" and match is None:
-        matched = [any(_same(t, i) for i in ids) for t in tokens if t is not None]
+        lookup = _Ids(ids)
+        matched = [bool(lookup.hits(t)) for t in tokens if t is not None]
         if not any(matched) and len(labels) == len(ids):
             return _by_order(labels, ids, pose_file), list(ids), "by order (the numbers in the names are not pose ids)"
     index = _by_id(labels, names, ids, tokens, pose_file)
@@ -123,8 +143,7 @@ def _pose_ids(pose_ids, tokens, n_poses):
     """The poses' ids; without an id column 1..N, or 0..N-1 when the names' numbers start at 0."""
     if pose_ids is not None:
         return pose_ids
-    numbers = sorted(int(t) for t in tokens if t is not None and t.isdigit())
-    zero = bool(numbers) and numbers[0] == 0
+    zero = any(t is not None and t.isdigit() and _number(t) == "0" for t in tokens)
     return tuple(str(k + (0 if zero else 1)) for k in range(n_poses))
 
 
@@ -132,7 +151,8 @@ def _all_match(tokens, ids):
     """Every name has a number, each a different pose's, and every pose has one."""
     if not tokens or any(t is None for t in tokens) or len(tokens) != len(ids):
         return False
-    hits = [[k for k, i in enumerate(ids) if _same(t, i)] for t in tokens]
+    lookup = _Ids(ids)
+    hits = [lookup.hits(t) for t in tokens]
     return all(len(h) == 1 for h in hits) and len({h[0] for h in hits}) == len(ids)
 
 

@@ -152,9 +152,9 @@ def _numbers(table, names, wanted):
             try:
                 v = float(row[j]) if "_" not in row[j] else float("x")  # Python's 1_000 is no number in a table
             except ValueError:
-                raise DatasetError(table.file, f"not a number: {row[j]!r}", line, heads[j]) from None
+                raise DatasetError(table.file, f"not a number: {row[j][:30]!r}", line, heads[j]) from None
             if not math.isfinite(v):
-                raise DatasetError(table.file, f"not a finite number: {row[j]!r}", line, heads[j])
+                raise DatasetError(table.file, f"not a finite number: {row[j][:30]!r}", line, heads[j])
             out[r, c] = v
     return out
 

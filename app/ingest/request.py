@@ -22,6 +22,7 @@ from handeye.app.common.arguments import numbers
 from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_folder
 from handeye.app.engine.command_request import checked_values
+from handeye.app.ingest import mounts
 from handeye.app.ingest.pairing import Pairing, natural_key
 from handeye.app.ingest.plane import AXES
 from handeye.app.ingest.poses import canonical
@@ -46,7 +47,10 @@ _SETUP = {"diameter": ("sphere", "diameter", _is_number),
           "center": ("sphere", "center", lambda v: isinstance(v, list) and len(v) == 3 and all(map(_is_number, v))),
           "start": ("sensor", "start_pose", lambda v: isinstance(v, list) and all(map(_is_number, v))),
           "convention": ("robot", "convention", lambda v: isinstance(v, str)),
-          "robot": ("robot", "model", lambda v: isinstance(v, str) and v.strip())}
+          "robot": ("robot", "model", lambda v: isinstance(v, str) and v.strip()),
+          "sensor_mount": ("sensor", "mount", lambda v: isinstance(v, str)),
+          "sphere_mount": ("sphere", "mount", lambda v: isinstance(v, str)),
+          "positioner_axes": ("positioner", "axes", lambda v: mounts.axes_text(v) is not None)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,6 +91,8 @@ class NewDatasetRequest:
         ``--accept-frames``: a controller file's tool and frame taken as the flange and the base.
     options : dict
         The options as PROVENANCE.toml keeps them (the setup's values filled in; None left out).
+    cell : mounts.Cell
+        ``--sensor-mount``, ``--sphere-mount``, ``--positioner-axes`` (:mod:`handeye.app.ingest.mounts`).
     """
 
     poses: object
@@ -116,6 +122,7 @@ class NewDatasetRequest:
     max_dt: float
     accept_frames: bool
     options: dict
+    cell: mounts.Cell = mounts.Cell()
 
     @classmethod
     def from_options(cls, given):
@@ -140,6 +147,7 @@ class NewDatasetRequest:
             "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
             "center": numbers(v["center"], "--center", 3), "robot": robot, "robot_file": robot_file,
             "pairing": Pairing(v["pair"], _match(v["match"])), "side_from": side_from, "start_axes": start_axes,
+            "cell": mounts.checked(v["sensor_mount"], v["sphere_mount"], v["positioner_axes"], v["bag"] is not None),
             "options": {k: x for k, x in v.items() if k != "out" and x is not None and not (isinstance(x, list) and not x)}}
         return cls(**{**{field.name: v.get(field.name) for field in dataclasses.fields(cls)}, **resolved})
 
@@ -227,20 +235,27 @@ def expand(specs, exclude=()):
     out = []
     for spec in specs:
         p = pathlib.Path(spec)
-        if p.is_dir():
-            files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
-            where = f"folder {spec}"
-        elif any(c in str(spec) for c in "*?["):
-            files = [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()]
-            where = f"pattern {spec!r}"
-        elif p.is_file():
-            files, where = [p], spec
-        else:
-            raise RequestError(f"--profiles {spec}: no such file or folder")
+        try:
+            files, where = _files_of(spec, p, skip)
+        except OSError as exc:  # a folder that cannot be listed (permissions): bad input, named
+            raise RequestError(f"--profiles {spec}: cannot be read: {exc.strerror or exc}") from None
         if not files:
             raise RequestError(f"--profiles: {where} has no files")
         out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
     return out
+
+
+def _files_of(spec, p, skip):
+    """``(files, where)`` of one ``--profiles`` argument (unsorted); OSError where a folder cannot be
+    listed."""
+    if p.is_dir():
+        files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
+        return files, f"folder {spec}"
+    if any(c in str(spec) for c in "*?["):
+        return [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()], f"pattern {spec!r}"
+    if p.is_file():
+        return [p], spec
+    raise RequestError(f"--profiles {spec}: no such file or folder")
 
 
 def _robot(robot):
@@ -259,10 +274,11 @@ def _robot(robot):
 
 def _from_setup(file, start_given):
     """``--setup FILE``: ``(values, start axes)``, the values an existing setup.toml gives for the
-    options (diameter, center, side, start pose, convention, robot model; a model file's path made
-    the setup folder's) and :attr:`NewDatasetRequest.start_axes` (the frame of the setup's start
-    pose when it gives the one used: its ``own_axes`` when its poses are of the sensor's own frame,
-    else None, handeye's). No file: ``({}, False)``."""
+    options (diameter, center, side, start pose, convention, robot model, the mounts and the
+    positioner's axes; a model file's path made the setup folder's) and
+    :attr:`NewDatasetRequest.start_axes` (the frame of the setup's start pose when it gives the one
+    used: its ``own_axes`` when its poses are of the sensor's own frame, else None, handeye's). No
+    file: ``({}, False)``."""
     if file is None:
         return {}, False
     try:
@@ -271,7 +287,7 @@ def _from_setup(file, start_given):
         raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise DatasetError(file, f"not valid TOML: {exc}") from None
-    for section in ("sphere", "sensor", "robot", "profile"):
+    for section in ("sphere", "sensor", "robot", "profile", "positioner"):
         if not isinstance(doc.get(section, {}), dict):
             raise DatasetError(file, "must be a [section] of keys (the --setup file)", column=f"[{section}]")
     found = {option: doc.get(section, {}).get(key) for option, (section, key, _) in _SETUP.items()}
@@ -279,6 +295,8 @@ def _from_setup(file, start_given):
         if found[option] is not None and not ok(found[option]):
             raise DatasetError(file, f"{str(found[option])[:40]!r} is not a value of this key (the --setup file)",
                                column=f"[{section}] {key}")
+    if found["positioner_axes"] is not None:  # the option's text, checked as --positioner-axes is
+        found["positioner_axes"] = mounts.axes_text(found["positioner_axes"])
     model = found["robot"]
     if isinstance(model, str) and (pathlib.Path(file).parent / model).is_file():  # a model file: the setup's folder's
         found["robot"] = str(pathlib.Path(file).parent / model)

@@ -64,9 +64,9 @@ def read_profiles(files, units="mm"):
         for key, pts in matrices:
             label, name = (f"{f}[{key}]", key) if len(matrices) > 1 else (str(f), f.stem)
             out.append(_profile(label, name, f, fmt, pts, units))
-    if not out:
-        raise DatasetError(skipped[0][0], f"no profile in the --profiles folders ({len(skipped)} files skipped; this "
-                                          f"one: {skipped[0][1]})")
+    if not out:  # named: a file that looked like a profile (a format read), not the first stray file
+        file, why = next((s for s in skipped if not s[1].startswith(("unknown format", "not UTF-8"))), skipped[0])
+        raise DatasetError(file, f"no profile in the --profiles folders ({len(skipped)} files skipped; this one: {why})")
     return out, skipped
 
 

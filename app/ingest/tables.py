@@ -49,17 +49,43 @@ class Table:
     kind: str
 
 
-def read_bytes(path):
-    """The bytes of an input file; a missing, unreadable or huge file is a DatasetError."""
+#: the largest pose (or joint) file read, bytes: 64 MiB is some 300,000 pose rows; a larger file given
+#: as ``--poses`` is refused by its size before a byte is read (issue 40: a 1 GiB file was read whole)
+MAX_TABLE_BYTES = 64 * 2**20
+
+
+def _mib(n):
+    return f"{n / 2**20:,.0f} MiB" if n >= 2**20 else f"{n:,} bytes"
+
+
+def read_bytes(path, limit=None, what="an input file"):
+    """The bytes of an input file; a missing, unreadable or huge file is a DatasetError.
+
+    Parameters
+    ----------
+    path : path-like
+    limit : int or None
+        The largest size read, bytes (None: ``MAX_FILE_BYTES``, 2 GB); a larger file is refused
+        by its size (``stat``) before it is opened, the limit named.
+    what : str
+        What the file is, for the message (``a pose file``).
+    """
     path = pathlib.Path(path)
+    limit = MAX_FILE_BYTES if limit is None else limit
     try:
         if not path.is_file():
             raise DatasetError(path, "no such file" if not path.exists() else "is not a regular file")
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise DatasetError(path, f"larger than {MAX_FILE_BYTES / 1e9:.1f} GB")
-        return path.read_bytes()
+        size = path.stat().st_size
+        if size > limit:
+            raise DatasetError(path, f"{_mib(size)}: larger than the {_mib(limit)} {what} may have; not read")
+        with open(path, "rb") as fh:
+            raw = fh.read(size + 1)  # a file that grew since: one byte more tells (read(n) allocates n)
     except OSError as exc:
         raise DatasetError(path, f"cannot be read: {exc.strerror or exc}") from None
+    if len(raw) > limit:
+        raise DatasetError(path, f"larger than the {_mib(limit)} {what} may have; not read")
+    return raw
+
 
 
 def decode(path, raw):
@@ -82,7 +108,11 @@ def read_table(path, known_name=None):
         names is a header too.
     """
     path = pathlib.Path(path)
-    text = decode(path, read_bytes(path))
+    return parse_table(path, decode(path, read_bytes(path, MAX_TABLE_BYTES, "a pose or joint file")), known_name)
+
+
+def parse_table(path, text, known_name=None):
+    """The table of ``text``, the content of ``path`` (:func:`read_table`'s, once read)."""
     return _json_table(path, text) if text.lstrip()[:1] in ("[", "{") else _text_table(path, text, known_name)
 
 
@@ -131,18 +161,27 @@ def _looks_like_header(cells, known_name):
 def _json_value(path, value, item):
     if isinstance(value, bool) or value is None:
         raise DatasetError(path, f"item {item}: {value!r} is not a number")
+    if isinstance(value, int) and abs(value) >= 10**300:  # past every float: its size, not its 4,000 digits
+        return f"{'-' if value < 0 else ''}1e+{int(abs(value).bit_length() * 0.30103)}"
     if isinstance(value, (int, float, str)):
         return str(value)
     raise DatasetError(path, f"item {item}: a nested {type(value).__name__} where a number or text was expected")
 
 
-def _flatten(obj, prefix=""):
-    """``{"position": {"x": 1}}`` -> ``{"position.x": 1}``."""
+#: the id column's names (:func:`handeye.app.ingest.poses.canonical`'s ``id`` aliases): an object
+#: under one is refused, not flattened into columns nobody reads (the poses then numbered silently)
+ID_KEYS = frozenset({"id", "name", "index", "idx", "pose", "poseid", "no", "nr", "number", "n"})
+
+
+def _flatten(obj, path, item, prefix=""):
+    """``{"position": {"x": 1}}`` -> ``{"position.x": 1}``; an object as an id is an error naming the item."""
     out = {}
     for key, value in obj.items():
         name = f"{prefix}{key}"
         if isinstance(value, dict):
-            out.update(_flatten(value, name + "."))
+            if not prefix and str(key).strip().lower() in ID_KEYS:
+                raise DatasetError(path, f"item {item}: {key!r} is an object; an id is a number or a text")
+            out.update(_flatten(value, path, item, name + "."))
         else:
             out[name] = value
     return out
@@ -153,6 +192,10 @@ def _json_table(path, text):
         doc = json.loads(text, parse_constant=lambda c: {"NaN": math.nan, "Infinity": math.inf}.get(c, -math.inf))
     except json.JSONDecodeError as exc:
         raise DatasetError(path, f"not valid JSON: {exc.msg}", exc.lineno) from None
+    except RecursionError:  # [[[[...: nested deeper than Python's parser goes
+        raise DatasetError(path, "JSON nested too deep to be a table of poses") from None
+    except ValueError as exc:  # a 5,000-digit integer: past Python's limit of int digits
+        raise DatasetError(path, f"JSON holds a number that is no pose value ({str(exc)[:70]})") from None
     if isinstance(doc, dict):
         lists = [(k, v) for k, v in doc.items() if isinstance(v, list)]
         if len(lists) != 1:
@@ -162,7 +205,7 @@ def _json_table(path, text):
     if not isinstance(doc, list) or not doc:
         raise DatasetError(path, "JSON: expected a non-empty list of lists or of objects")
     if all(isinstance(d, dict) for d in doc):
-        flat = [_flatten(d) for d in doc]
+        flat = [_flatten(d, path, item) for item, d in enumerate(doc, start=1)]
         header = list(flat[0])
         for d in flat[1:]:
             header += [k for k in d if k not in header]

@@ -135,7 +135,7 @@ def read_table(file, file_row=None):
             raise DatasetError(file, f"{size / 1e9:.1f} GB is more than a dataset file may be "
                                      f"({MAX_FILE_BYTES / 1e9:.1f} GB)")
         with open(file, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
+            raw = fh.read(min(size, MAX_FILE_BYTES) + 1)  # read(n) allocates n bytes: not 2 GB per small file
     except OSError as exc:
         raise DatasetError(owner, f"cannot be read: {exc.strerror or exc}", **where) from None
     if len(raw) > MAX_FILE_BYTES:
