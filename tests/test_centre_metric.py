@@ -20,6 +20,7 @@ import verdict_rates as vr  # noqa: E402
 
 import handeye  # noqa: E402
 from handeye.model.datasets import observations  # noqa: E402
+from handeye.model.fit import extended  # noqa: E402
 from handeye.model.geometry import circle  # noqa: E402
 
 
@@ -35,7 +36,8 @@ def _turned(dataset, sensor2flange):
 def test_the_centre_models_weights_lie_in_the_residuals_frame(tmp_path):
     """For a step d of a centre in the sensor frame (residual R d), the whitened residual's square is
     d^T C^-1 d (C the centre's covariance, sensor frame) for the centre model at the pose it is built at, and
-    (times a constant: mm at the typical sd) for the search's metric; a pose turned 90 deg gives other weights."""
+    (times a constant: mm at the typical sd) for the search's metric; a pose turned 180 deg about its x gives other
+    weights; a flipped sample's weights whiten D C D."""
     truth = gen.make(tmp_path / "c", "clean", 10)  # profiles only: every centre rebuilt
     data = handeye.load_dataset(truth.folder)
     pose = truth.sensor
@@ -48,13 +50,19 @@ def test_the_centre_models_weights_lie_in_the_residuals_frame(tmp_path):
     assert np.allclose(got, want, rtol=1e-9)
     metric = observations.centre_metric(data, pose, truth.centre)
     cov = observations.profile_covariance(data)  # the rebuilt centres' own (at the Hyper circle)
-    wr = np.einsum("nij,njk->nik", metric, turn)  # whitens a sensor-frame step
+    assert np.allclose(metric.turn, turn)
+    wr = np.einsum("nij,njk->nik", metric.whiten, turn)  # whitens a sensor-frame step
     inv = np.linalg.inv(wr)
     m = inv @ np.swapaxes(inv, 1, 2)  # the covariance it whitens: (cov_i + s^2 I) / k^2 for one s and one k
     lhs = np.column_stack([m.reshape(-1), -np.tile(np.eye(3).ravel(), len(data))])
     (k2, s2), *_ = np.linalg.lstsq(lhs, cov.reshape(-1), rcond=None)
     assert k2 > 0 and s2 > 0
     assert np.allclose(k2 * m - s2 * np.eye(3), cov, atol=1e-9 * np.abs(cov).max())
+    flip = np.diag([1.0, -1.0, 1.0])  # a centre read with y negated: covariance D C D, whitened by W R D R^T
+    prob = extended.Samples(data, metric=metric)
+    w_flip = prob._weights(None, frozenset({0}))[0] @ turn[0]
+    np.testing.assert_allclose(np.linalg.inv(w_flip.T @ w_flip) * k2 - s2 * np.eye(3), flip @ cov[0] @ flip,
+                               atol=1e-9 * np.abs(cov).max())
     other = observations.build(data, "centre", "local", "sensor", robot,
                                observations.Anchor(truth.centre, pose @ np.diag([1.0, -1, -1, 1])))
     assert not np.allclose(other.whiten, model.whiten)

@@ -284,7 +284,8 @@ def _effects_fit_fields(final, prob, efit):
                      "sigma^2 (J^T J)^-1 on the local chart"),
         rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
                   "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
-                  "unweighted; this is what the fit with the effects minimises"),
+                  "unweighted (the fit with the effects minimises it in the samples' metric where centres were rebuilt "
+                  "from profiles, else as it is)"),
         objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
                    "components, mm)", "weighted": weighted, "rows": int(mask.sum()), "cost": float(0.5 * efit.ssr),
                    "rms": rms, "unit": "mm", "rms_unweighted_mm": rms,

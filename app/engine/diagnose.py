@@ -116,7 +116,7 @@ def _summaries(prob, structure, fit, mask, heldout=True):
         "rms_mm": _rms(prob, fit, mask),
         "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
-        "heldout_rms_mm": prob.heldout_rms(structure, mask, fit) if heldout else float("nan"),
+        "heldout_rms_mm": prob.heldout_rms(structure, mask, fit, raw=True) if heldout else float("nan"),
     }
 
 
@@ -238,7 +238,7 @@ def _positioner_axes(run, fit, sigma):
     found = positioner_effect.examine(dataset, run.mask, run.prob.transform(fit.x), run.prob.sigma, run.alpha)
     if found is None:
         return None
-    run.prob = Samples(found.dataset, sigma, run.prob.whiten)
+    run.prob = Samples(found.dataset, sigma, run.prob.metric)
     return found
 
 

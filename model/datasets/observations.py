@@ -187,6 +187,24 @@ def turned_whitening(dataset, sensor2flange, profile_cov, chain_mm):
     return np.einsum("nij,nkj->nik", w, turn)
 
 
+@dataclasses.dataclass(frozen=True)
+class CentreMetric:
+    """The samples' own metric of the centre residual (:func:`centre_metric`).
+
+    Attributes
+    ----------
+    whiten : ndarray, shape (N, 3, 3)
+        ``W_i R_i^T`` (:func:`turned_whitening`, :func:`in_mm`): a residual in the carrier's frame, whitened.
+    turn : ndarray, shape (N, 3, 3)
+        ``R_i``, the rotation from the sensor frame into the residual's at the pose the metric was taken at: a
+        sample whose centre is read with y negated (a sign flip) has covariance ``D C D``, whitened by
+        ``whiten_i R_i D R_i^T`` (D = diag(1, -1, 1)).
+    """
+
+    whiten: np.ndarray
+    turn: np.ndarray
+
+
 def in_mm(whiten):
     """``whiten`` (N, 3, 3) scaled so that a whitened residual reads in mm at the samples' typical sd:
     times the geometric mean over samples of ``det(C_i)^(1/6)`` (``C_i`` the covariance it whitens). Equal
@@ -196,8 +214,8 @@ def in_mm(whiten):
 
 
 def centre_metric(dataset, sensor2flange, centre=None, mask=None, n_params=6):
-    """The samples' own metric of the centre residual at a calibration, in mm (:func:`in_mm` of
-    :func:`turned_whitening`), for the extended model's fits and tests
+    """The samples' own metric of the centre residual at a calibration, in mm (a :class:`CentreMetric`:
+    :func:`in_mm` of :func:`turned_whitening`), for the extended model's fits and tests
     (:class:`handeye.model.fit.extended.Samples`); None when no centre was rebuilt from its profile
     (every centre's noise is the chain's, isotropic: equal weights).
 
@@ -223,7 +241,7 @@ def centre_metric(dataset, sensor2flange, centre=None, mask=None, n_params=6):
     e_sensor = np.einsum("nji,nj->ni", turn, model.residuals(model.point_from(pose, centre)))  # R_i^T e_i
     keep = (np.ones(len(dataset), bool) if mask is None else np.asarray(mask, bool)) & np.isfinite(e_sensor).all(axis=1)
     chain = chain_sd(e_sensor[keep], cov[keep], n_params) if 3 * keep.sum() > n_params else CHAIN_SD_FLOOR_MM
-    return in_mm(turned_whitening(dataset, pose, cov, chain))
+    return CentreMetric(in_mm(turned_whitening(dataset, pose, cov, chain)), turn)
 
 
 #: The chain's isotropic sd in the screening metric is estimated from the data (:func:`chain_sd`);

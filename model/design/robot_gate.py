@@ -58,7 +58,7 @@ def robot_free(prob, structure, fit, mask, name="joint_offsets"):
     current = fit.jac[mask].reshape(-1, fit.p)
     names = list(fit.names)
     if not structure.centre:
-        centre = prob.whitened(-np.broadcast_to(np.eye(3), (prob.n, 3, 3)))[mask]  # in the samples' metric
+        centre = prob.whitened(-np.broadcast_to(np.eye(3), (prob.n, 3, 3)), None, structure.flips)[mask]  # metric
         current = np.concatenate([current, centre.reshape(-1, 3)], axis=1)
         names += ["cx", "cy", "cz"]
     free, absorbed = [], {}

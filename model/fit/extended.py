@@ -64,8 +64,8 @@ class Fit:
     p: int
     converged: bool = True
     message: str = ""
-    #: ``(J^T J, J^T r)`` over the fit's samples where the Fit holds no Jacobian (``jac`` None: many
-    #: samples, summed chunk by chunk), else None
+    #: ``(J^T J, J^T r, R)`` over the fit's samples where the Fit holds no Jacobian (``jac`` None: many
+    #: samples, summed chunk by chunk; R the triangular factor of J's QR, accumulated chunk by chunk), else None
     normal: tuple | None = None
 
     @property
@@ -75,7 +75,7 @@ class Fit:
     def _jtj_jtr(self, mask):
         """``(J^T J, J^T r)`` over the samples in ``mask`` (the fit's own when it holds no Jacobian)."""
         if self.jac is None:
-            return self.normal
+            return self.normal[:2]
         jac = self.jac[mask].reshape(-1, self.p)
         return jac.T @ jac, jac.T @ self.e[mask].ravel()
 
@@ -98,11 +98,12 @@ class Fit:
             return np.abs(jtr) / (np.sqrt(np.diag(jtj)) * np.sqrt(np.sum(self.e[mask] ** 2)))
 
     def r_factor(self, mask):
-        """A factor R (p, p) with ``R^T R = J^T J`` over the samples in ``mask`` (the same singular values,
-        right singular vectors and column norms as J: what
+        """The triangular factor R (p, p) of ``J = Q R`` over the samples in ``mask`` (the same singular values,
+        right singular vectors and column norms as J, to J's own precision: what
         :func:`handeye.model.design.identifiability.analyse` takes with ``rows``)."""
-        w, v = np.linalg.eigh(self._jtj_jtr(mask)[0])
-        return np.sqrt(np.clip(w, 0.0, None))[:, None] * v.T
+        if self.jac is None:
+            return self.normal[2]
+        return np.linalg.qr(self.jac[mask].reshape(-1, self.p), mode="r")
 
 
 def sample_chunks(mask, chunk=None):
@@ -130,11 +131,11 @@ class Samples:
 
     def __init__(self, dataset, sigma=None, metric=None):
         self.d = dataset
-        #: whitening (N, 3, 3) of every sample's centre residual, in mm
-        #: (:func:`handeye.model.datasets.observations.centre_metric`: centres rebuilt from profiles are
+        #: the samples' own metric of the centre residual, in mm
+        #: (:class:`handeye.model.datasets.observations.CentreMetric`: centres rebuilt from profiles are
         #: not equal, isotropic noise), or None: equal weights. Every residual, Jacobian and candidate
         #: column is in this metric; :meth:`raw` turns residuals back into mm.
-        self.whiten = None if metric is None else np.asarray(metric, float)
+        self.metric = metric
         self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
         self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
@@ -145,19 +146,36 @@ class Samples:
         #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
         self.robot_always = set()
 
-    def whitened(self, arr, rows=None):
-        """Rows ``arr`` (k, 3) or (k, 3, q) of the samples ``rows`` (default all) in the samples' metric."""
-        if self.whiten is None:
-            return arr
-        w = self.whiten if rows is None else self.whiten[rows]
-        return np.einsum("nij,nj...->ni...", w, arr)
+    @property
+    def whiten(self):
+        """The metric's whitening (N, 3, 3), or None (equal weights)."""
+        return None if self.metric is None else self.metric.whiten
+
+    def _weights(self, rows=None, flips=frozenset()):
+        """The whitening of the samples ``rows`` (default all), a flipped sample's turned by its reflection
+        (:class:`~handeye.model.datasets.observations.CentreMetric`); None: equal weights."""
+        if self.metric is None:
+            return None
+        take = (lambda a: a) if rows is None else (lambda a: a[rows])
+        w = take(self.metric.whiten)
+        flipped = np.isin(take(np.arange(self.n)), list(flips)) if flips else np.zeros(len(w), bool)
+        if flipped.any():
+            r = take(self.metric.turn)[flipped]
+            w = w.copy()
+            w[flipped] = w[flipped] @ r @ np.diag([1.0, -1.0, 1.0]) @ np.swapaxes(r, 1, 2)
+        return w
+
+    def whitened(self, arr, rows=None, flips=frozenset()):
+        """Rows ``arr`` (k, 3) or (k, 3, q) of the samples ``rows`` (default all) in the samples' metric, the
+        samples in ``flips`` read with y negated."""
+        w = self._weights(rows, flips)
+        return arr if w is None else np.einsum("nij,nj...->ni...", w, arr)
 
     def raw(self, e, rows=None):
-        """Residuals ``e`` (k, 3) in the samples' metric back in mm (the carrier's frame)."""
-        if self.whiten is None:
-            return e
-        w = self.whiten if rows is None else self.whiten[rows]
-        return np.linalg.solve(w, e[..., None])[..., 0]
+        """Residuals ``e`` (k, 3) in the samples' metric back in mm (the carrier's frame; a flipped sample's
+        reflected, its length the same)."""
+        w = self._weights(rows)
+        return e if w is None else np.linalg.solve(w, e[..., None])[..., 0]
 
     def params_of(self, name):
         """The parameter names an effect has on these samples (a robot effect: those it estimates)."""
@@ -240,7 +258,7 @@ class Samples:
         extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
                  for c in cols]
         jac = np.concatenate([j] + extra, axis=2) if extra else j
-        return self.whitened(e, rows), self.whitened(jac, rows), model
+        return self.whitened(e, rows, structure.flips), self.whitened(jac, rows, structure.flips), model
 
     def names(self, structure):
         base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
@@ -257,6 +275,17 @@ class Samples:
             flat, r = jac.reshape(-1, jac.shape[2]), e.ravel()
             jtj, jtr, rtr = jtj + flat.T @ flat, jtr + flat.T @ r, rtr + r @ r
         return jtj, jtr, rtr
+
+    def _chunked_factors(self, structure, x, params, mask, chunk=None):
+        """``(J^T J, J^T r, R)`` over the samples in ``mask``, chunk by chunk: R the triangular factor of J's
+        QR, each chunk's rows stacked under the R so far (the Jacobian of every sample is never held)."""
+        jtj, jtr, r_factor = 0.0, 0.0, np.zeros((0, 0))
+        for rows in sample_chunks(mask, chunk):
+            e, jac, _ = self.evaluate(structure, x, params, rows)
+            flat = jac.reshape(-1, jac.shape[2])
+            jtj, jtr = jtj + flat.T @ flat, jtr + flat.T @ e.ravel()
+            r_factor = np.linalg.qr(np.vstack([r_factor.reshape(-1, flat.shape[1]), flat]), mode="r")
+        return jtj, jtr, r_factor
 
     def residuals(self, structure, x, params, mask=None, chunk=None):
         """Residuals (N, 3) of the samples in ``mask`` (default all), chunk by chunk: the
@@ -279,7 +308,7 @@ class Samples:
         normal = None
         if big:
             e, jac = self.residuals(structure, x, params, None, chunk), None
-            normal = self.normal_equations(structure, x, params, mask, chunk)[:2]
+            normal = self._chunked_factors(structure, x, params, mask, chunk)
         else:
             e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
@@ -360,8 +389,9 @@ class Samples:
     def point(self, structure, sensor2flange, centre=None):
         return self._chart(structure.centre).point_from(sensor2flange, self.d.sphere_centre if centre is None else centre)
 
-    def heldout_rms(self, structure, mask, fit):
-        """RMS prediction error (mm) of held-out samples, 5-fold cross-validation over ``mask``."""
+    def heldout_rms(self, structure, mask, fit, raw=False):
+        """RMS prediction error of held-out samples, 5-fold cross-validation over ``mask``: in the samples'
+        metric (what a decision compares), or with ``raw`` in mm (what a report shows)."""
         idx = np.where(mask)[0]
         folds = np.array_split(np.random.default_rng(0).permutation(idx), min(FOLDS, len(idx)))
         errs = []
@@ -369,7 +399,7 @@ class Samples:
             train = mask.copy()
             train[fold] = False
             f = self.fit(structure, train, fit.x, fit.params)
-            errs.append(np.sum(f.e[fold] ** 2, axis=1))
+            errs.append(np.sum((self.raw(f.e[fold], fold) if raw else f.e[fold]) ** 2, axis=1))
         return float(np.sqrt(np.mean(np.concatenate(errs))))
 
     def transform(self, x):
@@ -394,7 +424,7 @@ def candidate_columns(prob, structure, fit, mask, name):
 def candidate_rows(prob, structure, fit, rows, name):
     """Jacobian columns (k, 3, q) of a candidate effect at the fit, of the samples ``rows`` (an
     index array; None: every sample), in the samples' metric (:meth:`Samples.whitened`)."""
-    return prob.whitened(_candidate_rows(prob, structure, fit, rows, name), rows)
+    return prob.whitened(_candidate_rows(prob, structure, fit, rows, name), rows, structure.flips)
 
 
 def _candidate_rows(prob, structure, fit, rows, name):
