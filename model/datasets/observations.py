@@ -142,8 +142,9 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
         whiten = None
         if has_profiles:
             if sensor2flange is None:
-                raise ValueError("the centre model of centres rebuilt from profiles needs a sensor pose: its weights "
-                                 "lie in the sensor frame, its residual in the carrier's")
+                raise ObservationError(f"{dataset.path / 'measurements.csv'}: the centre model of profiled samples needs "
+                                       "a sensor pose to weigh them at (their weights lie in the sensor frame, the "
+                                       "residual in the carrier's), and none is finite here")
             circ, covs = circles(dataset)
             cov = np.array([circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)])
             whiten = turned_whitening(dataset, sensor2flange, cov, robot_sigma)
