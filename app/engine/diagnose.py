@@ -37,6 +37,7 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.common.errors import RequestError
 from handeye.app.engine import positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
@@ -48,6 +49,7 @@ from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
+from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit.score_tests import gate, score_test
 
@@ -68,6 +70,14 @@ def same_pose(distance):
     (:data:`AGREE_SD`, :data:`AGREE_FLOOR`); without an sd, only the floor decides."""
     tiny = distance["translation_mm"] <= AGREE_FLOOR[0] and distance["rotation_deg"] <= AGREE_FLOOR[1]
     return tiny or (distance["sd"] is not None and distance["sd"] <= AGREE_SD)
+
+
+def searchable_size(dataset):
+    """RequestError (exit 2) for data of more than :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples:
+    the search holds the whole Jacobian (calibrate, which skips it there, says so in a warning)."""
+    if len(dataset) > ROW_CHUNK:
+        raise RequestError(f"diagnose: the data have {len(dataset):,} samples, more than the discrepancy search's "
+                           f"{ROW_CHUNK:,} (it holds the whole Jacobian); diagnose an evenly spread subset of them")
 
 
 @dataclasses.dataclass
