@@ -13,7 +13,7 @@ import shlex
 import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
-from handeye.app.engine import robot_choice, robust
+from handeye.app.engine import effect_size, robot_choice, robust
 from handeye.app.present.residual_table import ResidualTable, SampleResidual
 from handeye.app.present.result_parts import (
     EffectsRecord,
@@ -152,10 +152,13 @@ STRUCTURE_WARNING = "the residuals show structure the model lacks"
 
 def effect_tests(final):
     """Score tests of the catalogue's effects at the fit ``final`` (a :class:`Described`); a warning
-    naming diagnose for a significant one (the test uses the fit's own scale, not the stated noise)."""
+    naming diagnose for a significant one that matters, whose fit moves the pose beyond the promise's floor
+    (:mod:`handeye.app.engine.effect_size`: at 10^6 samples the test detects what moves it a micrometre;
+    the test uses the fit's own scale, not the stated noise)."""
     dataset, fit, request, warnings = final.dataset, final.fit, final.request, final.warnings
     tests = robot_gate.score_effects(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, skip=request.effects)
-    significant = [t for t in tests if t.p_bonferroni < request.alpha]
+    at = effect_size.At(dataset, final.mask, fit.sensor, fit.centre, request.unknowns, tuple(request.effects))
+    significant = [t for t in tests if t.p_bonferroni < request.alpha and effect_size.matters(at, t.name)]
     if significant:
         names = ", ".join(f"{t.name} (score {t.score:.3g}, Bonferroni p = {t.p_bonferroni:.2g})" for t in significant)
         warnings.append(f"{STRUCTURE_WARNING}: {names}; "

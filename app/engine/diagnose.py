@@ -37,7 +37,8 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import positioner_effect, robot_choice, robust
+from handeye.app.common.errors import RequestError
+from handeye.app.engine import effect_size, positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
 from handeye.app.present.result_parts import NamedEffect, PowerStatement, Uncertainty, cleaning_summary
@@ -49,6 +50,7 @@ from handeye.model.common.statistics import deletion_statistics, f_survival, pre
 from handeye.model.datasets import observations
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
+from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit.score_tests import gate, score_test
 
@@ -69,6 +71,14 @@ def same_pose(distance):
     (:data:`AGREE_SD`, :data:`AGREE_FLOOR`); without an sd, only the floor decides."""
     tiny = distance["translation_mm"] <= AGREE_FLOOR[0] and distance["rotation_deg"] <= AGREE_FLOOR[1]
     return tiny or (distance["sd"] is not None and distance["sd"] <= AGREE_SD)
+
+
+def searchable_size(dataset):
+    """RequestError (exit 2) for data of more than :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples:
+    the search holds the whole Jacobian (calibrate, which skips it there, says so in a warning)."""
+    if len(dataset) > ROW_CHUNK:
+        raise RequestError(f"diagnose: the data have {len(dataset):,} samples, more than the discrepancy search's "
+                           f"{ROW_CHUNK:,} (it holds the whole Jacobian); diagnose an evenly spread subset of them")
 
 
 @dataclasses.dataclass
@@ -456,8 +466,10 @@ def _reduce(structure, name):
 
 
 def _confirmed(run, base_structure, base, structure, new):
-    """F test, Delta BIC and held-out error must agree that ``new`` improves on ``base``
-    (``run`` the :class:`Procedure`)."""
+    """F test, Delta BIC and held-out error must agree that ``new`` improves on ``base`` (``run`` the
+    :class:`Procedure`), and a data effect must move the pose beyond :data:`~handeye.model.fit.power.SHIFT_FLOOR`:
+    its test's bias grows with n (:mod:`handeye.app.engine.effect_size`; 16,000 clean centres at 0.15 mm: a
+    0.01 % scale, which moves the pose 0.025 mm), and one within the floor cannot make the answer wrong."""
     prob, mask, alpha = run.prob, run.mask, run.alpha
     k = new.p - base.p
     if new.ssr >= base.ssr or new.m - new.p <= 0:
@@ -465,7 +477,11 @@ def _confirmed(run, base_structure, base, structure, new):
     f_stat = ((base.ssr - new.ssr) / k) / (new.ssr / (new.m - new.p))
     p_f = f_survival(f_stat, k, new.m - new.p)
     d_bic = new.m * np.log(new.ssr / base.ssr) + k * np.log(new.m)
-    return p_f < alpha and d_bic < 0 and prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base)
+    moved = pose_distance(prob.transform(new.x), prob.transform(base.x))
+    matters = (not any(effect_size.biased(n) for n in set(structure.data_effects) - set(base_structure.data_effects))
+               or moved["translation_mm"] > power.SHIFT_FLOOR[0] or moved["rotation_deg"] > power.SHIFT_FLOOR[1])
+    return (p_f < alpha and d_bic < 0 and matters
+            and prob.heldout_rms(structure, mask, new) < prob.heldout_rms(base_structure, mask, base))
 
 
 def _backward(prob, structure, fit, mask, alpha, centre_unknown=False):

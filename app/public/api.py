@@ -136,6 +136,7 @@ def _diagnosed(data, parts, level, sigma):
     from handeye.app.engine import slips
     from handeye.app.engine.prepare import gate, with_sphere_centre
 
+    procedure.searchable_size(data)  # before calibrating: the search holds the whole Jacobian
     data = with_sphere_centre(data, parts)[0]  # a start for a centre not given
     gate(data, parts)  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, parts, slips.plain_rms(data, parts) or 0.0)  # a wrong side is not an "effect"

@@ -1,0 +1,94 @@
+"""calibrate and diagnose agree on every study dataset (issue 39): on each kind of dataset the studies and
+notebooks use (``tests/agreement_cells.py``), ``handeye.calibrate`` and ``handeye.diagnose`` end in the same
+verdict, and where calibrate gives a pose, diagnose's lies within 1 sd of it with the same effects named.
+
+Calibrate's verdict is the calibration diagnose itself runs beside its search (the public function, the
+user's options: :func:`test_the_calibration_diagnose_compares_with_is_the_users`), so each dataset costs one
+diagnosis. A disagreement that is known and not yet fixed is a strict expected failure naming its cause, so
+that the fix flips it."""
+import pathlib
+import re
+
+import numpy as np
+import pytest
+
+import handeye
+from tests import agreement_cells as cells
+
+#: The cheap datasets (under a second each): the default tier.
+SMALL = ("thesis-sim", "simulate flange/world", "simulate world/flange", "study random-starts")
+#: Left out of the slow tier, and where their agreement is held: the same data as a dataset that is in, or a
+#: test that runs both commands on it.
+SAME_AS = {"robcalibrator ball-2023-05-raw": "robcalibrator ball-2023-05",  # the same scans, speckle left in
+           "simulate flange/positioner": "study mounts flange/positioner sensor+positioner",  # the same cell
+           # diagnose names positioner_axes and sensor_scale, calibrate (sensor+positioner) refuses naming the scale:
+           "simulate flange/positioner sensor_scale=0.002":
+               "tests/test_mounts.py::test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate"}
+#: Known disagreements: dataset -> why (a strict expected failure).
+KNOWN = {
+    "robcalibrator ball-2023-05": (
+        "calibrate fits the measured circles (its default for profile data), the search the rebuilt sphere centres "
+        "unweighted: on 10 poses of a 1-inch ball their poses lie 0.69 mm / 2.85 deg, 1.56 of calibrate's sd, apart; "
+        "the search's metric weighting rebuilt centres by their circle covariance (model/fit/extended.py) is the fix"),
+}
+SLOW = tuple(name for name in cells.DATASETS if name not in SMALL and name not in SAME_AS)
+
+
+def _marks(name):
+    return [pytest.mark.xfail(reason=KNOWN[name], strict=True)] if name in KNOWN else []
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("agreement")
+
+
+def _agree(name, folder):
+    """Build the dataset ``name`` and assert the two verdicts on it are one, saying both where they are not."""
+    own = folder / re.sub(r"\W+", "-", name)
+    own.mkdir()
+    data, unknowns = cells.DATASETS[name](own)
+    calibrated, diagnosed, distance = cells.verdicts(data, unknowns)
+    far = "no pose to compare" if distance is None else (
+        f"{distance['translation_mm']:.3g} mm / {distance['rotation_deg']:.3g} deg apart, "
+        f"{distance['sd'] if distance['sd'] is None else round(distance['sd'], 2)} sd of calibrate's")
+    assert cells.agree(calibrated, diagnosed, distance), (
+        f"{name} [{unknowns}]: calibrate exit {calibrated.exit} naming {sorted(calibrated.effects)} ({calibrated.said}); "
+        f"diagnose {'refuses' if diagnosed.exit else 'gives a pose'} naming {sorted(diagnosed.effects)} "
+        f"({diagnosed.said}); {far}")
+    return calibrated, diagnosed
+
+
+@pytest.mark.parametrize("name", SMALL)
+def test_calibrate_and_diagnose_agree_on_the_small_study_cells(name, folder):
+    calibrated, _ = _agree(name, folder)
+    assert calibrated.exit == 0 and not calibrated.effects  # clean cells: a pose, no effect
+
+
+@pytest.mark.slow(sibling="test_calibrate_and_diagnose_agree_on_the_small_study_cells")
+@pytest.mark.parametrize("name", [pytest.param(n, marks=_marks(n)) for n in SLOW])
+def test_calibrate_and_diagnose_agree_on_every_study_dataset(name, folder):
+    _agree(name, folder)
+
+
+def test_the_calibration_diagnose_compares_with_is_the_users(folder):
+    """The verdicts take calibrate's from inside diagnose: it is ``handeye.calibrate`` with the user's options."""
+    data = handeye.load_dataset("thesis-sim")
+    calibrated, diagnosed, _ = cells.verdicts(data, "sensor")
+    own = handeye.calibrate("thesis-sim", no_loo=True)
+    assert np.array_equal(calibrated.pose, own.sensor2flange) and calibrated.effects == frozenset()
+    assert diagnosed.said.startswith("the same pose as `handeye calibrate`'s")
+
+
+def test_every_study_has_its_datasets_here():
+    """Each study that calibrates or diagnoses has a dataset among the cells (its own generator's first cell);
+    those that calibrate nothing (the test function, the batched solvers, the circle fits) need none."""
+    studies = {p.stem.removeprefix("study_") for p in (pathlib.Path(handeye.__file__).parent / "studies").glob("study_*.py")}
+    none = {"testfunction", "batch", "circle_fits"}
+    uses = {"real_data": "thesis-real", "start_poses": "thesis-sim", "default": "study honest-default",
+            "guarantee": "study global-guarantee", "power": "study discrepancy-power", "planning": "study pose-planning",
+            "random_starts": "study random-starts", "thesis_robot": "study thesis-robot"}
+    for study in sorted(studies - none):
+        prefix = uses.get(study, f"study {study}")
+        assert any(name.startswith(prefix) for name in cells.DATASETS), f"study_{study}.py has no dataset here"
+    assert set(KNOWN) <= set(cells.DATASETS) and set(SAME_AS) <= set(cells.DATASETS)
