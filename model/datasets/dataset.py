@@ -508,7 +508,7 @@ def _robot_model(st, folder, joints, poses, file):
         return None
     model = robots.load(st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model)
     if joints is not None and len(joints):
-        robots.check_reported(model, joints, transform_from_pose(poses), file)
+        model = robots.check_reported(model, joints, transform_from_pose(poses), file)
     return model
 
 
