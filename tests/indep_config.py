@@ -90,12 +90,27 @@ def quaternion(R):
     return q if q[0] >= 0 else -q
 
 
+def _turn(axis, deg):
+    """4x4 rotation about a coordinate axis (0, 1, 2 for x, y, z) by ``deg`` degrees."""
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    T = np.eye(4)
+    T[i, i], T[i, j], T[j, i], T[j, j] = c, -s, s, c
+    return T
+
+
+#: the joint origins as 4x4 translations, each joint's axis index, tool0 after link 6
+_ORIGINS = [transform(np.eye(3), o) for o in ORIGINS]
+_AXIS = [int(np.argmax(a)) for a in AXES]
+_TOOL0 = _turn(1, 90.0)
+
+
 def forward(q):
     """Flange in the base (4x4, mm) of the joint angles ``q`` (6, deg): the chain, then tool0."""
     T = np.eye(4)
-    for o, a, angle in zip(ORIGINS, AXES, q):
-        T = T @ transform(np.eye(3), o) @ transform(rodrigues(a, angle), np.zeros(3))
-    return T @ transform(rodrigues((0, 1, 0), 90.0), np.zeros(3))
+    for o, a, angle in zip(_ORIGINS, _AXIS, q):
+        T = T @ o @ _turn(a, angle)
+    return T @ _TOOL0
 
 
 def flipped(q):
@@ -134,7 +149,7 @@ def _usable(q):
     return bool(np.all(q > lo) and np.all(q < hi) and abs(math.sin(math.radians(q[4]))) > math.sin(math.radians(15)))
 
 
-def draw_cell(seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0):
+def draw_cell(seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0, tilt=TILT, turn=TURN):
     """One cell (module docstring), no noise.
 
     Returns
@@ -153,9 +168,9 @@ def draw_cell(seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0):
     centre = S0[:3, :3] @ [0.0, 0.0, 240.0] + S0[:3, 3]
     joints = []
     while len(joints) < n:
-        tilt, az = TILT * math.sqrt(rng.uniform()), rng.uniform(0, 360)
+        tilt_i, az = tilt * math.sqrt(rng.uniform()), rng.uniform(0, 360)
         axis = S0[:3, :3] @ [math.cos(math.radians(az)), math.sin(math.radians(az)), 0.0]
-        R = rodrigues(axis, tilt) @ S0[:3, :3] @ rodrigues((0, 0, 1), rng.uniform(-TURN, TURN))
+        R = rodrigues(axis, tilt_i) @ S0[:3, :3] @ rodrigues((0, 0, 1), rng.uniform(-turn, turn))
         p = [rng.uniform(-HALF, HALF), rng.uniform(-HALF, HALF), rng.uniform(*STANDOFF)]
         q = inverse_kinematics(transform(R, centre - R @ p) @ inverse(X) @ inverse(C), working)
         if q is not None and _usable(q) and _usable(flipped(q)):
@@ -170,29 +185,34 @@ def draw_cell(seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0):
             "reported": np.array([forward(q) @ C for q in joints]), "points": points}
 
 
-def make(folder, seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0, noise=0.03, order=None, signs=None):
+def make(folder, seed, n=32, flipped_n=8, offsets=None, flange_turn=0.0, noise=0.03, order=None, signs=None,
+         tilt=TILT, turn=TURN, joints=True, cfx=False):
     """Draw a cell and write its folder (ABB convention, ball centres and j1..j6); return the truth.
 
     ``order`` (a permutation of 0..5): column k of the file holds joint ``order[k]``; ``signs`` (6 of
-    +-1): each column's sign. Both default to the truth.
+    +-1): each column's sign. Both default to the truth. Without ``joints`` the file has no j1..j6 and
+    the setup no model; with ``cfx`` it has ABB's ``cfx`` column (bit 0: j5 < 0; every pose here has
+    the wrist centre in front of axis 1 and of the lower arm, bits 1 and 2 clear).
     """
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    cell = draw_cell(seed, n, flipped_n, offsets, flange_turn)
+    cell = draw_cell(seed, n, flipped_n, offsets, flange_turn, tilt, turn)
     rng = np.random.default_rng([seed, 7])
     measured = cell["points"] + rng.normal(0.0, noise, cell["points"].shape)
     order = list(range(6)) if order is None else list(order)
     signs = np.ones(6) if signs is None else np.asarray(signs, float)
     with open(folder / "measurements.csv", "w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["id", "x", "y", "z", "q1", "q2", "q3", "q4", "xs", "ys", "zs", *(f"j{k}" for k in range(1, 7))])
+        out.writerow(["id", "x", "y", "z", "q1", "q2", "q3", "q4", "xs", "ys", "zs"]
+                     + [f"j{k}" for k in range(1, 7)] * joints + ["cfx"] * cfx)
         for i, (F, p, q) in enumerate(zip(cell["reported"], measured, cell["joints"])):
-            written = signs * q[order]
-            out.writerow([f"p{i:02d}"] + [repr(float(v)) for v in (*F[:3, 3], *quaternion(F[:3, :3]), *p, *written)])
+            written = list(signs * q[order]) * joints
+            out.writerow([f"p{i:02d}"] + [repr(float(v)) for v in (*F[:3, 3], *quaternion(F[:3, :3]), *p, *written)]
+                         + [str(int(q[4] < 0))] * cfx)
     X = cell["sensor"]
     vec = lambda v: "[" + ", ".join(f"{float(x):.9f}" for x in v) + "]"  # noqa: E731
     (folder / "setup.toml").write_text("\n".join([
-        "[robot]", 'convention = "abb"', 'model = "irb4600"', "", "[sphere]", f"diameter = {DIAMETER}",
+        "[robot]", 'convention = "abb"', *['model = "irb4600"'] * joints, "", "[sphere]", f"diameter = {DIAMETER}",
         f"center = {vec(cell['centre'])}", "", "[noise]", f"centre_mm = {noise}", "",
         "[truth]", f"sensor_pose = {vec([*X[:3, 3], *quaternion(X[:3, :3])])}", ""]))
     return {**cell, "measured": measured, "folder": folder, "noise": noise}

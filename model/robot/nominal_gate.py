@@ -142,7 +142,7 @@ def absorbed_note(model_name, found):
             f"{AGREE_MM:g} mm / {AGREE_DEG:g} deg)")
 
 
-def gated(model, joints_deg, flange2base, file):
+def gated(model, joints_deg, flange2base, file, others=()):
     """The model with the constants absorbed (a note in its ``absorbed``), or DatasetError naming
     what is wrong (module docstring).
 
@@ -155,6 +155,8 @@ def gated(model, joints_deg, flange2base, file):
         Reported flange poses, mm.
     file : path
         The file the refusal names.
+    others : callable or sequence, optional
+        The other models a refusal tries (``others()`` gives them: loaded only on the refusal's path).
 
     Returns
     -------
@@ -176,7 +178,7 @@ def gated(model, joints_deg, flange2base, file):
     reading = _reading(model, joints, f2b)
     raise DatasetError(file, f"{said}; after a constant transform at the base and at the flange up to "
                              f"{found.left_mm:.1f} mm / {found.left_deg:.2f} deg still depend on the pose (the gate: "
-                             f"{AGREE_MM:g} mm / {AGREE_DEG:g} deg): " + _named(model, joints, f2b, reading),
+                             f"{AGREE_MM:g} mm / {AGREE_DEG:g} deg): " + _named(model, joints, f2b, reading, others),
                        column="[robot] model" if reading is None else "j1")
 
 
@@ -204,7 +206,7 @@ def _reading(model, joints, f2b):
     return None
 
 
-def _named(model, joints, f2b, reading):
+def _named(model, joints, f2b, reading, others):
     """What makes the model agree (``reading``, of :func:`_reading`), said; else the other built-in
     models tried, and the advice."""
     if reading is not None:
@@ -217,11 +219,8 @@ def _named(model, joints, f2b, reading):
                     "the other sign than the model's joint (write it as the controller's, or fix the model's axis)")
         return (f"the joint columns are in another order: with the model's j1..j6 read from the file's columns "
                 f"{what[6:]} they agree {left}: write j1..j6 in the robot's order")
-    from handeye.model.robot import robots
-
-    for name in robots.builtin_names():
-        other = robots.load(name)
+    for spec, other in (others() if callable(others) else others):
         if other.name != model.name and constants(other.flange2base(joints), f2b).agrees():
-            return f"the built-in {name} model ({other.name}) reproduces them: a wrong [robot] model"
+            return f"the built-in {spec} model ({other.name}) reproduces them: a wrong [robot] model"
     return ("a wrong [robot] model (no built-in model, no reading of the angles in radians, with one sign reversed "
             "or in another column order reproduces them), or poses that are not of the flange")

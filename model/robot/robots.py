@@ -31,6 +31,7 @@ import numpy as np
 from handeye.model.chain.pose import kuka_from_matrix, matrix_from_kuka
 from handeye.model.common.rotation import matrix_from_rotvec
 from handeye.model.readers.tables import DatasetError
+from handeye.model.robot import nominal_gate
 
 ROBOTS_DIR = pathlib.Path(__file__).parent.parent / "data" / "robots"
 #: Joint columns of measurements.csv (degrees).
@@ -190,10 +191,9 @@ def check_reported(model, joints_deg, flange2base, file):
     """The model as the controller's: constant base and flange transforms against the reported flange
     poses absorbed and said, or DatasetError naming why the nominal forward kinematics does not
     reproduce them (angles in radians, a TCP, joint columns in another order or sign, another model):
-    :func:`handeye.model.robot.nominal_gate.gated`."""
-    from handeye.model.robot.nominal_gate import gated
-
-    return gated(model, joints_deg, flange2base, file)
+    :func:`handeye.model.robot.nominal_gate.gated`; the other built-in models are tried on a refusal."""
+    return nominal_gate.gated(model, joints_deg, flange2base, file,
+                              others=lambda: [(name, load(name)) for name in builtin_names()])
 
 
 def offset_derivatives(model, joints_deg, offsets_deg):
