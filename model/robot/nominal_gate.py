@@ -124,9 +124,9 @@ def _describe(t, where):
     its translation, each where it reaches :data:`SAY_DEG`, :data:`SAY_MM`."""
     mm, deg = _size(t)
     w = rotvec_from_matrix(t[:3, :3])
-    axis = w / max(np.linalg.norm(w), 1e-300)
+    axis = np.round(w / max(np.linalg.norm(w), 1e-300), 2) + 0.0  # + 0.0: no '-0.00'
     parts = ([f"{deg:.3g} deg about ({', '.join(f'{v:.2f}' for v in axis)})"] if deg >= SAY_DEG else []) + (
-        [f"({', '.join(f'{v:.2f}' for v in t[:3, 3])}) mm ({mm:.3g} mm)"] if mm >= SAY_MM else [])
+        [f"({', '.join(f'{v:.2f}' for v in np.round(t[:3, 3], 2) + 0.0)}) mm ({mm:.3g} mm)"] if mm >= SAY_MM else [])
     return f"{' and '.join(parts) or 'nothing'} at the {where}"
 
 
