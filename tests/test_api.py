@@ -45,7 +45,8 @@ def test_calibrate_matches_the_cli_json(capsys):
 def test_closed_form_result_is_the_same_type_and_matches_the_cli(capsys):
     r = handeye.calibrate("thesis-real", method="kim-cho", unknowns="sensor+sphere")
     code, cli_json, _ = _cli_json(capsys, "calibrate", "--method", "kim-cho", "--unknowns", "sensor+sphere", "--json")
-    assert code == cli.EXIT_OK and isinstance(r, CalibrationResult)
+    # the baseline lies 1.8 mm / 0.71 deg from the data's own calibration, 31 of its sd: no calibration, exit 1
+    assert code == cli.EXIT_NOT_CONVERGED and isinstance(r, CalibrationResult) and not r.converged
     assert _strip_timing(r.to_dict()) == _strip_timing(cli_json)
     ls = handeye.calibrate("thesis-sim", method="lm").to_dict()
     # one schema: the same keys, the dataset named the same way, status an int or None

@@ -351,6 +351,7 @@ LOCAL_IMPORTS = {
         ("app/public/api.py", "calibrate", "handeye.app.engine.calibrate"),
         ("app/public/api.py", "calibrate", "handeye.app.engine.classic"),
         ("app/public/api.py", "calibrate", "handeye.app.engine.command_request"),
+        ("app/public/api.py", "calibrate", "handeye.app.engine.request"),
         ("app/public/api.py", "calibrate", "handeye.app.engine.score"),
         ("app/public/api.py", "compare", "handeye.app.engine.command_request"),
         ("app/public/api.py", "compare", "handeye.app.engine.score"),

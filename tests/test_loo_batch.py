@@ -80,7 +80,8 @@ def test_thesis_real_with_its_gross_errors(unknowns):
 def test_simulated_every_kind(profiled, kind, unknowns):
     """Small residuals: the Gauss-Newton path, whitened rows (centre, measurement) and rows
     grouped into samples (points)."""
-    model = observations.build(profiled, kind, "local", unknowns)
+    model = observations.build(profiled, kind, "local", unknowns,
+                               at=observations.Anchor(sensor2flange=transform_from_pose(profiled.truth["sensor_pose"])))
     predictor = CalibrationModel.from_dataset(profiled, "local", unknowns)
     x = _fit(model, model.point_from(transform_from_pose(profiled.truth["sensor_pose"]), profiled.sphere_centre))
     got = robust.leave_one_out(model, x, None, predictor)

@@ -6,6 +6,7 @@ import pytest
 import handeye
 from handeye.app.engine import robust
 from handeye.model.datasets import observations
+from handeye.model.fit import global_fit
 from handeye.model.fit.calibration import CalibrationModel
 
 
@@ -27,7 +28,7 @@ def _reference_loo(dataset, res, kind, i):
     keep = np.array([r.used for r in res.residuals])
     keep[i] = False
     other = observations.build(dataset.subset(keep), kind, "local", res.unknowns, res.robot_sigma_mm,
-                               sphere_centre=res.sphere_centre)
+                               observations.Anchor(res.sphere_centre, _anchor(dataset)))
     x = robust.least_squares(other, other.point_from(res.sensor2flange, res.sphere_centre), max_iter=400).x
     for _ in range(3):  # Newton with the exact Hessian: the minimum to rounding
         step = -np.linalg.solve(other.cost_hessian(x), other.gradient(x))
@@ -36,6 +37,12 @@ def _reference_loo(dataset, res, kind, i):
     t2 = other.sensor2flange(x)
     seen = dataset.flange2base()[i] @ t2 @ np.append(dataset.centre_in_sensor[i], 1.0)
     return float(np.linalg.norm(seen[:3] - other.sphere_centre(x)))
+
+
+def _anchor(dataset):
+    """The pose the centre model turns profiled centres' weights at: the plain centre model's lowest minimum on
+    every sample (app/engine/prepare.py), from its own closed-form search here."""
+    return global_fit.centre_minima(dataset.motions(), dataset.centre_in_sensor, dataset.sphere_centre).best.sensor2flange
 
 
 @pytest.mark.parametrize("kind", ["centre", "measurement", "points"])
@@ -76,7 +83,8 @@ def test_the_deletion_formula_refits_the_same_model(profiled, monkeypatch):
 
     predictor = CalibrationModel.from_dataset(dataset, "local", "sensor")
     for kind in ("points", "centre"):
-        model = observations.build(dataset, kind, "local", "sensor")
+        model = observations.build(dataset, kind, "local", "sensor",
+                                   at=observations.Anchor(sensor2flange=transform_from_pose(truth)))
         mask = np.ones(len(dataset), bool)
         mask[4] = False
         x = robust.least_squares(robust._subset(model, mask), model.point_from(transform_from_pose(truth))).x

@@ -146,6 +146,29 @@ def test_edited_claims_are_named_and_the_outputs_show_the_data(cells, tmp_path):
     assert f"RMS {doc['rms_mm']:.4f} mm" in strip and "RMS against stated noise" in strip
 
 
+def test_a_file_with_effects_is_recomputed_with_them_and_an_edit_is_named(tmp_path, capsys):
+    """A sensor reading 0.2 % long: calibrate chooses sensor_scale and saves it with the pose. The file is
+    recomputed in the extended model at its pose and effects (app/engine/held_effects.py): its own RMS, no
+    note; a pose moved by hand (with its sensor_pose_as, as a careful hand would) or a scale typed over is
+    refused (exit 2), naming the file and the field, with the RMS the data give."""
+    made = handeye.simulate(tmp_path / "scaled", seed=2, n_poses=20, profiles=True, effect="sensor_scale=0.002")
+    path = tmp_path / "scaled.json"
+    result = handeye.calibrate(made.path, out=path, no_loo=True)
+    doc = json.loads(path.read_text())
+    assert result.converged and [e["name"] for e in doc["effects"]] == ["sensor_scale"]
+    checked = _checked(made.path, path)
+    assert checked.notes == () and checked.verdict.effects == ("sensor_scale",) and checked.verdict.converged
+    assert checked.verdict.rms_mm == pytest.approx(doc["rms_mm"], rel=1e-6)
+    assert "and effects (sensor_scale)" in checked.status
+    s = doc["effects"][0]["parameters"]["s"]
+    scaled = [{**doc["effects"][0], "parameters": {"s": 3 * s}}]
+    for name, fields in (("moved", _moved(doc, mm=1.0)), ("scale", {"effects": scaled})):
+        bad = _edited(tmp_path, doc, f"{name}.json", **fields)
+        code, err = _error(capsys, ["validate", str(made.path), "--calibration", str(bad)])
+        assert code == 2 and str(bad) in err and "sensor_matrix / effects" in err and "hand-edited" in err, err
+        assert "contradict the pose and effects (sensor_scale)" in err, err
+
+
 def _warning_lines(fmt, text):
     if fmt == "json":
         return json.loads(text)["verdict"]

@@ -61,7 +61,8 @@ def run_cell(kind, seed, root):
         ``kind``, ``seed``, ``cell`` (mount, convention, mode, centre known, poses, noise mm, tour),
         ``planted``, ``exit`` (0, 1, 2 or 3), ``wrong`` (exit 0 beyond the truth's criterion), ``mm``,
         ``deg`` (the pose's distance from the truth), ``z`` (6: error / reported sd per component, tx ty tz
-        in mm and the rotation about the sensor's axes), ``excluded`` (samples excluded), ``n``, ``error``
+        in mm and the rotation about the sensor's axes), ``excluded`` (samples excluded), ``effects`` (the
+        catalogue effects the result names and calibrates, sign flips aside), ``n``, ``error``
         (the message of a non-zero exit, first 200 characters), ``seconds`` (CPU, with children).
     """
     folder = pathlib.Path(root) / f"{kind}-{seed}"
@@ -70,7 +71,7 @@ def run_cell(kind, seed, root):
     row = dict(kind=kind, seed=seed, planted={k: v for k, v in truth.planted.items() if k != "description"},
                cell=f"{spec.mount} {spec.convention} {spec.mode} centre-{'given' if spec.centre_known else 'free'} "
                     f"n={spec.n} noise={spec.noise} {spec.tour}",
-               exit=3, wrong=False, mm=None, deg=None, z=None, excluded=0, n=spec.n, error=None)
+               exit=3, wrong=False, mm=None, deg=None, z=None, excluded=0, effects=[], n=spec.n, error=None)
     start = _cpu()
     try:
         result = handeye.calibrate(folder, unknowns=truth.unknowns)
@@ -82,6 +83,7 @@ def run_cell(kind, seed, root):
         d = truth.distance(result)
         row.update(exit=0 if result.converged else 1, wrong=bool(result.converged and truth.wrong(result)),
                    mm=d["mm"], deg=d["deg"], z=[float(v) for v in d["z"]], excluded=len(result.excluded or []),
+                   effects=[e.name for e in result.effects or [] if e.name != "sign_flip"],
                    error=None if result.converged else str(result.to_dict().get("error") or result.message)[:200])
     row["seconds"] = round(_cpu() - start, 2)
     return row
@@ -113,7 +115,8 @@ def summary(rows):
     """Per class: ``cells``, ``at_truth`` (``loose``: of them beyond 0.2 mm / 0.05 deg, within 3 sd only by a
     wide reported sd), ``wrong`` (``far``: of them beyond :data:`FAR_SD`), ``exit1``,
     ``exit2``, ``other``; on the clean classes also ``false_alarms`` (any exit but 0), ``losing`` (exit-0
-    cells that excluded a sample), ``sd_ratio_t`` and ``sd_ratio_r`` (RMS of error / sd over the exit-0
+    cells that excluded a sample), ``false_effects`` (exit-0 cells that name an effect no one planted),
+    ``sd_ratio_t`` and ``sd_ratio_r`` (RMS of error / sd over the exit-0
     cells, translation and rotation components)."""
     out = {}
     for kind in dict.fromkeys(r["kind"] for r in rows):
@@ -128,6 +131,7 @@ def summary(rows):
             z = np.array([r["z"] for r in ok], float).reshape(-1, 6)
             finite = np.isfinite(z).all(axis=1)
             s.update(false_alarms=len(mine) - len(ok), losing=sum(r["excluded"] > 0 for r in ok),
+                     false_effects=sum(bool(r.get("effects")) for r in ok),
                      sd_ratio_t=_rms(z[finite, :3]), sd_ratio_r=_rms(z[finite, 3:]))
         out[kind] = s
     return out
@@ -140,13 +144,15 @@ def _rms(values):
 def table(rows):
     """The study's table (markdown) and the wrong exits 0, cell by cell."""
     lines = ["| class | cells | exit 0 at the truth (> 0.2 mm / 0.05 deg) | exit 0 WRONG (> 4.5 sd) | exit 1 | exit 2 |"
-             " other | false alarms | cells losing samples | sd ratio t / r |", "|---|---|---|---|---|---|---|---|---|---|"]
+             " other | false alarms | cells losing samples | cells naming an effect | sd ratio t / r |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for kind, s in summary(rows).items():
         clean = "false_alarms" in s
         rate = lambda k, of: f"{s[k]} / {of} ({s[k] / of:.0%})" if of else "-"  # noqa: E731
         lines.append(f"| {kind} | {s['cells']} | {s['at_truth']} ({s['loose']}) | {s['wrong']} ({s['far']}) | "
                      f"{s['exit1']} | {s['exit2']} | {s['other']} | {rate('false_alarms', s['cells']) if clean else ''} | "
                      f"{rate('losing', s['cells'] - s['false_alarms']) if clean else ''} | "
+                     f"{rate('false_effects', s['cells'] - s['false_alarms']) if clean else ''} | "
                      + (f"{s['sd_ratio_t']:.2f} / {s['sd_ratio_r']:.2f} |" if clean else " |"))
     bad = [r for r in rows if r["wrong"] or (r["kind"] in gen.CLEAN and r["exit"] != 0) or r["exit"] == 3]
     if bad:

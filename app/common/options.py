@@ -80,7 +80,11 @@ _CALIBRATE = (
              "XB over every "
              "pair of samples, Li et al.'s pure translations → rotation, then every pose → translation; gross errors are "
              "screened first as for the least squares (`--keep-all` skips it); the report adds where the least squares goes "
-             "from there. Exit 2, naming the missing motions, when the data lack them (thesis-real has no pure translations)"),
+             "from there. Exit 2, naming the missing motions, when the data lack them (thesis-real has no pure translations). "
+             "A baseline's verdict is the data's own (`app/engine/classic.py`): exit 1 where the default calibration of the "
+             "same data refuses them, chooses another model (a sensor scale: before, exit 0 at 0.32-0.72 mm from the "
+             "truth), or lies beyond 3 of its sd and 0.2 mm / 0.05° from the baseline (Kim & Cho on thesis-real: 2.9 mm, "
+             "6.8 sd); its numbers are written all the same"),
     Opt('--rotation', choices=ROTATIONS,
         help="default `matrix` (nine entries, RᵀR = I as constraints) for IPOPT, `local` (R·exp([δ]×)) otherwise; `euler` is "
              "the thesis's A, B, C"),

@@ -30,6 +30,7 @@ import numpy as np
 
 from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
+from handeye.app.engine.levels import FAR_ON_FLANGE_MM, HELD_FACTOR, P_HELD, SURELY_FAR_MM  # the verdict's levels, one place
 from handeye.app.present.residual_table import ResidualTable
 from handeye.app.present.result_parts import PositionerRecord, Uncertainty
 from handeye.model.chain import conventions
@@ -204,13 +205,6 @@ def reversed_axes(fitted, nominal):
             for axis, turn in turns if turn > 90.0]
 
 
-#: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...
-P_HELD = 1e-3
-#: ... and lowers the RMS by at least this factor (a part held from another calibration of the same cell
-#: differs by its own sd, which a large dataset finds significant but not this large).
-HELD_FACTOR = 1.2
-
-
 def held_contradicted(dataset, request, fitted, free, mask):
     """The cell fit tested against the stated noise, and its held parts against the data:
     ``(NoiseTest, refusal or None)``. A held part (the sensor, the centre or the axes given) is
@@ -275,14 +269,6 @@ def compose(request, dataset, result, fitted, free, nominal):
     positioner = positioner_record(fitted, nominal, "positioner" in free) if dataset.mounts.sphere == "positioner" else None
     return dataclasses.replace(result, unknowns=request.parts, fit=fit_part, uncertainty=unc,
                                identifiability=fitted.ident, warnings=warnings, positioner=positioner)
-
-
-#: A sensor origin (or a sphere centre on the flange) farther than this from its mount's origin (mm)
-#: is implausible for a part carried on the flange: the cell is probably another one ...
-FAR_ON_FLANGE_MM = 600.0
-#: ... said between the two only when the other cell does not fit clearly worse (a real line scanner's
-#: 874 mm on a FANUC flange fits 1.04 mm the other way against 0.18 mm), always beyond this (mm).
-SURELY_FAR_MM = 1000.0
 
 
 def _other_mount_fits_better(dataset):

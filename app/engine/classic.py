@@ -6,9 +6,17 @@ tests, :func:`handeye.app.engine.robust.screen`; ``--keep-all`` skips it), then 
 nonlinear least squares makes of the same samples when started from it (distance,
 iterations), so a user sees at once how far the linear method is from the least-squares
 optimum. No uncertainty: these are baselines, and the report says so.
+
+A baseline's verdict is the data's own (:func:`judged`): its plain chain is the model of the default
+calibration, so where that calibration refuses the data, or its search chooses another model (a sensor
+scale, a wrong radius, the robot's errors) or puts the pose away from the baseline's (beyond 3 of its sd and
+0.2 mm / 0.05 deg: the issue's "away from the truth", the data's best estimate in the truth's place), the
+baseline is refused too (exit 1), naming why; the tool never exits 0 with an answer its own calibration of
+the same data knows to be worse.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -16,6 +24,7 @@ import numpy as np
 from handeye.app.common.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import robust, slips
+from handeye.app.engine.levels import AWAY, AWAY_SD  # the verdict's levels, one place
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
 from handeye.app.present.residual_table import SampleResidual
@@ -23,7 +32,7 @@ from handeye.app.present.result_parts import FitRecord, ScreeningRecord, cleanin
 from handeye.app.present.results import CalibrationResult, ClosedFormDetails
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
-from handeye.model.common.rotation import transform_distance
+from handeye.model.common.rotation import pose_distance, transform_distance
 from handeye.model.fit import classics
 from handeye.model.fit.calibration import CalibrationModel
 
@@ -35,6 +44,31 @@ def estimate(method, flange2base, centre_in_sensor, sphere_centre=None):
     if method == "li-two-step":
         return classics.li_two_step(flange2base, centre_in_sensor, sphere_centre)
     raise CalibrationInputError(f"unknown closed-form method {method!r}; choose one of {', '.join(METHODS)}")
+
+
+def judged(result, own):
+    """The closed-form ``result`` under the verdict of ``own``, the default calibration of the same data and
+    unknowns (module docstring): refused where ``own`` is, where ``own`` names catalogue effects, or where the
+    baseline lies away from ``own`` (:data:`AWAY_SD`, :data:`AWAY`); else ``result`` with a line saying where
+    the data's own calibration lies from it."""
+    if not own.converged:
+        return result.refused(f"not a calibration: the data's own calibration (nonlinear least squares, searched) "
+                              f"refuses these data: {own.message}")
+    named = [e.name for e in own.effects or [] if e.name != "sign_flip"]
+    if named:
+        return result.refused(f"not a calibration: the data choose the model with {', '.join(named)} (the default "
+                              "calibration's search names it); a closed-form baseline fits the plain chain, "
+                              "which these data contradict")
+    d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
+                      own.parameter_names)
+    far = f"{d['translation_mm']:.3g} mm / {d['rotation_deg']:.3g} deg" + (
+        "" if d["sd"] is None else f", {d['sd']:.3g} of its sd (Mahalanobis)")
+    if d["sd"] is not None and d["sd"] > AWAY_SD and (d["translation_mm"] > AWAY[0] or d["rotation_deg"] > AWAY[1]):
+        return result.refused(f"not a calibration: the data's own calibration (the default, searched: the plain chain) "
+                              f"lies {far} from this baseline, beyond what its noise explains; calibrate without "
+                              "--method gives it")
+    return dataclasses.replace(result, warnings=[*result.warnings, (
+        f"the data's own calibration (the default, searched: the plain chain) lies {far} from this baseline")])
 
 
 def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=ALPHA, convention=None):

@@ -172,8 +172,9 @@ def with_effects(final, base):
     without them. Returns the parts ``(FitRecord, UncertaintyRecord, Identifiability, list of
     NamedEffect, unknowns)`` of the fit with them; appends to ``final.warnings``."""
     dataset, mask, names = final.dataset, final.mask, final.request.effects
-    prob = extended.Samples(dataset)
     structure = extended.Structure(centre=final.fit.local.unknowns == "sensor+sphere", data_effects=names)
+    prob = extended.Samples(dataset, metric=observations.centre_metric(dataset, final.fit.sensor, final.fit.centre, mask,
+                                                                       9 if structure.centre else 6))
     _choose_joints(final, prob, structure)
     efit, jac = _fit_with_effects(final, prob, structure)
     stuck = _not_a_minimum(dataset, mask, efit, names, prob.radius)
@@ -184,14 +185,14 @@ def with_effects(final, base):
         jac = np.where(np.isfinite(jac), jac, 0.0)
     named = _named_effects(final, efit, std, stuck, final.centre_given and structure.centre)
     converged, message = _effects_verdict(final, efit, base, stuck)
-    ident = identifiability.analyse(jac, efit.names)
+    ident = identifiability.analyse(jac, efit.names, rows=efit.m)
     final.warnings.append(f"calibrated with the effects {', '.join(names) or 'sphere_center'} on the centre residual; "
                           "no leave-one-out error (the effects are fitted to every sample used)")
     sensor = prob.transform(efit.x)
     fitted = dataclasses.replace(
         base, sensor2flange=sensor, sphere_centre=np.asarray(prob.centre(structure, efit.x), float),
         sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(final.request.convention, sensor),
-        converged=converged, message=message, **_effects_fit_fields(final, efit))
+        converged=converged, message=message, **_effects_fit_fields(final, prob, efit))
     uncertainty = UncertaintyRecord.of_fit(corr * np.outer(std, std), efit.names, efit.m - efit.p,
                                            sigma_mm=float(np.sqrt(efit.sigma2)))
     return fitted, uncertainty, ident, named, "sensor+sphere" if structure.centre else "sensor"
@@ -215,11 +216,12 @@ def _choose_joints(final, prob, structure):
 
 def _fit_with_effects(final, prob, structure):
     """The extended fit ``structure`` of ``prob`` from the final fit, and its Jacobian of the used
-    samples; a CalibrationInputError when the effects cannot be fitted on these data."""
+    samples (many samples, fitted chunk by chunk: its triangular factor R, ``R^T R = J^T J``); a
+    CalibrationInputError when the effects cannot be fitted on these data."""
     dataset, mask, fit = final.dataset, final.mask, final.fit
     with np.errstate(all="ignore"):
         efit = prob.fit(structure, mask, prob.point(structure, fit.sensor, fit.centre))
-    jac = efit.jac[mask].reshape(-1, efit.p)
+    jac = efit.jac[mask].reshape(-1, efit.p) if efit.jac is not None else efit.r_factor(mask)
     on_plane = np.any(dataset.centre_in_sensor[mask, 1] == 0)
     if not np.all(np.isfinite(efit.x)) or (on_plane and not np.all(np.isfinite(jac))):
         raise CalibrationInputError(
@@ -260,24 +262,34 @@ def _effects_verdict(final, efit, base, stuck):
     return base.converged, base.message
 
 
-def _effects_fit_fields(final, efit):
-    """The residual fields of the FitRecord of the fit with effects (its noise test appends to the warnings)."""
-    dataset, mask = final.dataset, final.mask
-    norms = np.linalg.norm(efit.e, axis=1)
+#: What the fit with effects weighs its residuals by, with and without centres rebuilt from profiles.
+EFFECTS_METRIC = {False: "unweighted",
+                  True: "each centre rebuilt from its profile whitened by its circle fit's covariance plus the chain's "
+                        "isotropic part (observations.centre_metric), in mm at the samples' typical sd"}
+
+
+def _effects_fit_fields(final, prob, efit):
+    """The residual fields of the FitRecord of the fit with effects (its noise test appends to the warnings);
+    ``prob`` the extended model's samples (their metric)."""
+    dataset, mask, weighted = final.dataset, final.mask, prob.whiten is not None
+    e = prob.raw(efit.e)
+    norms = np.linalg.norm(e, axis=1)
     rms = float(np.sqrt(np.mean(norms[mask] ** 2)))
     return dict(
         n_used=int(mask.sum()), rms_mm=rms, max_residual_mm=float(norms[mask].max()),
-        cost_mm2=float(0.5 * np.sum(norms[mask] ** 2)),
-        residuals=ResidualTable(dataset.ids, dataset.rows, efit.e, norms, mask),
-        noise_model=("residual: reconstructed centres corrected by the effects; independent components with one common "
-                     "variance sigma^2 = SSR/(m - p); covariance sigma^2 (J^T J)^-1 on the local chart"),
+        cost_mm2=float(0.5 * efit.ssr),
+        residuals=ResidualTable(dataset.ids, dataset.rows, e, norms, mask),
+        noise_model=("residual: reconstructed centres corrected by the effects, " + EFFECTS_METRIC[weighted] +
+                     "; independent components with one common variance sigma^2 = SSR/(m - p); covariance "
+                     "sigma^2 (J^T J)^-1 on the local chart"),
         rms_what=("RMS over the samples used of |e_i|, the distance (mm) of sample i's sphere centre, corrected by the "
                   "effects and carried through the calibrated chain, from the sphere centre: per sphere centre, "
                   "unweighted; this is what the fit with the effects minimises"),
         objective={"model": "centre", "residual": "sphere centres corrected by the effects, through the chain (3 "
-                   "components, mm)", "weighted": False, "rows": int(mask.sum()), "cost": float(0.5 * efit.ssr),
+                   "components, mm)", "weighted": weighted, "rows": int(mask.sum()), "cost": float(0.5 * efit.ssr),
                    "rms": rms, "unit": "mm", "rms_unweighted_mm": rms,
-                   "what": "sphere centres corrected by the effects, unweighted: RMS of |e_i| per sphere centre, mm",
+                   "what": f"sphere centres corrected by the effects, {EFFECTS_METRIC[weighted]}: RMS of |e_i| per "
+                           "sphere centre (unweighted), mm",
                    "short": "the unweighted RMS per sphere centre of the centres corrected by the effects"},
         noise_test=noise_test(efit.ssr, efit.m - efit.p, final.request.sigma, False, final.warnings,
                               diagnose_advice(dataset, final.centre_given)))
@@ -331,9 +343,7 @@ def _not_a_minimum(dataset, mask, extended, names, radius):
     is the fit stopped against the bound ``R + dr >= r_i`` (a corrected y of 0): the data ask
     for a sphere smaller than a circle measured on it."""
     e = extended.e[mask].ravel()
-    jac = extended.jac[mask].reshape(-1, extended.p)
-    with np.errstate(all="ignore"):
-        cos = np.abs(jac.T @ e) / (np.linalg.norm(jac, axis=0) * np.linalg.norm(e))
+    cos = extended.gradient_cosines(mask)
     worst = float(np.max(np.where(np.isfinite(cos), cos, np.inf)))
     if worst <= EFFECT_COS or not np.linalg.norm(e) > 0:
         return None

@@ -46,6 +46,7 @@ from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.common.statistics import deletion_statistics, f_survival, prediction_test
+from handeye.model.datasets import observations
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
@@ -115,7 +116,7 @@ class Procedure:
 def _summaries(prob, structure, fit, mask, heldout=True):
     """A step's figures; without ``heldout`` its 5-fold held-out RMS is NaN (not computed)."""
     return {
-        "rms_mm": _rms(fit, mask),
+        "rms_mm": _rms(prob, fit, mask),
         "chi2_dof": float(fit.sigma2 / prob.sigma**2),
         "sigma_mm": float(np.sqrt(fit.sigma2)),
         "heldout_rms_mm": prob.heldout_rms(structure, mask, fit) if heldout else float("nan"),
@@ -148,17 +149,16 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False,
     -------
     handeye.app.present.diagnosis_results.DiagnosisResult
     """
-    prob = Samples(dataset, sigma)
     unknowns = "sensor+sphere" if centre_unknown else "sensor"
     start_pose, _ = resolve_start(dataset, unknowns, start)
     screening = robust.screen(dataset, unknowns, transform_from_pose(start_pose), alpha=alpha)
     mask, inconsistent = robust.exclude_inconsistent(dataset, unknowns, screening.inliers.copy(), [])
     allowed = ~np.isin(dataset.rows, [e.row for e in inconsistent])  # never reinstated
     structure = Structure(centre=centre_unknown)
-    fit = prob.fit(structure, mask, prob.point(structure, screening.robust_sensor2flange))
+    prob, fit = _base_fit(dataset, sigma, structure, mask, screening.robust_sensor2flange)
     before = _summaries(prob, structure, fit, mask, detail)
-    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(fit.e, axis=1), centre_unknown=centre_unknown,
-                    detail=detail)
+    run = Procedure(prob, mask, alpha, screening, before, np.linalg.norm(prob.raw(fit.e), axis=1),
+                    centre_unknown=centre_unknown, detail=detail)
     run.steps.append({"step": "base model", **before})
     axes = _positioner_axes(run, fit, sigma)
     if axes is not None:  # the rest runs at the refined axes
@@ -191,6 +191,20 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False,
         result = dataclasses.replace(result, unexplained="; ".join(beyond) + ". " + result.unexplained,
                                      beyond_catalogue=beyond)
     return dataclasses.replace(result, inconsistent=inconsistent) if inconsistent else result
+
+
+def _base_fit(dataset, sigma, structure, mask, sensor2flange):
+    """The samples in their own metric and the base model's fit on ``mask`` from ``sensor2flange``: the
+    metric (:func:`handeye.model.datasets.observations.centre_metric`) is taken at an unweighted fit first
+    where centres were rebuilt from profiles, their covariance the circle fit's, not equal and isotropic."""
+    prob = Samples(dataset, sigma)
+    fit = prob.fit(structure, mask, prob.point(structure, sensor2flange))
+    metric = observations.centre_metric(dataset, prob.transform(fit.x), prob.centre(structure, fit.x), mask,
+                                        fit.p)
+    if metric is None:
+        return prob, fit
+    prob = Samples(dataset, sigma, metric)
+    return prob, prob.fit(structure, mask, fit.x)
 
 
 def _robot_choice(run, structure, fit):
@@ -229,7 +243,7 @@ def _positioner_axes(run, fit, sigma):
     found = positioner_effect.examine(dataset, run.mask, run.prob.transform(fit.x), run.prob.sigma, run.alpha)
     if found is None:
         return None
-    run.prob = Samples(found.dataset, sigma)
+    run.prob = Samples(found.dataset, sigma, run.prob.whiten)
     return found
 
 
@@ -279,7 +293,9 @@ def held_power(dataset, mask, sensor2flange, centre, centre_unknown, alpha=ALPHA
     on the samples of ``mask``: the plain chain (the sphere centre free with ``centre_unknown``) evaluated
     at the pose, never fitted. ``centre``: the sphere centre (robot base or its mount's frame, mm)."""
     centre = np.asarray(centre if centre is not None else dataset.sphere_centre, float)
-    prob = Samples(dataclasses.replace(dataset, sphere_centre=centre))  # a free centre's start: the one given
+    held = dataclasses.replace(dataset, sphere_centre=centre)  # a free centre's start: the one given
+    metric = observations.centre_metric(held, np.asarray(sensor2flange, float), centre, mask, 9 if centre_unknown else 6)
+    prob = Samples(held, metric=metric)
     structure = Structure(centre=bool(centre_unknown))
     x = prob.point(structure, np.asarray(sensor2flange, float), centre)
     e, jac, _ = prob.evaluate(structure, x, {})
@@ -412,14 +428,14 @@ def _only_nearest(run, base, name, new, beyond):
         if p_f < run.alpha:
             values = ", ".join(f"{k} = {v:.4g}" for k, v in zip(run.prob.params_of(name), np.ravel(new.params.get(name, []))))
             return (f"{name} ({values}) is only the nearest effect: {other} beyond its range fits significantly better "
-                    f"(RMS {_rms(new, run.mask):.3g} against {_rms(fit, run.mask):.3g} mm, F = {f_stat:.3g}, "
+                    f"(RMS {_rms(run.prob, new, run.mask):.3g} against {_rms(run.prob, fit, run.mask):.3g} mm, F = {f_stat:.3g}, "
                     f"p = {p_f:.2g}), so {name} is not named")
     return None
 
 
-def _rms(fit, mask):
-    """RMS per sphere centre of ``fit``'s residuals on the samples of ``mask``, mm."""
-    return float(np.sqrt(np.mean(np.sum(fit.e[mask] ** 2, axis=1))))
+def _rms(prob, fit, mask):
+    """RMS per sphere centre of ``fit``'s residuals on the samples of ``mask``, mm (unweighted)."""
+    return float(np.sqrt(np.mean(np.sum(prob.raw(fit.e[mask], mask) ** 2, axis=1))))
 
 
 def _outlier_step_label(dataset, previous, mask, flips):
@@ -550,7 +566,7 @@ def _report(run, structure, fit, flips, outliers):
                              "matrix": np.round(corr[np.ix_(all_cols, all_cols)], 4).tolist()},
         steps=[Step(**s) for s in run.steps], tests=[[ScoreTest(**c) for c in round_] for round_ in run.tested],
         residuals=[DiagnosisResidual(i, float(b), float(a), bool(u))
-                   for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(fit.e, axis=1), mask)],
+                   for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(prob.raw(fit.e), axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
         robot_alternatives=run.robot_alternatives, configuration=run.configuration,

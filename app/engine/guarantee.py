@@ -64,6 +64,16 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.engine.levels import (  # the verdict's levels, one place
+    CROSS_CHECK_RATIO,
+    CROSS_CHECK_SIGMAS,
+    EXPLAINS_NOTHING,
+    EXPLAINS_NOTHING_SENSOR,
+    GROUP_AGREE,
+    GROUP_APART_DEG,
+    GROUP_APART_MM,
+    NOISE_P,
+)
 from handeye.app.present.result_parts import AsDict
 from handeye.model.chain import own_frame
 from handeye.model.chain.pose import pose_from_transform
@@ -75,22 +85,6 @@ from handeye.model.fit import global_fit
 SAME_MM, SAME_DEG, SAME_COST = 1e-3, 1e-3, 1e-9
 #: Centre-model minima (lowest first) that the final fit is also started from.
 FINAL_STARTS = 2
-#: The final fit's centres may scatter this much more than at the centre model's global
-#: minimum (RMS ratio) plus CROSS_CHECK_SIGMAS stated sd before the fit is refused.
-CROSS_CHECK_RATIO, CROSS_CHECK_SIGMAS = 2.0, 3.0
-#: Above this fraction of the motion the sensor sees (:func:`motion_seen`) the residual RMS of
-#: the centre model's global minimum means the model explains nothing: a model that is right
-#: leaves the noise and the cell's unmodelled effects (RMS / motion: thesis-real's base model,
-#: its taught centre millimetres off, 0.054; the robcalibrator sets in tests/data 0.010-0.058;
-#: 0.05 deg of joint offset on rotations about the sphere 0.006; clean simulated cells
-#: 0.0003-0.0015), while data whose pairing or convention is wrong leave a fraction of the
-#: motion itself (simulated tours with the sensor fixed, shifted by one row: 0.24-0.39).
-EXPLAINS_NOTHING = 0.1
-#: ... or above this fraction of the spread of the sensor's measured centres about their mean
-#: (at 1, the fitted pose predicts them no better than their mean does).
-EXPLAINS_NOTHING_SENSOR = 1.0
-#: ... and only when the residuals are also above the stated noise at this level.
-NOISE_P = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,13 +248,6 @@ def explains_nothing(dataset, basin, sigma):
     return (f"the fit explains nothing: even the best sensor pose of the centre model ({', '.join(f'{v:.1f}' for v in pose)}, "
             f"KUKA) leaves an RMS residual of {rms:.4g} mm, {than}: the poses, their convention or their pairing with "
             "the sensor's centres, or the sphere centre are wrong; not a calibration")
-
-
-#: Rows the screening excluded that fit each other this well (RMS ratio to the used rows' or
-#: the stated noise's, whichever is larger) ...
-GROUP_AGREE = 2.0
-#: ... at a pose this far from the reported one (mm, deg) are a second group, not gross errors.
-GROUP_APART_MM, GROUP_APART_DEG = 2.0, 1.0
 
 
 def two_groups(dataset, mask, verdict, sigma):

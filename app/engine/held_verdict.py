@@ -20,8 +20,11 @@ that is not the file's own ``sensor_pose_as``, and a pose the data contradict in
 it converged. The others (RMS, covariance, noise test, the dataset's hash in ``provenance``) are
 said beside the recomputed values, which the output shows instead.
 
-What is not recomputed, and said: the catalogue effects of a file calibrated with ``--effects``
-(the held-pose path is of the plain chain), so its RMS and covariance are not compared; the
+A file with data effects (``--effects``, or those the search chose) is recomputed in the extended model
+at its pose, centre and effects (:mod:`handeye.app.engine.held_effects`): residuals, RMS, noise test and
+whether the data contradict it. What is not recomputed, and said: a file's robot effects (the held paths
+are of the data effects and the plain chain), so its RMS and covariance are not compared; the covariance
+of a file with effects (widened by what the search could not see at its fit); the
 covariance of a file that calibrated the positioner's axes (its sensor block includes the axes'
 uncertainty, which a pose held at the axes has not).
 """
@@ -31,27 +34,15 @@ import dataclasses
 
 import numpy as np
 
+from handeye.app.engine import held_effects
 from handeye.app.engine.describe import _fit_statistics, noise_test
 from handeye.app.engine.diagnose import held_power
+from handeye.app.engine.levels import POSE_AGREES, RMS_AGREES, SD_BAND  # the verdict's levels, one place
 from handeye.app.engine.score import Scorer, f_test
 from handeye.app.present.result_parts import UncertaintyRecord
 from handeye.model.chain import conventions
 from handeye.model.common.rotation import pose_distance, pose_sd
 from handeye.model.datasets import observations
-
-#: Relative difference of the file's RMS from the data's beyond which the file's ``rms_mm`` is
-#: named. The same samples at the same pose give the same RMS to rounding (17 digits written;
-#: a freed centre refitted with the pose held lands on the file's to the solver's tolerance,
-#: where the RMS is stationary): a thousandth is far above both and far below any edit that matters.
-RMS_AGREES = 1e-3
-#: The band of (file's sd / data's sd) per pose component within which the file's covariance
-#: agrees: the band in which the project calls an sd calibrated (0.8-1.25, issue 39); the same
-#: model at the same pose gives the same covariance to rounding.
-SD_BAND = (0.8, 1.25)
-#: The file's ``sensor_matrix`` against its own ``sensor_pose_as`` (both written from one 4x4 with
-#: 17 digits): beyond this (mm, deg) one of them was edited. A file re-saved with 6 significant
-#: digits moves a 2 m translation by 1e-3 mm; a calibration's sd is rarely below 0.01 mm.
-POSE_AGREES = (0.01, 0.01)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,7 +99,11 @@ class HeldVerdict:
         How far the data's minimum (one step) lies from the pose: mm, deg, sd.
     disagreements : tuple of Disagreement
     not_recomputed : str or None
-        What the plain chain cannot recompute (effects), in words.
+        What the held paths cannot recompute (robot effects, the positioner's axes), in words.
+    effects : tuple of str
+        The file's data effects, held with its pose (:mod:`handeye.app.engine.held_effects`); the residuals
+        are of the centres they correct, and the file's covariance (widened by what the search could not see
+        at its fit) is not compared.
     """
 
     dataset: str
@@ -123,6 +118,7 @@ class HeldVerdict:
     distance: dict | None
     disagreements: tuple = ()
     not_recomputed: str | None = None
+    effects: tuple = ()
 
     @property
     def converged(self):
@@ -158,7 +154,8 @@ class HeldVerdict:
                                                f"{self.noise.ratio:.2f} x stated)")
         status = {None: "not tested", False: "the data's minimum"}.get(
             self.contradicted, f"CONTRADICTED by the data (their minimum {_far(self.distance)} away)")
-        return (f"recomputed from {self.dataset} at the file's pose: RMS {self.rms_mm:.4g} mm per sphere centre over "
+        held = f" and effects ({', '.join(self.effects)})" if self.effects else ""
+        return (f"recomputed from {self.dataset} at the file's pose{held}: RMS {self.rms_mm:.4g} mm per sphere centre over "
                 f"{int(self.used.sum())} samples{noise}; pose: {status}"
                 + (f"; {self.not_recomputed}" if self.not_recomputed else ""))
 
@@ -210,12 +207,18 @@ def recompute(doc, sensor2flange, data):
     sigma, robot_sigma = _stated(doc, data)
     mask = used_mask(doc, data)
     centre = np.asarray(doc["sphere_center"], float) if _vector(doc.get("sphere_center")) else None
-    scorer = Scorer(data, mask, kind, robot_sigma, "sphere" in unknowns.split("+"))
+    effects = _effects(doc)
+    held = held_effects.file_effects(doc) if effects else None
+    if held and centre is not None:
+        verdict = _with_effects(data, mask, s, centre, (held, "sphere" in unknowns.split("+")), sigma)
+        return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+    scorer = Scorer(data, mask, kind, robot_sigma, "sphere" in unknowns.split("+"), s)
     given = scorer.score(s, centre)
     x = scorer.model.point_from(s, given.centre)
     _, cov, ssr = _fit_statistics(scorer.model, x)
     if kind == "points":  # the tests are of its circles (Scorer); the covariance is of the points, as the fit's
-        points = observations.build(data.subset(mask), kind, "local", scorer.model.unknowns, robot_sigma, given.centre)
+        points = observations.build(data.subset(mask), kind, "local", scorer.model.unknowns, robot_sigma,
+                                    observations.Anchor(given.centre))
         cov = _fit_statistics(points, points.point_from(s, given.centre))[1]
     cov = _as_reported(cov, scorer, s, given.centre)
     whitened = scorer.model.whiten is not None
@@ -229,12 +232,21 @@ def recompute(doc, sensor2flange, data):
         contradicted = f_test(given, minimum, scorer.n_params)[2]
         distance = pose_distance(s, minimum.sensor2flange, cov.matrix, scorer.model.names)
     norms = np.linalg.norm(given.residuals, axis=1)
-    effects = _effects(doc)
     verdict = HeldVerdict(data.name, mask, given.residuals, float(given.rms_mm["centre"]), float(norms[mask].max()),
                           given.centre, np.asarray(cov.matrix)[:6, :6], noise, contradicted, distance,
                           not_recomputed=(f"not recomputed: the file's effects ({', '.join(effects)}) are beyond the "
-                                          "held-pose path, which is of the plain chain" if effects else None))
+                                          "held paths (robot effects, the positioner's axes)" if effects else None))
     return dataclasses.replace(verdict, disagreements=tuple(disagreements(doc, verdict, data)))
+
+
+def _with_effects(data, mask, sensor2flange, centre, held, stated):
+    """The :class:`HeldVerdict` of a file with data effects (:mod:`handeye.app.engine.held_effects`; ``held``
+    its effects and whether its centre is free), its covariance Student-t scaled as a calibration's."""
+    r = held_effects.recompute(data, mask, sensor2flange, centre, held, stated)
+    dof = max(r.noise.dof if r.noise is not None else 1, 1)
+    cov = UncertaintyRecord.of_fit(r.covariance, ["tx", "ty", "tz", "wx", "wy", "wz"], dof).covariance
+    return HeldVerdict(data.name, mask, r.residuals, r.rms_mm, r.max_mm, centre, np.asarray(cov), r.noise,
+                       r.contradicted, r.distance, effects=tuple(held[0]))
 
 
 def _as_reported(cov, scorer, sensor2flange, centre):
@@ -265,8 +277,9 @@ def disagreements(doc, verdict, data):
     if verdict.not_recomputed:
         return out
     if verdict.contradicted and doc.get("converged", True) is True:
-        out.append(Disagreement("sensor_matrix", "(converged: true)",
-                                f"the data contradict the pose: RMS {verdict.rms_mm:.4g} mm at it, their minimum "
+        held = f" and effects ({', '.join(verdict.effects)})" if verdict.effects else ""
+        out.append(Disagreement("sensor_matrix" + (" / effects" if verdict.effects else ""), "(converged: true)",
+                                f"the data contradict the pose{held}: RMS {verdict.rms_mm:.4g} mm at it, their minimum "
                                 f"{_far(verdict.distance)} away", True))
     rms = doc.get("rms_mm")
     if isinstance(rms, (int, float)) and abs(rms - verdict.rms_mm) > RMS_AGREES * max(verdict.rms_mm, 1e-9):
@@ -300,7 +313,7 @@ def _file_sd(doc):
 def _covariance_disagreement(doc, verdict):
     """The file's sensor sd against the recomputed one (:data:`SD_BAND`); not for calibrated axes."""
     calibrated_axes = any(isinstance(a, dict) and a.get("calibrated") for a in doc.get("positioner") or [])
-    if calibrated_axes or verdict.covariance is None:
+    if calibrated_axes or verdict.covariance is None or verdict.effects:
         return []
     from_data = np.r_[verdict.sd()]
     for key, in_file in _file_sd(doc).items():

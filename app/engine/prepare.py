@@ -63,15 +63,19 @@ def prepare(request, dataset):
     unknowns = request.unknowns
     dataset, centre_note = with_sphere_centre(dataset, unknowns)
     kind = request.model or observations.default_kind(dataset)
-    observed = observations.build(dataset, kind, request.rotation, unknowns, request.robot_sigma)  # refuses early
     start_pose, start_used = resolve_start(dataset, unknowns, request.start)
+    basin = guarantee.centre_basin(dataset, unknowns)
+    # the weights of profiled centres turn at the plain centre model's lowest minimum: the start's not
+    anchor = transform_from_pose(start_pose) if basin is None else basin.best.sensor2flange
+    observed = observations.build(dataset, kind, request.rotation, unknowns, request.robot_sigma,  # refuses early
+                                  observations.Anchor(sensor2flange=anchor))
     # the same model of every sample when the final one is the plain centre model: not built (and held) twice
     same = observed.kind == "centre" and observed.whiten is None and observed.rotation == "local"
     everything = observed if same else CalibrationModel.from_dataset(dataset, "local", unknowns)
     check_identifiable(dataset, unknowns, transform_from_pose(start_pose), probe=everything)
     absorbed = getattr(getattr(dataset, "robot_model", None), "absorbed", "")  # the nominal gate's constants
     warnings = tuple(note for note in (*request.notes, centre_note, absorbed) if note)
-    return Prepared(request, dataset, kind, observed, everything, guarantee.centre_basin(dataset, unknowns),
+    return Prepared(request, dataset, kind, observed, everything, basin,
                     np.asarray(start_pose, float), start_used, warnings, centre_note is None)
 
 

@@ -25,15 +25,11 @@ import itertools
 
 import numpy as np
 
+from handeye.app.engine.levels import AMBIGUOUS, POSITIVE  # the verdict's levels, one place
 from handeye.model import effects
 from handeye.model.common.rotation import transform_distance
 from handeye.model.common.statistics import f_survival
 from handeye.model.design.robot_gate import gate_robot_effects
-
-#: BIC difference below which another combination of robot effects is an alternative (Kass & Raftery).
-AMBIGUOUS = 10.0
-#: BIC difference by which another combination must beat the searched one to replace it.
-POSITIVE = 2.0
 
 
 @dataclasses.dataclass(frozen=True)

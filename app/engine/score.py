@@ -94,15 +94,19 @@ class Scorer:
         Robot repeatability, mm per axis (weights of the profile models).
     centre_free : bool
         Fit the sphere centre with each pose held.
+    sensor2flange : ndarray, shape (4, 4), optional
+        The pose the weights of the centre model of centres rebuilt from profiles are turned at
+        (:func:`handeye.model.datasets.observations.build`); needed for that model alone.
     """
 
-    def __init__(self, dataset, mask, kind, robot_sigma, centre_free):
+    def __init__(self, dataset, mask, kind, robot_sigma, centre_free, sensor2flange=None):
         kind = "measurement" if kind == "points" else kind
         self.dataset, self.mask, self.kind, self.centre_free = dataset, np.asarray(mask, bool), kind, centre_free
         used = dataset.subset(self.mask)
         start = dataset.sphere_centre if dataset.sphere_centre is not None else np.zeros(3)
         unknowns = "sensor+sphere" if centre_free else "sensor"
-        self.model = observations.build(used, kind, "local", unknowns, robot_sigma, sphere_centre=start)
+        self.model = observations.build(used, kind, "local", unknowns, robot_sigma,
+                                        observations.Anchor(start, sensor2flange))
         self.plain = {"centre": CalibrationModel.from_dataset(used, "local", unknowns, start)}
         if used.profiles is not None and all(p is not None for p in used.profiles):
             circ, _ = observations.circles(used)
@@ -174,7 +178,9 @@ def vuong(a, b):
 
 def scorer_for(estimate, dataset, request):
     """The :class:`Scorer` of the samples the data's own calibration ``estimate`` used."""
-    return Scorer(dataset, mask_of(estimate), estimate.model, request.robot_sigma, "sphere" in request.unknowns)
+    pose = np.asarray(estimate.sensor2flange, float)
+    return Scorer(dataset, mask_of(estimate), estimate.model, request.robot_sigma, "sphere" in request.unknowns,
+                  pose if np.all(np.isfinite(pose)) else None)
 
 
 def run_score(request, dataset, sensor2flange, source):

@@ -51,23 +51,26 @@ import itertools
 import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
+from handeye.app.engine.levels import (  # the verdict's levels, one place
+    DIAMETER_AGREE,
+    DIAMETER_AGREE_MM,
+    EQUATOR_BAND,
+    EXPLAINED_RMS_MM,
+    FACTOR,
+    P_SIDE,
+    P_SLIP,
+    P_SUSPECT,
+    SIDE_MOVE_DEG,
+    SIDE_MOVE_MM,
+    SIDE_MOVE_SD,
+    SUSPECT_RMS_MM,
+)
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform
 from handeye.model.common.rotation import pose_distance, rotvec_from_matrix, transform_distance
 from handeye.model.common.statistics import chi2_survival, covariance, f_survival
 from handeye.model.fit import global_fit
 from handeye.model.fit.calibration import CalibrationModel
-
-#: A plain fit with a larger RMS (mm), or residuals above the stated noise, is checked for slips.
-SUSPECT_RMS_MM = 1.0
-#: Level of the chi-square test against the stated noise that makes a fit suspect.
-P_SUSPECT = 0.01
-#: Undoing a slip must lower the RMS by at least this factor ...
-FACTOR = 2.0
-#: ... with the F test of the two sums of squares below this p-value ...
-P_SLIP = 1e-4
-#: ... and leave at most this RMS (mm).
-EXPLAINED_RMS_MM = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,12 +229,6 @@ def _suspect(dataset, unknowns, rms_given):
     return bool(rms_given > SUSPECT_RMS_MM or chi2_survival(chi2, dof) < P_SUSPECT), dof
 
 
-#: Profiles and the sensor's own centres must agree on the sphere's radius within this fraction
-#: (or DIAMETER_AGREE_MM, whichever is larger) and six standard errors of their median.
-DIAMETER_AGREE = 0.005
-DIAMETER_AGREE_MM = 0.1
-
-
 def check_diameter(dataset):
     """Raise :class:`CalibrationInputError` when the sensor's own centres (``xs, ys, zs`` given
     beside a profile) and the profiles disagree on the sphere: each pair implies a radius
@@ -349,16 +346,6 @@ def _check_conventions(dataset, unknowns, rms_given, dof):
         f"{dataset.path}: the robot poses fit with {candidate.describe()}, not as declared "
         f"({dataset.convention} {','.join(conventions.columns(dataset.convention)[3:])}): the plain fit has RMS "
         f"{rms:.3g} mm read so, {rms_given:.3g} mm as declared. {todo[0].upper() + todo[1:]}, and calibrate again")
-
-
-#: A centre within this fraction of the sphere radius of the laser plane is near the equator.
-EQUATOR_BAND = 0.1
-#: The rows near the equator decide the side unless flipping them changes the fit less than
-#: an F test at this level can see ...
-P_SIDE = 1e-3
-#: ... while moving the pose by more than this (mm, deg) and more than SIDE_MOVE_SD of its
-#: standard deviations.
-SIDE_MOVE_MM, SIDE_MOVE_DEG, SIDE_MOVE_SD = 1.0, 0.5, 3.0
 
 
 def _pose_covariance(dataset, unknowns, minimum):

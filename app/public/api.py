@@ -53,8 +53,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
     from handeye.app.engine.calibrate import run
-    from handeye.app.engine.classic import calibrate_classic
+    from handeye.app.engine.classic import calibrate_classic, judged
     from handeye.app.engine.command_request import CalibrateRequest
+    from handeye.app.engine.request import CalibrationRequest
     from handeye.app.engine.score import run_score
 
     values = options.COMMANDS["calibrate"].given(locals())
@@ -65,6 +66,9 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     if asked.closed_form:
         result = calibrate_classic(data, method, free.parts, outliers=request.outliers, alpha=request.alpha,
                                    convention=request.convention)
+        own = CalibrationRequest(unknowns=free.parts, outliers=request.outliers, alpha=request.alpha, loo=False,
+                                 sigma=request.sigma, robot_sigma=request.robot_sigma)
+        result = judged(result, run(own.checked(data), data))
     else:
         request = asked.holding(given, data)
         result = run_score(request, data, given, source) if free.scored else run(request, data)

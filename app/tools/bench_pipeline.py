@@ -39,7 +39,9 @@ def _ipopt_from_scratch(prep, screened):
     from handeye.model.datasets import observations
 
     t = time.perf_counter()
-    model = observations.build(screened.used, prep.kind, "matrix", prep.request.unknowns, prep.request.robot_sigma)
+    model = observations.build(screened.used, prep.kind, "matrix", prep.request.unknowns, prep.request.robot_sigma,
+                               observations.Anchor(sensor2flange=prep.observed.sensor2flange(
+                                   prep.observed.point_from_pose(prep.start_pose))))
     res = solvers.solve(calibration_problem(model), model.point_from_pose(prep.start_pose), method="ipopt")
     return time.perf_counter() - t, bool(res.converged)
 

@@ -22,6 +22,8 @@ turned from the sensor frame into the robot base, where the centre residual lies
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from handeye.model.common.errors import InputError
@@ -113,11 +115,23 @@ def whitening(cov):
     return np.linalg.inv(np.linalg.cholesky(cov))
 
 
-def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_SIGMA, sphere_centre=None):
-    """The calibration model of ``dataset`` with residual ``kind`` (module docstring)."""
+@dataclasses.dataclass(frozen=True)
+class Anchor:
+    """Where a model is built (:func:`build`): the sphere centre it holds (3,), mm, None: the dataset's;
+    the sensor pose (4, 4) at which the centre model of profiled samples turns their weights from the sensor
+    frame into the residual's (:func:`turned_whitening`), None: the centre model of profiled samples is not
+    built."""
+
+    sphere_centre: object = None
+    sensor2flange: object = None
+
+
+def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_SIGMA, at=Anchor()):
+    """The calibration model of ``dataset`` with residual ``kind`` (module docstring), built ``at`` an
+    :class:`Anchor`."""
     if kind not in MODEL_KINDS:
         raise ObservationError(f"unknown residual model {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
-    centre = dataset.sphere_centre if sphere_centre is None else sphere_centre
+    centre, sensor2flange = (dataset.sphere_centre if at.sphere_centre is None else at.sphere_centre), at.sensor2flange
     radius = dataset.sphere_diameter / 2
     f2b = dataset.motions()
     if kind == "points":
@@ -127,9 +141,12 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
     if kind == "centre":
         whiten = None
         if has_profiles:
+            if sensor2flange is None:
+                raise ValueError("the centre model of centres rebuilt from profiles needs a sensor pose: its weights "
+                                 "lie in the sensor frame, its residual in the carrier's")
             circ, covs = circles(dataset)
             cov = np.array([circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)])
-            whiten = whitening(cov + robot_sigma**2 * np.eye(3))
+            whiten = turned_whitening(dataset, sensor2flange, cov, robot_sigma)
         return CalibrationModel(f2b, dataset.centre_in_sensor, centre, rotation, unknowns, whiten=whiten)
     circ, covs = circles(dataset)
     total = np.array([circle_noise(cov, r, radius, robot_sigma) for cov, r in zip(covs, circ[:, 2])])
@@ -153,13 +170,60 @@ def screening_model(dataset, unknowns, sensor2flange, chain_mm, profile_cov=None
         :func:`handeye.model.datasets.observations.profile_covariance` of ``dataset`` (sensor frame,
         mm^2); None: no centre was rebuilt, no whitening.
     """
-    whiten = None
-    if profile_cov is not None:
-        w = whitening(profile_cov + max(chain_mm, CHAIN_SD_FLOOR_MM) ** 2 * np.eye(3))
-        turn = dataset.motions()[:, :3, :3] @ np.asarray(sensor2flange, float)[:3, :3]  # sensor frame -> base
-        whiten = np.einsum("nij,nkj->nik", w, turn)  # W_i R_i^T: (R C R^T)^-1 = (W R^T)^T (W R^T)
+    whiten = None if profile_cov is None else turned_whitening(dataset, sensor2flange, profile_cov, chain_mm)
     return CalibrationModel(dataset.motions(), dataset.centre_in_sensor, dataset.sphere_centre, "local", unknowns,
                             whiten=whiten)
+
+
+def turned_whitening(dataset, sensor2flange, profile_cov, chain_mm):
+    """Whitening matrices (N, 3, 3) of the centre residuals, which lie in the carrier's frame (the
+    robot base for a sensor on the flange): ``W_i R_i^T`` with ``W_i^T W_i = (A_i + s^2 I)^-1``,
+    ``A_i`` the profile's part (sensor frame, mm^2), ``s = chain_mm`` (at least
+    :data:`CHAIN_SD_FLOOR_MM`) and ``R_i`` the rotation from the sensor frame into the residual's at
+    the sensor pose ``sensor2flange`` (4, 4): ``(R C R^T)^-1 = (W R^T)^T (W R^T)``. The weights are
+    held at that pose (a fit moves the pose by far less than the covariance's own uncertainty)."""
+    w = whitening(profile_cov + max(chain_mm, CHAIN_SD_FLOOR_MM) ** 2 * np.eye(3))
+    turn = dataset.motions()[:, :3, :3] @ np.asarray(sensor2flange, float)[:3, :3]  # sensor frame -> residual's
+    return np.einsum("nij,nkj->nik", w, turn)
+
+
+def in_mm(whiten):
+    """``whiten`` (N, 3, 3) scaled so that a whitened residual reads in mm at the samples' typical sd:
+    times the geometric mean over samples of ``det(C_i)^(1/6)`` (``C_i`` the covariance it whitens). Equal
+    isotropic covariances give a rotation (into the sensor frame): the residual's length unchanged, in mm."""
+    _, logdet = np.linalg.slogdet(whiten)  # log det W_i = -log det(C_i) / 2
+    return whiten * float(np.exp(-np.mean(logdet) / 3.0))
+
+
+def centre_metric(dataset, sensor2flange, centre=None, mask=None, n_params=6):
+    """The samples' own metric of the centre residual at a calibration, in mm (:func:`in_mm` of
+    :func:`turned_whitening`), for the extended model's fits and tests
+    (:class:`handeye.model.fit.extended.Samples`); None when no centre was rebuilt from its profile
+    (every centre's noise is the chain's, isotropic: equal weights).
+
+    Parameters
+    ----------
+    dataset : handeye.model.datasets.dataset.Dataset
+    sensor2flange : ndarray, shape (4, 4)
+        The sensor pose (in its carrier's frame, mm) the residuals and the weights' frame are taken at.
+    centre : ndarray, shape (3,), optional
+        The sphere centre (mm); default the dataset's.
+    mask : ndarray of bool, shape (N,), optional
+        The samples trusted (the chain's sd is estimated on them, :func:`chain_sd`); default all.
+    n_params : int
+        The fit's unknowns (6, or 9 with the sphere centre).
+    """
+    cov = profile_covariance(dataset)
+    if cov is None:
+        return None
+    pose = np.asarray(sensor2flange, float)
+    centre = np.asarray(dataset.sphere_centre if centre is None else centre, float)
+    model = CalibrationModel(dataset.motions(), dataset.centre_in_sensor, centre, "local", "sensor")
+    turn = dataset.motions()[:, :3, :3] @ pose[:3, :3]
+    e_sensor = np.einsum("nji,nj->ni", turn, model.residuals(model.point_from(pose, centre)))  # R_i^T e_i
+    keep = (np.ones(len(dataset), bool) if mask is None else np.asarray(mask, bool)) & np.isfinite(e_sensor).all(axis=1)
+    chain = chain_sd(e_sensor[keep], cov[keep], n_params) if 3 * keep.sum() > n_params else CHAIN_SD_FLOOR_MM
+    return in_mm(turned_whitening(dataset, pose, cov, chain))
 
 
 #: The chain's isotropic sd in the screening metric is estimated from the data (:func:`chain_sd`);

@@ -17,6 +17,7 @@ import dataclasses
 import numpy as np
 
 from handeye.model import effects
+from handeye.model.datasets import observations
 from handeye.model.fit import extended
 from handeye.model.fit.extended import (
     GATE,
@@ -122,8 +123,10 @@ def robot_scores(prob, structure, fit, mask):
 def score_effects(dataset, mask, sensor2flange, centre, unknowns="sensor", skip=()):
     """:func:`handeye.model.fit.extended.score_effects` with the robot effects: those among ``skip``
     (``--effects``) fitted with only the parameters the samples separate, the others tested."""
-    prob, mask = extended.Samples(dataset), np.asarray(mask, bool)
+    mask = np.asarray(mask, bool)
     held = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(skip))
+    prob = extended.Samples(dataset, metric=observations.centre_metric(dataset, sensor2flange, centre, mask,
+                                                                       9 if held.centre else 6))
     if any(effects.get(n).KIND == "robot" for n in skip):
         gate_robot_effects(prob, held, mask, sensor2flange, centre if held.centre else None)
     return extended.score_effects(dataset, extended.Calibrated(mask, sensor2flange, centre, unknowns), skip,

@@ -64,19 +64,41 @@ class Fit:
     p: int
     converged: bool = True
     message: str = ""
+    #: ``(J^T J, J^T r)`` over the fit's samples where the Fit holds no Jacobian (``jac`` None: many
+    #: samples, summed chunk by chunk), else None
+    normal: tuple | None = None
 
     @property
     def sigma2(self):
         return self.ssr / max(self.m - self.p, 1)
 
+    def _jtj_jtr(self, mask):
+        """``(J^T J, J^T r)`` over the samples in ``mask`` (the fit's own when it holds no Jacobian)."""
+        if self.jac is None:
+            return self.normal
+        jac = self.jac[mask].reshape(-1, self.p)
+        return jac.T @ jac, jac.T @ self.e[mask].ravel()
+
     def uncertainty(self, mask):
         """1-sd (step units: mm, rad, effect units) and correlation of every parameter, from
         ``sigma^2 (J^T J)^+`` over the samples in ``mask``."""
-        jac = self.jac[mask].reshape(-1, self.p)
-        cov = self.sigma2 * np.linalg.pinv(jac.T @ jac)
+        cov = self.sigma2 * np.linalg.pinv(self._jtj_jtr(mask)[0])
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         scale = np.where(std > 0, std, 1.0)
         return std, cov / np.outer(scale, scale)
+
+    def gradient_cosines(self, mask):
+        """Per parameter ``|J_k^T r| / (|J_k| |r|)`` over the samples in ``mask``: 0 at a minimum."""
+        jtj, jtr = self._jtj_jtr(mask)
+        with np.errstate(all="ignore"):
+            return np.abs(jtr) / (np.sqrt(np.diag(jtj)) * np.sqrt(np.sum(self.e[mask] ** 2)))
+
+    def r_factor(self, mask):
+        """A factor R (p, p) with ``R^T R = J^T J`` over the samples in ``mask`` (the same singular values,
+        right singular vectors and column norms as J: what
+        :func:`handeye.model.design.identifiability.analyse` takes with ``rows``)."""
+        w, v = np.linalg.eigh(self._jtj_jtr(mask)[0])
+        return np.sqrt(np.clip(w, 0.0, None))[:, None] * v.T
 
 
 def sample_chunks(mask, chunk=None):
@@ -90,8 +112,13 @@ def sample_chunks(mask, chunk=None):
 class Samples:
     """The dataset's samples with a structure: residuals, Jacobians, fits."""
 
-    def __init__(self, dataset, sigma=None):
+    def __init__(self, dataset, sigma=None, metric=None):
         self.d = dataset
+        #: whitening (N, 3, 3) of every sample's centre residual, in mm
+        #: (:func:`handeye.model.datasets.observations.centre_metric`: centres rebuilt from profiles are
+        #: not equal, isotropic noise), or None: equal weights. Every residual, Jacobian and candidate
+        #: column is in this metric; :meth:`raw` turns residuals back into mm.
+        self.whiten = None if metric is None else np.asarray(metric, float)
         self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
         self.f2b = dataset.motions()
         self.radius = dataset.sphere_diameter / 2
@@ -101,6 +128,20 @@ class Samples:
         self.robot_free = {}
         #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
         self.robot_always = set()
+
+    def whitened(self, arr, rows=None):
+        """Rows ``arr`` (k, 3) or (k, 3, q) of the samples ``rows`` (default all) in the samples' metric."""
+        if self.whiten is None:
+            return arr
+        w = self.whiten if rows is None else self.whiten[rows]
+        return np.einsum("nij,nj...->ni...", w, arr)
+
+    def raw(self, e, rows=None):
+        """Residuals ``e`` (k, 3) in the samples' metric back in mm (the carrier's frame)."""
+        if self.whiten is None:
+            return e
+        w = self.whiten if rows is None else self.whiten[rows]
+        return np.linalg.solve(w, e[..., None])[..., 0]
 
     def params_of(self, name):
         """The parameter names an effect has on these samples (a robot effect: those it estimates)."""
@@ -182,7 +223,8 @@ class Samples:
         in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
         extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
                  for c in cols]
-        return e, np.concatenate([j] + extra, axis=2) if extra else j, model
+        jac = np.concatenate([j] + extra, axis=2) if extra else j
+        return self.whitened(e, rows), self.whitened(jac, rows), model
 
     def names(self, structure):
         base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
@@ -218,13 +260,15 @@ class Samples:
         problem = self._problem(structure, mask, (n, split, retract), chunk, big)
         solved = solvers.solve(problem, z0, "lm", {"max_iter": 200})
         x, params = split(solved.x)
+        normal = None
         if big:
             e, jac = self.residuals(structure, x, params, None, chunk), None
+            normal = self.normal_equations(structure, x, params, mask, chunk)[:2]
         else:
             e, jac, _ = self.evaluate(structure, x, params)
         ssr = float(np.sum(e[mask] ** 2))
         return Fit(x, params, e, jac, self.names(structure), ssr, 3 * int(mask.sum()), n, bool(solved.converged),
-                   solved.message)
+                   solved.message, normal)
 
     def weighted_fit(self, structure, rows, weights, x0, params0=None, max_iter=100):
         """Weighted least squares ``sum w_i |e_i|^2`` of the structure on the samples ``rows``.
@@ -333,7 +377,12 @@ def candidate_columns(prob, structure, fit, mask, name):
 
 def candidate_rows(prob, structure, fit, rows, name):
     """Jacobian columns (k, 3, q) of a candidate effect at the fit, of the samples ``rows`` (an
-    index array; None: every sample)."""
+    index array; None: every sample), in the samples' metric (:meth:`Samples.whitened`)."""
+    return prob.whitened(_candidate_rows(prob, structure, fit, rows, name), rows)
+
+
+def _candidate_rows(prob, structure, fit, rows, name):
+    """:func:`candidate_rows` in mm (unweighted)."""
     effect = effects.get(name)
     xs = prob.measured(structure, rows)
     f2b = prob.f2b if rows is None else prob.f2b[rows]
