@@ -35,7 +35,17 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import cell_stage, describe, effect_screen, guarantee, positioner_effect, robust, search, slips
+from handeye.app.engine import (
+    cell_stage,
+    configuration_group,
+    describe,
+    effect_screen,
+    guarantee,
+    positioner_effect,
+    robust,
+    search,
+    slips,
+)
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import prepare
 from handeye.app.engine.request import METHODS, SUPPORTED, CalibrationRequest  # noqa: F401  (METHODS, SUPPORTED: public here too)
@@ -161,7 +171,8 @@ def verify(prep, screened, final, verdict, start_used):
         best = dataclasses.replace(best, notes=[*best.notes, note])
     refusal = guarantee.explains_nothing(used, basin, request.sigma) or (  # a fit that did not converge says so itself
         guarantee.cross_check(used, best, basin, request.sigma) if best.converged else None)
-    refusal = refusal or guarantee.two_groups(prep.dataset, screened.mask, best, request.sigma)
+    group = configuration_group.deferred(prep.dataset, screened.mask, request)  # the search judges it
+    refusal = refusal or (None if group else guarantee.two_groups(prep.dataset, screened.mask, best, request.sigma))
     warnings = list(best.notes)
     pose = describe.kuka_pose(own_frame.to_own(best.sensor, getattr(prep.dataset, "own_axes", None)))  # as reported
     if abs(abs(pose[4]) - 90.0) < GIMBAL_WARN_DEG:

@@ -38,7 +38,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.common.errors import RequestError
-from handeye.app.engine import effect_size, positioner_effect, robot_choice, robust
+from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
 from handeye.app.present.result_parts import NamedEffect, PowerStatement, Uncertainty, cleaning_summary
@@ -103,6 +103,8 @@ class Procedure:
         the steps taken, why a candidate's fit was implausible.
     robot_alternatives : str or None
         Other robot effects as good as those named (:mod:`handeye.app.engine.robot_choice`).
+    configuration : str or None
+        Excluded samples that are a configuration group (:mod:`handeye.app.engine.configuration_group`).
     """
 
     prob: Samples
@@ -117,6 +119,7 @@ class Procedure:
     implausible: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
     centre_unknown: bool = False
+    configuration: str | None = None
     detail: bool = True
 
 
@@ -183,6 +186,8 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False,
         structure, fit = _backward(prob, structure, fit, mask, alpha, centre_unknown)
         if np.array_equal(previous[0], mask) and previous[1] == structure.flips:
             break
+    kept = configuration_group.examine(run, structure, fit, allowed, (_search, _final_outliers, _summaries))
+    structure, fit, mask, flips, outliers = kept or (structure, fit, mask, flips, outliers)
     structure, fit = _robot_choice(run, structure, fit)
     unseen = power_statement(run, structure, fit)
     if detail:
@@ -390,7 +395,7 @@ def _swapped(run, structure, fit):
                 with np.errstate(all="ignore"):  # a trial may leave its domain (a root of a negative): rejected steps
                     new = prob.fit(trial, mask, fit.x, {k: v for k, v in fit.params.items() if k != name})
                 bar = fit.ssr + (unit if order.index(other) < order.index(name) else -unit)  # no cycle
-                if (new.ssr < bar and (best is None or new.ssr < best[2].ssr)
+                if (new.ssr < bar and (best is None or new.ssr < best[2].ssr) and np.all(np.isfinite(new.jac[mask]))
                         and effects.implausible(other, new.params.get(other, []), prob.radius) is None):
                     best = (f"{name} -> {other}", trial, new)
         if best is None:
@@ -580,7 +585,8 @@ def _report(run, structure, fit, flips, outliers):
                    for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(prob.raw(fit.e), axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
-        robot_alternatives=run.robot_alternatives, always_absorbed=tuple(sorted(prob.robot_always)),
+        robot_alternatives=run.robot_alternatives, configuration=run.configuration,
+        always_absorbed=tuple(sorted(prob.robot_always)),
         cleaning=cleaning_summary(d))
 
 

@@ -73,7 +73,8 @@ def prepare(request, dataset):
     same = observed.kind == "centre" and observed.whiten is None and observed.rotation == "local"
     everything = observed if same else CalibrationModel.from_dataset(dataset, "local", unknowns)
     check_identifiable(dataset, unknowns, transform_from_pose(start_pose), probe=everything)
-    warnings = tuple(note for note in (*request.notes, centre_note) if note)
+    absorbed = getattr(getattr(dataset, "robot_model", None), "absorbed", "")  # the nominal gate's constants
+    warnings = tuple(note for note in (*request.notes, centre_note, absorbed) if note)
     return Prepared(request, dataset, kind, observed, everything, basin,
                     np.asarray(start_pose, float), start_used, warnings, centre_note is None)
 

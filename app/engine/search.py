@@ -182,7 +182,7 @@ def _with_effects(request, dataset, result, refit, names, found):
     note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
             f"{'it' if len(names) == 1 else 'them'} ({steps}); calibrated with "
             f"{'it' if len(names) == 1 else 'them'}, the same as `{_command('calibrate', dataset, request)} "
-            f"--effects {','.join(names)}`")
+            f"--effects {','.join(names)}`" + (f"; {found.configuration}" if found.configuration else ""))
     kept = [w for w in fitted.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
     return dataclasses.replace(fitted, warnings=[note, *kept])
 

@@ -104,6 +104,10 @@ class DiagnosisResult(ResultProtocol):
     power : handeye.app.present.result_parts.PowerStatement or None
         What the data could not see at the final fit: the effects not named, the size each would
         be detected at with 80 % power, and the pose shift it would cause if missed.
+    configuration : str or None
+        Excluded samples that coincide with a robot configuration group (the wrist flipped, ...),
+        said, with whether the search keeps them with an effect
+        (:mod:`handeye.app.engine.configuration_group`); None when they do not.
     """
 
     caption = "handeye diagnosis"
@@ -145,6 +149,7 @@ class DiagnosisResult(ResultProtocol):
     pose_frame: str = "handeye"
     beyond_catalogue: tuple = ()
     power: object | None = None
+    configuration: str | None = None
 
     @property
     def absorbed_explained(self):
@@ -188,7 +193,7 @@ class DiagnosisResult(ResultProtocol):
             "tests": [[t.to_dict() for t in round_] for round_ in self.tests],
             "residuals": [r.to_dict() for r in self.residuals],
             "screened_out_first": list(self.screened_out_first),
-            **fields(self, "unexplained", "robot_alternatives"),
+            **fields(self, "unexplained", "robot_alternatives", "configuration"),
             "sensor_pose_as": {"convention": self.convention, "columns": list(self.columns),
                                "pose": _list(self.sensor_pose_as if self.sensor_pose_as is not None
                                              else self.sensor_pose)},

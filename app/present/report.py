@@ -411,6 +411,7 @@ def diagnosis_text(res):
         lines.append(f"  {res.robot_alternatives}")
     lines += cleaning_lines(getattr(res, "cleaning", None))[1:]
     lines.append("outliers excluded: " + (", ".join(res.outliers) or "none"))
+    lines += [f"  configuration: {res.configuration}"] if getattr(res, "configuration", None) else []
     lines += [f"  {e.id} (row {e.row}): {e.reason}" for e in res.inconsistent]
     lines.append("not identifiable (absorbed): " + ("none" if not res.absorbed_by else ""))
     lines += [f"  {sentence}" for sentence in res.absorbed_explained]

@@ -60,10 +60,10 @@ from handeye.model.readers.tables import (  # noqa: F401  (read_pose_list, pose_
     read_table,
     row_id,
 )
-from handeye.model.robot import robots
+from handeye.model.robot import configuration, robots
 from handeye.model.robot.robots import JOINTS
 
-OPTIONAL_COLUMNS = ("profile",)
+OPTIONAL_COLUMNS = ("profile", "cfx")
 DATA_DIR = pathlib.Path(__file__).parent.parent / "data"
 
 
@@ -159,6 +159,9 @@ class Dataset(FlangePoses):
         ``[sensor] pose``: the sensor pose known (KUKA), for calibrations that do not estimate it.
     joints : ndarray, shape (N, 6), or None
         Joint angles ``j1..j6`` of each pose, degrees (optional columns; they need ``[robot] model``).
+    configuration : ndarray of int, shape (N,), or None
+        ABB's ``cfx`` of each pose (an optional column, 0-7: the arm's configuration, named when the
+        excluded samples are one of its groups, :mod:`handeye.model.robot.configuration`).
     robot_model : handeye.model.robot.robots.RobotModel or None
         ``[robot] model``: the nominal kinematics (checked on load to reproduce the reported poses).
     own_axes : ndarray, shape (3, 3), or None
@@ -205,6 +208,7 @@ class Dataset(FlangePoses):
     axis_angles: np.ndarray | None = None
     sensor_pose: np.ndarray | None = None
     joints: np.ndarray | None = None
+    configuration: np.ndarray | None = None
     robot_model: object | None = None
     raw_profiles: tuple | None = None
     cleaning: tuple | None = None
@@ -244,6 +248,7 @@ class Dataset(FlangePoses):
             raw_poses=None if self.raw_poses is None else self.raw_poses[mask],
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
             joints=None if self.joints is None else self.joints[mask],
+            configuration=None if self.configuration is None else self.configuration[mask],
         )
         for key in ("_flange2base", "_motions"):  # computed already: its rows, not a million poses again
             if key in self.__dict__ and not (key == "_motions" and self.mounts.default):
@@ -461,7 +466,8 @@ class _RowReader:
             except NoCentre as exc:
                 problem = exc.problem
         angles = ([axis_angle(fields[idx[a]], file, line, a) for a in self.st.mounts.axis_names]
-                  + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints])
+                  + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints]
+                  + ([configuration.cfx_field(fields[idx["cfx"]], file, line)] if "cfx" in idx else []))
         return (ident, line, pose, xs, points, bool(profile) and not all(cells),
                 (self.folder / profile).resolve() if profile else None, raw, angles, raw_points, record, problem)
 
@@ -508,7 +514,7 @@ def _robot_model(st, folder, joints, poses, file):
         return None
     model = robots.load(st.robot_model if st.robot_model in robots.builtin_names() else folder / st.robot_model)
     if joints is not None and len(joints):
-        robots.check_reported(model, joints, transform_from_pose(poses), file)
+        model = robots.check_reported(model, joints, transform_from_pose(poses), file)
     return model
 
 
@@ -583,7 +589,7 @@ def load(name_or_path, clean=True):
         raw_profiles, cleaning, not_arcs = profiles, profiles, ()
     if not ids:
         raise DatasetError(file, "no measurements", 2)
-    angles = np.array(angles, float).reshape(len(ids), -1)
+    angles, cfx = configuration.split_cfx(np.array(angles, float).reshape(len(ids), -1), len(axes))
     joints = angles[:, len(axes):] if angles.shape[1] > len(axes) else None
     model = _robot_model(st, folder, joints, np.asarray(poses, float), file)
     _check_truth_params(st.truth, model, folder / "setup.toml")
@@ -615,6 +621,7 @@ def load(name_or_path, clean=True):
         axis_angles=angles[:, :len(axes)] if axes else None,
         sensor_pose=st.sensor_pose,
         joints=joints,
+        configuration=cfx,
         robot_model=model,
         own_axes=st.own_axes,
         poses_read=st.poses_read,

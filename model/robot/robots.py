@@ -29,8 +29,9 @@ import tomllib
 import numpy as np
 
 from handeye.model.chain.pose import kuka_from_matrix, matrix_from_kuka
-from handeye.model.common.rotation import matrix_from_rotvec, transform_distance
+from handeye.model.common.rotation import matrix_from_rotvec
 from handeye.model.readers.tables import DatasetError
+from handeye.model.robot import nominal_gate
 
 ROBOTS_DIR = pathlib.Path(__file__).parent.parent / "data" / "robots"
 #: Joint columns of measurements.csv (degrees).
@@ -62,6 +63,9 @@ class RobotModel:
         Joint angles of the chain = ``coupling @ reported angles``.
     spec : str
         How it was named: the built-in name, or the model file's absolute path.
+    absorbed : str
+        What the nominal-model gate absorbed into ``base`` and ``flange`` (a controller's calibrated
+        model, a mounting offset: :mod:`handeye.model.robot.nominal_gate`), said; "" when nothing.
     """
 
     name: str
@@ -74,6 +78,7 @@ class RobotModel:
     flange: np.ndarray
     coupling: np.ndarray
     spec: str = ""
+    absorbed: str = ""
 
     def corrected(self, offsets_deg):
         """The model with zero offsets (degrees, on the chain's joints) added."""
@@ -182,42 +187,13 @@ def load(name_or_file):
                       _frame(doc, "base", file), _frame(doc, "flange", file), _coupling(doc, file), spec)
 
 
-#: The nominal model must reproduce the reported flange poses within these (mm, deg): a
-#: controller's own (calibrated) model differs from the nominal one by about a millimetre.
-AGREE_MM, AGREE_DEG = 5.0, 0.5
-
-
-def _disagreement(model, joints_deg, flange2base):
-    """Largest position (mm) and rotation (deg) difference of the model's flange from the reported one."""
-    fk = model.flange2base(joints_deg)
-    dpos, dang = transform_distance(fk, flange2base)
-    return float(dpos.max()), float(dang.max()), fk
-
-
 def check_reported(model, joints_deg, flange2base, file):
-    """Raise DatasetError when the nominal forward kinematics of the joint angles does not reproduce
-    the reported flange poses (:data:`AGREE_MM`, :data:`AGREE_DEG`), naming the likely cause:
-    angles in radians, a TCP that is not the flange (a constant transform explains the
-    difference), or another robot model."""
-    f2b = np.asarray(flange2base, float)
-    dpos, dang, fk = _disagreement(model, joints_deg, f2b)
-    if dpos <= AGREE_MM and dang <= AGREE_DEG:
-        return
-    said = f"the {model.name} model's flange is up to {dpos:.1f} mm / {dang:.2f} deg from the reported poses"
-    if np.all(np.abs(joints_deg) <= 2 * np.pi + 1e-9):
-        rp, ra, _ = _disagreement(model, np.degrees(joints_deg), f2b)
-        if rp <= AGREE_MM and ra <= AGREE_DEG:
-            raise DatasetError(file, f"{said}; read as radians the joint angles agree ({rp:.2f} mm): write j1..j6 "
-                                     "in degrees", column="j1")
-    tcp = np.linalg.solve(fk, f2b)  # reported = fk . tcp: constant for a TCP that is not the flange
-    off = np.median(tcp[:, :3, 3], axis=0)
-    spread = np.linalg.norm(tcp[:, :3, 3] - off, axis=1).max()
-    if spread <= AGREE_MM and np.linalg.norm(off) > AGREE_MM:
-        raise DatasetError(file, f"{said}, by one constant offset ({', '.join(f'{v:.1f}' for v in off)} mm in the "
-                                 "flange): the poses are of a TCP, not the flange; record them with the TCP at zero",
-                           column="x")
-    raise DatasetError(file, f"{said}: a wrong [robot] model, or joint columns in another order or sign?",
-                       column="[robot] model")
+    """The model as the controller's: constant base and flange transforms against the reported flange
+    poses absorbed and said, or DatasetError naming why the nominal forward kinematics does not
+    reproduce them (angles in radians, a TCP, joint columns in another order or sign, another model):
+    :func:`handeye.model.robot.nominal_gate.gated`; the other built-in models are tried on a refusal."""
+    return nominal_gate.gated(model, joints_deg, flange2base, file,
+                              others=lambda: [(name, load(name)) for name in builtin_names()])
 
 
 def offset_derivatives(model, joints_deg, offsets_deg):
