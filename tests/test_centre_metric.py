@@ -12,6 +12,7 @@ import pathlib
 import sys
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
@@ -68,6 +69,7 @@ def test_the_centre_models_weights_lie_in_the_residuals_frame(tmp_path):
     assert not np.allclose(other.whiten, model.whiten)
 
 
+@pytest.mark.slow(sibling="test_the_centre_models_weights_lie_in_the_residuals_frame")
 def test_a_clean_cell_cut_near_the_equator_names_no_effect(tmp_path):
     """tests/indep_systematic.py clean seed 10 (sensor on the flange, profiles only, the centre estimated, 17
     poses): exit 0 at the truth with no effect named (before: sphere_radius at dr = 0.089 +- 0.023 mm)."""

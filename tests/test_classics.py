@@ -242,6 +242,7 @@ def test_cli_kim_cho_on_thesis_real_screens_the_misprint_first(capsys):
     assert raw["outliers"] == [] and raw["rms_mm"] > 100  # the 2,000 mm misprint ruins the linear fit
 
 
+@pytest.mark.slow(sibling="test_a_baseline_on_data_that_choose_another_model_is_refused")
 def test_a_baseline_exits_0_only_within_the_floor_of_the_truth(tmp_path):
     """A baseline has no sd: it is right only within 0.2 mm / 0.05 deg of the truth. Few poses (12, three pure
     translations at two orientations), six seeds: every exit 0 lies within that floor of the truth (before, Kim &

@@ -109,13 +109,14 @@ def test_generator_is_self_consistent(tmp_path):
                 assert 150 - R_s < row["profile"][:, 1].min() and row["profile"][:, 1].max() < 320
 
 
+@pytest.mark.slow(sibling="test_slips_never_exit_0_at_a_wrong_pose")  # the default tier's 4 minutes
 def test_correct_cells_converge_at_the_truth(tmp_path):
     """24 correct cells (every convention x profile mode x start pose, mounts near B = +-90):
     each converges (exit 0) within max(1 mm, 6 sd) / max(0.5 deg, 6 sd) of the truth."""
     _run_correct(tmp_path, range(24), _correct_options)
 
 
-@pytest.mark.slow(sibling="test_correct_cells_converge_at_the_truth")
+@pytest.mark.slow(sibling="test_slips_never_exit_0_at_a_wrong_pose")
 def test_200_correct_cells_converge_at_the_truth(tmp_path):
     """200 correct cells, every choice drawn from the seed."""
     _run_correct(tmp_path, range(1000, 1200), lambda i: {})
@@ -184,7 +185,7 @@ def _cli(folder):
     return p.returncode, doc, p.stderr
 
 
-@pytest.mark.slow(sibling="test_correct_cells_converge_at_the_truth")
+@pytest.mark.slow(sibling="test_slips_never_exit_0_at_a_wrong_pose")
 def test_cli_exit_codes(tmp_path):
     """The command line: a correct cell of each convention exits 0 with the JSON's
     sensor_matrix at the truth; slips exit 2 (named), 1, or 0 only at the truth; never 3."""

@@ -146,6 +146,7 @@ def test_edited_claims_are_named_and_the_outputs_show_the_data(cells, tmp_path):
     assert f"RMS {doc['rms_mm']:.4f} mm" in strip and "RMS against stated noise" in strip
 
 
+@pytest.mark.slow(sibling="test_a_good_file_is_recomputed_to_its_own_verdict_with_no_note[profiles]")
 def test_a_file_with_effects_is_recomputed_with_them_and_an_edit_is_named(tmp_path, capsys):
     """A sensor reading 0.2 % long: calibrate chooses sensor_scale and saves it with the pose. The file is
     recomputed in the extended model at its pose and effects (app/engine/held_effects.py): its own RMS, no

@@ -470,11 +470,11 @@ def test_diagnose_names_link_lengths_within_3_sd(tmp_path, model, lengths):
 
 
 #: The default tier plants compliance on two joints of each robot; one joint alone runs in the full suite.
-_ONE_JOINT = pytest.mark.slow(sibling="test_diagnose_names_joint_compliance_within_3_sd[kr60ha-compliance0]")
+_ONE_JOINT = pytest.mark.slow(sibling="test_diagnose_names_joint_compliance_within_3_sd[ur10e-compliance2]")
 
 
 @pytest.mark.parametrize("model, compliance", [
-    ("kr60ha", {"j2": 0.03, "j3": 0.02}),
+    pytest.param("kr60ha", {"j2": 0.03, "j3": 0.02}, marks=_ONE_JOINT),  # the default tier's 4 minutes: the UR10e's
     pytest.param("kr60ha", {"j3": 0.04}, marks=_ONE_JOINT),
     ("ur10e", {"j2": 0.03, "j3": 0.02}),
     pytest.param("ur10e", {"j2": 0.015}, marks=_ONE_JOINT),

@@ -66,6 +66,7 @@ def test_sign_flips_beside_an_effect_are_not_a_reason_to_refuse(tmp_path):
     assert r.converged and "sphere_radius" in [e.name for e in r.effects]
 
 
+@pytest.mark.slow(sibling="test_the_default_calibrates_the_model_the_search_chooses")
 def test_data_beyond_the_searchs_size_are_searched_on_a_spread_subsample(scale_cell, monkeypatch):
     """More samples than the search holds (its limit lowered to 14 of 20 here; 16,384 by default): the search
     runs on 14 spread over the rows, names the scale, and the fit with it runs on all 20 -- chunk by chunk,
