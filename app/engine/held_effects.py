@@ -12,7 +12,7 @@ pose, sphere centre and effect parameters are held in that model, in the samples
 - the data's own minimum of that model, fitted from the held point with every block free (pose, centre
   when the file frees it, effects), and the F test of the held point against it: ``F = ((S_h - S_m) / p)
   / (S_m / (m - p))`` on all ``p`` parameters the file holds; the data *contradict* the file when
-  ``p < P_HELD`` and the RMS is larger by ``HELD_FACTOR`` (the rule for any part held,
+  ``p < P_HELD`` and the RMS is larger by ``HELD_FACTOR`` (:func:`handeye.app.engine.score.held_test`, the rule for any part held,
   :mod:`handeye.app.engine.cell_stage`);
 - the distance of the held pose from that minimum (mm, deg, and in the minimum's sd).
 
@@ -27,11 +27,10 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine.cell_stage import HELD_FACTOR, P_HELD
 from handeye.app.engine.describe import noise_test
+from handeye.app.engine.score import held_test
 from handeye.model import effects as catalogue
 from handeye.model.common.rotation import pose_distance
-from handeye.model.common.statistics import f_survival
 from handeye.model.datasets import observations
 from handeye.model.fit.extended import Samples, Structure
 
@@ -147,14 +146,6 @@ def recompute(data, mask, sensor2flange, centre, held, stated):
     cov = ssr / max(m - p, 1) * np.linalg.pinv(jtj)
     norms = np.linalg.norm(prob.raw(e), axis=1)
     return HeldEffects(prob.raw(e), float(np.sqrt(np.mean(norms[mask] ** 2))), float(norms[mask].max()), cov[:6, :6],
-                       noise_test(ssr, m - p, stated, False, [], ""), _contradicted(ssr, best.ssr, m, p),
+                       noise_test(ssr, m - p, stated, False, [], ""), held_test(ssr, best.ssr, m, p, p)[2],
                        pose_distance(sensor2flange, prob.transform(best.x), best.covariance(mask), best.names))
 
-
-def _contradicted(held, minimum, m, p):
-    """The held point's sum of squares ``held`` against the data's ``minimum`` (module docstring)."""
-    dof = m - p
-    if dof <= 0 or not minimum > 0:
-        return False
-    f = max(held - minimum, 0.0) / p / (minimum / dof)
-    return bool(f_survival(f, p, dof) < P_HELD and np.sqrt(held / minimum) > HELD_FACTOR)

@@ -156,13 +156,19 @@ class Scorer:
 def f_test(given, estimate, n_params):
     """The given pose's score against the estimate's (nested: the estimate frees 6 parameters):
     ``(F, p, contradicted)`` (module docstring)."""
-    dof = given.m - n_params
-    if dof <= 0 or estimate.ssr <= 0:
+    return held_test(given.ssr, estimate.ssr, given.m, 6, n_params)
+
+
+def held_test(held_ssr, free_ssr, m, freed, n_params):
+    """The rule for any part held: the sum of squares with it held (``held_ssr``) against the fit that frees
+    ``freed`` parameters (``free_ssr``; ``n_params`` in all, ``m`` residual components): ``(F, p,
+    contradicted)``, contradicted when ``p < P_HELD`` and the RMS is larger by ``HELD_FACTOR``."""
+    dof = m - n_params
+    if dof <= 0 or not free_ssr > 0:
         return float("nan"), float("nan"), False
-    f = max(given.ssr - estimate.ssr, 0.0) / 6 / (estimate.ssr / dof)
-    p = float(f_survival(f, 6, dof))
-    ratio = math.sqrt(given.ssr / estimate.ssr)
-    return float(f), p, bool(p < P_HELD and ratio > HELD_FACTOR)
+    f = max(held_ssr - free_ssr, 0.0) / freed / (free_ssr / dof)
+    p = float(f_survival(f, freed, dof))
+    return float(f), p, bool(p < P_HELD and math.sqrt(held_ssr / free_ssr) > HELD_FACTOR)
 
 
 def vuong(a, b):
