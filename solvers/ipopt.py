@@ -11,6 +11,9 @@ them by hand. Iterates are recorded through an iteration callback.
 """
 from __future__ import annotations
 
+import collections
+import threading
+
 import numpy as np
 
 from handeye.solvers.result import STATUS_MESSAGES, OptimizeResult
@@ -57,8 +60,14 @@ def _recorder(nlp_sizes, store):
     return Recorder()
 
 
+#: Solvers kept across problems of one structure (a problem dict's ``'structure'``: the same graph, other
+#: ``p_value``), least recently used dropped beyond this many.
+SHARED_SOLVERS = 16
+_shared = collections.OrderedDict()
+
+
 class _Solver:
-    """IPOPT built once for a problem; called for one start at a time."""
+    """IPOPT built once for a problem (or a problem structure); called for one start at a time."""
 
     def __init__(self, problem, opts, history=None):
         import casadi as ca
@@ -87,8 +96,15 @@ class _Solver:
         self.jac_g = (ca.Function("jac_g", [self.x_sym] + p_syms, [ca.jacobian(self.g_sym, self.x_sym)])
                       if self.g_sym.shape[0] else None)
 
-    def __call__(self, x0):
+    def __call__(self, x0, nlp=None):
+        """IPOPT from ``x0``, with the bounds and parameter values of ``nlp`` (a problem dict of the same
+        ``x``, ``f`` and ``g``; default the one it was built for)."""
         x0 = np.asarray(x0, dtype=float)
+        if nlp is not None:
+            self.args = {"lbg": nlp.get("lbg", []), "ubg": nlp.get("ubg", [])}
+            if self.p_sym is not None:
+                self.args["p"] = nlp["p_value"]
+            self.p_args = [] if self.p_sym is None else [self.args["p"]]
         if self.history is not None:
             self.history.clear()
         sol = self.solver(x0=x0, **self.args)
@@ -126,20 +142,42 @@ class _Solver:
 def minimize(problem, x0, opts):
     """IPOPT from one start, with its iterates recorded; the solver is built once per problem
     and options (``problem.built``) and called again for the next start (the same answer as a
-    fresh one: IPOPT keeps no state between calls without warm-start options)."""
+    fresh one: IPOPT keeps no state between calls without warm-start options). A problem that names
+    its ``'structure'`` shares the solver of every problem of that structure and options (in this
+    thread), called with its own ``p_value``: ``nlpsol`` is built once per structure, not per problem."""
     key = ("ipopt", opts.max_iter, repr(sorted(opts.ipopt.items())))
     solver = problem.built.get(key)
     if solver is None:
-        solver = problem.built[key] = _Solver(problem, opts, history=[])
-    return solver(x0)
+        solver = problem.built[key] = _shared_solver(problem, opts, key)
+    return solver(x0, problem.nlp)
+
+
+def _shared_solver(problem, opts, key):
+    """The solver of ``problem`` and ``opts``: the one kept for its ``'structure'`` (:data:`SHARED_SOLVERS`) when
+    it was built on the very same ``x``, ``f`` and ``g`` (a structure's graph is built once), or a new one."""
+    nlp = problem.nlp
+    structure = nlp.get("structure")
+    if structure is None:
+        return _Solver(problem, opts, history=[])
+    shared = (structure, key, threading.get_ident())
+    solver = _shared.get(shared)
+    if solver is None or not all(nlp[k] is solver.nlp[k] for k in ("x", "f", "g")):
+        solver = _shared[shared] = _Solver(problem, opts, history=[])
+        while len(_shared) > SHARED_SOLVERS:
+            _shared.popitem(last=False)
+    _shared.move_to_end(shared)
+    return solver
 
 
 def minimize_many(problem, starts, opts):
     """IPOPT from each row of ``starts`` (N, d), one after another through one solver object."""
     from handeye.solvers.batch import BatchResult
 
-    solver = _Solver(problem, opts)
-    results = [solver(x0) for x0 in starts]
+    key = ("ipopt", opts.max_iter, repr(sorted(opts.ipopt.items())))
+    solver = problem.built.get(key)
+    if solver is None:
+        solver = problem.built[key] = _shared_solver(problem, opts, key)
+    results = [solver(x0, problem.nlp) for x0 in starts]
     messages = {i: r.message for i, r in enumerate(results) if r.status in (0, 7)}
 
     def column(name, dtype=float):

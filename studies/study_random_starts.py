@@ -86,8 +86,12 @@ def _fast(d, reference, starts):
     return [_success(p, int(s) in solvers.CONVERGED, reference) for p, s in zip(poses, info[:, 3])]
 
 
+#: Random starts of the quick study (the full one draws 1,000).
+QUICK_STARTS = 40
+
+
 def run(out, quick=False):
-    n_starts = 40 if quick else 1000
+    n_starts = QUICK_STARTS if quick else 1000
     methods = METHODS if not quick else ("lm", "gn", "newton", "ipopt")
     rng = np.random.default_rng(7)
     with scratch.temporary_folder() as tmp:

@@ -14,8 +14,8 @@ import pathlib
 import numpy as np
 
 import handeye
+from handeye.app.engine.agreement import same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING
-from handeye.app.engine.diagnose import same_pose
 from handeye.app.public import api
 from handeye.model.chain.pose import pose_from_transform
 from handeye.model.common.rotation import pose_distance
@@ -260,7 +260,7 @@ def _axes_off(calibrated, diagnosed):
 
 def agree(calibrated, diagnosed, distance):
     """Whether the two verdicts are one: the same exit, and where calibrate gives a pose, diagnose's within 1 sd
-    of it (:func:`handeye.app.engine.diagnose.same_pose`) with the same effects named; or calibrate's refusal of
+    of it (:func:`handeye.app.engine.agreement.same_pose`) with the same effects named; or calibrate's refusal of
     a positioner's set-up axes beside diagnose's ``positioner_axes`` (:func:`_axes_off`). Calibrate's warnings
     suggest no effect its search did not choose (the score tests' warning of structure)."""
     if calibrated.exit == 1 and _axes_off(calibrated, diagnosed):

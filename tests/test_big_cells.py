@@ -1,7 +1,8 @@
 """Clean cells of 10^5 measurements grow no false structure (issue 39): a score test at a fixed level detects
 ever smaller effects as the samples grow, so a significant effect is structure only where fitting it moves
 the pose beyond the promise's floor (:mod:`handeye.app.engine.effect_size`); the discrepancy search, which
-holds the whole Jacobian, says where it does not run (calibrate's warning, diagnose's exit 2)."""
+holds the whole Jacobian, runs on that many samples spread over the rows (calibrate's and diagnose's alike) and
+says so."""
 import numpy as np
 import pytest
 
@@ -12,7 +13,6 @@ from handeye.app.tools.bench import simulated_batch
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit import extended
-from handeye.model.fit.calibration import ROW_CHUNK
 
 
 def _clean_cell(folder, n, sigma, seed=0):
@@ -50,10 +50,21 @@ def test_an_effects_size_is_the_pose_shift_of_its_fit(tmp_path):
     assert effect_size.pose_shift(at, "joint_offsets") is None  # a robot effect: its gate chooses its parameters
 
 
-def test_diagnose_says_where_its_search_cannot_run(tmp_path):
-    folder, _ = _clean_cell(tmp_path / "big", ROW_CHUNK + 1, 0.02)
-    with pytest.raises(handeye.InputError, match="more than the discrepancy search's 16,384"):
-        handeye.diagnose(folder)
+def test_diagnose_beyond_the_searchs_samples_runs_as_calibrate_does(tmp_path, monkeypatch):
+    """More samples than the search holds (its limit lowered to 40 of 60 here; 16,384 by default): diagnose runs
+    on that many spread over the rows, as calibrate's own search does, and reports calibrate's fit of the model
+    it chose to every sample, saying so."""
+    from handeye.app.engine import search
+
+    monkeypatch.setattr(search, "ROW_CHUNK", 40)
+    folder, truth = _clean_cell(tmp_path / "big", 60, 0.05)
+    d = handeye.diagnose(folder)
+    own = handeye.calibrate(folder, no_loo=True)
+    assert own.converged and not own.effects and not d.effects and len(d.residuals) == 40
+    np.testing.assert_array_equal(d.sensor2flange, own.sensor2flange)
+    assert d.against_calibrate.startswith("the same pose as `handeye calibrate`'s")
+    assert "the search ran on 40 of the 60 samples" in d.against_calibrate and "60 samples, every one" in d.against_calibrate
+    assert pose_distance(d.sensor2flange, truth, own.covariance, own.parameter_names)["sd"] < 4
 
 
 @pytest.mark.slow(sibling="test_an_effects_size_is_the_pose_shift_of_its_fit")

@@ -193,6 +193,27 @@ def test_ipopt_kkt_on_the_constrained_matrix_calibration():
     assert np.linalg.det(r) > 0
 
 
+def test_ipopt_is_built_once_per_structure_and_solves_each_problem_with_its_own_data():
+    """Two calibrations of one shape (13 rows, other noise) share one ``nlpsol`` and each lands where a solver
+    built for it alone lands; a free centre is another structure, so another solver."""
+    from handeye.solvers import ipopt
+
+    d = load("thesis-sim")
+    ends, solvers_used = [], []
+    for seed, unknowns in ((1, "sensor"), (2, "sensor"), (2, "sensor+sphere")):
+        xs = d.centre_in_sensor + np.random.default_rng(seed).normal(0, 0.05, (13, 3))
+        m = CalibrationModel(d.flange2base(), xs, d.sphere_centre, "euler", unknowns)
+        problem = calibration_problem(m)
+        x0 = m.point_from(transform_from_pose(d.start_pose), d.sphere_centre + 1.0)
+        shared = solve(problem, x0, "ipopt")
+        alone = ipopt._Solver(problem, Options())(x0)
+        np.testing.assert_allclose(shared.x, alone.x, rtol=0, atol=1e-12)
+        ends.append(shared.x[:6])
+        solvers_used.append(next(iter(problem.built.values())))
+    assert solvers_used[0] is solvers_used[1] and solvers_used[2] is not solvers_used[0]
+    assert np.max(np.abs(ends[0] - ends[1])) > 1e-6  # each with its own data
+
+
 def test_front_end_refuses_what_it_cannot_do():
     p = Problem(n=1, residual=lambda x: x, jacobian=lambda x: np.eye(1))
     with pytest.raises(UnsupportedProblem, match="unknown method"):

@@ -32,7 +32,12 @@ def test_dask_local_cluster_sweeps_return_results_in_task_order():
 
 @pytest.mark.slow(sibling="test_dask_local_cluster_sweeps_return_results_in_task_order")
 def test_random_starts_on_dask_gives_the_same_summary_as_two_jobs(tmp_path, monkeypatch):
+    """The quick study on 8 starts (drawn in this process, they travel with the tasks): every sweep of each run on
+    its backend, the same tables from both."""
+    from handeye.studies import study_random_starts
+
     pytest.importorskip("distributed")
+    monkeypatch.setattr(study_random_starts, "QUICK_STARTS", 8)
     ran_on = []
     real_run = sweep.run
 

@@ -37,7 +37,6 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.common.errors import RequestError
 from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
@@ -50,36 +49,11 @@ from handeye.model.common.statistics import deletion_statistics, f_survival, pre
 from handeye.model.datasets import observations
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
-from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
 ALPHA = robust.ALPHA
-
-#: Two poses are the same when they lie within this many sd of the reported one (Mahalanobis
-#: distance in its covariance, 6 dof) -- or closer than :data:`AGREE_FLOOR` (mm, deg), where a
-#: noise-free fit's sd is itself rounding. The same model fitted twice (other residual weights,
-#: other outlier decisions) differs by 0.00-0.17 sd on 25 clean simulated cells (5 mounts and
-#: sensors, 12-36 poses); a pose under a model the data contradict, by 3-45 sd.
-AGREE_SD = 1.0
-AGREE_FLOOR = (1e-3, 1e-3)
-
-
-def same_pose(distance):
-    """Whether a :func:`handeye.model.common.rotation.pose_distance` (with its ``sd``) is the same pose
-    (:data:`AGREE_SD`, :data:`AGREE_FLOOR`); without an sd, only the floor decides."""
-    tiny = distance["translation_mm"] <= AGREE_FLOOR[0] and distance["rotation_deg"] <= AGREE_FLOOR[1]
-    return tiny or (distance["sd"] is not None and distance["sd"] <= AGREE_SD)
-
-
-def searchable_size(dataset):
-    """RequestError (exit 2) for data of more than :data:`~handeye.model.fit.calibration.ROW_CHUNK` samples:
-    the search holds the whole Jacobian (calibrate, which skips it there, says so in a warning)."""
-    if len(dataset) > ROW_CHUNK:
-        raise RequestError(f"diagnose: the data have {len(dataset):,} samples, more than the discrepancy search's "
-                           f"{ROW_CHUNK:,} (it holds the whole Jacobian); diagnose an evenly spread subset of them")
-
 
 @dataclasses.dataclass
 class Procedure:
@@ -596,32 +570,3 @@ def _unexplained(after, sigma):
         return f"nothing beyond the nominal noise: chi2/dof {ratio:.2f} at sigma = {sigma:g} mm"
     return (f"residual scatter sigma = {after['sigma_mm']:.3f} mm is {np.sqrt(ratio):.1f} x the nominal {sigma:g} mm: "
             "an effect outside the catalogue (or a larger noise than assumed) remains")
-
-
-def against_calibrate(result, own):
-    """Whether the diagnosis's pose is calibrate's (``own``, the same unknowns) within 1 sd, and
-    if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
-    (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
-    if not own.converged:
-        verb = "refuses these data" if own.message.startswith(("not a calibration", "unexplained")) else \
-            "did not converge on these data"
-        return f"calibrate {verb} ({own.message}); nothing to compare"
-    d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
-                      own.parameter_names)
-    far = (f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg" + ("" if d["sd"] is None else
-                                                                              f" ({d['sd']:.1f} sd of calibrate's)"))
-    if same_pose(d):
-        return f"the same pose as `handeye calibrate`'s within {AGREE_SD:g} sd ({far} apart)"
-    why = []
-    named = [e.name for e in result.effects if e.name != "sign_flip"]
-    if named:
-        why.append(f"diagnose corrects the data by the effects it names ({', '.join(named)}), calibrate does not "
-                   f"(calibrate --effects {','.join(named)} does)")
-    if own.model != "centre":
-        why.append(f"diagnose fits the sphere centres, calibrate the {own.model} model (calibrate --model centre fits "
-                   "what diagnose fits)")
-    left_out = set(result.outliers) ^ set(own.outliers)
-    if left_out:
-        why.append(f"they exclude different samples ({', '.join(sorted(left_out)[:6])})")
-    return (f"{far} from `handeye calibrate`'s pose: " + ("; ".join(why) if why else
-            "the two fits differ though they have the same model and samples (report it)"))

@@ -59,6 +59,15 @@ GROUP_AGREE = 2.0
 #: ... at a pose this far from the reported one (mm, deg) are a second group, not gross errors.
 GROUP_APART_MM, GROUP_APART_DEG = 2.0, 1.0
 
+# -- one model fitted twice: the search's pose against calibrate's (app/engine/agreement.py, search.py) ----
+#: Two poses are the same when they lie within this many sd of the reported one (Mahalanobis distance in
+#: its covariance, 6 dof) -- or closer than AGREE_FLOOR (mm, deg), where a noise-free fit's sd is itself
+#: rounding. The same model fitted twice (other residual weights, other outlier decisions) differs by
+#: 0.00-0.17 sd on 25 clean simulated cells (5 mounts and sensors, 12-36 poses); a pose under a model
+#: the data contradict, by 3-45 sd.
+AGREE_SD = 1.0
+AGREE_FLOOR = (1e-3, 1e-3)
+
 # -- a part held (app/engine/cell_stage.py, app/engine/score.py, app/engine/held_effects.py) ---------------
 #: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...
 P_HELD = 1e-3

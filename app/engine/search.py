@@ -18,7 +18,7 @@ The model is the user's where ``--effects`` is given (``none`` for no effect) or
 residual model is asked for (``--model measurement|points``: the effects need the centre
 residual); the search then checks it instead of choosing: where the search's model differs
 (or ``--keep-all`` keeps samples the search excludes), a pose the search puts more than
-:data:`handeye.app.engine.diagnose.AGREE_SD` of the reported pose's own sd away (Mahalanobis
+:data:`handeye.app.engine.levels.AGREE_SD` of the reported pose's own sd away (Mahalanobis
 distance on 6 dof) is refused (exit 1). Poses of one model are not compared: they differ only
 by the samples each excludes or flips back, and a 1-sd limit would refuse good data for that.
 
@@ -43,14 +43,13 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import cell_stage, diagnose
+from handeye.app.engine.agreement import NOT_A_MODEL, same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
+from handeye.app.engine.levels import AGREE_SD
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import spread
 
-#: Effects the search names that are not a model the stages can take: sign flips are samples; the
-#: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
-NOT_A_MODEL = ("sign_flip", "positioner_axes")
 #: How the warning of a widened uncertainty begins (:func:`with_power`).
 POWER_WARNING = "the data lack the power to see every effect (few samples, much noise): the 1 sd is widened"
 #: The warning is given where the widening grows a pose component's sd by more than this factor: the
@@ -189,7 +188,7 @@ def _with_effects(request, dataset, result, refit, names, found):
 
 def _beside_axes(result, found, names, dataset, request):
     """A calibration of the positioner's axes beside which the search names effects: refused where the
-    search's pose (with them, at the calibrated axes) lies beyond :data:`diagnose.AGREE_SD` of the
+    search's pose (with them, at the calibrated axes) lies beyond :data:`~handeye.app.engine.levels.AGREE_SD` of the
     result's own sd; else kept, with a warning naming them (a 0.007 % scale on a clean cell, 3 of its sd,
     moves the pose by a fraction of its sd)."""
     named = "; ".join(f"{e.name} ({_values(e)})" for e in found.effects if e.name in names)
@@ -198,13 +197,13 @@ def _beside_axes(result, found, names, dataset, request):
     kept = [w for w in result.warnings if not w.startswith(STRUCTURE_WARNING)]  # the search decided
     far = f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one" + (
         f", {d['sd']:.2f} sd of its own" if d["sd"] is not None else " (it has no sd to compare with)")
-    if diagnose.same_pose(d):
+    if same_pose(d):
         return dataclasses.replace(result, warnings=[*kept, f"at the positioner's calibrated axes the discrepancy search "
                                                              f"names {named}; with it the pose is {far}: within its sd"])
     return dataclasses.replace(result, warnings=kept).refused(
         f"not a calibration: at the positioner's calibrated axes the discrepancy search names {named}, which the cell "
         f"stage cannot estimate together with the axes; with {'it' if len(names) == 1 else 'them'} the pose is {far} "
-        f"(more than {diagnose.AGREE_SD:g}); `{_command('diagnose', dataset, request)}` prints the search")
+        f"(more than {AGREE_SD:g}); `{_command('diagnose', dataset, request)}` prints the search")
 
 
 def _values(effect):
@@ -226,12 +225,12 @@ def _on_every_sample(request, dataset, found, refit):
 
 
 def _against_search(result, found, dataset, request):
-    """``result`` refused when the search's pose is not its own (:func:`handeye.app.engine.diagnose.same_pose`)."""
+    """``result`` refused when the search's pose is not its own (:func:`handeye.app.engine.agreement.same_pose`)."""
     cov, names = result.covariance, result.parameter_names
     if cov is None or names is None or not np.all(np.isfinite(cov)):
         return result
     d = pose_distance(np.asarray(found.sensor2flange, float), np.asarray(result.sensor2flange, float), cov, names)
-    if diagnose.same_pose(d):
+    if same_pose(d):
         return result
     named = ", ".join(e.name for e in found.effects) or "no effect"
     kept = f" and the {len(found.outliers)} samples it excludes" if found.outliers and not request.outliers else ""
@@ -240,7 +239,7 @@ def _against_search(result, found, dataset, request):
     advice = "without --keep-all its exclusions apply" if kept and not names_differ(found, request) else advice
     return result.refused(f"not a calibration: the discrepancy search (with {named}{kept}) puts the pose "
                            f"{d['translation_mm']:.3g} mm and {d['rotation_deg']:.3g} deg from this one, {d['sd']:.2f} sd "
-                           f"of its own (more than {diagnose.AGREE_SD:g}): these data contradict this model; "
+                           f"of its own (more than {AGREE_SD:g}): these data contradict this model; "
                            f"`{_command('diagnose', dataset, request)}` prints the search; {advice}")
 
 

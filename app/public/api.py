@@ -109,9 +109,10 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
     Returns
     -------
     handeye.app.present.diagnosis_results.DiagnosisResult
-        Its ``against_calibrate`` says whether its pose is :func:`calibrate`'s with the same
-        unknowns (within 1 sd) and, if not, why (effects named, another residual model, other
-        samples excluded).
+        Where its search chose the model :func:`calibrate` fits on the same data, its pose, 1-sd and
+        effect values are calibrate's (:mod:`handeye.app.engine.agreement`; its steps and residuals the
+        search's own fit); ``against_calibrate`` says how far the search's own fit lies, or why the two
+        differ (effects named, other samples excluded).
     """
     from handeye.app.engine.command_request import diagnose_request
 
@@ -132,11 +133,11 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 def _diagnosed(data, parts, level, sigma):
     """The diagnosis of ``data`` with ``parts`` free, beside calibrate's own pose; and the data
     (with the centre a free centre's calibration found)."""
+    from handeye.app.engine import agreement, slips
     from handeye.app.engine import diagnose as procedure
-    from handeye.app.engine import slips
     from handeye.app.engine.prepare import gate, with_sphere_centre
+    from handeye.app.engine.search import searched_samples
 
-    procedure.searchable_size(data)  # before calibrating: the search holds the whole Jacobian
     data = with_sphere_centre(data, parts)[0]  # a start for a centre not given
     gate(data, parts)  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, parts, slips.plain_rms(data, parts) or 0.0)  # a wrong side is not an "effect"
@@ -146,13 +147,12 @@ def _diagnosed(data, parts, level, sigma):
         own = exc
     if parts == "sensor+sphere" and not isinstance(own, Exception) and np.all(np.isfinite(own.sphere_centre)):
         data = dataclasses.replace(data, sphere_centre=np.asarray(own.sphere_centre, float))
-    result = procedure.diagnose(data, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
+    searched = searched_samples(data)  # beyond ROW_CHUNK samples, that many spread over the rows: as calibrate's
+    result = procedure.diagnose(searched, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
     result = dataclasses.replace(result, unknowns=parts,
                                  own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float))
     result = result.in_user_frame()  # calibrate's pose (own) is of the user's frame too
-    against = (f"calibrate refuses these data: {own}" if isinstance(own, Exception)
-               else procedure.against_calibrate(result, own))
-    return dataclasses.replace(result, against_calibrate=against), data
+    return agreement.at_calibration(result, own, len(searched), len(data)), data
 
 
 def _diagnosis_figures(result, figures, plot):

@@ -2,8 +2,17 @@
 form ``nlpsol`` takes: one SX graph of every row up to
 :data:`handeye.model.fit.calibration.NLP_CALLBACK_ABOVE` rows, a callback to the model's own numpy
 cost, gradient and Hessian above (:mod:`handeye.model.fit.nlp_callback`); the orthogonality
-constraints of the ``matrix`` parametrisation as ``g``."""
+constraints of the ``matrix`` parametrisation as ``g``.
+
+The graph depends on the data only through ``p``: it is built once per problem structure (the
+rows' residual, its parametrisation and kind, the number of rows, what is free, the sphere radius of
+a profile model) and kept (:func:`_template`); its dict's ``'structure'`` names that structure, so
+that :mod:`handeye.solvers.ipopt` builds ``nlpsol`` once per structure too and solves every
+calibration of that shape with its own ``p_value``.
+"""
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -32,43 +41,58 @@ def nlp(model, resjac, n_rot, callback_above):
 
         cb = nlp_callback.cost_callback(model)
         x = ca.MX.sym("x", model.n)
-        out = {"x": x, "f": cb(x), "callback": cb}
+        out = {"x": x, "f": cb(x), "callback": cb, "g": _constraints(x, model.rotation)}
     else:
         out = _graph(model, resjac, n_rot)
-    x = out["x"]
-    if model.rotation == "matrix":
-        rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
-        m = ca.mtimes(rt.T, rt) - type(x).eye(3)
-        g = ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
-    else:
-        g = type(x)(0, 1)
-    ng = g.shape[0]
-    return {**out, "g": g, "lbg": np.zeros(ng), "ubg": np.zeros(ng)}
+    ng = out["g"].shape[0]
+    return {**out, "lbg": np.zeros(ng), "ubg": np.zeros(ng)}
+
+
+def _constraints(x, rotation):
+    """``g``: the six independent entries of ``R^T R - I`` of the ``matrix`` parametrisation (none for Euler)."""
+    import casadi as ca
+
+    if rotation != "matrix":
+        return type(x)(0, 1)
+    rt = ca.reshape(x[3:12], 3, 3).T  # row-major entries -> matrix
+    m = ca.mtimes(rt.T, rt) - type(x).eye(3)
+    return ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
 
 
 def _graph(model, resjac, n_rot):
-    """``x``, ``f``, ``p`` and ``p_value`` of :func:`nlp` as one SX graph of every row."""
+    """``x``, ``f``, ``p``, ``p_value`` and ``structure`` of :func:`nlp`: one SX graph of every row (the
+    structure's, kept), the model's data as the parameter values."""
+    m = model.m
+    radius = float(model.radius) if model.kind != "centre" else None
+    structure = ("calibration-graph", resjac, n_rot, m, len(model._data), model.n, model.n_meas,
+                 model.unknowns == "sensor+sphere", radius)
+    whiten = model.whiten if model.whiten is not None else np.broadcast_to(np.eye(m), (model.n_meas, m, m))
+    table = np.concatenate([np.stack(model._data), whiten.reshape(model.n_meas, m * m).T])
+    p_value = table.ravel(order="F")  # ca.vec is column-major
+    if model.unknowns != "sensor+sphere":
+        p_value = np.concatenate([p_value, model.fixed_centre])
+    return {**_template(structure), "p_value": p_value, "structure": structure}
+
+
+@functools.lru_cache(maxsize=32)
+def _template(structure):
+    """``x``, ``f``, ``g`` and ``p`` of the graph of a ``structure`` (:func:`_graph`), built once."""
     import casadi as ca
 
+    _, resjac, n_rot, m, n_data, n_x, n_meas, centre_free, radius = structure
     gen = codegen.casadi_function(resjac)
-    nr = n_rot
-    m = model.m
-    n_data = len(model._data)
-    x = ca.SX.sym("x", model.n)
+    x = ca.SX.sym("x", n_x)
     d = ca.SX.sym("d", n_data + m * m)
-    theta = ca.SX.sym("theta", 3 + nr + 3)
-    extra = [model.radius] if model.kind != "centre" else []
+    theta = ca.SX.sym("theta", 3 + n_rot + 3)
+    extra = [radius] if radius is not None else []
     e = ca.vertcat(*gen(*[theta[k] for k in range(theta.shape[0])], *extra, *[d[k] for k in range(n_data)])[:m])
     w = ca.reshape(d[n_data:], m, m).T  # row-major entries -> matrix
     one = ca.Function("e", [theta, d], [ca.mtimes(w, e)])
-    whiten = model.whiten if model.whiten is not None else np.broadcast_to(np.eye(m), (model.n_meas, m, m))
-    table = np.concatenate([np.stack(model._data), whiten.reshape(model.n_meas, m * m).T])
-    data = ca.SX.sym("data", table.shape[0], model.n_meas)
-    p_value = table.ravel(order="F")  # ca.vec is column-major
-    if model.unknowns == "sensor+sphere":
+    data = ca.SX.sym("data", n_data + m * m, n_meas)
+    if centre_free:
         p, full = ca.vec(data), x
     else:
         cfix = ca.SX.sym("c", 3)
         p, full = ca.vertcat(ca.vec(data), cfix), ca.vertcat(x, cfix)
-        p_value = np.concatenate([p_value, model.fixed_centre])
-    return {"x": x, "f": 0.5 * ca.sumsqr(one.map(model.n_meas)(full, data)), "p": p, "p_value": p_value}
+    return {"x": x, "f": 0.5 * ca.sumsqr(one.map(n_meas)(full, data)), "p": p,
+            "g": _constraints(x, "matrix" if n_rot == 9 else "euler")}

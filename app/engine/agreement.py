@@ -1,0 +1,124 @@
+"""One answer per dataset: the diagnosis reports calibrate's pose wherever its search chose calibrate's model.
+
+``handeye diagnose`` runs the discrepancy search (:mod:`handeye.app.engine.diagnose`) beside the calibration
+``handeye calibrate`` gives on the same data, with the same options. Calibrate *is* that search
+(:mod:`handeye.app.engine.search`): it ends in the model the search chooses, fitted in calibrate's own residual
+model (for profile data the measured circles, the exact likelihood, where the search fits the sphere centres
+rebuilt from them in their first-order metric) and to every sample (the search runs on
+:data:`~handeye.model.fit.calibration.ROW_CHUNK` of them spread over the rows where there are more). So where
+the search names the model calibrate fitted, the diagnosis's pose, its 1-sd and its named effects' values are
+calibrate's (:func:`at_calibration`); the search's own fit stays in the story (its steps, residuals and RMS)
+and the sentence :func:`against_calibrate` says how far it lies. Where the two models differ, the diagnosis
+keeps its own pose and the sentence says why they differ.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.app.engine.levels import AGREE_FLOOR, AGREE_SD
+from handeye.model.common.rotation import pose_distance
+
+#: Named "effects" that are no model calibrate fits: flipped samples, and the positioner's axes (the cell
+#: stage's ``--unknowns ...+positioner``).
+NOT_A_MODEL = ("sign_flip", "positioner_axes")
+
+
+def same_pose(distance):
+    """Whether a :func:`handeye.model.common.rotation.pose_distance` (with its ``sd``) is the same pose
+    (:data:`~handeye.app.engine.levels.AGREE_SD`, :data:`~handeye.app.engine.levels.AGREE_FLOOR`); without an
+    sd, only the floor decides."""
+    tiny = distance["translation_mm"] <= AGREE_FLOOR[0] and distance["rotation_deg"] <= AGREE_FLOOR[1]
+    return tiny or (distance["sd"] is not None and distance["sd"] <= AGREE_SD)
+
+
+def model_of(effects):
+    """The names of the catalogue effects a result's model fits (``effects``: NamedEffects or None)."""
+    return frozenset(e.name for e in effects or () if e.name not in NOT_A_MODEL)
+
+
+def at_calibration(result, own, searched, n):
+    """The diagnosis ``result`` with calibrate's pose where the search chose calibrate's model (module docstring).
+
+    Parameters
+    ----------
+    result : handeye.app.present.diagnosis_results.DiagnosisResult
+        Of the user's frame (``in_user_frame``), as ``own``.
+    own : handeye.app.present.results.CalibrationResult or Exception
+        ``handeye.calibrate`` on the same data and options; an InputError where it stopped.
+    searched, n : int
+        Samples the search ran on, and of the data.
+
+    Returns
+    -------
+    DiagnosisResult
+        With ``against_calibrate`` said, and calibrate's ``sensor2flange``, ``sensor_pose`` (KUKA),
+        ``sensor_pose_as``, ``std``, ``sphere_centre`` and effect values where the models are one.
+    """
+    note = "" if searched == n else (f"; the search ran on {searched:,} of the {n:,} samples, spread evenly over "
+                                     "the rows (it holds the whole Jacobian)")
+    if isinstance(own, Exception):
+        return dataclasses.replace(result, against_calibrate=f"calibrate refuses these data: {own}{note}")
+    if not (own.converged and model_of(own.effects) == model_of(result.effects)):
+        return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
+    d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
+                      own.parameter_names)
+    close = (f"within {AGREE_SD:g} sd" if same_pose(d) else
+             f"beyond {AGREE_SD:g} sd: " + ("; ".join(_why(result, own, effects=False)) or "the same model fitted twice"))
+    said = (f"the same pose as `handeye calibrate`'s: the search chose its model "
+            f"({', '.join(sorted(model_of(own.effects))) or 'no effect'}), and this is calibrate's fit of it "
+            f"({_how(own, searched, n)}); the search's own fit lies {_far(d)} from it, {close}{note}")
+    values = {e.name: e for e in own.effects or ()}
+    named = [dataclasses.replace(e, parameters=values[e.name].parameters, std=values[e.name].std)
+             if e.name in values else e for e in result.effects]
+    return dataclasses.replace(
+        result, sensor2flange=np.asarray(own.sensor2flange, float), sensor_pose=np.asarray(own.sensor_pose_kuka, float),
+        sensor_pose_as=np.asarray(own.sensor_pose, float), std=own.std, effects=named,
+        sphere_centre=np.asarray(own.sphere_centre, float), against_calibrate=said)
+
+
+def _how(own, searched, n):
+    """How calibrate fitted the model: its residual model and samples."""
+    model = "the sphere centres" if own.model == "centre" else f"the {own.model} model"
+    return f"{model}, {own.n_used:,} samples" + ("" if searched == n else ", every one")
+
+
+def _far(d):
+    """``x mm and y deg (z sd of calibrate's)`` of a :func:`pose_distance`."""
+    return (f"{d['translation_mm']:.3f} mm and {d['rotation_deg']:.4f} deg" +
+            ("" if d["sd"] is None else f" ({d['sd']:.2f} sd of calibrate's)"))
+
+
+def against_calibrate(result, own):
+    """Whether the diagnosis's pose is calibrate's (``own``, the same unknowns) within 1 sd, and
+    if not, why: the effects named (calibrate fits none unless ``--effects``), the residual model
+    (diagnose fits sphere centres; calibrate its default model), the samples excluded."""
+    if not own.converged:
+        verb = "refuses these data" if own.message.startswith(("not a calibration", "unexplained")) else \
+            "did not converge on these data"
+        return f"calibrate {verb} ({own.message}); nothing to compare"
+    d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
+                      own.parameter_names)
+    if same_pose(d):
+        return f"the same pose as `handeye calibrate`'s within {AGREE_SD:g} sd ({_far(d)} apart)"
+    why = _why(result, own)
+    return (f"{_far(d)} from `handeye calibrate`'s pose: " + ("; ".join(why) if why else
+            "the two fits differ though they have the same model and samples (report it)"))
+
+
+def _why(result, own, effects=True):
+    """Why the diagnosis's own fit differs from calibrate's: the effects it names (with ``effects``), the
+    residual model, the samples excluded."""
+    why = []
+    named = [e.name for e in result.effects if e.name != "sign_flip"]
+    if named and effects:
+        why.append(f"diagnose corrects the data by the effects it names ({', '.join(named)}), calibrate does not "
+                   f"(calibrate --effects {','.join(named)} does)")
+    if own.model != "centre":
+        why.append(f"the search fits the sphere centres, calibrate the {own.model} model (calibrate --model centre "
+                   "fits what the search fits)")
+    left_out = set(result.outliers) ^ set(own.outliers)
+    if left_out:
+        why.append(f"they exclude different samples ({', '.join(sorted(left_out)[:6])})")
+    return why
