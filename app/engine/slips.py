@@ -65,6 +65,7 @@ from handeye.app.engine.levels import (  # the verdict's levels, one place
     SIDE_MOVE_SD,
     SUSPECT_RMS_MM,
 )
+from handeye.model import effects as catalogue
 from handeye.model.chain import conventions
 from handeye.model.chain.pose import pose_from_transform
 from handeye.model.common.rotation import pose_distance, rotvec_from_matrix, transform_distance
@@ -513,6 +514,25 @@ def check_centre(dataset, sigma=None, effects=()):
            if robot else ". Correct [sphere] center, or calibrate with --unknowns sensor+sphere"))
 
 
+def _rival(prob, held, plain, radius, mask):
+    """The catalogue's first data effect of as many parameters as ``sphere_radius`` that fits the samples as
+    well as the radius does (``radius``, the fit with it; ``plain`` without: its start), within one unit of the
+    residual variance (the rule by which :func:`handeye.app.engine.diagnose._swapped` exchanges equal-size
+    effects), or None. A line scanner's ``sensor_scale`` is, to first order, a ``sphere_radius`` of R s plus a
+    ``centre_scale``: profiles scaled by the sensor are no wrong diameter."""
+    unit = radius.ssr / max(radius.m - radius.p, 1)
+    size = len(catalogue.get("sphere_radius").PARAMS)
+    for effect in catalogue.catalogue():
+        if effect.KIND != "data" or effect.NAME == "sphere_radius" or len(effect.PARAMS) != size:
+            continue
+        trial = dataclasses.replace(held, data_effects=(effect.NAME,))
+        with np.errstate(all="ignore"):
+            other = prob.fit(trial, mask, plain.x)
+        if np.isfinite(other.ssr) and other.ssr <= radius.ssr + unit:
+            return effect.NAME
+    return None
+
+
 def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     """Raise :class:`CalibrationInputError` when ``[sphere] diameter`` contradicts the data beyond
     the pose's own uncertainty.
@@ -524,8 +544,9 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     (:func:`check_centre`): when the centre model is worse than the stated noise, the model with
     the radius free (the catalogue's ``sphere_radius``) is the alternative, named when it fits
     significantly better (F test on one parameter, p below :data:`P_SLIP`), fits within the
-    stated noise (the radius alone explains the misfit) and moves the pose by more than
-    :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
+    stated noise (the radius alone explains the misfit), fits better than every other data effect of
+    as many parameters (:func:`_rival`: a sensor's scale is no wrong diameter) and moves the pose by
+    more than :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
     depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
     """
     from handeye.model.fit import extended
@@ -554,6 +575,8 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     f = (a.ssr - b.ssr) / (b.ssr / (b.m - b.p))
     if f <= 0 or f_survival(f, 1, b.m - b.p) >= P_SLIP or chi2_survival(b.ssr / sigma**2, b.m - b.p) < P_SUSPECT:
         return
+    if _rival(prob, held, a, b, mask) is not None:
+        return  # another effect of as many parameters explains the profiles as well: no slip to name
     jac = b.jac[mask].reshape(-1, b.p)
     cov = b.sigma2 * np.linalg.pinv(jac.T @ jac)
     moved = pose_distance(prob.transform(b.x), prob.transform(a.x), cov, b.names)
