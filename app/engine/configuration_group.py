@@ -24,14 +24,11 @@ import copy
 
 import numpy as np
 
+from handeye.app.engine.levels import AT_NOISE
 from handeye.model import effects
 from handeye.model.common.statistics import f_survival
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.robot import configuration
-
-#: chi2/dof below which a fit leaves nothing beyond the nominal noise (diagnose's own line between
-#: "nothing beyond the nominal noise" and "an effect outside the catalogue remains").
-AT_NOISE = 2.0
 
 
 def deferred(dataset, mask, request):

@@ -14,6 +14,7 @@ import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import effect_size, robot_choice, robust
+from handeye.app.engine.levels import GROSS_ERROR_Z, NOISE_ALPHA  # the verdict's levels, one place
 from handeye.app.present.residual_table import ResidualTable, SampleResidual
 from handeye.app.present.result_parts import (
     EffectsRecord,
@@ -40,8 +41,6 @@ from handeye.model.geometry import circle
 #: How the warning of a failed noise test begins (:func:`noise_test`; an output that recomputes
 #: the test, :mod:`handeye.app.engine.held_verdict`, writes its own instead of a saved one).
 NOISE_WARNING = "the residuals are larger than the stated noise"
-#: A residual this many robust standard deviations above the median is flagged.
-GROSS_ERROR_Z = 10.0
 
 
 def gross_error_warnings(ids, norms):
@@ -75,9 +74,6 @@ def _noise_model_text(local):
             "(rotation about the sensor's axes)")
 
 
-#: Level of the test of the fit against the stated noise (a warning; strict, so that clean data
-#: of a slightly miscalibrated noise model are not flagged: 2 of 120 clean runs at 0.01).
-NOISE_ALPHA = 0.001
 
 
 def command_argument(dataset):

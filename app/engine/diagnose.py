@@ -38,6 +38,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust
+from handeye.app.engine.levels import AT_NOISE
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
 from handeye.app.present.result_parts import NamedEffect, PowerStatement, Uncertainty, cleaning_summary
@@ -566,7 +567,7 @@ def _report(run, structure, fit, flips, outliers):
 
 def _unexplained(after, sigma):
     ratio = after["chi2_dof"]
-    if ratio < 2.0:
+    if ratio < AT_NOISE:
         return f"nothing beyond the nominal noise: chi2/dof {ratio:.2f} at sigma = {sigma:g} mm"
     return (f"residual scatter sigma = {after['sigma_mm']:.3f} mm is {np.sqrt(ratio):.1f} x the nominal {sigma:g} mm: "
             "an effect outside the catalogue (or a larger noise than assumed) remains")

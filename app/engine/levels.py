@@ -59,6 +59,22 @@ GROUP_AGREE = 2.0
 #: ... at a pose this far from the reported one (mm, deg) are a second group, not gross errors.
 GROUP_APART_MM, GROUP_APART_DEG = 2.0, 1.0
 
+# -- the fit against the stated noise, and what remains (app/engine/describe.py, diagnose.py) -----------
+#: Level of the test of the fit against the stated noise (a warning; strict, so that clean data
+#: of a slightly miscalibrated noise model are not flagged: 2 of 120 clean runs at 0.01).
+NOISE_ALPHA = 0.001
+#: chi2/dof below which a fit leaves nothing beyond the nominal noise (diagnose's line between
+#: "nothing beyond the nominal noise" and "an effect outside the catalogue remains"; the configuration
+#: group's test of a group kept with an effect).
+AT_NOISE = 2.0
+#: A residual this many robust standard deviations above the median is flagged.
+GROSS_ERROR_Z = 10.0
+#: A widened uncertainty is warned of where the widening (what the data could not see,
+#: app/engine/search.py) grows a pose component's sd by more than this factor: the upper end of the band in
+#: which a reported sd counts as right (observed / reported 0.8-1.25, the independent generators' checks); a
+#: smaller widening (30 poses at 0.05 mm: 1-5 %) is said in the report's power line and the JSON only.
+POWER_WARN_GROWTH = 1.25
+
 # -- one model fitted twice: the search's pose against calibrate's (app/engine/agreement.py, search.py) ----
 #: Two poses are the same when they lie within this many sd of the reported one (Mahalanobis distance in
 #: its covariance, 6 dof) -- or closer than AGREE_FLOOR (mm, deg), where a noise-free fit's sd is itself

@@ -45,18 +45,13 @@ import numpy as np
 from handeye.app.engine import cell_stage, diagnose
 from handeye.app.engine.agreement import NOT_A_MODEL, same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
-from handeye.app.engine.levels import AGREE_SD
+from handeye.app.engine.levels import AGREE_SD, POWER_WARN_GROWTH
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import spread
 
 #: How the warning of a widened uncertainty begins (:func:`with_power`).
 POWER_WARNING = "the data lack the power to see every effect (few samples, much noise): the 1 sd is widened"
-#: The warning is given where the widening grows a pose component's sd by more than this factor: the
-#: upper end of the band in which a reported sd counts as right (observed / reported 0.8-1.25, the
-#: independent generators' checks); a smaller widening (30 poses at 0.05 mm: 1-5 %) is said in the
-#: report's power line and the JSON only.
-POWER_WARN_GROWTH = 1.25
 
 
 def searchable(request, dataset, result):
