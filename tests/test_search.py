@@ -10,7 +10,7 @@ from handeye.app.command.cli import EXIT_NOT_CONVERGED, EXIT_OK, main
 from handeye.app.engine import calibrate as engine
 from handeye.app.engine import search
 from handeye.model.chain.pose import transform_from_pose
-from handeye.model.common.rotation import transform_distance
+from handeye.model.common.rotation import pose_distance, transform_distance
 from handeye.model.fit import extended
 
 
@@ -132,9 +132,16 @@ def test_a_positioner_cell_is_searched_too(positioner_scale):
     assert dt < 0.2 and dr < 0.08
 
 
-def test_calibrated_axes_with_an_effect_beside_them_are_refused(positioner_scale):
-    """The cell stage cannot fit the scale with the axes: refused naming it (before: exit 0 at 0.66 mm, 42 sd)."""
-    r = handeye.calibrate(positioner_scale["off"].path, unknowns="sensor+positioner", no_loo=True)
-    assert not r.converged
-    assert "at the positioner's calibrated axes the discrepancy search names sensor_scale (s = " in r.message
-    assert "sd of its own (more than 1)" in r.message
+def test_calibrated_axes_with_an_effect_beside_them_are_fitted_together(positioner_scale):
+    """The search names the scale beside the calibrated axes; the cell stage fits it with them (before: exit 0 at
+    0.66 mm, 42 sd; then refused): at the truth, the scale within 3 of its sd, the axes calibrated, the command
+    that gives the same named."""
+    made = positioner_scale["off"]
+    r = handeye.calibrate(made.path, unknowns="sensor+positioner", no_loo=True)
+    assert r.converged and [e.name for e in r.effects] == ["sensor_scale"] and r.positioner.calibrated
+    (scale,) = r.effects
+    assert abs(scale.parameters["s"] - 0.002) < 3 * scale.std["s"]
+    assert "sensor_scale.s" in r.parameter_names and "e1_tilt1" in r.parameter_names
+    truth = transform_from_pose(made.dataset.truth["sensor_pose"])
+    assert pose_distance(r.sensor2flange, truth, r.covariance, r.parameter_names)["sd"] < 4
+    assert "--unknowns sensor+positioner --effects sensor_scale" in r.warnings[0]  # the command that gives the same

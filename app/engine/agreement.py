@@ -1,4 +1,4 @@
-"""One answer per dataset: the diagnosis reports calibrate's pose wherever its search chose calibrate's model.
+"""One answer per dataset: the diagnosis reports calibrate's pose where its search chose calibrate's model.
 
 ``handeye diagnose`` runs the discrepancy search (:mod:`handeye.app.engine.diagnose`) beside the calibration
 ``handeye calibrate`` gives on the same data, with the same options. Calibrate *is* that search
@@ -6,10 +6,13 @@
 model (for profile data the measured circles, the exact likelihood, where the search fits the sphere centres
 rebuilt from them in their first-order metric) and to every sample (the search runs on
 :data:`~handeye.model.fit.calibration.ROW_CHUNK` of them spread over the rows where there are more). So where
-the search names the model calibrate fitted, the diagnosis's pose, its 1-sd and its named effects' values are
-calibrate's (:func:`at_calibration`); the search's own fit stays in the story (its steps, residuals and RMS)
-and the sentence :func:`against_calibrate` says how far it lies. Where the two models differ, the diagnosis
-keeps its own pose and the sentence says why they differ.
+the search names the model calibrate fitted and its own fit lies within :data:`~handeye.app.engine.levels.AGREE_SD`
+of calibrate's sd (or it ran on a subsample, whose pose scatters by its own sd), the diagnosis's pose, 1-sd and
+named effects' values are calibrate's (:func:`at_calibration`); the search's own fit stays in the story (its
+steps, residuals and RMS) and the sentence :func:`against_calibrate` says how far it lies. Where the models
+differ, or the search's own fit of the same model on the same samples lies beyond that (another residual
+model: on 10 poses of a 1-inch ball the rebuilt centres and the circles put the pose 1.55 sd apart), the
+diagnosis keeps its own pose and the sentence says why the two differ.
 """
 from __future__ import annotations
 
@@ -20,8 +23,8 @@ import numpy as np
 from handeye.app.engine.levels import AGREE_FLOOR, AGREE_SD
 from handeye.model.common.rotation import pose_distance
 
-#: Named "effects" that are no model calibrate fits: flipped samples, and the positioner's axes (the cell
-#: stage's ``--unknowns ...+positioner``).
+#: Named "effects" that are no model the search's refit takes: flipped samples, and the positioner's axes (the
+#: cell stage's ``--unknowns ...+positioner``).
 NOT_A_MODEL = ("sign_flip", "positioner_axes")
 
 
@@ -34,8 +37,10 @@ def same_pose(distance):
 
 
 def model_of(effects):
-    """The names of the catalogue effects a result's model fits (``effects``: NamedEffects or None)."""
-    return frozenset(e.name for e in effects or () if e.name not in NOT_A_MODEL)
+    """The names of what a result's model fits besides the pose (``effects``: NamedEffects or None): every
+    named effect but flipped samples (a diagnosis's ``positioner_axes`` too: calibrate with
+    ``--unknowns sensor[+sphere]`` holds the axes)."""
+    return frozenset(e.name for e in effects or () if e.name != "sign_flip")
 
 
 def at_calibration(result, own, searched, n):
@@ -64,11 +69,12 @@ def at_calibration(result, own, searched, n):
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
                       own.parameter_names)
-    close = (f"within {AGREE_SD:g} sd" if same_pose(d) else
-             f"beyond {AGREE_SD:g} sd: " + ("; ".join(_why(result, own, effects=False)) or "the same model fitted twice"))
+    if not same_pose(d) and searched == n:  # the same model, another fit of it: said, and the search's pose kept
+        return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     said = (f"the same pose as `handeye calibrate`'s: the search chose its model "
             f"({', '.join(sorted(model_of(own.effects))) or 'no effect'}), and this is calibrate's fit of it "
-            f"({_how(own, searched, n)}); the search's own fit lies {_far(d)} from it, {close}{note}")
+            f"({_how(own)}); the search's own fit lies {_far(d)} from it"
+            + (f", within {AGREE_SD:g} sd" if same_pose(d) else "") + note + _exclusions(result, own))
     values = {e.name: e for e in own.effects or ()}
     named = [dataclasses.replace(e, parameters=values[e.name].parameters, std=values[e.name].std)
              if e.name in values else e for e in result.effects]
@@ -78,10 +84,16 @@ def at_calibration(result, own, searched, n):
         sphere_centre=np.asarray(own.sphere_centre, float), against_calibrate=said)
 
 
-def _how(own, searched, n):
-    """How calibrate fitted the model: its residual model and samples."""
+def _how(own):
+    """How calibrate fitted the model: its residual model and the samples it kept."""
     model = "the sphere centres" if own.model == "centre" else f"the {own.model} model"
-    return f"{model}, {own.n_used:,} samples" + ("" if searched == n else ", every one")
+    return model + ("" if own.n_used is None else f", the {own.n_used:,} samples it kept")
+
+
+def _exclusions(result, own):
+    """``; they exclude different samples (...)`` where the search's exclusions are not calibrate's, else ''."""
+    left_out = set(result.outliers) ^ set(own.outliers)
+    return f"; they exclude different samples ({', '.join(sorted(left_out)[:6])})" if left_out else ""
 
 
 def _far(d):
@@ -107,18 +119,17 @@ def against_calibrate(result, own):
             "the two fits differ though they have the same model and samples (report it)"))
 
 
-def _why(result, own, effects=True):
-    """Why the diagnosis's own fit differs from calibrate's: the effects it names (with ``effects``), the
-    residual model, the samples excluded."""
+def _why(result, own):
+    """Why the diagnosis's own fit differs from calibrate's: the effects it names (where calibrate's model has
+    others), the residual model, the samples excluded."""
     why = []
     named = [e.name for e in result.effects if e.name != "sign_flip"]
-    if named and effects:
+    if named and model_of(result.effects) != model_of(own.effects):
         why.append(f"diagnose corrects the data by the effects it names ({', '.join(named)}), calibrate does not "
                    f"(calibrate --effects {','.join(named)} does)")
     if own.model != "centre":
         why.append(f"the search fits the sphere centres, calibrate the {own.model} model (calibrate --model centre "
                    "fits what the search fits)")
-    left_out = set(result.outliers) ^ set(own.outliers)
-    if left_out:
-        why.append(f"they exclude different samples ({', '.join(sorted(left_out)[:6])})")
+    if _exclusions(result, own):
+        why.append(_exclusions(result, own)[2:])
     return why

@@ -198,10 +198,17 @@ def run(request, dataset):
         raise ValueError("run() takes a checked request: CalibrationRequest(...).checked(dataset)")
     request.checked(dataset)  # a request checked against other data is refused (ValueError)
     result = cell_stage.extend(request, dataset, stages) if request.cell else stages(request, dataset)
-    result = search.chosen(request, dataset, result, lambda asked, data: stages(asked.checked(data), data))
+    result = search.chosen(request, dataset, result, _refit)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
     result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
+
+
+def _refit(asked, dataset):
+    """The requested model's fit of another (unchecked) request: the stages, and the cell stage where its parts
+    need it (the search's model with the positioner's axes: fitted together)."""
+    checked = asked.checked(dataset)
+    return cell_stage.extend(checked, dataset, stages) if checked.cell else stages(checked, dataset)
 
 
 def stages(request, dataset):

@@ -31,8 +31,10 @@ import numpy as np
 from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine.levels import FAR_ON_FLANGE_MM, HELD_FACTOR, P_HELD, SURELY_FAR_MM  # the verdict's levels, one place
+from handeye.app.engine.request import DATA_EFFECTS  # the cell fit fits them with the parts
 from handeye.app.present.residual_table import ResidualTable
 from handeye.app.present.result_parts import PositionerRecord, Uncertainty
+from handeye.model import effects as catalogue
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import inverse_transforms
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
@@ -62,16 +64,30 @@ class CellFit:
     converged: bool
     iterations: int
     message: str
+    #: the data effects fitted with the parts: name -> parameters
+    params: dict = dataclasses.field(default_factory=dict)
 
 
-def cell_model(dataset, free, axes=None):
+@dataclasses.dataclass(frozen=True)
+class Start:
+    """Where a cell fit starts (a :class:`CellFit` serves too): the sensor 4x4 and the centre (3,) in their mounts'
+    frames (mm), the data effects fitted with the parts (name -> parameters)."""
+
+    sensor: np.ndarray
+    centre: np.ndarray
+    params: dict = dataclasses.field(default_factory=dict)
+
+
+def cell_model(dataset, free, axes=None, effects=()):
     """The cell model of a dataset: with the positioner free, the flange poses and the axis angles
     (``axes``: the names of those estimated, None: all); otherwise the carrier motions (the
-    positioner, if any, at its current axes)."""
+    positioner, if any, at its current axes); ``effects``: the data effects fitted with the parts."""
+    radius = dataset.sphere_diameter / 2
     if "positioner" in free:
         return CellModel(np.asarray(dataset.flange2base()), dataset.centre_in_sensor, dataset.axis_angles,
-                         dataset.mounts.axis_names, free, None if axes is None else tuple(axes))
-    return CellModel(np.asarray(dataset.motions()), dataset.centre_in_sensor, np.zeros((len(dataset), 0)), (), free)
+                         dataset.mounts.axis_names, free, None if axes is None else tuple(axes), tuple(effects), radius)
+    return CellModel(np.asarray(dataset.motions()), dataset.centre_in_sensor, np.zeros((len(dataset), 0)), (), free,
+                     effects=tuple(effects), radius=radius)
 
 
 def check_determined(model, x, path):
@@ -95,12 +111,13 @@ def turning_axes(dataset, least=3):
                  if len(np.unique(np.round(col, 6))) >= least)
 
 
-def fit(dataset, free, sensor, centre, mask, axes=None):
-    """Fit the ``free`` parts from the sensor 4x4 and centre given, on the samples of ``mask``
-    (``axes``: with the positioner free, the axes estimated; None: all)."""
-    model = cell_model(dataset, free, axes).subset(np.asarray(mask, bool))
+def fit(dataset, free, start, mask, axes=None):
+    """Fit the ``free`` parts (and the data effects ``start.params`` names) from ``start`` (:class:`Start`), on the
+    samples of ``mask`` (``axes``: with the positioner free, the axes estimated; None: all)."""
+    effects = start.params or {}
+    model = cell_model(dataset, free, axes, tuple(effects)).subset(np.asarray(mask, bool))
     axes = dataset.mounts.axes if "positioner" in free else ()
-    x0 = pack(sensor, centre, axes)
+    x0 = np.concatenate([pack(start.sensor, start.centre, axes), *(np.asarray(v, float) for v in effects.values())])
     check_determined(model, x0, dataset.path)
     at = solvers.last_point(model.evaluate)  # the Jacobian at the residual's point: one evaluation
     problem = solvers.Problem(n=model.n, residual=lambda x: at(x)[0].ravel(), retract=model.retract,
@@ -113,7 +130,7 @@ def fit(dataset, free, sensor, centre, mask, axes=None):
     cov = sigma**2 * np.linalg.inv(jac.T @ jac) if ident.full_rank else None
     s, c, ax = unpack(res.x, model.axis_names)
     return CellFit(model, res.x, s, c, ax if axes else (), cov, sigma, ident, bool(res.converged),
-                   int(res.iterations), str(res.message))
+                   int(res.iterations), str(res.message), model.effect_params(res.x))
 
 
 def _block_sd(fitted, part_names):
@@ -162,17 +179,32 @@ def extend(request, dataset, stages):
         return dataclasses.replace(result, unknowns=request.parts)
     held = None if "sensor" in free else known_sensor(request, dataset)
     centre = result.sphere_centre if "sphere" in free else dataset.sphere_centre  # held: the setup's
-    fitted = fit(dataset, free, result.sensor2flange if held is None else held, centre, mask_of(result))
+    effects = data_effects(result)  # fitted with the parts, from the conditional fit's values
+    fitted = fit(dataset, free, Start(result.sensor2flange if held is None else held, centre, effects), mask_of(result))
     for _ in range(PASSES - 1 if "positioner" in free else 0):
         dataset = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes))  # the fitted axes: the next start
         mask = mask_of(result)
         result = stages(request, dataset)
         if not solved(result):
             break
-        fitted = fit(dataset, free, fitted.sensor, fitted.centre, mask_of(result))
+        fitted = fit(dataset, free, fitted, mask_of(result))
         if np.array_equal(mask, mask_of(result)):
             break
     return compose(request, dataset, result, fitted, free, nominal)
+
+
+def data_effects(result):
+    """The data effects (:mod:`handeye.model.effects`, kind ``data``) a result calibrated: name -> parameters."""
+    return {e.name: np.array(list(e.parameters.values()), float) for e in result.effects or ()
+            if e.name in DATA_EFFECTS}
+
+
+def corrected_centres(dataset, params):
+    """The dataset's measured centres (N, 3) corrected by the data effects ``params`` (name -> parameters)."""
+    xs = dataset.centre_in_sensor
+    for name, p in params.items():
+        xs = catalogue.correct(name, xs, dataset.sphere_diameter / 2, p)[0]
+    return xs
 
 
 def solved(result):
@@ -185,7 +217,7 @@ def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
     data = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes)) if fitted.axes else dataset
-    xs = np.column_stack([data.centre_in_sensor, np.ones(len(data))])
+    xs = np.column_stack([corrected_centres(data, fitted.params), np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
     norms, used = np.linalg.norm(e, axis=1), mask_of(result)
     loo = getattr(result.residuals, "loo", None)
@@ -220,7 +252,7 @@ def held_contradicted(dataset, request, fitted, free, mask):
     if not held:
         return test, None
     try:
-        loose = fit(dataset, every, fitted.sensor, fitted.centre, mask, axes=turning or None)
+        loose = fit(dataset, every, fitted, mask, axes=turning or None)  # the same effects, every part free
     except CalibrationInputError:
         return test, None  # the data cannot estimate what is held: nothing to contradict it
     q = loose.model.residual(loose.x)
@@ -267,8 +299,27 @@ def compose(request, dataset, result, fitted, free, nominal):
     if not fitted.ident.full_rank:
         warnings.append(f"at the solution the data do not determine: {fitted.ident.describe_null()}")
     positioner = positioner_record(fitted, nominal, "positioner" in free) if dataset.mounts.sphere == "positioner" else None
-    return dataclasses.replace(result, unknowns=request.parts, fit=fit_part, uncertainty=unc,
-                               identifiability=fitted.ident, warnings=warnings, positioner=positioner)
+    out = dataclasses.replace(result, unknowns=request.parts, fit=fit_part, uncertainty=unc,
+                              identifiability=fitted.ident, warnings=warnings, positioner=positioner)
+    return _with_fitted_effects(out, fitted, dataset.sphere_centre)
+
+
+def _with_fitted_effects(result, fitted, given_centre):
+    """``result`` with the effects' values and 1-sd of the cell fit, which fitted them with the parts: the data
+    effects', and ``sphere_center`` (the fitted centre's offset from ``given_centre``, the setup's)."""
+    if not result.effects:
+        return result
+    sd = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)) if fitted.covariance is not None else None
+    names = fitted.model.names
+    values = {name: dict(zip(catalogue.get(name).PARAMS, p.tolist())) for name, p in fitted.params.items()}
+    columns = {name: [f"{name}.{k}" for k in v] for name, v in values.items()}
+    if "cx" in names and given_centre is not None:
+        values["sphere_center"] = dict(zip(("dx", "dy", "dz"), (fitted.centre - given_centre).tolist()))
+        columns["sphere_center"] = ["cx", "cy", "cz"]
+    named = [dataclasses.replace(e, parameters=values[e.name], std=None if sd is None else {
+        k: float(sd[names.index(c)]) for k, c in zip(values[e.name], columns[e.name])})
+        if e.name in values else e for e in result.effects]
+    return dataclasses.replace(result, catalogue=dataclasses.replace(result.catalogue, calibrated=named))
 
 
 def _other_mount_fits_better(dataset):

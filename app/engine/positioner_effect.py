@@ -49,7 +49,7 @@ class AxesFinding:
 def _fit(dataset, free, sensor, mask, centre=None):
     """The cell fit with the turning axes (:func:`handeye.app.engine.cell_stage.turning_axes`) free."""
     centre = dataset.sphere_centre if centre is None else centre
-    return cell_stage.fit(dataset, free, sensor, centre, mask, axes=cell_stage.turning_axes(dataset))
+    return cell_stage.fit(dataset, free, cell_stage.Start(sensor, centre), mask, axes=cell_stage.turning_axes(dataset))
 
 
 def heldout_rms(dataset, free, fitted, mask):

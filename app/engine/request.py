@@ -34,6 +34,8 @@ LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).
 EFFECTS = ("sensor_scale", "centre_scale", "sphere_radius", "sphere_center", "joint_offsets", "link_lengths", "joint_compliance")
+#: The effects the cell stage fits with the parts (:func:`handeye.app.engine.cell_stage.fit`): the data effects.
+DATA_EFFECTS = ("sensor_scale", "sphere_radius", "centre_scale")
 
 
 def fingerprint(dataset):
@@ -126,8 +128,12 @@ def _conditional(parts, dataset, sensor_pose, effects):
                                     "or --calibration FILE (an earlier calibrate --out)")
     if "sphere" not in parts and dataset.sphere_centre is None:
         raise CalibrationInputError(f"--unknowns {parts} holds the sphere: give [sphere] center in {setup}")
-    if effects:
-        raise CalibrationInputError(f"--effects works with --unknowns sensor or sensor+sphere, not {parts}")
+    other = [n for n in effects if n not in DATA_EFFECTS]
+    if other:
+        raise CalibrationInputError(
+            f"--effects {','.join(other)} with --unknowns {parts}: the cell stage fits the data effects "
+            f"({', '.join(DATA_EFFECTS)}) with the parts" + (" (sphere_center: add sphere to --unknowns)"
+                                                              if "sphere_center" in other else ""))
     return "sensor+sphere" if "sphere" in parts or "sensor" not in parts else "sensor"
 
 

@@ -26,10 +26,11 @@ A sphere on a positioner is searched at the axes the result stands on (set up, o
 ``--unknowns ...+positioner``: :func:`handeye.app.engine.cell_stage.dataset_at`). Where the search
 finds the set-up axes off, the positioner's own test refuses next
 (:func:`handeye.app.engine.positioner_effect.with_positioner_hint`, naming ``--unknowns
-...+positioner``); where it names catalogue effects on top of calibrated axes and its pose with
-them lies beyond ``AGREE_SD`` of the result's sd, the result is refused: the cell stage cannot yet
-estimate effects with the axes (its fit leaves them in the pose: a 0.2 % sensor scale put a
-calibrated-axes pose 0.66 mm, 42 sd, from the truth); within it, a warning names them.
+...+positioner``); where it names data effects on top of calibrated axes, the cell stage fits them
+together with the axes (:func:`handeye.app.engine.cell_stage.fit`: a 0.2 % sensor scale had put a
+calibrated-axes pose 0.66 mm, 42 sd, from the truth; refused since; now 0.10 mm, 2.5 sd, the scale
+0.00196 +- 0.00009); a sphere centre or robot effect beside them whose pose lies beyond ``AGREE_SD`` of
+the result's sd is refused (:func:`_beside_axes`), within it a warning names it.
 
 So calibrate does not exit 0 with a model its search replaces. Data of more than ``ROW_CHUNK`` samples
 are searched on that many spread over the rows (:func:`searched_samples`; a warning says so), the model
@@ -101,8 +102,8 @@ def chosen(request, dataset, result, refit):
     if any(e.name == "positioner_axes" for e in found.effects) and "positioner" not in request.parts:
         return result  # held axes that are off: the positioner's own test refuses next, naming the option
     names = _model_of(found)
-    if names and request.cell and not request.chosen:
-        result = _beside_axes(result, found, names, dataset, request)
+    if names and request.cell and not request.chosen and not set(names) <= set(cell_stage.DATA_EFFECTS):
+        result = _beside_axes(result, found, names, dataset, request)  # a centre or robot effect beside the axes
     elif names and not request.chosen:  # the model the data choose: the same model as the search's from here
         result = _with_effects(request, dataset, result, refit, names, found)
     elif len(searched) < len(dataset) and names_differ(found, request):  # its model fitted to every sample decides
@@ -170,7 +171,8 @@ def _unchecked_result(result, why):
 
 def _with_effects(request, dataset, result, refit, names, found):
     """The fit with the effects the search named (a warning says it chose them, and why)."""
-    asked = dataclasses.replace(request, effects=names)  # resolved reset: checked again by the refit
+    # resolved reset: checked again by the refit, from the parts asked (a cell's, not its conditional unknowns)
+    asked = dataclasses.replace(request, effects=names, unknowns=request.parts)
     fitted = refit(asked, dataset)
     steps = ", ".join(f"{s.step}: RMS {s.rms_mm:.3g} mm" for s in found.steps)
     note = (f"the data choose the model with {', '.join(names)}: the discrepancy search names "
@@ -182,7 +184,8 @@ def _with_effects(request, dataset, result, refit, names, found):
 
 
 def _beside_axes(result, found, names, dataset, request):
-    """A calibration of the positioner's axes beside which the search names effects: refused where the
+    """A calibration of the positioner's axes beside which the search names effects other than data effects
+    (which the cell stage fits with the axes: :func:`_with_effects`): refused where the
     search's pose (with them, at the calibrated axes) lies beyond :data:`~handeye.app.engine.levels.AGREE_SD` of the
     result's own sd; else kept, with a warning naming them (a 0.007 % scale on a clean cell, 3 of its sd,
     moves the pose by a fraction of its sd)."""
@@ -212,7 +215,8 @@ def _on_every_sample(request, dataset, found, refit):
     subsample (:func:`searched_samples`) has a pose that scatters about the full fit's by its own sd, which the
     1-sd rule of one model fitted twice would take for a contradiction."""
     names = _model_of(found)
-    asked = dataclasses.replace(request, effects=names, chosen=True, model="centre" if names else request.model)
+    asked = dataclasses.replace(request, effects=names, chosen=True, model="centre" if names else request.model,
+                                unknowns=request.parts)
     fitted = refit(asked, dataset)
     if not fitted.converged:
         return found
@@ -250,6 +254,6 @@ def names_differ(found, request):
 
 def _command(verb, dataset, request):
     """``handeye VERB DATASET`` with the request's unknowns when the centre is free."""
-    free = " --unknowns sensor+sphere" if request.unknowns == "sensor+sphere" else ""
+    free = "" if request.parts == "sensor" else f" --unknowns {request.parts}"
     return f"handeye {verb} {command_argument(dataset)}{free}"
 

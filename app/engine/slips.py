@@ -52,6 +52,7 @@ import numpy as np
 
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine.levels import (  # the verdict's levels, one place
+    AMBIGUOUS,
     DIAMETER_AGREE,
     DIAMETER_AGREE_MM,
     EQUATOR_BAND,
@@ -213,7 +214,7 @@ def free_axes_rms(dataset, unknowns):
     try:
         known = unknowns != "sensor+sphere" and dataset.sphere_centre is not None  # as _plain_fit held it
         free = ("sensor", "positioner") if known else ("sensor", "sphere", "positioner")
-        fitted = cell_stage.fit(dataset, free, best.sensor2flange, best.centre, np.ones(len(dataset), bool),
+        fitted = cell_stage.fit(dataset, free, cell_stage.Start(best.sensor2flange, best.centre), np.ones(len(dataset), bool),
                                 axes=cell_stage.turning_axes(dataset))
     except (global_fit.GlobalFitError, CalibrationInputError, np.linalg.LinAlgError):
         return rms
@@ -515,11 +516,13 @@ def check_centre(dataset, sigma=None, effects=()):
 
 
 def _rival(prob, held, plain, radius, mask):
-    """The catalogue's first data effect of as many parameters as ``sphere_radius`` that fits the samples as
-    well as the radius does (``radius``, the fit with it; ``plain`` without: its start), within one unit of the
-    residual variance (the rule by which :func:`handeye.app.engine.diagnose._swapped` exchanges equal-size
-    effects), or None. A line scanner's ``sensor_scale`` is, to first order, a ``sphere_radius`` of R s plus a
-    ``centre_scale``: profiles scaled by the sensor are no wrong diameter."""
+    """The catalogue's first data effect of as many parameters as ``sphere_radius`` that the samples clearly
+    prefer to the radius (``radius``, the fit with it; ``plain`` without: its start), or None. Equal-size
+    models: the lower SSR is the lower BIC, so "clearly" is a BIC lower by
+    :data:`~handeye.app.engine.levels.AMBIGUOUS` (Kass & Raftery's "strong"; in units of the residual variance),
+    its value physical. A line scanner's ``sensor_scale`` is, to first order, a ``sphere_radius`` of R s plus a
+    ``centre_scale``: where its second part shows, profiles scaled by the sensor are no wrong diameter; where
+    it does not (the centres seen in one spot), the two cannot be told apart, and the slip is named as before."""
     unit = radius.ssr / max(radius.m - radius.p, 1)
     size = len(catalogue.get("sphere_radius").PARAMS)
     for effect in catalogue.catalogue():
@@ -528,7 +531,8 @@ def _rival(prob, held, plain, radius, mask):
         trial = dataclasses.replace(held, data_effects=(effect.NAME,))
         with np.errstate(all="ignore"):
             other = prob.fit(trial, mask, plain.x)
-        if np.isfinite(other.ssr) and other.ssr <= radius.ssr + unit:
+        if (np.isfinite(other.ssr) and other.ssr <= radius.ssr - AMBIGUOUS * unit
+                and catalogue.implausible(effect.NAME, other.params[effect.NAME], prob.radius) is None):
             return effect.NAME
     return None
 
@@ -544,8 +548,8 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     (:func:`check_centre`): when the centre model is worse than the stated noise, the model with
     the radius free (the catalogue's ``sphere_radius``) is the alternative, named when it fits
     significantly better (F test on one parameter, p below :data:`P_SLIP`), fits within the
-    stated noise (the radius alone explains the misfit), fits better than every other data effect of
-    as many parameters (:func:`_rival`: a sensor's scale is no wrong diameter) and moves the pose by
+    stated noise (the radius alone explains the misfit), no other data effect of as many parameters
+    fits clearly better (:func:`_rival`: a sensor's scale is no wrong diameter) and moves the pose by
     more than :data:`SIDE_MOVE_SD` of its standard deviations. Only centres reconstructed from profiles
     depend on R; with ``--effects sphere_radius`` the radius is calibrated instead.
     """
@@ -576,7 +580,7 @@ def check_radius(dataset, unknowns="sensor", sigma=None, effects=()):
     if f <= 0 or f_survival(f, 1, b.m - b.p) >= P_SLIP or chi2_survival(b.ssr / sigma**2, b.m - b.p) < P_SUSPECT:
         return
     if _rival(prob, held, a, b, mask) is not None:
-        return  # another effect of as many parameters explains the profiles as well: no slip to name
+        return  # another effect of as many parameters explains the profiles clearly better: no slip to name
     jac = b.jac[mask].reshape(-1, b.p)
     cov = b.sigma2 * np.linalg.pinv(jac.T @ jac)
     moved = pose_distance(prob.transform(b.x), prob.transform(a.x), cov, b.names)

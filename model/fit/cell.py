@@ -11,13 +11,19 @@ frame, ``c`` the sphere centre in its mount's frame. :class:`CellModel` lets any
 parts be *free* (estimated) or *held* (known): ``sphere+positioner`` with a sensor calibrated
 before is the seed's outlook (chapter 8): calibrate the positioner with the calibrated sensor.
 
+Data effects of the catalogue (:mod:`handeye.model.effects`: ``sensor_scale``, ``sphere_radius``,
+``centre_scale``) may be fitted with the parts: ``xs_i`` is then the centre corrected by them, and their
+columns are ``R(M_i) R_X d xs_i / d theta``, the chain's rotation times the effect's own exact derivative,
+as :class:`handeye.model.fit.extended.Samples` composes them.
+
 Points and steps
 ----------------
 The point is ``x = (R_X row-major (9), t_X (3), c (3), per axis p (3), d (3))``; a step is a
 local chart: ``dt`` (mm), ``dr`` (rad, about the sensor's axes), ``dc`` (mm), per axis ``a, b``
 (rad: tilts of the direction about two normals ``e1, e2`` of ``d``) and ``u, v`` (mm: moves of
 the point along those normals). A move of an axis's point *along* the axis changes no rotation,
-so it is no parameter and the chart has no gauge freedom: 4 numbers per axis.
+so it is no parameter and the chart has no gauge freedom: 4 numbers per axis. The effects' parameters
+follow the axes in both (a plain sum).
 """
 from __future__ import annotations
 
@@ -26,6 +32,7 @@ import functools
 
 import numpy as np
 
+from handeye.model import effects as catalogue
 from handeye.model.chain import codegen
 from handeye.model.chain.mounts import Axis, unit
 from handeye.model.chain.names import PARTS  # the parts a calibration can estimate, in the order of the step
@@ -56,13 +63,14 @@ def normals(direction):
     return e1, _cross(d, e1)
 
 
-def step_names(n_axes, axis_names=None):
-    """Names of the step's coordinates: ``tx .. wz, cx, cy, cz``, per axis ``<name>_a, _b, _u, _v``."""
+def step_names(n_axes, axis_names=None, effects=()):
+    """Names of the step's coordinates: ``tx .. wz, cx, cy, cz``, per axis ``<name>_tilt1, _tilt2, _shift1,
+    _shift2``, per data effect ``<effect>.<parameter>``."""
     names = ["tx", "ty", "tz", "wx", "wy", "wz", "cx", "cy", "cz"]
     for j in range(n_axes):
         a = axis_names[j] if axis_names else f"e{j + 1}"
         names += [f"{a}_tilt1", f"{a}_tilt2", f"{a}_shift1", f"{a}_shift2"]
-    return names
+    return names + [f"{name}.{p}" for name in effects for p in catalogue.get(name).PARAMS]
 
 
 def pack(sensor, centre, axes=()):
@@ -100,6 +108,11 @@ class CellModel:
         Parts estimated, a subset of :data:`PARTS`; the others are held at the point's values.
     free_axes : tuple of str or None
         With ``positioner`` free: the axes estimated (None: every axis); the others are held.
+    effects : tuple of str
+        Data effects of the catalogue fitted with the parts (always free), their parameters at the
+        point's end.
+    radius : float
+        The sphere's radius (mm), which the effects' corrections take.
     """
 
     motions: np.ndarray
@@ -108,10 +121,29 @@ class CellModel:
     axis_names: tuple = ()
     free: tuple = PARTS
     free_axes: tuple | None = None
+    effects: tuple = ()
+    radius: float = 0.0
 
     @property
     def n_axes(self):
         return len(self.axis_names)
+
+    @property
+    def n_chain(self):
+        """Coordinates of the chain's full step (sensor, centre, axes), before the effects'."""
+        return 9 + 4 * self.n_axes
+
+    @functools.cached_property
+    def n_effects(self):
+        return sum(len(catalogue.get(name).PARAMS) for name in self.effects)
+
+    def effect_params(self, x):
+        """The effects' parameters at the point ``x``: name -> array."""
+        out, at = {}, len(x) - self.n_effects
+        for name in self.effects:
+            k = len(catalogue.get(name).PARAMS)
+            out[name], at = np.asarray(x[at:at + k], float), at + k
+        return out
 
     @functools.cached_property
     def columns(self):
@@ -119,7 +151,8 @@ class CellModel:
         turning = [j for j, name in enumerate(self.axis_names) if self.free_axes is None or name in self.free_axes]
         cols = {"sensor": range(0, 6), "sphere": range(6, 9),
                 "positioner": [9 + 4 * j + k for j in turning for k in range(4)]}
-        return np.array([i for part in PARTS if part in self.free for i in cols[part]], int)
+        chain = [i for part in PARTS if part in self.free for i in cols[part]]
+        return np.array(chain + list(range(self.n_chain, self.n_chain + self.n_effects)), int)
 
     @property
     def n(self):
@@ -127,9 +160,9 @@ class CellModel:
 
     @property
     def names(self):
-        return [step_names(self.n_axes, self.axis_names)[i] for i in self.columns]
+        return [step_names(self.n_axes, self.axis_names, self.effects)[i] for i in self.columns]
 
-    def _inputs(self, x):
+    def _inputs(self, x, centre_in_sensor):
         x = np.asarray(x, float)
         extra = list(x[:12])
         for j in range(self.n_axes):
@@ -138,15 +171,30 @@ class CellModel:
             extra += [*p, *d, *e1, *e2]
         m = self.motions
         data = [m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 0], m[:, 1, 1], m[:, 1, 2], m[:, 2, 0], m[:, 2, 1],
-                m[:, 2, 2], m[:, 0, 3], m[:, 1, 3], m[:, 2, 3], *self.centre_in_sensor.T, *np.asarray(self.angles).T]
+                m[:, 2, 2], m[:, 0, 3], m[:, 1, 3], m[:, 2, 3], *centre_in_sensor.T, *np.asarray(self.angles).T]
         theta = [0.0] * (9 + 4 * self.n_axes)
         theta[6:9] = x[12:15]
         return theta + extra + data
 
+    def corrected(self, x):
+        """The measured centres corrected by the effects at ``x`` (N, 3), and per effect their derivative
+        (N, 3, k) with respect to its parameters (each at the centres the effects before it corrected)."""
+        xs, derivatives = self.centre_in_sensor, []
+        for name, params in self.effect_params(x).items():
+            with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
+                xs, dxs = catalogue.correct(name, xs, self.radius, params)
+            derivatives.append(dxs)
+        return xs, derivatives
+
     def evaluate(self, x):
-        """Residuals (N, 3) and the full Jacobian (N, 3, 9 + 4k) at the point ``x``."""
-        out = codegen.stack_outputs(_resjac(self.n_axes)(*self._inputs(x)), (len(self.centre_in_sensor),))
-        return out[:, :3], out[:, 3:].reshape(-1, 3, 9 + 4 * self.n_axes)
+        """Residuals (N, 3) and the full Jacobian (N, 3, 9 + 4k + the effects' parameters) at the point ``x``."""
+        xs, derivatives = self.corrected(x)
+        out = codegen.stack_outputs(_resjac(self.n_axes)(*self._inputs(x, xs)), (len(xs),))
+        jac = out[:, 3:].reshape(-1, 3, self.n_chain)
+        if derivatives:
+            turn = self.motions[:, :3, :3] @ np.asarray(x, float)[:9].reshape(3, 3)  # R(M_i) R_X: d e_i / d xs_i
+            jac = np.concatenate([jac] + [turn @ dxs for dxs in derivatives], axis=2)
+        return out[:, :3], jac
 
     def residual(self, x):
         """Stacked residual (3N,), mm."""
@@ -158,9 +206,11 @@ class CellModel:
 
     def retract(self, x, delta):
         """The point reached from ``x`` by the free parts' step ``delta`` (module docstring)."""
-        full = np.zeros(9 + 4 * self.n_axes)
+        full = np.zeros(self.n_chain + self.n_effects)
         full[self.columns] = delta
         x = np.array(x, float)
+        if self.n_effects:
+            x[len(x) - self.n_effects:] += full[self.n_chain:]
         x[:9] = (x[:9].reshape(3, 3) @ matrix_from_rotvec(full[3:6])).ravel()
         x[9:12] += full[:3]
         x[12:15] += full[6:9]
