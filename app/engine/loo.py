@@ -170,3 +170,37 @@ def _damped_steps(h, g, lam):
     lam = np.where(indefinite, np.maximum(lam, 2.0 * np.maximum(-lowest, 0.0) + LAMBDA_START), lam)
     rotated = np.einsum("gji,gj->gi", vecs, s * g) / (vals + lam[:, None])
     return -s * np.einsum("gij,gj->gi", vecs, rotated), lam
+
+
+def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
+    """Leave-one-out prediction errors (G,) of the samples in ``mask`` for the unweighted centre model with the
+    sphere centre known: each deleted problem is an absolute orientation
+    (:func:`handeye.model.fit.global_fit.absolute_orientation`, Kabsch/Umeyama), solved exactly, and sample k's
+    error is ``|X_(-k) p_k - q_k|`` (``q`` the centre in the flange frame,
+    :func:`~handeye.model.fit.global_fit.centre_targets`; ``R_k`` is orthogonal, so this is
+    ``|T1_k X_(-k) p_k - c|``). None where a deleted problem leaves the rotation undetermined (the caller's
+    refits decide there).
+
+    Parameters
+    ----------
+    flange2base : ndarray, shape (N, 4, 4)
+        Carrier motions, mm.
+    centre_in_sensor : ndarray, shape (N, 3)
+        Measured centres, mm, sensor frame.
+    centre : ndarray, shape (3,)
+        The sphere centre, mm, in the carrier's target frame.
+    mask : ndarray of bool, shape (N,)
+        Samples fitted (at least three); each is left out in turn.
+    """
+    from handeye.model.fit.global_fit import absolute_orientation, centre_targets
+
+    p, q = np.asarray(centre_in_sensor, float), centre_targets(flange2base, centre)
+    errors = []
+    for k in np.flatnonzero(mask):
+        weights = np.asarray(mask, float)
+        weights[k] = 0.0
+        transform, singular = absolute_orientation(p, q, weights)
+        if singular[1] <= 1e-9 * max(singular[0], 1e-300):
+            return None
+        errors.append(float(np.linalg.norm(transform[:3, :3] @ p[k] + transform[:3, 3] - q[k])))
+    return np.array(errors)

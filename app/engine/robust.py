@@ -455,6 +455,13 @@ def centre_predictor(model):
                             model.unknowns)
 
 
+def _closed_form(model, predictor):
+    """Whether every leave-one-out refit is an absolute orientation: the unweighted centre model of every row with
+    the sphere centre known, predicting its own centres."""
+    return (model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
+            and predictor is model)
+
+
 def _prediction_error(predictor, x, i):
     """|T1_i T2(x) xs_i - c(x)| of sample i, mm."""
     pred = predictor.flange2base[i] @ predictor.sensor2flange(x) @ np.append(predictor.centre_in_sensor[i], 1.0)
@@ -613,6 +620,9 @@ def _loo_errors(model, x, mask, predictor):
     """:func:`leave_one_out`'s errors (G,) of the samples in ``mask`` (at least one): the exact
     refits up to :data:`LOO_EXACT_UP_TO` samples, the deletion formula above."""
     used = np.flatnonzero(mask)
+    if _closed_form(model, predictor) and (errors := loo.closed_form_errors(
+            model.flange2base, model.centre_in_sensor, model.fixed_centre, mask)) is not None:
+        return errors  # the unweighted centre model, centre known: every refit an absolute orientation
     if len(used) > LOO_EXACT_UP_TO and model.groups is None:
         return _deletion_errors(model, x, mask, predictor)
     fitted = model if mask.all() else _subset(model, mask)
