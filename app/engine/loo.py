@@ -65,6 +65,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from handeye.model.fit.global_fit import absolute_orientation, centre_targets
+
 #: Iterations of the batched Newton before a problem is handed back as not converged.
 NEWTON_ITER = 30
 #: Bytes of the largest arrays (module docstring, Memory) per chunk of problems.
@@ -179,7 +181,9 @@ def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     error is ``|X_(-k) p_k - q_k|`` (``q`` the centre in the flange frame,
     :func:`~handeye.model.fit.global_fit.centre_targets`; ``R_k`` is orthogonal, so this is
     ``|T1_k X_(-k) p_k - c|``). None where a deleted problem leaves the rotation undetermined (the caller's
-    refits decide there).
+    refits decide there). One absolute orientation per sample over every other: quadratic in the samples, so
+    the caller takes it up to :data:`handeye.app.engine.robust.LOO_EXACT_UP_TO` of them (the deletion formula
+    above, as for every model).
 
     Parameters
     ----------
@@ -192,8 +196,6 @@ def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     mask : ndarray of bool, shape (N,)
         Samples fitted (at least three); each is left out in turn.
     """
-    from handeye.model.fit.global_fit import absolute_orientation, centre_targets
-
     p, q = np.asarray(centre_in_sensor, float), centre_targets(flange2base, centre)
     errors = []
     for k in np.flatnonzero(mask):
