@@ -132,6 +132,7 @@ def test_a_positioner_cell_is_searched_too(positioner_scale):
     assert dt < 0.2 and dr < 0.08
 
 
+@pytest.mark.slow(sibling="test_a_positioner_cell_is_searched_too")
 def test_calibrated_axes_with_an_effect_beside_them_are_fitted_together(positioner_scale):
     """The search names the scale beside the calibrated axes; the cell stage fits it with them (before: exit 0 at
     0.66 mm, 42 sd; then refused): at the truth, the scale within 3 of its sd, the axes calibrated, the command
