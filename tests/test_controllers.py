@@ -344,7 +344,9 @@ def _mutations(tmp_path, count, seed):
     sibling="test_hostile_controller_files"))])
 def test_mutated_controller_files_end_in_a_result_or_an_input_error(tmp_path, count):
     """Every mutated file is read or refused with an InputError (exit 2 at the command line):
-    no other exception, none slower than a second of CPU."""
+    no other exception, none slower than 3 s of CPU (no reader goes quadratic on a run of 100,000 equal
+    characters; a linear read of the largest took 1.2 s of CPU once on the loaded machine, over the 1 s this
+    allowed before)."""
     outcomes = {"read": 0, "refused": 0}
     for k, path in enumerate(_mutations(tmp_path, count, seed=40)):
         start = time.process_time()
@@ -353,7 +355,7 @@ def test_mutated_controller_files_end_in_a_result_or_an_input_error(tmp_path, co
             outcomes["read"] += 1
         except InputError:
             outcomes["refused"] += 1
-        assert time.process_time() - start < 1.0, path
+        assert time.process_time() - start < 3.0, path
     assert outcomes["refused"] > count // 4 and outcomes["read"] > 0, outcomes
 
 
