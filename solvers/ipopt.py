@@ -148,11 +148,17 @@ def minimize(problem, x0, opts):
     fresh one: IPOPT keeps no state between calls without warm-start options). A problem that names
     its ``'structure'`` shares the solver of every problem of that structure and options (in this
     thread), called with its own ``p_value``: ``nlpsol`` is built once per structure, not per problem."""
-    key = ("ipopt", opts.max_iter, repr(sorted(opts.ipopt.items())))
+    return _solver_of(problem, opts, history=True)(x0, problem.nlp)
+
+
+def _solver_of(problem, opts, history):
+    """The solver of ``problem`` and ``opts`` (iterates recorded with ``history``), built once per problem
+    (``problem.built``) from the one kept for its structure, if any (:func:`_shared_solver`)."""
+    key = ("ipopt" if history else "ipopt-batch", opts.max_iter, repr(sorted(opts.ipopt.items())))
     solver = problem.built.get(key)
     if solver is None:
-        solver = problem.built[key] = _shared_solver(problem, opts, key)
-    return solver(x0, problem.nlp)
+        solver = problem.built[key] = _shared_solver(problem, opts, key, history)
+    return solver
 
 
 def _shared_solver(problem, opts, key, history=True):
@@ -178,10 +184,7 @@ def minimize_many(problem, starts, opts):
     """IPOPT from each row of ``starts`` (N, d), one after another through one solver object."""
     from handeye.solvers.batch import BatchResult
 
-    key = ("ipopt-batch", opts.max_iter, repr(sorted(opts.ipopt.items())))
-    solver = problem.built.get(key)
-    if solver is None:  # no iterates recorded: a batch reports none
-        solver = problem.built[key] = _shared_solver(problem, opts, key, history=False)
+    solver = _solver_of(problem, opts, history=False)  # no iterates recorded: a batch reports none
     results = [solver(x0, problem.nlp) for x0 in starts]
     messages = {i: r.message for i, r in enumerate(results) if r.status in (0, 7)}
 

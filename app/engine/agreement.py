@@ -23,10 +23,6 @@ import numpy as np
 from handeye.app.engine.levels import AGREE_FLOOR, AGREE_SD
 from handeye.model.common.rotation import pose_distance
 
-#: Named "effects" that are no model the search's refit takes: flipped samples, and the positioner's axes (the
-#: cell stage's ``--unknowns ...+positioner``).
-NOT_A_MODEL = ("sign_flip", "positioner_axes")
-
 
 def same_pose(distance):
     """Whether a :func:`handeye.model.common.rotation.pose_distance` (with its ``sd``) is the same pose

@@ -40,7 +40,7 @@ from handeye.model.chain.mounts import inverse_transforms
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.statistics import f_survival
 from handeye.model.design import identifiability
-from handeye.model.fit.cell import PARTS, CellModel, normals, pack, unpack
+from handeye.model.fit.cell import PARTS, CellModel, corrected_centres, normals, pack, unpack
 
 #: Iteration limit of the cell fit (Levenberg-Marquardt from the conditional fit: a few steps).
 MAX_ITER = 200
@@ -199,14 +199,6 @@ def data_effects(result):
             if e.name in DATA_EFFECTS}
 
 
-def corrected_centres(dataset, params):
-    """The dataset's measured centres (N, 3) corrected by the data effects ``params`` (name -> parameters)."""
-    xs = dataset.centre_in_sensor
-    for name, p in params.items():
-        xs = catalogue.correct(name, xs, dataset.sphere_diameter / 2, p)[0]
-    return xs
-
-
 def solved(result):
     """A finite conditional solution (it may still be refused: at set-up axes far from the true ones
     the conditional fit can "explain nothing"; the cell fit starts from it all the same)."""
@@ -217,7 +209,8 @@ def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
     data = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes)) if fitted.axes else dataset
-    xs = np.column_stack([corrected_centres(data, fitted.params), np.ones(len(data))])
+    corrected = corrected_centres(data.centre_in_sensor, data.sphere_diameter / 2, fitted.params)[0]
+    xs = np.column_stack([corrected, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
     norms, used = np.linalg.norm(e, axis=1), mask_of(result)
     loo = getattr(result.residuals, "loo", None)

@@ -44,13 +44,16 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import cell_stage, diagnose
-from handeye.app.engine.agreement import NOT_A_MODEL, same_pose
+from handeye.app.engine.agreement import same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.app.engine.levels import AGREE_SD, POWER_WARN_GROWTH
 from handeye.model.common.rotation import pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import spread
 
+#: Effects the search names that are not a model the stages can take: sign flips are samples; the
+#: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
+NOT_A_MODEL = ("sign_flip", "positioner_axes")
 #: How the warning of a widened uncertainty begins (:func:`with_power`).
 POWER_WARNING = "the data lack the power to see every effect (few samples, much noise): the 1 sd is widened"
 

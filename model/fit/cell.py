@@ -91,6 +91,18 @@ def unpack(x, axis_names):
     return sensor, x[12:15].copy(), axes
 
 
+def corrected_centres(centre_in_sensor, radius, params):
+    """Measured centres (N, 3, mm, sensor frame) corrected by data effects ``params`` (name -> parameters, in
+    order), and per effect their derivative (N, 3, k) with respect to its parameters (each at the centres the
+    effects before it corrected); ``radius``: the sphere's, mm."""
+    xs, derivatives = np.asarray(centre_in_sensor, float), []
+    for name, p in params.items():
+        with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
+            xs, dxs = catalogue.correct(name, xs, radius, p)
+        derivatives.append(dxs)
+    return xs, derivatives
+
+
 @dataclasses.dataclass(frozen=True)
 class CellModel:
     """Residual, exact Jacobian and retraction of the cell problem (module docstring).
@@ -177,14 +189,8 @@ class CellModel:
         return theta + extra + data
 
     def corrected(self, x):
-        """The measured centres corrected by the effects at ``x`` (N, 3), and per effect their derivative
-        (N, 3, k) with respect to its parameters (each at the centres the effects before it corrected)."""
-        xs, derivatives = self.centre_in_sensor, []
-        for name, params in self.effect_params(x).items():
-            with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
-                xs, dxs = catalogue.correct(name, xs, self.radius, params)
-            derivatives.append(dxs)
-        return xs, derivatives
+        """:func:`corrected_centres` of the measured centres by the effects at ``x``."""
+        return corrected_centres(self.centre_in_sensor, self.radius, self.effect_params(x))
 
     def evaluate(self, x):
         """Residuals (N, 3) and the full Jacobian (N, 3, 9 + 4k + the effects' parameters) at the point ``x``."""
