@@ -96,3 +96,23 @@ def test_every_study_has_its_datasets_here():
         prefix = uses.get(study, f"study {study}")
         assert any(name.startswith(prefix) for name in cells.DATASETS), f"study_{study}.py has no dataset here"
     assert set(KNOWN) <= set(cells.DATASETS) and set(SAME_AS) <= set(cells.DATASETS)
+
+
+def test_diagnose_tells_calibrates_own_search(monkeypatch):
+    """diagnose runs no search of its own beside calibrate's: the procedure runs once, as calibrate's search,
+    with its whole story (each step's held-out RMS), and diagnose's steps are that search's."""
+    from handeye.app.engine import diagnose as procedure
+
+    runs, told = [], []
+    original = procedure.diagnose
+
+    def counted(*args, **keywords):
+        runs.append(keywords.get("detail", True))
+        told.append(original(*args, **keywords))
+        return told[-1]
+
+    monkeypatch.setattr(procedure, "diagnose", counted)
+    result = handeye.diagnose("thesis-sim")
+    assert runs == [True]
+    assert [s.step for s in result.steps] == [s.step for s in told[0].steps]
+    assert all(np.isfinite(s.heldout_rms_mm) for s in result.steps)

@@ -157,6 +157,10 @@ class Command:
         (its ``locals()``), in the table's order."""
         return {opt.name: scope[opt.name] for opt in self.keyword_options}
 
+    def defaults(self):
+        """The public function's keywords at their defaults (the table's)."""
+        return {opt.name: opt.default for opt in self.keyword_options}
+
     def record(self, values):
         """The options saved with ``--out`` (``provenance['options']``): every keyword but
         ``out`` itself, as JSON values."""

@@ -170,6 +170,9 @@ class CalibrationRequest:
         Whether the model (``effects``, none included) is the user's choice, which the
         discrepancy search then checks instead of choosing (:mod:`handeye.app.engine.search`);
         None: chosen when ``effects`` is given (``'none'`` included) or ``model`` is a profile model.
+    story : bool
+        Keep the discrepancy search's whole story (``handeye diagnose``'s figures: each step's held-out
+        RMS, the effects absorbed) on the result (its ``search``): diagnose is calibrate's search told.
     notes : tuple of str
         What :meth:`checked` decided that the user should read (a default method changed).
     resolved : str or None
@@ -193,6 +196,7 @@ class CalibrationRequest:
     sigma: float | None = None
     effects: tuple = ()
     chosen: bool | None = None
+    story: bool = False
     notes: tuple = ()
     sensor_pose: object = None
     resolved: str | None = dataclasses.field(default=None, init=False)

@@ -71,7 +71,7 @@ def search(request, dataset, result):
     if request.unknowns == "sensor+sphere":
         data = dataclasses.replace(dataset, sphere_centre=np.asarray(result.sphere_centre, float))
     return diagnose.diagnose(data, alpha=request.alpha, start=result.sensor_pose_kuka, sigma=request.sigma,
-                             centre_unknown=request.unknowns == "sensor+sphere", detail=False)
+                             centre_unknown=request.unknowns == "sensor+sphere", detail=request.story)
 
 
 def chosen(request, dataset, result, refit):
@@ -98,6 +98,12 @@ def chosen(request, dataset, result, refit):
         found = search(request, searched, result)
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         return _unchecked_result(result, f"the search failed numerically ({exc})")
+    decided = _decided(request, dataset, result, refit, found, searched)
+    return dataclasses.replace(decided, search=found) if request.story else decided
+
+
+def _decided(request, dataset, result, refit, found, searched):
+    """The result the search's finding ``found`` (on the samples ``searched``) decides (module docstring)."""
     if found.beyond_catalogue:
         return result.refused("unexplained structure, not a calibration: the discrepancy search finds the residuals "
                                f"structured beyond what the catalogue's effects can be: {'; '.join(found.beyond_catalogue)}"

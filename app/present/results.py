@@ -240,6 +240,10 @@ class CalibrationResult(ResultProtocol):
         The frame of the pose attributes: handeye's (the profiles', what the fit works in), or
         the sensor's own (:meth:`in_user_frame`); the JSON and the text report are of the own
         frame whenever there is one (JSON keys ``own_axes`` and ``sensor_frame`` "own" say so).
+    search : handeye.app.present.diagnosis_results.DiagnosisResult or None
+        The discrepancy search that decided this result, its whole story, where it was asked for
+        (:attr:`~handeye.app.engine.request.CalibrationRequest.story`: ``handeye diagnose`` tells it);
+        of handeye's frame; never in the JSON.
 
     The remaining attributes (``dataset``, ``method``, ``rotation``, ``unknowns``, ``model``,
     ``start_pose`` (in ``convention``) and ``start_pose_kuka``, ``start_used``, ``iterations``,
@@ -280,6 +284,7 @@ class CalibrationResult(ResultProtocol):
     cleaning: dict | None = None
     own_axes: np.ndarray | None = None
     pose_frame: str = "handeye"
+    search: object | None = dataclasses.field(default=None, repr=False, compare=False)
 
     caption = "handeye calibration"
 

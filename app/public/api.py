@@ -52,17 +52,25 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     handeye.InputError
         Bad dataset, bad option, too few or degenerate poses, missing motions.
     """
+    return _calibrated(options.COMMANDS["calibrate"].given(locals()))
+
+
+def _calibrated(values, story=False):
+    """:func:`calibrate` on its keywords ``values``; with ``story`` the discrepancy search's whole story
+    kept on the result (its ``search``: what :func:`diagnose` tells)."""
     from handeye.app.engine.calibrate import run
     from handeye.app.engine.classic import calibrate_classic, judged
     from handeye.app.engine.command_request import CalibrateRequest
     from handeye.app.engine.request import CalibrationRequest
     from handeye.app.engine.score import run_score
 
-    values = options.COMMANDS["calibrate"].given(locals())
-    data = load_dataset(dataset, clean=not no_clean)
+    data = load_dataset(values["dataset"], clean=not values["no_clean"])
     asked = CalibrateRequest.from_options(values, data)
+    asked = dataclasses.replace(asked, request=dataclasses.replace(asked.request, story=story))
     request, free = asked.request, asked.free
-    given, source = held_request.given_sensor(calibration, sensor_pose, request.convention, data, free.scored)
+    method = values["method"]
+    given, source = held_request.given_sensor(values["calibration"], values["sensor_pose"], request.convention, data,
+                                              free.scored)
     if asked.closed_form:
         result = calibrate_classic(data, method, free.parts, outliers=request.outliers, alpha=request.alpha,
                                    convention=request.convention)
@@ -72,7 +80,7 @@ def calibrate(dataset="thesis-real", *, unknowns="sensor", method=None, rotation
     else:
         request = asked.holding(given, data)
         result = run_score(request, data, given, source) if free.scored else run(request, data)
-    return _written(result, data, asked.options, out=out, plot=plot, report=report)
+    return _written(result, data, asked.options, out=values["out"], plot=values["plot"], report=values["report"])
 
 
 def _written(result, data, record, out=None, plot=None, report=None):
@@ -141,14 +149,18 @@ def _diagnosed(data, parts, level, sigma):
     data = with_sphere_centre(data, parts)[0]  # a start for a centre not given
     gate(data, parts)  # the checks calibrate runs: too few or degenerate poses are bad input
     slips.check(data, parts, slips.plain_rms(data, parts) or 0.0)  # a wrong side is not an "effect"
-    try:  # calibrate's own pose, to compare with (and with the centre unknown, the centre's start)
-        own = calibrate(data, unknowns=parts, no_loo=True, alpha=level, sigma=sigma)
+    asked = {**options.COMMANDS["calibrate"].defaults(), "dataset": data, "unknowns": parts, "no_loo": True,
+             "alpha": level, "sigma": sigma}
+    try:  # calibrate, its search's story kept (what diagnose tells); with the centre unknown, the centre's start
+        own = _calibrated(asked, story=True)
     except InputError as exc:  # calibrate refuses what diagnose is for (a taught centre off, say)
         own = exc
     if parts == "sensor+sphere" and not isinstance(own, Exception) and np.all(np.isfinite(own.sphere_centre)):
         data = dataclasses.replace(data, sphere_centre=np.asarray(own.sphere_centre, float))
     searched = searched_samples(data)  # beyond ROW_CHUNK samples, that many spread over the rows: as calibrate's
-    result = procedure.diagnose(searched, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
+    result = getattr(own, "search", None)  # calibrate's search, told; run here where calibrate ran none
+    if result is None:
+        result = procedure.diagnose(searched, alpha=level, sigma=sigma, centre_unknown=parts == "sensor+sphere")
     result = dataclasses.replace(result, unknowns=parts,
                                  own_axes=None if data.own_axes is None else np.asarray(data.own_axes, float))
     result = result.in_user_frame()  # calibrate's pose (own) is of the user's frame too

@@ -145,6 +145,8 @@ class Samples:
         self.robot_free = {}
         #: "effect.parameter" of the robot parameters no pose set separates (robot_gate.robot_free)
         self.robot_always = set()
+        #: the held-out errors of the fits asked for (:meth:`heldout_rms`; a search asks for one fit's again)
+        self._held_out = {}
 
     @property
     def whiten(self):
@@ -392,14 +394,14 @@ class Samples:
     def heldout_rms(self, structure, mask, fit, raw=False):
         """RMS prediction error of held-out samples, 5-fold cross-validation over ``mask``: in the samples'
         metric (what a decision compares), or with ``raw`` in mm (what a report shows)."""
-        idx = np.where(mask)[0]
-        folds = np.array_split(np.random.default_rng(0).permutation(idx), min(FOLDS, len(idx)))
-        errs = []
-        for fold in folds:
-            train = mask.copy()
-            train[fold] = False
-            f = self.fit(structure, train, fit.x, fit.params)
-            errs.append(np.sum((self.raw(f.e[fold], fold) if raw else f.e[fold]) ** 2, axis=1))
+        key = (structure.centre, structure.data_effects, tuple(sorted(structure.flips)), mask.tobytes(), fit.x.tobytes(),
+               tuple((k, np.asarray(v, float).tobytes()) for k, v in sorted(fit.params.items())), repr(self.robot_free))
+        if key not in self._held_out:
+            idx = np.where(mask)[0]
+            folds = np.array_split(np.random.default_rng(0).permutation(idx), min(FOLDS, len(idx)))
+            self._held_out[key] = [(fold, self.fit(structure, _without(mask, fold), fit.x, fit.params).e[fold])
+                                   for fold in folds]
+        errs = [np.sum((self.raw(e, fold) if raw else e) ** 2, axis=1) for fold, e in self._held_out[key]]
         return float(np.sqrt(np.mean(np.concatenate(errs))))
 
     def transform(self, x):
@@ -407,6 +409,13 @@ class Samples:
 
     def centre(self, structure, x):
         return x[12:15] if structure.centre else self.d.sphere_centre
+
+
+def _without(mask, rows):
+    """``mask`` with ``rows`` left out (a new array)."""
+    out = mask.copy()
+    out[rows] = False
+    return out
 
 
 def _moved_centre(dfk, in_flange):

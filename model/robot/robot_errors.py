@@ -100,36 +100,50 @@ def _fixed(model, values):
 
 
 def _chain(model, qc, origins, after):
-    """Per joint ``(O_j Rot_j, A_j)`` and the prefix products ``P_j`` (before ``O_j``) and
-    suffix products ``S_j`` (after ``A_j``, the flange included), each (N, 4, 4)."""
+    """Per joint ``O_j Rot_j`` and ``O_j Rot_j A_j`` (each (N, 6, 4, 4)), and the prefix products
+    ``P_j`` (before ``O_j``) and suffix products ``S_j`` (after ``A_j``, the flange included), each
+    (N, 7, 4, 4) and (N, 6, 4, 4): the products of every joint at once, then one running product
+    each way."""
     n = len(qc)
     turns = np.zeros((n, 6, 4, 4))
     turns[:, :, 3, 3] = 1.0
     turns[:, :, :3, :3] = matrix_from_rotvec(model.axes[None, :, :] * qc[:, :, None])  # every joint at once
-    links = [(turns[:, j], after[j]) for j in range(6)]
-    prefix = [np.broadcast_to(model.base, (n, 4, 4))]
-    for j, (turn, aft) in enumerate(links):
-        prefix.append(prefix[-1] @ origins[j] @ turn @ aft)
-    suffix = [None] * 6
-    tail = np.broadcast_to(model.flange, (n, 4, 4))
-    for j in range(5, -1, -1):
-        suffix[j] = tail
-        tail = origins[j] @ links[j][0] @ links[j][1] @ tail
-    return links, prefix, suffix
+    turned = origins[None] @ turns
+    links = turned @ after[None]
+    prefix = np.empty((n, 7, 4, 4))
+    prefix[:, 0] = model.base
+    for j in range(6):
+        prefix[:, j + 1] = prefix[:, j] @ links[:, j]
+    suffix = np.empty((n, 6, 4, 4))
+    suffix[:, 5] = model.flange
+    for j in range(5, 0, -1):
+        suffix[:, j - 1] = links[:, j] @ suffix[:, j]
+    return turned, prefix, suffix
+
+
+#: The last robot model and reported angles :func:`levers` was asked for, and its answer: the levers are
+#: of the nominal pose, the same for every fit of one dataset (a search asks hundreds of times).
+_LEVERS = {}
 
 
 def levers(model, joints_deg):
     """The gravity levers ``l_j`` (N, 2), metres, of the flange about the shoulder and elbow at the
     nominal pose of the reported angles (module docstring)."""
-    q = np.radians(np.asarray(joints_deg, float).reshape(-1, 6) @ model.coupling.T + model.offsets)
-    links, prefix, suffix = _chain(model, q, model.origins, model.after)
-    flange = (prefix[-1] @ model.flange)[:, :3, 3]
+    joints = np.ascontiguousarray(joints_deg, float).reshape(-1, 6)
+    key = (id(model), joints.tobytes())
+    if _LEVERS.get("key") == key and _LEVERS["model"] is model:
+        return _LEVERS["levers"].copy()
+    q = np.radians(joints @ model.coupling.T + model.offsets)
+    _, prefix, _ = _chain(model, q, model.origins, model.after)
+    flange = (prefix[:, -1] @ model.flange)[:, :3, 3]
     out = []
     for j in COMPLIANT:
-        frame = prefix[j] @ model.origins[j]
+        frame = prefix[:, j] @ model.origins[j]
         point, axis = frame[:, :3, 3], frame[:, :3, :3] @ model.axes[j]
         out.append(np.einsum("ni,ni->n", np.cross(flange - point, GRAVITY), axis) / 1000.0)
-    return np.stack(out, axis=1)
+    result = np.stack(out, axis=1)
+    _LEVERS.update(key=key, model=model, levers=result)
+    return result.copy()
 
 
 def perturbed(model, joints_deg, values):
@@ -161,12 +175,12 @@ def perturbed(model, joints_deg, values):
         lever = levers(model, joints)
         qc[:, list(COMPLIANT)] += lever * np.asarray(values["joint_compliance"], float)
     origins, after = _fixed(model, values)
-    links, prefix, suffix = _chain(model, np.radians(qc), origins, after)
-    fk = prefix[-1] @ model.flange
+    turned, prefix, suffix = _chain(model, np.radians(qc), origins, after)
+    fk = prefix[:, -1] @ model.flange
     out = {}
     if "joint_offsets" in values or "joint_compliance" in values:
-        dq = np.stack([prefix[j] @ origins[j] @ links[j][0] @ _hat(model.axes[j]) @ after[j] @ suffix[j]
-                       for j in range(6)], axis=1) * (np.pi / 180.0)
+        hat_after = np.stack([_hat(model.axes[j]) @ after[j] for j in range(6)])
+        dq = prefix[:, :6] @ turned @ hat_after[None] @ suffix * (np.pi / 180.0)
         if "joint_offsets" in values:
             out["joint_offsets"] = dq
         if "joint_compliance" in values:
@@ -175,9 +189,9 @@ def perturbed(model, joints_deg, values):
         cols = []
         for j, where, c, _ in length_params(model):
             if where == "origin":
-                cols.append(prefix[j] @ _translation(c) @ origins[j] @ links[j][0] @ after[j] @ suffix[j])
+                cols.append(prefix[:, j] @ _translation(c) @ (turned[:, j] @ after[j]) @ suffix[:, j])
             else:
-                cols.append(prefix[j] @ origins[j] @ links[j][0] @ _translation(c) @ after[j] @ suffix[j])
+                cols.append(prefix[:, j] @ turned[:, j] @ _translation(c) @ after[j] @ suffix[:, j])
         out["link_lengths"] = np.stack(cols, axis=1) if cols else np.zeros((len(joints), 0, 4, 4))
     return fk, {k: out[k] for k in values}
 
