@@ -172,7 +172,7 @@ def test_profiles_scaled_by_the_sensor_are_no_wrong_diameter(tmp_path):
     """Profiles a sensor scales by -0.24 % (a fixed sensor, KUKA, 18 poses, the centre given) look like a sphere
     0.27 % small: the radius alone fits them to the stated noise, and they were named a wrong ``[sphere]
     diameter`` (exit 2). ``sensor_scale``, of as many parameters, fits them clearly better (a BIC lower by 10:
-    slips._rival): no slip is named, and the search calibrates the scale, at the truth."""
+    taught_sphere._rival): no slip is named, and the search calibrates the scale, at the truth."""
     row = vr.run_cell("scale", 11, tmp_path)
     assert row["exit"] == 0 and not row["wrong"] and row["effects"] == ["sensor_scale"], row
 

@@ -45,6 +45,7 @@ from handeye.app.engine import (
     robust,
     search,
     slips,
+    taught_sphere,
 )
 from handeye.app.engine.fitting import FinalFit, closed_form_pose
 from handeye.app.engine.prepare import prepare
@@ -120,9 +121,9 @@ def screen(prep):
     request, dataset, unknowns = prep.request, prep.dataset, prep.request.unknowns
     key = ("plain", unknowns, prep.kind, tuple(prep.start_pose), request.sigma, request.robot_sigma, request.loo)
     plain_rms, loo = dataset.once(key, lambda: _plain(prep))  # the search's refit asks again: the same answer
-    slips.check_radius(dataset, unknowns, request.sigma, request.effects)  # a wrong diameter the pose would absorb
+    taught_sphere.check_radius(dataset, unknowns, request.sigma, request.effects)  # a wrong diameter the pose would absorb
     if unknowns == "sensor":  # a taught centre the pose would absorb (diagnose names it as an effect instead)
-        slips.check_centre(dataset, request.sigma, request.effects)
+        taught_sphere.check_centre(dataset, request.sigma, request.effects)
     before = Before(len(dataset), plain_rms, loo)
     excluded, mask, warnings = [], np.ones(len(dataset), bool), []
     if request.outliers:
@@ -135,7 +136,7 @@ def screen(prep):
     excluded = robust.with_geometry(dataset, excluded)  # a profile's arc that explains its poor centre, named
     used = dataset.subset(mask)
     if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
-        slips.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)
+        taught_sphere.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)
     return Screened(before, mask, list(excluded), used, tuple(warnings))
 
 

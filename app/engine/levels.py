@@ -100,7 +100,7 @@ SURELY_FAR_MM = 1000.0
 # -- not nested: the robot's errors (app/engine/robot_choice.py) ------------------------------------------
 #: BIC difference below which another combination of robot effects is an alternative (Kass & Raftery); the
 #: difference by which another data effect must beat a wrong diameter's radius for the slip not to be named
-#: (app/engine/slips.py, _rival: a sensor's scale).
+#: (app/engine/taught_sphere.py, _rival: a sensor's scale).
 AMBIGUOUS = 10.0
 #: BIC difference by which another combination must beat the searched one to replace it.
 POSITIVE = 2.0
