@@ -117,3 +117,12 @@ def test_calibrate_checks_the_radius_against_every_profile(tmp_path, monkeypatch
     monkeypatch.setattr(describe, "circles_shown", lambda dataset, mask: (ids, big, sd))
     r = handeye.calibrate(s.path, effects="sphere_radius", no_loo=True)
     assert not r.converged and repr(ids[3]) in r.message and "circle" in r.message
+
+
+def test_the_requests_effect_lists_are_the_catalogues():
+    """``--effects`` takes every continuous effect of the catalogue, and the cell stage fits exactly its data effects
+    with the positioner's axes: the request's two lists are the catalogue's, not a copy that can drift."""
+    from handeye.app.engine import request
+
+    assert set(request.DATA_EFFECTS) == {e.NAME for e in effects.catalogue("data")}
+    assert set(request.EFFECTS) == {e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre", "robot")}

@@ -1,7 +1,9 @@
 """One answer per dataset: the diagnosis reports calibrate's pose where its search chose calibrate's model.
 
-``handeye diagnose`` runs the discrepancy search (:mod:`handeye.app.engine.diagnose`) beside the calibration
-``handeye calibrate`` gives on the same data, with the same options. Calibrate *is* that search
+``handeye diagnose`` runs ``handeye calibrate`` on the same data, with the same options, and tells the story of
+its discrepancy search (:mod:`handeye.app.engine.diagnose`; the search, from calibrate's pose, keeps each step's
+figures: :attr:`~handeye.app.engine.request.CalibrationRequest.story`); only where calibrate ran no search (it
+stopped on bad input, or its fit did not converge) does diagnose run one of its own. Calibrate *is* that search
 (:mod:`handeye.app.engine.search`): it ends in the model the search chooses, fitted in calibrate's own residual
 model (for profile data the measured circles, the exact likelihood, where the search fits the sphere centres
 rebuilt from them in their first-order metric) and to every sample (the search runs on
