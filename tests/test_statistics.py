@@ -102,3 +102,25 @@ def test_chi_median_against_mpmath(k):
 
     ref = float(mpmath.sqrt(mpmath.findroot(below_half, k - 2.0 / 3.0)))
     assert chi_median(k) == pytest.approx(ref, rel=1e-14)
+
+
+@pytest.mark.parametrize("d1,d2,p", [(1, 5, 0.01), (3, 40, 1e-4), (6, 300, 0.3), (3, 69, 0.0025), (1, 10_000, 1e-6)])
+def test_threshold_finds_the_quantile_in_few_evaluations(d1, d2, p):
+    """:func:`threshold` (false position, Illinois, a bisection safeguard) ends at mpmath's quantile to its
+    relative tolerance, on the side where the tail is still above ``p``, in at most half the ~45 evaluations
+    bisection takes to 1e-12; a tail never as low as ``p`` gives inf, one below it at the start the start."""
+    from handeye.model.common.statistics import threshold
+
+    calls = []
+
+    def tail(x):
+        calls.append(x)
+        return f_survival(x, d1, d2)
+
+    x = threshold(tail, p)
+    assert f_survival(x, d1, d2) > p
+    z = mpmath.findroot(lambda t: _f_reference(float(t), d1, d2) - p, x)
+    assert x == pytest.approx(float(z), rel=1e-10)
+    assert len(calls) <= 24, len(calls)
+    assert threshold(lambda t: 0.5, 0.1) == math.inf
+    assert threshold(lambda t: 0.05, 0.1, lo=2.0, hi=3.0) == 2.0

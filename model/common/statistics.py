@@ -242,14 +242,36 @@ def chi2_survival_array(x, k):
 
 def threshold(survival, p, lo=0.0, hi=1.0, rtol=1e-12):
     """The statistic ``x`` where the decreasing tail ``survival(x)`` (a scalar function) falls
-    to ``p``, to ``rtol`` relative, by doubling and bisection; ``inf`` when it never does."""
-    while survival(hi) > p:
+    to ``p``, to ``rtol`` relative; ``inf`` when it never does.
+
+    The bracket is doubled until it holds the crossing, then narrowed by false position with the
+    Illinois modification (the end that stays has its value halved, so both ends converge, superlinearly:
+    Dahlquist & Bjoerck, *Numerical Methods*, 6.2), each trial kept a quarter of the tolerance inside the
+    bracket, and a bisection step wherever a step has not halved it: never slower than bisection by more
+    than twice, and ~10 evaluations where bisection takes ~40 (the tails of the power statement cost a
+    continued fraction each). Returns the low end of the final bracket, where ``survival > p``."""
+    g_hi = survival(hi) - p
+    while g_hi > 0:
         lo, hi = hi, 2.0 * hi
         if hi > 1e300:
             return math.inf
+        g_hi = survival(hi) - p
+    g_lo, side = survival(lo) - p, 0
+    if not g_lo > 0:
+        return lo  # at or below p already (or not a number)
+    tries, reference = 0, hi - lo  # false-position steps since the bracket last halved; its width then
     while hi - lo > rtol * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if survival(mid) > p else (lo, mid)
+        bisect = tries >= 3 or not g_lo > 0 >= g_hi
+        margin = 0.25 * rtol * hi
+        c = 0.5 * (lo + hi) if bisect else min(max(hi - g_hi * (hi - lo) / (g_hi - g_lo), lo + margin), hi - margin)
+        g_c = survival(c) - p
+        if g_c > 0:
+            lo, g_lo = c, g_c
+            g_hi, side = (0.5 * g_hi if side == 1 else g_hi), 1
+        else:
+            hi, g_hi = c, g_c
+            g_lo, side = (0.5 * g_lo if side == -1 else g_lo), -1
+        tries, reference = (0, hi - lo) if bisect or hi - lo <= 0.5 * reference else (tries + 1, reference)
     return lo
 
 

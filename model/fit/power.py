@@ -95,20 +95,42 @@ def t_factor(dof, sd=WIDEN_SD):
     return float(math.sqrt(t2) / sd)
 
 
+def _terms(lam):
+    """How many terms of the Poisson mixture at noncentrality ``lam`` are summed (:data:`_MIXTURE_SD`)."""
+    return int(lam / 2.0 + _MIXTURE_SD * math.sqrt(lam / 2.0)) + 30
+
+
+class _Mixture:
+    """``sum_j e^-l/2 (l/2)^j / j! T_j`` for any noncentrality ``l``: the central tails ``T_j`` (``tails(j)``,
+    j an array) do not depend on ``l``, only the Poisson weights do, so a root search over ``l`` evaluates
+    them once (extended as ``l`` grows), not once per trial."""
+
+    def __init__(self, tails):
+        self.tails = tails
+        self.values = np.empty(0)
+        self.log_factorial = np.empty(0)
+
+    def __call__(self, lam):
+        n = _terms(lam)
+        if n > len(self.values):
+            j = np.arange(max(n, 2 * len(self.values)))
+            self.values = np.asarray(self.tails(j), float)
+            self.log_factorial = np.concatenate([[0.0], np.cumsum(np.log(np.arange(1.0, len(j))))])
+        j = np.arange(n)
+        log_w = -lam / 2.0 + j * math.log(max(lam, 1e-300) / 2.0) - self.log_factorial[:n]
+        return float(np.sum(np.exp(log_w) * self.values[:n]))
+
+
 def noncentral_survival(x, k, lam):
     """P(chi2_k(lam) > x): the Poisson mixture of central tails (module docstring)."""
     if lam <= 0:
         return chi2_survival(x, k)
-    j = np.arange(int(lam / 2.0 + _MIXTURE_SD * math.sqrt(lam / 2.0)) + 30)
-    log_w = -lam / 2.0 + j * math.log(lam / 2.0) - np.array([math.lgamma(v + 1.0) for v in j])
-    return float(np.sum(np.exp(log_w) * chi2_survival_array(x, k + 2.0 * j)))
+    return _Mixture(lambda j: chi2_survival_array(x, k + 2.0 * j))(lam)
 
 
 def noncentral_f_survival(x, k, d2, lam):
     """P(F'(k, d2; lam) > x): the Poisson mixture of central F tails, ``F(k + 2j, d2)`` at ``x k / (k + 2j)``."""
-    j = np.arange(int(lam / 2.0 + _MIXTURE_SD * math.sqrt(lam / 2.0)) + 30)
-    log_w = -lam / 2.0 + j * math.log(max(lam, 1e-300) / 2.0) - np.array([math.lgamma(v + 1.0) for v in j])
-    return float(np.sum(np.exp(log_w) * f_survival_array(x * k / (k + 2.0 * j), k + 2.0 * j, d2)))
+    return _Mixture(lambda j: f_survival_array(x * k / (k + 2.0 * j), k + 2.0 * j, d2))(lam)
 
 
 @functools.lru_cache(maxsize=256)
@@ -120,14 +142,17 @@ def detectable_noncentrality(k, level, dof=None, power=POWER):
     the fit on ``dof = m - p`` residual dof, ``S = dof Q1 / (Q1 + Q2)`` (``Q1 ~ chi2_k(lambda)`` the part
     of the residual along the effect's columns, ``Q2 ~ chi2_(dof - k)`` the rest): S exceeds the
     chi-square critical value ``c`` exactly when ``(Q1 / k) / (Q2 / (dof - k)) > c (dof - k) / (k (dof - c))``,
-    a noncentral F(k, dof - k) (its power lower than the chi-square's: the effect inflates the estimated noise)."""
+    a noncentral F(k, dof - k) (its power lower than the chi-square's: the effect inflates the estimated noise).
+    The root in ``lambda`` is found on one :class:`_Mixture` (its central tails evaluated once)."""
     crit = threshold(lambda x: chi2_survival(x, k), level)
     if dof is None:
-        return threshold(lambda lam: 1.0 - noncentral_survival(crit, k, lam), 1.0 - power, rtol=_RTOL)
-    if dof <= k or crit >= dof:
+        tail = _Mixture(lambda j: chi2_survival_array(crit, k + 2.0 * j))
+    elif dof <= k or crit >= dof:
         return math.inf
-    f_crit = crit * (dof - k) / (k * (dof - crit))
-    return threshold(lambda lam: 1.0 - noncentral_f_survival(f_crit, k, dof - k, lam), 1.0 - power, rtol=_RTOL)
+    else:
+        f_crit = crit * (dof - k) / (k * (dof - crit))
+        tail = _Mixture(lambda j: f_survival_array(f_crit * k / (k + 2.0 * j), k + 2.0 * j, dof - k))
+    return threshold(lambda lam: 1.0 - tail(lam), 1.0 - power, rtol=_RTOL)
 
 
 @dataclasses.dataclass(frozen=True)
