@@ -4,6 +4,7 @@ degenerate data are refused; the benchmark reports every method (speed is measur
 import numpy as np
 import pytest
 
+import handeye
 from handeye.app.tools import bench
 from handeye.model.common.rotation import transform_distance
 from handeye.model.compiled import fast
@@ -223,8 +224,26 @@ def test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve():
     assert set(res["stages"]) == set(bench_pipeline.STAGES) == set(res["stages_no_loo"])
     assert all(v >= 0 for v in res["stages"].values()) and res["ipopt"] > 0 and res["ipopt_converged"]
     assert res["ratio"] == res["total"] / res["ipopt"] and res["total"] >= sum(res["stages"].values()) * 0.999
+    assert res["lean"] > 0 and res["lean_converged"] and res["calibrate"] >= res["total"] * 0.5
+    assert res["ratio_calibrate_lean"] == res["calibrate"] / res["lean"]
     text = "\n".join(bench_pipeline.text(res))
-    assert "one IPOPT solve" in text and "describe" in text
+    assert "one IPOPT solve" in text and "describe" in text and "lean user's solve" in text
+
+
+def test_the_lean_users_solve_lands_on_calibrates_pose():
+    """The bench's reference is a real solve: on thesis-sim's samples it ends at the pose calibrate reports."""
+    from handeye.app.engine import calibrate as engine
+    from handeye.app.engine.request import CalibrationRequest
+    from handeye.app.tools import bench_pipeline
+
+    data = handeye.load_dataset("thesis-sim")
+    prep = engine.prepare(CalibrationRequest(loo=False).checked(data), data)
+    screened = engine.screen(prep)
+    seconds, ok, pose = bench_pipeline._lean_user_solve(screened.used, prep.start_pose, data.sphere_centre)
+    result = handeye.calibrate("thesis-sim", no_loo=True, model="centre", effects="none")
+    assert ok and seconds > 0
+    dt, dr = transform_distance(pose, result.sensor2flange)
+    assert dt < 1e-4 and dr < 1e-5, (dt, dr)
 
 
 def test_a_childs_peak_memory_is_its_own_not_the_bench_processs():

@@ -255,6 +255,7 @@ LOCAL_IMPORTS = {
         ("app/present/figure_style.py", "png_bytes", "PIL"),
     ],
     "start-up: would load casadi at import, which the module does not load yet": [
+        ("app/tools/bench_pipeline.py", "_lean_user_solve", "casadi"),
         ("app/engine/problems.py", "testfunction_nlp", "casadi"),
         ("model/chain/codegen.py", "casadi_function", "casadi"),
         ("model/chain/testfunction.py", "casadi_function", "casadi"),
@@ -379,6 +380,10 @@ LOCAL_IMPORTS = {
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.calibrate"),
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.describe"),
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.request"),
+        ("app/tools/bench_pipeline.py", "_lean_user_solve", "handeye.model.chain.pose"),
+        ("app/tools/bench_pipeline.py", "_lean_user_solve", "handeye.model.common.rotation"),
+        ("app/tools/bench_pipeline.py", "pipeline_vs_solve", "handeye.app.engine.calibrate"),
+        ("app/tools/bench_pipeline.py", "pipeline_vs_solve", "handeye.app.engine.request"),
         ("app/tools/bench_pipeline.py", "pipeline_vs_solve", "handeye.app.public.api"),
         ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.chain.pose"),
         ("app/tools/bench_solvers.py", "_calibration_starts", "handeye.model.common.rotation"),

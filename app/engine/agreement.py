@@ -3,7 +3,8 @@
 ``handeye diagnose`` runs ``handeye calibrate`` on the same data, with the same options, and tells the story of
 its discrepancy search (:mod:`handeye.app.engine.diagnose`; the search, from calibrate's pose, keeps each step's
 figures: :attr:`~handeye.app.engine.request.CalibrationRequest.story`); only where calibrate ran no search (it
-stopped on bad input, or its fit did not converge) does diagnose run one of its own. Calibrate *is* that search
+stopped on bad input, its fit did not converge or ended at a pose that is not finite, or the search failed
+numerically) does diagnose run one of its own. Calibrate *is* that search
 (:mod:`handeye.app.engine.search`): it ends in the model the search chooses, fitted in calibrate's own residual
 model (for profile data the measured circles, the exact likelihood, where the search fits the sphere centres
 rebuilt from them in their first-order metric) and to every sample (the search runs on

@@ -221,13 +221,13 @@ def _free_axes_fit(dataset, unknowns):
     except (global_fit.GlobalFitError, CalibrationInputError, np.linalg.LinAlgError):
         return rms, 0
     r = fitted.model.residual(fitted.x)
-    return float(np.sqrt(r @ r / len(dataset))), fitted.model.n - (9 if "sphere" in free else 6)
+    return float(np.sqrt(r @ r / len(dataset))), fitted.model.n - (6 if unknowns == "sensor" else 9)  # as _suspect counts
 
 
-def _suspect(dataset, unknowns, rms_given, extra=0):
-    """Whether the plain fit of RMS ``rms_given`` (mm; ``extra`` parameters beside the pose and the centre
-    asked for) is poor: above :data:`SUSPECT_RMS_MM` or the stated noise; and its degrees of freedom."""
-    n, p = len(dataset), (6 if unknowns == "sensor" else 9) + extra
+def _suspect(dataset, unknowns, rms_given):
+    """Whether the plain fit of RMS ``rms_given`` (mm) is poor: above :data:`SUSPECT_RMS_MM` or the stated
+    noise; and its degrees of freedom."""
+    n, p = len(dataset), 6 if unknowns == "sensor" else 9
     dof = 3 * n - p
     if not np.isfinite(rms_given) or dof <= 0:
         return False, dof
@@ -283,10 +283,10 @@ def check(dataset, unknowns, rms_given):
     """
     check_diameter(dataset)
     suspect, dof = _suspect(dataset, unknowns, rms_given)
-    if suspect and dataset.mounts.sphere == "positioner":  # set-up axes off explain a poor fit too: is the rest poor?
+    if suspect and dataset.mounts.sphere == "positioner":  # compared with the axes free (set-up axes may be off)
         rms_given, extra = _free_axes_fit(dataset, unknowns)
-        suspect = rms_given is not None and _suspect(dataset, unknowns, rms_given, extra)[0]
-    if suspect:
+        dof -= extra  # each fit compared has the axes' parameters too
+    if suspect and rms_given is not None:
         _check_slips(dataset, unknowns, rms_given, dof)
         _check_conventions(dataset, unknowns, rms_given, dof)
     check_equator(dataset, unknowns)  # on data no slip explains better

@@ -33,7 +33,6 @@ def _mahalanobis(dataset, given, other):
     return float(np.sqrt(delta @ np.linalg.solve(slips.pose_covariance(dataset, "sensor", given), delta)))
 
 
-
 def _effects_keep_centre(dataset, effects, given, sigma):
     """Whether the calibrated ``effects`` (``--effects``) explain the misfit with the given centre:
     the extended model with it fits within the stated noise (chi-square at :data:`P_SUSPECT`), and

@@ -139,8 +139,8 @@ def diagnose(dataset="thesis-real", *, alpha=ALPHA, figures=None, plot=None, sig
 
 
 def _diagnosed(data, parts, level, sigma):
-    """The diagnosis of ``data`` with ``parts`` free, beside calibrate's own pose; and the data
-    (with the centre a free centre's calibration found)."""
+    """The diagnosis of ``data`` with ``parts`` free: calibrate's search told (its own where calibrate ran
+    none), beside calibrate's own pose; and the data (with the centre a free centre's calibration found)."""
     from handeye.app.engine import agreement, slips
     from handeye.app.engine import diagnose as procedure
     from handeye.app.engine.prepare import gate, with_sphere_centre

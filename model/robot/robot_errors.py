@@ -121,18 +121,21 @@ def _chain(model, qc, origins, after):
     return turned, prefix, suffix
 
 
-#: The last robot model and reported angles :func:`levers` was asked for, and its answer: the levers are
-#: of the nominal pose, the same for every fit of one dataset (a search asks hundreds of times).
-_LEVERS = {}
+#: The last robot model, reported angles and levers :func:`levers` answered, as one tuple (read and replaced
+#: whole: a thread never sees one call's key with another's levers): the levers are of the nominal pose, the
+#: same for every fit of one dataset (a search asks hundreds of times).
+_LAST_LEVERS = (None, None, None)
 
 
 def levers(model, joints_deg):
     """The gravity levers ``l_j`` (N, 2), metres, of the flange about the shoulder and elbow at the
     nominal pose of the reported angles (module docstring)."""
     joints = np.ascontiguousarray(joints_deg, float).reshape(-1, 6)
-    key = (id(model), joints.tobytes())
-    if _LEVERS.get("key") == key and _LEVERS["model"] is model:
-        return _LEVERS["levers"].copy()
+    global _LAST_LEVERS
+    last_model, last_key, last = _LAST_LEVERS
+    key = joints.tobytes()
+    if last_model is model and last_key == key:
+        return last.copy()
     q = np.radians(joints @ model.coupling.T + model.offsets)
     _, prefix, _ = _chain(model, q, model.origins, model.after)
     flange = (prefix[:, -1] @ model.flange)[:, :3, 3]
@@ -142,7 +145,7 @@ def levers(model, joints_deg):
         point, axis = frame[:, :3, 3], frame[:, :3, :3] @ model.axes[j]
         out.append(np.einsum("ni,ni->n", np.cross(flange - point, GRAVITY), axis) / 1000.0)
     result = np.stack(out, axis=1)
-    _LEVERS.update(key=key, model=model, levers=result)
+    _LAST_LEVERS = (model, key, result)
     return result.copy()
 
 
