@@ -22,15 +22,14 @@ from handeye.studies.study_testfunction import METHODS
 
 
 def _start_counts():
-    """80 starts per method (IPOPT 24); steepest descent's 80 (thousands of iterations each)
-    in the full suite only, 12 of them in the default tier."""
+    """80 starts per method (IPOPT 24) in the full suite; in the default tier 24 of them (steepest
+    descent's, thousands of iterations each, 12)."""
     for method in METHODS:
-        if method == "sd":
-            yield pytest.param(method, 80, id="sd", marks=pytest.mark.slow(
-                sibling="test_batch_and_single_starts_end_at_the_same_stationary_point[sd-12]"))
-            yield pytest.param(method, 12, id="sd-12")
-        else:
-            yield pytest.param(method, 24 if method == "ipopt" else 80, id=method)
+        few = 12 if method == "sd" else 24
+        if method != "ipopt":
+            yield pytest.param(method, 80, id=method, marks=pytest.mark.slow(
+                sibling=f"test_batch_and_single_starts_end_at_the_same_stationary_point[{method}-{few}]"))
+        yield pytest.param(method, few, id=f"{method}-{few}")
 
 
 @pytest.mark.parametrize("method,n", list(_start_counts()))

@@ -185,7 +185,9 @@ def test_a_signal_at_start_up_or_in_the_solve_is_one_line(tmp_path, sig, moment)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-@pytest.mark.parametrize("delay", [0.3, 0.8, 1.5, 2.5])
+@pytest.mark.parametrize("delay", [0.3, pytest.param(0.8, marks=pytest.mark.slow(
+    sibling="test_a_signal_at_any_moment_leaves_no_temporary_file[0.3-SIGINT]")), 1.5, pytest.param(2.5, marks=pytest.mark.slow(
+        sibling="test_a_signal_at_any_moment_leaves_no_temporary_file[1.5-SIGINT]"))])
 def test_a_signal_at_any_moment_leaves_no_temporary_file(tmp_path, sig, delay):
     """Whenever it comes: the signal's code and its one line, or (too late) the run's own ending, or
     (too early: on a loaded machine 0.3 s may fall before the interpreter reaches handeye's handler)
