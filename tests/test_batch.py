@@ -28,11 +28,21 @@ def _start_counts():
         yield pytest.param(method, 12 if method == "sd" else 24, id=method)
 
 
-@pytest.mark.parametrize("method,n", list(_start_counts()))
-def test_batch_and_single_starts_end_at_the_same_stationary_point(method, n):
+def _same_ends(method, n):
+    """Batch and single runs of ``n`` test-function starts end at the same stationary point, in as many iterations
+    (to one), with no exception."""
     starts = problems.testfunction_starts(n, seed=5)
     c = study_batch.compare(method, starts, chunks=1)
-    assert c.same_end.mean() >= 0.999, c.exceptions()
+    assert c.same_end.mean() >= 0.999, (method, c.exceptions())
+    assert c.iteration_gap[c.same_end].max() <= 1, (method, c.exceptions())
+    assert not c.exceptions()
+    d = c.to_dict()
+    assert d["starts"] == len(starts) and d["exceptions"] == []
+
+
+@pytest.mark.parametrize("method,n", list(_start_counts()))
+def test_batch_and_single_starts_end_at_the_same_stationary_point(method, n):
+    _same_ends(method, n)
 
 
 @pytest.mark.slow(sibling="test_batch_and_single_starts_end_at_the_same_stationary_point[newton-ls]")
@@ -40,12 +50,7 @@ def test_every_method_over_80_starts():
     """As the default tier's test, on 80 starts per method (IPOPT's 24 there already)."""
     for method in METHODS:
         if method != "ipopt":
-            c = study_batch.compare(method, problems.testfunction_starts(80, seed=5), chunks=1)
-            assert c.same_end.mean() >= 0.999, (method, c.exceptions())
-    assert c.iteration_gap[c.same_end].max() <= 1, c.exceptions()
-    assert not c.exceptions()
-    d = c.to_dict()
-    assert d["starts"] == len(starts) and d["exceptions"] == []
+            _same_ends(method, 80)
 
 
 def test_a_different_row_would_be_caught():
