@@ -44,6 +44,7 @@ from handeye.app.engine import (
     positioner_effect,
     robust,
     search,
+    set_aside,
     slips,
     taught_sphere,
 )
@@ -132,8 +133,8 @@ def screen(prep):
                      if request.effects else robust.screen(dataset, unknowns, start, alpha=request.alpha))
         mask, excluded = screening.inliers, screening.excluded
         warnings += [screening.note] if screening.note else []
-    mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
-    excluded = robust.with_geometry(dataset, excluded)  # a profile's arc that explains its poor centre, named
+    mask, excluded = set_aside.exclude_inconsistent(dataset, unknowns, mask, excluded)  # rows contradicting themselves
+    excluded = set_aside.with_geometry(dataset, excluded)  # a profile's arc that explains its poor centre, named
     used = dataset.subset(mask)
     if unknowns == "sensor" and used is not dataset:  # (every sample kept: checked above already)
         taught_sphere.check_centre(used, request.sigma, request.effects)  # a taught centre the pose would absorb: named (exit 2)

@@ -24,7 +24,7 @@ import numpy as np
 
 from handeye.app.common.choices import CLASSIC_METHODS as METHODS  # noqa: F401 - defined without numpy
 from handeye.app.common.errors import CalibrationInputError
-from handeye.app.engine import robust, slips
+from handeye.app.engine import robust, set_aside, slips
 from handeye.app.engine.levels import AWAY, AWAY_SD  # the verdict's levels, one place
 from handeye.app.engine.prepare import resolve_start, with_sphere_centre
 from handeye.app.engine.robust import ALPHA
@@ -105,8 +105,8 @@ def calibrate_classic(dataset, method, unknowns="sensor", outliers=True, alpha=A
         start = transform_from_pose(resolve_start(dataset, unknowns)[0])
         screening = robust.screen(dataset, unknowns, start, alpha=alpha)
         mask, excluded = screening.inliers, screening.excluded
-    mask, excluded = robust.exclude_inconsistent(dataset, unknowns, mask, excluded)  # as calibrate and diagnose
-    excluded = robust.with_geometry(dataset, excluded)
+    mask, excluded = set_aside.exclude_inconsistent(dataset, unknowns, mask, excluded)  # as calibrate and diagnose
+    excluded = set_aside.with_geometry(dataset, excluded)
     f2b, xs = f2b_all[mask], xs_all[mask]
     classics.axxb_system(np.eye(4)[None], p=np.zeros((1, 3)), q=np.zeros((1, 3)))  # load the generated code untimed
     t0 = time.perf_counter()

@@ -37,7 +37,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust
+from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust, set_aside
 from handeye.app.engine.levels import AT_NOISE
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
@@ -137,7 +137,7 @@ def diagnose(dataset, alpha=ALPHA, start=None, sigma=None, centre_unknown=False,
     unknowns = "sensor+sphere" if centre_unknown else "sensor"
     start_pose, _ = resolve_start(dataset, unknowns, start)
     screening = robust.screen(dataset, unknowns, transform_from_pose(start_pose), alpha=alpha)
-    mask, inconsistent = robust.exclude_inconsistent(dataset, unknowns, screening.inliers.copy(), [])
+    mask, inconsistent = set_aside.exclude_inconsistent(dataset, unknowns, screening.inliers.copy(), [])
     allowed = ~np.isin(dataset.rows, [e.row for e in inconsistent])  # never reinstated
     structure = Structure(centre=centre_unknown)
     prob, fit = _base_fit(dataset, sigma, structure, mask, screening.robust_sensor2flange)

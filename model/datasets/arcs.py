@@ -8,7 +8,7 @@ circle (a corner, an edge, a step). One verdict for the dataset:
 * a few such rows in a good set -- at most half of the rows with a profile -- are set aside
   (:attr:`handeye.model.datasets.dataset.Dataset.not_arcs`): they give no sphere centre, so they
   are no samples; the calibration names each with its file and row among the excluded samples
-  (:func:`handeye.app.engine.robust.exclude_inconsistent`), as it names gross errors;
+  (:func:`handeye.app.engine.set_aside.exclude_inconsistent`), as it names gross errors;
 * more than half: the data are not of this sphere (another target, a wrong diameter), and the
   load is refused (:class:`~handeye.model.readers.tables.DatasetError`, the input-error exit 2):
   "the profiles are not arcs of a sphere of diameter D mm: FILE ...", with the diameter hint when
