@@ -5,9 +5,9 @@ search chooses calibrate's model and its own fit lies within 1 sd of calibrate's
 (:mod:`handeye.app.engine.agreement`: for profiles the measured circles, where the search fits the rebuilt centres;
 the search's own fit's distance is said).
 
-Calibrate's verdict is the calibration diagnose itself runs beside its search (the public function, the
-user's options: :func:`test_the_calibration_diagnose_compares_with_is_the_users`), so each dataset costs one
-diagnosis. A disagreement that is known and not yet fixed is a strict expected failure naming its cause, so
+Calibrate's verdict is the calibration diagnose itself runs, whose search diagnose tells (the public function's
+path, the user's options: :func:`test_the_calibration_diagnose_compares_with_is_the_users`,
+:func:`test_diagnose_tells_calibrates_own_search`), so each dataset costs one diagnosis. A disagreement that is known and not yet fixed is a strict expected failure naming its cause, so
 that the fix flips it."""
 import pathlib
 import re
