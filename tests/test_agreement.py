@@ -7,8 +7,8 @@ the search's own fit's distance is said).
 
 Calibrate's verdict is the calibration diagnose itself runs, whose search diagnose tells (the public function's
 path, the user's options: :func:`test_the_calibration_diagnose_compares_with_is_the_users`,
-:func:`test_diagnose_tells_calibrates_own_search`), so each dataset costs one diagnosis. A disagreement that is known and not yet fixed is a strict expected failure naming its cause, so
-that the fix flips it."""
+:func:`test_diagnose_tells_calibrates_own_search`), so each dataset costs one diagnosis. A disagreement
+that is known and not yet fixed is a strict expected failure naming its cause, so that the fix flips it."""
 import pathlib
 import re
 

@@ -150,8 +150,8 @@ def _run_slips(tmp_path, seeds, **options):
 
 
 def test_slips_never_exit_0_at_a_wrong_pose(tmp_path):
-    """Every slip of :data:`indep_cells.SLIPS`, two seeds each."""
-    _run_slips(tmp_path, (100, 101))
+    """Every slip of :data:`indep_cells.SLIPS`, one seed each (twelve in the full suite)."""
+    _run_slips(tmp_path, (100,))
 
 
 @pytest.mark.slow(sibling="test_slips_never_exit_0_at_a_wrong_pose")
