@@ -19,6 +19,7 @@ from handeye.model.common.statistics import chi_median
 from handeye.model.design.robot_gate import gate_robot_effects
 from handeye.model.fit import extended
 from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
+from handeye.model.fit.cell import corrected_centres
 
 
 def robust_effects(dataset, unknowns, start, effects, max_rounds=50, prob=None):
@@ -71,11 +72,9 @@ def robust_effects(dataset, unknowns, start, effects, max_rounds=50, prob=None):
 
 def corrected(dataset, params):
     """The dataset with its measured centres corrected by the effects ``params`` (name ->
-    parameters, :func:`handeye.model.effects.correct`), or None where a correction is not finite."""
-    xs = dataset.centre_in_sensor
+    parameters, :func:`handeye.model.fit.cell.corrected_centres`), or None where a correction is not finite."""
     with np.errstate(all="ignore"):
-        for name, values in params.items():
-            xs = catalogue.correct(name, xs, dataset.sphere_diameter / 2, values)[0]
+        xs = corrected_centres(dataset.centre_in_sensor, dataset.sphere_diameter / 2, params)[0]
     if not np.all(np.isfinite(xs)):
         return None
     out = dataclasses.replace(dataset, centre_in_sensor=xs)

@@ -121,16 +121,26 @@ class _Mixture:
         return float(np.sum(np.exp(log_w) * self.values[:n]))
 
 
+def _chi2_mixture(x, k):
+    """P(chi2_k(l) > x) for any l: the mixture of the tails P(chi2_(k+2j) > x)."""
+    return _Mixture(lambda j: chi2_survival_array(x, k + 2.0 * j))
+
+
+def _f_mixture(x, k, d2):
+    """P(F'(k, d2; l) > x) for any l: the mixture of the tails of ``F(k + 2j, d2)`` at ``x k / (k + 2j)``."""
+    return _Mixture(lambda j: f_survival_array(x * k / (k + 2.0 * j), k + 2.0 * j, d2))
+
+
 def noncentral_survival(x, k, lam):
     """P(chi2_k(lam) > x): the Poisson mixture of central tails (module docstring)."""
     if lam <= 0:
         return chi2_survival(x, k)
-    return _Mixture(lambda j: chi2_survival_array(x, k + 2.0 * j))(lam)
+    return _chi2_mixture(x, k)(lam)
 
 
 def noncentral_f_survival(x, k, d2, lam):
     """P(F'(k, d2; lam) > x): the Poisson mixture of central F tails, ``F(k + 2j, d2)`` at ``x k / (k + 2j)``."""
-    return _Mixture(lambda j: f_survival_array(x * k / (k + 2.0 * j), k + 2.0 * j, d2))(lam)
+    return _f_mixture(x, k, d2)(lam)
 
 
 @functools.lru_cache(maxsize=256)
@@ -146,12 +156,11 @@ def detectable_noncentrality(k, level, dof=None, power=POWER):
     The root in ``lambda`` is found on one :class:`_Mixture` (its central tails evaluated once)."""
     crit = threshold(lambda x: chi2_survival(x, k), level)
     if dof is None:
-        tail = _Mixture(lambda j: chi2_survival_array(crit, k + 2.0 * j))
+        tail = _chi2_mixture(crit, k)
     elif dof <= k or crit >= dof:
         return math.inf
     else:
-        f_crit = crit * (dof - k) / (k * (dof - crit))
-        tail = _Mixture(lambda j: f_survival_array(f_crit * k / (k + 2.0 * j), k + 2.0 * j, dof - k))
+        tail = _f_mixture(crit * (dof - k) / (k * (dof - crit)), k, dof - k)
     return threshold(lambda lam: 1.0 - tail(lam), 1.0 - power, rtol=_RTOL)
 
 
