@@ -32,7 +32,7 @@ def _old_path(monkeypatch):
 
 
 def test_the_fast_path_gives_the_same_pose_and_leave_one_out_as_before(small_scan, monkeypatch):
-    monkeypatch.setattr(calibration, "NLP_CALLBACK_ABOVE", 10)  # the callback, as above 1000 rows
+    monkeypatch.setattr(calibration, "NLP_CALLBACK_ABOVE", 10)  # the callback, as above 120 rows
     new = handeye.calibrate(small_scan, model="points")
     with monkeypatch.context() as m:
         _old_path(m)

@@ -49,11 +49,13 @@ from handeye.model.common import rotation
 
 #: Above this many rows the IPOPT problem's cost is a callback to the model's numpy cost,
 #: gradient and exact Hessian (:mod:`handeye.model.fit.nlp_callback`: built in milliseconds, an
-#: iteration a few passes over the rows); below, the rows' expressions expanded to one CasADi SX
-#: graph that IPOPT differentiates by AD (faster for few rows; for a scan's 33,000 profile
-#: points a map-ped MX graph took 25 s to build and a second per Hessian). The two agree to
-#: rounding (tested).
-NLP_CALLBACK_ABOVE = 1000
+#: iteration a few passes over the rows); up to it, the rows' expressions expanded to one CasADi SX
+#: graph that IPOPT differentiates by AD, built once per problem structure and kept with its solver (tens of
+#: MB each; :func:`handeye.model.fit.nlp_problem.nlp`): faster for few rows, where building costs more than
+#: solving. A graph built for one problem alone never pays: at 300 rows its build took 200 ms of a 220 ms
+#: solve against 48 ms through the callback, and for a scan's 33,000 profile points a map-ped MX graph
+#: took 25 s to build and a second per Hessian. The two agree to rounding (tested).
+NLP_CALLBACK_ABOVE = 120
 
 
 def _derived(rot, kind, outputs):
@@ -112,6 +114,8 @@ def parameter_names(rotation_name, unknowns):
 
 #: Rows per chunk of a generated function's evaluation (:meth:`CalibrationModel._evaluate`).
 ROW_CHUNK = 16384
+#: Numbers of the second derivatives' table held at once (:meth:`CalibrationModel._second_order`: 32 MB).
+_SECOND_ORDER_BLOCK = 1 << 22
 
 
 class CalibrationModel:
@@ -500,18 +504,21 @@ class CalibrationModel:
         if not np.shape(x)[:-1] and back.ndim == 2 and self._profile_layout() is not None:
             return self._weighted_second_derivatives(x, back)
         _, hess = _numpy_functions(self.rotation, self.kind)
-        head = self._head(x)
-        out = np.zeros(np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1]) + (self.n, self.n))
-        for a in range(0, self.n_meas, ROW_CHUNK):
-            b = min(a + ROW_CHUNK, self.n_meas)
+        head, batch = self._head(x), np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1])
+        free = np.arange(self._cols.stop)[self._cols]
+        out = np.zeros(batch + (self.n, self.n))
+        entries = self.m * self.n * self.n
+        step = max(1, min(ROW_CHUNK, _SECOND_ORDER_BLOCK // (entries * int(np.prod(batch, dtype=int)))))
+        for a in range(0, self.n_meas, step):
+            b = min(a + step, self.n_meas)
             vals = self._rows(hess, head, slice(a, b))
             n_theta = int(round(np.sqrt(len(vals) / self.m)))
-            cols = np.arange(n_theta)[self._cols]
-            parts = [back[..., a:b, comp] for comp in range(self.m)]
-            for i, p in enumerate(cols):
-                for j, q in enumerate(cols):
-                    out[..., i, j] += sum(np.sum(part * vals[(comp * n_theta + p) * n_theta + q], axis=-1)
-                                          for comp, part in enumerate(parts))
+            index = ((np.arange(self.m)[:, None, None] * n_theta + free[:, None]) * n_theta + free).ravel()
+            table = np.empty((len(index),) + np.shape(x)[:-1] + (b - a,))  # constants and per-row values alike
+            for i, k in enumerate(index):
+                table[i] = vals[k]
+            table = table.reshape((self.m, self.n, self.n) + table.shape[1:])
+            out += np.einsum("cpq...r,...rc->...pq", table, back[..., a:b, :])
         return out
 
     def _weighted_second_derivatives(self, x, weighted):

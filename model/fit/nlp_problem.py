@@ -59,15 +59,9 @@ def _constraints(x, rotation):
     return ca.vertcat(*[m[i, j] for i in range(3) for j in range(i, 3)])
 
 
-#: Up to this many rows a graph is kept and named by its structure (:func:`_template`), so that IPOPT's solver
-#: is built once per structure: there building costs more than solving (thesis-real, 36 rows: 60 ms against
-#: 13 ms); above, the graph and solver (tens of MB each) are built for the problem and freed with it.
-SHARED_ROWS = 120
-
-
 def _graph(model, resjac, n_rot):
-    """``x``, ``f``, ``p``, ``p_value`` and, up to :data:`SHARED_ROWS` rows, ``structure`` of :func:`nlp`: one SX
-    graph of every row (the structure's, kept), the model's data as the parameter values."""
+    """``x``, ``f``, ``p``, ``p_value`` and ``structure`` of :func:`nlp`: one SX graph of every row (the
+    structure's, kept), the model's data as the parameter values."""
     m = model.m
     radius = float(model.radius) if model.kind != "centre" else None
     structure = ("calibration-graph", resjac, n_rot, m, len(model._data), model.n, model.n_meas,
@@ -77,8 +71,6 @@ def _graph(model, resjac, n_rot):
     p_value = table.ravel(order="F")  # ca.vec is column-major
     if model.unknowns != "sensor+sphere":
         p_value = np.concatenate([p_value, model.fixed_centre])
-    if model.n_meas > SHARED_ROWS:
-        return {**_template.__wrapped__(structure), "p_value": p_value}
     return {**_template(structure), "p_value": p_value, "structure": structure}
 
 
