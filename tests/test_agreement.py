@@ -28,13 +28,7 @@ SAME_AS = {"robcalibrator ball-2023-05-raw": "robcalibrator ball-2023-05",  # th
            "simulate flange/positioner sensor_scale=0.002":
                "tests/test_mounts.py::test_a_hidden_sensor_scale_goes_through_diagnose_calibrate_export_cloud_validate"}
 #: Known disagreements: dataset -> why (a strict expected failure).
-KNOWN = {
-    "robcalibrator ball-2023-05": (
-        "calibrate fits the measured circles (its default for profile data), the search the sphere centres rebuilt "
-        "from them in their circle-fit metric (first order): on 10 poses of a 1-inch ball their poses lie "
-        "0.69 mm / 2.84 deg, 1.55 of calibrate's sd, apart (diagnose says so and keeps its own); the fix is the "
-        "search on the circle model itself"),
-}
+KNOWN = {}
 SLOW = tuple(name for name in cells.DATASETS if name not in SMALL and name not in SAME_AS)
 
 

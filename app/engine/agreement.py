@@ -9,12 +9,14 @@ numerically) does diagnose run one of its own. Calibrate *is* that search
 model (for profile data the measured circles, the exact likelihood, where the search fits the sphere centres
 rebuilt from them in their first-order metric) and to every sample (the search runs on
 :data:`~handeye.model.fit.calibration.ROW_CHUNK` of them spread over the rows where there are more). So where
-the search names the model calibrate fitted and its own fit lies within :data:`~handeye.app.engine.levels.AGREE_SD`
-of calibrate's sd (or it ran on a subsample, whose pose scatters by its own sd), the diagnosis's pose, 1-sd and
-named effects' values are calibrate's (:func:`at_calibration`); the search's own fit stays in the story (its
-steps, residuals and RMS) and the sentence :func:`against_calibrate` says how far it lies. Where the models
-differ, or the search's own fit of the same model on the same samples lies beyond that (another residual
-model: on 10 poses of a 1-inch ball the rebuilt centres and the circles put the pose 1.55 sd apart), the
+the search names the model calibrate fitted, the diagnosis's pose, 1-sd and named effects' values are calibrate's
+(:func:`at_calibration`) wherever the search's own fit could only be the cruder one: it lies within
+:data:`~handeye.app.engine.levels.AGREE_SD` of calibrate's sd, or it ran on a subsample (whose pose scatters by its
+own sd), or it fitted another residual model (the rebuilt centres' first-order metric where calibrate fits the
+measured circles or the profile points: on 10 poses of a 1-inch ball the two put the pose 1.55 sd apart, and the
+circles are the exact likelihood). The search's own fit stays in the story (its steps, residuals and RMS) and the
+sentence :func:`against_calibrate` says how far it lies. Where the models differ, or the search's fit of the same
+model in the same metric on the same samples lies beyond 1 sd (two fits of one problem: one of them wrong), the
 diagnosis keeps its own pose and the sentence says why the two differ.
 """
 from __future__ import annotations
@@ -68,12 +70,14 @@ def at_calibration(result, own, searched, n):
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
                       own.parameter_names)
-    if not same_pose(d) and searched == n:  # the same model, another fit of it: said, and the search's pose kept
+    if not same_pose(d) and searched == n and own.model == "centre":  # one model, one metric, two fits: said, kept
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     said = (f"the same pose as `handeye calibrate`'s: the search chose its model "
             f"({', '.join(sorted(model_of(own.effects))) or 'no effect'}), and this is calibrate's fit of it "
             f"({_how(own)}); the search's own fit lies {_far(d)} from it"
-            + (f", within {AGREE_SD:g} sd" if same_pose(d) else "") + note + _exclusions(result, own))
+            + (f", within {AGREE_SD:g} sd" if same_pose(d) else
+               f" (it fits the sphere centres rebuilt from the {own.model} model's data, to first order)" if searched == n
+               else "") + note + _exclusions(result, own))
     values = {e.name: e for e in own.effects or ()}
     named = [dataclasses.replace(e, parameters=values[e.name].parameters, std=values[e.name].std)
              if e.name in values else e for e in result.effects]
