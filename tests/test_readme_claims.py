@@ -239,10 +239,10 @@ def _start_poses_iterations(method, rotation):
 @pytest.mark.parametrize("method,label", [("gn", "GN"), ("newton", "Newton")])
 def test_table_7_2_iterations_of_newton_and_gauss_newton(method, label):
     text = figure(r"Iterations from starts 1–9 \(`handeye study start-poses`, `local` / `euler`\): (.*?)\[test_thesis")
-    lo_l, hi_l, lo_e, hi_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)", text).groups()
-    for rotation, lo, hi in (("local", lo_l, hi_l), ("euler", lo_e, hi_e)):
-        its = _start_poses_iterations(method, rotation)
-        assert (min(its), max(its)) == (int(lo), int(hi)), (method, rotation, its)
+    lo_l, hi_l, lo_e, hi_e, top_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)(?:…(\d+))?", text).groups()
+    for rotation, lo, hi, top in (("local", lo_l, hi_l, hi_l), ("euler", lo_e, hi_e, top_e or hi_e)):
+        its = _start_poses_iterations(method, rotation)  # a range hi…top: the machine's rounding decides
+        assert min(its) == int(lo) and int(hi) <= max(its) <= int(top), (method, rotation, its)
 
 
 # --- the printed real data with its misprint corrected -------------------------------------------
@@ -293,17 +293,22 @@ def test_the_corrected_real_data_against_table_7_4(corrected):
 
 
 def test_forward_differences_send_the_euler_angles_astray(corrected):
+    from handeye.model.common.rotation import transform_distance
     from handeye.model.datasets.dataset import load
 
-    fixed, printed = figure(r"the angles run off to ±([\d.]+·10\S+) degrees \(the misprint corrected, below\) or "
-                            r"±([\d.]+·10\S+) degrees \(as printed\)")
+    fixed = figure(r"the angles run off to ±([\d.]+·10\S+) degrees \(the misprint corrected, below\) with the "
+                   r"transform unchanged; as printed\s+the run is as chaotic")
     sup = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹", "0123456789")
-    for text, data in ((fixed, corrected), (printed, load("thesis-real"))):
-        mantissa, exponent = text.split("·10")
-        point = _gn(data, jacobian="forward", fd_step=5e-7)["solver_point"]
-        a, c = point[3], point[5]
-        assert np.sign(a) != np.sign(c)
-        assert agrees(mantissa, max(abs(a), abs(c)) / 10.0 ** int(exponent.translate(sup))), (text, a, c)
+    mantissa, exponent = fixed.split("·10")
+    res = _gn(corrected, jacobian="forward", fd_step=5e-7)
+    a, c = res["solver_point"][3], res["solver_point"][5]
+    assert np.sign(a) != np.sign(c)
+    assert agrees(mantissa, max(abs(a), abs(c)) / 10.0 ** int(exponent.translate(sup))), (fixed, a, c)
+    exact = _gn(corrected)  # the exact Jacobian's fit: the same transform, to the forward differences' error
+    dt, dr = transform_distance(np.array(res["sensor_matrix"]), np.array(exact["sensor_matrix"]))
+    assert dt < 0.01 and dr < 0.001, (dt, dr)
+    printed = _gn(load("thesis-real"), jacobian="forward", fd_step=5e-7)  # chaotic: only that it does not converge
+    assert not printed["converged"]
 
 
 # --- Kim & Cho on thesis-real, as the commands run it --------------------------------------------
@@ -433,10 +438,10 @@ def test_the_circle_fits_honest_default_and_start_poses_studies():
     labels = {"GN": "gn", "LM": "lm", "dogleg": "dogleg", "trust region": "tr", "Newton": "newton"}
     s = saved("start-poses")
     for label, method in labels.items():
-        lo_l, hi_l, lo_e, hi_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)", text).groups()
-        for rotation, lo, hi in (("local", lo_l, hi_l), ("euler", lo_e, hi_e)):
-            its = s[f"{method}/{rotation}"]["iterations"][1:]
-            assert (min(its), max(its)) == (int(lo), int(hi)), (method, rotation, its)
+        lo_l, hi_l, lo_e, hi_e, top_e = re.search(rf"\b{label} (\d+)–(\d+) / (\d+)–(\d+)(?:…(\d+))?", text).groups()
+        for rotation, lo, hi, top in (("local", lo_l, hi_l, hi_l), ("euler", lo_e, hi_e, top_e or hi_e)):
+            its = s[f"{method}/{rotation}"]["iterations"][1:]  # saved on the machine that ran the study
+            assert min(its) == int(lo) and int(hi) <= max(its) <= int(top), (method, rotation, its)
     lo_m, hi_m, lo_e, hi_e = re.search(r"IPOPT (\d+)–(\d+) \(`matrix`\) / (\d+)–(\d+)", text).groups()
     for key, lo, hi in (("ipopt/matrix", lo_m, hi_m), ("ipopt/euler", lo_e, hi_e)):
         its = s[key]["iterations"][1:]

@@ -19,6 +19,7 @@ from handeye import solvers
 from handeye.model import effects
 from handeye.model.common.statistics import chi2_survival
 from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
+from handeye.model.fit.cell import corrected_centres
 from handeye.model.fit.score_tests import cholesky, gate, gate_from_sums, projection, score_test_robust
 
 
@@ -43,13 +44,18 @@ NOMINAL_SIGMA = 0.05
 FOLDS = 5
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(frozen=True)
 class Structure:
-    """What the model contains besides the sensor pose."""
+    """What the model contains besides the sensor pose (a value: hashable, so fits of it are cached by it)."""
 
     centre: bool = False
     data_effects: tuple = ()
     flips: frozenset = frozenset()
+
+    def __post_init__(self):
+        object.__setattr__(self, "centre", bool(self.centre))
+        object.__setattr__(self, "data_effects", tuple(self.data_effects))
+        object.__setattr__(self, "flips", frozenset(self.flips))
 
 
 @dataclasses.dataclass
@@ -243,14 +249,10 @@ class Samples:
         robot = {}
         if robot_names:
             f2b, robot = self.robot_motion({n: params[n] for n in robot_names}, rows)
-        cols = []
-        for name in structure.data_effects:
-            if name in robot:
-                cols.append(name)
-                continue
-            with np.errstate(invalid="ignore", divide="ignore"):  # non-finite trial steps are rejected
-                xs, dxs = effects.correct(name, xs, self.radius, params[name])
-            cols.append(dxs)
+        data_names = [n for n in structure.data_effects if n not in robot]
+        xs, derivatives = corrected_centres(xs, self.radius, {n: params[n] for n in data_names})
+        of = dict(zip(data_names, derivatives))
+        cols = [name if name in robot else of[name] for name in structure.data_effects]
         unknowns = "sensor+sphere" if structure.centre else "sensor"
         model = CalibrationModel(f2b, xs, self.d.sphere_centre, "local", unknowns)
         e, j = model.residual_and_jacobian(x)
@@ -394,7 +396,7 @@ class Samples:
     def heldout_rms(self, structure, mask, fit, raw=False):
         """RMS prediction error of held-out samples, 5-fold cross-validation over ``mask``: in the samples'
         metric (what a decision compares), or with ``raw`` in mm (what a report shows)."""
-        key = (structure.centre, structure.data_effects, tuple(sorted(structure.flips)), mask.tobytes(), fit.x.tobytes(),
+        key = (structure, mask.tobytes(), fit.x.tobytes(),
                tuple((k, np.asarray(v, float).tobytes()) for k, v in sorted(fit.params.items())), repr(self.robot_free))
         if key not in self._held_out:
             idx = np.where(mask)[0]
