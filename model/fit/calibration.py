@@ -517,11 +517,8 @@ class CalibrationModel:
             table = np.empty((len(index),) + np.shape(x)[:-1] + (b - a,))  # constants and per-row values alike
             for i, k in enumerate(index):
                 table[i] = vals[k]
-            table = table.reshape((self.m, self.n, self.n) + (1,) * (len(batch) + 1 - table.ndim + 1) + table.shape[1:])
-            # each output's rows summed by np.sum, then the outputs in order: the sums of the entry-by-entry
-            # loop this replaced, to the last bit (a chaotic run, as the thesis's forward differences, repeats)
-            terms = (table * np.moveaxis(back[..., a:b, :], -1, 0)[:, None, None]).sum(axis=-1)
-            out += np.moveaxis(sum(terms), (0, 1), (-2, -1))
+            table = table.reshape((self.m, self.n, self.n) + (1,) * (len(batch) - np.ndim(x) + 1) + table.shape[1:])
+            out += np.einsum("cpq...r,...rc->...pq", table, back[..., a:b, :])  # no (m, n, n, rows) product held
         return out
 
     def _weighted_second_derivatives(self, x, weighted):
