@@ -149,6 +149,27 @@ def test_the_centre_known_refits_are_absolute_orientations(monkeypatch):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-6)
 
 
+def test_the_closed_form_refits_by_downdating_equal_one_absolute_orientation_each(monkeypatch):
+    """loo.closed_form_errors downdates the whole cross-covariance by each sample (rank one, one batched SVD, in
+    chunks): the errors of solving each deleted problem on its own by global_fit.absolute_orientation."""
+    from handeye.app.tools.bench import simulated_case
+    from handeye.model.fit.global_fit import absolute_orientation, centre_targets
+
+    f2b, xs, centre, _ = simulated_case(40, seed=5)
+    mask = np.ones(40, bool)
+    mask[[2, 17]] = False
+    q = centre_targets(f2b, centre)
+    direct = []
+    for k in np.flatnonzero(mask):
+        weights = mask.astype(float)
+        weights[k] = 0.0
+        pose, _ = absolute_orientation(xs, q, weights)
+        direct.append(np.linalg.norm(pose[:3, :3] @ xs[k] + pose[:3, 3] - q[k]))
+    monkeypatch.setattr(loo, "CLOSED_FORM_CHUNK", 7)
+    np.testing.assert_allclose(loo.closed_form_errors(f2b, xs, centre, mask), direct, rtol=1e-9, atol=1e-12)
+    assert loo.closed_form_errors(f2b[:3], xs[:3], centre, np.ones(3, bool)) is None  # two points: no rotation
+
+
 def test_cost_derivatives_weight_rows_and_share_one_point(profiled):
     """Row weights against a stack of points, or many weightings of one point, are the
     weighted sums of the rows' own cost, gradient and exact Hessian."""

@@ -38,7 +38,6 @@ SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy
 #: the global search of the centre model.
 REFINE = 2
 
-_AXES = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +60,16 @@ class Reading:
 
 
 def _axis(axis, angles):
-    return matrix_from_rotvec(np.asarray(angles, float)[:, None] * _AXES[axis])
+    """Rotations (N, 3, 3) by ``angles`` (N,, rad) about the basis vector ``axis`` ('x', 'y' or 'z')."""
+    angles = np.asarray(angles, float)
+    i = "xyz".index(axis)
+    j, k = (i + 1) % 3, (i + 2) % 3
+    out = np.zeros((len(angles), 3, 3))
+    c, s = np.cos(angles), np.sin(angles)
+    out[:, i, i] = 1.0
+    out[:, j, j] = out[:, k, k] = c
+    out[:, k, j], out[:, j, k] = s, -s
+    return out
 
 
 def _euler(sequence, reverse, radians):

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.model.fit.global_fit import absolute_orientation, centre_targets
+from handeye.model.fit.global_fit import centre_targets
 
 #: Iterations of the batched Newton before a problem is handed back as not converged.
 NEWTON_ITER = 30
@@ -174,6 +174,10 @@ def _damped_steps(h, g, lam):
     return -s * np.einsum("gij,gj->gi", vecs, rotated), lam
 
 
+#: Deleted problems solved at once by :func:`closed_form_errors`.
+CLOSED_FORM_CHUNK = 16384
+
+
 def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     """Leave-one-out prediction errors (G,) of the samples in ``mask`` for the unweighted centre model with the
     sphere centre known: each deleted problem is an absolute orientation
@@ -181,9 +185,8 @@ def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     error is ``|X_(-k) p_k - q_k|`` (``q`` the centre in the flange frame,
     :func:`~handeye.model.fit.global_fit.centre_targets`; ``R_k`` is orthogonal, so this is
     ``|T1_k X_(-k) p_k - c|``). None where a deleted problem leaves the rotation undetermined (the caller's
-    refits decide there). One absolute orientation per sample over every other: quadratic in the samples, so
-    the caller takes it up to :data:`handeye.app.engine.robust.LOO_EXACT_UP_TO` of them (the deletion formula
-    above, as for every model).
+    refits decide there). Each deleted problem's cross-covariance is the whole one downdated by its sample (rank
+    one), so all of them are one batched SVD, linear in the samples.
 
     Parameters
     ----------
@@ -196,13 +199,21 @@ def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     mask : ndarray of bool, shape (N,)
         Samples fitted (at least three); each is left out in turn.
     """
-    p, q = np.asarray(centre_in_sensor, float), centre_targets(flange2base, centre)
-    errors = []
-    for k in np.flatnonzero(mask):
-        weights = np.asarray(mask, float)
-        weights[k] = 0.0
-        transform, singular = absolute_orientation(p, q, weights)
-        if singular[1] <= 1e-9 * max(singular[0], 1e-300):
+    keep = np.asarray(mask, bool)
+    p, q = np.asarray(centre_in_sensor, float)[keep], centre_targets(flange2base, centre)[keep]
+    n = len(p)
+    if n < 4:
+        return None
+    pc, qc = p - p.mean(axis=0), q - q.mean(axis=0)  # about the centroids of every kept sample
+    # without sample k the centroids move by -pc_k / (n - 1), and the cross-covariance is a rank-one downdate
+    # of the whole one: H_k = H - n / (n - 1) qc_k pc_k^T; sample k's error n / (n - 1) |R_k pc_k - qc_k|
+    whole, errors = qc.T @ pc, np.empty(n)
+    for a in range(0, n, CLOSED_FORM_CHUNK):  # a few MB of 3x3 matrices at a time, not 300 MB for a million
+        k = slice(a, min(a + CLOSED_FORM_CHUNK, n))
+        u, singular, vt = np.linalg.svd(whole - n / (n - 1) * np.einsum("ki,kj->kij", qc[k], pc[k]))
+        if np.any(singular[:, 1] <= 1e-9 * np.maximum(singular[:, 0], 1e-300)):
             return None
-        errors.append(float(np.linalg.norm(transform[:3, :3] @ p[k] + transform[:3, 3] - q[k])))
-    return np.array(errors)
+        u[:, :, -1] *= np.sign(np.linalg.det(u @ vt))[:, None]
+        rot = u @ vt  # Kabsch's rotation of each deleted problem (global_fit.absolute_orientation's)
+        errors[k] = n / (n - 1) * np.linalg.norm(np.einsum("kij,kj->ki", rot, pc[k]) - qc[k], axis=1)
+    return errors

@@ -458,8 +458,8 @@ def leave_one_out(model, x, mask=None, predictor=None):
     models compare; only the refit differs. An accuracy figure that the fit's own residual
     cannot flatter.
 
-    For the unweighted centre model with the centre known (up to :data:`LOO_EXACT_UP_TO` samples) each refit
-    is an absolute orientation, solved in closed form (:func:`handeye.app.engine.loo.closed_form_errors`).
+    For the unweighted centre model with the centre known each refit is an absolute orientation, solved in
+    closed form at any size (:func:`handeye.app.engine.loo.closed_form_errors`: one batched SVD, linear).
     The deletion formula gives the Gauss-Newton step of the fit without sample g from one
     evaluation at ``x``: ``dx_g = (A - B_g)^-1 J_g^T r_g`` (``A = J^T J`` of the fit,
     ``B_g = J_g^T J_g`` and ``r_g`` sample g's whitened rows), exact for the linearised problem.
@@ -505,10 +505,11 @@ def leave_one_out(model, x, mask=None, predictor=None):
 
 
 def _loo_errors(model, x, mask, predictor):
-    """:func:`leave_one_out`'s errors (G,) of the samples in ``mask`` (at least one): the exact
-    refits up to :data:`LOO_EXACT_UP_TO` samples, the deletion formula above."""
+    """:func:`leave_one_out`'s errors (G,) of the samples in ``mask`` (at least one): in closed form where each
+    refit is an absolute orientation, else the exact refits up to :data:`LOO_EXACT_UP_TO` samples, the deletion
+    formula above."""
     used = np.flatnonzero(mask)
-    if len(used) <= LOO_EXACT_UP_TO and _closed_form(model, predictor) and (errors := loo.closed_form_errors(
+    if _closed_form(model, predictor) and (errors := loo.closed_form_errors(
             model.flange2base, model.centre_in_sensor, model.fixed_centre, mask)) is not None:
         return errors  # the unweighted centre model, centre known: every refit an absolute orientation
     if len(used) > LOO_EXACT_UP_TO and model.groups is None:

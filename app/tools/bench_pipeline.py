@@ -3,7 +3,8 @@ against one IPOPT solve of its final problem built and solved from scratch (``ha
 
 The stages are :mod:`handeye.app.engine.calibrate`'s (request, prepare, screen, fit, verify,
 describe), timed in process after a warm-up (generated code loaded, nothing cached between
-runs but the code: each run on the dataset loaded anew, outside the timing), median of ``reps`` runs; the reference is the final residual model of the
+runs but the code: each run on the dataset loaded anew, outside the timing), median of ``reps``
+runs; the reference is the final residual model of the
 samples the pipeline kept, built (:func:`handeye.model.datasets.observations.build`), turned into a
 CasADi NLP and solved by IPOPT from the same start, also median of ``reps``; and the lean solve a user
 writes (``casadi.nlpsol`` over the pose's 6 numbers and the sphere-centre residuals of the same samples),
@@ -80,6 +81,11 @@ def _lean_user_solve(used, start_pose, centre):
     return seconds, bool(solver.stats()["success"]), pose
 
 
+def _whole(run, request, data):
+    """Seconds of one whole calibration of ``data`` (``run`` of a default ``request``)."""
+    return once(lambda: run(request().checked(data), data))[0]
+
+
 def pipeline_vs_solve(dataset="thesis-real", reps=5):
     """Median seconds of each stage (with and without leave-one-out), of the whole calibration (the stages and
     the discrepancy search, :func:`handeye.app.engine.calibrate.run`), of one IPOPT solve of the final problem
@@ -104,8 +110,7 @@ def pipeline_vs_solve(dataset="thesis-real", reps=5):
         for loo in (True, False):  # each run on the dataset loaded anew: what it keeps (Dataset.once) is not reused
             times, prep, screened = _stage_times(load_dataset(dataset), loo)
             runs[loo].append(times)
-    whole = [once(lambda fresh=load_dataset(dataset): run(CalibrationRequest().checked(fresh), fresh))[0]
-             for _ in range(reps)]
+    whole = [_whole(run, CalibrationRequest, load_dataset(dataset)) for _ in range(reps)]
     solves = [_ipopt_from_scratch(prep, screened) for _ in range(reps)]
     lean = None if data.sphere_centre is None else [
         _lean_user_solve(screened.used, prep.start_pose, data.sphere_centre) for _ in range(reps)]

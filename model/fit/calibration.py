@@ -498,28 +498,32 @@ class CalibrationModel:
 
     def _second_order(self, x, back):
         """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second
-        derivatives contracted output by output, ROW_CHUNK rows at a time, without their
-        (..., N, m, n, n) array (3 GB for a million rows); a point of the ``points`` model per
-        profile (:meth:`_weighted_second_derivatives`)."""
+        derivatives contracted in blocks of rows (:data:`_SECOND_ORDER_BLOCK` numbers), without their
+        (..., N, m, n, n) array (3 GB for a million rows), the entries that are zero everywhere skipped (all
+        of ``matrix``'s: its residual is linear in the entries; 216 of 243 in ``euler`` and ``local``); a
+        point of the ``points`` model per profile (:meth:`_weighted_second_derivatives`)."""
         if not np.shape(x)[:-1] and back.ndim == 2 and self._profile_layout() is not None:
             return self._weighted_second_derivatives(x, back)
         _, hess = _numpy_functions(self.rotation, self.kind)
         head, batch = self._head(x), np.broadcast_shapes(back.shape[:-2], np.shape(x)[:-1])
-        free = np.arange(self._cols.stop)[self._cols]
-        out = np.zeros(batch + (self.n, self.n))
-        entries = self.m * self.n * self.n
-        step = max(1, min(ROW_CHUNK, _SECOND_ORDER_BLOCK // (entries * int(np.prod(batch, dtype=int)))))
+        out = np.zeros(batch + (self.m * self.n * self.n,))  # entry (output, p, q), flat
+        step = max(1, min(ROW_CHUNK, _SECOND_ORDER_BLOCK // (out.size or 1)))
         for a in range(0, self.n_meas, step):
             b = min(a + step, self.n_meas)
             vals = self._rows(hess, head, slice(a, b))
             n_theta = int(round(np.sqrt(len(vals) / self.m)))
+            free = np.arange(self.n)
             index = ((np.arange(self.m)[:, None, None] * n_theta + free[:, None]) * n_theta + free).ravel()
-            table = np.empty((len(index),) + np.shape(x)[:-1] + (b - a,))  # constants and per-row values alike
-            for i, k in enumerate(index):
-                table[i] = vals[k]
-            table = table.reshape((self.m, self.n, self.n) + (1,) * (len(batch) - np.ndim(x) + 1) + table.shape[1:])
-            out += np.einsum("cpq...r,...rc->...pq", table, back[..., a:b, :])  # no (m, n, n, rows) product held
-        return out
+            live = [i for i, k in enumerate(index) if np.ndim(vals[k]) or vals[k] != 0]
+            if not live:
+                continue
+            table = np.empty((len(live),) + np.shape(x)[:-1] + (b - a,))  # constants and per-row values alike
+            for j, i in enumerate(live):
+                table[j] = vals[index[i]]
+            table = table.reshape(table.shape[:1] + (1,) * (len(batch) - np.ndim(x) + 1) + table.shape[1:])
+            outputs = back[..., a:b, :][..., np.asarray(live) // (self.n * self.n)]  # (..., rows, live)
+            out[..., live] += np.einsum("k...r,...rk->...k", table, outputs)
+        return out.reshape(batch + (self.m, self.n, self.n)).sum(axis=-3)
 
     def _weighted_second_derivatives(self, x, weighted):
         """``sum_i sum_l weighted_il grad^2 e_il`` (..., n, n), contracted output by output: the
