@@ -96,6 +96,8 @@ def pytest_sessionstart(session):
 def pytest_runtest_logreport(report):
     slow, seconds, _ = CLOCK["tests"].get(report.nodeid, ("slow" in report.keywords, 0.0, None))
     CLOCK["tests"][report.nodeid] = (slow, seconds + report.duration, time.monotonic())
+    if report.when == "call":  # measured figures a test prints in CI's summary (record_property("printed", ...))
+        CLOCK.setdefault("printed", []).extend(v for k, v in report.user_properties if k == "printed")
 
 
 @pytest.hookimpl(trylast=True)
@@ -116,6 +118,8 @@ def pytest_terminal_summary(terminalreporter, config):
     for name, stored, expected in CLOCK.get("unasserted", ()):
         line(f"rate check {name}: {stored} of {expected} shards stored their part: its rate was NOT asserted "
              "(run every shard: tests/shards.py)", red=True)
+    for text in CLOCK.get("printed", ()):
+        line(text)
     if not CLOCK["tests"] or CLOCK["start"] is None:
         return
     workers = getattr(config.option, "numprocesses", None) or 1

@@ -232,6 +232,7 @@ LOCAL_IMPORTS = {
         ("app/present/interactive.py", "_widget", "ipywidgets"),
         ("app/present/web/view.py", "figure", "plotly.graph_objects"),
         ("app/present/web/view.py", "have_plotly", "plotly.graph_objects"),
+        ("app/present/web/view.py", "plotly_js", "plotly.offline"),
         ("app/tools/bench.py", "scipy_fit", "scipy.optimize"),
         ("app/tools/bench_peers.py", "_ceres", "pyceres"),
         ("app/tools/bench_peers.py", "_gtsam_align", "gtsam"),

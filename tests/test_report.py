@@ -190,10 +190,37 @@ def test_a_fit_with_effects_says_the_view_draws_the_plain_chain(tmp_path):
     assert res.effects and "Effects calibrated (sensor_scale)" in out.read_text(encoding="utf-8")
 
 
-def test_thousands_of_poses_draw_a_few_hundred_frames_and_every_centre():
+def test_thousands_of_poses_draw_a_few_hundred_frames():
     some = view.drawn_poses(5000)
     assert len(some) == view.MAX_DRAWN_POSES and some[0] == 0 and some[-1] == 4999
     assert list(view.drawn_poses(7)) == list(range(7)) and len(view.drawn_poses(0)) == 0
+
+
+def test_large_cells_draw_every_excluded_sample_and_used_ones_evenly_spaced(thesis_report, monkeypatch):
+    """Above MAX_DRAWN_CENTRES samples the view draws that many centres and residuals (every excluded one), the
+    page's script redraws the same ones (the payload's ``drawn``), and the page says so; the table keeps all."""
+    result, _ = thesis_report
+    geo = cell_mod.cell_geometry(result.to_dict(), handeye.load_dataset("thesis-real"))
+    monkeypatch.setattr(view, "MAX_DRAWN_CENTRES", 10)
+    drawn = view.drawn_samples(geo)
+    used = np.flatnonzero(geo.used & drawn)
+    assert drawn.sum() == 10 and drawn[~geo.used].all() and used[0] == np.flatnonzero(geo.used)[0]
+    assert used[-1] == np.flatnonzero(geo.used)[-1]  # evenly spaced from the first used sample to the last
+    html, payload = page.cell_section(geo, "t", True, result.to_dict())
+    fig, traces, _ = view.figure(geo, "t")
+    assert payload["drawn"] == drawn.tolist() and len(fig.data[traces["centres"]].x) == len(used)
+    assert "Centres and residuals of 10 of the 31 samples" in html
+
+
+def test_the_page_inlines_plotlys_gl3d_bundle_of_the_installed_version(thesis_report):
+    """The 3-D view's JavaScript is plotly.js's own gl3d bundle (1.75 MB, not the 4.8 MB full one) where the
+    installed plotly writes figures for its version, else that plotly's full bundle."""
+    import plotly.offline
+
+    text = thesis_report[1].read_text(encoding="utf-8")
+    gl3d = plotly.offline.get_plotlyjs_version() == view.BUNDLE_VERSION
+    assert ("plotly.js (gl3d - minified) v" + view.BUNDLE_VERSION in text) == gl3d
+    assert (plotly.offline.get_plotlyjs()[:2000] in text) == (not gl3d)
 
 
 def test_a_calibration_that_did_not_converge_offers_no_controller_code(tmp_path):

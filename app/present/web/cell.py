@@ -90,7 +90,7 @@ class CellGeometry:
         return {"ids": list(self.ids), "used": [bool(u) for u in self.used], "radius_mm": float(self.radius),
                 "flange2base": r(self.flange2base), "sensor2base": r(self.sensor2base), "measured": r(self.measured),
                 "sphere": r(self.sphere), "residual_base": r(self.residual_base),
-                "residual_sensor": r(self.residual_sensor), "fans": r(self.fans),
+                "residual_sensor": r(self.residual_sensor),
                 "sensor_mount": self.mounts.sensor, "sphere_mount": self.mounts.sphere,
                 "axes": [a.to_dict() for a in self.mounts.axes]}
 

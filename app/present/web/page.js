@@ -71,10 +71,14 @@
     }
   }
 
+  function drawn(i, mask) {  // the samples the view draws (view.drawn_samples), used or excluded
+    return cell.used[i] === mask && (!cell.drawn || cell.drawn[i]);
+  }
+
   function segments(mask) {
     var x = [], y = [], z = [];
     cell.ids.forEach(function (id, i) {
-      if (cell.used[i] !== mask) { return; }
+      if (!drawn(i, mask)) { return; }
       var s = cell.sphere[i], m = shifted(i);
       x.push(s[0], m[0], null); y.push(s[1], m[1], null); z.push(s[2], m[2], null);
     });
@@ -84,7 +88,7 @@
   function markers(mask) {
     var x = [], y = [], z = [];
     cell.ids.forEach(function (id, i) {
-      if (cell.used[i] !== mask) { return; }
+      if (!drawn(i, mask)) { return; }
       var m = shifted(i);
       x.push(m[0]); y.push(m[1]); z.push(m[2]);
     });

@@ -76,6 +76,7 @@ def cell_section(cell, title, interactive, result):
         return "<section id='cell'><h2>The cell</h2><p>No calibrated chain to draw.</p></section>", None
     payload = cell.to_dict()
     payload["residual_drawn"] = np.round(view.capped_residuals(cell), 6).tolist()
+    payload["drawn"] = view.drawn_samples(cell).tolist()
     if interactive:
         fig, traces, scale = view.figure(cell, title)
         payload.update(traces=traces, scale=scale)
@@ -93,8 +94,11 @@ def cell_section(cell, title, interactive, result):
     note = ("<p class='hint'>Frames: x vermillion, y green, z blue. Residual vectors (orange) start at the sphere "
             "centre and end at the measured centre through the chain, magnified; excluded samples (purple diamonds) "
             f"are drawn at most {view.EXCLUDED_CAP:g}× the longest used residual, their true length is in the table."
-            + (f" Frames and fans of {view.MAX_DRAWN_POSES} of the {len(cell.ids)} poses, evenly spaced; every centre."
-               if len(cell.ids) > view.MAX_DRAWN_POSES else "") + "</p>" + effects_note(result))
+            + (f" Frames and fans of {view.MAX_DRAWN_POSES} of the {len(cell.ids)} poses, evenly spaced."
+               if len(cell.ids) > view.MAX_DRAWN_POSES else "")
+            + (f" Centres and residuals of {int(view.drawn_samples(cell).sum())} of the {len(cell.ids)} samples (every "
+               "excluded one, the used ones evenly spaced); the table lists all, and picking one draws its chain."
+               if len(cell.ids) > view.MAX_DRAWN_CENTRES else "") + "</p>" + effects_note(result))
     return f"<section id='cell'><h2>The cell in 3-D</h2>{note}{body}</section>", payload
 
 
