@@ -228,6 +228,9 @@ def test_the_pipeline_bench_times_every_stage_against_one_ipopt_solve():
     assert res["ratio_calibrate_lean"] == res["calibrate"] / res["lean"]
     text = "\n".join(bench_pipeline.text(res))
     assert "one IPOPT solve" in text and "describe" in text and "lean user's solve" in text
+    table = "\n".join(bench_pipeline.ratios_text([res], load=[0.5, 0.4, 0.3]))
+    assert f"{res['ratio_lean']:.1f}x" in table and "thesis-sim" in table and "load [0.5" in table
+    assert bench_pipeline.target(27) == bench_pipeline.target(3_000) == 3.0 and bench_pipeline.target(30_000) == 1.5
 
 
 def test_the_lean_users_solve_lands_on_calibrates_pose():

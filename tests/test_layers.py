@@ -268,6 +268,7 @@ LOCAL_IMPORTS = {
         ("model/fit/nlp_callback.py", "_callback_class", "casadi"),
         ("model/fit/nlp_problem.py", "_constraints", "casadi"),
         ("model/fit/nlp_problem.py", "_template", "casadi"),
+        ("model/fit/nlp_problem.py", "_quadratic_template", "casadi"),
         ("model/fit/nlp_problem.py", "nlp", "casadi"),
         ("solvers/ipopt.py", "__init__", "casadi"),
         ("solvers/ipopt.py", "_recorder", "casadi"),

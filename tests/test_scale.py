@@ -27,12 +27,32 @@ def test_the_callback_problem_for_ipopt_agrees_with_the_sx_one(monkeypatch):
     from handeye.model.fit import calibration
 
     f2b, xs, centre, start = bench.simulated_case(60, seed=1)
-    model = CalibrationModel(f2b, xs, centre, "matrix")
-    sx = solvers.solve(solvers.Problem(n=12, nlp=model.nlp()), model.point_from(start), "ipopt")
+    model = CalibrationModel(f2b, xs, centre, "euler")
+    sx = solvers.solve(solvers.Problem(n=6, nlp=model.nlp()), model.point_from(start), "ipopt")
     monkeypatch.setattr(calibration, "NLP_CALLBACK_ABOVE", 10)
-    cb = solvers.solve(solvers.Problem(n=12, nlp=model.nlp()), model.point_from(start), "ipopt")
+    assert "callback" in model.nlp()
+    cb = solvers.solve(solvers.Problem(n=6, nlp=model.nlp()), model.point_from(start), "ipopt")
     assert sx.converged and cb.converged
     assert np.max(np.abs(model.sensor2flange(sx.x) - model.sensor2flange(cb.x))) < 1e-9
+
+
+@pytest.mark.parametrize("unknowns", ["sensor", "sensor+sphere"])
+def test_the_centre_models_quadratic_problem_for_ipopt_agrees_with_every_rows_graph(unknowns):
+    """The centre model in ``matrix`` is linear in its point: IPOPT gets its cost as one quadratic form (a graph of
+    its 12 or 15 unknowns, whatever the rows); it ends where the graph of every row's residual ends."""
+    from handeye import solvers
+    from handeye.model.fit import calibration, nlp_problem
+
+    f2b, xs, centre, start = bench.simulated_case(60, seed=1)
+    model = CalibrationModel(f2b, xs, centre + (5.0 if unknowns == "sensor+sphere" else 0.0), "matrix", unknowns)
+    quadratic = model.nlp()
+    rows = {**nlp_problem._graph(model, calibration._sources("matrix", "centre")[0], 9), "lbg": quadratic["lbg"],
+            "ubg": quadratic["ubg"]}
+    assert quadratic["x"].shape[0] == model.n and quadratic["structure"][0] == "calibration-quadratic"
+    x0 = model.point_from(start, centre)
+    ends = [solvers.solve(solvers.Problem(n=model.n, nlp=nlp), x0, "ipopt") for nlp in (quadratic, rows)]
+    assert all(r.converged for r in ends)
+    assert np.max(np.abs(ends[0].x - ends[1].x)) < 1e-8
 
 
 def test_large_datasets_default_to_lm_and_say_so(tmp_path, monkeypatch):

@@ -298,6 +298,22 @@ def measure_cli(args):
     return measure_python("from handeye.app.command.cli import main", "main(sys.argv[1:])", args)
 
 
+#: Simulated sizes of the pipeline-to-lean-solve ratios beside thesis-real and thesis-sim (issue 42's).
+RATIO_SIZES = (300, 3_000, 30_000)
+
+
+def ratios(sizes=RATIO_SIZES, reps=5):
+    """:func:`handeye.app.tools.bench_pipeline.pipeline_vs_solve` on thesis-real, thesis-sim and a simulated
+    dataset of each of ``sizes`` measurements (:func:`write_dataset`), in one run: the rows of
+    :func:`~handeye.app.tools.bench_pipeline.ratios_text`."""
+    rows = [bench_pipeline.pipeline_vs_solve(name, reps) for name in ("thesis-real", "thesis-sim")]
+    with scratch.temporary_folder() as tmp:
+        for n in sizes:
+            row = bench_pipeline.pipeline_vs_solve(str(write_dataset(f"{tmp}/n{n}", n)), reps)
+            rows.append({**row, "label": f"simulated {n:,}"})
+    return rows
+
+
 def pipeline(sizes=PIPELINE):
     """Wall time and peak memory of ``handeye calibrate`` with default options (screening, fit,
     covariance, leave-one-out) against the number of measurements, each in a fresh process."""
@@ -402,7 +418,8 @@ def run(quick=False, reps=None, sizes=None, throughput_n=None, with_startup=True
     result["throughput_per_s"] = tp["all_cores_per_s"]
     result["guarantee"] = [bench_guarantee.measure("thesis-real", reps=min(reps, 3 if quick else 9), unknowns=u)
                            for u in ("sensor", "sensor+sphere")]
-    result["stages"] = bench_pipeline.pipeline_vs_solve("thesis-real", reps=min(reps, 3 if quick else 9))
+    result["ratios"] = ratios(RATIO_SIZES[:1] if quick else RATIO_SIZES, reps=min(reps, 3 if quick else 9))
+    result["stages"] = result["ratios"][0]  # thesis-real's, stage by stage
     result["peers"] = peers(reps)
     result["points"] = bench_points.measure(reps=min(reps, 5))
     if with_startup:
@@ -422,7 +439,10 @@ def text(res):
     lines = [machine_line(res["machine"]), ""] if "machine" in res else []
     lines += [*_cases_text(res), "", *_scaling_text(res["scaling"]), "", *_profile_text(res["profile"]), "",
               _throughput_text(res["throughput"])]
-    sections = (("guarantee", lambda g: ["", bench_guarantee.text(g)]), ("stages", lambda s: ["", *bench_pipeline.text(s)]),
+    load = res.get("machine", {}).get("load")
+    sections = (("guarantee", lambda g: ["", bench_guarantee.text(g)]),
+                ("ratios", lambda r: ["", *bench_pipeline.ratios_text(r, load)]),
+                ("stages", lambda s: ["", *bench_pipeline.text(s)]),
                 ("peers", lambda r: ["", bench_peers.text(r)]), ("points", lambda r: ["", bench_points.text(r)]),
                 ("startup", _startup_text), ("pipeline", _pipeline_text), ("use", _use_text))
     for key, show in sections:
