@@ -354,7 +354,7 @@ def test_a_ten_percent_scale_error_is_left_unexplained(tmp_path):
 def test_the_limits_said_are_the_codes(tmp_path):
     from handeye.app.engine import request, robust
 
-    most, exact, lm_above = figure(r"`simulate --n-poses` takes 1 to (\d+) .*? leave-one-out refits every sample exactly "
+    most, exact, lm_above = figure(r"`simulate --n-poses` takes 1 to (\d+) .*? it refits every sample exactly "
                                    r"up to ([\d,]+) used samples \(`LOO_EXACT_UP_TO`\), .*? above ([\d,]+) measurements "
                                    r"the default method is `lm`")
     assert int(exact.replace(",", "")) == robust.LOO_EXACT_UP_TO
