@@ -110,3 +110,44 @@ def test_diagnose_tells_calibrates_own_search(monkeypatch):
     assert runs == [True]
     assert [s.step for s in result.steps] == [s.step for s in told[0].steps]
     assert all(np.isfinite(s.heldout_rms_mm) for s in result.steps)
+
+
+def _stub_pair(model, sd):
+    """A diagnosis and a calibration of one model (no effect, every sample) whose poses lie ``sd`` of the
+    calibration's sd apart along x (1-sd 0.1 mm and 0.01 rad on each axis)."""
+    import dataclasses
+    import types
+
+    @dataclasses.dataclass
+    class Told:
+        sensor2flange: np.ndarray
+        effects: list = dataclasses.field(default_factory=list)
+        outliers: list = dataclasses.field(default_factory=list)
+        against_calibrate: str = ""
+        sensor_pose: object = None
+        sensor_pose_as: object = None
+        std: object = None
+        sphere_centre: object = None
+
+    moved = np.eye(4)
+    moved[0, 3] = 0.1 * sd
+    own = types.SimpleNamespace(converged=True, effects=None, sensor2flange=np.eye(4), model=model, n_used=10,
+                                covariance=np.diag([0.01] * 3 + [1e-4] * 3), outliers=[], message="converged",
+                                parameter_names=["tx", "ty", "tz", "wx", "wy", "wz"], sensor_pose_kuka=np.zeros(6),
+                                sensor_pose=np.zeros(6), std="calibrate's", sphere_centre=np.zeros(3))
+    return Told(moved), own
+
+
+@pytest.mark.parametrize("model,sd,calibrates", [("measurement", 2.0, True), ("measurement", 5.0, False),
+                                                 ("centre", 2.0, False), ("centre", 0.5, True)])
+def test_diagnose_reports_calibrates_fit_only_where_its_own_could_only_be_the_cruder_one(model, sd, calibrates):
+    """One model chosen: calibrate's fit of the measured circles stands against the search's of the rebuilt centres
+    within METRIC_SD (3) of its sd, its fit in the same metric within AGREE_SD (1); beyond, diagnose keeps its own
+    pose and says how far calibrate's lies."""
+    from handeye.app.engine import agreement
+
+    told, own = _stub_pair(model, sd)
+    result = agreement.at_calibration(told, own, 10, 10)
+    assert np.array_equal(result.sensor2flange, own.sensor2flange) == calibrates
+    assert (f"({sd:.2f} sd of calibrate's)" in result.against_calibrate)
+    assert result.against_calibrate.startswith("the same pose as") == calibrates

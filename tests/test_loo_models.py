@@ -142,3 +142,15 @@ def test_excluded_samples_are_named_as_the_reason(tmp_path):
     real = handeye.calibrate("thesis-real", no_loo=True)
     assert "excluded sample(s) (x+22.5" in real.rms_note and "minimises" not in real.rms_note
     assert real.loo is None and real.to_dict()["loo"] is None
+
+
+def test_the_result_says_how_its_leave_one_out_was_made(profiled, fits, monkeypatch):
+    """The unweighted centre model with the centre known: 'in closed form' at any size (thesis-sim here, and with
+    LOO_EXACT_UP_TO below its samples); a whitened model: refits up to LOO_EXACT_UP_TO, the deletion formula above."""
+    from handeye.app.engine import robust
+
+    assert "closed form" in handeye.calibrate("thesis-sim").loo["method"]
+    assert "closed form" not in fits["centre"].loo["method"] and "exact refit" in fits["centre"].loo["method"]
+    monkeypatch.setattr(robust, "LOO_EXACT_UP_TO", 3)
+    assert "closed form" in handeye.calibrate("thesis-sim").loo["method"]
+    assert "deletion formula" in handeye.calibrate(profiled, model="centre").loo["method"]

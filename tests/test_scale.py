@@ -121,3 +121,38 @@ def test_a_plain_csv_reads_column_wise_as_row_by_row(tmp_path, monkeypatch):
     csv.write_text("\n".join(lines) + "\n")
     with pytest.raises(dataset.DatasetError, match="row 8"):  # the row-by-row reader names it
         dataset.load(folder)
+
+
+def test_the_quadratic_problem_is_the_rows_cost_whitened_and_never_negative_where_rank_deficient():
+    """The quadratic form equals the model's cost and gradient with whitening too; written as |R d|^2 it stays a
+    sum of squares where the Jacobian loses rank (3-8 poses with the sphere centre free: as d^T J^T J d it rounded
+    to eigenvalues of -1e-11 and IPOPT diverged), and IPOPT ends where the callback ends."""
+    import itertools
+
+    import casadi as ca
+
+    from handeye import solvers
+    from handeye.model.fit import nlp_callback, nlp_problem
+
+    rng = np.random.default_rng(3)
+    f2b, xs, centre, start = bench.simulated_case(30, seed=2)
+    whiten = np.linalg.cholesky(np.linalg.inv(np.eye(3) + 0.3 * np.diag(rng.uniform(size=3))))[None].repeat(30, 0)
+    model = CalibrationModel(f2b, xs, centre, "matrix", "sensor+sphere", whiten=whiten)
+    nlp = model.nlp()
+    f = ca.Function("f", [nlp["x"], nlp["p"]], [nlp["f"], ca.gradient(nlp["f"], nlp["x"])])
+    x = model.point_from(start, centre + 1.0)
+    value, grad = f(x, nlp["p_value"])
+    assert float(value) == pytest.approx(model.cost(x), rel=1e-10)
+    np.testing.assert_allclose(np.array(grad).ravel(), model.gradient(x), rtol=1e-8, atol=1e-8)
+    for n, seed in itertools.product((3, 4, 5, 6, 8), range(6)):  # the J^T J form diverged in 9 of these 30
+        f2b, xs, centre, start = bench.simulated_case(n, seed=seed)
+        model = CalibrationModel(f2b, xs, centre, "matrix", "sensor+sphere")
+        x0 = model.point_from(start, centre) + 0.01 * np.random.default_rng(seed).standard_normal(model.n)
+        quad = solvers.solve(solvers.Problem(n=model.n, nlp=model.nlp()), x0, "ipopt")
+        cb = nlp_callback.cost_callback(model)
+        z = ca.MX.sym("x", model.n)
+        rows = {"x": z, "f": cb(z), "g": nlp_problem._constraints(z, "matrix"), "lbg": np.zeros(6), "ubg": np.zeros(6),
+                "callback": cb}
+        ref = solvers.solve(solvers.Problem(n=model.n, nlp=rows), x0, "ipopt")
+        assert np.isfinite(quad.x).all()
+        assert model.cost(quad.x) <= model.cost(ref.x) + 1e-9 * max(1.0, model.cost(ref.x)), (n, quad.message)

@@ -12,12 +12,13 @@ rebuilt from them in their first-order metric) and to every sample (the search r
 the search names the model calibrate fitted, the diagnosis's pose, 1-sd and named effects' values are calibrate's
 (:func:`at_calibration`) wherever the search's own fit could only be the cruder one: it lies within
 :data:`~handeye.app.engine.levels.AGREE_SD` of calibrate's sd, or it ran on a subsample (whose pose scatters by its
-own sd), or it fitted another residual model (the rebuilt centres' first-order metric where calibrate fits the
-measured circles or the profile points: on 10 poses of a 1-inch ball the two put the pose 1.55 sd apart, and the
-circles are the exact likelihood). The search's own fit stays in the story (its steps, residuals and RMS) and the
-sentence :func:`against_calibrate` says how far it lies. Where the models differ, or the search's fit of the same
-model in the same metric on the same samples lies beyond 1 sd (two fits of one problem: one of them wrong), the
-diagnosis keeps its own pose and the sentence says why the two differ.
+own sd), or it fitted another residual model within :data:`~handeye.app.engine.levels.METRIC_SD` of calibrate's
+sd (the rebuilt centres' first-order metric where calibrate fits the measured circles or the profile points: on
+10 poses of a 1-inch ball the two put the pose 1.55 sd apart, and the circles are the exact likelihood). The
+search's own fit stays in the story (its steps, residuals and RMS) and the sentence :func:`against_calibrate` says
+how far it lies. Where the models differ, or the search's fit of the same
+model in the same metric on the same samples lies beyond 1 sd (two fits of one problem: one of them wrong), or in
+the other metric beyond 3 sd, the diagnosis keeps its own pose and the sentence says why the two differ.
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.app.engine.levels import AGREE_FLOOR, AGREE_SD
+from handeye.app.engine.levels import AGREE_FLOOR, AGREE_SD, METRIC_SD
 from handeye.model.common.rotation import pose_distance
 
 
@@ -70,7 +71,7 @@ def at_calibration(result, own, searched, n):
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,
                       own.parameter_names)
-    if not same_pose(d) and searched == n and own.model == "centre":  # one model, one metric, two fits: said, kept
+    if not same_pose(d) and searched == n and (own.model == "centre" or not _within_metric(d)):  # two fits: kept
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     said = (f"the same pose as `handeye calibrate`'s: the search chose its model "
             f"({', '.join(sorted(model_of(own.effects))) or 'no effect'}), and this is calibrate's fit of it "
@@ -85,6 +86,12 @@ def at_calibration(result, own, searched, n):
         result, sensor2flange=np.asarray(own.sensor2flange, float), sensor_pose=np.asarray(own.sensor_pose_kuka, float),
         sensor_pose_as=np.asarray(own.sensor_pose, float), std=own.std, effects=named,
         sphere_centre=np.asarray(own.sphere_centre, float), against_calibrate=said)
+
+
+def _within_metric(distance):
+    """Whether two fits of one model in two metrics (rebuilt centres, measured circles) lie within
+    :data:`~handeye.app.engine.levels.METRIC_SD` of calibrate's sd."""
+    return distance["sd"] is not None and distance["sd"] <= METRIC_SD
 
 
 def _how(own):

@@ -489,7 +489,10 @@ def _loo_description(local, n_used):
     """How the final fit's leave-one-out error was made (:attr:`CalibrationResult.loo`)."""
     per = _ROWS[local.kind][0]
     weights = "weighted as the fit" if local.whiten is not None else "unweighted"
-    method = ("exact refit per sample (all at once: damped Gauss-Newton, or Newton where the residuals are large, "
+    method = ("exact refit per sample in closed form (each an absolute orientation: the cross-covariance of every "
+              "sample downdated by the one left out, one batched SVD; handeye.app.engine.loo.closed_form_errors)"
+              if robust.loo_in_closed_form(local, local) else
+              "exact refit per sample (all at once: damped Gauss-Newton, or Newton where the residuals are large, "
               "from the full fit, whose first step is the deletion formula; handeye.app.engine.loo)"
               if n_used <= robust.LOO_EXACT_UP_TO else
               "deletion formula (the exact update of the linearised fit); samples of high leverage refitted exactly")

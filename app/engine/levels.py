@@ -83,6 +83,11 @@ POWER_WARN_GROWTH = 1.25
 #: the data contradict, by 3-45 sd.
 AGREE_SD = 1.0
 AGREE_FLOOR = (1e-3, 1e-3)
+#: The search's fit in the rebuilt centres' first-order metric and calibrate's of the measured circles (the
+#: exact likelihood) are one model in two metrics: calibrate's stands where they lie within this many of its
+#: sd (10 poses of a 1-inch ball, where the first order is poorest: 1.55 sd); beyond, the two disagree by more
+#: than a metric explains (a fit in another minimum, say) and the diagnosis keeps its own pose and says so.
+METRIC_SD = 3.0
 
 # -- a part held (app/engine/cell_stage.py, app/engine/score.py, app/engine/held_effects.py) ---------------
 #: A held part is contradicted by the data when the fit estimating it is better at this level (F test) ...

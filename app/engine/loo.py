@@ -197,7 +197,13 @@ def closed_form_errors(flange2base, centre_in_sensor, centre, mask):
     centre : ndarray, shape (3,)
         The sphere centre, mm, in the carrier's target frame.
     mask : ndarray of bool, shape (N,)
-        Samples fitted (at least three); each is left out in turn.
+        Samples fitted; each is left out in turn.
+
+    Returns
+    -------
+    ndarray, shape (G,) or None
+        Sample k's error (mm) for the G samples in ``mask``, in order; None below four samples or where a deleted
+        problem's rotation is not determined.
     """
     keep = np.asarray(mask, bool)
     p, q = np.asarray(centre_in_sensor, float)[keep], centre_targets(flange2base, centre)[keep]

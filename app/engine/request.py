@@ -29,7 +29,8 @@ DEFAULT_ROTATION = {"ipopt": "matrix"}
 
 #: Above this many measurements the default method is Levenberg-Marquardt on the local chart
 #: (numpy, time and memory linear in the data) instead of IPOPT (whose problem graph costs far
-#: more per measurement), and leave-one-out uses the deletion formula (robust.LOO_EXACT_UP_TO).
+#: more per measurement); leave-one-out uses the deletion formula above robust.LOO_EXACT_UP_TO samples but for
+#: the centre model with the centre known (in closed form at any size).
 LARGE = 5000
 
 #: Catalogue effects that ``--effects`` can calibrate (continuous, identifiable from the poses).

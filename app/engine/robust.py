@@ -341,7 +341,7 @@ def centre_predictor(model):
                             model.unknowns)
 
 
-def _closed_form(model, predictor):
+def loo_in_closed_form(model, predictor):
     """Whether every leave-one-out refit is an absolute orientation: the unweighted centre model of every row with
     the sphere centre known, predicting its own centres."""
     return (model.kind == "centre" and model.whiten is None and model.unknowns == "sensor" and model.groups is None
@@ -509,7 +509,7 @@ def _loo_errors(model, x, mask, predictor):
     refit is an absolute orientation, else the exact refits up to :data:`LOO_EXACT_UP_TO` samples, the deletion
     formula above."""
     used = np.flatnonzero(mask)
-    if _closed_form(model, predictor) and (errors := loo.closed_form_errors(
+    if loo_in_closed_form(model, predictor) and (errors := loo.closed_form_errors(
             model.flange2base, model.centre_in_sensor, model.fixed_centre, mask)) is not None:
         return errors  # the unweighted centre model, centre known: every refit an absolute orientation
     if len(used) > LOO_EXACT_UP_TO and model.groups is None:

@@ -47,14 +47,10 @@ from handeye.model.chain.names import KINDS, ROTATIONS, UNKNOWNS  # noqa: F401  
 from handeye.model.chain.pose import kuka_from_matrix, matrix_from_kuka, transform_from_pose
 from handeye.model.common import rotation
 
-#: Above this many rows the IPOPT problem's cost is a callback to the model's numpy cost,
-#: gradient and exact Hessian (:mod:`handeye.model.fit.nlp_callback`: built in milliseconds, an
-#: iteration a few passes over the rows); up to it, the rows' expressions expanded to one CasADi SX
-#: graph that IPOPT differentiates by AD, built once per problem structure and kept with its solver (tens of
-#: MB each; :func:`handeye.model.fit.nlp_problem.nlp`): faster for few rows, where building costs more than
-#: solving. A graph built for one problem alone never pays: at 300 rows its build took 200 ms of a 220 ms
-#: solve against 48 ms through the callback, and for a scan's 33,000 profile points a map-ped MX graph
-#: took 25 s to build and a second per Hessian. The two agree to rounding (tested).
+#: Above this many rows IPOPT's cost is a callback to the model's numpy cost, gradient and exact Hessian
+#: (:mod:`handeye.model.fit.nlp_callback`); up to it one CasADi SX graph of every row, built once per problem
+#: structure and kept with its solver, where building costs more than solving (a graph built for one problem never
+#: pays: at 300 rows 200 ms of a 220 ms solve, 48 ms through the callback). The two agree to rounding (tested).
 NLP_CALLBACK_ABOVE = 120
 
 
@@ -497,11 +493,10 @@ class CalibrationModel:
         return (float(cost) if np.ndim(cost) == 0 else cost), grad, hess
 
     def _second_order(self, x, back):
-        """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second
-        derivatives contracted in blocks of rows (:data:`_SECOND_ORDER_BLOCK` numbers), without their
-        (..., N, m, n, n) array (3 GB for a million rows), the entries that are zero everywhere skipped (all
-        of ``matrix``'s: its residual is linear in the entries; 216 of 243 in ``euler`` and ``local``); a
-        point of the ``points`` model per profile (:meth:`_weighted_second_derivatives`)."""
+        """``sum_il back_il grad^2 e_il`` (..., n, n) for ``back`` (..., N, m): the generated second derivatives
+        contracted in blocks of rows (:data:`_SECOND_ORDER_BLOCK` numbers), never their (..., N, m, n, n) array,
+        the entries zero everywhere skipped (all of ``matrix``'s: its residual is linear; 216 of 243 in ``euler``
+        and ``local``); a point of the ``points`` model per profile (:meth:`_weighted_second_derivatives`)."""
         if not np.shape(x)[:-1] and back.ndim == 2 and self._profile_layout() is not None:
             return self._weighted_second_derivatives(x, back)
         _, hess = _numpy_functions(self.rotation, self.kind)
@@ -587,12 +582,12 @@ class CalibrationModel:
 
         ``x`` is the point (``euler`` or ``matrix``; ``local`` has no meaning without a
         retraction). With ``matrix`` the six independent entries of ``R^T R - I`` are equality
-        constraints ``g = 0``. Up to :data:`NLP_CALLBACK_ABOVE` rows ``f`` is a CasADi SX
-        graph of every row, and ``p`` holds the rows (R1 row-major, t1, the kind's data and the
-        whitening matrix, row-major) and, for ``sensor``, the fixed sphere centre; above, ``f``
-        is a callback to this model's numpy cost, gradient and Hessian
-        (:mod:`handeye.model.fit.nlp_callback`), there is no ``p``, and ``'callback'`` holds the
-        callback object, which must outlive the solver.
+        constraints ``g = 0``. The centre model in ``matrix`` is linear in ``x``: ``f`` is its quadratic
+        form, ``p`` its factor, reference point and gradient there (:mod:`handeye.model.fit.nlp_problem`).
+        Else up to :data:`NLP_CALLBACK_ABOVE` rows ``f`` is an SX graph of every row, ``p`` the rows (R1
+        row-major, t1, the kind's data, the whitening row-major; for ``sensor`` the sphere centre); above,
+        ``f`` is a callback to this model's numpy cost, gradient and Hessian, there is no ``p``, and
+        ``'callback'`` holds the callback object, which must outlive the solver.
 
         Returns
         -------

@@ -31,7 +31,8 @@ def nlp(model, resjac, n_rot, callback_above):
     n_rot : int
         Rotation parameters of the model's parametrisation (3 Euler angles, 9 matrix entries).
     callback_above : int
-        Above this many rows the cost is a callback, not a graph.
+        Above this many rows the cost is a callback, not a graph (not for the centre model in ``matrix``,
+        whose cost is a quadratic form at any size: :func:`_quadratic`).
     """
     import casadi as ca
 
@@ -80,18 +81,24 @@ def _graph(model, resjac, n_rot):
 def _quadratic(model):
     """``x``, ``f``, ``g``, ``p``, ``p_value`` and ``structure`` of :func:`nlp` for the centre model in ``matrix``:
     its residual is linear in the point (the sensor's translation and rotation entries, the sphere centre), so
-    the cost is the quadratic ``1/2 d^T J^T J d + (J^T r)^T d + 1/2 r^T r`` in ``d = x - x_r``, with ``J`` and
-    ``r`` the (whitened) Jacobian and residuals at a reference point ``x_r`` (summed chunk by chunk,
-    :meth:`~handeye.model.fit.calibration.CalibrationModel.normal_equations`): the same function of ``x`` as the
-    rows' sum, with a graph of a dozen variables whatever the rows (IPOPT's fit of 300 rows took 27 ms through
-    the callback, 3,000 rows 35 ms). ``x_r`` is the unconstrained minimum (the rotation entries free): about it
-    the form's terms are as small as the cost itself, so its rounding is the cost's (about ``x = 0`` the terms
-    are ``|J|^2 |x|^2``, 10^7 times a 3,000-row cost, and IPOPT's line search stalled in that noise)."""
-    jtj, jtr, _ = model.normal_equations(np.zeros(model.n))
+    the cost is ``1/2 |R d|^2 + (J^T r)^T d + 1/2 r^T r`` in ``d = x - x_r``, with ``J = Q R`` and ``r`` the
+    (whitened) Jacobian and residuals at a reference point ``x_r`` (R by QR chunk by chunk,
+    :meth:`~handeye.model.fit.calibration.CalibrationModel.jacobian_r`): the same function of ``x`` as the rows'
+    sum, with a graph of 12 (15) variables whatever the rows (IPOPT's fit of 300 rows took 27 ms through the
+    callback, 3,000 rows 35 ms). ``|R d|^2``, not ``d^T J^T J d``: never negative where ``J`` is rank-deficient
+    (``J^T J`` rounded to eigenvalues of -1e-11 and IPOPT's iterates diverged on 3-8 poses with the centre free).
+    ``x_r`` is the unconstrained minimum (the rotation entries free): about it the form's terms are as small as
+    the cost itself, so its rounding is the cost's (about ``x = 0`` the terms are ``|J|^2 |x|^2``, 10^7 times a
+    3,000-row cost, and IPOPT's line search stalled in that noise)."""
+    n = model.n
+    jtj, jtr, _ = model.normal_equations(np.zeros(n))
     ref = -np.linalg.lstsq(jtj, jtr, rcond=None)[0]
     _, jtr, rtr = model.normal_equations(ref)
-    structure = ("calibration-quadratic", model.n)
-    return {**_quadratic_template(structure), "p_value": np.concatenate([jtj.ravel(), ref, jtr, [rtr]]),
+    factor = np.zeros((n, n))
+    r = model.jacobian_r(ref)
+    factor[: len(r)] = r  # fewer rows than unknowns: the rest zero
+    structure = ("calibration-quadratic", n)
+    return {**_quadratic_template(structure), "p_value": np.concatenate([factor.ravel(), ref, jtr, [rtr]]),
             "structure": structure}
 
 
@@ -102,9 +109,9 @@ def _quadratic_template(structure):
 
     n = structure[1]
     x, p = ca.SX.sym("x", n), ca.SX.sym("p", n * n + 2 * n + 1)
-    q = ca.reshape(p[: n * n], n, n)  # J^T J, symmetric
+    factor = ca.reshape(p[: n * n], n, n).T  # R, row-major entries
     d = x - p[n * n : n * n + n]
-    f = 0.5 * ca.dot(d, ca.mtimes(q, d)) + ca.dot(p[n * n + n : n * n + 2 * n], d) + 0.5 * p[n * n + 2 * n]
+    f = 0.5 * ca.sumsqr(ca.mtimes(factor, d)) + ca.dot(p[n * n + n : n * n + 2 * n], d) + 0.5 * p[n * n + 2 * n]
     return {"x": x, "f": f, "p": p, "g": _constraints(x, "matrix")}
 
 

@@ -10,7 +10,7 @@ report is complete but for interaction: the cell is a matplotlib 3-D picture (:f
 The JavaScript inlined is plotly.js's own ``gl3d`` partial bundle (``plotly-gl3d.min.js`` beside this module,
 from the npm package ``plotly.js-gl3d-dist-min``, MIT, ``plotly-gl3d.LICENSE.txt``): every trace the view
 draws, 1.75 MB where the full bundle the Python package ships is 4.8 MB; thesis-real's page opened in headless
-Chromium in 1.9 s instead of 2.9 s. It is used where its version is the one the installed plotly ships (the
+Chromium in 1.5 s instead of 2.9 s. It is used where its version is the one the installed plotly ships (the
 figure's JSON is written for that version, :data:`BUNDLE_VERSION`); with another plotly the full bundle is
 inlined instead.
 
@@ -28,11 +28,12 @@ from handeye.app.present.figure_style import BLACK, BLUE, ORANGE, PURPLE, SKY, Y
 from handeye.app.present.web.figures import AXIS_COLOURS, new_figure, png_bytes, styled
 
 #: At most this many flange and sensor frames and laser fans are drawn (evenly spaced over the samples):
-#: a cell of thousands of poses stays a scene a browser turns smoothly; every centre is still drawn.
+#: a cell of thousands of poses stays a scene a browser turns smoothly.
 MAX_DRAWN_POSES = 300
-#: At most this many samples' centres and residual vectors are drawn: every excluded one and the used ones evenly
-#: spaced (:func:`drawn_samples`); the table lists every sample, and picking one draws its chain. At 10,000
-#: samples the scene drew all of them in 2.5 s of the page's 4.8 s to open in headless Chromium.
+#: Up to this many samples' centres and residual vectors are drawn: every excluded one (all of them where they are
+#: more) and the used ones evenly spaced to fill the rest (:func:`drawn_samples`); the table lists every sample,
+#: and picking one draws its chain. At 10,000 samples the scene drew all of them in 2.5 s of the page's 4.8 s to
+#: open in headless Chromium.
 MAX_DRAWN_CENTRES = 2000
 #: Residual vectors of excluded samples are drawn at most this many times the longest used one
 #: (their direction is true; their length is in the table).
