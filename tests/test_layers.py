@@ -381,6 +381,8 @@ LOCAL_IMPORTS = {
         ("app/tools/bench_pipeline.py", "_ipopt_from_scratch", "handeye.solvers"),
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.calibrate"),
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.describe"),
+        ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.loo"),
+        ("app/tools/bench_pipeline.py", "_whole", "handeye.app.engine.loo"),
         ("app/tools/bench_pipeline.py", "_stage_times", "handeye.app.engine.request"),
         ("app/tools/bench_pipeline.py", "_lean_user_solve", "handeye.model.chain.pose"),
         ("app/tools/bench_pipeline.py", "_lean_user_solve", "handeye.model.common.rotation"),

@@ -166,8 +166,13 @@ def test_the_closed_form_refits_by_downdating_equal_one_absolute_orientation_eac
         pose, _ = absolute_orientation(xs, q, weights)
         direct.append(np.linalg.norm(pose[:3, :3] @ xs[k] + pose[:3, 3] - q[k]))
     monkeypatch.setattr(loo, "CLOSED_FORM_CHUNK", 7)
-    np.testing.assert_allclose(loo.closed_form_errors(f2b, xs, centre, mask), direct, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(loo.deleted_absolute_orientations(f2b, xs, centre, mask), direct, rtol=1e-9,
+                               atol=1e-12)
     assert loo.closed_form_errors(f2b[:3], xs[:3], centre, np.ones(3, bool)) is None  # two points: no rotation
+    first = loo.closed_form_errors(f2b, xs, centre, mask)  # kept: the same problem asked again is not solved again
+    first[:] = -1.0  # a caller's copy
+    monkeypatch.setattr(loo, "deleted_absolute_orientations", lambda *a: pytest.fail("solved twice"))
+    np.testing.assert_allclose(loo.closed_form_errors(f2b.copy(), xs.copy(), centre, mask), direct, rtol=1e-9)
 
 
 def test_cost_derivatives_weight_rows_and_share_one_point(profiled):
