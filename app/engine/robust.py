@@ -142,18 +142,34 @@ def robust_fit(model, x0, max_rounds=50, warm=False):
     weights = np.ones(model.n_meas)
     med3 = chi_median(3)
     sigma = np.nan
+    norms_at = _norms(model)
     if warm:
-        norms = whitened_norms(model, x)
-        weights = 1.0 / (1.0 + (norms / (CAUCHY_K * max(float(np.median(norms)) / med3, 1e-12))) ** 2)
+        norms = norms_at(x)
+        weights = 1.0 / (1.0 + (norms / (CAUCHY_K * max(_median(norms) / med3, 1e-12))) ** 2)
     for _ in range(max_rounds):
         x = weighted_fit(model, x, weights)
-        norms = whitened_norms(model, x)
-        sigma = max(float(np.median(norms)) / med3, 1e-12)
+        norms = norms_at(x)
+        sigma = max(_median(norms) / med3, 1e-12)
         new = 1.0 / (1.0 + (norms / (CAUCHY_K * sigma)) ** 2)
         change, weights = np.max(np.abs(new - weights)), new
         if change < 1e-6:
             break
     return x, sigma, weights
+
+
+def _norms(model):
+    """``x -> |W_i e_i|`` (N,) of ``model``: for an absolute orientation (:func:`_procrustes`) ``|X p_i - q_i|``, the
+    same lengths (``R_i`` keeps them) without the generated residual (a sixth of its time)."""
+    if not _procrustes(model):
+        return lambda x: whitened_norms(model, x)
+    p, q = model.centre_in_sensor, global_fit.centre_targets(model.flange2base, model.fixed_centre)
+    return lambda x: np.linalg.norm(p @ model.sensor_rotation(x).T + model.sensor2flange(x)[:3, 3] - q, axis=1)
+
+
+def _median(values):
+    """The median of a 1-D array, as ``np.median`` (the mean of the two middle values) at a tenth of its overhead."""
+    s = np.sort(values)
+    return float((s[(len(s) - 1) // 2] + s[len(s) // 2]) / 2)
 
 
 def n_samples(model):

@@ -52,7 +52,7 @@ import numpy as np
 
 from handeye.model.chain import conventions
 from handeye.model.common.errors import InputError
-from handeye.model.common.rotation import matrix_from_rotvec, nearest_rotation
+from handeye.model.common.rotation import matrix_from_rotvec
 
 #: Rotations covering SO(3) for the centre-free search.
 COVER = 4096
@@ -128,8 +128,9 @@ def absolute_orientation(p, q, weights=None):
     w = np.ones(len(p)) if weights is None else np.asarray(weights, float)
     pc, qc = w @ p / w.sum(), w @ q / w.sum()
     h = (w[:, None] * (q - qc)).T @ (p - pc)
-    rot = nearest_rotation(h)  # U diag(1, 1, det(U V^T)) V^T: Kabsch's solution
-    s = np.linalg.svd(h, compute_uv=False)
+    u, s, vt = np.linalg.svd(h)
+    u[:, -1] *= np.sign(np.linalg.det(u @ vt))
+    rot = u @ vt  # U diag(1, 1, det(U V^T)) V^T: Kabsch's solution (rotation.nearest_rotation's)
     out = np.eye(4)
     out[:3, :3], out[:3, 3] = rot, qc - rot @ pc
     return out, s
