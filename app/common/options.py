@@ -106,7 +106,8 @@ _CALIBRATE = (
              ' row: `model/datasets/consistency.py`)'),
     Opt('--alpha', check=('level',), type='float', help='family-wise level of the outlier tests (default 0.01)'),
     Opt('--no-loo', action='store_true',
-        help='skip the leave-one-out error (one exact refit per sample up to 2,000 used samples, the deletion formula above)'),
+        help='skip the leave-one-out error (one exact refit per sample: in closed form for the centre model with the '
+             'centre known, else up to 2,000 used samples, the deletion formula above)'),
     Opt('--no-clean', action='store_true',
         help="fit every profile point: no profile cleaning (by default the points off the sphere's arc -- speckle, background,"
              " clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning))"),
