@@ -181,3 +181,10 @@ def test_conventions_on_the_command_line(capsys):
     assert res["sensor_pose"] == res["sensor_pose_as"]["pose"]  # the result's pose is in the asked convention
     code, _, err = run(capsys, "calibrate", "thesis-sim", "--convention", "ur", "--start=1,2,3,9,0,0")
     assert code == EXIT_BAD_INPUT and "2 pi" in err
+
+
+def test_an_abbreviated_option_is_refused_naming_itself(capsys):
+    """``--unknown`` is no ``--unknowns``: argparse's prefix matching had taken it silently."""
+    with pytest.raises(SystemExit) as exc:
+        main(["calibrate", "thesis-sim", "--unknown", "sensor+sphere"])
+    assert exc.value.code == EXIT_BAD_INPUT and "--unknown sensor+sphere" in capsys.readouterr().err

@@ -22,6 +22,12 @@ def dumps(data):
 
 
 class Parser(argparse.ArgumentParser):
+    """argparse's parser with the one-line error below, and without abbreviations: ``--unknown sensor+sphere`` once
+    passed as ``--unknowns`` silently (an option is named in full, or refused naming itself)."""
+
+    def __init__(self, *args, **keywords):
+        super().__init__(*args, allow_abbrev=False, **keywords)
+
     def error(self, message):
         """The one line that matters and where to read more; no usage block (exit 2)."""
         if message.endswith("expected one argument"):  # `--sensor-pose -1750,...`: the value read as an option
