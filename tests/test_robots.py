@@ -70,6 +70,11 @@ def test_joint_angles_load_and_slips_are_named(tmp_path):
         handeye.load_dataset(_write(tmp_path / "rad", "kr60ha", np.radians(joints), poses))
     with pytest.raises(DatasetError, match=r"wrong \[robot\] model"):
         handeye.load_dataset(_write(tmp_path / "wrong", "irb4600", joints, poses))
+    for factor, unit in ((1000.0, "metres"), (25.4, "inches")):  # the positions in another length, not the model
+        scaled = poses.copy()
+        scaled[:, :3] /= factor
+        with pytest.raises(DatasetError, match=rf"column 'x'.*read in {unit} \(x {factor:g}\) the positions agree"):
+            handeye.load_dataset(_write(tmp_path / unit, "kr60ha", joints, scaled))
     tcp = np.eye(4)
     tcp[:3, 3] = [0, 0, 120]
     with pytest.raises(DatasetError, match="TCP, not the flange"):

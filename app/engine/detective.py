@@ -31,7 +31,7 @@ from handeye.model.common.rotation import matrix_from_rotvec, nearest_rotation
 from handeye.model.fit import global_fit
 
 #: Position scales tried (mm per unit) and what they look like.
-UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
+UNITS = conventions.LENGTH_UNITS  # the lengths a pose file is wrongly written in, by their factor to mm
 #: Axis sequences of Euler angles (6 Tait-Bryan, 6 proper Euler).
 SEQUENCES = ("xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz")
 #: With the centre free, this many of the best linear closed-form candidates are re-scored by

@@ -30,6 +30,10 @@ from handeye.model.chain.pose import kuka_from_matrix
 from handeye.model.common.errors import InputError
 from handeye.model.common.rotation import rotvec_from_matrix
 
+#: The lengths a pose file's positions are wrongly written in, by their factor to mm: each a reading of the
+#: file that a slip check tries (the convention detective, the nominal robot model's gate).
+LENGTH_UNITS = {10.0: "centimetres", 25.4: "inches", 1000.0: "metres"}
+
 #: No angle (KUKA, FANUC; degrees) may exceed a full turn, start guesses included.
 ANGLE_LIMIT_DEG = 360.0
 #: Tolerance on |q| - 1 for ABB quaternions (they are normalised within it).

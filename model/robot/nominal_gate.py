@@ -29,6 +29,7 @@ import itertools
 
 import numpy as np
 
+from handeye.model.chain.conventions import LENGTH_UNITS
 from handeye.model.common.rotation import matrix_from_rotvec, rotvec_from_matrix, skew, transform_distance
 from handeye.model.readers.tables import DatasetError
 
@@ -179,7 +180,8 @@ def gated(model, joints_deg, flange2base, file, others=()):
     raise DatasetError(file, f"{said}; after a constant transform at the base and at the flange up to "
                              f"{found.left_mm:.1f} mm / {found.left_deg:.2f} deg still depend on the pose (the gate: "
                              f"{AGREE_MM:g} mm / {AGREE_DEG:g} deg): " + _named(model, joints, f2b, reading, others),
-                       column="[robot] model" if reading is None else "j1")
+                       column="[robot] model" if reading is None else "x" if reading[0] in LENGTH_UNITS.values()
+                       else "j1")
 
 
 def _candidates(joints):
@@ -197,8 +199,17 @@ def _candidates(joints):
 
 
 def _reading(model, joints, f2b):
-    """The first slip (:func:`_candidates`) under which the model agrees: ``(what, Constants)`` or None."""
+    """The first slip under which the model agrees: the positions in another length
+    (:data:`~handeye.model.chain.conventions.LENGTH_UNITS`: poses in metres with their joints once were blamed on
+    the model), then the joints' (:func:`_candidates`); ``(what, Constants)`` or None."""
     joints, f2b = joints[:SEARCH_POSES], f2b[:SEARCH_POSES]
+    fk = model.flange2base(joints)
+    for factor, unit in LENGTH_UNITS.items():
+        scaled = f2b.copy()
+        scaled[:, :3, 3] *= factor
+        found = constants(fk, scaled)
+        if found.agrees():
+            return unit, found
     for what, angles in _candidates(joints):
         found = constants(model.flange2base(angles), f2b)
         if found.agrees():
@@ -212,6 +223,9 @@ def _named(model, joints, f2b, reading, others):
     if reading is not None:
         what, fit = reading
         left = f"({fit.left_mm:.2g} mm / {fit.left_deg:.2g} deg left)"
+        if what in LENGTH_UNITS.values():
+            factor = next(f for f, unit in LENGTH_UNITS.items() if unit == what)
+            return f"read in {what} (x {factor:g}) the positions agree {left}: write x, y, z in mm"
         if what == "radians":
             return f"read as radians the joint angles agree {left}: write j1..j6 in degrees"
         if what.startswith("sign"):
