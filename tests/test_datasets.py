@@ -1,5 +1,7 @@
 """Datasets: the seed's printed numbers, and a reader that fails cleanly on any malformed file."""
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -189,3 +191,15 @@ def test_bad_values_in_a_convention_name_row_and_columns(tmp_path):
     csv = "id,x,y,z,a,b,c,xs,ys,zs\nm1,1,2,3,1,0,0,1,2,230\n"
     with pytest.raises(DatasetError, match="column 'a': unknown column .* abb convention"):
         load(make(tmp_path, csv=csv, toml=toml))
+
+
+def test_a_missing_profile_is_named_as_the_dataset_names_it(tmp_path):
+    """The refusal names the profile with its folder (``profiles/xm45.csv``), as measurements.csv lists it."""
+    import handeye
+
+    folder = tmp_path / "cell"
+    handeye.simulate(out=folder, profiles=True, seed=2)
+    gone = sorted((folder / "profiles").iterdir())[0]
+    gone.unlink()
+    with pytest.raises(DatasetError, match=rf"column 'profile': profiles/{re.escape(gone.name)} missing file"):
+        handeye.load_dataset(folder)

@@ -118,6 +118,14 @@ MAX_FILE_BYTES = 2 * 1024**3
 MAX_LINE_BYTES = 1024**2
 
 
+def _relative(file, owner):
+    """``file`` as the dataset names it: relative to the folder of ``owner`` (its measurements.csv), else as given."""
+    try:
+        return str(file.relative_to(owner.parent))
+    except ValueError:
+        return str(file)
+
+
 def read_table(file, file_row=None):
     """Rows of a CSV file; size, line length, encoding and separator checked with a clear message.
 
@@ -127,7 +135,7 @@ def read_table(file, file_row=None):
     owner = file_row[0] if file_row else file
     try:
         if not file.exists():
-            raise DatasetError(owner, f"{file.name if file_row else ''} missing file".strip(), **where)
+            raise DatasetError(owner, f"{_relative(file, owner) if file_row else ''} missing file".strip(), **where)
         if not file.is_file():
             raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
         size = file.stat().st_size
