@@ -100,7 +100,8 @@ _CALIBRATE = (
     Opt('--max-iter', check=('integer', 1, MAX_ITER), type='int', help='iteration limit (respected: no polish past it)'),
     Opt('--model', choices=tuple(KINDS),
         help="residual: reconstructed centres (the thesis's), the measured circles in the laser plane, or every profile point;"
-             " default `measurement` when every sample has a profile, else `centre`"),
+             " default `measurement` when every sample has a profile, else `centre` (and `centre` where effects are"
+             " fitted: they correct the centres)"),
     Opt('--keep-all', action='store_true',
         help='no outlier screening (a row whose `xs,ys,zs` contradict its own profile is excluded all the same, named with its'
              ' row: `model/datasets/consistency.py`)'),
