@@ -187,7 +187,7 @@ def test_export_carries_the_verdict_and_every_warning_and_still_parses(cells, fm
     assert dt < 1e-6 and dr < 1e-6
     if fmt == "fanuc":  # 29 characters a comment line: each warning's first words
         assert all(len(line.strip()) <= 29 for line in _warning_lines(fmt, text))
-        assert lines.count("failed check:") == len(doc["warnings"])
+        assert lines.count("warning:") == len(doc["warnings"])
         return
     assert "verdict: converged: recomputed from thesis-real" in lines
     assert "noise test FAILED" in lines  # the recomputed test, not the file's word

@@ -161,9 +161,9 @@ def _file_status(doc):
 def comment_lines(checked, forced=None):
     """The lines an export writes as comments: ``FORCED ...`` first when ``forced`` (why the
     calibration is no calibration: it is written only because of ``--force``), the status, and
-    every failed check, one short line each."""
+    every failed check or warning (``warning: ...``: a widened sd is no failure), one short line each."""
     lines = [f"FORCED (written with the force option): NOT a calibration: {shorten(forced)}"] if forced else []
-    return lines + [f"verdict: {checked.status}"] + [f"failed check: {w}" for w in checked.failed]
+    return lines + [f"verdict: {checked.status}"] + [f"warning: {w}" for w in checked.failed]
 
 
 def _typed_status(cal):
