@@ -57,6 +57,10 @@ whose gradient is at rounding level, ``|g_k|_inf <= GTOL max(1, f_k)``, stops wh
 problem that has not stopped within :data:`NEWTON_ITER` iterations, or whose numbers are not
 finite, is reported as not converged: the caller refits it another way.
 
+**In closed form.** For the unweighted centre model with the sphere centre known every deleted problem is an
+absolute orientation, and :func:`closed_form_errors` solves them all by downdating the whole cross-covariance by
+each sample (one batched SVD, at any size; kept for a problem asked again) instead of the refits above.
+
 **Memory.** The problems run in chunks whose largest arrays stay below :data:`CHUNK_BYTES`:
 the second derivatives (G_chunk x rows x m x 81 floats) with the exact Hessian, the Jacobians
 and their weighted copies (about G_chunk x rows x m x 3 (n + 1)) with Gauss-Newton's.
