@@ -76,7 +76,8 @@ def cell_section(cell, title, interactive, result):
         return "<section id='cell'><h2>The cell</h2><p>No calibrated chain to draw.</p></section>", None
     payload = cell.to_dict()
     payload["residual_drawn"] = np.round(view.capped_residuals(cell), 6).tolist()
-    payload["drawn"] = view.drawn_samples(cell).tolist()
+    drawn = view.drawn_samples(cell)
+    payload["drawn"] = drawn.tolist()
     if interactive:
         fig, traces, scale = view.figure(cell, title)
         payload.update(traces=traces, scale=scale)
@@ -96,7 +97,7 @@ def cell_section(cell, title, interactive, result):
             f"are drawn at most {view.EXCLUDED_CAP:g}× the longest used residual, their true length is in the table."
             + (f" Frames and fans of {view.MAX_DRAWN_POSES} of the {len(cell.ids)} poses, evenly spaced."
                if len(cell.ids) > view.MAX_DRAWN_POSES else "")
-            + (f" Centres and residuals of {int(view.drawn_samples(cell).sum())} of the {len(cell.ids)} samples (every "
+            + (f" Centres and residuals of {int(drawn.sum())} of the {len(cell.ids)} samples (every "
                "excluded one, the used ones evenly spaced); the table lists all, and picking one draws its chain."
                if len(cell.ids) > view.MAX_DRAWN_CENTRES else "") + "</p>" + effects_note(result))
     return f"<section id='cell'><h2>The cell in 3-D</h2>{note}{body}</section>", payload

@@ -75,9 +75,9 @@ def drawn_samples(cell):
     """Which samples' centres and residuals the view draws (N,) bool (:data:`MAX_DRAWN_CENTRES`)."""
     drawn = ~np.asarray(cell.used, bool)
     used = np.flatnonzero(cell.used)
-    room = max(MAX_DRAWN_CENTRES - int(drawn.sum()), 0)
-    drawn[used[np.unique(np.linspace(0, len(used) - 1, min(len(used), room)).round().astype(int))] if room and len(used)
-          else []] = True
+    room = min(len(used), MAX_DRAWN_CENTRES - int(drawn.sum()))
+    if room > 0:
+        drawn[used[np.unique(np.linspace(0, len(used) - 1, room).round().astype(int))]] = True
     return drawn
 
 
