@@ -1,10 +1,11 @@
-"""A sensor linearity error the catalogue does not model (found by a new user, issue 39): ``simulate
---linearity`` bends each profile's depth by ``L * 100 mm * sin(2 pi (z - 190) / 100)``; on the thesis's 36
-orientations, which see the sphere at nearly one depth, a bend of 0.05 mm (L = 0.0005, a third of a data sheet's
-0.0016) moves the pose 1.1-1.2 mm along the ty-wx direction the poses barely separate, the search names
-``centre_scale`` as its nearest proxy, and calibrate exits 0 10-12 sd from the truth. Kept as a strict expected
-failure of the promise (no exit 0 away from the truth) until the catalogue has the effect, or the verdict says what
-the pose set cannot see: the fix flips it."""
+"""A sensor linearity error (found by a new user, issue 39): ``simulate --linearity`` bends each profile's depth
+by ``L * 100 mm * sin(2 pi (z - 190) / 100)``. Uncorrected, on the thesis's 36 orientations a bend of 0.05 mm
+(L = 0.0005, a third of a data sheet's 0.0016) moved the pose 0.8-1.2 mm along the ty-wx direction the poses
+barely separate, and calibrate exited 0 10-12 sd from the truth. The profiles' shape now measures the bend and
+the centres are rebuilt from corrected profiles (model/geometry/profile_bend.py; tests/test_profile_bend.py):
+the error falls to 0.09-0.24 mm, but 4 of 6 cells (seeds 41 and 44 here) still lie 3.3-5.5 sd away, beyond
+what the correction's jackknife covers. Kept as a strict expected failure of the promise (no exit 0 away from
+the truth) until the bend is fitted with the chain: the fix flips it."""
 import tomllib
 
 import numpy as np
@@ -16,8 +17,8 @@ from handeye.model.common.rotation import pose_distance
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="sensor linearity is not in the catalogue: exit 0 at 10-12 sd (module docstring)")
-@pytest.mark.parametrize("seed", [41, 42])
+                   reason="a corrected linearity error still exits 0 at 3.3-5.5 sd (module docstring)")
+@pytest.mark.parametrize("seed", [41, 44])
 def test_a_linearity_error_never_exits_0_away_from_the_truth(tmp_path, seed):
     folder = tmp_path / "cell"
     handeye.simulate(out=folder, profiles=True, linearity=0.0005, seed=seed, no_start=True)

@@ -36,6 +36,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import (
+    bend,
     cell_stage,
     configuration_group,
     describe,
@@ -202,6 +203,7 @@ def run(request, dataset):
     result = cell_stage.extend(request, dataset, stages) if request.cell else stages(request, dataset)
     result = search.chosen(request, dataset, result, _refit)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
+    result = bend.with_bend(result, dataset)  # a corrected depth bend's uncertainty in the pose's sd
     result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)
 

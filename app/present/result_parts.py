@@ -153,15 +153,22 @@ class UncertaintyRecord:
         """This record with the power statement ``statement`` (:class:`PowerStatement`), its covariance
         widened by the covariances of the effects it says widen it (:attr:`PowerStatement.widening`:
         each on the parameters it shares with this record, by name)."""
+        record = dataclasses.replace(self, power=statement)
+        for missed in statement.widening:
+            record = record.widened(missed.widening, statement.names)
+        return record
+
+    def widened(self, added, names):
+        """This record with covariance ``added`` (parameters ``names``, the fit's step units) added on the
+        parameters it shares with this one, by name (unchanged without a covariance)."""
         if self.covariance is None or self.parameter_names is None:
-            return dataclasses.replace(self, power=statement)
+            return self
         cov = np.array(self.covariance, float)
         index = {n: k for k, n in enumerate(self.parameter_names)}
-        for missed in statement.widening:
-            ks = [(index[n], j) for j, n in enumerate(statement.names) if n in index]
-            ours, theirs = [k for k, _ in ks], [j for _, j in ks]
-            cov[np.ix_(ours, ours)] += np.asarray(missed.widening, float)[np.ix_(theirs, theirs)]
-        return dataclasses.replace(self, power=statement)._with_covariance(cov)
+        ks = [(index[n], j) for j, n in enumerate(names) if n in index]
+        ours, theirs = [k for k, _ in ks], [j for _, j in ks]
+        cov[np.ix_(ours, ours)] += np.asarray(added, float)[np.ix_(theirs, theirs)]
+        return self._with_covariance(cov)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -361,8 +368,9 @@ def cleaning_summary(dataset):
     dict or None
         None without profiles; else ``applied`` (False when loaded with ``clean=False``: then
         nothing more), ``profiles``, ``points`` and ``dropped`` (totals), ``reasons`` (totals by
-        reason) and ``samples``: ``id``, ``row``, ``points``, ``dropped``, ``status``,
-        ``reasons`` of each profile that lost points (only those).
+        reason), ``samples``: ``id``, ``row``, ``points``, ``dropped``, ``status``,
+        ``reasons`` of each profile that lost points (only those), and ``bend``: the profiles' depth
+        bend (:meth:`handeye.model.geometry.profile_bend.Bend.to_dict`; None with too few profiles).
     """
     if dataset.profiles is None:
         return None
@@ -373,9 +381,11 @@ def cleaning_summary(dataset):
     for _, _, c in records:
         for name, n in c.dropped:
             reasons[name] = reasons.get(name, 0) + int(n)
+    bend = getattr(dataset, "bend", None)
     return {"applied": True, "profiles": len(records), "points": int(sum(c.n_points for _, _, c in records)),
             "dropped": int(sum(c.n_dropped for _, _, c in records)), "reasons": reasons,
-            "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped]}
+            "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped],
+            "bend": None if bend is None else bend.to_dict()}
 
 
 def user_poses(matrix, own_axes, convention):

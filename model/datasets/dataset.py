@@ -43,6 +43,7 @@ import numpy as np
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import Mounts, motions
 from handeye.model.chain.pose import transform_from_pose
+from handeye.model.geometry import profile_bend
 from handeye.model.readers.setup_file import (  # noqa: F401  (the setup's names: public here too)
     LIMIT_SENSOR_MM,
     NOISE_CENTRE_MM,
@@ -175,6 +176,10 @@ class Dataset(FlangePoses):
     not_arcs : tuple of handeye.model.datasets.arcs.NotArc
         The rows set aside because their profile is no arc of the stated sphere (not among the
         measurements; :mod:`handeye.model.datasets.arcs`).
+    bend : handeye.model.geometry.profile_bend.Bend or None
+        The profiles' depth bend (a sensor linearity error, :mod:`handeye.model.geometry.profile_bend`), where
+        ``profiles`` were cleaned and are enough to estimate it; where it is applied, ``profiles`` and
+        the centres of their rows are corrected by it (``raw_profiles`` are not).
     poses_read : str or None
         How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
         with ``own_axes`` and no ``poses = "own"``: in handeye's turned frame), else None.
@@ -216,6 +221,7 @@ class Dataset(FlangePoses):
     poses_read: str | None = None
     profile_of: tuple | None = None
     not_arcs: tuple = ()
+    bend: object = None
 
     @functools.cached_property
     def _once(self):
@@ -554,6 +560,14 @@ def _set_aside(columns, folder, diameter):
     return [[v for v, k in zip(column, keep) if k] for column in kept], tuple(bad)
 
 
+def _corrected_bend(profiles, centres, st, clean):
+    """``(profiles, centres, bend)``: the cleaned profiles' depth bend measured, and applied where it is clear
+    (:func:`handeye.model.geometry.profile_bend.apply`); unchanged (bend None) without cleaned profiles."""
+    if not clean or all(p is None for p in profiles):
+        return profiles, centres, None
+    return profile_bend.apply(profiles, centres, st.diameter / 2, st.side, PROFILE_FIT)
+
+
 def relative_name(file, base):
     """``file`` relative to the folder ``base`` when inside it, else as it is (str)."""
     try:
@@ -576,10 +590,8 @@ def load(name_or_path, clean=True):
     start, diam, centre, side, truth, convention = st.start, st.diameter, st.centre, st.side, st.truth, st.convention
     plate_pose, centre_in_plate, noise = st.plate_pose, st.centre_in_plate, dict(st.noise)
     limits = noise.pop("limits")
-    pose_columns = conventions.columns(convention)
-    file = folder / "measurements.csv"
-    axes = st.mounts.axis_names
-    plain = read_plain_rows(file, pose_columns, convention, limits, axes)  # a large plain file: column-wise
+    file, axes = folder / "measurements.csv", st.mounts.axis_names
+    plain = read_plain_rows(file, conventions.columns(convention), convention, limits, axes)  # a large plain file: column-wise
     if plain is None:
         (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles,
          cleaning), not_arcs = _set_aside(_read_rows(folder, st, limits, clean), folder, st.diameter)
@@ -589,6 +601,7 @@ def load(name_or_path, clean=True):
         raw_profiles, cleaning, not_arcs = profiles, profiles, ()
     if not ids:
         raise DatasetError(file, "no measurements", 2)
+    profiles, centres, bend = _corrected_bend(profiles, centres, st, clean)
     angles, cfx = configuration.split_cfx(np.array(angles, float).reshape(len(ids), -1), len(axes))
     joints = angles[:, len(axes):] if angles.shape[1] > len(axes) else None
     model = _robot_model(st, folder, joints, np.asarray(poses, float), file)
@@ -626,4 +639,5 @@ def load(name_or_path, clean=True):
         own_axes=st.own_axes,
         poses_read=st.poses_read,
         not_arcs=not_arcs,
+        bend=bend,
     )
