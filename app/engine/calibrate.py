@@ -203,6 +203,7 @@ def run(request, dataset):
     result = cell_stage.extend(request, dataset, stages) if request.cell else stages(request, dataset)
     result = search.chosen(request, dataset, result, _refit)
     result = positioner_effect.with_positioner_hint(result, dataset, request.parts, request.alpha)
+    result = search.unexplained(result, dataset, request)  # residuals beyond a stated noise: structure, exit 1
     result = bend.with_bend(result, dataset)  # a corrected depth bend's uncertainty in the pose's sd
     result = dataclasses.replace(result, cleaning=cleaning_summary(dataset))  # what the profiles lost, reported
     return cell_stage.with_mount_plausibility(result, dataset)

@@ -282,3 +282,4 @@ def two_groups(dataset, mask, verdict, sigma):
             f"{' ...' if len(rows) > 12 else ''}) are no gross errors: alone they fit each other with RMS {rms_other:.3g} mm "
             f"(the used rows {rms_used:.3g} mm) at a sensor pose {dt:.3g} mm / {dr:.3g} deg from the reported one. The data "
             "hold two calibrations -- a slip in some rows (a sign, a convention, another setup's rows?); not a calibration")
+

@@ -187,6 +187,9 @@ class Dataset(FlangePoses):
         The stated noise model (``[noise]``, defaults :data:`NOISE_CENTRE_MM`,
         :data:`NOISE_ROBOT_MM`): per-component sd of a sphere centre through the chain, and the
         robot's repeatability per axis, mm.
+    noise_stated : tuple of str
+        The keys ``[noise]`` gives (``centre_mm``, ``robot_mm``): residuals far above a stated noise are
+        structure the model lacks, not noise (:func:`handeye.app.engine.search.unexplained`).
     """
 
     name: str
@@ -222,6 +225,7 @@ class Dataset(FlangePoses):
     profile_of: tuple | None = None
     not_arcs: tuple = ()
     bend: object = None
+    noise_stated: tuple = ()
 
     @functools.cached_property
     def _once(self):
@@ -628,8 +632,8 @@ def load(name_or_path, clean=True):
         profile_of=tuple(profile_files) if any(f is not None for f in profile_files) else None,
         raw_poses=np.array(raw, dtype=float),
         convention=convention,
-        noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM),
-        noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),
+        noise_centre_mm=noise.get("centre_mm", NOISE_CENTRE_MM), noise_robot_mm=noise.get("robot_mm", NOISE_ROBOT_MM),
+        noise_stated=tuple(sorted(noise)),
         mounts=st.mounts,
         axis_angles=angles[:, :len(axes)] if axes else None,
         sensor_pose=st.sensor_pose,
