@@ -87,6 +87,17 @@ def test_a_robot_holds_the_sphere_before_a_fixed_sensor(tmp_path):
     assert np.linalg.norm(data.sphere_centre) < 500  # in the flange frame
 
 
+@pytest.mark.parametrize("name", robots.builtin_names())
+@pytest.mark.parametrize("mounts", [("world", "flange"), ("flange", "positioner")])
+def test_every_robot_reaches_every_cell(tmp_path, name, mounts):
+    """A fixed sensor (or a positioner) is placed where the robot works (``simulate_mounts.placed_at``): the
+    sensor 1.75 m out had left a UR10e no reachable pose ("every pose was dropped", exit 2)."""
+    made = api.simulate(tmp_path / name, robot=name, n_poses=12, sensor_mount=mounts[0], sphere_mount=mounts[1])
+    assert len(made.ids) >= 10, made.ids
+    world = transform_from_pose(made.dataset.flange_poses)[:, :3, 3]
+    np.testing.assert_allclose(np.median(world, axis=0), simulate_robot.CENTRES[name], atol=400)
+
+
 def test_diagnose_names_the_simulated_joint_offsets(tmp_path):
     made = api.simulate(tmp_path / "off", robot="kr60ha", effect=["joint_offsets=j2:0.05,j3:-0.03"], seed=1)
     data = made.dataset

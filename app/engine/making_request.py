@@ -177,22 +177,25 @@ def _simulated_setup(v):
 
 
 def _simulated_robot(v, cell, setup, effects):
-    """The robot with joints (None without ``--robot``), the robot ``effects`` checked against its model,
-    and the setup with its default sphere centre (:data:`~handeye.model.simulation.simulate_robot.CENTRES`)
-    unless ``--center`` gives one."""
+    """``(robot, cell, setup)``: the robot with joints (None without ``--robot``), the robot ``effects``
+    checked against its model, and the cell and setup placed where the robot reaches
+    (:data:`~handeye.model.simulation.simulate_robot.CENTRES`, :func:`~handeye.model.simulation.simulate_mounts.placed_at`)
+    unless ``--center`` (or ``--truth`` for a fixed sensor, ``--positioner-axes`` for a positioner) places it."""
     if v["robot"] is None:
         needing = next((name for name in sim.ROBOT_EFFECTS if name in effects), None)
         if needing:
             raise RequestError(f"--effect {needing} needs --robot MODEL (the robot it describes)")
-        return None, setup
+        return None, cell, setup
     arm = _robot(v["robot"])
     try:
         sim.robot_errors(effects, arm.model)
     except sim.SimulationError as exc:
         raise RequestError(f"--effect {exc}") from None
-    if v["center"] is None and cell.default and str(v["robot"]) in simulate_robot.CENTRES:
-        setup = dataclasses.replace(setup, sphere_centre=simulate_robot.CENTRES[str(v["robot"])])
-    return arm, setup
+    target = simulate_robot.CENTRES.get(str(v["robot"]))
+    if target is not None and v["center"] is None and v["truth" if cell.sensor == "world" else "positioner_axes"] is None:
+        cell, pose, centre = sm.placed_at(cell, setup.sensor_pose, setup.sphere_centre, target, setup.side)
+        setup = dataclasses.replace(setup, sensor_pose=pose, sphere_centre=centre)
+    return arm, cell, setup
 
 
 def _simulated_poses(v, setup, cell, arm):
@@ -256,7 +259,7 @@ class SimulateRequest:
         folder = check_output_folder(v["out"], "--out", empty=True)
         cell, setup = _simulated_setup(v)
         effects = parse_effects(v["effect"])
-        arm, setup = _simulated_robot(v, cell, setup, effects)
+        arm, cell, setup = _simulated_robot(v, cell, setup, effects)
         written = {"profiles": v["profiles"], "convention": v["convention"],
                    **({"start_offset": None} if v["no_start"] else {})}
         return cls(folder, v["seed"], setup, effects, _simulated_poses(v, setup, cell, arm), cell, arm, written)

@@ -35,7 +35,7 @@ import numpy as np
 from handeye.model.chain.mounts import Axis, Mounts, table2base, unit
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common.rotation import matrix_from_rotvec
-from handeye.model.simulation.simulate import flanges_for_views, random_view, thesis_orientations, toml_vector
+from handeye.model.simulation.simulate import VIEW, flanges_for_views, random_view, thesis_orientations, toml_vector
 
 #: Default true sensor pose in the robot base for a sensor fixed in the cell (KUKA: mm, degrees):
 #: laser line along the base's y, looking back at the robot (-x) and 20 degrees down.
@@ -141,6 +141,25 @@ def default_truth(cell):
     this mount's defaults, None where the seed's default applies."""
     pose = WORLD_SENSOR if cell.sensor == "world" else None
     return pose, {"flange": FLANGE_SPHERE, "positioner": TABLE_SPHERE}.get(cell.sphere)
+
+
+def placed_at(cell, sensor_pose, sphere_centre, target, side=-1):
+    """The cell moved so that its sphere works at ``target`` (robot base, mm; a robot's reachable point):
+    ``(cell, sensor_pose, sphere_centre)``. A sensor fixed in the cell keeps its orientation and moves so
+    that the middle of its view (the simulator's ``VIEW``) lies at ``target``; a positioner's axes (nominal
+    and true) and its table's sphere move together by the table sphere's offset from ``target``; the seed's
+    cell takes ``target`` as its sphere centre. ``sensor_pose`` (KUKA) and ``sphere_centre``: the cell's
+    defaults (:func:`default_truth`)."""
+    target = np.asarray(target, float)
+    if cell.sensor == "world":
+        view = np.array([np.mean(VIEW[0]), side * np.mean(VIEW[1]), np.mean(VIEW[2])])
+        pose = transform_from_pose(sensor_pose)
+        return cell, (*(target - pose[:3, :3] @ view), *sensor_pose[3:]), sphere_centre
+    if cell.sphere == "positioner":
+        shift = target - np.asarray(sphere_centre, float)
+        moved = [tuple(Axis(a.name, a.point + shift, a.direction) for a in axes) for axes in (cell.nominal_axes, cell.true_axes)]
+        return dataclasses.replace(cell, nominal_axes=moved[0], true_axes=moved[1]), sensor_pose, tuple(target)
+    return cell, sensor_pose, tuple(target)
 
 
 def draw_axis_angles(n, k, rng):
