@@ -13,6 +13,7 @@ import handeye
 from handeye.app.command.cli import EXIT_BAD_INPUT, main
 from handeye.app.public import api
 from handeye.model.robot import robot_errors, robots
+from handeye.model.simulation import simulate_mounts
 
 
 def _values(model, rng, scale=0.3):
@@ -189,7 +190,8 @@ def test_robot_effects_that_explain_alike_are_said_not_chosen_silently(tmp_path)
     simplest (the offsets, the truth here) and says the alternative with how far its sensor pose
     lies; the comparison is in the JSON too."""
     folder = tmp_path / "irb"
-    api.simulate(folder, robot="irb4600", sensor_mount="world", sphere_mount="flange",
+    far = ",".join(f"{v:g}" for v in simulate_mounts.WORLD_SENSOR)  # 1.75 m out: the arm stretched, poses alike
+    api.simulate(folder, robot="irb4600", sensor_mount="world", sphere_mount="flange", truth=far,
                  effect=["joint_offsets=j2:0.05,j3:-0.03"])
     d = handeye.diagnose(folder)
     assert [e.name for e in d.effects] == ["joint_offsets"]

@@ -487,7 +487,7 @@ def cleaning_lines(report, limit=20):
     head = (f"profile cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
             f"{len(report['samples'])} of {report['profiles']} profiles")
     if not report["dropped"]:
-        return ["", head + " (every point lies on its arc)"]
+        return ["", head + " (every point lies on its arc)", *_bend_lines(report.get("bend"))]
     why = ", ".join(f"{name} {n:,}" for name, n in report["reasons"].items())
     lines = ["", f"{head} ({why}; speckle, background or clusters, not the sphere):"]
     for s in report["samples"][:limit]:
@@ -496,4 +496,19 @@ def cleaning_lines(report, limit=20):
                      + (" -- an arc wider than the sphere, kept" if s["status"] == "wider" else ""))
     if len(report["samples"]) > limit:
         lines.append(f"  ... and {len(report['samples']) - limit} more (the JSON report, --json, lists every one)")
-    return lines
+    return lines + _bend_lines(report.get("bend"))
+
+
+def _bend_lines(bend):
+    """The line of the profiles' depth bend (:mod:`handeye.model.geometry.profile_bend`): said where one was
+    fitted (degree above 0), applied or not."""
+    if not bend or not bend["degree"]:
+        return []
+    from handeye.model.geometry.profile_bend import MAX_SLOPE
+
+    lo, hi = bend["depths_mm"]
+    steep = bend["slope"] > MAX_SLOPE
+    what = ("corrected before the circle fits" if bend["applied"] else
+            f"not corrected ({'steeper than a linearity error' if steep else 'not clear enough'})")
+    return [f"profile bend along the sensor's depth: {bend['bend_mm']:.3g} mm over {lo:.0f}-{hi:.0f} mm (degree "
+            f"{bend['degree']}, steepest slope {100 * bend['slope']:.2g} %, p = {bend['p_value']:.2g}); {what}"]
