@@ -19,43 +19,49 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import cell_stage
-from handeye.model.datasets import observations
-from handeye.model.fit.extended import Samples, Structure
+from handeye.model import effects as catalogue
+from handeye.model.fit.held import held_at
 
 
-class _Held:
-    """The plain chain held at a result's pose: the pose shift of a change of the centres."""
-
-    def __init__(self, dataset, result):
-        self.mask = cell_stage.mask_of(result)
-        centre_free = "sphere" in result.unknowns.split("+")
-        pose = np.asarray(result.sensor2flange, float)
-        centre = np.asarray(result.sphere_centre if result.sphere_centre is not None else dataset.sphere_centre, float)
-        self.held = dataclasses.replace(dataset, sphere_centre=centre)
-        self.metric = observations.centre_metric(self.held, pose, centre, self.mask, 9 if centre_free else 6)
-        self.structure = Structure(centre=centre_free)
-        prob = Samples(self.held, metric=self.metric)
-        self.x = prob.point(self.structure, pose, centre)
-        self.e, jac, _ = prob.evaluate(self.structure, self.x, {})
-        self.jac = jac[self.mask].reshape(-1, jac.shape[2])
-        self.names = prob.names(self.structure)
-
-    def shift(self, rows, change):
-        """The least-squares pose's shift (p,) when the centres of ``rows`` change by ``change`` (k, 3; mm)."""
-        moved = np.array(self.held.centre_in_sensor, float)
-        moved[list(rows)] += change
-        e, _, _ = Samples(dataclasses.replace(self.held, centre_in_sensor=moved),
-                          metric=self.metric).evaluate(self.structure, self.x, {})
-        return np.linalg.lstsq(self.jac, -(e - self.e)[self.mask].ravel(), rcond=None)[0]
+def _held(dataset, result):
+    """The chain held at ``result``'s pose, centre and data effects (:func:`handeye.model.fit.held.held_at`),
+    the samples it used, and the effects' parameters."""
+    mask = cell_stage.mask_of(result)
+    named = [e for e in result.effects or [] if catalogue.get(e.name).KIND == "data"]
+    params = {e.name: np.array([e.parameters[p] for p in catalogue.get(e.name).PARAMS], float) for e in named}
+    chain = held_at(dataset, mask, result.sensor2flange, result.sphere_centre, "sphere" in result.unknowns.split("+"),
+                    tuple(params))
+    return chain, mask, params
 
 
-def _shifts(dataset, result, bend):
+def widening(chain, mask, params, bend):
     """``(shifts (k, p), move (p,), names)``: the pose's shifts over ``bend``'s covariance eigen-directions,
-    and its shift had the bend not been corrected."""
-    held = _Held(dataset, result)
+    and its shift had the bend not been corrected (module docstring). ``chain``: the chain held at the pose
+    (:func:`handeye.model.fit.held.held_at`); ``mask``: the samples the pose is of; ``params``: the held data
+    effects' parameters (name -> array)."""
+    e, jac, _ = chain.prob.evaluate(chain.structure, chain.x, params)
+    flat = jac[mask].reshape(-1, jac.shape[2])
+
+    def shift(change):
+        moved = np.array(chain.dataset.centre_in_sensor, float)
+        moved[list(bend.rows)] += change
+        other = chain.with_centres(moved)
+        e_k, _, _ = other.prob.evaluate(other.structure, other.x, params)
+        return np.linalg.lstsq(flat, -(e_k - e)[mask].ravel(), rcond=None)[0]
+
     values, vectors = np.linalg.eigh(bend.covariance)
-    shifts = [held.shift(bend.rows, bend.dcentre @ (np.sqrt(max(lam, 0.0)) * v)) for lam, v in zip(values, vectors.T)]
-    return np.array(shifts), held.shift(bend.rows, -bend.moved), held.names
+    shifts = [shift(bend.dcentre @ (np.sqrt(max(lam, 0.0)) * v)) for lam, v in zip(values, vectors.T)]
+    return np.array(shifts), shift(-bend.moved), chain.prob.names(chain.structure)
+
+
+def widened(record, chain, mask, bend):
+    """An :class:`~handeye.app.present.result_parts.UncertaintyRecord` of a pose held (a saved calibration's,
+    :mod:`handeye.app.engine.held_verdict`) widened as :func:`with_bend` widens a calibration's: the same
+    covariance from the same data; unchanged without an applied bend."""
+    if bend is None or not bend.applied:
+        return record
+    shifts, _, names = widening(chain, mask, {}, bend)
+    return record.widened(shifts.T @ shifts, names)
 
 
 def with_bend(result, dataset):
@@ -66,7 +72,8 @@ def with_bend(result, dataset):
         return result
     data = cell_stage.dataset_at(result, dataset)
     try:
-        shifts, move, names = _shifts(data, result, bend)
+        chain, mask, params = _held(data, result)
+        shifts, move, names = widening(chain, mask, params, bend)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         return dataclasses.replace(result, warnings=[*result.warnings, _note(bend, None, None)])
     uncertainty = result.uncertainty.widened(shifts.T @ shifts, names)

@@ -110,7 +110,7 @@ def noise_test(ssr, dof, sigma, whitened, warnings, advice):
             f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
             f"than [noise] in setup.toml says); {advice} to find and name it, "
             "then calibrate with the effect it names (--effects NAME)")
-    return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed)
+    return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed, bool(whitened))
 
 
 @dataclasses.dataclass(frozen=True)

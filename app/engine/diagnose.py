@@ -51,6 +51,7 @@ from handeye.model.datasets import observations
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
+from handeye.model.fit.held import held_at
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
@@ -277,12 +278,8 @@ def held_power(dataset, mask, sensor2flange, centre, centre_unknown, alpha=ALPHA
     """The :func:`power_statement` of a pose held (a saved calibration's, :mod:`handeye.app.engine.held_verdict`)
     on the samples of ``mask``: the plain chain (the sphere centre free with ``centre_unknown``) evaluated
     at the pose, never fitted. ``centre``: the sphere centre (robot base or its mount's frame, mm)."""
-    centre = np.asarray(centre if centre is not None else dataset.sphere_centre, float)
-    held = dataclasses.replace(dataset, sphere_centre=centre)  # a free centre's start: the one given
-    metric = observations.centre_metric(held, np.asarray(sensor2flange, float), centre, mask, 9 if centre_unknown else 6)
-    prob = Samples(held, metric=metric)
-    structure = Structure(centre=bool(centre_unknown))
-    x = prob.point(structure, np.asarray(sensor2flange, float), centre)
+    chain = held_at(dataset, mask, sensor2flange, centre, centre_unknown)
+    prob, structure, x = chain.prob, chain.structure, chain.x
     e, jac, _ = prob.evaluate(structure, x, {})
     fit = Fit(x, {}, e, jac, prob.names(structure), float(np.sum(e[mask] ** 2)), 3 * int(mask.sum()), jac.shape[2])
     held = Procedure(prob, np.asarray(mask, bool), alpha, None, {}, np.linalg.norm(e, axis=1),

@@ -31,8 +31,7 @@ from handeye.app.engine.describe import noise_test
 from handeye.app.engine.score import held_test
 from handeye.model import effects as catalogue
 from handeye.model.common.rotation import pose_distance
-from handeye.model.datasets import observations
-from handeye.model.fit.extended import Samples, Structure
+from handeye.model.fit.held import held_at
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,11 +130,9 @@ def recompute(data, mask, sensor2flange, centre, held, stated):
         The stated noise the file's calibration ran with, mm per component.
     """
     (effects, robot_free), centre_free = held
-    structure = Structure(centre=bool(centre_free), data_effects=tuple(effects))
-    metric = observations.centre_metric(data, sensor2flange, centre, mask, 9 if centre_free else 6)
-    prob = Samples(data, stated, metric)
+    chain = held_at(data, mask, sensor2flange, centre, centre_free, effects, stated)
+    prob, structure, x = chain.prob, chain.structure, chain.x
     prob.robot_free.update(robot_free)
-    x = prob.point(structure, sensor2flange, centre)
     with np.errstate(all="ignore"):
         e = prob.residuals(structure, x, effects)
         jtj, _, ssr = prob.normal_equations(structure, x, effects, mask)

@@ -192,7 +192,9 @@ def _simulated_robot(v, cell, setup, effects):
     except sim.SimulationError as exc:
         raise RequestError(f"--effect {exc}") from None
     target = simulate_robot.CENTRES.get(str(v["robot"]))
-    if target is not None and v["center"] is None and v["truth" if cell.sensor == "world" else "positioner_axes"] is None:
+    placing = (("truth",) if cell.sensor == "world" else ("positioner_axes", "center") if cell.sphere == "positioner"
+               else ("center",))  # the options that place the cell themselves
+    if target is not None and all(v[name] is None for name in placing):
         cell, pose, centre = sm.placed_at(cell, setup.sensor_pose, setup.sphere_centre, target, setup.side)
         setup = dataclasses.replace(setup, sensor_pose=pose, sphere_centre=centre)
     return arm, cell, setup

@@ -176,6 +176,10 @@ class CalibrationRequest:
         RMS, the effects absorbed) on the result (its ``search``): diagnose is calibrate's search told.
     notes : tuple of str
         What :meth:`checked` decided that the user should read (a default method changed).
+    sigma_stated : bool or None
+        Whether the user stated the centre noise (``sigma`` given); set by :meth:`checked` from the
+        request as first asked (None until then) and kept through the search's refits, whose ``sigma``
+        is the resolved one.
     resolved : str or None
         Set by :meth:`checked` (not a constructor argument): which dataset (folder and number
         of measurements) it was checked against, every option valid and every default resolved;
@@ -200,6 +204,7 @@ class CalibrationRequest:
     story: bool = False
     notes: tuple = ()
     sensor_pose: object = None
+    sigma_stated: bool | None = None
     resolved: str | None = dataclasses.field(default=None, init=False)
     parts: str | None = dataclasses.field(default=None, init=False)
 
@@ -242,6 +247,7 @@ class CalibrationRequest:
             options=copy.deepcopy(_solver_options(self.options)), alpha=float(self.alpha),
             convention=conventions.check(self.convention or dataset.convention),
             sigma=dataset.noise_centre_mm if self.sigma is None else float(self.sigma),
+            sigma_stated=(self.sigma is not None) if self.sigma_stated is None else self.sigma_stated,
             robot_sigma=dataset.noise_robot_mm if self.robot_sigma is None else float(self.robot_sigma),
             notes=(note,) if note else ())
         object.__setattr__(checked, "resolved", fingerprint(dataset))

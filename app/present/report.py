@@ -483,7 +483,8 @@ def cleaning_lines(report, limit=20):
     if not report:
         return []
     if not report["applied"]:
-        return ["", "profile cleaning: off (--no-clean): every profile point is fitted"]
+        return ["", "profile cleaning: off (--no-clean): every profile point is fitted, and no depth bend of the "
+                    "sensor is measured (profile_bend needs cleaned profiles)"]
     head = (f"profile cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
             f"{len(report['samples'])} of {report['profiles']} profiles")
     if not report["dropped"]:
@@ -501,14 +502,9 @@ def cleaning_lines(report, limit=20):
 
 def _bend_lines(bend):
     """The line of the profiles' depth bend (:mod:`handeye.model.geometry.profile_bend`): said where one was
-    fitted (degree above 0), applied or not."""
+    fitted (degree above 0), applied or not, and why."""
     if not bend or not bend["degree"]:
         return []
-    from handeye.model.geometry.profile_bend import MAX_SLOPE
-
     lo, hi = bend["depths_mm"]
-    steep = bend["slope"] > MAX_SLOPE
-    what = ("corrected before the circle fits" if bend["applied"] else
-            f"not corrected ({'steeper than a linearity error' if steep else 'not clear enough'})")
     return [f"profile bend along the sensor's depth: {bend['bend_mm']:.3g} mm over {lo:.0f}-{hi:.0f} mm (degree "
-            f"{bend['degree']}, steepest slope {100 * bend['slope']:.2g} %, p = {bend['p_value']:.2g}); {what}"]
+            f"{bend['degree']}, steepest slope {100 * bend['slope']:.2g} %, p = {bend['p_value']:.2g}); {bend['why']}"]

@@ -318,6 +318,8 @@ class NoiseTest(AsDict):
         The stated noise, in words.
     passed : bool
         False when the residuals are larger than the noise at the 0.1 % level.
+    whitened : bool
+        Whether each row was whitened by its own stated covariance (else the stated centre noise).
     """
 
     statistic: float
@@ -326,6 +328,7 @@ class NoiseTest(AsDict):
     ratio: float
     nominal: str
     passed: bool
+    whitened: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

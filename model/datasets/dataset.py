@@ -259,6 +259,7 @@ class Dataset(FlangePoses):
             axis_angles=None if self.axis_angles is None else self.axis_angles[mask],
             joints=None if self.joints is None else self.joints[mask],
             configuration=None if self.configuration is None else self.configuration[mask],
+            bend=None if self.bend is None else self.bend.subset(mask),
         )
         for key in ("_flange2base", "_motions"):  # computed already: its rows, not a million poses again
             if key in self.__dict__ and not (key == "_motions" and self.mounts.default):
@@ -276,7 +277,7 @@ class Dataset(FlangePoses):
         robot and the positioner report) and ``ids``, ``rows`` (a row's id names its pose, as
         ``dataset new --pair id`` matches profile names to pose ids; its line is the pose's) --
         stays; the measurement side -- ``centre_in_sensor``, ``profiles``, ``raw_profiles``,
-        ``cleaning``, ``reconstructed`` (what the sensor reports) -- moves.
+        ``cleaning``, ``reconstructed``, ``bend`` (what the sensor reports) -- moves.
         """
         n, step = len(self), int(step)
         if step == 0 or abs(step) >= n:
@@ -288,7 +289,8 @@ class Dataset(FlangePoses):
         measured[poses + step] = True
         posed, m = self.subset(mask), self.subset(measured)
         out = dataclasses.replace(posed, centre_in_sensor=m.centre_in_sensor, profiles=m.profiles,
-                                  raw_profiles=m.raw_profiles, cleaning=m.cleaning, reconstructed=m.reconstructed)
+                                  raw_profiles=m.raw_profiles, cleaning=m.cleaning, reconstructed=m.reconstructed,
+                                  bend=m.bend)
         for key in ("_flange2base", "_motions"):  # the pose side's, computed already: kept
             if key in posed.__dict__:
                 out.__dict__[key] = posed.__dict__[key]

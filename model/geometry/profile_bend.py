@@ -66,6 +66,14 @@ MAX_SLOPE = 0.05
 MIN_PROFILES = 8
 #: Gauss-Newton steps of the chosen degree's fit.
 STEPS = 4
+#: Above this many profiles the bend is fitted on that many spread over the rows (the estimate's sd is then
+#: already far below the floor); every row's centre is still corrected and differentiated.
+MAX_FIT_PROFILES = 2000
+#: Each profile is thinned to at most this many points (evenly) for the fit and the derivatives: the seed's
+#: sensor's 1,280 points per profile, so that a line scanner's profiles are fitted whole.
+MAX_POINTS = 1280
+#: Points per block of a pass over the profiles (the pass's arrays are about 70 numbers a point).
+BLOCK_POINTS = 100_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,7 +100,8 @@ class Bend:
     bend_mm : float
         Peak-to-peak of the correction over ``depths`` (mm).
     applied : bool
-        Whether the profiles were corrected (module docstring: the F test and :data:`MIN_BEND_MM`).
+        Whether the profiles were corrected (module docstring: both tests at :data:`ALPHA`, at least
+        :data:`MIN_BEND_MM`, nowhere steeper than :data:`MAX_SLOPE`; :attr:`why` says which failed).
     rows : tuple of int
         The samples whose profiles it was estimated from (positions in the dataset).
     dcentre : ndarray, shape (len(rows), 3, degree), or None
@@ -101,6 +110,8 @@ class Bend:
         How far the correction moved each of their centres (sensor frame, mm); None until applied.
     slope : float
         The bend's steepest slope over ``depths`` (mm per mm).
+    mean_basis : ndarray, shape (degree,), or None
+        The basis's mean over the profiles' points (``offset = mean_basis @ beta``).
     """
 
     degree: int
@@ -116,20 +127,49 @@ class Bend:
     dcentre: np.ndarray | None = None
     moved: np.ndarray | None = None
     slope: float = 0.0
+    mean_basis: np.ndarray | None = None
 
     def correction(self, z):
         """The bend ``b(z) - mean b`` at depths ``z`` (mm; any shape)."""
         z = np.asarray(z, float)
         return (_basis(z.ravel(), self.degree, self.depths) @ self.beta - self.offset).reshape(z.shape)
 
+    def correction_sd(self, z):
+        """1 sd (mm) of :meth:`correction` at depths ``z`` (1-D), from :attr:`covariance`."""
+        basis = _basis(np.asarray(z, float).ravel(), self.degree, self.depths) - self.mean_basis
+        return np.sqrt(np.einsum("ij,jk,ik->i", basis, self.covariance, basis))
+
     def corrected(self, points):
         """Profile points (K, 2: sensor x, z, mm) with their depths corrected."""
         points = np.asarray(points, float)
         return np.column_stack([points[:, 0], points[:, 1] - self.correction(points[:, 1])])
 
+    def subset(self, mask):
+        """This bend on the samples of ``mask`` (bool over the dataset's samples): :attr:`rows`, :attr:`dcentre`
+        and :attr:`moved` of the samples kept, renumbered; what was estimated from every profile stays."""
+        mask = np.asarray(mask, bool)
+        position = np.cumsum(mask) - 1
+        keep = [k for k, r in enumerate(self.rows) if mask[r]]
+        return dataclasses.replace(self, rows=tuple(int(position[self.rows[k]]) for k in keep),
+                                   dcentre=None if self.dcentre is None else self.dcentre[keep],
+                                   moved=None if self.moved is None else self.moved[keep])
+
+    @property
+    def why(self):
+        """Why it was applied or not, in words."""
+        if self.applied:
+            return "corrected before the circle fits"
+        if self.degree == 0:
+            return "none (BIC chooses no bend)"
+        if self.p_value >= ALPHA:
+            return f"not corrected (not clear: p = {self.p_value:.2g} >= {ALPHA:g})"
+        if self.bend_mm < MIN_BEND_MM:
+            return f"not corrected (below {MIN_BEND_MM:g} mm)"
+        return f"not corrected (steeper than a linearity error: above {100 * MAX_SLOPE:g} %)"
+
     def to_dict(self):
         """JSON-ready summary."""
-        return {"degree": self.degree, "applied": self.applied, "bend_mm": self.bend_mm, "f": self.f,
+        return {"degree": self.degree, "applied": self.applied, "why": self.why, "bend_mm": self.bend_mm, "f": self.f,
                 "p_value": self.p_value, "slope": self.slope, "depths_mm": list(self.depths), "profiles": len(self.rows),
                 "beta_mm": [float(b) for b in self.beta],
                 "beta_sd_mm": [float(s) for s in np.sqrt(np.clip(np.diag(self.covariance), 0, None))]}
@@ -143,8 +183,9 @@ def _basis(z, m, depths):
 
 @dataclasses.dataclass(frozen=True)
 class _Points:
-    """Every profile's points in one array: ``seg`` the profile of each point, ``starts`` its first, ``basis`` (N, MAX_DEGREE)
-    its Legendre columns minus their mean (the correction keeps the mean depth)."""
+    """A block of profiles' points in one array: ``seg`` the profile of each point (in the block), ``starts``
+    the first point of each, ``basis`` (K, MAX_DEGREE) its Legendre columns minus their mean over every
+    block (the correction keeps the mean depth)."""
 
     x: np.ndarray
     z: np.ndarray
@@ -152,40 +193,62 @@ class _Points:
     starts: np.ndarray
     n: int
     basis: np.ndarray
-    mean_basis: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class _Blocks:
+    """Profiles in blocks of at most :data:`BLOCK_POINTS` points, the depths the basis is scaled to and the
+    basis's mean over every point."""
+
+    blocks: tuple
     depths: tuple
+    mean_basis: np.ndarray
+    n: int
+    n_points: int
 
 
-def _points(profiles):
-    x = np.concatenate([p[:, 0] for p in profiles])
-    z = np.concatenate([p[:, 1] for p in profiles])
-    sizes = [len(p) for p in profiles]
-    seg = np.repeat(np.arange(len(profiles)), sizes)
-    depths = (float(z.min()), float(z.max()))
-    full = _basis(z, MAX_DEGREE, depths)
-    mean = full.mean(axis=0)
-    return _Points(x, z, seg, np.concatenate([[0], np.cumsum(sizes)[:-1]]), len(profiles), full - mean, mean, depths)
+def _thinned(p):
+    return p[:: -(-len(p) // MAX_POINTS)]
+
+
+def _blocks(profiles, depths=None, mean=None):
+    """``profiles`` (thinned to :data:`MAX_POINTS` each) as :class:`_Blocks`; ``depths`` and ``mean`` (of the
+    basis): these profiles' own unless given."""
+    profiles = [_thinned(p) for p in profiles]
+    if depths is None:
+        depths = (min(float(p[:, 1].min()) for p in profiles), max(float(p[:, 1].max()) for p in profiles))
+    if mean is None:
+        mean = sum(_basis(p[:, 1], MAX_DEGREE, depths).sum(axis=0) for p in profiles) / sum(len(p) for p in profiles)
+    groups, current, size = [], [], 0
+    for p in profiles:
+        if current and size + len(p) > BLOCK_POINTS:
+            groups.append(current)
+            current, size = [], 0
+        current.append(p)
+        size += len(p)
+    groups.append(current)
+    blocks = []
+    for group in groups:
+        sizes = [len(p) for p in group]
+        z = np.concatenate([p[:, 1] for p in group])
+        blocks.append(_Points(np.concatenate([p[:, 0] for p in group]), z, np.repeat(np.arange(len(group)), sizes),
+                              np.concatenate([[0], np.cumsum(sizes)[:-1]]), len(group),
+                              _basis(z, MAX_DEGREE, depths) - mean))
+    return _Blocks(tuple(blocks), depths, mean, len(profiles), sum(len(p) for p in profiles))
 
 
 def _segment_sum(pts, values):
-    """Per-profile sums of ``values`` (N, ...) -> (n, ...) (each profile's points are contiguous)."""
+    """Per-profile sums of ``values`` (K, ...) -> (n, ...) (each profile's points are contiguous)."""
     return np.add.reduceat(values, pts.starts, axis=0)
 
 
-def _reduced(pts, beta, circles):
-    """One Gauss-Newton linearisation at ``beta`` (m,) and ``circles`` (n, 3), the circles eliminated:
-    ``(S, g, ssr, per_profile)`` with ``S`` (m, m) and ``g`` (m,) the reduced normal matrix and gradient,
-    ``ssr`` the sum of squares and ``per_profile`` ``(JJ^-1, JG, Jr, S_i, g_i)`` for the circles' step,
-    the jackknife and the centres' derivatives."""
+def _reduced_block(pts, beta, circles):
+    """:func:`_reduced` of one block (``circles`` its profiles')."""
     m = len(beta)
     basis = pts.basis[:, :m]
-    zt = pts.z - basis @ beta
     a, c, r = (circles[pts.seg, k] for k in range(3))
-    dx, dz = pts.x - a, zt - c
-    d = np.maximum(np.hypot(dx, dz), 1e-300)
-    res = d - r
-    jac = np.stack([-dx / d, -dz / d, -np.ones_like(d)], axis=1)
-    g_cols = -(dz / d)[:, None] * basis
+    res, jac = circle.distance_jacobian(pts.x, pts.z - basis @ beta, circle.Circle(a, c, r))
+    g_cols = jac[:, 1:2] * basis  # the depth's corrected by -basis beta: d(res)/d(beta) = d(res)/d(zc) * basis
     jj_inv = np.linalg.inv(_segment_sum(pts, jac[:, :, None] * jac[:, None, :]))
     jg = _segment_sum(pts, jac[:, :, None] * g_cols[:, None, :])
     jr = _segment_sum(pts, jac * res[:, None])
@@ -193,34 +256,56 @@ def _reduced(pts, beta, circles):
     gr = _segment_sum(pts, g_cols * res[:, None])
     s_i = gg - np.einsum("nkm,nkl,nlj->nmj", jg, jj_inv, jg)
     g_i = gr - np.einsum("nkm,nkl,nl->nm", jg, jj_inv, jr)
-    return s_i.sum(axis=0), g_i.sum(axis=0), float(res @ res), (jj_inv, jg, jr, s_i, g_i)
+    return float(res @ res), (jj_inv, jg, jr, s_i, g_i)
 
 
-def _circle_sums(pts, jr, jj_inv):
+def _reduced(data, beta, circles):
+    """One Gauss-Newton linearisation at ``beta`` (m,) and ``circles`` (n, 3), the circles eliminated:
+    ``(S, g, ssr, per_profile)`` with ``S`` (m, m) and ``g`` (m,) the reduced normal matrix and gradient,
+    ``ssr`` the sum of squares and ``per_profile`` ``(JJ^-1, JG, Jr, S_i, g_i)`` for the circles' step,
+    the jackknife and the centres' derivatives; block by block (:class:`_Blocks`)."""
+    ssr, pieces, first = 0.0, [], 0
+    for pts in data.blocks:
+        block_ssr, block = _reduced_block(pts, beta, circles[first:first + pts.n])
+        ssr, first = ssr + block_ssr, first + pts.n
+        pieces.append(block)
+    per_profile = tuple(np.concatenate(parts) for parts in zip(*pieces))
+    return per_profile[3].sum(axis=0), per_profile[4].sum(axis=0), ssr, per_profile
+
+
+def _circle_sums(jr, jj_inv):
     """The sum of squares the circles' own Gauss-Newton step removes (no bend)."""
     return float(np.einsum("nk,nkl,nl->", jr, jj_inv, jr))
 
 
-def _degree(pts, circles):
+def _degree(data, circles):
     """``(degree, ssr by degree)``: BIC's choice among 0..MAX_DEGREE from one reduced step at ``beta = 0``."""
-    s, g, ssr, (jj_inv, _, jr, _, _) = _reduced(pts, np.zeros(MAX_DEGREE), circles)
-    ssr0 = ssr - _circle_sums(pts, jr, jj_inv)
+    s, g, ssr, (jj_inv, _, jr, _, _) = _reduced(data, np.zeros(MAX_DEGREE), circles)
+    ssr0 = ssr - _circle_sums(jr, jj_inv)
     ssrs = [ssr0] + [ssr0 - float(g[:m] @ np.linalg.solve(s[:m, :m], g[:m])) for m in range(1, MAX_DEGREE + 1)]
-    n_obs = len(pts.z)
-    bic = [n_obs * np.log(max(v, 1e-300) / n_obs) + (3 * pts.n + m) * np.log(n_obs) for m, v in enumerate(ssrs)]
+    n_obs = data.n_points
+    bic = [n_obs * np.log(max(v, 1e-300) / n_obs) + (3 * data.n + m) * np.log(n_obs) for m, v in enumerate(ssrs)]
     return int(np.argmin(bic)), ssrs
 
 
-def _fit(pts, circles, m):
-    """Gauss-Newton from ``beta = 0``: ``(beta, circles, pieces at the fit, ssr)``."""
+def _fit(data, circles, m):
+    """Gauss-Newton from ``beta = 0``: ``(beta, circles, S, pieces at the fit, ssr)``."""
     beta = np.zeros(m)
     for _ in range(STEPS):
-        s, g, _, (jj_inv, jg, jr, _, _) = _reduced(pts, beta, circles)
+        s, g, _, (jj_inv, jg, jr, _, _) = _reduced(data, beta, circles)
         step = -np.linalg.solve(s, g)
         circles = circles - np.einsum("nkl,nl->nk", jj_inv, jr + jg @ step)
         beta = beta + step
-    s, g, ssr, pieces = _reduced(pts, beta, circles)
+    s, g, ssr, pieces = _reduced(data, beta, circles)
     return beta, circles, s, pieces, ssr
+
+
+def _circles_at(data, beta, circles, steps=3):
+    """Each profile's circle with the bend ``beta`` held (Gauss-Newton on the circles alone)."""
+    for _ in range(steps):
+        _, _, _, (jj_inv, _, jr, _, _) = _reduced(data, beta, circles)
+        circles = circles - np.einsum("nkl,nl->nk", jj_inv, jr)
+    return circles
 
 
 def _jackknife(s, pieces, beta):
@@ -233,52 +318,89 @@ def _jackknife(s, pieces, beta):
 
 
 def _dcentre(pieces, circles, radius, side):
-    """Derivatives (n, 3, m) of the rebuilt centres (x, y, z) with respect to ``beta`` at the fit."""
+    """Derivatives (n, 3, m) of the rebuilt centres (x, y, z) with respect to ``beta``; a circle as wide as
+    the sphere (its centre's y has no derivative) gets none."""
     jj_inv, jg, _, _, _ = pieces
     dcirc = -np.einsum("nkl,nlm->nkm", jj_inv, jg)  # (a, c, r)
     r = circles[:, 2]
-    y = np.sqrt(np.maximum(radius**2 - r**2, 1e-12))
-    return np.stack([dcirc[:, 0], (-side * r / y)[:, None] * dcirc[:, 2], dcirc[:, 1]], axis=1)
+    inside = r < radius * (1 - 1e-9)
+    y = np.sqrt(np.where(inside, radius**2 - r**2, 1.0))
+    dy = np.where(inside, -side * r / y, 0.0)[:, None] * dcirc[:, 2]
+    return np.stack([dcirc[:, 0], dy, dcirc[:, 1]], axis=1)
+
+
+def _hyper_circles(profiles):
+    return np.array([[c.x, c.z, c.r] for c in (circle.hyper(p[:, 0], p[:, 1]) for p in profiles)])
+
+
+def _spread(n, most):
+    """Indices of at most ``most`` of ``n`` items spread evenly over them."""
+    return np.arange(n) if n <= most else np.unique(np.linspace(0, n - 1, most).round().astype(int))
 
 
 def estimate(profiles, radius, side=-1):
-    """The :class:`Bend` of a dataset's (cleaned) profiles, or None with fewer than :data:`MIN_PROFILES`.
+    """The :class:`Bend` of a dataset's (cleaned) profiles, or None with fewer than :data:`MIN_PROFILES` (or
+    profiles no fit can be made of).
 
     Parameters
     ----------
-    profiles : sequence of ndarray, shape (K_i, 2)
-        Sensor x, z of each profile's points, mm (sensor frame, the laser plane y = 0).
+    profiles : sequence of ndarray, shape (K_i, 2), or None
+        Sensor x, z of each profile's points, mm (sensor frame, the laser plane y = 0); None for a row
+        without one.
     radius : float
         The sphere's, mm.
     side : int
         Sign of the sensor-y of the sphere centre (the rebuilt centres' derivatives).
+
+    Notes
+    -----
+    Above :data:`MAX_FIT_PROFILES` profiles the bend is fitted on that many spread over the rows, every
+    profile thinned to :data:`MAX_POINTS` points; the passes run in blocks of :data:`BLOCK_POINTS` points.
     """
     rows = tuple(k for k, p in enumerate(profiles) if p is not None and len(p) >= 5)
-    profiles = [np.asarray(profiles[k], float) for k in rows]
-    if len(profiles) < MIN_PROFILES:
+    if len(rows) < MIN_PROFILES:
         return None
-    pts = _points(profiles)
+    every = [np.asarray(profiles[k], float) for k in rows]
+    chosen = _spread(len(rows), MAX_FIT_PROFILES)
     try:
-        start = np.array([[c.x, c.z, c.r] for c in (circle.hyper(p[:, 0], p[:, 1]) for p in profiles)])
-        m, ssrs = _degree(pts, start)
-    except (circle.CircleFitError, np.linalg.LinAlgError):
-        return None
-    dof = len(pts.z) - 3 * pts.n - max(m, 1)
+        with np.errstate(divide="raise", over="raise", invalid="raise"):
+            return _estimated(every, chosen, rows, radius, side)
+    except (circle.CircleFitError, np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return None  # degenerate profiles: no bend can be told (the circles are fitted as they are)
+
+
+def _estimated(every, chosen, rows, radius, side):
+    data = _blocks([every[k] for k in chosen])
+    start = _hyper_circles([every[k] for k in chosen])
+    m, ssrs = _degree(data, start)
+    dof = data.n_points - 3 * data.n - max(m, 1)
     if m == 0:
         f = float((ssrs[0] - ssrs[1]) / (ssrs[1] / dof))
-        return Bend(0, np.zeros(0), np.zeros((0, 0)), pts.depths, 0.0, f, f_survival(f, 1, dof), 0.0, False, rows)
-    beta, circles, s, pieces, ssr = _fit(pts, start, m)
+        return Bend(0, np.zeros(0), np.zeros((0, 0)), data.depths, 0.0, f, f_survival(f, 1, dof), 0.0, False, rows)
+    beta, circles, s, pieces, ssr = _fit(data, start, m)
     f = float(((ssrs[0] - ssr) / m) / (ssr / dof))
-    grid = np.linspace(*pts.depths, 201)
-    curve = _basis(grid, m, pts.depths) @ beta
     cov = _jackknife(s, pieces, beta)
-    wald = float(beta @ np.linalg.lstsq(cov, beta, rcond=None)[0]) / m
-    p_value = max(f_survival(f, m, dof), f_survival(wald, m, pts.n - 1))
-    bend_mm = float(curve.max() - curve.min())
-    slope = float(np.max(np.abs(np.gradient(curve, grid))))
+    p_value = max(f_survival(f, m, dof), _hotelling(beta, cov, data.n))
+    grid = np.linspace(*data.depths, 201)
+    curve = _basis(grid, m, data.depths) @ beta
+    bend_mm, slope = float(curve.max() - curve.min()), float(np.max(np.abs(np.gradient(curve, grid))))
     applied = bool(p_value < ALPHA and bend_mm >= MIN_BEND_MM and slope <= MAX_SLOPE)
-    return Bend(m, beta, cov, pts.depths, float(pts.mean_basis[:m] @ beta), f, p_value, bend_mm, applied, rows,
-                _dcentre(pieces, circles, radius, side), slope=slope)
+    if len(chosen) < len(every) and applied:  # the derivatives of every row's centre, at its own circle
+        data = _blocks(every, data.depths, data.mean_basis)
+        circles = _circles_at(data, beta, _hyper_circles(every))
+        pieces = _reduced(data, beta, circles)[3]
+    return Bend(m, beta, cov, data.depths, float(data.mean_basis[:m] @ beta), f, p_value, bend_mm, applied, rows,
+                _dcentre(pieces, circles, radius, side) if applied else None, slope=slope, mean_basis=data.mean_basis[:m])
+
+
+def _hotelling(beta, cov, n):
+    """P-value of Hotelling's T^2 of ``beta`` against its jackknife covariance over ``n`` profiles:
+    ``T^2 (n - m) / (m (n - 1))`` is F(m, n - m)."""
+    m = len(beta)
+    if n <= m:
+        return 1.0
+    t2 = float(beta @ np.linalg.lstsq(cov, beta, rcond=None)[0])
+    return f_survival(t2 * (n - m) / (m * (n - 1)), m, n - m)
 
 
 def apply(profiles, centres, radius, side=-1, fit="hyper"):
@@ -303,13 +425,14 @@ def apply(profiles, centres, radius, side=-1, fit="hyper"):
     bend = estimate(profiles, radius, side)
     if bend is None or not bend.applied:
         return list(profiles), list(centres), bend
-    profiles = [None if p is None else bend.corrected(p) for p in profiles]
-    out = []
-    for p, c in zip(profiles, centres):
+    corrected = [None if p is None else bend.corrected(p) for p in profiles]
+    out, moved = [np.asarray(c, float) for c in centres], np.zeros((len(bend.rows), 3))
+    for k, row in enumerate(bend.rows):
         try:
-            out.append(c if p is None else list(circle.sphere_centre_from_circle(circle.fit_circle(p[:, 0], p[:, 1], fit),
-                                                                                 radius, side)))
+            before, after = (circle.sphere_centre_from_circle(circle.fit_circle(p[:, 0], p[:, 1], fit), radius, side)
+                             for p in (profiles[row], corrected[row]))
         except circle.CircleFitError:
-            out.append(c)
-    moved = np.array([np.subtract(out[k], centres[k]) for k in bend.rows], float)
-    return profiles, out, dataclasses.replace(bend, moved=moved)
+            continue  # a circle as wide as the sphere: its centre as it was (its y has no derivative there)
+        moved[k] = after - before  # the bend's own change: a centre the file gives moves by it too
+        out[row] = out[row] + moved[k]
+    return corrected, [list(c) for c in out], dataclasses.replace(bend, moved=moved)
