@@ -8,8 +8,10 @@ circle fit's implicit derivative). Held at the calibrated pose, a change ``delta
 moves the residuals by ``de``, and the least-squares pose by ``-(J^T J)^-1 J^T de`` (the alias
 matrix of the omitted-variable bias, as :mod:`handeye.model.fit.power` takes it, ``J`` the plain
 chain's Jacobian in the centres' metric). Over ``delta = sqrt(l_k) v_k`` (``C``'s eigenpairs) these
-shifts ``s_k`` give the added covariance ``sum_k s_k s_k^T``: the pose's sd then includes what the
-correction does not know. Where the correction moved the centres, the result says so: its bend,
+shifts ``s_k`` give the added covariance ``sum_k s_k s_k^T``. That covers the profiles' scatter, not the shape
+the polynomial misses (measured: up to a fifth of the correction's move, and more on other bends), so
+:data:`~handeye.app.engine.levels.BEND_DOUBT` of the move (the pose's shift had the bend been left in) is
+added as 1 sd in every direction of its block. Where the correction moved the centres, the result says so: its bend,
 the pose's move, and the sd it added.
 """
 from __future__ import annotations
@@ -19,39 +21,64 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import cell_stage
+from handeye.app.engine.held_chain import held_at
+from handeye.app.engine.levels import BEND_DOUBT
 from handeye.model import effects as catalogue
-from handeye.model.fit.held import held_at
+from handeye.model.fit import power
+from handeye.model.geometry import profile_bend
 
 
 def _held(dataset, result):
-    """The chain held at ``result``'s pose, centre and data effects (:func:`handeye.model.fit.held.held_at`),
+    """The chain held at ``result``'s pose, centre and data effects (:func:`handeye.app.engine.held_chain.held_at`),
     the samples it used, and the effects' parameters."""
     mask = cell_stage.mask_of(result)
     named = [e for e in result.effects or [] if catalogue.get(e.name).KIND == "data"]
     params = {e.name: np.array([e.parameters[p] for p in catalogue.get(e.name).PARAMS], float) for e in named}
-    chain = held_at(dataset, mask, result.sensor2flange, result.sphere_centre, "sphere" in result.unknowns.split("+"),
+    chain = held_at(dataset, mask, (result.sensor2flange, result.sphere_centre), "sphere" in result.unknowns.split("+"),
                     tuple(params))
     return chain, mask, params
+
+
+def _shifter(chain, mask, params):
+    """``shift(rows, change)``: the least-squares pose's shift (p,) at the held chain when the centres of
+    ``rows`` change by ``change`` (k, 3; mm, sensor frame), to first order (the residual's change held at the
+    pose, projected on the Jacobian)."""
+    e, jac, _ = chain.prob.evaluate(chain.structure, chain.x, params)
+    flat = jac[mask].reshape(-1, jac.shape[2])
+
+    def shift(rows, change):
+        moved = np.array(chain.dataset.centre_in_sensor, float)
+        moved[list(rows)] += change
+        other = chain.with_centres(moved)
+        e_k, _, _ = other.prob.evaluate(other.structure, other.x, params)
+        return np.linalg.lstsq(flat, -(e_k - e)[mask].ravel(), rcond=None)[0]
+
+    return shift
 
 
 def widening(chain, mask, params, bend):
     """``(shifts (k, p), move (p,), names)``: the pose's shifts over ``bend``'s covariance eigen-directions,
     and its shift had the bend not been corrected (module docstring). ``chain``: the chain held at the pose
-    (:func:`handeye.model.fit.held.held_at`); ``mask``: the samples the pose is of; ``params``: the held data
+    (:func:`handeye.app.engine.held_chain.held_at`); ``mask``: the samples the pose is of; ``params``: the held data
     effects' parameters (name -> array)."""
-    e, jac, _ = chain.prob.evaluate(chain.structure, chain.x, params)
-    flat = jac[mask].reshape(-1, jac.shape[2])
-
-    def shift(change):
-        moved = np.array(chain.dataset.centre_in_sensor, float)
-        moved[list(bend.rows)] += change
-        other = chain.with_centres(moved)
-        e_k, _, _ = other.prob.evaluate(other.structure, other.x, params)
-        return np.linalg.lstsq(flat, -(e_k - e)[mask].ravel(), rcond=None)[0]
-
+    shift = _shifter(chain, mask, params)
     values, vectors = np.linalg.eigh(bend.covariance)
-    shifts = [shift(bend.dcentre @ (np.sqrt(max(lam, 0.0)) * v)) for lam, v in zip(values, vectors.T)]
-    return np.array(shifts), shift(-bend.moved), chain.prob.names(chain.structure)
+    shifts = [shift(bend.rows, bend.dcentre @ (np.sqrt(max(lam, 0.0)) * v)) for lam, v in zip(values, vectors.T)]
+    return np.array(shifts), shift(bend.rows, -bend.moved), chain.prob.names(chain.structure)
+
+
+def unseen(chain, mask, params, bend, covariance):
+    """The :class:`~handeye.model.fit.power.Missable` depth bend of degree
+    :data:`~handeye.model.geometry.profile_bend.SEEN_DEGREE` the profiles' test (at its level
+    :data:`~handeye.model.geometry.profile_bend.ALPHA`) could have missed, and the parameter names; None
+    without the profiles' information. ``covariance``: the pose's, on the chain's parameters."""
+    if bend.seen is None:
+        return None, None
+    info, dcentre = bend.seen
+    shift, step = _shifter(chain, mask, params), 1e-3  # mm of a Legendre coefficient: the map is linear
+    alias = np.column_stack([shift(bend.rows, dcentre[:, :, j] * step) / step for j in range(info.shape[0])])
+    lam = power.detectable_noncentrality(info.shape[0], profile_bend.ALPHA)
+    return power.missable_seen("a depth bend", "mm", alias, info, covariance, lam), chain.prob.names(chain.structure)
 
 
 def widened(record, chain, mask, bend):
@@ -60,24 +87,60 @@ def widened(record, chain, mask, bend):
     covariance from the same data; unchanged without an applied bend."""
     if bend is None or not bend.applied:
         return record
-    shifts, _, names = widening(chain, mask, {}, bend)
-    return record.widened(shifts.T @ shifts, names)
+    shifts, move, names = widening(chain, mask, {}, bend)
+    return record.widened(_covariance(shifts, move), names)
 
 
 def with_bend(result, dataset):
     """``result`` with the uncertainty of the dataset's applied bend added to its covariance (module
     docstring) and a line saying it; unchanged without an applied bend or a converged fit."""
     bend = getattr(dataset, "bend", None)
-    if bend is None or not bend.applied or not result.converged or result.uncertainty.covariance is None:
+    if bend is None or not result.converged or result.uncertainty.covariance is None:
         return result
     data = cell_stage.dataset_at(result, dataset)
+    if not bend.applied:  # a bend the profiles suggest (BIC chose one) but do not make clear: what it could be
+        return _with_unseen(result, data, bend) if bend.degree else result
     try:
         chain, mask, params = _held(data, result)
         shifts, move, names = widening(chain, mask, params, bend)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         return dataclasses.replace(result, warnings=[*result.warnings, _note(bend, None, None)])
-    uncertainty = result.uncertainty.widened(shifts.T @ shifts, names)
+    uncertainty = result.uncertainty.widened(_covariance(shifts, move), names)
     return dataclasses.replace(result, uncertainty=uncertainty, warnings=[*result.warnings, _note(bend, shifts, move)])
+
+
+def _with_unseen(result, data, bend):
+    """``result`` with its sd widened by the depth bend its profiles could have missed (:func:`unseen`), where
+    that moves the pose beyond the floor (:attr:`~handeye.model.fit.power.Missable.widening`), and a warning."""
+    try:
+        chain, mask, params = _held(data, result)
+        names = chain.prob.names(chain.structure)
+        index = {n: k for k, n in enumerate(result.uncertainty.parameter_names)}
+        shared = [index.get(n) for n in names]
+        cov = np.diag([1e300] * len(names))  # the pose's covariance on the chain's parameters (others: unknown)
+        known = [k for k, j in enumerate(shared) if j is not None]
+        cov[np.ix_(known, known)] = np.asarray(result.uncertainty.covariance)[np.ix_([shared[k] for k in known],
+                                                                                      [shared[k] for k in known])]
+        missed, names = unseen(chain, mask, params, bend, cov)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return result
+    if missed is None or not missed.beyond_floor:
+        return result
+    note = (f"the profiles' shape could have missed {missed.text()} (a linearity error of the sensor: a depth "
+            f"stretch and curvature of that size, by the bend test at its level {profile_bend.ALPHA:g}); the 1 sd "
+            "includes it")
+    return dataclasses.replace(result, uncertainty=result.uncertainty.widened(missed.widening, names),
+                               warnings=[*result.warnings, note])
+
+
+def _covariance(shifts, move):
+    """What a corrected bend adds to the pose's covariance (parameters of ``shifts``' columns): the jackknife's
+    shifts, and :data:`~handeye.app.engine.levels.BEND_DOUBT` of the correction's move, per block (translation
+    mm, rotation rad) in every direction."""
+    doubt = np.zeros(len(move))
+    doubt[:3] = BEND_DOUBT * np.linalg.norm(move[:3])
+    doubt[3:6] = BEND_DOUBT * np.linalg.norm(move[3:6])
+    return shifts.T @ shifts + np.diag(doubt**2)
 
 
 def _size(shifts):
@@ -95,4 +158,6 @@ def _note(bend, shifts, move):
         return head + "; the correction's uncertainty could not be carried into the sd"
     (mm, deg), (move_mm, move_deg) = _size(shifts), _size(move[None])
     return head + (f": it moved the pose by {move_mm:.2g} mm / {move_deg:.2g} deg; the 1 sd includes the "
-                   f"correction's own uncertainty (up to {mm:.2g} mm / {deg:.2g} deg)")
+                   f"correction's scatter over the profiles (up to {mm:.2g} mm / {deg:.2g} deg) and {BEND_DOUBT:g} of "
+                   f"that move ({BEND_DOUBT * move_mm:.2g} mm / {BEND_DOUBT * move_deg:.2g} deg: what the correction's "
+                   "polynomial may miss, measured)")

@@ -38,6 +38,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import configuration_group, effect_size, positioner_effect, robot_choice, robust, set_aside
+from handeye.app.engine.held_chain import held_at
 from handeye.app.engine.levels import AT_NOISE
 from handeye.app.engine.prepare import resolve_start
 from handeye.app.present.diagnosis_results import DiagnosisResidual, DiagnosisResult, Step
@@ -51,7 +52,6 @@ from handeye.model.datasets import observations
 from handeye.model.design.robot_gate import robot_free
 from handeye.model.fit import power
 from handeye.model.fit.extended import GATE, Fit, Samples, ScoreTest, Structure, candidate_columns
-from handeye.model.fit.held import held_at
 from handeye.model.fit.score_tests import gate, score_test
 
 #: Family-wise level of the effect tests and of the outlier tests: the screening's (one value).
@@ -278,7 +278,7 @@ def held_power(dataset, mask, sensor2flange, centre, centre_unknown, alpha=ALPHA
     """The :func:`power_statement` of a pose held (a saved calibration's, :mod:`handeye.app.engine.held_verdict`)
     on the samples of ``mask``: the plain chain (the sphere centre free with ``centre_unknown``) evaluated
     at the pose, never fitted. ``centre``: the sphere centre (robot base or its mount's frame, mm)."""
-    chain = held_at(dataset, mask, sensor2flange, centre, centre_unknown)
+    chain = held_at(dataset, mask, (sensor2flange, centre), centre_unknown)
     prob, structure, x = chain.prob, chain.structure, chain.x
     e, jac, _ = prob.evaluate(structure, x, {})
     fit = Fit(x, {}, e, jac, prob.names(structure), float(np.sum(e[mask] ** 2)), 3 * int(mask.sum()), jac.shape[2])

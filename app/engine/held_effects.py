@@ -28,10 +28,10 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine.describe import noise_test
+from handeye.app.engine.held_chain import held_at
 from handeye.app.engine.score import held_test
 from handeye.model import effects as catalogue
 from handeye.model.common.rotation import pose_distance
-from handeye.model.fit.held import held_at
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,7 +130,7 @@ def recompute(data, mask, sensor2flange, centre, held, stated):
         The stated noise the file's calibration ran with, mm per component.
     """
     (effects, robot_free), centre_free = held
-    chain = held_at(data, mask, sensor2flange, centre, centre_free, effects, stated)
+    chain = held_at(data, mask, (sensor2flange, centre), centre_free, effects, stated)
     prob, structure, x = chain.prob, chain.structure, chain.x
     prob.robot_free.update(robot_free)
     with np.errstate(all="ignore"):

@@ -37,13 +37,13 @@ import numpy as np
 from handeye.app.engine import bend, held_effects
 from handeye.app.engine.describe import _fit_statistics, noise_test
 from handeye.app.engine.diagnose import held_power
+from handeye.app.engine.held_chain import held_at
 from handeye.app.engine.levels import POSE_AGREES, RMS_AGREES, SD_BAND  # the verdict's levels, one place
 from handeye.app.engine.score import Scorer, f_test
 from handeye.app.present.result_parts import UncertaintyRecord
 from handeye.model.chain import conventions
 from handeye.model.common.rotation import pose_distance, pose_sd
 from handeye.model.datasets import observations
-from handeye.model.fit.held import held_at
 
 
 @dataclasses.dataclass(frozen=True)
@@ -267,7 +267,7 @@ def _as_reported(cov, scorer, sensor2flange, centre):
     record = UncertaintyRecord.of_fit(cov.matrix, scorer.model.names, cov.dof)
     try:
         record = record.with_power(held_power(scorer.dataset, scorer.mask, sensor2flange, centre, scorer.centre_free))
-        chain = held_at(scorer.dataset, scorer.mask, sensor2flange, centre, scorer.centre_free)
+        chain = held_at(scorer.dataset, scorer.mask, (sensor2flange, centre), scorer.centre_free)
         record = bend.widened(record, chain, scorer.mask, getattr(scorer.dataset, "bend", None))
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         pass  # no statement where the plain chain cannot be evaluated at the pose: the fit's sd, t-scaled

@@ -75,6 +75,16 @@ GROSS_ERROR_Z = 10.0
 #: smaller widening (30 poses at 0.05 mm: 1-5 %) is said in the report's power line and the JSON only.
 POWER_WARN_GROWTH = 1.25
 
+# -- a depth bend of the profiles corrected (app/engine/bend.py, model/geometry/profile_bend.py) ---------------
+#: The fraction of the pose's move by a bend correction (mm, and rad, each block's length) added as 1 sd of doubt
+#: to every component of its block. The correction is a polynomial in depth fitted through the circles; its
+#: jackknife covers the profiles' scatter, not the shape the polynomial and the circles trade between them, which
+#: the rebuilt y amplifies r / |y| times. Measured where the truth is known: on ``simulate --linearity`` (sine
+#: bends, 11 cells) the pose kept 8-21 % of the move away from the truth; on an independent generator's quadratic,
+#: cubic, sine and piecewise bends (tests/indep_linearity.py) the median error fell to 20-45 % of the
+#: uncorrected one. A fifth as 1 sd keeps 60 % within 3 sd.
+BEND_DOUBT = 0.2
+
 # -- one model fitted twice: the search's pose against calibrate's (app/engine/agreement.py, search.py) ----
 #: Two poses are the same when they lie within this many sd of the reported one (Mahalanobis distance in
 #: its covariance, 6 dof) -- or closer than AGREE_FLOOR (mm, deg), where a noise-free fit's sd is itself

@@ -268,16 +268,22 @@ def missable(name, unit, jac, cols, setting):
         projecting them out) or the noise is zero.
     """
     sigma2 = setting.sigma2
-    info = jac.T @ jac
     alias = np.linalg.lstsq(jac, cols, rcond=None)[0]  # B (p, k)
     perp = cols - jac @ alias
-    m_eff = perp.T @ perp / sigma2
-    eig = np.linalg.eigvalsh(m_eff) if sigma2 > 0 else np.zeros(1)
+    m_eff = perp.T @ perp / sigma2 if sigma2 > 0 else np.zeros((cols.shape[1],) * 2)
+    return missable_seen(name, unit, alias, m_eff, sigma2 * np.linalg.pinv(jac.T @ jac),
+                         setting.noncentrality(cols.shape[1]))
+
+
+def missable_seen(name, unit, alias, m_eff, cov, lam):
+    """The :class:`Missable` of an effect whose information ``m_eff`` (k, k; per squared effect unit) may come
+    from data other than the fit's residuals (a profile's shape: :mod:`handeye.app.engine.bend`), its alias
+    ``alias`` (p, k: the fit's shift per effect unit), the fit's covariance ``cov`` (p, p) and the test's
+    ``lam`` (:meth:`Setting.noncentrality`); None where the effect is not seen at all."""
+    eig = np.linalg.eigvalsh(m_eff)
     if not np.all(np.isfinite(m_eff)) or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
         return None
-    lam = setting.noncentrality(cols.shape[1])
     shifts = lam * alias @ np.linalg.solve(m_eff, alias.T)  # the ellipsoid of shifts, as a (p, p) form
-    cov = sigma2 * np.linalg.pinv(info)
     pose = slice(0, 6)
     sd = math.sqrt(max(float(np.max(np.linalg.eigvals(np.linalg.pinv(cov[pose, pose]) @ shifts[pose, pose]).real)), 0.0))
     return Missable(name, float(math.sqrt(lam / eig[0])), unit,

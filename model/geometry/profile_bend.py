@@ -64,6 +64,8 @@ MIN_BEND_MM = 0.02
 MAX_SLOPE = 0.05
 #: Fewer profiles than this: no bend is estimated (the jackknife needs some).
 MIN_PROFILES = 8
+#: Degree of the bend whose power the profiles' test is stated with (a depth stretch and a curvature).
+SEEN_DEGREE = 2
 #: Gauss-Newton steps of the chosen degree's fit.
 STEPS = 4
 #: Above this many profiles the bend is fitted on that many spread over the rows (the estimate's sd is then
@@ -112,6 +114,12 @@ class Bend:
         The bend's steepest slope over ``depths`` (mm per mm).
     mean_basis : ndarray, shape (degree,), or None
         The basis's mean over the profiles' points (``offset = mean_basis @ beta``).
+    seen : tuple or None
+        What the profiles see of a bend of degree :data:`SEEN_DEGREE` (a stretch and a curvature: the first
+        terms of any linearity error), at no bend: its information ``(SEEN_DEGREE, SEEN_DEGREE)`` per mm^2
+        (the reduced normal matrix over the points' variance) and the rebuilt centres' derivatives
+        ``(len(rows), 3, SEEN_DEGREE)``; what :mod:`handeye.app.engine.bend` states the power of. None when
+        the fit ran on a subsample.
     """
 
     degree: int
@@ -128,6 +136,7 @@ class Bend:
     moved: np.ndarray | None = None
     slope: float = 0.0
     mean_basis: np.ndarray | None = None
+    seen: tuple | None = None
 
     def correction(self, z):
         """The bend ``b(z) - mean b`` at depths ``z`` (mm; any shape)."""
@@ -152,7 +161,8 @@ class Bend:
         keep = [k for k, r in enumerate(self.rows) if mask[r]]
         return dataclasses.replace(self, rows=tuple(int(position[self.rows[k]]) for k in keep),
                                    dcentre=None if self.dcentre is None else self.dcentre[keep],
-                                   moved=None if self.moved is None else self.moved[keep])
+                                   moved=None if self.moved is None else self.moved[keep],
+                                   seen=None if self.seen is None else (self.seen[0], self.seen[1][keep]))
 
     @property
     def why(self):
@@ -181,6 +191,17 @@ def _basis(z, m, depths):
     return legendre.legvander(u, m)[:, 1:]
 
 
+def _slope_basis(z, m, depths):
+    """d :func:`_basis` / dz (K, m), per mm (zero beyond ``depths``, where the basis is held)."""
+    lo, hi = depths
+    scale = 2.0 / max(hi - lo, 1e-9)
+    u = (2 * z - lo - hi) * scale / 2
+    inside = np.abs(u) <= 1.0
+    u = np.clip(u, -1.0, 1.0)
+    return np.column_stack([legendre.legval(u, legendre.legder(np.eye(m + 1)[j])) * scale * inside
+                            for j in range(1, m + 1)]).reshape(len(z), m)
+
+
 @dataclasses.dataclass(frozen=True)
 class _Points:
     """A block of profiles' points in one array: ``seg`` the profile of each point (in the block), ``starts``
@@ -193,6 +214,7 @@ class _Points:
     starts: np.ndarray
     n: int
     basis: np.ndarray
+    slope_basis: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -233,7 +255,7 @@ def _blocks(profiles, depths=None, mean=None):
         z = np.concatenate([p[:, 1] for p in group])
         blocks.append(_Points(np.concatenate([p[:, 0] for p in group]), z, np.repeat(np.arange(len(group)), sizes),
                               np.concatenate([[0], np.cumsum(sizes)[:-1]]), len(group),
-                              _basis(z, MAX_DEGREE, depths) - mean))
+                              _basis(z, MAX_DEGREE, depths) - mean, _slope_basis(z, MAX_DEGREE, depths)))
     return _Blocks(tuple(blocks), depths, mean, len(profiles), sum(len(p) for p in profiles))
 
 
@@ -245,10 +267,17 @@ def _segment_sum(pts, values):
 def _reduced_block(pts, beta, circles):
     """:func:`_reduced` of one block (``circles`` its profiles')."""
     m = len(beta)
-    basis = pts.basis[:, :m]
+    basis, slope = pts.basis[:, :m], pts.slope_basis[:, :m]
     a, c, r = (circles[pts.seg, k] for k in range(3))
     res, jac = circle.distance_jacobian(pts.x, pts.z - basis @ beta, circle.Circle(a, c, r))
-    g_cols = jac[:, 1:2] * basis  # the depth's corrected by -basis beta: d(res)/d(beta) = d(res)/d(zc) * basis
+    # the correction scales a point's depth noise by 1 - b'(z): its distance is that noise's, so it is
+    # divided by the sd it has (isotropic noise as measured), and the scale's derivative enters too
+    # (without them a bend that squeezes the depth noise lowers the sum of squares: a bias growing as the
+    # noise's square, clean profiles read as stretched)
+    nx2, nz2, keep = jac[:, 0] ** 2, jac[:, 1] ** 2, 1.0 - slope @ beta
+    w = np.sqrt(nx2 + nz2 * keep**2)
+    g_cols = (jac[:, 1:2] * basis) / w[:, None] + (res * nz2 * keep / w**3)[:, None] * slope
+    res, jac = res / w, jac / w[:, None]
     jj_inv = np.linalg.inv(_segment_sum(pts, jac[:, :, None] * jac[:, None, :]))
     jg = _segment_sum(pts, jac[:, :, None] * g_cols[:, None, :])
     jr = _segment_sum(pts, jac * res[:, None])
@@ -279,24 +308,35 @@ def _circle_sums(jr, jj_inv):
 
 
 def _degree(data, circles):
-    """``(degree, ssr by degree)``: BIC's choice among 0..MAX_DEGREE from one reduced step at ``beta = 0``."""
-    s, g, ssr, (jj_inv, _, jr, _, _) = _reduced(data, np.zeros(MAX_DEGREE), circles)
+    """``(degree, ssr by degree, S, pieces)``: BIC's choice among 0..MAX_DEGREE from one reduced step at
+    ``beta = 0``, and that step's reduced normal matrix and per-profile pieces (:func:`_reduced`)."""
+    s, g, ssr, pieces = _reduced(data, np.zeros(MAX_DEGREE), circles)
+    jj_inv, jr = pieces[0], pieces[2]
     ssr0 = ssr - _circle_sums(jr, jj_inv)
     ssrs = [ssr0] + [ssr0 - float(g[:m] @ np.linalg.solve(s[:m, :m], g[:m])) for m in range(1, MAX_DEGREE + 1)]
     n_obs = data.n_points
     bic = [n_obs * np.log(max(v, 1e-300) / n_obs) + (3 * data.n + m) * np.log(n_obs) for m, v in enumerate(ssrs)]
-    return int(np.argmin(bic)), ssrs
+    return int(np.argmin(bic)), ssrs, s, pieces
 
 
 def _fit(data, circles, m):
-    """Gauss-Newton from ``beta = 0``: ``(beta, circles, S, pieces at the fit, ssr)``."""
+    """Gauss-Newton from ``beta = 0``, each step halved until the sum of squares falls: ``(beta, circles, S,
+    pieces at the fit, ssr)``."""
     beta = np.zeros(m)
-    for _ in range(STEPS):
-        s, g, _, (jj_inv, jg, jr, _, _) = _reduced(data, beta, circles)
-        step = -np.linalg.solve(s, g)
-        circles = circles - np.einsum("nkl,nl->nk", jj_inv, jr + jg @ step)
-        beta = beta + step
     s, g, ssr, pieces = _reduced(data, beta, circles)
+    for _ in range(STEPS):
+        jj_inv, jg, jr = pieces[:3]
+        step = -np.linalg.solve(s, g)
+        dcirc = -np.einsum("nkl,nl->nk", jj_inv, jr + jg @ step)
+        for _ in range(8):  # halved until the sum of squares falls (a step too long for the linearisation)
+            trial = _reduced(data, beta + step, circles + dcirc)
+            if trial[2] <= ssr:
+                break
+            step, dcirc = step / 2, dcirc / 2
+        else:
+            break
+        beta, circles = beta + step, circles + dcirc
+        s, g, ssr, pieces = trial
     return beta, circles, s, pieces, ssr
 
 
@@ -320,7 +360,7 @@ def _jackknife(s, pieces, beta):
 def _dcentre(pieces, circles, radius, side):
     """Derivatives (n, 3, m) of the rebuilt centres (x, y, z) with respect to ``beta``; a circle as wide as
     the sphere (its centre's y has no derivative) gets none."""
-    jj_inv, jg, _, _, _ = pieces
+    jj_inv, jg = pieces[0], pieces[1]
     dcirc = -np.einsum("nkl,nlm->nkm", jj_inv, jg)  # (a, c, r)
     r = circles[:, 2]
     inside = r < radius * (1 - 1e-9)
@@ -372,11 +412,15 @@ def estimate(profiles, radius, side=-1):
 def _estimated(every, chosen, rows, radius, side):
     data = _blocks([every[k] for k in chosen])
     start = _hyper_circles([every[k] for k in chosen])
-    m, ssrs = _degree(data, start)
+    m, ssrs, s0, pieces0 = _degree(data, start)
     dof = data.n_points - 3 * data.n - max(m, 1)
+    seen = None if len(chosen) < len(every) else (  # what the profiles see of a bend of SEEN_DEGREE
+        s0[:SEEN_DEGREE, :SEEN_DEGREE] / (ssrs[0] / (data.n_points - 3 * data.n)),
+        _dcentre((pieces0[0], pieces0[1][:, :, :SEEN_DEGREE]), start, radius, side))
     if m == 0:
         f = float((ssrs[0] - ssrs[1]) / (ssrs[1] / dof))
-        return Bend(0, np.zeros(0), np.zeros((0, 0)), data.depths, 0.0, f, f_survival(f, 1, dof), 0.0, False, rows)
+        return Bend(0, np.zeros(0), np.zeros((0, 0)), data.depths, 0.0, f, f_survival(f, 1, dof), 0.0, False, rows,
+                    seen=seen)
     beta, circles, s, pieces, ssr = _fit(data, start, m)
     f = float(((ssrs[0] - ssr) / m) / (ssr / dof))
     cov = _jackknife(s, pieces, beta)
@@ -390,7 +434,8 @@ def _estimated(every, chosen, rows, radius, side):
         circles = _circles_at(data, beta, _hyper_circles(every))
         pieces = _reduced(data, beta, circles)[3]
     return Bend(m, beta, cov, data.depths, float(data.mean_basis[:m] @ beta), f, p_value, bend_mm, applied, rows,
-                _dcentre(pieces, circles, radius, side) if applied else None, slope=slope, mean_basis=data.mean_basis[:m])
+                _dcentre(pieces, circles, radius, side) if applied else None, slope=slope, mean_basis=data.mean_basis[:m],
+                seen=seen)
 
 
 def _hotelling(beta, cov, n):

@@ -1,7 +1,8 @@
 """The extended chain held at a pose: what a saved calibration, a power statement or a correction's
 uncertainty is evaluated with (never fitted here).
 
-One construction, used by :func:`handeye.app.engine.diagnose.held_power`,
+One construction (an engine module: the datasets' metric and the fit's problem together), used by
+:func:`handeye.app.engine.diagnose.held_power`,
 :func:`handeye.app.engine.held_effects.recompute` and :mod:`handeye.app.engine.bend`: the samples'
 own centre metric at the pose (:func:`handeye.model.datasets.observations.centre_metric`), the
 :class:`~handeye.model.fit.extended.Samples` problem in it, the structure (the sphere centre free or
@@ -44,11 +45,12 @@ class Held:
         return dataclasses.replace(self, dataset=data, prob=prob)
 
 
-def held_at(dataset, mask, sensor2flange, centre, centre_free, effect_names=(), stated=None):
-    """The :class:`Held` chain of ``dataset`` at the pose ``sensor2flange`` (4x4, mm) and sphere centre
-    ``centre`` (its mount's frame, mm; None: the dataset's), the metric of the samples in ``mask``;
+def held_at(dataset, mask, at, centre_free, effect_names=(), stated=None):
+    """The :class:`Held` chain of ``dataset`` at ``at`` = ``(sensor2flange, centre)``: the pose (4x4, mm) and
+    the sphere centre (its mount's frame, mm; None: the dataset's), the metric of the samples in ``mask``;
     ``centre_free``: the centre among the parameters; ``effect_names``: data effects in the structure;
     ``stated``: the stated centre noise (mm) the problem scales with."""
+    sensor2flange, centre = at
     pose = np.asarray(sensor2flange, float)
     centre = np.asarray(centre if centre is not None else dataset.sphere_centre, float)
     held = dataclasses.replace(dataset, sphere_centre=centre)  # a free centre's start: the one given
