@@ -38,6 +38,11 @@ def same_pose(distance):
     return tiny or (distance["sd"] is not None and distance["sd"] <= AGREE_SD)
 
 
+#: What calibrate's refusal of structure beyond a stated noise says (:func:`handeye.app.engine.search.unexplained`);
+#: diagnose reports it as beyond the catalogue (:func:`at_calibration`): one verdict.
+UNEXPLAINED = "unexplained structure"
+
+
 def model_of(effects):
     """The names of what a result's model fits besides the pose (``effects``: NamedEffects or None): every
     named effect but flipped samples (a diagnosis's ``positioner_axes`` too: calibrate with
@@ -67,6 +72,8 @@ def at_calibration(result, own, searched, n):
                                      "the rows (it holds the whole Jacobian)")
     if isinstance(own, Exception):
         return dataclasses.replace(result, against_calibrate=f"calibrate refuses these data: {own}{note}")
+    if not own.converged and UNEXPLAINED in own.message:  # calibrate's rule of a stated noise: one verdict
+        result = dataclasses.replace(result, beyond_catalogue=(*result.beyond_catalogue, own.message))
     if not (own.converged and model_of(own.effects) == model_of(result.effects)):
         return dataclasses.replace(result, against_calibrate=against_calibrate(result, own) + note)
     d = pose_distance(np.asarray(result.sensor2flange, float), np.asarray(own.sensor2flange, float), own.covariance,

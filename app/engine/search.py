@@ -44,7 +44,7 @@ import dataclasses
 import numpy as np
 
 from handeye.app.engine import cell_stage, diagnose
-from handeye.app.engine.agreement import same_pose
+from handeye.app.engine.agreement import UNEXPLAINED, same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.app.engine.levels import AGREE_SD, AT_NOISE, POWER_WARN_GROWTH
 from handeye.model.common.rotation import pose_distance
@@ -287,7 +287,7 @@ def unexplained(result, dataset, request):
         names.insert(0, "sphere_center")  # the search freed the centre
     chosen = ", ".join(names) or "the base model"
     return result.refused(
-        f"not a calibration: unexplained structure: under the model the discrepancy search chose ({chosen}) the "
+        f"not a calibration: {UNEXPLAINED}: under the model the discrepancy search chose ({chosen}) the "
         f"residuals are {test.ratio:.3g} x the stated {test.nominal} (chi2 = {test.statistic:.4g} on {test.dof} dof, "
         f"p = {test.p_value:.2g}); no effect of the catalogue explains them, and the pose's sd, scaled by the misfit, "
         f"does not bound what it does to the pose; `{_command('diagnose', dataset, request)}` prints the search "
