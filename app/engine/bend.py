@@ -1,4 +1,5 @@
-"""The uncertainty a corrected depth bend adds to the pose (:mod:`handeye.model.geometry.profile_bend`).
+"""The uncertainty a depth bend of the profiles adds to the pose (:mod:`handeye.model.geometry.profile_bend`):
+one corrected, or one the profiles suggest but do not make clear.
 
 A dataset whose profiles bend along the sensor's depth (a linearity error) is loaded with the bend
 corrected, its centres rebuilt from the corrected profiles; the calibration then fits them as any
@@ -6,13 +7,18 @@ others. The correction is estimated, not known: its coefficients ``beta`` have a
 (a jackknife over the profiles), and every rebuilt centre moves with them (``dc_i / dbeta``, the
 circle fit's implicit derivative). Held at the calibrated pose, a change ``delta`` of ``beta``
 moves the residuals by ``de``, and the least-squares pose by ``-(J^T J)^-1 J^T de`` (the alias
-matrix of the omitted-variable bias, as :mod:`handeye.model.fit.power` takes it, ``J`` the plain
-chain's Jacobian in the centres' metric). Over ``delta = sqrt(l_k) v_k`` (``C``'s eigenpairs) these
+matrix of the omitted-variable bias, as :mod:`handeye.model.fit.power` takes it, ``J`` the chain's Jacobian
+with the data effects the calibration holds, in the centres' metric). Over ``delta = sqrt(l_k) v_k`` (``C``'s eigenpairs) these
 shifts ``s_k`` give the added covariance ``sum_k s_k s_k^T``. That covers the profiles' scatter, not the shape
 the polynomial misses (measured: up to a fifth of the correction's move, and more on other bends), so
 :data:`~handeye.app.engine.levels.BEND_DOUBT` of the move (the pose's shift had the bend been left in) is
 added as 1 sd in every direction of its block. Where the correction moved the centres, the result says so: its bend,
 the pose's move, and the sd it added.
+
+Where BIC chooses a bend but the tests do not make it clear (not applied), the bend the profiles could have
+missed (their own information about a stretch and a curvature, :func:`unseen`) widens the sd as
+:mod:`handeye.model.fit.power` widens it for the catalogue's effects: beyond the floor only. A saved
+calibration's covariance is recomputed the same way (:func:`widened`), so a file is compared with its own.
 """
 from __future__ import annotations
 
@@ -84,11 +90,26 @@ def unseen(chain, mask, params, bend, covariance):
 def widened(record, chain, mask, bend):
     """An :class:`~handeye.app.present.result_parts.UncertaintyRecord` of a pose held (a saved calibration's,
     :mod:`handeye.app.engine.held_verdict`) widened as :func:`with_bend` widens a calibration's: the same
-    covariance from the same data; unchanged without an applied bend."""
-    if bend is None or not bend.applied:
+    covariance from the same data; unchanged without a bend."""
+    if bend is None:
         return record
+    if not bend.applied:
+        missed, names = _unseen_of(chain, mask, {}, bend, record) if bend.degree else (None, None)
+        return record if missed is None or not missed.beyond_floor else record.widened(missed.widening, names)
     shifts, move, names = widening(chain, mask, {}, bend)
     return record.widened(_covariance(shifts, move), names)
+
+
+def _unseen_of(chain, mask, params, bend, record):
+    """:func:`unseen` with ``record``'s covariance (an UncertaintyRecord's, by parameter name) on the chain's
+    parameters (the others unknown)."""
+    names = chain.prob.names(chain.structure)
+    index = {n: k for k, n in enumerate(record.parameter_names)}
+    known = [k for k, n in enumerate(names) if n in index]
+    theirs = [index[names[k]] for k in known]
+    cov = np.diag([1e300] * len(names))
+    cov[np.ix_(known, known)] = np.asarray(record.covariance)[np.ix_(theirs, theirs)]
+    return unseen(chain, mask, params, bend, cov)
 
 
 def with_bend(result, dataset):
@@ -114,14 +135,7 @@ def _with_unseen(result, data, bend):
     that moves the pose beyond the floor (:attr:`~handeye.model.fit.power.Missable.widening`), and a warning."""
     try:
         chain, mask, params = _held(data, result)
-        names = chain.prob.names(chain.structure)
-        index = {n: k for k, n in enumerate(result.uncertainty.parameter_names)}
-        shared = [index.get(n) for n in names]
-        cov = np.diag([1e300] * len(names))  # the pose's covariance on the chain's parameters (others: unknown)
-        known = [k for k, j in enumerate(shared) if j is not None]
-        cov[np.ix_(known, known)] = np.asarray(result.uncertainty.covariance)[np.ix_([shared[k] for k in known],
-                                                                                      [shared[k] for k in known])]
-        missed, names = unseen(chain, mask, params, bend, cov)
+        missed, names = _unseen_of(chain, mask, params, bend, result.uncertainty)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         return result
     if missed is None or not missed.beyond_floor:
