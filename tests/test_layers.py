@@ -313,6 +313,7 @@ LOCAL_IMPORTS = {
         ("app/present/figure_style.py", "save", "handeye.app.common.files"),
         ("app/present/protocol.py", "save", "handeye.app.common.files"),
         ("app/present/report.py", "_centres_seen", "handeye.app.present.figure_style"),
+        ("app/present/report.py", "_bend_lines", "handeye.model.geometry.profile_bend"),
         ("app/present/report.py", "_effect_lines", "handeye.model.effects"),
         ("app/present/report.py", "_residual_bars", "handeye.app.present.figure_style"),
         ("app/present/report.py", "_saved", "handeye.app.present.figure_style"),

@@ -16,13 +16,32 @@ from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common.rotation import pose_distance
 
 
-@pytest.mark.parametrize("linearity, seed", [(0.0005, 41), (0.0005, 44), (0.0016, 0)])
-def test_a_linearity_error_never_exits_0_away_from_the_truth(tmp_path, linearity, seed):
+def _calibrated(tmp_path, linearity, seed, n_poses=36, **options):
     folder = tmp_path / "cell"
-    handeye.simulate(out=folder, profiles=True, linearity=linearity, seed=seed, no_start=True)
+    handeye.simulate(out=folder, profiles=True, linearity=linearity, seed=seed, no_start=True, n_poses=n_poses)
     truth = transform_from_pose(tomllib.loads((folder / "setup.toml").read_text())["truth"]["sensor_pose"])
-    r = handeye.calibrate(folder)
+    r = handeye.calibrate(folder, **options)
     d = pose_distance(truth, np.asarray(r.sensor2flange, float), r.covariance, r.parameter_names)
     away = d["sd"] > 3 and (d["translation_mm"] > 0.2 or d["rotation_deg"] > 0.05)
     assert not (r.converged and away), (d, [e.name for e in r.effects or []])
+    return r, d
+
+
+@pytest.mark.parametrize("linearity, seed", [(0.0005, 41), (0.0005, 44), (0.0016, 0)])
+def test_a_linearity_error_never_exits_0_away_from_the_truth(tmp_path, linearity, seed):
+    r, d = _calibrated(tmp_path, linearity, seed)
     assert r.converged and d["translation_mm"] < 0.3, d  # uncorrected: 0.8-2.9 mm
+
+
+def test_a_bend_the_tests_do_not_make_clear_is_in_the_sd(tmp_path):
+    """8 poses at the data sheet's linearity (found by a new user): the bend is measured (0.24 mm) but not clear at
+    1e-6 (p 1.1e-6), and uncorrected the pose lies 3.9 mm off; it had exited 0 at 3.2 sd. The move its correction
+    would make is now within 3 of the sd."""
+    r, d = _calibrated(tmp_path, 0.0016, 3, n_poses=8)
+    assert any("the profiles suggest a bend" in w for w in r.warnings), r.warnings
+
+
+def test_without_cleaning_the_bend_is_still_measured(tmp_path):
+    """--no-clean had turned the bend off with the cleaning: exit 0 at 2.1 mm, 11 sd."""
+    r, d = _calibrated(tmp_path, 0.0016, 0, no_clean=True)
+    assert r.cleaning["bend"]["applied"] and d["translation_mm"] < 0.3, (d, r.cleaning)

@@ -111,7 +111,8 @@ _CALIBRATE = (
              'centre known, else up to 2,000 used samples, the deletion formula above)'),
     Opt('--no-clean', action='store_true',
         help="fit every profile point: no profile cleaning (by default the points off the sphere's arc -- speckle, background,"
-             " clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning))"),
+             " clusters -- are dropped at load and reported; [Profile cleaning](#profile-cleaning)); the sensor's depth bend is"
+             " still measured, on every point"),
     Opt('--sigma', unit='mm', check=NOISE, type='float', metavar='MM',
         help='the stated noise the fit is tested against: per-component sd of a sphere centre through the chain, for the '
              '`centre` residual (default `[noise] centre_mm`, else 0.05)'),

@@ -94,8 +94,8 @@ def widened(record, chain, mask, bend):
     if bend is None:
         return record
     if not bend.applied:
-        missed, names = _unseen_of(chain, mask, {}, bend, record) if bend.degree else (None, None)
-        return record if missed is None or not missed.beyond_floor else record.widened(missed.widening, names)
+        added, names, _ = _suspected(chain, mask, {}, bend, record) if bend.degree else (None, None, None)
+        return record if added is None else record.widened(added, names)
     shifts, move, names = widening(chain, mask, {}, bend)
     return record.widened(_covariance(shifts, move), names)
 
@@ -131,20 +131,38 @@ def with_bend(result, dataset):
 
 
 def _with_unseen(result, data, bend):
-    """``result`` with its sd widened by the depth bend its profiles could have missed (:func:`unseen`), where
-    that moves the pose beyond the floor (:attr:`~handeye.model.fit.power.Missable.widening`), and a warning."""
+    """``result`` with its sd widened by a bend BIC suggests but the tests do not make clear: the pose its
+    correction would give lies within :data:`~handeye.model.fit.power.WIDEN_SD` of the added sd (along that
+    move), and the bend the profiles could have missed (:func:`unseen`) where it moves the pose beyond the
+    floor (:attr:`~handeye.model.fit.power.Missable.widening`); a warning says both."""
     try:
         chain, mask, params = _held(data, result)
-        missed, names = _unseen_of(chain, mask, params, bend, result.uncertainty)
+        added, names, said = _suspected(chain, mask, params, bend, result.uncertainty)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
         return result
-    if missed is None or not missed.beyond_floor:
+    if added is None:
         return result
-    note = (f"the profiles' shape could have missed {missed.text()} (a linearity error of the sensor: a depth "
-            f"stretch and curvature of that size, by the bend test at its level {profile_bend.ALPHA:g}); the 1 sd "
-            "includes it")
-    return dataclasses.replace(result, uncertainty=result.uncertainty.widened(missed.widening, names),
-                               warnings=[*result.warnings, note])
+    return dataclasses.replace(result, uncertainty=result.uncertainty.widened(added, names),
+                               warnings=[*result.warnings, said])
+
+
+def _suspected(chain, mask, params, bend, record):
+    """``(added covariance or None, names, note)`` of a bend suggested, not applied (:func:`_with_unseen`)."""
+    missed, names = _unseen_of(chain, mask, params, bend, record)
+    move = _shifter(chain, mask, params)(bend.rows, bend.moved) if bend.moved is not None else None
+    added = np.outer(move, move) / power.WIDEN_SD**2 if move is not None else np.zeros((len(names),) * 2)
+    if missed is not None and missed.beyond_floor:
+        added = added + missed.widening
+    move_mm, move_deg = (0.0, 0.0) if move is None else _size(move[None])
+    if move_mm <= power.SHIFT_FLOOR[0] / power.WIDEN_SD and move_deg <= power.SHIFT_FLOOR[1] / power.WIDEN_SD \
+            and (missed is None or not missed.beyond_floor):
+        return None, names, ""
+    note = (f"the profiles suggest a bend along the sensor's depth of {bend.bend_mm:.3g} mm that the tests do not make "
+            f"clear ({bend.reason}); corrected, the pose would move {move_mm:.2g} mm / {move_deg:.2g} deg, and the 1 sd "
+            f"puts that within {power.WIDEN_SD:g} sd")
+    if missed is not None and missed.beyond_floor:
+        note += f"; the profiles could have missed {missed.text()}, also in the sd"
+    return added, names, note
 
 
 def _covariance(shifts, move):

@@ -483,12 +483,12 @@ def cleaning_lines(report, limit=20):
     if not report:
         return []
     if not report["applied"]:
-        return ["", "profile cleaning: off (--no-clean): every profile point is fitted, and no depth bend of the "
-                    "sensor is measured (profile_bend needs cleaned profiles)"]
+        return ["", "profile cleaning: off (--no-clean): every profile point is fitted",
+                *_bend_lines(report.get("bend"), report.get("profiles"))]
     head = (f"profile cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
             f"{len(report['samples'])} of {report['profiles']} profiles")
     if not report["dropped"]:
-        return ["", head + " (every point lies on its arc)", *_bend_lines(report.get("bend"))]
+        return ["", head + " (every point lies on its arc)", *_bend_lines(report.get("bend"), report["profiles"])]
     why = ", ".join(f"{name} {n:,}" for name, n in report["reasons"].items())
     lines = ["", f"{head} ({why}; speckle, background or clusters, not the sphere):"]
     for s in report["samples"][:limit]:
@@ -497,12 +497,17 @@ def cleaning_lines(report, limit=20):
                      + (" -- an arc wider than the sphere, kept" if s["status"] == "wider" else ""))
     if len(report["samples"]) > limit:
         lines.append(f"  ... and {len(report['samples']) - limit} more (the JSON report, --json, lists every one)")
-    return lines + _bend_lines(report.get("bend"))
+    return lines + _bend_lines(report.get("bend"), report["profiles"])
 
 
-def _bend_lines(bend):
+def _bend_lines(bend, profiles=None):
     """The line of the profiles' depth bend (:mod:`handeye.model.geometry.profile_bend`): said where one was
-    fitted (degree above 0), applied or not, and why."""
+    fitted (degree above 0), applied or not, and why; where too few profiles were there to measure one, that."""
+    from handeye.model.geometry.profile_bend import MIN_PROFILES
+
+    if bend is None and profiles:
+        return [f"profile bend along the sensor's depth: not measured ({profiles} profiles; it takes {MIN_PROFILES}): "
+                "a linearity error of the sensor would go unseen"]
     if not bend or not bend["degree"]:
         return []
     lo, hi = bend["depths_mm"]

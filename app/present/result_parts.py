@@ -377,14 +377,15 @@ def cleaning_summary(dataset):
     """
     if dataset.profiles is None:
         return None
+    bend = getattr(dataset, "bend", None)
     if dataset.cleaning is None:
-        return {"applied": False}
+        return {"applied": False, "profiles": sum(p is not None for p in dataset.profiles),
+                "bend": None if bend is None else bend.to_dict()}
     records = [(i, r, c) for i, r, c in zip(dataset.ids, dataset.rows, dataset.cleaning) if c is not None]
     reasons = {}
     for _, _, c in records:
         for name, n in c.dropped:
             reasons[name] = reasons.get(name, 0) + int(n)
-    bend = getattr(dataset, "bend", None)
     return {"applied": True, "profiles": len(records), "points": int(sum(c.n_points for _, _, c in records)),
             "dropped": int(sum(c.n_dropped for _, _, c in records)), "reasons": reasons,
             "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped],

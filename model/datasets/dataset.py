@@ -178,7 +178,7 @@ class Dataset(FlangePoses):
         measurements; :mod:`handeye.model.datasets.arcs`).
     bend : handeye.model.geometry.profile_bend.Bend or None
         The profiles' depth bend (a sensor linearity error, :mod:`handeye.model.geometry.profile_bend`), where
-        ``profiles`` were cleaned and are enough to estimate it; where it is applied, ``profiles`` and
+        ``profiles`` are enough to estimate it; where it is applied, ``profiles`` and
         the centres of their rows are corrected by it (``raw_profiles`` are not).
     poses_read : str or None
         How ``[sensor]`` poses were read when the setup does not say their frame (an older setup
@@ -566,10 +566,11 @@ def _set_aside(columns, folder, diameter):
     return [[v for v, k in zip(column, keep) if k] for column in kept], tuple(bad)
 
 
-def _corrected_bend(profiles, centres, st, clean):
-    """``(profiles, centres, bend)``: the cleaned profiles' depth bend measured, and applied where it is clear
-    (:func:`handeye.model.geometry.profile_bend.apply`); unchanged (bend None) without cleaned profiles."""
-    if not clean or all(p is None for p in profiles):
+def _corrected_bend(profiles, centres, st):
+    """``(profiles, centres, bend)``: the profiles' depth bend measured (cleaned or, loaded without cleaning,
+    every point), and applied where it is clear (:func:`handeye.model.geometry.profile_bend.apply`); unchanged (bend
+    None) without profiles."""
+    if all(p is None for p in profiles):
         return profiles, centres, None
     return profile_bend.apply(profiles, centres, st.diameter / 2, st.side, PROFILE_FIT)
 
@@ -607,7 +608,7 @@ def load(name_or_path, clean=True):
         raw_profiles, cleaning, not_arcs = profiles, profiles, ()
     if not ids:
         raise DatasetError(file, "no measurements", 2)
-    profiles, centres, bend = _corrected_bend(profiles, centres, st, clean)
+    profiles, centres, bend = _corrected_bend(profiles, centres, st)
     angles, cfx = configuration.split_cfx(np.array(angles, float).reshape(len(ids), -1), len(axes))
     joints = angles[:, len(axes):] if angles.shape[1] > len(axes) else None
     model = _robot_model(st, folder, joints, np.asarray(poses, float), file)

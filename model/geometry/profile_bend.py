@@ -109,7 +109,8 @@ class Bend:
     dcentre : ndarray, shape (len(rows), 3, degree), or None
         Derivative of each profile's rebuilt sphere centre (sensor x, y, z) with respect to ``beta``.
     moved : ndarray, shape (len(rows), 3), or None
-        How far the correction moved each of their centres (sensor frame, mm); None until applied.
+        How far the correction moved (or, not applied, would move) each of their centres (sensor frame, mm);
+        None without a bend.
     slope : float
         The bend's steepest slope over ``depths`` (mm per mm).
     mean_basis : ndarray, shape (degree,), or None
@@ -165,17 +166,22 @@ class Bend:
                                    seen=None if self.seen is None else (self.seen[0], self.seen[1][keep]))
 
     @property
+    def reason(self):
+        """Why a bend BIC chose was not applied (None where it was, or where BIC chose none)."""
+        if self.applied or self.degree == 0:
+            return None
+        if self.p_value >= ALPHA:
+            return f"not clear: p = {self.p_value:.2g} >= {ALPHA:g}"
+        if self.bend_mm < MIN_BEND_MM:
+            return f"below {MIN_BEND_MM:g} mm"
+        return f"steeper than a linearity error: above {100 * MAX_SLOPE:g} %"
+
+    @property
     def why(self):
         """Why it was applied or not, in words."""
         if self.applied:
             return "corrected before the circle fits"
-        if self.degree == 0:
-            return "none (BIC chooses no bend)"
-        if self.p_value >= ALPHA:
-            return f"not corrected (not clear: p = {self.p_value:.2g} >= {ALPHA:g})"
-        if self.bend_mm < MIN_BEND_MM:
-            return f"not corrected (below {MIN_BEND_MM:g} mm)"
-        return f"not corrected (steeper than a linearity error: above {100 * MAX_SLOPE:g} %)"
+        return "none (BIC chooses no bend)" if self.degree == 0 else f"not corrected ({self.reason})"
 
     def to_dict(self):
         """JSON-ready summary."""
@@ -453,7 +459,8 @@ def apply(profiles, centres, radius, side=-1, fit="hyper"):
 
     Rows without a profile keep their centre; every row with one has its centre rebuilt from the
     corrected profile (a centre the file gives beside its profile came from the same bent points).
-    Unchanged where the bend is None or not applied.
+    Unchanged where the bend is None or not applied; a bend BIC chooses but the tests do not make clear
+    keeps what its correction would move each centre by (:attr:`Bend.moved`).
 
     Parameters
     ----------
@@ -468,7 +475,7 @@ def apply(profiles, centres, radius, side=-1, fit="hyper"):
         The circle fit that rebuilds a centre (:data:`handeye.model.geometry.circle.FITS`).
     """
     bend = estimate(profiles, radius, side)
-    if bend is None or not bend.applied:
+    if bend is None or not bend.degree:
         return list(profiles), list(centres), bend
     corrected = [None if p is None else bend.corrected(p) for p in profiles]
     out, moved = [np.asarray(c, float) for c in centres], np.zeros((len(bend.rows), 3))
@@ -480,4 +487,7 @@ def apply(profiles, centres, radius, side=-1, fit="hyper"):
             continue  # a circle as wide as the sphere: its centre as it was (its y has no derivative there)
         moved[k] = after - before  # the bend's own change: a centre the file gives moves by it too
         out[row] = out[row] + moved[k]
-    return corrected, [list(c) for c in out], dataclasses.replace(bend, moved=moved)
+    bend = dataclasses.replace(bend, moved=moved)
+    if not bend.applied:  # suggested, not clear: the data as they are, and what the correction would do
+        return list(profiles), list(centres), bend
+    return corrected, [list(c) for c in out], bend
