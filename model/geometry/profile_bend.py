@@ -21,14 +21,18 @@ correction keeps the data's mean depth. A plane cuts a sphere in a circle at any
 so no other effect of the cell bends a profile (a sensor's isotropic scale keeps it a circle:
 ``sensor_scale``).
 
-**The fit.** Orthogonal distances, Gauss-Newton on ``(beta, a_i, c_i, r_i)``; each profile's three
-circle parameters are eliminated per profile (the Schur complement), so a step costs one pass
-over the points whatever their number (Nocedal & Wright 2006, *Numerical Optimization*, ch. 10).
+**The fit.** Orthogonal distances, each divided by the sd the correction leaves it (the correction
+scales a point's depth noise by ``1 - b'(z)``: without the division, and that sd's derivative in the
+step, a bend that squeezes the noise lowers the sum of squares, and clean profiles read as stretched,
+a bias growing as the noise's square). Gauss-Newton on ``(beta, a_i, c_i, r_i)``, each step halved
+until the sum of squares falls; each profile's three circle parameters are eliminated per profile
+(the Schur complement), so a step costs one pass over the points whatever their number (Nocedal &
+Wright 2006, *Numerical Optimization*, ch. 10).
 The degree is the one of lowest BIC among 0..:data:`MAX_DEGREE` (the nested models' sums of squares
 from one reduced step at ``beta = 0``); the bend is *applied* only where it is clear and physical:
-the F test of the chosen degree against none at :data:`ALPHA` **and** the same level for the
-coefficients against their jackknife covariance (a bend every profile shows, not the structure
-of a few), a bend of at least :data:`MIN_BEND_MM` over the profiles' depths (the arc check's floor:
+the F test of the chosen degree against none at :data:`ALPHA` **and** Hotelling's T^2 of the
+coefficients against their jackknife covariance at the same level (a bend every profile shows, not
+the structure of a few), a bend of at least :data:`MIN_BEND_MM` over the profiles' depths (the arc check's floor:
 a laser-line sensor's point noise is not below it, and the form error of a precision sphere is
 below it), and nowhere steeper than :data:`MAX_SLOPE`.
 
@@ -36,7 +40,8 @@ below it), and nowhere steeper than :data:`MAX_SLOPE`.
 Newton step per profile from the fit): a real profile departs from a circle by more than its
 noise (the sphere's form, speckle correlated along the line), so the points' own scatter would
 claim a bend known better than it is. The rebuilt centres' derivatives with respect to ``beta``
-(:attr:`Bend.dcentre`) carry it into the pose's covariance (:mod:`handeye.app.engine.bend`).
+(:attr:`Bend.dcentre`) carry it into the pose's covariance (:mod:`handeye.app.engine.bend`, which adds
+what the jackknife does not cover, and for a bend suggested but not applied, what its correction would do).
 """
 from __future__ import annotations
 
