@@ -102,8 +102,8 @@ class Bend:
     f : float
         F statistic of the chosen degree against no bend (the points' scatter as its noise).
     p_value : float
-        The larger of the F test's and the jackknife Wald test's (``beta^T C^-1 beta / m`` against
-        F(m, n - 1): the profiles' own scatter of the bend as its noise).
+        The larger of the F test's and Hotelling's (``T^2 (n - m) / (m (n - 1))`` against F(m, n - m),
+        ``T^2 = beta^T C^-1 beta`` with the jackknife's C: the profiles' own scatter of the bend as its noise).
     bend_mm : float
         Peak-to-peak of the correction over ``depths`` (mm).
     applied : bool
