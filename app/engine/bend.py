@@ -62,29 +62,50 @@ def _shifter(chain, mask, params):
     return shift
 
 
-def widening(chain, mask, params, bend):
-    """``(shifts (k, p), move (p,), names)``: the pose's shifts over ``bend``'s covariance eigen-directions,
-    and its shift had the bend not been corrected (module docstring). ``chain``: the chain held at the pose
-    (:func:`handeye.app.engine.held_chain.held_at`); ``mask``: the samples the pose is of; ``params``: the held data
-    effects' parameters (name -> array)."""
-    shift = _shifter(chain, mask, params)
+def widening(shift, bend):
+    """``(shifts (k, p), move (p,))``: the pose's shifts over ``bend``'s covariance eigen-directions, and its shift
+    had the bend not been corrected (module docstring); ``shift``: the held chain's (:func:`_shifter`)."""
     values, vectors = np.linalg.eigh(bend.covariance)
     shifts = [shift(bend.rows, bend.dcentre @ (np.sqrt(max(lam, 0.0)) * v)) for lam, v in zip(values, vectors.T)]
-    return np.array(shifts), shift(bend.rows, -bend.moved), chain.prob.names(chain.structure)
+    return np.array(shifts), shift(bend.rows, -bend.moved)
 
 
-def unseen(chain, mask, params, bend, covariance):
+def unseen(shift, bend, covariance):
     """The :class:`~handeye.model.fit.power.Missable` depth bend of degree
     :data:`~handeye.model.geometry.profile_bend.SEEN_DEGREE` the profiles' test (at its level
-    :data:`~handeye.model.geometry.profile_bend.ALPHA`) could have missed, and the parameter names; None
-    without the profiles' information. ``covariance``: the pose's, on the chain's parameters."""
+    :data:`~handeye.model.geometry.profile_bend.ALPHA`) could have missed, or None without the profiles'
+    information; ``shift``: the held chain's (:func:`_shifter`), ``covariance``: the pose's, on its parameters."""
     if bend.seen is None:
-        return None, None
+        return None
     info, dcentre = bend.seen
-    shift, step = _shifter(chain, mask, params), 1e-3  # mm of a Legendre coefficient: the map is linear
+    step = 1e-3  # mm of a Legendre coefficient: the map is linear
     alias = np.column_stack([shift(bend.rows, dcentre[:, :, j] * step) / step for j in range(info.shape[0])])
     lam = power.detectable_noncentrality(info.shape[0], profile_bend.ALPHA)
-    return power.missable_seen("a depth bend", "mm", alias, info, covariance, lam), chain.prob.names(chain.structure)
+    return power.missable_seen("a depth bend", "mm", alias, info, covariance, lam)
+
+
+def _on(names, record):
+    """``record``'s covariance (an UncertaintyRecord's, by parameter name) on ``names`` (the others unknown)."""
+    index = {n: k for k, n in enumerate(record.parameter_names)}
+    known = [k for k, n in enumerate(names) if n in index]
+    theirs = [index[names[k]] for k in known]
+    cov = np.diag([1e300] * len(names))
+    cov[np.ix_(known, known)] = np.asarray(record.covariance)[np.ix_(theirs, theirs)]
+    return cov
+
+
+def _added(chain, mask, params, bend, record):
+    """``(covariance added or None, its parameter names, note)``: what ``bend`` adds to the uncertainty
+    ``record`` of the pose the chain is held at -- an applied bend's (:func:`widening`, :func:`_covariance`),
+    or a suggested one's (:func:`_suspected`); None where it adds nothing."""
+    shift, names = _shifter(chain, mask, params), chain.prob.names(chain.structure)
+    if bend.applied:
+        shifts, move = widening(shift, bend)
+        return _covariance(shifts, move), names, _note(bend, shifts, move)
+    if not bend.degree:
+        return None, names, ""
+    added, note = _suspected(shift, bend, _on(names, record))
+    return added, names, note
 
 
 def widened(record, chain, mask, bend):
@@ -93,76 +114,46 @@ def widened(record, chain, mask, bend):
     covariance from the same data; unchanged without a bend."""
     if bend is None:
         return record
-    if not bend.applied:
-        added, names, _ = _suspected(chain, mask, {}, bend, record) if bend.degree else (None, None, None)
-        return record if added is None else record.widened(added, names)
-    shifts, move, names = widening(chain, mask, {}, bend)
-    return record.widened(_covariance(shifts, move), names)
-
-
-def _unseen_of(chain, mask, params, bend, record):
-    """:func:`unseen` with ``record``'s covariance (an UncertaintyRecord's, by parameter name) on the chain's
-    parameters (the others unknown)."""
-    names = chain.prob.names(chain.structure)
-    index = {n: k for k, n in enumerate(record.parameter_names)}
-    known = [k for k, n in enumerate(names) if n in index]
-    theirs = [index[names[k]] for k in known]
-    cov = np.diag([1e300] * len(names))
-    cov[np.ix_(known, known)] = np.asarray(record.covariance)[np.ix_(theirs, theirs)]
-    return unseen(chain, mask, params, bend, cov)
+    added, names, _ = _added(chain, mask, {}, bend, record)
+    return record if added is None else record.widened(added, names)
 
 
 def with_bend(result, dataset):
-    """``result`` with the uncertainty of the dataset's applied bend added to its covariance (module
-    docstring) and a line saying it; unchanged without an applied bend or a converged fit."""
+    """``result`` with the uncertainty of the dataset's bend added to its covariance (module docstring: an
+    applied one's, or a suggested one's) and a line saying it; unchanged without either or a converged fit."""
     bend = getattr(dataset, "bend", None)
     if bend is None or not result.converged or result.uncertainty.covariance is None:
         return result
-    data = cell_stage.dataset_at(result, dataset)
-    if not bend.applied:  # a bend the profiles suggest (BIC chose one) but do not make clear: what it could be
-        return _with_unseen(result, data, bend) if bend.degree else result
     try:
-        chain, mask, params = _held(data, result)
-        shifts, move, names = widening(chain, mask, params, bend)
+        chain, mask, params = _held(cell_stage.dataset_at(result, dataset), result)
+        added, names, note = _added(chain, mask, params, bend, result.uncertainty)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
-        return dataclasses.replace(result, warnings=[*result.warnings, _note(bend, None, None)])
-    uncertainty = result.uncertainty.widened(_covariance(shifts, move), names)
-    return dataclasses.replace(result, uncertainty=uncertainty, warnings=[*result.warnings, _note(bend, shifts, move)])
-
-
-def _with_unseen(result, data, bend):
-    """``result`` with its sd widened by a bend BIC suggests but the tests do not make clear: the pose its
-    correction would give lies within :data:`~handeye.model.fit.power.WIDEN_SD` of the added sd (along that
-    move), and the bend the profiles could have missed (:func:`unseen`) where it moves the pose beyond the
-    floor (:attr:`~handeye.model.fit.power.Missable.widening`); a warning says both."""
-    try:
-        chain, mask, params = _held(data, result)
-        added, names, said = _suspected(chain, mask, params, bend, result.uncertainty)
-    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
-        return result
+        return result if not bend.applied else dataclasses.replace(
+            result, warnings=[*result.warnings, _note(bend, None, None)])
     if added is None:
         return result
     return dataclasses.replace(result, uncertainty=result.uncertainty.widened(added, names),
-                               warnings=[*result.warnings, said])
+                               warnings=[*result.warnings, note])
 
 
-def _suspected(chain, mask, params, bend, record):
-    """``(added covariance or None, names, note)`` of a bend suggested, not applied (:func:`_with_unseen`)."""
-    missed, names = _unseen_of(chain, mask, params, bend, record)
-    move = _shifter(chain, mask, params)(bend.rows, bend.moved) if bend.moved is not None else None
-    added = np.outer(move, move) / power.WIDEN_SD**2 if move is not None else np.zeros((len(names),) * 2)
-    if missed is not None and missed.beyond_floor:
-        added = added + missed.widening
-    move_mm, move_deg = (0.0, 0.0) if move is None else _size(move[None])
+def _suspected(shift, bend, covariance):
+    """``(covariance added or None, note)`` of a bend BIC suggests but the tests do not make clear: the pose its
+    correction would give lies within :data:`~handeye.model.fit.power.WIDEN_SD` of the added sd (along that
+    move), and the bend the profiles could have missed (:func:`unseen`) where it moves the pose beyond the
+    floor (:attr:`~handeye.model.fit.power.Missable.widening`); the note says both."""
+    missed = unseen(shift, bend, covariance)
+    beyond = missed is not None and missed.beyond_floor
+    move = shift(bend.rows, bend.moved) if bend.moved is not None else np.zeros(len(covariance))
+    move_mm, move_deg = _size(move[None])
     if move_mm <= power.SHIFT_FLOOR[0] / power.WIDEN_SD and move_deg <= power.SHIFT_FLOOR[1] / power.WIDEN_SD \
-            and (missed is None or not missed.beyond_floor):
-        return None, names, ""
+            and not beyond:
+        return None, ""
     note = (f"the profiles suggest a bend along the sensor's depth of {bend.bend_mm:.3g} mm that the tests do not make "
             f"clear ({bend.reason}); corrected, the pose would move {move_mm:.2g} mm / {move_deg:.2g} deg, and the 1 sd "
             f"puts that within {power.WIDEN_SD:g} sd")
-    if missed is not None and missed.beyond_floor:
+    if beyond:
         note += f"; the profiles could have missed {missed.text()}, also in the sd"
-    return added, names, note
+    return np.outer(move, move) / power.WIDEN_SD**2 + (missed.widening if beyond else 0.0), note
 
 
 def _covariance(shifts, move):

@@ -506,8 +506,10 @@ def _bend_lines(bend, profiles=None):
     from handeye.model.geometry.profile_bend import MIN_PROFILES
 
     if bend is None and profiles:
-        return [f"profile bend along the sensor's depth: not measured ({profiles} profiles; it takes {MIN_PROFILES}): "
-                "a linearity error of the sensor would go unseen"]
+        why = (f"{profiles} profiles; it takes {MIN_PROFILES}" if profiles < MIN_PROFILES else
+               "no fit of the profiles' shape could be made")
+        return [f"profile bend along the sensor's depth: not measured ({why}): a linearity error of the sensor would "
+                "go unseen"]
     if not bend or not bend["degree"]:
         return []
     lo, hi = bend["depths_mm"]

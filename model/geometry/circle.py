@@ -150,10 +150,19 @@ def circle_covariance(x, z, fitted, sigma=None):
     return s2 * np.linalg.pinv(j.T @ j)
 
 
+def centre_jacobian(r, y, side=-1):
+    """d(sphere centre x, y, z) / d(circle xc, zc, r), shape ``r.shape + (3, 3)``, of circles of radius ``r`` whose
+    centres' |y| is ``y`` (mm; ``inf`` where y has no derivative): ``y = side sqrt(R^2 - r^2)`` makes
+    ``dy/dr = -side r / |y|``."""
+    r, y = np.broadcast_arrays(np.asarray(r, float), np.asarray(y, float))
+    out = np.zeros(r.shape + (3, 3))
+    out[..., 0, 0], out[..., 2, 1], out[..., 1, 2] = 1.0, 1.0, -side * r / y
+    return out
+
+
 def centre_covariance(fitted, cov_circle, radius, side=-1):
     """Covariance (3, 3) of the sphere centre in the sensor ``(x, y, z)`` propagated from the
-    circle's: ``y = side sqrt(R^2 - r^2)`` makes ``dy/dr = -side r / |y|``, so the y error grows
-    like ``(r / |y|) sigma_r`` as the laser plane nears the equator."""
-    y = np.sqrt(max(radius**2 - fitted.r**2, 1e-12))
-    a = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -side * fitted.r / y], [0.0, 1.0, 0.0]])
+    circle's (:func:`centre_jacobian`): the y error grows like ``(r / |y|) sigma_r`` as the laser plane
+    nears the equator."""
+    a = centre_jacobian(fitted.r, np.sqrt(max(radius**2 - fitted.r**2, 1e-12)), side)
     return a @ cov_circle @ a.T

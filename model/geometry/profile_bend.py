@@ -250,8 +250,6 @@ def _blocks(profiles, depths=None, mean=None):
     profiles = [_thinned(p) for p in profiles]
     if depths is None:
         depths = (min(float(p[:, 1].min()) for p in profiles), max(float(p[:, 1].max()) for p in profiles))
-    if mean is None:
-        mean = sum(_basis(p[:, 1], MAX_DEGREE, depths).sum(axis=0) for p in profiles) / sum(len(p) for p in profiles)
     groups, current, size = [], [], 0
     for p in profiles:
         if current and size + len(p) > BLOCK_POINTS:
@@ -260,14 +258,18 @@ def _blocks(profiles, depths=None, mean=None):
         current.append(p)
         size += len(p)
     groups.append(current)
+    raw = [np.concatenate([p[:, 1] for p in group]) for group in groups]
+    bases = [_basis(z, MAX_DEGREE, depths) for z in raw]  # once: their mean, then centred in place
+    n_points = sum(len(z) for z in raw)
+    mean = sum(b.sum(axis=0) for b in bases) / n_points if mean is None else mean
     blocks = []
-    for group in groups:
+    for group, z, basis in zip(groups, raw, bases):
         sizes = [len(p) for p in group]
-        z = np.concatenate([p[:, 1] for p in group])
+        basis -= mean
         blocks.append(_Points(np.concatenate([p[:, 0] for p in group]), z, np.repeat(np.arange(len(group)), sizes),
-                              np.concatenate([[0], np.cumsum(sizes)[:-1]]), len(group),
-                              _basis(z, MAX_DEGREE, depths) - mean, _slope_basis(z, MAX_DEGREE, depths)))
-    return _Blocks(tuple(blocks), depths, mean, len(profiles), sum(len(p) for p in profiles))
+                              np.concatenate([[0], np.cumsum(sizes)[:-1]]), len(group), basis,
+                              _slope_basis(z, MAX_DEGREE, depths)))
+    return _Blocks(tuple(blocks), depths, mean, len(profiles), n_points)
 
 
 def _segment_sum(pts, values):
@@ -375,9 +377,8 @@ def _dcentre(pieces, circles, radius, side):
     dcirc = -np.einsum("nkl,nlm->nkm", jj_inv, jg)  # (a, c, r)
     r = circles[:, 2]
     inside = r < radius * (1 - 1e-9)
-    y = np.sqrt(np.where(inside, radius**2 - r**2, 1.0))
-    dy = np.where(inside, -side * r / y, 0.0)[:, None] * dcirc[:, 2]
-    return np.stack([dcirc[:, 0], dy, dcirc[:, 1]], axis=1)
+    y = np.where(inside, np.sqrt(np.where(inside, radius**2 - r**2, 1.0)), np.inf)
+    return np.einsum("nij,njm->nim", circle.centre_jacobian(r, y, side), dcirc)
 
 
 def _hyper_circles(profiles):
