@@ -19,7 +19,7 @@ from handeye import solvers
 from handeye.model import effects
 from handeye.model.common.statistics import chi2_survival
 from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
-from handeye.model.fit.cell import corrected_centres
+from handeye.model.fit.cell import CellModel
 from handeye.model.fit.score_tests import cholesky, gate, gate_from_sums, projection, score_test_robust
 
 
@@ -242,27 +242,34 @@ class Samples:
 
     def evaluate(self, structure, x, params, rows=None):
         """Residuals (N, 3) and Jacobian (N, 3, p) at point x with effect parameters (of the
-        samples ``rows``, an index array, only, when given)."""
+        samples ``rows``, an index array, only, when given), in the samples' metric, and the chain's
+        :class:`~handeye.model.fit.cell.CellModel` of those samples (the robot's corrections in its motions)."""
+        e, jac, model = self.chain(structure, x, params, rows)
+        return self.whitened(e, rows, structure.flips), self.whitened(jac, rows, structure.flips), model
+
+    def chain(self, structure, x, params, rows=None):
+        """:meth:`evaluate` in mm, unweighted. The chain and the data effects are the one cell model's (its
+        sensor and sphere blocks free or held by the structure, no positioner); a robot effect's columns are its
+        flange derivatives moving the centre (:meth:`robot_motion`)."""
         xs = self.measured(structure, rows)
         f2b = self.f2b if rows is None else self.f2b[rows]
         robot_names = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
         robot = {}
         if robot_names:
             f2b, robot = self.robot_motion({n: params[n] for n in robot_names}, rows)
-        data_names = [n for n in structure.data_effects if n not in robot]
-        xs, derivatives = corrected_centres(xs, self.radius, {n: params[n] for n in data_names})
-        of = dict(zip(data_names, derivatives))
-        cols = [name if name in robot else of[name] for name in structure.data_effects]
-        unknowns = "sensor+sphere" if structure.centre else "sensor"
-        model = CalibrationModel(f2b, xs, self.d.sphere_centre, "local", unknowns)
-        e, j = model.residual_and_jacobian(x)
-        r2 = model.sensor_rotation(x)
-        r12 = f2b[:, :3, :3] @ r2
-        in_flange = np.einsum("ij,nj->ni", r2, xs) + x[:3]  # the centre in the flange frame
-        extra = [_moved_centre(robot[c], in_flange) if isinstance(c, str) else np.einsum("nij,njk->nik", r12, c)
-                 for c in cols]
-        jac = np.concatenate([j] + extra, axis=2) if extra else j
-        return self.whitened(e, rows, structure.flips), self.whitened(jac, rows, structure.flips), model
+        data_names = tuple(n for n in structure.data_effects if n not in robot)
+        model = CellModel(f2b, xs, np.zeros((len(xs), 0)), free=_FREE[structure.centre], effects=data_names,
+                          radius=self.radius)
+        point = np.concatenate([x[3:12], x[:3], self.centre(structure, x), *(np.asarray(params[n], float)
+                                                                             for n in data_names)])
+        e, jac = model.evaluate(point)
+        columns = {name: jac[:, :, a:b] for name, a, b in _blocks(model, data_names)}
+        if robot:
+            in_flange = np.einsum("ij,nj->ni", x[3:12].reshape(3, 3), model.corrected(point)[0]) + x[:3]
+            columns |= {name: _moved_centre(robot[name], in_flange) for name in robot}
+        jac = np.concatenate([jac[:, :, :9 if structure.centre else 6]] + [columns[n] for n in structure.data_effects],
+                             axis=2)
+        return e, jac, model
 
     def names(self, structure):
         base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
@@ -413,6 +420,19 @@ class Samples:
         return x[12:15] if structure.centre else self.d.sphere_centre
 
 
+#: The cell model's free parts of a structure without (False) and with (True) its sphere centre.
+_FREE = {False: ("sensor",), True: ("sensor", "sphere")}
+
+
+def _blocks(model, names):
+    """``(name, first, end)`` of each data effect's columns in the full Jacobian of the cell ``model``."""
+    at = model.n_chain
+    for name in names:
+        k = len(effects.get(name).PARAMS)
+        yield name, at, at + k
+        at += k
+
+
 def _without(mask, rows):
     """``mask`` with ``rows`` left out (a new array)."""
     out = mask.copy()
@@ -439,30 +459,25 @@ def candidate_rows(prob, structure, fit, rows, name):
 
 
 def _candidate_rows(prob, structure, fit, rows, name):
-    """:func:`candidate_rows` in mm (unweighted)."""
+    """:func:`candidate_rows` in mm (unweighted): a data or robot effect's are its block of the one model with
+    it added (at zero), a centre's ``-I``, another effect's its own (:attr:`columns` of the chain's terms)."""
     effect = effects.get(name)
-    xs = prob.measured(structure, rows)
-    f2b = prob.f2b if rows is None else prob.f2b[rows]
-    robot = {n: fit.params[n] for n in structure.data_effects if effects.get(n).KIND == "robot"}
-    if robot or effect.KIND == "robot":
-        trial = robot | ({name: np.zeros(len(prob.params_of(name)))} if effect.KIND == "robot" else {})
-        f2b, derivatives = prob.robot_motion(trial, rows)
-    for eff in structure.data_effects:
-        if eff not in robot:
-            xs, _ = effects.correct(eff, xs, prob.radius, fit.params[eff])
-    r2 = prob._chart(structure.centre).sensor_rotation(fit.x)
-    if effect.KIND == "robot":
-        return _moved_centre(derivatives[name], np.einsum("ij,nj->ni", r2, xs) + fit.x[:3])
-    r12 = f2b[:, :3, :3] @ r2
+    if effect.KIND in ("data", "robot"):
+        trial = dataclasses.replace(structure, data_effects=(*structure.data_effects, name))
+        k = len(prob.params_of(name))
+        return prob.chain(trial, fit.x, fit.params | {name: np.zeros(k)}, rows)[1][:, :, -k:]
     if effect.KIND == "centre":
-        return -np.broadcast_to(np.eye(3), (len(xs), 3, 3))
-    if effect.KIND == "data":
-        with np.errstate(invalid="ignore", divide="ignore"):
-            _, dxs = effects.correct(name, xs, prob.radius, np.zeros(len(effect.PARAMS)))
-        return np.einsum("nij,njk->nik", r12, dxs)
+        return -np.broadcast_to(np.eye(3), (prob.n if rows is None else len(rows), 3, 3))
+    _, _, model = prob.chain(structure, fit.x, fit.params, rows)
+    xs, r2, f2b = model.corrected(_point_of(model, fit))[0], fit.x[3:12].reshape(3, 3), model.motions
     u = np.einsum("ij,nj->ni", r2, xs) + fit.x[:3]
     q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
-    return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": r12, "xs": xs})
+    return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": f2b[:, :3, :3] @ r2, "xs": xs})
+
+
+def _point_of(model, fit):
+    """The cell ``model``'s point of a fit (the chain's rotation, translation, an unused centre, its data effects)."""
+    return np.concatenate([fit.x[3:12], fit.x[:3], np.zeros(3), *(np.asarray(fit.params[n], float) for n in model.effects)])
 
 
 def _candidates(structure, skip):
