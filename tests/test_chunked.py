@@ -128,10 +128,12 @@ def test_effect_score_tests_by_chunks_equal_the_full_arrays(unknowns, skip):
     args = (dataset, extended.Calibrated(mask, sensor, fitted.sphere_centre, unknowns), skip)
     full, chunked = extended.score_effects(*args), extended.score_effects(*args, chunk=5)
     assert [t.name for t in chunked] == [t.name for t in full] and (full or unknowns != "sensor")
+    # each path fits its own point (the full arrays' solve and the normal equations'), both stopped by the solver's
+    # xtol/ftol within 3e-7 mm of each other: the scores agree to what that leaves (1e-7 relative), not to rounding
     for a, b in zip(full, chunked):
-        assert b.score == pytest.approx(a.score, rel=1e-9)
-        assert b.gate == pytest.approx(a.gate, rel=1e-9)
-        assert b.p_bonferroni == pytest.approx(a.p_bonferroni, rel=1e-9, abs=1e-300)
+        assert b.score == pytest.approx(a.score, rel=1e-7)
+        assert b.gate == pytest.approx(a.gate, rel=1e-7)
+        assert b.p_bonferroni == pytest.approx(a.p_bonferroni, rel=1e-6, abs=1e-300)
     structure = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=skip)
     x0 = prob.point(structure, sensor)
     a, b = prob.fit(structure, mask, x0), prob.fit(structure, mask, x0, chunk=4)

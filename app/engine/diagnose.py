@@ -210,8 +210,7 @@ def _absorbed_structural(run, structure, fit, mask):
     current parameters reproduce are recorded in ``run.absorbed``."""
     prob = run.prob
     with_centre = _extend(structure, "sphere_center")
-    full = prob.fit(with_centre, mask, fit.x if structure.centre else np.concatenate([fit.x, prob.d.sphere_centre]),
-                    fit.params)
+    full = prob.fit(with_centre, mask, fit.x, fit.params)
     for effect in effects.catalogue("structural"):
         cols = candidate_columns(prob, with_centre, full, mask, effect.NAME)
         frac, who = gate(full.jac[mask].reshape(-1, full.p), cols, full.names)
@@ -325,8 +324,7 @@ def _search(run, structure, fit):
             if p * m_tests >= alpha:
                 break
             trial = _extend(structure, name)
-            x0 = fit.x if name != "sphere_center" else np.concatenate([fit.x, prob.d.sphere_centre])
-            new = prob.fit(trial, mask, x0, fit.params)
+            new = prob.fit(trial, mask, fit.x, fit.params)
             why = effects.implausible(name, new.params.get(name, []), prob.radius, names=prob.params_of(name))
             if why is not None:
                 implausible.append(why)
@@ -467,8 +465,7 @@ def _backward(prob, structure, fit, mask, alpha, centre_unknown=False):
     names = (["sphere_center"] if structure.centre and not centre_unknown else []) + list(structure.data_effects)
     for name in names:
         reduced = _reduce(structure, name)
-        x0 = fit.x[:12] if name == "sphere_center" else fit.x
-        smaller = prob.fit(reduced, mask, x0, {k: v for k, v in fit.params.items() if k != name})
+        smaller = prob.fit(reduced, mask, fit.x, {k: v for k, v in fit.params.items() if k != name})
         k = fit.p - smaller.p
         f_stat = ((smaller.ssr - fit.ssr) / k) / (fit.ssr / (fit.m - fit.p))
         if f_survival(max(f_stat, 0.0), k, fit.m - fit.p) >= alpha:

@@ -52,6 +52,7 @@ def robust_effects(dataset, unknowns, start, effects, max_rounds=50, prob=None):
     x, _, weights = robust.robust_fit(plain, plain.point_from(start))
     prob = prob or extended.Samples(dataset)
     structure = extended.Structure(centre=unknowns == "sensor+sphere", data_effects=tuple(effects))
+    x = prob.point(structure, plain.sensor2flange(x), plain.sphere_centre(x))  # the one chain model's point
     if any(catalogue.get(n).KIND == "robot" for n in effects):
         with np.errstate(all="ignore"):
             gate_robot_effects(prob, structure, np.ones(len(dataset), bool), prob.transform(x), prob.centre(structure, x))

@@ -1,10 +1,10 @@
 """The extended model: the sensor pose with named effects of the catalogue, fitted and tested.
 
 What :func:`handeye.diagnose` searches with and :func:`handeye.calibrate` tests and
-calibrates with (``--effects``): a structure (the centre free or not, the data effects of
-:mod:`handeye.model.effects` in the model, sign flips), its residuals and exact Jacobian
-(the chain's, :class:`~handeye.model.fit.calibration.CalibrationModel`, times each effect's
-derivative), its least-squares fit, and the score (Lagrange multiplier) test of a candidate
+calibrates with (``--effects``): a structure (which blocks of the one chain model are free: the sensor
+pose, the centre, the positioner's axes, the data and robot effects of :mod:`handeye.model.effects`; sign
+flips), its residuals and exact Jacobian (the cell model's, :class:`~handeye.model.fit.cell.CellModel`,
+with each effect's block), its least-squares fit, and the score (Lagrange multiplier) test of a candidate
 effect at a fit, with the identifiability gate that refuses what the poses cannot separate.
 The application's workflow around it lives in :mod:`handeye.app.engine.diagnose`.
 """
@@ -18,8 +18,8 @@ import numpy as np
 from handeye import solvers
 from handeye.model import effects
 from handeye.model.common.statistics import chi2_survival
-from handeye.model.fit.calibration import ROW_CHUNK, CalibrationModel
-from handeye.model.fit.cell import CellModel
+from handeye.model.fit.calibration import ROW_CHUNK
+from handeye.model.fit.cell import CellModel, pack, unpack
 from handeye.model.fit.score_tests import cholesky, gate, gate_from_sums, projection, score_test_robust
 
 
@@ -46,21 +46,35 @@ FOLDS = 5
 
 @dataclasses.dataclass(frozen=True)
 class Structure:
-    """What the model contains besides the sensor pose (a value: hashable, so fits of it are cached by it)."""
+    """Which blocks of the one chain model are free (a value: hashable, so fits of it are cached by it): the
+    sensor pose (``sensor``), the sphere centre (``centre``), the positioner's axes named in ``axes`` (each 4
+    parameters: :mod:`handeye.model.fit.cell`), the catalogue's data and robot effects in ``data_effects``; the
+    samples in ``flips`` read with y negated. A held block stays at the dataset's value (the sensor: at the
+    point's)."""
 
     centre: bool = False
     data_effects: tuple = ()
     flips: frozenset = frozenset()
+    sensor: bool = True
+    axes: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "centre", bool(self.centre))
         object.__setattr__(self, "data_effects", tuple(self.data_effects))
         object.__setattr__(self, "flips", frozenset(self.flips))
+        object.__setattr__(self, "sensor", bool(self.sensor))
+        object.__setattr__(self, "axes", tuple(self.axes))
+
+    @property
+    def parts(self):
+        """The cell model's free parts (:data:`handeye.model.chain.names.PARTS`)."""
+        return tuple(p for p, free in (("sensor", self.sensor), ("sphere", self.centre), ("positioner", self.axes))
+                     if free)
 
 
 @dataclasses.dataclass
 class Fit:
-    x: np.ndarray  # local point: t2, R2 (9), [c]
+    x: np.ndarray  # the cell model's point: R2 (9, row-major), t2, c (held: unused), per positioner axis p, d
     params: dict  # effect name -> array of parameters
     e: np.ndarray  # (N, 3) residuals of all samples
     jac: np.ndarray  # (N, 3, p) Jacobian of all samples: theta then effect parameters; None when chunked
@@ -249,30 +263,39 @@ class Samples:
 
     def chain(self, structure, x, params, rows=None):
         """:meth:`evaluate` in mm, unweighted. The chain and the data effects are the one cell model's (its
-        sensor and sphere blocks free or held by the structure, no positioner); a robot effect's columns are its
-        flange derivatives moving the centre (:meth:`robot_motion`)."""
+        blocks free or held by the structure; with axes free the flange poses and the positioner's product of
+        exponentials, else the carrier motions); a robot effect's columns are its flange derivatives moving
+        the centre (:meth:`robot_motion`)."""
         xs = self.measured(structure, rows)
-        f2b = self.f2b if rows is None else self.f2b[rows]
+        take = (lambda a: a) if rows is None else (lambda a: a[rows])
+        f2b = take(self.d.flange2base()) if structure.axes else take(self.f2b)
         robot_names = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
         robot = {}
         if robot_names:
             f2b, robot = self.robot_motion({n: params[n] for n in robot_names}, rows)
         data_names = tuple(n for n in structure.data_effects if n not in robot)
-        model = CellModel(f2b, xs, np.zeros((len(xs), 0)), free=_FREE[structure.centre], effects=data_names,
-                          radius=self.radius)
-        point = np.concatenate([x[3:12], x[:3], self.centre(structure, x), *(np.asarray(params[n], float)
-                                                                             for n in data_names)])
+        model = self._cell(structure, f2b, xs, data_names, take)
+        chain = np.concatenate([x[:12], self.centre(structure, x), x[15:] if structure.axes else []])
+        point = np.concatenate([chain, *(np.asarray(params[n], float) for n in data_names)])
         e, jac = model.evaluate(point)
         columns = {name: jac[:, :, a:b] for name, a, b in _blocks(model, data_names)}
         if robot:
-            in_flange = np.einsum("ij,nj->ni", x[3:12].reshape(3, 3), model.corrected(point)[0]) + x[:3]
+            in_flange = np.einsum("ij,nj->ni", x[:9].reshape(3, 3), model.corrected(point)[0]) + x[9:12]
             columns |= {name: _moved_centre(robot[name], in_flange) for name in robot}
-        jac = np.concatenate([jac[:, :, :9 if structure.centre else 6]] + [columns[n] for n in structure.data_effects],
-                             axis=2)
+        free = model.columns[:len(model.columns) - model.n_effects]
+        jac = np.concatenate([jac[:, :, free]] + [columns[n] for n in structure.data_effects], axis=2)
         return e, jac, model
 
+    def _cell(self, structure, motions, xs, data_names, take):
+        """The cell model of the samples ``take`` selects, its blocks free as ``structure`` says."""
+        if not structure.axes:
+            return CellModel(motions, xs, np.zeros((len(xs), 0)), free=structure.parts, effects=data_names,
+                             radius=self.radius)
+        return CellModel(motions, xs, take(np.asarray(self.d.axis_angles, float)), self.d.mounts.axis_names,
+                         structure.parts, structure.axes, data_names, self.radius)
+
     def names(self, structure):
-        base = ["tx", "ty", "tz", "wx", "wy", "wz"] + (["cx", "cy", "cz"] if structure.centre else [])
+        base = list(self._chart(structure).names)
         for name in structure.data_effects:
             base += [f"{name}.{p}" for p in self.params_of(name)]
         return base
@@ -365,7 +388,7 @@ class Samples:
         and the retraction of a step (the chart's, then the parameters' plain sum)."""
         keys = list(structure.data_effects)
         params0 = {n: np.zeros(len(self.params_of(n))) for n in keys} | (params0 or {})
-        chart, n_pt = self._chart(structure.centre), len(x0)
+        chart, n_pt = self._chart(structure), len(x0)
         ends = np.cumsum([n_pt] + [len(self.params_of(n)) for n in keys])
 
         def split(z):
@@ -392,13 +415,20 @@ class Samples:
             residual=lambda z: at(z)[0][mask].ravel(),
             jacobian=lambda z: at(z)[1][mask].reshape(-1, n))
 
-    def _chart(self, centre_free):
-        """A one-row local-chart model: the point layout and retraction of a structure."""
-        return CalibrationModel(self.f2b[:1], self.d.centre_in_sensor[:1], self.d.sphere_centre, "local",
-                                "sensor+sphere" if centre_free else "sensor")
+    def _chart(self, structure):
+        """The structure's cell model without samples: its point's layout, step names and retraction."""
+        none = np.zeros((0, 3))
+        if not structure.axes:
+            return CellModel(np.zeros((0, 4, 4)), none, np.zeros((0, 0)), free=structure.parts)
+        names = self.d.mounts.axis_names
+        return CellModel(np.zeros((0, 4, 4)), none, np.zeros((0, len(names))), names, structure.parts, structure.axes)
 
-    def point(self, structure, sensor2flange, centre=None):
-        return self._chart(structure.centre).point_from(sensor2flange, self.d.sphere_centre if centre is None else centre)
+    def point(self, structure, sensor2flange, centre=None, axes=None):
+        """The point of a sensor pose (4, 4, in its carrier's frame), a sphere centre (3,, default the dataset's)
+        and, where the structure frees axes, the positioner's axes (default the dataset's)."""
+        centre = self.d.sphere_centre if centre is None else centre
+        centre = np.zeros(3) if centre is None else centre
+        return pack(sensor2flange, centre, (self.d.mounts.axes if axes is None else axes) if structure.axes else ())
 
     def heldout_rms(self, structure, mask, fit, raw=False):
         """RMS prediction error of held-out samples, 5-fold cross-validation over ``mask``: in the samples'
@@ -414,14 +444,16 @@ class Samples:
         return float(np.sqrt(np.mean(np.concatenate(errs))))
 
     def transform(self, x):
-        return self._chart(False).sensor2flange(x[:12])
+        """The sensor pose (4, 4) of a point."""
+        return unpack(x[:15], ())[0]
 
     def centre(self, structure, x):
-        return x[12:15] if structure.centre else self.d.sphere_centre
+        """The sphere centre (3,) of a point: its own where the structure frees it, else the dataset's."""
+        return np.asarray(x[12:15] if structure.centre else self.d.sphere_centre, float)
 
-
-#: The cell model's free parts of a structure without (False) and with (True) its sphere centre.
-_FREE = {False: ("sensor",), True: ("sensor", "sphere")}
+    def axes(self, structure, x):
+        """The positioner's axes of a point (where the structure frees axes), else the dataset's."""
+        return unpack(x, self.d.mounts.axis_names)[2] if structure.axes else self.d.mounts.axes
 
 
 def _blocks(model, names):
@@ -469,15 +501,15 @@ def _candidate_rows(prob, structure, fit, rows, name):
     if effect.KIND == "centre":
         return -np.broadcast_to(np.eye(3), (prob.n if rows is None else len(rows), 3, 3))
     _, _, model = prob.chain(structure, fit.x, fit.params, rows)
-    xs, r2, f2b = model.corrected(_point_of(model, fit))[0], fit.x[3:12].reshape(3, 3), model.motions
-    u = np.einsum("ij,nj->ni", r2, xs) + fit.x[:3]
+    xs, r2, f2b = model.corrected(_point_of(model, fit))[0], fit.x[:9].reshape(3, 3), model.motions
+    u = np.einsum("ij,nj->ni", r2, xs) + fit.x[9:12]
     q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": f2b[:, :3, :3] @ r2, "xs": xs})
 
 
 def _point_of(model, fit):
     """The cell ``model``'s point of a fit (the chain's rotation, translation, an unused centre, its data effects)."""
-    return np.concatenate([fit.x[3:12], fit.x[:3], np.zeros(3), *(np.asarray(fit.params[n], float) for n in model.effects)])
+    return np.concatenate([fit.x[:12], np.zeros(3), *(np.asarray(fit.params[n], float) for n in model.effects)])
 
 
 def _candidates(structure, skip):
