@@ -7,7 +7,8 @@
 1. The stages run on the *conditional* problem: the positioner at its current axes (nominal
    first), the sensor estimated even when it is known (so that screening, the global check and
    leave-one-out see the data as they are).
-2. :class:`handeye.model.fit.cell.CellModel` fits the requested parts together on the samples kept,
+2. The one chain model (:class:`handeye.model.fit.extended.Samples`, its blocks freed by a
+   :class:`~handeye.model.fit.extended.Structure`) fits the requested parts together on the samples kept,
    holding the others (a known sensor from ``[sensor] pose`` or ``--calibration``; a known
    centre from ``[sphere] center``), after checking that the poses and axis angles determine every
    requested parameter (else :class:`CalibrationInputError` names what they cannot separate).
@@ -28,7 +29,6 @@ import dataclasses
 
 import numpy as np
 
-from handeye import solvers
 from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine.levels import FAR_ON_FLANGE_MM, HELD_FACTOR, P_HELD, SURELY_FAR_MM  # the verdict's levels, one place
 from handeye.app.engine.request import DATA_EFFECTS  # the cell fit fits them with the parts
@@ -40,10 +40,9 @@ from handeye.model.chain.mounts import inverse_transforms
 from handeye.model.chain.pose import pose_from_transform, transform_from_pose
 from handeye.model.common.statistics import f_survival
 from handeye.model.design import identifiability
-from handeye.model.fit.cell import PARTS, CellModel, corrected_centres, normals, pack, unpack
+from handeye.model.fit.cell import PARTS, corrected_centres, normals
+from handeye.model.fit.extended import Samples, Structure
 
-#: Iteration limit of the cell fit (Levenberg-Marquardt from the conditional fit: a few steps).
-MAX_ITER = 200
 #: Most runs of the conditional stages with the positioner free: the first at the set-up axes,
 #: then at the refined ones until the samples kept stop changing.
 PASSES = 4
@@ -51,21 +50,49 @@ PASSES = 4
 
 @dataclasses.dataclass(frozen=True)
 class CellFit:
-    """The cell fit: point, parts, covariance on the free step, identifiability."""
+    """The cell fit: the one chain model's fit (its samples, structure and :class:`~handeye.model.fit.extended.Fit`
+    on the samples of ``mask``), its parts, covariance on the free step, identifiability."""
 
-    model: CellModel
-    x: np.ndarray
+    prob: Samples
+    structure: Structure
+    fit: object
+    mask: np.ndarray
     sensor: np.ndarray
     centre: np.ndarray
     axes: tuple
     covariance: np.ndarray | None
     sigma: float
     ident: object
-    converged: bool
-    iterations: int
-    message: str
-    #: the data effects fitted with the parts: name -> parameters
-    params: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def x(self):
+        return self.fit.x
+
+    @property
+    def params(self):
+        """The data effects fitted with the parts: name -> parameters."""
+        return self.fit.params
+
+    @property
+    def names(self):
+        """The free step's coordinates (:func:`handeye.model.fit.cell.step_names` of the free blocks)."""
+        return self.fit.names
+
+    @property
+    def n(self):
+        return self.fit.p
+
+    @property
+    def converged(self):
+        return self.fit.converged
+
+    @property
+    def message(self):
+        return self.fit.message
+
+    def residual(self):
+        """The residuals (mm) of the samples fitted, stacked (3 m,)."""
+        return self.fit.e[self.mask].ravel()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,22 +105,17 @@ class Start:
     params: dict = dataclasses.field(default_factory=dict)
 
 
-def cell_model(dataset, free, axes=None, effects=()):
-    """The cell model of a dataset: with the positioner free, the flange poses and the axis angles
-    (``axes``: the names of those estimated, None: all); otherwise the carrier motions (the
-    positioner, if any, at its current axes); ``effects``: the data effects fitted with the parts."""
-    radius = dataset.sphere_diameter / 2
-    if "positioner" in free:
-        return CellModel(np.asarray(dataset.flange2base()), dataset.centre_in_sensor, dataset.axis_angles,
-                         dataset.mounts.axis_names, free, None if axes is None else tuple(axes), tuple(effects), radius)
-    return CellModel(np.asarray(dataset.motions()), dataset.centre_in_sensor, np.zeros((len(dataset), 0)), (), free,
-                     effects=tuple(effects), radius=radius)
+def structure_of(dataset, free, axes=None, effects=()):
+    """The one chain model's blocks for the ``free`` parts (``axes``: with the positioner free, the names of
+    the axes estimated, None: all) and the data ``effects`` fitted with them."""
+    turning = (tuple(dataset.mounts.axis_names) if axes is None else tuple(axes)) if "positioner" in free else ()
+    return Structure(centre="sphere" in free, data_effects=tuple(effects), sensor="sensor" in free, axes=turning)
 
 
-def check_determined(model, x, path):
+def check_determined(jac, names, path):
     """Raise CalibrationInputError when the poses and angles leave a requested parameter free
     (the Jacobian's columns do not depend on the measured centres' noise: exact)."""
-    ident = identifiability.analyse(model.jacobian(x), model.names, rtol=1e-7)
+    ident = identifiability.analyse(jac, names, rtol=1e-7)
     if not ident.full_rank:
         raise CalibrationInputError(
             f"{path / 'measurements.csv'}: the poses and axis angles cannot separate (rank {ident.rank} of "
@@ -114,30 +136,26 @@ def turning_axes(dataset, least=3):
 def fit(dataset, free, start, mask, axes=None):
     """Fit the ``free`` parts (and the data effects ``start.params`` names) from ``start`` (:class:`Start`), on the
     samples of ``mask`` (``axes``: with the positioner free, the axes estimated; None: all)."""
-    effects = start.params or {}
-    model = cell_model(dataset, free, axes, tuple(effects)).subset(np.asarray(mask, bool))
-    axes = dataset.mounts.axes if "positioner" in free else ()
-    x0 = np.concatenate([pack(start.sensor, start.centre, axes), *(np.asarray(v, float) for v in effects.values())])
-    check_determined(model, x0, dataset.path)
-    at = solvers.last_point(model.evaluate)  # the Jacobian at the residual's point: one evaluation
-    problem = solvers.Problem(n=model.n, residual=lambda x: at(x)[0].ravel(), retract=model.retract,
-                              jacobian=lambda x: at(x)[1][:, :, model.columns].reshape(-1, model.n))
-    res = solvers.solve(problem, x0, "lm", {"max_iter": MAX_ITER})
-    r, jac = problem.residual(res.x), problem.jacobian(res.x)  # one evaluation at the end point
-    dof = max(len(r) - model.n, 1)
-    sigma = float(np.sqrt(r @ r / dof))
-    ident = identifiability.analyse(jac, model.names)
+    mask = np.asarray(mask, bool)
+    effects = {name: np.asarray(v, float) for name, v in (start.params or {}).items()}
+    prob, structure = Samples(dataset), structure_of(dataset, free, axes, tuple(effects))
+    x0 = prob.point(structure, start.sensor, start.centre)
+    names = prob.names(structure)
+    check_determined(prob.evaluate(structure, x0, effects)[1][mask].reshape(-1, len(names)), names, dataset.path)
+    fitted = prob.fit(structure, mask, x0, effects)
+    jac = fitted.jac[mask].reshape(-1, fitted.p) if fitted.jac is not None else fitted.r_factor(mask)
+    sigma = float(np.sqrt(fitted.ssr / max(fitted.m - fitted.p, 1)))
+    ident = identifiability.analyse(jac, fitted.names)
     cov = sigma**2 * np.linalg.inv(jac.T @ jac) if ident.full_rank else None
-    s, c, ax = unpack(res.x, model.axis_names)
-    return CellFit(model, res.x, s, c, ax if axes else (), cov, sigma, ident, bool(res.converged),
-                   int(res.iterations), str(res.message), model.effect_params(res.x))
+    return CellFit(prob, structure, fitted, mask, prob.transform(fitted.x), prob.centre(structure, fitted.x),
+                   prob.axes(structure, fitted.x) if "positioner" in free else (), cov, sigma, ident)
 
 
 def _block_sd(fitted, part_names):
     """1-sd of the named step coordinates (zeros where a part was held)."""
     if fitted.covariance is None:
         return np.full(len(part_names), np.nan)
-    sd, names = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)), fitted.model.names
+    sd, names = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)), fitted.names
     return np.array([sd[names.index(n)] if n in names else 0.0 for n in part_names])
 
 
@@ -146,7 +164,7 @@ def positioner_record(fitted, nominal, calibrated):
     axes = fitted.axes or nominal
     if not calibrated or fitted.covariance is None:
         return PositionerRecord(axes, nominal, calibrated=calibrated)
-    names, cov = fitted.model.names, fitted.covariance
+    names, cov = fitted.names, fitted.covariance
     point_sd, dir_sd, tilt = [], [], []
     for axis in axes:
         e = np.column_stack(normals(axis.direction))
@@ -237,8 +255,8 @@ def held_contradicted(dataset, request, fitted, free, mask):
     (F test below :data:`P_HELD`, RMS lower by :data:`HELD_FACTOR`): the pose at it is wrong."""
     from handeye.app.engine.describe import noise_test
 
-    r = fitted.model.residual(fitted.x)
-    test = noise_test(float(r @ r), len(r) - fitted.model.n, request.sigma, False, [], "")
+    r = fitted.residual()
+    test = noise_test(float(r @ r), len(r) - fitted.n, request.sigma, False, [], "")
     turning = turning_axes(dataset) if dataset.mounts.sphere == "positioner" else ()
     every = tuple(p for p in PARTS if p != "positioner" or turning)
     held = [p for p in every if p not in free]
@@ -248,8 +266,8 @@ def held_contradicted(dataset, request, fitted, free, mask):
         loose = fit(dataset, every, fitted, mask, axes=turning or None)  # the same effects, every part free
     except CalibrationInputError:
         return test, None  # the data cannot estimate what is held: nothing to contradict it
-    q = loose.model.residual(loose.x)
-    k, dof = loose.model.n - fitted.model.n, len(q) - loose.model.n
+    q = loose.residual()
+    k, dof = loose.n - fitted.n, len(q) - loose.n
     ssr_held, ssr_free = float(r @ r), float(q @ q)
     if dof <= 0 or ssr_free <= 0 or ssr_held < HELD_FACTOR**2 * ssr_free:
         return test, None
@@ -282,7 +300,7 @@ def compose(request, dataset, result, fitted, free, nominal):
     cov = fitted.covariance
     corr = None if cov is None else cov / np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
     unc = dataclasses.replace(result.uncertainty, std=Uncertainty(trans, rot, centre_sd), sigma_mm=fitted.sigma,
-                              parameter_names=tuple(fitted.model.names), covariance=cov, correlation=corr,
+                              parameter_names=tuple(fitted.names), covariance=cov, correlation=corr,
                               dof=None, t_factor=None)  # the cell fit's sd: not Student-t scaled (yet)
     warnings = list(result.warnings) + ([refusal] if refusal else [])
     if held:
@@ -303,7 +321,7 @@ def _with_fitted_effects(result, fitted, given_centre):
     if not result.effects:
         return result
     sd = np.sqrt(np.clip(np.diag(fitted.covariance), 0, None)) if fitted.covariance is not None else None
-    names = fitted.model.names
+    names = fitted.names
     values = {name: dict(zip(catalogue.get(name).PARAMS, p.tolist())) for name, p in fitted.params.items()}
     columns = {name: [f"{name}.{k}" for k in v] for name, v in values.items()}
     if "cx" in names and given_centre is not None:

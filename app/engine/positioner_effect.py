@@ -62,14 +62,13 @@ def heldout_rms(dataset, free, fitted, mask):
         train = mask.copy()
         train[fold] = False
         f = _fit(dataclasses.replace(dataset, mounts=start), free, fitted.sensor, train, fitted.centre)
-        model = cell_stage.cell_model(dataset, free, cell_stage.turning_axes(dataset))
-        e = model.subset(np.isin(np.arange(len(mask)), fold)).evaluate(f.x)[0]
+        e = f.prob.chain(f.structure, f.x, f.params, fold)[0]
         errs.append(np.sum(e**2, axis=1))
     return float(np.sqrt(np.mean(np.concatenate(errs))))
 
 
 def _summary(dataset, free, fitted, mask, sigma):
-    r = fitted.model.residual(fitted.x)
+    r = fitted.residual()
     return {"rms_mm": float(np.sqrt(np.sum(r**2) / mask.sum())), "chi2_dof": float(fitted.sigma**2 / sigma**2),
             "sigma_mm": fitted.sigma, "heldout_rms_mm": heldout_rms(dataset, free, fitted, mask)}
 
@@ -79,7 +78,7 @@ def axis_offsets(nominal, fitted):
     about the set-up direction's two normals and shifts (mm) of the point normal to it, with
     their 1-sd from the fit's covariance (the chart at the solution, nearly the same basis)."""
     params, sd = {}, {}
-    names, cov = fitted.model.names, fitted.covariance
+    names, cov = fitted.names, fitted.covariance
     for nom, axis in zip(nominal, fitted.axes):
         if f"{nom.name}_tilt1" not in names:
             continue  # held: it did not turn
@@ -108,11 +107,11 @@ def examine(dataset, mask, sensor, sigma, alpha, centre=None):
         new = _fit(dataset, BASE + ("positioner",), base.sensor, mask, base.centre)
     except CalibrationInputError:
         return None  # the axis angles do not determine the axes: not measurable, never named
-    m, k = 3 * int(mask.sum()), new.model.n - base.model.n
-    ssr_base, ssr_new = base.sigma**2 * (m - base.model.n), new.sigma**2 * (m - new.model.n)
-    if ssr_new >= ssr_base or m - new.model.n <= 0:
+    m, k = 3 * int(mask.sum()), new.n - base.n
+    ssr_base, ssr_new = base.sigma**2 * (m - base.n), new.sigma**2 * (m - new.n)
+    if ssr_new >= ssr_base or m - new.n <= 0:
         return None
-    p_f = f_survival(((ssr_base - ssr_new) / k) / (ssr_new / (m - new.model.n)), k, m - new.model.n)
+    p_f = f_survival(((ssr_base - ssr_new) / k) / (ssr_new / (m - new.n)), k, m - new.n)
     d_bic = m * np.log(ssr_new / ssr_base) + k * np.log(m)
     if not (p_f < alpha and d_bic < 0):
         return None

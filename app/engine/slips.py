@@ -220,8 +220,8 @@ def _free_axes_fit(dataset, unknowns):
                                 axes=cell_stage.turning_axes(dataset))
     except (global_fit.GlobalFitError, CalibrationInputError, np.linalg.LinAlgError):
         return rms, 0
-    r = fitted.model.residual(fitted.x)
-    return float(np.sqrt(r @ r / len(dataset))), fitted.model.n - (6 if unknowns == "sensor" else 9)  # as _suspect counts
+    r = fitted.residual()
+    return float(np.sqrt(r @ r / len(dataset))), fitted.n - (6 if unknowns == "sensor" else 9)  # as _suspect counts
 
 
 def _suspect(dataset, unknowns, rms_given):
