@@ -82,14 +82,6 @@ class CellFit:
     def n(self):
         return self.fit.p
 
-    @property
-    def converged(self):
-        return self.fit.converged
-
-    @property
-    def message(self):
-        return self.fit.message
-
     def residual(self):
         """The residuals (mm) of the samples fitted, stacked (3 m,)."""
         return self.fit.e[self.mask].ravel()
@@ -290,9 +282,9 @@ def compose(request, dataset, result, fitted, free, nominal):
         result.fit, **final_residuals(dataset, result, fitted), sensor2flange=sensor,
         sensor_pose_kuka=pose_from_transform(sensor), sensor_pose=conventions.pose_from(request.convention, sensor),
         sphere_centre=fitted.centre, noise_test=test,
-        converged=result.converged and fitted.converged and fitted.ident.full_rank and refusal is None,
+        converged=result.converged and fitted.fit.converged and fitted.ident.full_rank and refusal is None,
         message=refusal or f"{result.message}; then the cell fit of {request.parts} "
-                           f"({'converged' if fitted.converged else 'NOT converged'}: {fitted.message})")
+                           f"({'converged' if fitted.fit.converged else 'NOT converged'}: {fitted.fit.message})")
     held = "sensor" not in free
     trans = None if held else _block_sd(fitted, ["tx", "ty", "tz"])
     rot = None if held else np.degrees(_block_sd(fitted, ["wx", "wy", "wz"]))
