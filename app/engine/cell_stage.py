@@ -82,7 +82,7 @@ def cell_model(dataset, free, axes=None, effects=()):
     """The cell model of a dataset: with the positioner free, the flange poses and the axis angles
     (``axes``: the names of those estimated, None: all); otherwise the carrier motions (the
     positioner, if any, at its current axes); ``effects``: the data effects fitted with the parts."""
-    radius = dataset.sphere_diameter / 2
+    radius = dataset.sphere_radius_mm
     if "positioner" in free:
         return CellModel(np.asarray(dataset.flange2base()), dataset.centre_in_sensor, dataset.axis_angles,
                          dataset.mounts.axis_names, free, None if axes is None else tuple(axes), tuple(effects), radius)
@@ -209,7 +209,7 @@ def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
     data = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes)) if fitted.axes else dataset
-    corrected = corrected_centres(data.centre_in_sensor, data.sphere_diameter / 2, fitted.params)[0]
+    corrected = corrected_centres(data.centre_in_sensor, data.sphere_radius_mm, fitted.params)[0]
     xs = np.column_stack([corrected, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
     norms, used = np.linalg.norm(e, axis=1), mask_of(result)
