@@ -6,9 +6,9 @@ sphere's stand. Cleaning and fitting go as a profile's do (:mod:`handeye.model.g
 one dimension up:
 
 1. **Fast path.** The geometric least-squares sphere of every point (:func:`handeye.model.geometry.sphere.fit`,
-   radius free); when every point lies within :data:`~handeye.model.geometry.profile_clean.K_SD`
-   robust sd of it (``1.4826 MAD``, at least :data:`~handeye.model.geometry.profile_clean.SCALE_FLOOR_MM`),
-   nothing is dropped.
+   radius free); when its robust sd (``1.4826 MAD``, at least :data:`~handeye.model.geometry.profile_clean.SCALE_FLOOR_MM`)
+   is at most :data:`~handeye.model.geometry.profile_clean.FAST_SCALE_MM` and every point lies within
+   :data:`~handeye.model.geometry.profile_clean.K_SD` of it, nothing is dropped.
 2. **RANSAC** over :data:`CANDIDATES` minimal spheres through 4 points (a generator seeded by the
    cloud's bytes: deterministic), each scored by the points within :data:`BAND_MM` of it
    (with a known diameter only spheres within :data:`~handeye.model.geometry.profile_clean.RADIUS_TOL`
@@ -251,7 +251,7 @@ def _fast(q):
     except sphere.SphereFitError:
         return None
     s = max(1.4826 * float(np.median(np.abs(fitted.deviations))), profile_clean.SCALE_FLOOR_MM)
-    if np.max(np.abs(fitted.deviations)) > profile_clean.K_SD * s:
+    if s > profile_clean.FAST_SCALE_MM or np.max(np.abs(fitted.deviations)) > profile_clean.K_SD * s:
         return None
     return fitted.centre, fitted.radius, s, np.ones(len(q), bool)
 
