@@ -7,7 +7,6 @@ import json
 import re
 
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
@@ -42,7 +41,8 @@ def _cell(folder, seed=3, n=14):
         xa = np.cross([0.0, 0.0, 1.0], z)
         xa /= np.linalg.norm(xa)
         s = np.eye(4)
-        s[:3, :3] = np.column_stack([xa, np.cross(z, xa), z]) @ Rotation.from_euler("z", rng.uniform(-40, 40), degrees=True).as_matrix()
+        roll = Rotation.from_euler("z", rng.uniform(-40, 40), degrees=True).as_matrix()
+        s[:3, :3] = np.column_stack([xa, np.cross(z, xa), z]) @ roll
         s[:3, 3] = origin
         flange = s @ np.linalg.inv(x)
         d = rng.normal(size=(4000, 3))
@@ -63,7 +63,8 @@ def _write(folder, k, pts):
     if k % 3 == 0:
         np.save(folder / f"scan_{k}.npy", pts)
     elif k % 3 == 1:
-        head = f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty double x\nproperty double y\nproperty double z\nend_header\n"
+        head = (f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\n"
+                "property double x\nproperty double y\nproperty double z\nend_header\n")
         (folder / f"scan_{k}.ply").write_text(head + "".join(f"{p[0]:.5f} {p[1]:.5f} {p[2]:.5f}\n" for p in pts))
     else:
         (folder / f"scan_{k}.csv").write_text("x,y,z\n" + "".join(f"{p[0]:.5f},{p[1]:.5f},{p[2]:.5f}\n" for p in pts))
@@ -75,7 +76,8 @@ def _sd_away(result, truth):
     m = np.asarray(result["sensor_matrix"], float)
     std = result["std"]
     dt = np.abs(m[:3, 3] - truth[:3, 3]) / np.asarray(std["sensor_translation_mm"])
-    dr = np.abs(np.degrees(Rotation.from_matrix(truth[:3, :3].T @ m[:3, :3]).as_rotvec())) / np.asarray(std["sensor_rotation_deg"])
+    turn = np.degrees(Rotation.from_matrix(truth[:3, :3].T @ m[:3, :3]).as_rotvec())
+    dr = np.abs(turn) / np.asarray(std["sensor_rotation_deg"])
     return np.r_[dt, dr]
 
 

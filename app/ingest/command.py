@@ -348,8 +348,9 @@ def _files(result, read, req, start_pose):
         extra.append(("robot model", req.robot_file[0], "TOML"))
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(read.roles + extra)]
-    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, (req.measured, rels),
-                                                         read.joints, (req.cell.names, read.angles), read.centres)
+    measured = (req.measured, read.centres if req.measured == "centres" else rels)
+    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, measured, read.joints,
+                                                         (req.cell.names, read.angles))
     files["setup.toml"] = writer.setup_text(result, req, start_pose)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files, rels

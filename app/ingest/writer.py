@@ -27,13 +27,14 @@ def safe_name(ident, taken):
     return name
 
 
-def measurements_text(ids, values, convention, paths, joints=None, axes=((), None), centres=None):
-    """``measurements.csv``: id, the convention's pose columns, ``xs,ys,zs`` (``centres`` (N, 3), mm, or empty),
-    [the positioner's axis columns,] [j1..j6,] [profile or cloud]; ``paths``: ``(what, rels)``, ``what`` the column
-    (``'profiles'`` -> ``profile``, ``'clouds'`` -> ``cloud``) of the files ``rels`` (none with centres);
-    ``axes``: the axis names and their angles (N, k), degrees."""
+def measurements_text(ids, values, convention, measured, joints=None, axes=((), None)):
+    """``measurements.csv``: id, the convention's pose columns, ``xs,ys,zs`` (the centres reported, or empty),
+    [the positioner's axis columns,] [j1..j6,] [profile or cloud]; ``measured``: ``(what, rels)``, ``what``
+    ``'profiles'`` or ``'clouds'`` (the column ``profile`` or ``cloud`` of the files ``rels``), or ``('centres',
+    (N, 3) mm)``; ``axes``: the axis names and their angles (N, k), degrees."""
     names, angles = axes
-    what, rels = paths
+    what, rels = measured
+    centres = rels if what == "centres" else None
     column = [] if centres is not None else ["cloud" if what == "clouds" else "profile"]
     buffer = io.StringIO()
     out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.model.geometry import sphere_cloud
-from handeye.model.readers.tables import DatasetError, read_points
+from handeye.model.readers.tables import DatasetError, read_cloud
 
 
 def row_cloud(reader, line, cells, rel):
@@ -39,7 +39,7 @@ def row_cloud(reader, line, cells, rel):
                            line, "xs")
     if "profile" in reader.idx and "cloud" in reader.idx:
         raise DatasetError(reader.file, "a row names a profile or a cloud, not both", line, "cloud")
-    points = read_points(reader.folder, rel, reader.file, line, reader.limits["sensor_mm"], minimum=1, axes="xyz")
+    points = read_cloud(reader.folder, rel, reader.file, line, reader.limits["sensor_mm"])
     diameter = reader.st.diameter
     try:
         fit = sphere_cloud.fit_cloud(points, None if diameter is None else diameter / 2)

@@ -260,18 +260,26 @@ def _points_fast(pfile, limit, axes="xz"):
     return pts
 
 
-def read_points(folder, rel, file, row, limit, minimum=3, axes="xz"):
-    """Points (K, 2) of a profile CSV with header ``x,z`` (sensor x, z, mm), or (K, 3) of a cloud's
-    with header ``x,y,z`` (``axes="xyz"``: sensor frame, mm); errors name the file, row and column.
+def read_cloud(folder, rel, file, row, limit):
+    """Points (K, 3) of a point cloud's CSV with header ``x,y,z`` (sensor frame, mm), read and checked as
+    :func:`read_points` reads a profile's (the ``cloud`` column's file)."""
+    pfile = _inside(folder, rel, file, row, "cloud")
+    pts = _points_fast(pfile, limit, "xyz")
+    return pts if pts is not None else _points_careful(pfile, file, row, limit, "xyz")
+
+
+def read_points(folder, rel, file, row, limit, minimum=3):
+    """Points (K, 2) of a profile CSV with header ``x,z`` (sensor x, z, mm); errors name the
+    profile file, row and column.
 
     ``rel`` is the path named in ``file`` (``measurements.csv``) on line ``row``; it must lie
     inside ``folder``: what the dataset's hash covers is what it reads. Coordinates beyond
     ``limit`` (mm) are refused; fewer than ``minimum`` points too (a circle needs 3).
     """
-    pfile = _inside(folder, rel, file, row, "profile" if axes == "xz" else "cloud")
-    pts = _points_fast(pfile, limit, axes)
+    pfile = _inside(folder, rel, file, row)
+    pts = _points_fast(pfile, limit)
     if pts is None:
-        pts = _points_careful(pfile, file, row, limit, axes)
+        pts = _points_careful(pfile, file, row, limit)
     if len(pts) < minimum:
         what = "a circle needs" if minimum >= 3 else "a profile needs"
         raise DatasetError(pfile, f"{what} at least {minimum} point{'s' if minimum > 1 else ''}, got {len(pts)}")
