@@ -364,6 +364,14 @@ _DATASET_NEW = (
         help="Profile files (many: a shell glob as `--profiles scans/*.yml` gives them all), a quoted glob "
              "(`'scans/*.yml'`) or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose; every word up to "
              "the next option is one, so give OUT first."),
+    Opt('--clouds', (), action='extend', nargs='+', metavar='PATH',
+        help="Instead of --profiles, a 3-D sensor's point cloud of the sphere per pose (x, y, z in the sensor frame; the "
+             "same files, globs and folders, PLY, PCD, npy, CSV): the sphere is fitted to each "
+             "(:mod:`handeye.model.datasets.cloud_rows`), its radius held at --diameter / 2 or, without it, free."),
+    Opt('--centres', metavar='FILE',
+        help="Instead of --profiles, the sphere centre a 3-D sensor reported per pose: a table of xs,ys,zs (or x,y,z; "
+             "sensor frame, mm) with an optional id, paired by id or order; no --diameter needed.",
+        kind='path'),
     Opt('--convention', check=ONE_OF, choices=tuple(CONVENTIONS),
         help="Of a headerless pose file, and of the dataset (named columns are converted to it); default the file's, abb for a"
              " bag."),
@@ -371,12 +379,13 @@ _DATASET_NEW = (
     Opt('--units', 'mm', check=ONE_OF, choices=('mm', 'm'), help='Positions of the pose file.'),
     Opt('--angles', check=ONE_OF, choices=('deg', 'rad'),
         help="units of the pose angles (default the convention's: degrees, radians for ur)"),
-    Opt('--profile-units', check=ONE_OF, choices=('mm', 'm'), help="Profile coordinates (default mm; a bag's are metres)."),
+    Opt('--profile-units', check=ONE_OF, choices=('mm', 'm'),
+        help="Profile, cloud and centre coordinates (default mm; a bag's are metres)."),
     Opt('--profile-axes', metavar='X,Z',
         help="``X,Z``: the profile files' axes that are handeye's sensor x and z (``y,-x``); default found from the data "
              "(:mod:`handeye.app.ingest.plane`)."),
     Opt('--diameter', check=('number', 0.0, 10_000.0, True), type='float', metavar='MM',
-        help='sphere diameter, mm (required unless --setup gives it)'),
+        help='sphere diameter, mm (required with profiles unless --setup gives it; with --clouds it holds their radius)'),
     Opt('--setup', metavar='SETUP.toml',
         help='An existing ``setup.toml`` whose ``[sphere] diameter``, ``center`` and ``mount``, ``[profile] side``, '
              '``[sensor] start_pose`` and ``mount``, ``[positioner] axes`` and ``[robot] convention`` and ``model`` fill '

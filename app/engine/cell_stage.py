@@ -219,7 +219,7 @@ def final_residuals(dataset, result, fitted):
     """The residual table and its statistics at the cell fit (every sample, in the sphere mount's frame;
     the leave-one-out errors stay the conditional fit's)."""
     data = dataclasses.replace(dataset, mounts=dataset.mounts.at(fitted.axes)) if fitted.axes else dataset
-    corrected = corrected_centres(data.centre_in_sensor, data.sphere_diameter / 2, fitted.params)[0]
+    corrected = corrected_centres(data.centre_in_sensor, data.sphere_radius_mm, fitted.params)[0]
     xs = np.column_stack([corrected, np.ones(len(data))])
     e = (data.motions() @ fitted.sensor @ xs[..., None])[:, :3, 0] - fitted.centre
     norms, used = np.linalg.norm(e, axis=1), mask_of(result)

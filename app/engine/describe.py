@@ -68,7 +68,7 @@ def _noise_model_text(local):
     if local.whiten is None:
         weights = "independent components with one common variance sigma^2, estimated as SSR/(m - p)"
     else:
-        weights = ("each row whitened by its covariance (circle fit + robot repeatability); sigma_scale, estimated as "
+        weights = ("each row whitened by its covariance (circle or sphere fit + robot repeatability); sigma_scale, estimated as "
                    "sqrt(SSR/(m - p)), should be near 1 and scales the covariance")
     return (f"residual: {rows}; {weights}; covariance sigma^2 (J^T J)^-1 on the local chart "
             "(rotation about the sensor's axes)")
@@ -232,7 +232,7 @@ def _fit_with_effects(final, prob, structure):
 def _named_effects(final, efit, std, stuck, centre_named):
     """The fitted effects as NamedEffect (with their 1 sd ``std``), the sphere centre's offset first
     when ``centre_named``."""
-    dataset, mask, radius = final.dataset, final.mask, final.dataset.sphere_diameter / 2
+    dataset, mask, radius = final.dataset, final.mask, final.dataset.sphere_radius_mm
     index = {n: k for k, n in enumerate(efit.names)}
     named = [NamedEffect(n, dict(zip(_effect_params(n, efit), efit.params[n].tolist())),
                          {p: _finite_or_none(std[index[f"{n}.{p}"]]) for p in _effect_params(n, efit)},
@@ -247,7 +247,7 @@ def _named_effects(final, efit, std, stuck, centre_named):
 def _effects_verdict(final, efit, base, stuck):
     """(converged, message) of the fit with effects: not converged when an effect is implausible
     (appended to the warnings: an official-looking calibration it is not) or the fit did not converge."""
-    names, radius = final.request.effects, final.dataset.sphere_diameter / 2
+    names, radius = final.request.effects, final.dataset.sphere_radius_mm
     circles = circles_shown(final.dataset, final.mask) if "sphere_radius" in names else None
     implausible = [why for n in names
                    if (why := catalogue.implausible(n, efit.params[n], radius, circles, _effect_params(n, efit)))]
@@ -311,7 +311,7 @@ def circles_shown(dataset, mask):
     centre without a profile ``sqrt(R^2 - ys^2)``, sd 0) -- ``(ids, r, sd)`` for
     :func:`handeye.model.effects.implausible`. Every profile counts, excluded or not (a gross
     error of the robot pose leaves its circle a circle of the sphere)."""
-    radius = dataset.sphere_diameter / 2
+    radius = dataset.sphere_radius_mm
     ids, r, sd = [], [], []
     profiles = dataset.profiles or (None,) * len(dataset)
     for k, (ident, pts) in enumerate(zip(dataset.ids, profiles)):
@@ -473,7 +473,7 @@ def _objective(local, final):
     residual = local.residual(final)
     ssr = float(residual @ residual)
     if weighted:
-        what = (f"{rows}, each whitened by its covariance (circle fit + robot repeatability): RMS of |W_i e_i| per "
+        what = (f"{rows}, each whitened by its covariance (circle or sphere fit + robot repeatability): RMS of |W_i e_i| per "
                 f"{per}, in units of its stated sd (about sqrt({local.m}) = {np.sqrt(local.m):.2f} when the noise is as "
                 "stated)")
         short = f"the weighted RMS per {per} (whitened {rows.split(' (')[0]})"

@@ -235,7 +235,7 @@ def _positioner_axes(run, fit, sigma):
 def _continuous(prob):
     """The catalogue's continuous candidates on these samples: data and centre effects, and the robot
     effects the dataset allows (joints given)."""
-    return [e.NAME for e in effects.catalogue() if e.KIND in ("data", "centre")
+    return [e.NAME for e in effects.catalogue() if (e.KIND in ("data", "centre") and effects.fittable(e.NAME, prob.d))
             or (e.KIND == "robot" and e.available(prob.d))]
 
 
@@ -353,7 +353,7 @@ def _swapped(run, structure, fit):
     search can take the wrong one of effects that span nearly the same: a line scanner's
     ``sensor_scale`` is, to first order, ``centre_scale`` plus a ``sphere_radius`` of R s."""
     prob, mask = run.prob, run.mask
-    order = [e.NAME for e in effects.catalogue() if e.KIND == "data"]
+    order = [e.NAME for e in effects.catalogue() if e.KIND == "data" and effects.fittable(e.NAME, prob.d)]
     for _ in range(len(order)):
         best, unit = None, fit.ssr / max(fit.m - fit.p, 1)
         for name in (n for n in structure.data_effects if n in order):

@@ -75,7 +75,7 @@ def corrected(dataset, params):
     """The dataset with its measured centres corrected by the effects ``params`` (name ->
     parameters, :func:`handeye.model.fit.cell.corrected_centres`), or None where a correction is not finite."""
     with np.errstate(all="ignore"):
-        xs = corrected_centres(dataset.centre_in_sensor, dataset.sphere_diameter / 2, params)[0]
+        xs = corrected_centres(dataset.centre_in_sensor, dataset.sphere_radius_mm, params)[0]
     if not np.all(np.isfinite(xs)):
         return None
     out = dataclasses.replace(dataset, centre_in_sensor=xs)

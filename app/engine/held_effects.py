@@ -105,7 +105,7 @@ def file_effects(doc, data):
             raise UnreadEffects(f"effect {name!r} parameters {str(given)[:60]} are not {', '.join(names)} as numbers") from None
         if not np.all(np.isfinite(values[name])):
             raise UnreadEffects(f"effect {name!r} has a parameter that is not finite")
-        why = catalogue.implausible(name, values[name], data.sphere_diameter / 2, names=keys)
+        why = catalogue.implausible(name, values[name], data.sphere_radius_mm, names=keys)
         if why is not None:
             raise UnreadEffects(why)
     return values, robot_free

@@ -338,6 +338,9 @@ def _planned_cell(v):
     if d.start_pose is None or d.sphere_centre is None:
         raise RequestError(f"--dataset {dataset}: its setup.toml needs a start_pose (the nominal sensor pose) and "
                            "a sphere center to plan around")
+    if d.sphere_diameter is None:
+        raise RequestError(f"--dataset {dataset}: its setup.toml needs [sphere] diameter to plan: the plan simulates the "
+                           "laser line cutting the sphere")
     setup = dataclasses.replace(setup, sensor_pose=tuple(d.start_pose), diameter=d.sphere_diameter, side=d.side)
     return setup, d.sphere_centre, d.convention, d.mounts, d
 

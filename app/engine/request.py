@@ -309,6 +309,9 @@ def _robot_effects_possible(effects, dataset):
     """Raise CalibrationInputError when a robot effect is asked of a dataset that cannot show it."""
     from handeye.model import effects as catalogue
 
+    for name in (n for n in effects if not catalogue.fittable(n, dataset)):
+        raise CalibrationInputError(f"--effects {name} needs [sphere] diameter in {dataset.path / 'setup.toml'}: it "
+                                    "corrects centres rebuilt from a laser line by the sphere's radius")
     for name in (n for n in effects if catalogue.get(n).KIND == "robot" and not catalogue.get(n).available(dataset)):
         if dataset.joints is not None and dataset.robot_model is not None:
             raise CalibrationInputError(

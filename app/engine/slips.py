@@ -389,10 +389,13 @@ def check_equator(dataset, unknowns="sensor"):
     calibration. Rows on both sides (a sensor that measures y itself) and
     rows whose side the rest of the data settle pass.
     """
+    if dataset.sphere_diameter is None:  # no profiles: every centre measured in 3-D, its y too
+        return
     p = dataset.centre_in_sensor
     y = p[:, 1]
     radius = dataset.sphere_diameter / 2
     near = np.abs(y) < EQUATOR_BAND * radius
+    near &= np.array([c is None for c in (getattr(dataset, "clouds", None) or (None,) * len(y))])  # a cloud's y is measured
     if not near.any() or not (np.all(y <= 0) or np.all(y >= 0)):
         return
     centre = None if unknowns == "sensor+sphere" else dataset.sphere_centre

@@ -12,11 +12,12 @@ from handeye.app.common import options
 from handeye.app.common.files import tool_version, write_folder_atomically
 from handeye.app.ingest import mounts, sources, writer
 from handeye.app.ingest.pairing import pair
-from handeye.app.ingest.poses import read_joints, read_poses
+from handeye.app.ingest.poses import read_centres, read_joints, read_poses
 from handeye.app.ingest.request import MODEL_FILE, NewDatasetRequest
 from handeye.app.present.protocol import ResultProtocol
 from handeye.model.chain import conventions
 from handeye.model.datasets.dataset import load
+from handeye.model.geometry import sphere_cloud
 from handeye.model.readers.tables import DatasetError
 
 
@@ -49,9 +50,32 @@ class NewDatasetResult(ResultProtocol):
         The calibration to run next.
     side : int
         ``[profile] side`` written: ``side`` given in the profiles' frame, in handeye's.
+    measured : {'profiles', 'clouds', 'centres'}
+        What the sensor gave per pose (``--profiles``, ``--clouds``, ``--centres``).
+    clouds : dict or None
+        With ``--clouds``, what their sphere fits say: ``radius`` (held or free), ``diameter_mm`` (``mean``, ``sd``,
+        ``min``, ``max`` of the fitted diameters, radius free), ``centre_sd_mm`` (the median over poses of a
+        centre's largest sd from its fit), ``points_dropped`` (id -> points cleaned off the sphere).
     """
 
     caption = "handeye dataset new"
+
+    def _measured_lines(self):
+        """The summary's lines of what the sensor gave: profiles or clouds (formats, rows dropped, the clouds' fits), or
+        the centres' table."""
+        if self.measured == "centres":
+            return [f"  centres   {self.inputs['centres']['file']} ({self.inputs['centres']['rows']} rows, sensor frame)"]
+        fmts = ", ".join(f"{n} {f}" for f, n in self.inputs[self.measured].items())
+        lines = [f"  {self.measured:<9} {fmts}; {sum(self.dropped.values())} NaN/inf rows dropped in {len(self.dropped)} "
+                 f"{self.measured}"]
+        if self.clouds:
+            c, cut = self.clouds, self.clouds["points_dropped"]
+            d = c.get("diameter_mm")
+            size = (f"fitted diameters {d['mean']:.4f} mm, sd {d['sd']:.2g} mm (range {d['min']:.4f}-{d['max']:.4f})" if d
+                    else "radius held at the stated diameter's")
+            lines.append(f"  spheres   {size}; centre sd {c['centre_sd_mm']:.2g} mm (median); {sum(cut.values()):,} points "
+                         f"cleaned off the sphere in {len(cut)} clouds")
+        return lines
 
     path: pathlib.Path
     ids: tuple
@@ -64,13 +88,15 @@ class NewDatasetResult(ResultProtocol):
     pairing: str
     next_command: str
     side: int = -1
+    measured: str = "profiles"
+    clouds: dict | None = None
 
     def to_dict(self):
         return {"path": str(self.path), "measurements": len(self.ids), "ids": list(self.ids),
                 "convention": self.convention, "inputs": self.inputs, "conversions": list(self.conversions),
                 "plane": self.plane, "rotation": None if self.rotation is None else np.asarray(self.rotation).tolist(),
                 "dropped_nonfinite": dict(self.dropped), "pairing": self.pairing, "side": self.side,
-                "next": self.next_command}
+                "measured": self.measured, "clouds": self.clouds, "next": self.next_command}
 
     def summary(self):
         src = self.inputs.get("poses") or self.inputs.get("bag")
@@ -82,9 +108,7 @@ class NewDatasetResult(ResultProtocol):
             c = src["counts"]
             lines.append(f"  bag       {src['path']}: {c['poses']} poses ({src['types'][0]}), {c['profiles']} profiles "
                          f"({src['types'][1]}), {c['unmatched']} without a pose within {c['max_dt_s']:g} s")
-        fmts = ", ".join(f"{n} {f}" for f, n in self.inputs["profiles"].items())
-        lines.append(f"  profiles  {fmts}; {sum(self.dropped.values())} NaN/inf rows dropped in {len(self.dropped)} "
-                     "profiles")
+        lines += self._measured_lines()
         if self.inputs.get("skipped"):
             n = len(self.inputs["skipped"])
             lines.append(f"  skipped   {n} file{'s' if n > 1 else ''} of the folders that {'are' if n > 1 else 'is'} no profile: "
@@ -124,6 +148,9 @@ class _Read:
         The line (or JSON item) of each pose in the pose file (None: a bag).
     angles : ndarray (N, k) or None
         The positioner's axis angles of each pose, degrees (``--sphere-mount positioner``).
+    centres : ndarray (N, 3) or None
+        The sphere centre the sensor reported at each pose (``--centres``), sensor frame, mm; then
+        ``profiles`` is None.
     """
 
     ids: list
@@ -137,12 +164,17 @@ class _Read:
     joints: np.ndarray | None
     lines: tuple | None = None
     angles: np.ndarray | None = None
+    centres: np.ndarray | None = None
 
 
 def _from_files(req):
-    """Poses and profiles from loose files, paired."""
+    """Poses and profiles (or clouds, or reported centres) from loose files, paired."""
     table = read_poses(req.poses, req.convention, req.columns, req.units, req.angles, req.accept_frames)
+    if req.measured == "centres":
+        return _with_centres(req, table)
     profiles, skipped = sources.read_profiles(req.profiles, req.profile_units)
+    if req.measured == "clouds":
+        sources.check_clouds(profiles)
     try:
         index, ids, how = pair([p.label for p in profiles], [p.name for p in profiles], table.ids, len(table.values),
                                str(table.file), req.pairing)
@@ -154,8 +186,7 @@ def _from_files(req):
     per_pose = [None] * len(ids)  # pair gave every pose one profile
     for p, k in zip(profiles, index):
         per_pose[k] = p
-    inputs = {"poses": {"file": str(table.file), "format": table.format, "columns": list(table.columns),
-                        "source_convention": table.source, "units": req.units, "angles": req.angles or "the convention's"}}
+    inputs = _inputs(req, table)
     if skipped:
         inputs["skipped"] = {f: why for f, why in skipped}
     roles = [("poses", f, table.format) for f in (table.file, *table.companions)]
@@ -166,6 +197,28 @@ def _from_files(req):
     return _Read(ids, table.values, table.convention, per_pose, inputs, mounts.notes(notes, req.cell), how, roles,
                  _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints,
                  table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)))
+
+
+def _inputs(req, table):
+    """What ``--poses`` was read as (:class:`NewDatasetResult`'s ``inputs['poses']``)."""
+    return {"poses": {"file": str(table.file), "format": table.format, "columns": list(table.columns),
+                      "source_convention": table.source, "units": req.units, "angles": req.angles or "the convention's"}}
+
+
+def _with_centres(req, table):
+    """The poses with the centre the sensor reported at each (``--centres``: by id where both files have ids, else
+    by order), as :class:`_Read`."""
+    ids_c, values, lines = read_centres(req.centres)
+    centres = _by_pose(req.centres, (ids_c, values, lines), table, "sphere centre") * (1000.0 if req.profile_units == "m"
+                                                                                    else 1.0)
+    ids = list(table.ids) if table.ids is not None else [str(k) for k in range(1, len(table.values) + 1)]
+    how = "by id" if ids_c is not None and table.ids is not None else "by order"
+    inputs = {**_inputs(req, table), "centres": {"file": str(req.centres), "rows": len(values)}}
+    roles = [("poses", f, table.format) for f in (table.file, *table.companions)] + [("centres", req.centres, "table")]
+    notes = list(table.notes) + (["centres m -> mm"] if req.profile_units == "m" else [])
+    return _Read(ids, table.values, table.convention, None, inputs, mounts.notes(notes, req.cell), how, roles,
+                 _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints,
+                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)), centres)
 
 
 def _from_bag(req):
@@ -190,20 +243,27 @@ def _joints(file, table):
     else by order)."""
     if file is None:
         return None
-    ids, values, _ = read_joints(file)
+    return _by_pose(file, read_joints(file), table, "joint angles")
+
+
+def _by_pose(file, found, table, what):
+    """The rows ``found`` (``(ids or None, values (n, k), lines)`` of ``file``) in the order of the poses of ``table``:
+    by id when both files have ids, else by order; a pose without a row, or counts that differ, named."""
+    ids, values, _ = found
     if ids is not None and table.ids is not None:
         where = {i: k for k, i in enumerate(ids)}
         missing = [i for i in table.ids if i not in where]
         if missing:
-            raise DatasetError(file, f"no joint angles for pose {missing[0]!r}")
+            raise DatasetError(file, f"no {what} for pose {missing[0]!r}")
         return values[[where[i] for i in table.ids]]
     if len(values) != len(table.lines):
-        raise DatasetError(file, f"{len(values)} rows of joint angles for {len(table.lines)} poses")
+        raise DatasetError(file, f"{len(values)} rows of {what} for {len(table.lines)} poses")
     return values
 
 
 @options.COMMANDS["dataset new"].documented
-def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, units="mm", angles=None,
+def new_dataset(out, *, poses=None, profiles=(), clouds=(), centres=None, convention=None, columns=None, units="mm",
+                angles=None,
                 profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, sensor_mount=None,
                 sphere_mount=None, positioner_axes=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
@@ -224,38 +284,62 @@ def new_dataset(out, *, poses=None, profiles=(), convention=None, columns=None, 
     """
     req = NewDatasetRequest.from_options(options.COMMANDS["dataset new"].given(locals()))
     read = _from_files(req) if req.bag is None else _from_bag(req)
+    plane, rotation, side = _plane(req, read)
+    start_pose = req.start_pose(read.convention, rotation)
+    result = NewDatasetResult(
+        path=pathlib.Path(out), ids=tuple(read.ids), convention=read.convention, inputs=read.inputs,
+        conversions=tuple(read.notes), plane=plane, rotation=rotation,
+        dropped={i: p.dropped for i, p in zip(read.ids, read.profiles or ()) if p.dropped}, pairing=read.pairing,
+        next_command=f"handeye calibrate {out}" + (" --unknowns sensor+sphere" if req.center is None else ""), side=side,
+        measured=req.measured)
+    files, rels = _files(result, read, req, start_pose)
+    poses = None if read.lines is None else (read.roles[0][1], read.lines)
+    loaded = _write_checked(out, files, {rel: (p.label, i) for rel, p, i in zip(rels, read.profiles or (), result.ids)},
+                            poses)
+    return dataclasses.replace(result, clouds=_cloud_fits(loaded)) if req.measured == "clouds" else result
+
+
+def _plane(req, read):
+    """``(plane, rotation, side)``: how the profiles' laser plane was mapped (:mod:`handeye.app.ingest.plane`), the
+    turn ``R`` (None: none) and ``[profile] side`` in handeye's frame; clouds and centres are 3-D, kept as they are."""
+    if read.profiles is None or req.measured == "clouds":
+        if read.profiles is not None:
+            read.inputs["clouds"] = sources.formats(read.profiles)
+        return f"{req.measured}: 3-D, in the sensor frame as given (no laser plane)", None, req.side
     mapping = sources.map_to_plane(read.profiles, req.diameter, req.profile_axes,
                                    "--profile-units" if req.bag is None else "the bag's profile topic")
-    rotation = None if mapping.identity else mapping.rotation
-    start_pose = req.start_pose(read.convention, rotation)
     read.inputs["profiles"] = sources.formats(read.profiles)
     side = req.side if req.side_from == "setup" else mapping.side(req.side)
     if side != req.side:
         given = "the default --side" if req.side_from == "default" else "--side"
         read.notes.append(f"{given} {req.side:+d} (the profiles' {mapping.normal}) is side {side:+d} in handeye's y")
-    result = NewDatasetResult(
-        path=pathlib.Path(out), ids=tuple(read.ids), convention=read.convention, inputs=read.inputs,
-        conversions=tuple(read.notes), plane=mapping.describe(), rotation=rotation,
-        dropped={i: p.dropped for i, p in zip(read.ids, read.profiles) if p.dropped}, pairing=read.pairing,
-        next_command=f"handeye calibrate {out}" + (" --unknowns sensor+sphere" if req.center is None else ""), side=side)
-    files, rels = _files(result, read, req, start_pose)
-    poses = None if read.lines is None else (read.roles[0][1], read.lines)
-    _write_checked(out, files, {rel: (p.label, i) for rel, p, i in zip(rels, read.profiles, result.ids)}, poses)
-    return result
+    return mapping.describe(), None if mapping.identity else mapping.rotation, side
+
+
+def _cloud_fits(dataset):
+    """What the sphere fits of a loaded dataset's clouds say (:class:`NewDatasetResult`'s ``clouds``)."""
+    fits = dataset.clouds or ()
+    spread = sphere_cloud.diameter_spread(fits)
+    out = {"radius": "held at the stated diameter's" if dataset.sphere_diameter is not None else "free (fitted)",
+           "centre_sd_mm": float(np.median([np.sqrt(np.max(np.diag(f.covariance))) for f in fits])),
+           "points_dropped": {i: f.n_dropped for i, f in zip(dataset.ids, fits) if f.n_dropped}}
+    if spread is not None:
+        out["diameter_mm"] = dict(zip(("mean", "sd", "min", "max"), spread))
+    return out
 
 
 def _files(result, read, req, start_pose):
     """``(files, rels)``: relative path -> text of every file of the dataset, and each measurement's
-    profile path."""
-    taken = set()
-    rels = [f"profiles/{writer.safe_name(ident, taken)}.csv" for ident in result.ids]
-    files = {rel: writer.profile_text(p.xz) for rel, p in zip(rels, read.profiles)}
+    profile (or cloud) path; none with reported centres."""
+    taken, folder = set(), "clouds" if req.measured == "clouds" else "profiles"
+    rels = [f"{folder}/{writer.safe_name(ident, taken)}.csv" for ident in result.ids] if read.profiles else []
+    files = {rel: writer.points_text(p.points if req.measured == "clouds" else p.xz) for rel, p in zip(rels, read.profiles or ())}
     head = {"tool": "handeye dataset new", "version": tool_version(),
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     sections = {"options": req.options, "inputs": dict(result.inputs), "conversions": {"made": list(result.conversions)},
                 "plane": {"mapping": result.plane, "rotation_handeye_from_file": None if result.rotation is None
                           else np.asarray(result.rotation).tolist()},
-                "pairing": {"method": result.pairing, "pairs": {i: p.label for i, p in zip(result.ids, read.profiles)}},
+                "pairing": {"method": result.pairing, "pairs": {i: p.label for i, p in zip(result.ids, read.profiles or ())}},
                 "dropped_nonfinite": dict(result.dropped)}
     extra = [(r, getattr(req, r), "table" if r == "joints" else "TOML") for r in ("joints", "setup")
              if getattr(req, r) is not None]
@@ -264,7 +348,8 @@ def _files(result, read, req, start_pose):
         extra.append(("robot model", req.robot_file[0], "TOML"))
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(read.roles + extra)]
-    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, rels, read.joints,
+    measured = (req.measured, read.centres if req.measured == "centres" else rels)
+    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, measured, read.joints,
                                                          (req.cell.names, read.angles))
     files["setup.toml"] = writer.setup_text(result, req, start_pose)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
@@ -286,16 +371,20 @@ def _write_checked(out, files, sources, poses=None):
     its pose id; ``poses``: the pose file and each measurement's line in it), never a file of the
     folder, which is not written."""
 
+    loaded = []
+
     def write(tmp):
-        (tmp / "profiles").mkdir()
+        for sub in {pathlib.Path(rel).parent for rel in files} - {pathlib.Path(".")}:
+            (tmp / sub).mkdir()
         for rel, text in files.items():
             (tmp / rel).write_text(text)
         try:
-            load(tmp)
+            loaded.append(load(tmp))
         except DatasetError as exc:
             raise _named(exc, tmp, out, sources, poses) from None
 
     write_folder_atomically(out, write, option="OUT")
+    return loaded[0]
 
 
 def _source(match, sources):
@@ -311,11 +400,12 @@ def _named(exc, tmp, out, sources, poses):
     where = pathlib.Path(exc.file).resolve()
     rel = where.relative_to(tmp.resolve()).as_posix() if where.is_relative_to(tmp.resolve()) else None
     problem = exc.problem.replace(" in setup.toml", " (--diameter)")  # the setup is the options' here
-    named = [sources[m] for m in re.findall(r"profiles/[^\s:;()]+\.csv", problem) if m in sources]
-    problem = re.sub(r"(profiles/[^\s:;()]+\.csv)( \(row \d+)?", lambda m: _source(m, sources), problem)
+    named = [sources[m] for m in re.findall(r"(?:profiles|clouds)/[^\s:;()]+\.csv", problem) if m in sources]
+    problem = re.sub(r"((?:profiles|clouds)/[^\s:;()]+\.csv)( \(row \d+)?", lambda m: _source(m, sources), problem)
     problem = f"the assembled dataset does not load: {problem}"
     if rel in sources:
-        return DatasetError(sources[rel][0], f"{problem} (its profile, as handeye wrote it)", None, exc.column)
+        what = "cloud" if rel.startswith("clouds/") else "profile"
+        return DatasetError(sources[rel][0], f"{problem} (its {what}, as handeye wrote it)", None, exc.column)
     if rel == "measurements.csv" and named:
         return DatasetError(named[0][0], problem, None, None)
     if rel == "measurements.csv" and poses is not None:

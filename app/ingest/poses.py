@@ -300,3 +300,33 @@ def read_joints(path):
     if np.max(np.abs(values)) <= math.pi + 1e-6 and np.ptp(values) > 0 and len(values) > 2:
         raise DatasetError(table.file, "every joint angle is within +-pi: radians, not degrees? convert them to degrees")
     return _ids(table, names), values, table.lines
+
+
+#: a ``--centres`` table's names of the centre's columns (before the pose-like ``x,y,z``)
+_CENTRE_NAMES = {"xs": "x", "ys": "y", "zs": "z"}
+
+
+def _centre_names(table):
+    """Canonical names (``id``, ``x``, ``y``, ``z`` or None) of a centres table's columns: ``xs,ys,zs`` where the
+    header has them (a pose file's own centre columns), else ``x,y,z``; without a header 3 numbers or an id and 3."""
+    if table.header is None:
+        width = len(table.rows[0])
+        if width not in (3, 4):
+            raise DatasetError(table.file, f"{width} numbers per row: a centre is x, y, z (or an id and x, y, z); name "
+                                           "the columns in a header (xs,ys,zs)", table.lines[0])
+        return ["x", "y", "z"] if width == 3 else ["id", "x", "y", "z"]
+    low = [str(h).strip().lower() for h in table.header]
+    if set(_CENTRE_NAMES) <= set(low):
+        return [_CENTRE_NAMES.get(h, "id" if canonical(h) == "id" else None) for h in low]
+    return [canonical(h) if canonical(h) in ("id", "x", "y", "z") else None for h in table.header]
+
+
+def read_centres(path):
+    """Sphere centres a 3-D sensor reported, one per pose (``--centres``): ``(ids or None, (N, 3) array, lines)``,
+    sensor frame in the file's units. Columns ``xs,ys,zs`` (else ``x,y,z``) and an optional ``id``; header optional."""
+    table = read_table(path, known_name=lambda c: canonical(c) is not None or str(c).strip().lower() in _CENTRE_NAMES)
+    names = _centre_names(table)
+    missing = [c for c in ("x", "y", "z") if c not in names]
+    if missing:
+        raise DatasetError(table.file, f"no column {missing[0]!r} (a sphere centre xs,ys,zs or x,y,z, sensor frame)", 1)
+    return _ids(table, names), _numbers(table, names, ("x", "y", "z")), table.lines

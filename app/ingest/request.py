@@ -62,15 +62,21 @@ class NewDatasetRequest:
     poses, joints, setup : path-like or None
         The pose file (None: a bag), the joint angles, the ``--setup`` file.
     profiles : tuple of (pathlib.Path, bool)
-        The ``--profiles`` files in pairing order, each with whether it was named or matched (False:
-        a folder's, which may hold files that are no profile).
+        The ``--profiles`` (or ``--clouds``) files in pairing order, each with whether it was named or
+        matched (False: a folder's, which may hold files that are no profile).
+    measured : {'profiles', 'clouds', 'centres'}
+        What the sensor gave per pose: laser profiles, point clouds of the sphere (``--clouds``) or
+        its centre (``--centres``).
+    centres : path-like or None
+        The ``--centres`` table.
     convention, angles : str or None
     columns : tuple or None
         ``--columns`` as canonical names (None for a column skipped).
     units, profile_units : str
     profile_axes : tuple or None
         ``--profile-axes`` as the files' ``(axis, sign)`` of handeye's x and of its z.
-    diameter : float
+    diameter : float or None
+        None only without profiles (``--clouds``: their radius fitted; ``--centres``).
     side : int
         ``--side`` in the profiles' frame (default -1), or the setup's, in handeye's frame already.
     side_from : {'option', 'default', 'setup'}
@@ -103,7 +109,7 @@ class NewDatasetRequest:
     angles: str | None
     profile_units: str
     profile_axes: tuple | None
-    diameter: float
+    diameter: float | None
     side: int
     side_from: str
     center: list | None
@@ -123,14 +129,15 @@ class NewDatasetRequest:
     accept_frames: bool
     options: dict
     cell: mounts.Cell = mounts.Cell()
+    measured: str = "profiles"
+    centres: object = None
 
     @classmethod
     def from_options(cls, given):
         """The request of ``given``, the keywords :func:`~handeye.app.ingest.command.new_dataset`
         was called with; raises :class:`~handeye.app.common.errors.RequestError` naming the option (a
         bad value of the ``--setup`` file: :class:`~handeye.model.readers.tables.DatasetError`)."""
-        profiles = given["profiles"]
-        v = {**given, "profiles": [profiles] if isinstance(profiles, (str, pathlib.Path)) else list(profiles or ())}
+        v = {**given, **{k: _listed(given.get(k)) for k in ("profiles", "clouds")}}
         check_output_folder(v["out"], "OUT", empty=True)
         found, start_axes = _from_setup(v["setup"], start_given=v["start"] is not None)
         side_from = "option" if v["side"] is not None else "setup" if found.get("side") is not None else "default"
@@ -141,8 +148,10 @@ class NewDatasetRequest:
         if v["bag"] is not None:
             _bag_checked(v["bag"])
         robot, robot_file = _robot(v["robot"])
+        measured = "clouds" if v["clouds"] else "centres" if v["centres"] is not None else "profiles"
         resolved = {
-            "profiles": tuple(expand(v["profiles"], [v[k] for k in ("poses", "joints", "setup")])),
+            "profiles": tuple(expand(v["clouds"] or v["profiles"], [v[k] for k in ("poses", "joints", "setup", "centres")],
+                                     "--clouds" if v["clouds"] else "--profiles")), "measured": measured,
             "columns": None if v["columns"] is None else _columns(v["columns"]), "profile_units": v["profile_units"] or "mm",
             "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
             "center": numbers(v["center"], "--center", 3), "robot": robot, "robot_file": robot_file,
@@ -162,15 +171,27 @@ class NewDatasetRequest:
         return conventions.pose_from(convention, own_frame.to_own(matrix, rotation))
 
 
+def _listed(value):
+    """``--profiles`` / ``--clouds`` as a list (one path given as a string: a list of it)."""
+    return [value] if isinstance(value, (str, pathlib.Path)) else list(value or ())
+
+
 def _together(v):
     """Options that do not go together, and options that others need."""
     poses, bag, joints, robot = (v[key] is not None for key in ("poses", "bag", "joints", "robot"))
+    given = [flag for flag, key in (("--profiles", "profiles"), ("--clouds", "clouds"), ("--centres", "centres"))
+             if v[key] not in (None, [])]
     for refused, text in (
             (poses and bag, "--poses and --bag: give one of them (the bag's --pose-topic has the poses)"),
             (not poses and not bag, "give the poses: --poses FILE, or --bag PATH with --pose-topic and --profile-topic"),
-            (poses and not v["profiles"], "--poses needs --profiles FILES|GLOB|DIR (the laser profile of each pose)"),
-            (bag and v["profiles"], "--profiles and --bag: the bag's --profile-topic gives the profiles; give one of them"),
-            (v["diameter"] is None, "--diameter MM is required: the sphere's diameter from its certificate, mm"),
+            (len(given) > 1, f"{' and '.join(given)}: give one of them (what the sensor measured per pose)"),
+            (poses and not given, "--poses needs --profiles FILES|GLOB|DIR (the laser profile of each pose), --clouds (a "
+                                  "3-D sensor's point cloud of the sphere) or --centres FILE (the centres it reported)"),
+            (bag and given, f"{given[0] if given else ''} and --bag: the bag's --profile-topic gives the profiles; give one of "
+                            "them"),
+            (v["diameter"] is None and (bag or "--profiles" in given),
+             "--diameter MM is required with profiles: the sphere's diameter from its certificate, mm (their centres are "
+             "rebuilt from it)"),
             (joints and bag, "--joints with --bag: a bag's joint states are not read; give --poses and --profiles files"),
             (joints and not robot, "--joints needs --robot MODEL (the nominal kinematics the loader checks them against)"),
             (bag and not (v["pose_topic"] and v["profile_topic"]), "--bag needs --pose-topic and --profile-topic")):
@@ -226,26 +247,26 @@ def _match(pattern):
     return pattern
 
 
-def expand(specs, exclude=()):
+def expand(specs, exclude=(), option="--profiles"):
     """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
     pairs, natural order within each argument, argument order kept; ``listed`` is False for a
     folder's files (which may hold other files too). A folder's hidden files and subfolders, and
-    the files in ``exclude`` (the pose file, ...), are left out."""
+    the files in ``exclude`` (the pose file, ...), are left out; errors name ``option``."""
     skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
     out = []
     for spec in specs:
         p = pathlib.Path(spec)
         try:
-            files, where = _files_of(spec, p, skip)
+            files, where = _files_of(spec, p, skip, option)
         except OSError as exc:  # a folder that cannot be listed (permissions): bad input, named
-            raise RequestError(f"--profiles {spec}: cannot be read: {exc.strerror or exc}") from None
+            raise RequestError(f"{option} {spec}: cannot be read: {exc.strerror or exc}") from None
         if not files:
-            raise RequestError(f"--profiles: {where} has no files")
+            raise RequestError(f"{option}: {where} has no files")
         out += [(f, not p.is_dir()) for f in sorted(files, key=lambda f: natural_key(f.name))]
     return out
 
 
-def _files_of(spec, p, skip):
+def _files_of(spec, p, skip, option="--profiles"):
     """``(files, where)`` of one ``--profiles`` argument (unsorted); OSError where a folder cannot be
     listed."""
     if p.is_dir():
@@ -255,7 +276,7 @@ def _files_of(spec, p, skip):
         return [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()], f"pattern {spec!r}"
     if p.is_file():
         return [p], spec
-    raise RequestError(f"--profiles {spec}: no such file or folder")
+    raise RequestError(f"{option} {spec}: no such file or folder")
 
 
 def _robot(robot):

@@ -78,6 +78,14 @@ def _profile(label, name, file, fmt, pts, units):
     return Profile(label, name, file, fmt, finite * (1000.0 if units == "m" else 1.0), dropped)
 
 
+def check_clouds(clouds):
+    """Every file of ``--clouds`` holds a 3-D cloud: a 2-column file is a laser profile (x, z), named."""
+    for c in clouds:
+        if c.points.shape[1] != 3:
+            raise DatasetError(c.label, "2 columns (x, z): a laser profile, not a point cloud of the sphere (x, y, z); give "
+                                        "profiles with --profiles")
+
+
 def bag_profiles(clouds_mm, topic):
     """Profiles of a bag's clouds (K, 3), mm, named by their order on the topic."""
     return [_profile(f"{topic}[{k}]", str(k), None, "ROS 2 bag", pts, "mm") for k, pts in enumerate(clouds_mm, 1)]

@@ -27,26 +27,34 @@ def safe_name(ident, taken):
     return name
 
 
-def measurements_text(ids, values, convention, profile_paths, joints=None, axes=((), None)):
-    """``measurements.csv``: id, the convention's pose columns, empty ``xs,ys,zs``, [the positioner's
-    axis columns,] [j1..j6,] profile; ``axes``: the axis names and their angles (N, k), degrees."""
+def measurements_text(ids, values, convention, measured, joints=None, axes=((), None)):
+    """``measurements.csv``: id, the convention's pose columns, ``xs,ys,zs`` (the centres reported, or empty),
+    [the positioner's axis columns,] [j1..j6,] [profile or cloud]; ``measured``: ``(what, rels)``, ``what``
+    ``'profiles'`` or ``'clouds'`` (the column ``profile`` or ``cloud`` of the files ``rels``), or ``('centres',
+    (N, 3) mm)``; ``axes``: the axis names and their angles (N, k), degrees."""
     names, angles = axes
+    what, rels = measured
+    centres = rels if what == "centres" else None
+    column = [] if centres is not None else ["cloud" if what == "clouds" else "profile"]
     buffer = io.StringIO()
     out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted
     out.writerow(["id", *conventions.columns(convention), "xs", "ys", "zs", *names,
-                  *(JOINTS if joints is not None else ()), "profile"])
-    for k, (ident, pose, path) in enumerate(zip(ids, values, profile_paths)):
-        row = [str(ident), *(f"{v:.10g}" for v in pose), "", "", ""]
+                  *(JOINTS if joints is not None else ()), *column])
+    for k, (ident, pose) in enumerate(zip(ids, values)):
+        row = [str(ident), *(f"{v:.10g}" for v in pose)]
+        row += [f"{v:.10g}" for v in centres[k]] if centres is not None else ["", "", ""]
         row += [f"{v:.10g}" for v in angles[k]] if angles is not None else []
         row += [f"{v:.6f}" for v in joints[k]] if joints is not None else []
-        out.writerow(row + [path])
+        out.writerow(row + ([rels[k]] if column else []))
     return buffer.getvalue()
 
 
-def profile_text(xz):
-    """A profile CSV: header ``x,z``, sensor x and z in mm."""
-    xz = np.asarray(xz, float)  # one format over every number at once: 4x the speed of a line per point
-    return "x,z\n" + ("%.6f,%.6f\n" * len(xz)) % tuple(xz.ravel().tolist())
+def points_text(points):
+    """A profile CSV (header ``x,z``: sensor x and z) of points (K, 2), or a cloud's (header ``x,y,z``) of (K, 3); mm."""
+    pts = np.asarray(points, float)  # one format over every number at once: 4x the speed of a line per point
+    head = "x,z\n" if pts.shape[1] == 2 else "x,y,z\n"
+    return head + ((",".join(["%.6f"] * pts.shape[1]) + "\n") * len(pts)) % tuple(pts.ravel().tolist())
+
 
 
 def _vec(v):
@@ -66,10 +74,11 @@ def setup_text(result, request, start=None):
     cell = mounts.setup_lines(request.cell)
     sensor = cell["sensor"] + ([f"start_pose = {_vec(start)}"] if start is not None else [])
     text += "[sensor]\n" + "".join(line + "\n" for line in sensor) + "\n" if sensor else ""
-    text += "[sphere]\n" + "".join(line + "\n" for line in cell["sphere"]) + f"diameter = {float(request.diameter)!r}\n"
+    diameter = f"diameter = {float(request.diameter)!r}\n" if request.diameter is not None else ""
+    text += "[sphere]\n" + "".join(line + "\n" for line in cell["sphere"]) + diameter
     text += f"center = {_vec(request.center)}\n" if request.center is not None else ""
     text += "\n[positioner]\n" + "".join(line + "\n" for line in cell["positioner"]) if cell["positioner"] else ""
-    text += f"\n[profile]\nside = {int(result.side)}\n"
+    text += f"\n[profile]\nside = {int(result.side)}\n" if result.measured == "profiles" else ""
     if result.rotation is not None:
         rows = ", ".join(_vec(np.round(np.asarray(r, float), 12) + 0.0) for r in result.rotation)
         text += ("# the profiles were turned from the sensor's own frame: p = R p_own (rows of R); every sensor\n"

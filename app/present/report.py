@@ -485,12 +485,17 @@ def cleaning_lines(report, limit=20):
     if not report["applied"]:
         return ["", "profile cleaning: off (--no-clean): every profile point is fitted",
                 *_bend_lines(report.get("bend"), report.get("profiles"))]
-    head = (f"profile cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
-            f"{len(report['samples'])} of {report['profiles']} profiles")
+    what = report.get("what", "profile")
+    head = (f"{what} cleaning: {report['dropped']:,} of {report['points']:,} points dropped on "
+            f"{len(report['samples'])} of {report['profiles']} {what}s")
+    sizes = report.get("diameters")
+    size = ([f"fitted sphere diameters (radius free): mean {sizes['mean']:.4f} mm, sd {sizes['sd']:.2g} mm, range "
+             f"{sizes['min']:.4f}-{sizes['max']:.4f} mm"] if sizes else [])
     if not report["dropped"]:
-        return ["", head + " (every point lies on its arc)", *_bend_lines(report.get("bend"), report["profiles"])]
+        return ["", head + f" (every point lies on its {'arc' if what == 'profile' else 'sphere'})", *size,
+                *_bend_lines(report.get("bend"), report["profiles"])]
     why = ", ".join(f"{name} {n:,}" for name, n in report["reasons"].items())
-    lines = ["", f"{head} ({why}; speckle, background or clusters, not the sphere):"]
+    lines = ["", f"{head} ({why}; speckle, background or clusters, not the sphere):", *size]
     for s in report["samples"][:limit]:
         parts = ", ".join(f"{name} {n:,}" for name, n in s["reasons"].items())
         lines.append(f"  {s['id']} (row {s['row']}): {s['dropped']:,} of {s['points']:,} dropped ({parts})"

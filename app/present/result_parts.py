@@ -15,6 +15,7 @@ import functools
 import numpy as np
 
 from handeye.model.fit import power
+from handeye.model.geometry.sphere_cloud import diameter_spread
 
 
 def _list(value):
@@ -376,7 +377,7 @@ def cleaning_summary(dataset):
         bend (:meth:`handeye.model.geometry.profile_bend.Bend.to_dict`; None with too few profiles).
     """
     if dataset.profiles is None:
-        return None
+        return _clouds_summary(dataset)
     bend = getattr(dataset, "bend", None)
     if dataset.cleaning is None:
         return {"applied": False, "profiles": sum(p is not None for p in dataset.profiles),
@@ -390,6 +391,21 @@ def cleaning_summary(dataset):
             "dropped": int(sum(c.n_dropped for _, _, c in records)), "reasons": reasons,
             "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped],
             "bend": None if bend is None else bend.to_dict()}
+
+
+def _clouds_summary(dataset):
+    """:func:`cleaning_summary` of a dataset's point clouds (:mod:`handeye.model.geometry.sphere_cloud`), with
+    ``what`` ``'cloud'`` and, their radius free, ``diameters`` (``mean``, ``sd``, ``min``, ``max``, mm); None without."""
+    fits = getattr(dataset, "clouds", None)
+    if fits is None:
+        return None
+    records = [(i, r, c) for i, r, c in zip(dataset.ids, dataset.rows, fits) if c is not None]
+    spread = diameter_spread(fits)
+    return {"applied": True, "what": "cloud", "profiles": len(records), "points": int(sum(c.n_points for *_, c in records)),
+            "dropped": int(sum(c.n_dropped for *_, c in records)),
+            "reasons": {"off the sphere": int(sum(c.n_dropped for *_, c in records))},
+            "samples": [{"id": i, "row": int(r), **c.to_dict()} for i, r, c in records if c.n_dropped], "bend": None,
+            "diameters": None if spread is None else dict(zip(("mean", "sd", "min", "max"), spread))}
 
 
 def user_poses(matrix, own_axes, convention):

@@ -14,9 +14,13 @@
     be empty and the centre is reconstructed as in the seed (C15, C16, 6-26, 6-27), but with
     the Hyper circle fit instead of the seed's biased Kasa fit (:mod:`handeye.model.geometry.circle`): centre
     ``(x_c, z_c)`` and radius r, then ``y = side * sqrt(R^2 - r^2)`` with R the sphere's radius.
+    ``cloud`` instead (a 3-D sensor): a CSV with header ``x,y,z``, the sphere's surface seen from
+    that pose (sensor frame, mm); ``xs, ys, zs`` are then empty, the centre is the sphere fitted to
+    it and carries the fit's covariance (:mod:`handeye.model.datasets.cloud_rows`).
 ``setup.toml``
     ``[sensor] start_pose`` (p2: six numbers; optional -- without it the calibration starts from
-    the closed-form estimate); ``[sphere] diameter`` (mm) and either
+    the closed-form estimate); ``[sphere] diameter`` (mm; needed only where a row has a profile: a
+    dataset of centres or clouds may leave it out, a cloud's radius is then fitted) and either
     ``center`` (three numbers, robot base) or ``base_pose`` (p3) with ``center_in_plate``
     (x_p'), or neither when the centre is to be estimated (``--unknowns sensor+sphere``);
     ``[profile] side`` (+1 or -1, default -1 as in the seed); optional ``[noise] centre_mm``
@@ -43,6 +47,7 @@ import numpy as np
 from handeye.model.chain import conventions
 from handeye.model.chain.mounts import Mounts, motions
 from handeye.model.chain.pose import transform_from_pose
+from handeye.model.datasets import cloud_rows
 from handeye.model.geometry import profile_bend
 from handeye.model.readers.setup_file import (  # noqa: F401  (the setup's names: public here too)
     LIMIT_SENSOR_MM,
@@ -64,7 +69,7 @@ from handeye.model.readers.tables import (  # noqa: F401  (read_pose_list, pose_
 from handeye.model.robot import configuration, robots
 from handeye.model.robot.robots import JOINTS
 
-OPTIONAL_COLUMNS = ("profile", "cfx")
+OPTIONAL_COLUMNS = ("profile", "cloud", "cfx")
 DATA_DIR = pathlib.Path(__file__).parent.parent / "data"
 
 
@@ -119,8 +124,9 @@ class Dataset(FlangePoses):
         Sphere centre in the sensor frame, mm.
     start_pose : ndarray, shape (6,), or None
         Start value of the sensor pose on the flange (p2), KUKA; None when the setup has none.
-    sphere_diameter : float
-        mm.
+    sphere_diameter : float or None
+        mm; None where the setup gives none (a dataset of centres or clouds: nothing on load needs
+        it; what does says so).
     sphere_centre : ndarray, shape (3,), or None
         Sphere centre in the robot base, mm (from ``center`` or ``T(p3) x_p'``); None when the
         setup gives neither (then only ``unknowns='sensor+sphere'`` can calibrate: the closed
@@ -190,6 +196,12 @@ class Dataset(FlangePoses):
     noise_stated : tuple of str
         The keys ``[noise]`` gives (``centre_mm``, ``robot_mm``): residuals far above a stated noise are
         structure the model lacks, not noise (:func:`handeye.app.engine.search.unexplained`).
+    clouds : tuple or None
+        Per measurement the :class:`handeye.model.geometry.sphere_cloud.CloudFit` of its point cloud (the
+        ``cloud`` column) or None; None when no row has a cloud.
+    centre_cov : ndarray, shape (N, 3, 3), or None
+        The covariance of each centre fitted to a cloud (sensor frame, mm^2; zero for other rows), what
+        weighs it (:func:`handeye.model.datasets.observations.profile_covariance`); None without clouds.
     """
 
     name: str
@@ -226,6 +238,14 @@ class Dataset(FlangePoses):
     not_arcs: tuple = ()
     bend: object = None
     noise_stated: tuple = ()
+    clouds: tuple | None = None
+    centre_cov: np.ndarray | None = None
+
+    @property
+    def sphere_radius_mm(self):
+        """``sphere_diameter / 2``, mm; NaN without a diameter (a dataset of centres or clouds: what needs the
+        radius -- a profile, an effect that rebuilds y from it -- is refused before, naming ``[sphere] diameter``)."""
+        return float("nan") if self.sphere_diameter is None else self.sphere_diameter / 2
 
     @functools.cached_property
     def _once(self):
@@ -260,6 +280,8 @@ class Dataset(FlangePoses):
             joints=None if self.joints is None else self.joints[mask],
             configuration=None if self.configuration is None else self.configuration[mask],
             bend=None if self.bend is None else self.bend.subset(mask),
+            clouds=None if self.clouds is None else tuple(c for c, k in zip(self.clouds, mask) if k),
+            centre_cov=None if self.centre_cov is None else self.centre_cov[mask],
         )
         for key in ("_flange2base", "_motions"):  # computed already: its rows, not a million poses again
             if key in self.__dict__ and not (key == "_motions" and self.mounts.default):
@@ -277,7 +299,7 @@ class Dataset(FlangePoses):
         robot and the positioner report) and ``ids``, ``rows`` (a row's id names its pose, as
         ``dataset new --pair id`` matches profile names to pose ids; its line is the pose's) --
         stays; the measurement side -- ``centre_in_sensor``, ``profiles``, ``raw_profiles``,
-        ``cleaning``, ``reconstructed``, ``bend`` (what the sensor reports) -- moves.
+        ``cleaning``, ``reconstructed``, ``bend``, ``clouds``, ``centre_cov`` (what the sensor reports) -- moves.
         """
         n, step = len(self), int(step)
         if step == 0 or abs(step) >= n:
@@ -290,7 +312,7 @@ class Dataset(FlangePoses):
         posed, m = self.subset(mask), self.subset(measured)
         out = dataclasses.replace(posed, centre_in_sensor=m.centre_in_sensor, profiles=m.profiles,
                                   raw_profiles=m.raw_profiles, cleaning=m.cleaning, reconstructed=m.reconstructed,
-                                  bend=m.bend)
+                                  bend=m.bend, clouds=m.clouds, centre_cov=m.centre_cov)
         for key in ("_flange2base", "_motions"):  # the pose side's, computed already: kept
             if key in posed.__dict__:
                 out.__dict__[key] = posed.__dict__[key]
@@ -401,13 +423,13 @@ def load_setup(name_or_path):
 def _read_rows(folder, st, limits, clean=True):
     """The rows of ``measurements.csv`` read and checked one by one (any file: profiles, blank
     lines, quoting); ``(ids, rows, poses, centres, profiles, reconstructed, profile_files, raw,
-    angles, raw_profiles, cleaning, problems)`` as lists (``angles``: the positioner axis columns of the setup
+    angles, raw_profiles, cleaning, clouds, problems)`` as lists (``angles``: the positioner axis columns of the setup
     ``st``, degrees; ``profiles`` cleaned when ``clean``, ``raw_profiles`` as read). Raises DatasetError
     naming file, row and column."""
     file = folder / "measurements.csv"
     table = read_table(file)
     reader = _RowReader(folder, file, st, limits, clean, *_header(table, file, st.convention, st.mounts.axis_names))
-    out = tuple([] for _ in range(12))
+    out = tuple([] for _ in range(13))
     seen = {}
     for line, fields in enumerate(table[1:], start=2):
         if any(f.strip() for f in fields):
@@ -423,14 +445,14 @@ def _header(table, file, convention, axes):
     if not table:
         raise DatasetError(file, "empty file; needs the header " + ",".join(required), 1)
     header = [h.strip() for h in table[0]]
-    centre_columns = not ("profile" in header and not any(c in header for c in ("xs", "ys", "zs")))
-    if not centre_columns:  # every row's centre from its profile: the columns may be left out
+    centre_columns = not (("profile" in header or "cloud" in header) and not any(c in header for c in ("xs", "ys", "zs")))
+    if not centre_columns:  # every row's centre from its profile or cloud: the columns may be left out
         required = tuple(c for c in required if c not in ("xs", "ys", "zs"))
     joints = JOINTS if any(h in JOINTS for h in header) else ()
     required += joints  # all six or none
     for col in header:
         if col not in required + OPTIONAL_COLUMNS:
-            raise DatasetError(file, f"unknown column (expected {','.join(required)}[,profile] for the "
+            raise DatasetError(file, f"unknown column (expected {','.join(required)}[,profile|cloud] for the "
                                      f"{convention} convention)", 1, col)
         if header.count(col) > 1:
             raise DatasetError(file, "duplicate column", 1, col)
@@ -456,7 +478,7 @@ class _RowReader:
 
     def row(self, line, fields, seen):
         """One row: ``(id, line, pose, centre, profile, reconstructed, profile file or None, raw pose, angles,
-        raw profile, cleaning record, why the profile is no arc or None)``."""
+        raw profile, cleaning record, cloud fit or None, why the profile is no arc or None)``."""
         file, idx, limits, convention = self.file, self.idx, self.limits, self.st.convention
         if len(fields) != len(idx):
             raise DatasetError(file, f"expected {len(idx)} fields, got {len(fields)}", line)
@@ -465,8 +487,16 @@ class _RowReader:
         raw = [float(fields[idx[c]]) for c in conventions.columns(convention)]  # read_pose checked them
         cells = [fields[idx[c]].strip() for c in ("xs", "ys", "zs")] if self.centre_columns else ["", "", ""]
         profile = fields[idx["profile"]].strip() if "profile" in idx else ""
+        cloud = fields[idx["cloud"]].strip() if "cloud" in idx else ""
+        if cloud:  # the sphere fitted to the row's cloud (cloud_rows)
+            xs, fit = cloud_rows.row_cloud(self, line, cells, cloud)
+            return (ident, line, pose, xs, None, False, (self.folder / cloud).resolve(), raw, self._angles(fields, line),
+                    None, None, fit, None)
         if not profile and not self.centre_columns:
-            raise DatasetError(file, "no profile: without xs,ys,zs columns every row needs one", line, "profile")
+            raise DatasetError(file, "no profile or cloud: without xs,ys,zs columns every row needs one", line,
+                               "profile" if "profile" in idx else "cloud")
+        if profile:
+            cloud_rows.needs_diameter(self, line)
         points = read_points(self.folder, profile, file, line, limits["sensor_mm"]) if profile else None
         raw_points, record, problem = points, None, None
         if profile and self.clean:
@@ -477,11 +507,16 @@ class _RowReader:
                 xs = self._centre(cells, profile, points, line)
             except NoCentre as exc:
                 problem = exc.problem
-        angles = ([axis_angle(fields[idx[a]], file, line, a) for a in self.st.mounts.axis_names]
-                  + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints]
-                  + ([configuration.cfx_field(fields[idx["cfx"]], file, line)] if "cfx" in idx else []))
         return (ident, line, pose, xs, points, bool(profile) and not all(cells),
-                (self.folder / profile).resolve() if profile else None, raw, angles, raw_points, record, problem)
+                (self.folder / profile).resolve() if profile else None, raw, self._angles(fields, line), raw_points, record,
+                None, problem)
+
+    def _angles(self, fields, line):
+        """The row's positioner axis angles, joint angles and ``cfx`` (the optional numeric columns)."""
+        file, idx = self.file, self.idx
+        return ([axis_angle(fields[idx[a]], file, line, a) for a in self.st.mounts.axis_names]
+                + [axis_angle(fields[idx[j]], file, line, j, JOINT_ANGLE_LIMIT_DEG, "a robot joint") for j in self.joints]
+                + ([configuration.cfx_field(fields[idx["cfx"]], file, line)] if "cfx" in idx else []))
 
     def _centre(self, cells, profile, points, line):
         """The row's sphere centre in the sensor frame: its columns, else from its profile."""
@@ -554,6 +589,8 @@ def _set_aside(columns, folder, diameter):
 
     *kept, problems = columns
     ids, rows, profiles, files = kept[0], kept[1], kept[4], kept[6]
+    if all(p is None for p in profiles):  # nothing to judge (and no diameter needed)
+        return kept, ()
     verdicts = arcs.judge(profiles, problems, diameter / 2)
     base = pathlib.Path(folder).resolve()
     bad = [arcs.NotArc(ids[k], int(rows[k]), relative_name(files[k], base), why, f_stat, p)
@@ -564,6 +601,18 @@ def _set_aside(columns, folder, diameter):
         raise DatasetError(pathlib.Path(folder) / "measurements.csv", arcs.refusal(bad, diameter))
     keep = arcs.keep_mask([b.row for b in bad], rows)
     return [[v for v, k in zip(column, keep) if k] for column in kept], tuple(bad)
+
+
+def _rows(folder, st, limits, clean):
+    """``(columns, not_arcs)``: the columns of :func:`_read_rows` (a large plain file read column-wise,
+    :func:`handeye.model.readers.tables.read_plain_rows`), without the rows set aside as no arc, and their records."""
+    convention, file = st.convention, folder / "measurements.csv"
+    plain = read_plain_rows(file, conventions.columns(convention), convention, limits, st.mounts.axis_names)
+    if plain is None:
+        return _set_aside(_read_rows(folder, st, limits, clean), folder, st.diameter)
+    n = len(plain["ids"])
+    return [plain["ids"], plain["rows"], plain["poses"], plain["centres"], (None,) * n, (False,) * n, [], plain["raw"],
+            plain["extra"], (None,) * n, (None,) * n, (None,) * n], ()
 
 
 def _corrected_bend(profiles, centres, st):
@@ -598,14 +647,8 @@ def load(name_or_path, clean=True):
     plate_pose, centre_in_plate, noise = st.plate_pose, st.centre_in_plate, dict(st.noise)
     limits = noise.pop("limits")
     file, axes = folder / "measurements.csv", st.mounts.axis_names
-    plain = read_plain_rows(file, conventions.columns(convention), convention, limits, axes)  # a large plain file: column-wise
-    if plain is None:
-        (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles,
-         cleaning), not_arcs = _set_aside(_read_rows(folder, st, limits, clean), folder, st.diameter)
-    else:
-        ids, rows, poses, centres, raw, angles = (plain[k] for k in ("ids", "rows", "poses", "centres", "raw", "extra"))
-        profiles, reconstructed, profile_files = (None,) * len(ids), (False,) * len(ids), []
-        raw_profiles, cleaning, not_arcs = profiles, profiles, ()
+    (ids, rows, poses, centres, profiles, reconstructed, profile_files, raw, angles, raw_profiles, cleaning,
+     clouds), not_arcs = _rows(folder, st, limits, clean)
     if not ids:
         raise DatasetError(file, "no measurements", 2)
     profiles, centres, bend = _corrected_bend(profiles, centres, st)
@@ -647,4 +690,6 @@ def load(name_or_path, clean=True):
         poses_read=st.poses_read,
         not_arcs=not_arcs,
         bend=bend,
+        clouds=tuple(clouds) if any(c is not None for c in clouds) else None,
+        centre_cov=cloud_rows.covariances(clouds),
     )

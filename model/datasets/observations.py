@@ -79,8 +79,9 @@ def circle_noise(cov_circle, r, radius, robot_sigma):
 
 
 def profile_covariance(dataset):
-    """The part of each sphere centre's covariance that its profile gives (N, 3, 3), or None
-    when no centre was reconstructed from its profile.
+    """The part of each sphere centre's covariance that its own measurement gives (N, 3, 3): its
+    profile's or its point cloud's; None when no centre was reconstructed from a profile or fitted to
+    a cloud.
 
     Parameters
     ----------
@@ -92,16 +93,21 @@ def profile_covariance(dataset):
         For a centre reconstructed from its profile the circle fit's covariance (the profile's
         own scatter, :func:`handeye.model.geometry.circle.circle_covariance`, evaluated at the
         Hyper circle the centre was reconstructed from) propagated to the
-        centre (:func:`handeye.model.geometry.circle.centre_covariance`), sensor frame, mm^2; zero
-        for a centre the sensor reported (its noise is the chain's, isotropic). Computed once per
-        dataset.
+        centre (:func:`handeye.model.geometry.circle.centre_covariance`), sensor frame, mm^2; for a
+        centre fitted to its cloud the sphere fit's (``dataset.centre_cov``,
+        :mod:`handeye.model.geometry.sphere_cloud`); zero for a centre the sensor reported (its noise
+        is the chain's, isotropic). Computed once per dataset.
     """
     rebuilt = np.asarray(getattr(dataset, "reconstructed", None) or (False,) * len(dataset), bool)
-    if getattr(dataset, "profiles", None) is None or not rebuilt.any():
+    clouds = getattr(dataset, "centre_cov", None)
+    rebuilt &= getattr(dataset, "profiles", None) is not None
+    if not rebuilt.any() and clouds is None:
         return None
 
     def compute():
-        cov = np.zeros((len(dataset), 3, 3))
+        cov = np.zeros((len(dataset), 3, 3)) if clouds is None else np.array(clouds, float)
+        if not rebuilt.any():
+            return cov
         circ, covs = circles(dataset.subset(rebuilt), "hyper")  # the covariance at the Hyper circle: no iterations
         radius = dataset.sphere_diameter / 2
         cov[rebuilt] = [circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)]
@@ -132,7 +138,7 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
     if kind not in MODEL_KINDS:
         raise ObservationError(f"unknown residual model {kind!r}; choose one of {', '.join(MODEL_KINDS)}")
     centre, sensor2flange = (dataset.sphere_centre if at.sphere_centre is None else at.sphere_centre), at.sensor2flange
-    radius = dataset.sphere_diameter / 2
+    radius = None if dataset.sphere_diameter is None else dataset.sphere_diameter / 2  # None: no profiles
     f2b = dataset.motions()
     if kind == "points":
         _require_profiles(dataset, kind)
@@ -148,10 +154,21 @@ def build(dataset, kind, rotation="local", unknowns="sensor", robot_sigma=ROBOT_
             circ, covs = circles(dataset)
             cov = np.array([circle.centre_covariance(circle.Circle(*c), s, radius, dataset.side) for c, s in zip(circ, covs)])
             whiten = turned_whitening(dataset, sensor2flange, cov, robot_sigma)
+        elif getattr(dataset, "centre_cov", None) is not None:  # centres fitted to clouds: each by its fit's covariance
+            whiten = turned_whitening(dataset, _anchored(dataset, sensor2flange), profile_covariance(dataset), robot_sigma)
         return CalibrationModel(f2b, dataset.centre_in_sensor, centre, rotation, unknowns, whiten=whiten)
     circ, covs = circles(dataset)
     total = np.array([circle_noise(cov, r, radius, robot_sigma) for cov, r in zip(covs, circ[:, 2])])
     return CalibrationModel.from_circles(f2b, circ, radius, centre, rotation, unknowns, whiten=whitening(total))
+
+
+def _anchored(dataset, sensor2flange):
+    """``sensor2flange``, or the ObservationError saying a weighted centre model needs one."""
+    if sensor2flange is None:
+        raise ObservationError(f"{dataset.path / 'measurements.csv'}: the centre model of weighted samples needs a sensor "
+                               "pose to weigh them at (their weights lie in the sensor frame, the residual in the "
+                               "carrier's), and none is finite here")
+    return sensor2flange
 
 
 def screening_model(dataset, unknowns, sensor2flange, chain_mm, profile_cov=None):

@@ -85,6 +85,18 @@ def implausible(name, params, radius, circles=None, names=None):
     return None
 
 
+def needs_diameter(name):
+    """Whether data effect ``name`` rebuilds a centre's y from the sphere's radius (a line scanner's
+    ``sensor_scale`` and ``sphere_radius``, ``NEEDS_DIAMETER`` in their modules): without ``[sphere]
+    diameter`` (a dataset of centres or clouds) it cannot be fitted, and is no candidate."""
+    return bool(getattr(get(name), "NEEDS_DIAMETER", False))
+
+
+def fittable(name, dataset):
+    """Whether effect ``name`` can be fitted on ``dataset`` as far as the diameter goes (:func:`needs_diameter`)."""
+    return not (needs_diameter(name) and getattr(dataset, "sphere_diameter", 1.0) is None)
+
+
 def catalogue(kind=None):
     """Effect modules, optionally of one kind."""
     return [get(n) for n in MODULES if kind is None or get(n).KIND == kind]

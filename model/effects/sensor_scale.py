@@ -8,6 +8,8 @@ times too large, while y is reconstructed from r as ``sqrt(R^2 - r^2)``. The cor
 KIND = "data"
 NAME = "sensor_scale"
 PARAMS = ("s",)
+#: its correction rebuilds y from the sphere's radius: it needs [sphere] diameter (handeye.model.effects.needs_diameter)
+NEEDS_DIAMETER = True
 #: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
 UNIT = ""
 DOC = "scale error of the sensor's coordinates (dimensionless; 0.001 = 0.1 %)"

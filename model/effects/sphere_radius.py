@@ -18,6 +18,8 @@ import numpy as np
 KIND = "data"
 NAME = "sphere_radius"
 PARAMS = ("dr",)
+#: its correction rebuilds y from the sphere's radius: it needs [sphere] diameter (handeye.model.effects.needs_diameter)
+NEEDS_DIAMETER = True
 #: Unit of the parameters (:mod:`handeye.model.fit.power` states sizes in it; "" dimensionless).
 UNIT = "mm"
 DOC = "true radius minus the setup's, mm"

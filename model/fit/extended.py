@@ -158,7 +158,7 @@ class Samples:
         self.metric = metric
         self.sigma = float(sigma if sigma is not None else getattr(dataset, "noise_centre_mm", NOMINAL_SIGMA))
         self.f2b = dataset.motions()
-        self.radius = dataset.sphere_diameter / 2
+        self.radius = dataset.sphere_radius_mm  # NaN without [sphere] diameter (effects that need it are no candidates)
         self.n = len(dataset)
         #: per robot effect (:mod:`handeye.model.robot.robot_errors`) the indices of the parameters it
         #: estimates, chosen by the identifiability gate (:func:`handeye.model.design.robot_gate.robot_free`); all until then
@@ -512,10 +512,11 @@ def _point_of(model, fit):
     return np.concatenate([fit.x[:12], np.zeros(3), *(np.asarray(fit.params[n], float) for n in model.effects)])
 
 
-def _candidates(structure, skip):
-    """The catalogue's effects the score tests try, in the catalogue's order."""
+def _candidates(structure, skip, dataset):
+    """The catalogue's effects the score tests try on ``dataset``, in the catalogue's order."""
     return [effect.NAME for effect in effects.catalogue() if effect.KIND in ("data", "centre")
-            and effect.NAME not in skip and not (effect.NAME == "sphere_center" and structure.centre)]
+            and effect.NAME not in skip and not (effect.NAME == "sphere_center" and structure.centre)
+            and effects.fittable(effect.NAME, dataset)]
 
 
 def _chunk_columns(prob, structure, fit, rows, names):
@@ -627,7 +628,7 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     with np.errstate(all="ignore"):
         fit = prob.fit(structure, mask, prob.point(structure, at.sensor2flange, at.centre), chunk=chunk)
     if fit.jac is None:  # many samples: sums over chunks
-        found = score_by_sums(prob, structure, fit, mask, _candidates(structure, skip), chunk)
+        found = score_by_sums(prob, structure, fit, mask, _candidates(structure, skip, prob.d), chunk)
         if found is not None:
             return _ranked(found)
         fit = dataclasses.replace(fit, jac=prob.evaluate(structure, fit.x, fit.params)[1])
@@ -635,7 +636,7 @@ def score_effects(dataset, at, skip=(), chunk=None, robot=None, prob=None):
     if not (np.all(np.isfinite(jac_cur)) and np.all(np.isfinite(fit.e[mask]))):
         return []  # the model with ``skip`` has no derivative here (a centre on the laser plane): nothing to test
     found, q = [], projection(jac_cur)  # one basis for every candidate
-    for name in _candidates(structure, skip):
+    for name in _candidates(structure, skip, prob.d):
         cols = candidate_columns(prob, structure, fit, mask, name)
         if not np.all(np.isfinite(cols)):
             continue

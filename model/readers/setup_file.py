@@ -263,12 +263,16 @@ class _SetupFile:
 
 def _read_sphere(doc, section, file, convention, required):
     """``(diameter, centre, plate_pose, centre_in_plate)`` of a ``[sphere]``-like section; the
-    diameter is None only when the section is absent and not ``required``."""
+    diameter is None when the section is absent and not ``required``, or ``[sphere]`` gives none (a
+    dataset of centres or clouds: :func:`handeye.model.datasets.dataset.load` asks for it where a row
+    has a profile)."""
     sphere = doc.get(section, {})
     if not sphere and not required:
         return None, None, None, None
     diam = toml_number(sphere.get("diameter"))
-    if diam is None or diam <= 0:
+    if section == "sphere" and "diameter" not in sphere:
+        diam = None  # a dataset of centres or clouds needs none (the load asks for it where a row has a profile)
+    elif diam is None or diam <= 0:
         raise DatasetError(file, f"needs a positive number (mm), got {str(sphere.get('diameter'))[:40]!r}",
                            column=f"[{section}] diameter")
     plate_pose = centre_in_plate = None
@@ -288,4 +292,4 @@ def _read_sphere(doc, section, file, convention, required):
             plate_pose = to_kuka(plate_pose, convention, file, None, f"[{section}] base_pose")
         centre_in_plate = _vector(sphere, "center_in_plate", 3, file, section)
         centre = (transform_from_pose(plate_pose) @ np.append(centre_in_plate, 1.0))[:3]
-    return float(diam), centre, plate_pose, centre_in_plate
+    return None if diam is None else float(diam), centre, plate_pose, centre_in_plate

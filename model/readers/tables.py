@@ -223,21 +223,21 @@ def pose_list_text(ids, poses, convention="kuka", axes=(), angles=None):
     return "\n".join(lines) + "\n"
 
 
-def _inside(folder, rel, file, row):
+def _inside(folder, rel, file, row, column="profile"):
     pfile = folder / rel
     try:
         inside = not pathlib.Path(rel).is_absolute() and pfile.resolve().is_relative_to(folder.resolve())
     except (OSError, RuntimeError, ValueError) as exc:  # a symlink loop, a NUL byte in the name
-        raise DatasetError(file, f"profile path {rel!r} cannot be used: {exc}", row, "profile") from None
+        raise DatasetError(file, f"{column} path {rel!r} cannot be used: {exc}", row, column) from None
     if not inside:
-        raise DatasetError(file, f"profile path {rel!r} leaves the dataset folder; keep profiles inside it (the "
-                                 "dataset's hash covers only its folder)", row, "profile")
+        raise DatasetError(file, f"{column} path {rel!r} leaves the dataset folder; keep {column}s inside it (the "
+                                 "dataset's hash covers only its folder)", row, column)
     return pfile
 
 
-def _points_fast(pfile, limit):
-    """The points of a clean ``x,z`` file by numpy's C parser, or None (then the careful reader
-    runs and names what is wrong)."""
+def _points_fast(pfile, limit, axes="xz"):
+    """The points of a clean ``x,z`` (``axes``: ``x,y,z``) file by numpy's C parser, or None (then the
+    careful reader runs and names what is wrong)."""
     try:
         if not pfile.is_file() or pfile.stat().st_size > MAX_FILE_BYTES:
             return None
@@ -247,7 +247,7 @@ def _points_fast(pfile, limit):
     if raw.startswith(b"\xef\xbb\xbf"):
         raw = raw[3:]
     head, _, body = raw.partition(b"\n")
-    if head.strip() != b"x,z" or any(c in body for c in (b"_", b'"', b"'", b";", b"\t", b"#")):
+    if head.strip() != ",".join(axes).encode() or any(c in body for c in (b"_", b'"', b"'", b";", b"\t", b"#")):
         return None
     try:
         with warnings.catch_warnings():  # an empty file: the careful reader says so, in one line
@@ -255,9 +255,17 @@ def _points_fast(pfile, limit):
             pts = np.loadtxt(io.BytesIO(body), delimiter=",", dtype=float, ndmin=2, comments=None, encoding=None)
     except (ValueError, UnicodeDecodeError):
         return None
-    if pts.shape[1:] != (2,) or not np.all(np.isfinite(pts)) or (pts.size and np.max(np.abs(pts)) > limit):
+    if pts.shape[1:] != (len(axes),) or not np.all(np.isfinite(pts)) or (pts.size and np.max(np.abs(pts)) > limit):
         return None
     return pts
+
+
+def read_cloud(folder, rel, file, row, limit):
+    """Points (K, 3) of a point cloud's CSV with header ``x,y,z`` (sensor frame, mm), read and checked as
+    :func:`read_points` reads a profile's (the ``cloud`` column's file)."""
+    pfile = _inside(folder, rel, file, row, "cloud")
+    pts = _points_fast(pfile, limit, "xyz")
+    return pts if pts is not None else _points_careful(pfile, file, row, limit, "xyz")
 
 
 def read_points(folder, rel, file, row, limit, minimum=3):
@@ -278,23 +286,23 @@ def read_points(folder, rel, file, row, limit, minimum=3):
     return pts
 
 
-def _points_careful(pfile, file, row, limit):
+def _points_careful(pfile, file, row, limit, axes="xz"):
     rows = read_table(pfile, file_row=(file, row))
-    if not rows or [h.strip() for h in rows[0]] != ["x", "z"]:
-        raise DatasetError(pfile, "header must be 'x,z'", 1)
+    if not rows or [h.strip() for h in rows[0]] != list(axes):
+        raise DatasetError(pfile, f"header must be {','.join(axes)!r}", 1)
     pts = []
     for k, r in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in r):
             continue
-        if len(r) != 2:
-            raise DatasetError(pfile, f"expected 2 fields, got {len(r)}", k)
-        point = [number(r[0], pfile, k, "x"), number(r[1], pfile, k, "z")]
-        for v, c in zip(point, "xz"):
+        if len(r) != len(axes):
+            raise DatasetError(pfile, f"expected {len(axes)} fields, got {len(r)}", k)
+        point = [number(v, pfile, k, c) for v, c in zip(r, axes)]
+        for v, c in zip(point, axes):
             if abs(v) > limit:
                 raise DatasetError(pfile, f"{v:g} mm is beyond the sensor's plausible range +-{limit:g} mm "
                                           "([limits] sensor_mm in setup.toml sets it)", k, c)
         pts.append(point)
-    return np.array(pts, dtype=float).reshape(-1, 2)
+    return np.array(pts, dtype=float).reshape(-1, len(axes))
 
 
 #: Below this size ``measurements.csv`` is read row by row only; above, :func:`read_plain_rows`

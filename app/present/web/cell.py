@@ -127,7 +127,7 @@ def cell_geometry(result, dataset):
     sphere = sphere_in_base(mounts, result["sphere_center"], f2b, dataset.axis_angles)
     e_base = measured - sphere
     e_sensor = np.einsum("nji,nj->ni", s2b[:, :3, :3], e_base)
-    radius = dataset.sphere_diameter / 2.0
+    radius = _drawn_radius(dataset)
     local = [_thinned(p) for p in dataset.profiles or (None,) * len(xs)]
     profiles = [_to_base(s2b[i], p) for i, p in enumerate(local)]
     fans = np.stack([_fan(s2b[i], local[i], xs[i], radius) for i in range(len(xs))])
@@ -136,6 +136,15 @@ def cell_geometry(result, dataset):
         s2b, e_sensor = s2b @ own_frame.to_own(np.eye(4), rot), e_sensor @ rot
     return CellGeometry(list(dataset.ids), _used(result, dataset), f2b, s2b, measured, sphere, e_base, e_sensor, fans,
                         profiles, radius, mounts)
+
+
+def _drawn_radius(dataset):
+    """The sphere's radius drawn, mm: the stated one; without ``[sphere] diameter`` the mean of the radii fitted to the
+    clouds, or 0 (a dataset of reported centres: the sphere drawn as its centre, no radius made up)."""
+    if dataset.sphere_diameter is not None:
+        return dataset.sphere_diameter / 2.0
+    radii = [c.radius for c in getattr(dataset, "clouds", None) or () if c is not None]
+    return float(np.mean(radii)) if radii else 0.0
 
 
 def _used(result, dataset):
