@@ -93,7 +93,8 @@ def _document(file):
             raise DatasetError(file, "is not a regular file (a device, a pipe or a folder?)")
         if file.exists() and file.stat().st_size > MAX_LINE_BYTES:
             raise DatasetError(file, "more than 1 MB: not a setup file")
-        text = file.read_text(encoding="utf-8-sig")  # a byte-order mark is accepted, as in the CSV files
+        raw = file.read_bytes()  # a byte-order mark is accepted, as in the CSV files (Python's utf-8-sig decodes a
+        text = raw.removeprefix(b"\xef\xbb\xbf").decode("utf-8")  # lone 0xEF to nothing: not a setup)
     except FileNotFoundError:
         raise DatasetError(file, "missing file") from None
     except (OSError, UnicodeDecodeError) as exc:
