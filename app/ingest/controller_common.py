@@ -12,7 +12,7 @@ import re
 
 import numpy as np
 
-from handeye.app.ingest.tables import read_bytes
+from handeye.app.ingest.tables import MAX_TABLE_BYTES, check_text, read_bytes
 from handeye.model.readers.tables import DatasetError
 
 #: a decimal number as controllers write them (``.180``, ``-.000``, ``1.5E+02``, ``9E9``)
@@ -94,7 +94,8 @@ class Text:
 
     def __init__(self, path):
         self.file = pathlib.Path(path)
-        raw = read_bytes(self.file)
+        raw = read_bytes(self.file, MAX_TABLE_BYTES, "a pose file")
+        check_text(self.file, raw, "a controller program")
         self.note = None
         try:
             self.text = raw.decode("utf-8-sig")

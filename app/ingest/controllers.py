@@ -44,6 +44,8 @@ def kind_of(path):
     None: the suffix's kind when the first 4 kB have its marks, else the kind those 4 kB show."""
     path = pathlib.Path(path)
     try:
+        if not path.is_file():  # a FIFO would block the open; the reader names what it is
+            return SUFFIXES.get(path.suffix.lower())
         with open(path, "rb") as fh:
             head = fh.read(4096).decode("utf-8", errors="replace")
     except OSError:

@@ -16,7 +16,8 @@ import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 
-from handeye.model.readers.tables import DatasetError
+from handeye.app.ingest.tables import check_text
+from handeye.model.readers.tables import PARSE_ERRORS, DatasetError, parse_problem
 
 _SPECIAL = {".nan": np.nan, ".inf": np.inf, "-.inf": -np.inf, "+.inf": np.inf}
 #: keys of a profile file that are no profile, left alone (lower case): a newer sensor SDK writes the
@@ -176,12 +177,13 @@ def _xml(text, file):
 
 
 def _json(text, file):
-    fixed = re.sub(r'(?<![\w"])([+-]?)\.(Nan|Inf)\b',
-                   lambda m: "NaN" if m.group(2) == "Nan" else ("-Infinity" if m.group(1) == "-" else "Infinity"), text)
+    fixed = text if ".Nan" not in text and ".Inf" not in text else re.sub(  # a scan of every character: only when needed
+        r'(?<![\w"])([+-]?)\.(Nan|Inf)\b',
+        lambda m: "NaN" if m.group(2) == "Nan" else ("-Infinity" if m.group(1) == "-" else "Infinity"), text)
     try:
         doc = json.loads(fixed)
-    except json.JSONDecodeError as exc:
-        raise DatasetError(file, f"FileStorage JSON: {exc.msg}", exc.lineno) from None
+    except PARSE_ERRORS as exc:
+        raise DatasetError(file, f"FileStorage JSON: {parse_problem(exc)}", getattr(exc, "lineno", None)) from None
     out = []
 
     def walk(node, name):
@@ -205,6 +207,7 @@ def _json(text, file):
 def read(file, raw):
     """Every matrix of a FileStorage file as ``[(name, (K, c) array)]``, in file order."""
     flavour = sniff(raw[:4096])
+    check_text(file, raw, "a FileStorage file")
     text = raw.decode("utf-8-sig", errors="replace")
     matrices = {"yaml": _yaml, "xml": _xml, "json": _json}[flavour](text, file)
     if not matrices:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import glob
 import importlib.util
+import os
 import pathlib
 import re
 import tomllib
@@ -26,9 +27,10 @@ from handeye.app.ingest import mounts
 from handeye.app.ingest.pairing import Pairing, natural_key
 from handeye.app.ingest.plane import AXES
 from handeye.app.ingest.poses import canonical
+from handeye.app.ingest.tables import decode, read_bytes
 from handeye.model.chain import conventions, own_frame
 from handeye.model.readers.setup_file import _own_axes
-from handeye.model.readers.tables import DatasetError
+from handeye.model.readers.tables import MAX_LINE_BYTES, PARSE_ERRORS, DatasetError, parse_problem
 from handeye.model.robot import robots
 
 #: The name a robot model file gets in the dataset (as ``handeye simulate --robot FILE`` names it).
@@ -247,12 +249,17 @@ def _match(pattern):
     return pattern
 
 
+def _real(path):
+    """The path with its symlinks resolved, never an error (a symlink loop stays as it is: the reader names it)."""
+    return pathlib.Path(os.path.realpath(path))
+
+
 def expand(specs, exclude=(), option="--profiles"):
     """The profile files of ``--profiles`` arguments (files, globs, folders) as ``(file, listed)``
     pairs, natural order within each argument, argument order kept; ``listed`` is False for a
     folder's files (which may hold other files too). A folder's hidden files and subfolders, and
     the files in ``exclude`` (the pose file, ...), are left out; errors name ``option``."""
-    skip = {pathlib.Path(f).resolve() for f in exclude if f is not None}
+    skip = {_real(f) for f in exclude if f is not None}
     out = []
     for spec in specs:
         p = pathlib.Path(spec)
@@ -270,7 +277,7 @@ def _files_of(spec, p, skip, option="--profiles"):
     """``(files, where)`` of one ``--profiles`` argument (unsorted); OSError where a folder cannot be
     listed."""
     if p.is_dir():
-        files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and f.resolve() not in skip]
+        files = [f for f in p.iterdir() if f.is_file() and not f.name.startswith(".") and _real(f) not in skip]
         return files, f"folder {spec}"
     if any(c in str(spec) for c in "*?["):
         return [pathlib.Path(f) for f in glob.glob(str(spec)) if pathlib.Path(f).is_file()], f"pattern {spec!r}"
@@ -287,10 +294,7 @@ def _robot(robot):
     path = pathlib.Path(robot)
     if not path.is_file():
         raise RequestError(f"--robot {robot}: not a built-in model ({', '.join(robots.builtin_names())}) nor a file")
-    try:
-        return MODEL_FILE, (robot, path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RequestError(f"--robot {robot}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    return MODEL_FILE, (robot, decode(path, read_bytes(path, MAX_LINE_BYTES, "a robot model file"), "a robot model file"))
 
 
 def _from_setup(file, start_given):
@@ -303,11 +307,9 @@ def _from_setup(file, start_given):
     if file is None:
         return {}, False
     try:
-        doc = tomllib.loads(pathlib.Path(file).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RequestError(f"--setup {file}: cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DatasetError(file, f"not valid TOML: {exc}") from None
+        doc = tomllib.loads(decode(file, read_bytes(file, MAX_LINE_BYTES, "a setup file"), "a setup file"))
+    except PARSE_ERRORS as exc:
+        raise DatasetError(file, f"not valid TOML: {parse_problem(exc)}") from None
     for section in ("sphere", "sensor", "robot", "profile", "positioner"):
         if not isinstance(doc.get(section, {}), dict):
             raise DatasetError(file, "must be a [section] of keys (the --setup file)", column=f"[{section}]")

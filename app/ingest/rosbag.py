@@ -18,8 +18,9 @@ import pathlib
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from handeye.app.ingest.tables import not_a_file
 from handeye.model.chain.conventions import matrix_from
-from handeye.model.readers.tables import DatasetError
+from handeye.model.readers.tables import MAX_LINE_BYTES, DatasetError
 
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "tf2_msgs/msg/TFMessage")
 PROFILE_TYPES = ("sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/LaserScan")
@@ -129,6 +130,20 @@ def _stamped(reader, conns, read):
     return np.array(stamps), items
 
 
+def _regular_files(bag):
+    """A bag folder's files (or the bag file) all regular files: a FIFO among them would block rosbags'
+    open, ``/dev/zero`` never end its read (issue 40's fuzz); else a DatasetError naming the file."""
+    try:
+        files = sorted(bag.iterdir()) if bag.is_dir() else [bag]
+    except OSError as exc:
+        raise DatasetError(bag, f"cannot be read: {exc.strerror or exc}") from None
+    for f in files:  # a subfolder is rosbags' to refuse or ignore
+        if not f.is_file() and not f.is_dir() and not f.name.startswith("."):
+            raise DatasetError(f, f"{not_a_file(f)}: not a file of a ROS 2 bag")
+        if f.name == "metadata.yaml" and f.is_file() and f.stat().st_size > MAX_LINE_BYTES:  # rosbags' YAML: 5 s per 4 MB
+            raise DatasetError(f, f"more than {MAX_LINE_BYTES // 2**20} MiB: not a bag's metadata (a few kB)")
+
+
 def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None, max_dt=0.05):
     """Poses and profiles of a ROS 2 bag folder or file, matched by time (module docstring).
 
@@ -146,6 +161,7 @@ def read_bag(path, pose_topic, profile_topic, base_frame=None, flange_frame=None
     BagData
     """
     file = pathlib.Path(path)
+    _regular_files(file)
     try:
         with AnyReader([file]) as reader:
             pconns = _connections(reader, pose_topic, POSE_TYPES, "--pose-topic", file)

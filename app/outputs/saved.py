@@ -32,6 +32,7 @@ from handeye.app.common.errors import RequestError
 from handeye.model.chain import own_frame
 from handeye.model.chain.names import SENSOR_MOUNTS
 from handeye.model.common.rotation import pose_sd
+from handeye.model.readers.tables import PARSE_ERRORS, parse_problem
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
 ORTHONORMAL_TOLERANCE = 1e-6
@@ -199,6 +200,8 @@ def document(file):
     try:
         if file.is_dir():
             raise CalibrationFileError(file, "is a folder; give the JSON file `handeye calibrate --out` wrote")
+        if file.exists() and not file.is_file():  # a FIFO would block the read, /dev/zero never end it
+            raise CalibrationFileError(file, "is not a regular file (a pipe or a device)")
         if file.stat().st_size > MAX_RESULT_BYTES:
             raise CalibrationFileError(file, "too large to be a calibration result")
         text = file.read_text(encoding="utf-8-sig")
@@ -208,10 +211,8 @@ def document(file):
         raise CalibrationFileError(file, f"cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         return json.loads(text, parse_constant=lambda c: None)
-    except json.JSONDecodeError as exc:
-        raise CalibrationFileError(file, f"not JSON (line {exc.lineno}: {exc.msg})") from None
-    except RecursionError:
-        raise CalibrationFileError(file, "nested too deeply to be a calibration result") from None
+    except PARSE_ERRORS as exc:
+        raise CalibrationFileError(file, f"not JSON a calibration result can be ({parse_problem(exc)})") from None
 
 
 def _mount(doc, file):

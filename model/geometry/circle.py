@@ -67,10 +67,12 @@ def hyper(x, z):
     u, v = x - xm, z - zm
     w = u**2 + v**2
     m = np.column_stack([w, u, v, np.ones_like(u)])
-    _, s, vt = np.linalg.svd(m, full_matrices=False)
+    # three points (the fewest a profile may have): m is 3 x 4, its null vector the exact circle; the
+    # fourth singular value, zero, is not returned (it was indexed: IndexError, exit 3; issue 40's fuzz)
+    _, s, vt = np.linalg.svd(m, full_matrices=len(m) < 4)
     if s[2] < 1e-12 * s[0]:
         raise CircleFitError("points are degenerate (collinear or repeated)")
-    if s[3] < 1e-12 * s[0]:
+    if len(s) < 4 or s[3] < 1e-12 * s[0]:
         a = vt[3]
     else:
         mean = m.mean(axis=0)

@@ -18,8 +18,10 @@ from handeye.model.readers.tables import (
     GUESS_LIMITS,
     LIMIT_POSITION_MM,
     MAX_LINE_BYTES,
+    PARSE_ERRORS,
     DatasetError,
     check_angles,
+    parse_problem,
     to_kuka,
 )
 
@@ -101,8 +103,8 @@ def _document(file):
         raise DatasetError(file, f"cannot be read: {exc}") from None
     try:
         doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise DatasetError(file, f"not valid TOML: {exc}") from None
+    except PARSE_ERRORS as exc:
+        raise DatasetError(file, f"not valid TOML: {parse_problem(exc)}") from None
     for section, table in doc.items():
         if section not in _ALLOWED or not isinstance(table, dict):
             raise DatasetError(file, f"unknown section (known: {', '.join(sorted(_ALLOWED))})", column=f"[{section}]")

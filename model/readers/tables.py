@@ -117,6 +117,42 @@ def pose_list_convention(header):
 MAX_FILE_BYTES = 2 * 1024**3
 MAX_LINE_BYTES = 1024**2
 
+#: What Python's JSON and TOML parsers raise on text they cannot read: a syntax error (a ValueError),
+#: nesting deeper than the parser goes (RecursionError), an integer of more than 4,300 digits (a plain
+#: ValueError, not the parser's own error: a reader that caught only that one exited 3; issue 40's fuzz)
+PARSE_ERRORS = (ValueError, RecursionError)
+
+
+def long_line(raw, limit=MAX_LINE_BYTES):
+    """``(line number, length)`` of a line of ``raw`` (bytes) longer than ``limit``, or None.
+
+    Looked for in steps of ``limit // 2`` bytes (a line that long holds a whole step without a line
+    break), so that a file without line breaks (a sparse file of zeros) is refused before it is
+    decoded, split or parsed: 250 MB of them cost numpy's parser 2 GB (issue 40's fuzz).
+    """
+    step = max(limit // 2, 1)
+    for at in range(0, len(raw) - step + 1, step):
+        if raw.find(b"\n", at, at + step) >= 0 or raw.find(b"\r", at, at + step) >= 0:
+            continue
+        start = max(raw.rfind(b"\n", 0, at), raw.rfind(b"\r", 0, at)) + 1
+        ends = [e for e in (raw.find(b"\n", at), raw.find(b"\r", at)) if e >= 0]
+        length = (min(ends) if ends else len(raw)) - start
+        if length > limit:
+            return raw.count(b"\n", 0, start) + 1, length
+    return None
+
+
+def parse_problem(exc):
+    """One line saying why a JSON or TOML text did not parse (``exc`` one of :data:`PARSE_ERRORS`)."""
+    if isinstance(exc, RecursionError):
+        return "nested deeper than a reader follows"
+    if hasattr(exc, "lineno") and hasattr(exc, "msg"):  # json.JSONDecodeError
+        return f"line {exc.lineno}: {exc.msg}"
+    text = str(exc)
+    if "digits" in text and "integer" in text:
+        return "an integer of more digits than Python reads (4,300)"
+    return text.splitlines()[0][:120] if text else type(exc).__name__
+
 
 def _relative(file, owner):
     """``file`` as the dataset names it: relative to the folder of ``owner`` (its measurements.csv), else as given."""
@@ -148,6 +184,8 @@ def read_table(file, file_row=None):
         raise DatasetError(owner, f"cannot be read: {exc.strerror or exc}", **where) from None
     if len(raw) > MAX_FILE_BYTES:
         raise DatasetError(file, f"more than {MAX_FILE_BYTES / 1e9:.1f} GB: not a dataset file")
+    if (long := long_line(raw)) is not None:
+        raise DatasetError(file, f"a line of {long[1]} characters: not a CSV dataset file", long[0])
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -243,6 +281,8 @@ def _points_fast(pfile, limit, axes="xz"):
             return None
         raw = pfile.read_bytes()
     except OSError:
+        return None
+    if long_line(raw) is not None:  # numpy would parse it into gigabytes; the careful reader names it
         return None
     if raw.startswith(b"\xef\xbb\xbf"):
         raw = raw[3:]

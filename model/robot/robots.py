@@ -30,7 +30,7 @@ import numpy as np
 
 from handeye.model.chain.pose import kuka_from_matrix, matrix_from_kuka
 from handeye.model.common.rotation import matrix_from_rotvec
-from handeye.model.readers.tables import DatasetError
+from handeye.model.readers.tables import MAX_LINE_BYTES, PARSE_ERRORS, DatasetError, parse_problem
 from handeye.model.robot import nominal_gate
 
 ROBOTS_DIR = pathlib.Path(__file__).parent.parent / "data" / "robots"
@@ -174,9 +174,13 @@ def load(name_or_file):
         raise DatasetError(path, f"no robot model of that name or file (built in: {', '.join(builtin_names())})",
                            column="[robot] model")
     try:
+        if file.stat().st_size > MAX_LINE_BYTES:  # a model is a few kB: a large file is not read whole
+            raise DatasetError(file, f"more than {MAX_LINE_BYTES // 2**20} MiB: not a robot model")
         doc = tomllib.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+    except OSError as exc:
         raise DatasetError(file, f"not a robot model: {exc}") from None
+    except PARSE_ERRORS as exc:  # UnicodeDecodeError too
+        raise DatasetError(file, f"not a robot model: {parse_problem(exc)}") from None
     fmt = doc.get("format")
     _known_keys(doc, fmt, file)
     if fmt not in ("chain", "dh"):
