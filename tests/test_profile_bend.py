@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.app.outputs.verdict import shorten
 from handeye.model.chain.pose import transform_from_pose
 from handeye.model.common.rotation import pose_distance
 from handeye.model.datasets import dataset
@@ -76,11 +77,14 @@ def test_simulated_linearity_is_corrected_and_said(tmp_path, monkeypatch):
     handeye.simulate(out=folder, profiles=True, linearity=0.0016, seed=0, no_start=True)
     r = handeye.calibrate(folder)
     assert r.converged
-    note = [w for w in r.warnings if "bend along the sensor's depth" in w]
+    note = [w for w in r.warnings if "bend" in w and "along the sensor's depth" in w]
     assert len(note) == 1 and "moved the pose by" in note[0], r.warnings
+    # what an export's header keeps of it (verdict.shorten: the first clauses within 160 characters) says it all
+    assert "corrected" in shorten(note[0]) and "moved the pose by" in shorten(note[0]), shorten(note[0])
     assert r.cleaning["bend"]["applied"] and r.cleaning["bend"]["degree"] >= 2
     monkeypatch.setattr(profile_bend, "MIN_BEND_MM", np.inf)  # the same data, the bend left in
     plain = handeye.calibrate(folder)
     assert not any("every profile was corrected" in w for w in plain.warnings)
-    assert any("the profiles suggest a bend" in w for w in plain.warnings)  # not applied: its move is in the sd
+    suggested = [w for w in plain.warnings if "an uncorrected" in w and "depth bend" in w]  # its move is in the sd
+    assert len(suggested) == 1 and "would move the pose" in shorten(suggested[0]), suggested
     assert _away(folder, r)["translation_mm"] < 0.2 * _away(folder, plain)["translation_mm"]

@@ -148,9 +148,9 @@ def _suspected(shift, bend, covariance):
     if move_mm <= power.SHIFT_FLOOR[0] / power.WIDEN_SD and move_deg <= power.SHIFT_FLOOR[1] / power.WIDEN_SD \
             and not beyond:
         return None, ""
-    note = (f"the profiles suggest a bend along the sensor's depth of {bend.bend_mm:.3g} mm that the tests do not make "
-            f"clear ({bend.reason}); corrected, the pose would move {move_mm:.2g} mm / {move_deg:.2g} deg, and the 1 sd "
-            f"puts that within {power.WIDEN_SD:g} sd")
+    note = (f"an uncorrected {bend.bend_mm:.3g} mm depth bend of the profiles (sensor linearity): correcting it would "
+            f"move the pose {move_mm:.2g} mm / {move_deg:.2g} deg, within {power.WIDEN_SD:g} of its 1 sd; the profiles "
+            f"suggest it, but the tests do not make it clear ({bend.reason})")
     if beyond:
         note += f"; the profiles could have missed {missed.text()}, also in the sd"
     return np.outer(move, move) / power.WIDEN_SD**2 + (missed.widening if beyond else 0.0), note
@@ -174,13 +174,14 @@ def _size(shifts):
 
 def _note(bend, shifts, move):
     lo, hi = bend.depths
-    head = (f"the profiles bend along the sensor's depth by {bend.bend_mm:.3g} mm over {lo:.0f}-{hi:.0f} mm "
-            f"(a linearity error of the sensor: F = {bend.f:.3g} on degree {bend.degree}); every profile was "
-            f"corrected and its centre rebuilt before the fit")
+    head = (f"a sensor linearity error corrected, the profiles bending {bend.bend_mm:.3g} mm along the sensor's depth "
+            f"over {lo:.0f}-{hi:.0f} mm")
+    why = (f"(F = {bend.f:.3g} on degree {bend.degree}; every profile was corrected and its centre rebuilt before the "
+           "fit)")
     if shifts is None:
-        return head + "; the correction's uncertainty could not be carried into the sd"
+        return f"{head} {why}; the correction's uncertainty could not be carried into the sd"
     (mm, deg), (move_mm, move_deg) = _size(shifts), _size(move[None])
-    return head + (f": it moved the pose by {move_mm:.2g} mm / {move_deg:.2g} deg; the 1 sd includes the "
+    return head + (f", which moved the pose by {move_mm:.2g} mm / {move_deg:.2g} deg; the 1 sd includes the "
                    f"correction's scatter over the profiles (up to {mm:.2g} mm / {deg:.2g} deg) and {BEND_DOUBT:g} of "
                    f"that move ({BEND_DOUBT * move_mm:.2g} mm / {BEND_DOUBT * move_deg:.2g} deg: what the correction's "
-                   "polynomial may miss, measured)")
+                   f"polynomial may miss, measured) {why}")

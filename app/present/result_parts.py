@@ -204,7 +204,7 @@ class PowerStatement:
             return "every catalogue effect is named or absorbed: nothing left unseen"
         head = "; ".join(m.text() for m in self.effects[:2])
         wide = ("the 1 sd includes the shift" if self.widening else
-                f"below {power.SHIFT_FLOOR[0]:g} mm / {power.SHIFT_FLOOR[1]:g} deg: the 1 sd is the fit's")
+                f"below {power.SHIFT_FLOOR[0]:g} mm / {power.SHIFT_FLOOR[1]:g} deg: they widen no sd")
         return (f"the data could have missed (80 % power at level {self.level:.2g}): {head}; {wide}")
 
     def to_dict(self):

@@ -30,6 +30,8 @@ class SimulationResult(ResultProtocol):
         Hidden effects (name -> value).
     robot : str or None
         ``[robot] model`` of a simulated robot with joints (``--robot``).
+    linearity : float
+        The sensor's depth linearity error in the profiles (``--linearity``: a fraction of the 100 mm range).
     """
 
     caption = 'handeye simulate'
@@ -40,6 +42,8 @@ class SimulationResult(ResultProtocol):
     seed: int
     effects: dict
     robot: str | None = None
+    #: the sensor's depth linearity error written into the profiles (a fraction of its range; 0: none)
+    linearity: float = 0.0
 
     @property
     def dataset(self):
@@ -49,11 +53,14 @@ class SimulationResult(ResultProtocol):
     def to_dict(self):
         return {"path": str(self.path), "ids": list(self.ids), "dropped": [list(d) for d in self.dropped],
                 "seed": self.seed, "effects": {k: np.asarray(v).tolist() for k, v in self.effects.items()},
-                **({"robot": self.robot} if self.robot is not None else {})}
+                **({"robot": self.robot} if self.robot is not None else {}),
+                **({"linearity": self.linearity} if self.linearity else {})}
 
     def summary(self):
         lines = [f"wrote {len(self.ids)} simulated measurements to {self.path} (seed {self.seed}, "
-                 f"effects {self.effects or 'none'}" + (f", robot {self.robot}" if self.robot else "") + ")"]
+                 f"effects {self.effects or 'none'}" + (f", robot {self.robot}" if self.robot else "")
+                 + (f", sensor linearity {self.linearity:g} of the 100 mm range in the profiles" if self.linearity else "")
+                 + ")"]
         lines += [f"dropped {ident}: {reason}" for ident, reason in self.dropped]
         return "\n".join(lines)
 
@@ -79,7 +86,7 @@ def simulate(out, *, seed=0, effect=(), profiles=False, poses=None, n_poses=36, 
     made = sim.simulate_rig(r.setup, r.seed, r.effects, r.poses, r.cell, r.robot)
     write_folder_atomically(r.folder, lambda tmp: sim.write(made, tmp, **r.written))
     return SimulationResult(r.folder, list(made.ids), list(made.dropped), r.seed, r.effects,
-                            None if r.robot is None else r.robot.model_key)
+                            None if r.robot is None else r.robot.model_key, r.setup.linearity)
 
 
 @dataclasses.dataclass(frozen=True)
