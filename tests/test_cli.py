@@ -61,6 +61,19 @@ def test_not_converged_exits_1_and_still_reports(capsys, tmp_path):
     (folder / "measurements.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in shuffled]) + "\n")
     code, out, _ = run(capsys, "calibrate", str(folder), "--keep-all")
     assert code == EXIT_NOT_CONVERGED and "NOT CONVERGED" in out and "explains nothing" in out
+    assert out.splitlines()[2].startswith("verdict: NOT a calibration (exit 1)"), out.splitlines()[:4]
+
+
+def test_the_verdict_is_in_the_first_lines(capsys):
+    """The seed's own data (issue 39, item 6): under the status line the verdict, the largest 1 sd and each
+    warning's first clauses, before the pose; each warning is whole at the end of the report."""
+    code, out, _ = run(capsys, "calibrate", "thesis-real")
+    lines = out.splitlines()
+    assert code == EXIT_OK and lines[2].startswith("verdict: a calibration to use (exit 0): 1 sd up to "), lines[:4]
+    first = [line for line in lines[3:] if line.startswith("  warning: ")]
+    whole = [line for line in lines if line.startswith("warning: ")]
+    assert len(first) == len(whole) >= 2 and "sphere_center" in first[0] and "the 1 sd is widened" in first[-1]
+    assert out.index(first[-1]) < out.index("sensor pose")
 
 
 def test_start_option(capsys):

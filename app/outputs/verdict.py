@@ -18,11 +18,8 @@ from handeye.app.common.arguments import load_dataset
 from handeye.app.engine import held_verdict
 from handeye.app.engine.describe import NOISE_WARNING
 from handeye.app.outputs import saved
+from handeye.app.present.report import WARNING_CHARS, shorten  # noqa: F401  (the report's, the outputs' too)
 from handeye.model.common.errors import InputError
-
-#: A warning in a comment is cut at a clause boundary (``;`` or ``:``) at most this long (characters):
-#: a warning's first clause says what failed, the rest how to look into it (the file has it whole).
-WARNING_CHARS = 160
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,15 +53,6 @@ class Checked:
         mine = self.warnings if self.verdict is None or self.verdict.noise is None or self.verdict.not_recomputed else tuple(
             w for w in self.warnings if not w.startswith(NOISE_WARNING))  # the recomputed test says it
         return tuple(shorten(w) for w in (*mine, *again)) + self.notes
-
-
-def shorten(text, limit=WARNING_CHARS):
-    """``text`` on one line, cut at the last clause boundary before ``limit`` characters (marked ``...``)."""
-    text = " ".join(str(text).split())
-    if len(text) <= limit:
-        return text
-    cut = max(text.rfind("; ", 0, limit), text.rfind(": ", 0, limit))
-    return (text[:cut] if cut > limit // 3 else text[:limit - 4]).rstrip() + " ..."
 
 
 def _own_dataset(doc, folder, given, folder_hash=None):

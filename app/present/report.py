@@ -125,6 +125,36 @@ def cell_lines(res):
     return lines
 
 
+#: A warning's first clauses in the verdict's lines (the whole of it is at the end of the report).
+VERDICT_WARNING_CHARS = 110
+#: A warning in a comment is cut at a clause boundary (``;`` or ``:``) at most this long (characters):
+#: a warning's first clause says what failed, the rest how to look into it (the file has it whole).
+WARNING_CHARS = 160
+
+
+def shorten(text, limit=WARNING_CHARS):
+    """``text`` on one line, cut at the last clause boundary before ``limit`` characters (marked ``...``)."""
+    text = " ".join(str(text).split())
+    if len(text) <= limit:
+        return text
+    cut = max(text.rfind("; ", 0, limit), text.rfind(": ", 0, limit))
+    return (text[:cut] if cut > limit // 3 else text[:limit - 4]).rstrip() + " ..."
+
+
+def verdict_lines(res):
+    """The verdict in the report's first lines: what the result is (a calibration to use, exit 0, its largest 1 sd;
+    or no calibration, exit 1), and the first clause of each warning (the whole at the end)."""
+    if not res.converged:
+        head = "verdict: NOT a calibration (exit 1): do not use this pose; why: the status above and the warnings below"
+    elif res.std is None or res.std.sensor_translation_mm is None:
+        head = "verdict: a calibration (exit 0), with no sd (see the warnings)"
+    else:
+        mm, deg = float(np.max(res.std.sensor_translation_mm)), float(np.max(res.std.sensor_rotation_deg))
+        head = f"verdict: a calibration to use (exit 0): 1 sd up to {mm:.3g} mm / {deg:.3g} deg (below)"
+    warned = [f"  warning: {shorten(w, VERDICT_WARNING_CHARS)}" for w in res.warnings]
+    return [head + (f"; {len(warned)} warning(s), each whole at the end:" if warned else "")] + warned
+
+
 def calibration_text(res):
     """A readable report of a :class:`handeye.app.present.results.CalibrationResult`."""
     if res.closed_form is not None:
@@ -134,6 +164,7 @@ def calibration_text(res):
         f"unknowns {res.unknowns}, model {res.model}",
         f"status: {'converged' if res.converged else 'NOT CONVERGED'} after {res.iterations} iterations "
         f"({res.message})",
+        *verdict_lines(res),
         "",
     ]
     if res.convention == "kuka":
