@@ -501,7 +501,8 @@ def _candidate_rows(prob, structure, fit, rows, name):
     if effect.KIND == "centre":
         return -np.broadcast_to(np.eye(3), (prob.n if rows is None else len(rows), 3, 3))
     _, _, model = prob.chain(structure, fit.x, fit.params, rows)
-    xs, r2, f2b = model.corrected(_point_of(model, fit))[0], fit.x[:9].reshape(3, 3), model.motions
+    carrier = model.motions if not structure.axes else prob.f2b if rows is None else prob.f2b[rows]  # the chain's M_i
+    xs, r2, f2b = model.corrected(_point_of(model, fit))[0], fit.x[:9].reshape(3, 3), carrier
     u = np.einsum("ij,nj->ni", r2, xs) + fit.x[9:12]
     q = np.einsum("nij,nj->ni", f2b[:, :3, :3], u) + f2b[:, :3, 3]
     return effect.columns({"q": q, "u": u, "R1": f2b[:, :3, :3], "R1R2": f2b[:, :3, :3] @ r2, "xs": xs})
