@@ -10,7 +10,7 @@ readers are checked against an independent reading of the real files in
 import re
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 #: the real files (README.md beside them says where from)
 HOME_JOINTS = "[[0,0,0,0,30,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]]"
@@ -42,8 +42,9 @@ def _angles(f, seq):
 
 # --- writers ------------------------------------------------------------------------------------
 
-def write_ls(path, flanges, ut=0, uf=0, joint_form=()):
-    """A FANUC TP program: ``/MN`` moves to every ``P[n]``, ``/POS`` holds them (3 decimals)."""
+def write_ls(path, flanges, ut=0, uf=0, joint_form=(), configs=None):
+    """A FANUC TP program: ``/MN`` moves to every ``P[n]``, ``/POS`` holds them (3 decimals); ``configs``:
+    each position's ``CONFIG`` (default ``'N U T, 0, 0, 0'``)."""
     mn = "".join(f"  {k + 1:3d}:{'J' if k == 0 else 'L'} P[{k + 1}] 100% FINE    ;\n" for k in range(len(flanges)))
     pos = []
     for k, f in enumerate(flanges):
@@ -54,7 +55,8 @@ def write_ls(path, flanges, ut=0, uf=0, joint_form=()):
             continue
         w, p, r = _angles(f, "xyz")
         x, y, z = f[:3, 3]
-        pos.append(f"P[{k + 1}]{{\n   GP1:\n\tUF : {uf}, UT : {ut},\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+        config = "N U T, 0, 0, 0" if configs is None else configs[k]
+        pos.append(f"P[{k + 1}]{{\n   GP1:\n\tUF : {uf}, UT : {ut},\t\tCONFIG : '{config}',\n"
                    f"\tX = {x:9.3f}  mm,\tY = {y:9.3f}  mm,\tZ = {z:9.3f}  mm,\n"
                    f"\tW = {w:9.3f} deg,\tP = {p:9.3f} deg,\tR = {r:9.3f} deg\n}};\n")
     text = ("/PROG  CALIB\n/ATTR\nOWNER\t\t= MNEDITOR;\nCOMMENT\t\t= \"\";\nDEFAULT_GROUP\t= 1,*,*,*,*;\n"
@@ -137,6 +139,62 @@ def write_rtde(path, flanges, sep=" ", tcp_offset=None):
     return path
 
 
+def write_rtde_stream(path, flanges, rng, hz=500.0, dwell=(0.3, 2.0), noise_mm=0.01):
+    """A UR RTDE log as record.py streams it while the robot moves from stop to stop (module docstring):
+    from a home pose to each flange pose in turn and back home, every move a minimum-jerk profile
+    (accelerating, then decelerating to rest) of peak speed 250 mm/s and 45 deg/s (at least 0.4 s), a stop
+    of ``dwell`` seconds (uniform; 0: none) at each pose (None: a sweep through the poses at constant speed,
+    never at rest); ``hz`` rows a second, the TCP with Gaussian noise
+    of ``noise_mm`` a coordinate and 1e-5 rad, the joints (a made-up arm's, moving with the same profile)
+    1e-5 rad. The recording starts halfway through the move from home and stops halfway back (the robot
+    waiting at home would be two stops more). Returns ``(path, stop rows [(first, end)], rows)``."""
+    home = np.eye(4)
+    home[:3, 3] = flanges[:, :3, 3].mean(axis=0) + [0.0, 0.0, 150.0]
+    home[:3, :3] = flanges[0, :3, :3]
+    poses = [home, *flanges, home]
+    joints = rng.uniform(-2.5, 2.5, (len(poses), 6))
+    holds = [0.0] + list(rng.uniform(*dwell, len(flanges)) if np.ndim(dwell) else [float(dwell or 0)] * len(flanges)) + [0.0]
+    seg_p, seg_q, stops, at, moves = [], [], [], 0, []
+    for k, (pose, hold) in enumerate(zip(poses, holds)):
+        n = int(round(hold * hz))
+        seg_p.append(np.repeat(pose[None], n, 0))
+        seg_q.append(np.repeat(joints[k][None], n, 0))
+        if 0 < k < len(poses) - 1 and n:
+            stops.append((at, at + n))
+        at += n
+        if k + 1 < len(poses):
+            p, q, m = _min_jerk(pose, poses[k + 1], (joints[k], joints[k + 1]), hz, sweep=dwell is None)
+            seg_p.append(p)
+            seg_q.append(q)
+            moves.append(at + m // 2)
+            at += m
+    first, last = moves[0], moves[-1]
+    frames, q = np.concatenate(seg_p)[first:last], np.concatenate(seg_q)[first:last]
+    stops = [(a - first, b - first) for a, b in stops]
+    seg_t = np.arange(len(frames)) / hz + 4156.212
+    tcp = np.column_stack([frames[:, :3, 3] / 1000.0 + rng.normal(0, noise_mm / 1000.0, (len(frames), 3)),
+                           Rotation.from_matrix(frames[:, :3, :3]).as_rotvec() + rng.normal(0, 1e-5, (len(frames), 3))])
+    q = q + rng.normal(0, 1e-5, q.shape)
+    head = ["timestamp", *(f"actual_q_{k}" for k in range(6)), *(f"actual_TCP_pose_{k}" for k in range(6))]
+    np.savetxt(path, np.column_stack([seg_t, q, tcp]), fmt="%.10g", delimiter=",", header=",".join(head), comments="")
+    return path, stops, len(frames)
+
+
+def _min_jerk(a, b, q, hz, sweep=False):
+    """The rows strictly between two rests: flange frames (m, 4, 4), joints (m, 6) and m (``sweep``: at
+    constant speed, rows at both ends)."""
+    qa, qb = q
+    dist = np.linalg.norm(b[:3, 3] - a[:3, 3])
+    turn = np.degrees(Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).magnitude())
+    duration = max(0.4, 1.875 * dist / 250.0, 1.875 * turn / 45.0)  # peak speed of 10t^3 - 15t^4 + 6t^5: 1.875 D/T
+    tau = np.arange(0 if sweep else 1, int(round(duration * hz))) / (duration * hz)
+    s = tau if sweep else 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    out = np.tile(np.eye(4), (len(s), 1, 1))
+    out[:, :3, 3] = a[:3, 3] + s[:, None] * (b[:3, 3] - a[:3, 3])
+    out[:, :3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([a[:3, :3], b[:3, :3]]))(s).as_matrix()
+    return out, qa + s[:, None] * (qb - qa), len(s)
+
+
 # --- independent readings of the real files ------------------------------------------------------
 
 def fanuc_reading(text):
@@ -147,6 +205,15 @@ def fanuc_reading(text):
     for n, body in re.findall(r"P\[(\d+)[^\]]*\]\{(.*?)\};", pos, re.S):
         rows[int(n)] = [float(re.search(rf"\b{f}\s*=\s*(\S+)\s*(?:mm|deg)", body).group(1)) for f in "XYZWPR"]
     return [f"P{n}" for n in order], np.array([rows[n] for n in order])
+
+
+def fanuc_configs(text):
+    """Each position's ``CONFIG`` (or ``KONFIG``) in ``/MN`` order: ``(letters, (t4, t5, t6))``, by a regular expression."""
+    mn, pos = text.split("/MN", 1)[1].split("/POS", 1)
+    order = list(dict.fromkeys(int(n) for n in re.findall(r"\bP\[(\d+)", mn)))
+    found = {int(n): (w + e + b, (int(t4), int(t5), int(t6))) for n, w, e, b, t4, t5, t6 in re.findall(
+        r"P\[(\d+)[^\]]*\]\{\s*GP1:[^}]*?[CK]ONFIG : '([NF]) ([UD]) ([TB]), (-?\d), (-?\d), (-?\d)'", pos)}
+    return [found[n] for n in order]
 
 
 def kuka_reading(src_text, dat_text):

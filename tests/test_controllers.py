@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from controller_files import (
     abb_reading,
+    fanuc_configs,
     fanuc_reading,
     kuka_reading,
     matrix,
@@ -24,11 +25,13 @@ from controller_files import (
     write_ls,
     write_mod,
     write_rtde,
+    write_rtde_stream,
     write_urscript,
 )
 from ingest_truth import make_cell, pose_error
 
 from handeye.app.command.cli import main
+from handeye.app.ingest.controller_rtde import STILL, stops
 from handeye.app.ingest.controllers import read_controller
 from handeye.model.chain import conventions
 from handeye.model.common.errors import InputError
@@ -102,17 +105,20 @@ def test_abb_real_module():
 
 
 def test_rtde_real_log():
-    """A UR RTDE CSV log: one pose per row in mm (x1000), rotation vectors, actual_q as degrees;
-    the log has no tcp_offset, and the notes say the poses are the flange's only with a zero TCP."""
+    """A UR RTDE CSV log, record.py's stream at 125 Hz of a robot standing still (11 equal rows, 0.08 s):
+    one pose, the median of its rows, in mm (x1000), rotation vectors, actual_q as degrees; the log
+    has no tcp_offset, and the notes say the poses are the flange's only with a zero TCP."""
     path = DATA / "ur_rtde_robot_data.csv"
     got = read_controller(path)
     table = np.genfromtxt(path, delimiter=",", names=True)
     pose = np.column_stack([table[f"actual_TCP_pose_{k}"] for k in range(6)])
-    assert got.ids is None and len(got.values) == len(table) == 11
-    assert np.allclose(got.values[:, :3], 1000 * pose[:, :3]) and np.allclose(got.values[:, 3:], pose[:, 3:])
-    assert np.allclose(got.joints, np.degrees(np.column_stack([table[f"actual_q_{k}"] for k in range(6)])))
+    assert got.ids is None and len(table) == 11 and len(got.values) == 1 and got.lines == (2,)
+    assert np.ptp(pose, axis=0).max() == 0  # the robot stood still: every row the same pose
+    assert np.allclose(got.values[:, :3], 1000 * pose[:1, :3]) and np.allclose(got.values[:, 3:], pose[:1, 3:])
+    assert np.allclose(got.joints, np.degrees(np.column_stack([table[f"actual_q_{k}"] for k in range(6)]))[:1])
+    assert "a log streamed at 125 Hz, still throughout (11 rows, 0.08 s): one pose" in got.notes[0]
     assert any("flange only if the TCP offset is zero" in n for n in got.notes)
-    _same_rotations("ur", got.values, pose)
+    _same_rotations("ur", got.values, pose[:1])
 
 
 # --- written as the controllers write them: dataset new ----------------------------------------
@@ -138,7 +144,7 @@ def _measured(out):
     lines = (out / "measurements.csv").read_text().splitlines()
     head = lines[0].split(",")
     convention = {"a": "kuka", "w": "fanuc", "q1": "abb", "rx": "ur"}[head[4]]
-    rows = np.array([[float(v) for v in line.split(",")[1:1 + len(head) - 5]] for line in lines[1:]])
+    rows = np.array([[float(v) for v in line.split(",")[1:head.index("xs")]] for line in lines[1:]])
     return convention, transforms(convention, rows)
 
 
@@ -424,3 +430,141 @@ def test_rtde_log_with_joints_calibrates_with_its_robot(tmp_path, capsys):
     dr = float(np.degrees(np.arccos(np.clip((np.trace(t_true[:3, :3].T @ got[:3, :3]) - 1) / 2, -1, 1))))
     sd_t, sd_r = (float(np.linalg.norm(res["std"][k])) for k in ("sensor_translation_mm", "sensor_rotation_deg"))
     assert dt < 4 * sd_t + 0.005 and dr < 4 * sd_r + 0.002, (dt, sd_t, dr, sd_r)
+
+
+# --- FANUC CONFIG: the arm configuration kept as the dataset's cfx ---------------------------------
+
+def _cfx_of(letters):
+    """ABB's cfx of FANUC's letters (bit 0 N: J5 < 0, bit 1 D, bit 2 B), written out here."""
+    return {"N": 1, "F": 0}[letters[0]] + {"U": 0, "D": 2}[letters[1]] + {"T": 0, "B": 4}[letters[2]]
+
+
+def test_fanuc_config_of_the_real_programs():
+    """CONFIG (KONFIG in the German export) of every position as a regular expression reads it: the
+    letters and turn numbers kept, cfx 1 ('N U T': J5 < 0, elbow up, in front of axis 1) for each."""
+    for name, count in (("fanuc_surface_cartesian.ls", 21), ("fanuc_german_up023.ls", 9)):
+        path = DATA / name
+        got = read_controller(path, accept_frames=True)
+        theirs = fanuc_configs(path.read_text(encoding="cp1252"))
+        assert len(theirs) == count and [(c[0] + c[2] + c[4], tuple(int(t) for t in c[7:].split(", ")))
+                                          for c in got.configs] == theirs
+        assert got.configuration.tolist() == [_cfx_of(c[0]) for c in theirs] == [1] * count
+        assert "cfx column" in " ".join(got.notes) and f"'N U T, 0, 0, 0' x{count}" in " ".join(got.notes)
+
+
+def test_fanuc_mixed_configurations_reach_the_dataset_as_a_users_cfx_column(tmp_path, capsys):
+    """A program whose positions are in all eight configurations (turn numbers -1..1): the dataset's cfx
+    column is each position's, as an independent reading decodes it, the same column a user's own pose CSV
+    with cfx gives; the loaded dataset groups the samples by it (the wrist group: the N positions)."""
+    from handeye.model.datasets.dataset import load
+    from handeye.model.robot import configuration
+
+    cell = make_cell(n=16, seed=16)
+    rng = np.random.default_rng(16)
+    configs = [f"{'NF'[k % 2]} {'UD'[k // 2 % 2]} {'TB'[k // 4 % 2]}, {', '.join(str(t) for t in rng.integers(-1, 2, 3))}"
+               for k in range(16)]
+    poses = write_ls(tmp_path / "p.ls", cell.flange2base, configs=configs)
+    scans = str(_profiles(tmp_path / "scans", cell))
+    assert main(["dataset", "new", str(tmp_path / "a"), "--poses", str(poses), "--profiles", scans, "--diameter",
+                 str(cell.diameter)]) == 0, capsys.readouterr().err
+    theirs = fanuc_configs(poses.read_text())
+    want = [_cfx_of(letters) for letters, _ in theirs]
+    assert sorted(set(want)) == list(range(8))
+    head, *rows = (tmp_path / "a" / "measurements.csv").read_text().splitlines()
+    column = head.split(",").index("cfx")
+    assert [int(r.split(",")[column]) for r in rows] == want
+    assert list(read_controller(poses).configs) == [c.replace(", ", ", ", 1) for c in configs]
+    table = tmp_path / "own.csv"  # the user's own table of the same poses with a cfx column
+    fanuc = read_controller(poses).values
+    table.write_text("id,x,y,z,w,p,r,cfx\n" + "".join(f"P{k + 1}," + ",".join(f"{v:.6f}" for v in fanuc[k]) + f",{want[k]}\n"
+                                                      for k in range(16)))
+    assert main(["dataset", "new", str(tmp_path / "b"), "--poses", str(table), "--profiles", scans, "--diameter",
+                 str(cell.diameter)]) == 0, capsys.readouterr().err
+    head_b, *rows_b = (tmp_path / "b" / "measurements.csv").read_text().splitlines()
+    assert [int(r.split(",")[head_b.split(",").index("cfx")]) for r in rows_b] == want
+    for folder in ("a", "b"):
+        data = load(tmp_path / folder)
+        assert data.configuration.tolist() == want
+        wrist = [g for g in configuration.groups(data) if g.kind == "wrist" and "j5 < 0" in g.label][0]
+        assert wrist.members.tolist() == [letters[0] == "N" for letters, _ in theirs]
+
+
+@pytest.mark.parametrize("config, shown", [("N X T, 0, 0, 0", "'N X T, 0, 0, 0'"), ("N U T, 0, 0", "'N U T, 0, 0'"),
+                                           ("N U T, 0, 0, 12", "'N U T, 0, 0, 12'")])
+def test_fanuc_malformed_config_is_named(tmp_path, capsys, config, shown):
+    """A CONFIG that is no FANUC configuration (a letter, a turn number missing, a turn of 12), or one not
+    closed by its quote: exit 2, one line naming the file, its line and the field."""
+    cell = make_cell(n=5, seed=13)
+    scans = str(_profiles(tmp_path / "scans", cell))
+    configs = ["N U T, 0, 0, 0"] * 5
+    configs[2] = config
+    for k in range(2):
+        poses = (write_ls(tmp_path / "p.ls", cell.flange2base, configs=configs) if k == 0 else
+                 _edit(_ls(tmp_path, cell), "CONFIG : 'N U T, 0, 0, 0',", "CONFIG : 'N U T, 0, 0, 0,"))
+        code = main(["dataset", "new", str(tmp_path / f"out{k}"), "--poses", str(poses), "--profiles", scans,
+                     "--diameter", "50.8"])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
+        line, what = (28, shown) if k == 0 else (16, "no quoted value")  # P3 is lines 26-31 (P1 from 14, 6 each)
+        assert f"p.ls, row {line}" in err and "column 'CONFIG'" in err and what in err, err
+        assert "not a FANUC arm configuration" in err, err
+
+
+# --- UR RTDE logs streamed while the robot moves: one pose per stop -------------------------------
+
+def _angle_deg(a, b):
+    return float(np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1) / 2, -1, 1))))
+
+
+def _spans(path):
+    """The stops (first row, end row) handeye finds in a log (comma-separated, header, timestamp, q, TCP)."""
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    mm = data[:, 7:13].copy()
+    mm[:, :3] *= 1000
+    return stops(data[:, 0], mm, np.degrees(data[:, 1:7]), STILL)
+
+
+def test_rtde_stream_gives_every_stop_at_its_true_pose(tmp_path):
+    """A log streamed at 500 Hz (minimum-jerk moves, stops of 0.3-2 s, 0.01 mm of noise on the TCP): the
+    14 stops are found, in order, each at its true pose to the noise (< 0.01 mm, < 0.001 deg; the median
+    of >= 150 rows has an sd of about 0.001 mm) with the true joints, and each spans its true stop."""
+    cell = make_cell(n=14, seed=17)
+    path, truth, rows = write_rtde_stream(tmp_path / "log.csv", cell.flange2base, np.random.default_rng(17))
+    got = read_controller(path)
+    assert len(got.values) == 14 and rows > 10_000
+    flanges = transforms("ur", got.values)
+    for k in range(14):
+        assert np.linalg.norm(flanges[k, :3, 3] - cell.flange2base[k, :3, 3]) < 0.01, k
+        assert _angle_deg(flanges[k, :3, :3], cell.flange2base[k, :3, :3]) < 0.001, k
+    assert [a + 2 for a, _ in _spans(path)] == list(got.lines)  # each stop's first row (line 1 the header)
+    for (a, b), (a0, b0) in zip(_spans(path), truth):  # the true stop, and the end of the move before it within 0.1 mm
+        assert a0 - 0.25 * 500 <= a <= a0 and b0 <= b <= b0 + 0.25 * 500, (a, b, a0, b0)
+    assert got.notes[0].startswith("a log streamed at 500 Hz, 14 stops in ") and "within 0.1 mm and 0.05 deg" in got.notes[0]
+    q = np.loadtxt(path, delimiter=",", skiprows=1)[:, 1:7]
+    assert np.allclose(got.joints, np.degrees([np.median(q[a:b], axis=0) for a, b in truth]), atol=1e-3)
+
+
+def test_rtde_stream_through_dataset_new(tmp_path, capsys):
+    """dataset new on a streamed log pairs its stops with the profiles by order (poses to the noise); a
+    profile fewer names both counts; a log of a robot that sweeps through the poses without stopping, or
+    whose stops are shorter than --still's S, is refused in one line naming the file."""
+    cell = make_cell(n=6, seed=18)
+    path, _, _ = write_rtde_stream(tmp_path / "log.csv", cell.flange2base, np.random.default_rng(18))
+    scans = _profiles(tmp_path / "scans", cell)
+    base = ["--poses", str(path), "--diameter", str(cell.diameter)]
+    assert main(["dataset", "new", str(tmp_path / "a"), *base, "--profiles", str(scans)]) == 0, capsys.readouterr().err
+    assert "6 stops in " in capsys.readouterr().out
+    _, got = _measured(tmp_path / "a")
+    assert np.allclose(got[:, :3, 3], cell.flange2base[:, :3, 3], atol=0.01)
+    (scans / "scan_06.csv").unlink()
+    assert main(["dataset", "new", str(tmp_path / "b"), *base, "--profiles", str(scans), "--pair", "order"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "6 poses but 5 profiles" in err and "the 6 stops found in the log" in err, err
+    moving, _, _ = write_rtde_stream(tmp_path / "moving.csv", cell.flange2base, np.random.default_rng(19), dwell=None)
+    for poses, extra, words in ((moving, [], "with no stop: the TCP is never still within 0.1 mm"),
+                                (path, ["--still", "0.1,0.05,2.5"], "for >= 2.5 s")):
+        code = main(["dataset", "new", str(tmp_path / "c"), "--poses", str(poses), "--diameter", "50.8", "--profiles",
+                     str(scans), *extra])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err and words in err, err
+        assert f"{poses.name}, row 2, column 'actual_TCP_pose_0'" in err, err

@@ -242,3 +242,20 @@ def test_a_folder_of_no_profiles_names_a_profile_like_file(tmp_path, capsys):
         (prof / f"{k}_3C_line.yml").write_text("%YAML:1.0\n---\nscan_line: [ 1., 0., 240.,\n")
     _refused(capsys, tmp_path, "--poses", str(_poses(tmp_path)), "--profiles", str(prof),
              words=(f"error: {prof / '1_3C_line.yml'}: no profile in the --profiles folders", "never closed"))
+
+
+@pytest.mark.parametrize("suffix, head", [
+    (".ply", b"ply\nformat ascii 1.0\nelement vertex 100\nproperty double x\nproperty double y\nproperty double z\n"
+             b"end_header\n0 0 0\n"),
+    (".pcd", b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 100\nHEIGHT 1\nPOINTS 100\n"
+             b"DATA ascii\n0 0 0\n")])
+def test_a_sparse_ascii_ply_or_pcd_is_refused_before_its_body_is_decoded(tmp_path, suffix, head):
+    """An ascii PLY or PCD header followed by zeros (a sparse file: 250 MiB of them peaked at 786 MB RSS and 0.76 s
+    of CPU while its body was decoded and split; now 285 MB, the bytes read, and 0.15 s): refused at its first NUL
+    byte, naming the file, before anything is decoded."""
+    path = tmp_path / f"s{suffix}"
+    path.write_bytes(head)
+    os.truncate(path, 4 * 2**20)
+    with pytest.raises(DatasetError) as err:
+        clouds.read_profile_file(path)
+    assert f"a NUL byte at byte {len(head)}: not text, not an ascii {suffix[1:].upper()}" in str(err.value)

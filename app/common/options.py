@@ -360,6 +360,10 @@ _DATASET_NEW = (
         help="A controller file's poses taught in a tool other than the flange (FANUC UT, KUKA TOOL_NO, ABB tooldata, "
              "URScript set_tcp, RTDE tcp_offset) or in a user frame other than the robot base (UF, BASE_NO, wobjdata) "
              "read as flange poses in the base: only when that tool is zero and that frame the base (one of each)."),
+    Opt('--still', metavar='MM,DEG,S',
+        help="A UR RTDE log streamed while the robot moves is read as its stops: the TCP within MM of each stop's median "
+             "position, its rotation and every joint within DEG, for at least S seconds, one pose per stop, its median "
+             "(:mod:`handeye.app.ingest.controller_rtde`; default 0.1,0.05,0.2)."),
     Opt('--profiles', (), action='extend', nargs='+', metavar='PATH',
         help="Profile files (many: a shell glob as `--profiles scans/*.yml` gives them all), a quoted glob "
              "(`'scans/*.yml'`) or folders (:mod:`handeye.app.ingest.clouds`), one profile per pose; every word up to "

@@ -23,7 +23,7 @@ import numpy as np
 
 from handeye.app.ingest import opencv_storage
 from handeye.app.ingest.poses import canonical
-from handeye.app.ingest.tables import decode, is_number, parse_table, read_bytes
+from handeye.app.ingest.tables import check_text, decode, is_number, parse_table, read_bytes
 from handeye.model.readers.tables import DatasetError
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2", "ushort": "u2",
@@ -148,6 +148,7 @@ def _ply(path, raw):
         raise DatasetError(path, "PLY: list properties in or before the vertices are not read; write the vertices first")
     last = all(n == 0 for _, n, _ in elements[names.index("vertex") + 1:])
     if fmt == "ascii":
+        check_text(path, raw, "an ascii PLY")  # a NUL (a sparse file) found before the body is decoded and split
         skip = sum(n for _, n, _ in before)
         lines = [line for line in raw[offset:].decode("ascii", errors="replace").splitlines() if line.strip()]
         _counts_agree(path, ("PLY", "vertices", "lines"), count, len(lines) - skip, exact=last)
@@ -207,6 +208,7 @@ def _pcd(path, raw):
     if not fields or len(sizes) != len(fields) or len(types) != len(fields):
         raise DatasetError(path, "PCD header needs FIELDS, SIZE and TYPE of equal length")
     if data == "ascii":
+        check_text(path, raw, "an ascii PCD")  # a NUL (a sparse file) found before the body is decoded and split
         body = [b for b in raw[offset:].decode("ascii", errors="replace").splitlines() if b.strip()]
         _counts_agree(path, ("PCD", "points", "lines"), points, len(body))
         table = _loadtxt(path, body, sum(counts))

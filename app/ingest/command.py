@@ -151,6 +151,9 @@ class _Read:
     centres : ndarray (N, 3) or None
         The sphere centre the sensor reported at each pose (``--centres``), sensor frame, mm; then
         ``profiles`` is None.
+    configuration : ndarray of int (N,) or None
+        The arm configuration of each pose as ABB's ``cfx`` (a pose table's ``cfx`` column, a FANUC
+        program's ``CONFIG``): written as the dataset's ``cfx`` column.
     """
 
     ids: list
@@ -165,11 +168,13 @@ class _Read:
     lines: tuple | None = None
     angles: np.ndarray | None = None
     centres: np.ndarray | None = None
+    configuration: np.ndarray | None = None
 
 
 def _from_files(req):
     """Poses and profiles (or clouds, or reported centres) from loose files, paired."""
-    table = read_poses(req.poses, req.convention, req.columns, req.units, req.angles, req.accept_frames)
+    table = read_poses(req.poses, req.convention, req.columns, req.units, req.angles,
+                       {"accept_frames": req.accept_frames, "still": req.still})
     if req.measured == "centres":
         return _with_centres(req, table)
     profiles, skipped = sources.read_profiles(req.profiles, req.profile_units)
@@ -179,8 +184,9 @@ def _from_files(req):
         index, ids, how = pair([p.label for p in profiles], [p.name for p in profiles], table.ids, len(table.values),
                                str(table.file), req.pairing)
     except DatasetError as exc:
+        exc = _stops_said(exc, table)
         if not skipped:
-            raise
+            raise exc from None
         raise DatasetError(exc.file, f"{exc.problem}; skipped as no profile: {skipped[0][0]} ({skipped[0][1]})"
                            + (f" and {len(skipped) - 1} more" if len(skipped) > 1 else ""), exc.row, exc.column) from None
     per_pose = [None] * len(ids)  # pair gave every pose one profile
@@ -196,7 +202,15 @@ def _from_files(req):
         notes.append("joint angles not written: give --robot MODEL to keep them (the loader checks them)")
     return _Read(ids, table.values, table.convention, per_pose, inputs, mounts.notes(notes, req.cell), how, roles,
                  _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints,
-                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)))
+                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)), configuration=table.configuration)
+
+
+def _stops_said(exc, table):
+    """A pairing error of a streamed RTDE log's poses said to be its stops."""
+    if "stops of a stream" not in table.format:
+        return exc
+    return DatasetError(exc.file, f"{exc.problem}; the poses are the {len(table.values)} stops found in the log "
+                                  "(--still MM,DEG,S says what a stop is)", exc.row, exc.column)
 
 
 def _inputs(req, table):
@@ -218,7 +232,7 @@ def _with_centres(req, table):
     notes = list(table.notes) + (["centres m -> mm"] if req.profile_units == "m" else [])
     return _Read(ids, table.values, table.convention, None, inputs, mounts.notes(notes, req.cell), how, roles,
                  _joints(req.joints, table) if req.joints is not None or req.robot is None else table.joints,
-                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)), centres)
+                 table.lines, mounts.axis_angles(table.file, req.cell, len(table.values)), centres, table.configuration)
 
 
 def _from_bag(req):
@@ -267,7 +281,7 @@ def new_dataset(out, *, poses=None, profiles=(), clouds=(), centres=None, conven
                 profile_units=None, profile_axes=None, diameter=None, side=None, center=None, start=None, sensor_mount=None,
                 sphere_mount=None, positioner_axes=None, joints=None,
                 robot=None, pair="auto", match=None, bag=None, pose_topic=None, profile_topic=None, base_frame=None,
-                flange_frame=None, max_dt=0.05, setup=None, accept_frames=False):
+                flange_frame=None, max_dt=0.05, setup=None, accept_frames=False, still=None):
     """Assemble a handeye dataset folder from loose files or a ROS 2 bag (``handeye dataset new``).
 
     {parameters}
@@ -349,8 +363,8 @@ def _files(result, read, req, start_pose):
     srcs = [{"role": role, "path": str(pathlib.Path(f).resolve()), "format": fmt, "sha256": writer.sha256(f)}
             for role, f, fmt in _unique(read.roles + extra)]
     measured = (req.measured, read.centres if req.measured == "centres" else rels)
-    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, measured, read.joints,
-                                                         (req.cell.names, read.angles))
+    files["measurements.csv"] = writer.measurements_text(result.ids, read.values, result.convention, measured,
+                                                         (read.joints, read.configuration), (req.cell.names, read.angles))
     files["setup.toml"] = writer.setup_text(result, req, start_pose)
     files["PROVENANCE.toml"] = writer.provenance_text(head, sections, srcs)
     return files, rels

@@ -1,4 +1,5 @@
-"""ABB RAPID modules (``.mod``), URScript programs and UR RTDE logs as flange poses.
+"""ABB RAPID modules (``.mod``) and URScript programs as flange poses (UR RTDE logs:
+:mod:`handeye.app.ingest.controller_rtde`).
 
 ABB: ``CONST|PERS|VAR robtarget name := [[x, y, z], [q1, q2, q3, q4], [cf...], [extax...]];``
 (mm; a unit quaternion, w first: convention ``abb``), arrays ``name{n}`` included, and inline
@@ -16,25 +17,16 @@ URScript: poses ``p[x, y, z, rx, ry, rz]`` (metres, a rotation vector in radians
 that of the moves that reach them, else of the assignments. A ``set_tcp`` other than zero is a
 TCP that is not the flange; without ``set_tcp`` the poses are of the installation's TCP, which
 the script does not say (the summary says so).
-
-RTDE logs (``rtde`` record.py's CSV, space or comma separated, with a header): one pose per row
-of ``actual_TCP_pose_0..5`` (else ``target_TCP_pose_0..5``), joint angles ``actual_q_0..5``
-(else ``target_q_0..5``) in radians read as degrees; ``tcp_offset_0..5``, when logged, must be
-zero. Without it the TCP offset is not in the log (the summary says so; with ``--robot`` the
-loader checks the joints against the poses and names a TCP offset).
 """
 from __future__ import annotations
 
 import dataclasses
 import math
 import re
-import types
 
 import numpy as np
 
 from handeye.app.ingest.controller_common import Point, Text, frames_checked, in_motion_order, number, poses_of
-from handeye.app.ingest.tables import read_table
-from handeye.model.readers.tables import DatasetError
 
 #: deepest RAPID aggregate read (a robtarget is 2 deep, a tooldata 3)
 _MAX_DEPTH = 6
@@ -343,55 +335,3 @@ def _ur_moves(src, clean, declared):
                 skipped.append(f"{m.group(1)}({arg[:24]}) (line {src.line(m.start())})")
     return moved, ([f"left out, joint or computed targets: {', '.join(skipped[:6])}"
                     + (" ..." if len(skipped) > 6 else "")] if skipped else [])
-
-
-def read_rtde(path, accept_frames=False):
-    """The poses (and joint angles) of a UR RTDE CSV log (module docstring); convention ``ur``."""
-    table = read_table(path)
-    header = [str(h).strip() for h in (table.header or ())]
-    where = {h: k for k, h in enumerate(header)}
-    pose_cols = next((c for c in ([f"{p}_TCP_pose_{k}" for k in range(6)] for p in ("actual", "target"))
-                      if all(h in where for h in c)), None)
-    if pose_cols is None:
-        raise DatasetError(table.file, "no actual_TCP_pose_0..5 (or target_TCP_pose_0..5) columns: "
-                                       "record actual_TCP_pose in the RTDE recipe", 1)
-    joint_cols = next((c for c in ([f"{p}_q_{k}" for k in range(6)] for p in ("actual", "target"))
-                       if all(h in where for h in c)), None)
-    tcp_cols = [f"tcp_offset_{k}" for k in range(6)]
-    wanted = pose_cols + (joint_cols or []) + (tcp_cols if all(c in where for c in tcp_cols) else [])
-    data = np.empty((len(table.rows), len(wanted)))
-    for r, (row, line) in enumerate(zip(table.rows, table.lines)):
-        if len(row) != len(header):
-            raise DatasetError(table.file, f"expected {len(header)} fields, got {len(row)}", line)
-        for c, name in enumerate(wanted):
-            data[r, c] = _cell(table.file, row[where[name]], line, name)
-    poses = data[:, :6].copy()
-    if np.max(np.abs(poses[:, :3])) > _UR_METRES_MAX:
-        raise DatasetError(table.file, "positions beyond 50: RTDE poses are metres", table.lines[0], pose_cols[0])
-    poses[:, :3] *= 1000.0
-    notes = [f"one pose per row ({pose_cols[0][:-2]}_0..5); positions m -> mm (x1000)"]
-    joints = None
-    if joint_cols:
-        joints = np.degrees(data[:, 6:12])
-        notes.append(f"joint angles {joint_cols[0][:-2]}_0..5 rad -> deg")
-    tool, ok = "not logged", True
-    if wanted[-1] == tcp_cols[-1]:
-        offset = data[:, -6:]
-        tool, ok = ",".join(f"{v:g}" for v in offset[0]), bool(np.all(np.abs(offset) < 1e-9))
-    else:
-        notes.append("tcp_offset not logged: the poses are of the TCP, the flange only if the TCP offset is zero")
-    points = [Point(str(k + 1), line, pose, tool, "base", ok, True, "tcp_offset_0", "base")
-              for k, (pose, line) in enumerate(zip(poses, table.lines))]
-    src = types.SimpleNamespace(file=table.file, note=None)
-    notes += frames_checked(points, src, accept_frames, lambda p, w: f"row {p.name}: tcp_offset {p.tool}, not zero")
-    return dataclasses.replace(poses_of(points, src, f"UR RTDE log ({table.kind})", "ur", notes), ids=None, joints=joints)
-
-
-def _cell(file, text, line, column):
-    try:
-        value = float(text)
-    except ValueError:
-        raise DatasetError(file, f"not a number: {str(text)[:40]!r}", line, column) from None
-    if not math.isfinite(value):
-        raise DatasetError(file, f"not a finite number: {text!r}", line, column)
-    return value

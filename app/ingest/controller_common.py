@@ -39,6 +39,10 @@ class Point:
         The field a refusal names (``UT``, ``TOOL_NO``, ``tool``).
     frame_line : int or None
         The line naming the tool and frame, when it is not ``line``.
+    config : str or None
+        The arm configuration the file gives for it (FANUC ``CONFIG``, normalised ``'N U T, 0, 0, 0'``).
+    cfx : int or None
+        That configuration as ABB's ``cfx`` (0-7; :func:`handeye.model.robot.configuration.groups`).
     """
 
     name: str
@@ -51,6 +55,8 @@ class Point:
     tool_field: str = "tool"
     base_field: str = "base"
     frame_line: int | None = None
+    config: str | None = None
+    cfx: int | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +82,13 @@ class ControllerPoses:
         Conversions made, what was left out and why.
     companions : tuple of pathlib.Path
         Other files read with it (a KUKA ``.src``'s ``.dat``).
+    configuration : ndarray of int (N,) or None
+        The arm configuration of each pose as ABB's ``cfx`` (0-7: bit 0 j5 < 0, bit 1 the elbow,
+        bit 2 the shoulder; :mod:`handeye.model.robot.configuration`), where the file gives one for
+        every pose (FANUC ``CONFIG``); written as the dataset's ``cfx`` column.
+    configs : tuple of str or None
+        The configurations as the file writes them (``'N U T, 0, 0, 0'``: FANUC's letters and the
+        turn numbers of J4, J5, J6).
     """
 
     file: pathlib.Path
@@ -87,6 +100,8 @@ class ControllerPoses:
     joints: np.ndarray | None
     notes: tuple
     companions: tuple = ()
+    configuration: np.ndarray | None = None
+    configs: tuple | None = None
 
 
 class Text:
@@ -180,5 +195,15 @@ def poses_of(points, src, fmt, convention, notes):
         raise DatasetError(src.file, f"no Cartesian position in this {fmt}")
     if src.note:
         notes = [src.note, *notes]
+    cfx, configs = None, None
+    given = [p for p in points if p.cfx is not None]
+    if given and len(given) == len(points):
+        cfx, configs = np.array([p.cfx for p in points], int), tuple(p.config for p in points)
+        counts = {c: configs.count(c) for c in dict.fromkeys(configs)}
+        notes = [*notes, "arm configuration of every pose kept as the cfx column (bit 0 j5 < 0, bit 1 the elbow down, "
+                         "bit 2 the wrist centre behind axis 1): " + _listed([f"'{c}' x{n}" for c, n in counts.items()])]
+    elif given:
+        notes = [*notes, f"no cfx column: {_listed([p.name for p in points if p.cfx is None])} give no arm configuration"]
     return ControllerPoses(src.file, fmt, tuple(p.name for p in points), tuple(p.line for p in points),
-                           np.array([p.values for p in points], float), convention, None, tuple(notes))
+                           np.array([p.values for p in points], float), convention, None, tuple(notes),
+                           configuration=cfx, configs=configs)

@@ -2,7 +2,12 @@
 
 FANUC: each ``P[n]{ GP1: UF : u, UT : t, CONFIG : '...', X = ... mm, Y, Z, W = ... deg, P, R };``
 of the ``/POS`` section; W, P, R are fixed-axis X-Y-Z rotations, ``R = Rz(R) Ry(P) Rx(W)``
-(convention ``fanuc``). The order is that of the positions' first use in ``/MN`` (``/POS``
+(convention ``fanuc``). ``CONFIG`` (``KONFIG`` in a German export) ``'N U T, 0, 0, 0'`` is the
+arm configuration: the wrist no-flip or flip (``N``: J5 < 0, ``F``: J5 > 0), the elbow up or down,
+the wrist centre in front of axis 1 (top, ``T``) or behind it (``B``), then the turn numbers of
+J4, J5, J6. It is kept as ABB's ``cfx`` (bit 0 ``N``, bit 1 ``D``, bit 2 ``B``), the dataset's
+configuration column (:mod:`handeye.model.robot.configuration`); any other form is refused
+naming its line. The order is that of the positions' first use in ``/MN`` (``/POS``
 order when ``/MN`` uses none). A position in joint form (``J1 = ... deg``) is refused; other
 motion groups (``GP2``...) and extended axes (``E1``) are not read and said not to be.
 
@@ -29,6 +34,8 @@ _FANUC_FIELDS = ("X", "Y", "Z", "W", "P", "R")
 _FIELD = re.compile(r"\b([A-Z]+\d?)\s*(=|:)\s*([^\s,;']+)\s*(mm|deg)?", re.I)
 _P_START = re.compile(r"\bP\[\s*([^\]\n]*)\]\s*\{")
 _MN_USE = re.compile(r"\bP\[\s*(\d{1,9})\s*(?::[^\]\n]*)?\]")
+_CONFIG_KEY = re.compile(r"\b(CONFIG|KONFIG)\s*:\s*(?:'([^'\n]*)')?", re.I)
+_CONFIG = re.compile(r"\s*([NF])\s*([UD])\s*([TB])\s*,\s*([+-]?\d)\s*,\s*([+-]?\d)\s*,\s*([+-]?\d)\s*")
 
 
 def read_fanuc(path, accept_frames=False):
@@ -106,7 +113,26 @@ def _fanuc_point(src, at, name, body):
         notes.append("extended axes E1.. of GP1 not read (the pose is the robot's)")
     tool, base = (_frame_number(src, fields, k, name) for k in ("UT", "UF"))
     frame_line = src.line(fields["UT"][2]) if "UT" in fields else None
-    return Point(name, src.line(at), np.array(values), tool, base, tool == 0, base == 0, "UT", "UF", frame_line), notes
+    config, cfx = _fanuc_config(src, gp1, offset + groups[0][1], name)
+    return Point(name, src.line(at), np.array(values), tool, base, tool == 0, base == 0, "UT", "UF", frame_line,
+                 config, cfx), notes
+
+
+def _fanuc_config(src, gp1, offset, name):
+    """``(text, cfx)`` of a position's ``CONFIG : 'N U T, 0, 0, 0'`` (module docstring; ``offset``: of
+    ``gp1`` in the file), ``(None, None)`` without one; any other form a DatasetError naming its line."""
+    m = _CONFIG_KEY.search(gp1)
+    if m is None:
+        return None, None
+    key, value = m.group(1).upper(), m.group(2)
+    form = _CONFIG.fullmatch(value) if value is not None else None
+    if form is None:
+        shown = "no quoted value" if value is None else repr(value[:40])
+        raise src.error(offset + m.start(), f"{name}: {key} {shown} is not a FANUC arm configuration ('N U T, 0, 0, 0': "
+                                            "N or F, U or D, T or B, and the turn numbers of J4, J5, J6)", key)
+    wrist, elbow, base, *turns = form.groups()
+    text = f"{wrist} {elbow} {base}, {', '.join(str(int(t)) for t in turns)}"
+    return text, (wrist == "N") + 2 * (elbow == "D") + 4 * (base == "B")
 
 
 def _frame_number(src, fields, key, name):

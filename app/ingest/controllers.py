@@ -4,11 +4,13 @@
 TP program (``.ls``: its ``/POS`` section), a KUKA program (``.src`` with its ``.dat``, or a
 ``.dat`` alone), an ABB RAPID module (``.mod``: its ``robtarget`` declarations and ``Move``
 instructions), a URScript program (``p[...]`` poses) or a UR RTDE log (``actual_TCP_pose_0..5``
-columns). :func:`read_controller` tells them by suffix and content (None: not a controller file;
+columns; one pose per row, or per stop of a log streamed while the robot moves:
+:mod:`handeye.app.ingest.controller_rtde`). :func:`read_controller` tells them by suffix and content (None: not a controller file;
 :func:`handeye.app.ingest.poses.read_poses` reads it as a table) and returns
 :class:`ControllerPoses`: the flange poses in the robot base in the file's own convention (mm;
 FANUC W,P,R and KUKA A,B,C degrees, ABB quaternions w first, UR rotation vectors radians), the
-order of motion, and the joint angles where the file has them.
+order of motion, the joint angles where the file has them and the arm configuration where it
+gives one (FANUC ``CONFIG``, kept as the dataset's ``cfx`` column).
 
 A pose is of the flange in the robot base only when the file says so: FANUC ``UT : 0`` and
 ``UF : 0``, KUKA ``TOOL_NO 0`` and ``BASE_NO 0``, ABB ``tool0`` (or a ``tooldata`` declared in
@@ -25,7 +27,7 @@ from __future__ import annotations
 import pathlib
 import re
 
-from handeye.app.ingest import controller_abb_ur, controller_fanuc_kuka
+from handeye.app.ingest import controller_abb_ur, controller_fanuc_kuka, controller_rtde
 from handeye.app.ingest.controller_common import ControllerPoses  # noqa: F401  (re-exported: the result)
 
 #: suffixes of controller programs (other files are told by their content)
@@ -66,7 +68,7 @@ def kind_of(path):
     return None
 
 
-def read_controller(path, accept_frames=False):
+def read_controller(path, accept_frames=False, still=None):
     """The poses of a controller file, or None when ``path`` is no controller file.
 
     Parameters
@@ -75,6 +77,9 @@ def read_controller(path, accept_frames=False):
     accept_frames : bool
         Read poses in a named tool other than the flange, or a frame other than the robot base,
         as flange poses in the base (``--accept-frames``; module docstring).
+    still : controller_rtde.Still or None
+        What a stop of an RTDE log streamed while the robot moves is (``--still``; None: the default,
+        :data:`handeye.app.ingest.controller_rtde.STILL`).
 
     Returns
     -------
@@ -83,7 +88,8 @@ def read_controller(path, accept_frames=False):
     kind = kind_of(path)
     if kind is None:
         return None
+    if kind == "rtde":
+        return controller_rtde.read_rtde(path, accept_frames, still)
     reader = {"fanuc": controller_fanuc_kuka.read_fanuc, "kuka": controller_fanuc_kuka.read_kuka,
-              "abb": controller_abb_ur.read_abb, "urscript": controller_abb_ur.read_urscript,
-              "rtde": controller_abb_ur.read_rtde}[kind]
+              "abb": controller_abb_ur.read_abb, "urscript": controller_abb_ur.read_urscript}[kind]
     return reader(path, accept_frames)

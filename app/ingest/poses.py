@@ -20,6 +20,7 @@ from handeye.app.ingest import controllers
 from handeye.app.ingest.tables import read_table
 from handeye.model.chain import conventions
 from handeye.model.readers.tables import DatasetError
+from handeye.model.robot.configuration import cfx_field
 
 #: orientation columns (canonical names) of each convention; abb: quaternion, w first
 KINDS = {"kuka": ("a", "b", "c"), "fanuc": ("w", "p", "r"), "ur": ("rx", "ry", "rz"), "abb": ("qw", "qx", "qy", "qz")}
@@ -27,7 +28,7 @@ _SINGLE = {**{n: n for n in ("x", "y", "z", "a", "b", "c", "w", "p", "r", "rx", 
            **{f"{p}{a}": a for p in ("p", "t") for a in "xyz"},
            "q1": "qw", "q2": "qx", "q3": "qy", "q4": "qz",
            **{n: "id" for n in ("id", "name", "index", "idx", "pose", "poseid", "no", "nr", "number", "n")},
-           **{f"{p}{k}": f"j{k}" for p in ("j", "joint", "axis") for k in range(1, 7)}}
+           **{f"{p}{k}": f"j{k}" for p in ("j", "joint", "axis") for k in range(1, 7)}, "cfx": "cfx"}
 _POSITION = {"pos", "position", "translation", "trans", "t", "p", "tcp", "flange", "xyz", "location", "loc"}
 _QUATERNION = {"orientation", "quat", "quaternion", "q", "ori", "rotation", "rot"}
 _ROTVEC = {"rotvec", "rvec", "r"}
@@ -93,6 +94,9 @@ class PoseTable:
         Joint angles (degrees) a controller file gave with the poses.
     companions : tuple of pathlib.Path
         Other files read with it (a KUKA ``.src``'s ``.dat``).
+    configuration : ndarray of int (N,) or None
+        The arm configuration of each pose as ABB's ``cfx`` (0-7): a table's ``cfx`` column, a FANUC
+        program's ``CONFIG`` (:mod:`handeye.app.ingest.controller_fanuc_kuka`); the dataset's ``cfx``.
     """
 
     file: object
@@ -106,6 +110,7 @@ class PoseTable:
     notes: tuple
     joints: np.ndarray | None = None
     companions: tuple = ()
+    configuration: np.ndarray | None = None
 
 
 def _names(table, columns, convention, width, what="pose"):
@@ -212,7 +217,7 @@ def _check_angles(values, kind, angles, file):
     return np.column_stack([values[:, :3], rot]), notes
 
 
-def read_poses(path, convention=None, columns=None, units="mm", angles=None, accept_frames=False):
+def read_poses(path, convention=None, columns=None, units="mm", angles=None, controller=None):
     """Flange poses of a CSV, whitespace-separated or JSON file (module docstring), or of a robot
     controller's own file (:mod:`handeye.app.ingest.controllers`).
 
@@ -229,15 +234,17 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None, acc
         Units of the positions.
     angles : {'deg', 'rad'} or None
         Units of the angles (None: the convention's own).
-    accept_frames : bool
-        A controller file's poses in another tool or frame read as the flange's in the base
-        (``--accept-frames``).
+    controller : dict or None
+        How a controller file is read: the keywords of
+        :func:`~handeye.app.ingest.controllers.read_controller` (``accept_frames``: a controller file's
+        poses in another tool or frame read as the flange's in the base, ``--accept-frames``; ``still``:
+        the stops of a streamed RTDE log, ``--still``).
 
     Returns
     -------
     PoseTable
     """
-    found = controllers.read_controller(path, accept_frames)
+    found = controllers.read_controller(path, **(controller or {}))
     if found is not None:
         return _from_controller(found, convention, columns, units, angles)
     table = read_table(path, known_name=lambda c: canonical(c) is not None)
@@ -260,7 +267,15 @@ def read_poses(path, convention=None, columns=None, units="mm", angles=None, acc
     if ignored:
         notes.append(f"columns ignored: {', '.join(ignored)}")
     return PoseTable(table.file, table.kind, _ids(table, names), table.lines, values, target, kind,
-                     tuple(n or "-" for n in names), tuple(notes))
+                     tuple(n or "-" for n in names), tuple(notes), configuration=_cfx(table, names))
+
+
+def _cfx(table, names):
+    """The ``cfx`` column of a pose table (ABB's arm configuration, an integer 0-7), or None without one."""
+    if "cfx" not in names:
+        return None
+    j = names.index("cfx")
+    return np.array([cfx_field(str(row[j]), table.file, line) for row, line in zip(table.rows, table.lines)], int)
 
 
 def _from_controller(found, convention, columns, units, angles):
@@ -279,7 +294,7 @@ def _from_controller(found, convention, columns, units, angles):
         notes += moved
     names = ("x", "y", "z") + KINDS[found.convention]
     return PoseTable(found.file, found.format, found.ids, found.lines, values, target, found.convention, names,
-                     tuple(notes), found.joints, found.companions)
+                     tuple(notes), found.joints, found.companions, found.configuration)
 
 
 def _in_reading_ranges(values, kind):

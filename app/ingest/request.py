@@ -24,6 +24,7 @@ from handeye.app.common.errors import RequestError
 from handeye.app.common.files import check_output_folder
 from handeye.app.engine.command_request import checked_values
 from handeye.app.ingest import mounts
+from handeye.app.ingest.controller_rtde import Still
 from handeye.app.ingest.pairing import Pairing, natural_key
 from handeye.app.ingest.plane import AXES
 from handeye.app.ingest.poses import canonical
@@ -97,6 +98,8 @@ class NewDatasetRequest:
         A ROS 2 bag and what to read of it (:func:`handeye.app.ingest.rosbag.read_bag`).
     accept_frames : bool
         ``--accept-frames``: a controller file's tool and frame taken as the flange and the base.
+    still : controller_rtde.Still or None
+        ``--still MM,DEG,S``: what a stop of a streamed RTDE log is (None: the default).
     options : dict
         The options as PROVENANCE.toml keeps them (the setup's values filled in; None left out).
     cell : mounts.Cell
@@ -130,6 +133,7 @@ class NewDatasetRequest:
     max_dt: float
     accept_frames: bool
     options: dict
+    still: Still | None = None
     cell: mounts.Cell = mounts.Cell()
     measured: str = "profiles"
     centres: object = None
@@ -158,6 +162,7 @@ class NewDatasetRequest:
             "profile_axes": None if v["profile_axes"] is None else _profile_axes(v["profile_axes"]),
             "center": numbers(v["center"], "--center", 3), "robot": robot, "robot_file": robot_file,
             "pairing": Pairing(v["pair"], _match(v["match"])), "side_from": side_from, "start_axes": start_axes,
+            "still": _still(v["still"]),
             "cell": mounts.checked(v["sensor_mount"], v["sphere_mount"], v["positioner_axes"], v["bag"] is not None),
             "options": {k: x for k, x in v.items() if k != "out" and x is not None and not (isinstance(x, list) and not x)}}
         return cls(**{**{field.name: v.get(field.name) for field in dataclasses.fields(cls)}, **resolved})
@@ -171,6 +176,16 @@ class NewDatasetRequest:
             return pose
         matrix = own_frame.to_internal(conventions.transform_from(convention, pose), self.start_axes)
         return conventions.pose_from(convention, own_frame.to_own(matrix, rotation))
+
+
+def _still(value):
+    """``--still MM,DEG,S`` as a :class:`~handeye.app.ingest.controller_rtde.Still` (None: not given)."""
+    got = numbers(value, "--still", 3)
+    if got is None:
+        return None
+    if not all(v > 0 for v in got):
+        raise RequestError(f"--still {value!r}: MM, DEG and S must be positive (a stop's tolerances and its shortest time)")
+    return Still(*got)
 
 
 def _listed(value):

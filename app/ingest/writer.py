@@ -27,24 +27,27 @@ def safe_name(ident, taken):
     return name
 
 
-def measurements_text(ids, values, convention, measured, joints=None, axes=((), None)):
+def measurements_text(ids, values, convention, measured, robot=(None, None), axes=((), None)):
     """``measurements.csv``: id, the convention's pose columns, ``xs,ys,zs`` (the centres reported, or empty),
-    [the positioner's axis columns,] [j1..j6,] [profile or cloud]; ``measured``: ``(what, rels)``, ``what``
+    [the positioner's axis columns,] [j1..j6,] [cfx,] [profile or cloud]; ``measured``: ``(what, rels)``, ``what``
     ``'profiles'`` or ``'clouds'`` (the column ``profile`` or ``cloud`` of the files ``rels``), or ``('centres',
-    (N, 3) mm)``; ``axes``: the axis names and their angles (N, k), degrees."""
+    (N, 3) mm)``; ``robot``: the joint angles (N, 6), degrees, and the arm configurations (N,), ABB's ``cfx``
+    (either None: no such columns); ``axes``: the axis names and their angles (N, k), degrees."""
     names, angles = axes
+    joints, cfx = robot
     what, rels = measured
     centres = rels if what == "centres" else None
     column = [] if centres is not None else ["cloud" if what == "clouds" else "profile"]
     buffer = io.StringIO()
     out = csv.writer(buffer, lineterminator="\n")  # an id holding a comma or a quote is quoted
     out.writerow(["id", *conventions.columns(convention), "xs", "ys", "zs", *names,
-                  *(JOINTS if joints is not None else ()), *column])
+                  *(JOINTS if joints is not None else ()), *(("cfx",) if cfx is not None else ()), *column])
     for k, (ident, pose) in enumerate(zip(ids, values)):
         row = [str(ident), *(f"{v:.10g}" for v in pose)]
         row += [f"{v:.10g}" for v in centres[k]] if centres is not None else ["", "", ""]
         row += [f"{v:.10g}" for v in angles[k]] if angles is not None else []
         row += [f"{v:.6f}" for v in joints[k]] if joints is not None else []
+        row += [str(int(cfx[k]))] if cfx is not None else []
         out.writerow(row + ([rels[k]] if column else []))
     return buffer.getvalue()
 
