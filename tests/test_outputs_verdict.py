@@ -192,7 +192,7 @@ def test_export_carries_the_verdict_and_every_warning_and_still_parses(cells, fm
     assert "verdict: converged: recomputed from thesis-real" in lines
     assert "noise test FAILED" in lines  # the recomputed test, not the file's word
     for warning in doc["warnings"]:
-        assert verdicts.shorten(warning)[:60] in lines or "larger than the stated noise" in warning, warning
+        assert verdicts.shorten(warning)[:60] in lines or "larger than the assumed noise" in warning, warning
 
 
 @pytest.mark.parametrize("fmt", export.FORMATS + ("robot-toml",))

@@ -37,10 +37,11 @@ from handeye.model.design import identifiability, robot_gate
 from handeye.model.fit import extended
 from handeye.model.fit.calibration import CalibrationModel
 from handeye.model.geometry import circle
+from handeye.model.readers.setup_file import NOISE_CENTRE_MM
 
 #: How the warning of a failed noise test begins (:func:`noise_test`; an output that recomputes
 #: the test, :mod:`handeye.app.engine.held_verdict`, writes its own instead of a saved one).
-NOISE_WARNING = "the residuals are larger than the stated noise"
+NOISE_WARNING = "the residuals are larger than the assumed noise"
 
 
 def gross_error_warnings(ids, norms):
@@ -106,10 +107,10 @@ def noise_test(ssr, dof, sigma, whitened, warnings, advice):
     passed = not (p_value < NOISE_ALPHA and ratio > 1)
     if not passed:
         warnings.append(
-            f"{NOISE_WARNING}: sd {ratio:.1f} x the stated {nominal} (chi2 = "
-            f"{statistic:.4g} on {dof} dof, p = {p_value:.2g}): the model may lack an effect (or the noise is larger "
-            f"than [noise] in setup.toml says); {advice} to find and name it, "
-            "then calibrate with the effect it names (--effects NAME)")
+            f"{NOISE_WARNING}: sd {ratio:.1f} x the {nominal} assumed (chi2 = {statistic:.4g} on {dof} dof, "
+            f"p = {p_value:.2g}): the noise is larger than assumed ([noise] centre_mm in setup.toml or --sigma sets "
+            f"it; without either, {NOISE_CENTRE_MM:g} mm), or the model lacks an effect; {advice} to see the discrepancy "
+            "search's steps and what it tried")
     return NoiseTest(statistic, int(dof), p_value, ratio, nominal, passed, bool(whitened))
 
 
