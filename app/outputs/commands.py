@@ -212,6 +212,22 @@ def _write_cloud(result, out, fmt):
     files.write_text_atomically(out, buf.getvalue())
 
 
+def _bent(data, cal):
+    """``(data, notes)``: a scan's profiles corrected by the depth bend its calibration corrected its own by (the
+    sensor's linearity: :attr:`handeye.app.outputs.saved.Calibration.bend`), and a note saying so; unchanged
+    without one."""
+    bend = getattr(cal, "bend", None)
+    if bend is None or not data.profiles:
+        return data, []
+    lo, hi = bend.depths
+    depths = np.concatenate([p[:, 1] for p in data.profiles])
+    outside = int(np.count_nonzero((depths < lo) | (depths > hi)))
+    note = (f"profiles corrected by the calibration's depth bend ({bend.bend_mm:.3g} mm over {lo:.0f}-{hi:.0f} mm, "
+            "the sensor's linearity error it measured)" + (f"; {outside:,} points lie outside that range, corrected "
+                                                           "as at its nearer end" if outside else ""))
+    return dataclasses.replace(data, profiles=[bend.corrected(p) for p in data.profiles]), [note]
+
+
 @options.COMMANDS["cloud"].documented
 def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None, convention=None, force=False):
     """Every profile point of every pose in the robot base (:mod:`handeye.model.geometry.cloud`).
@@ -227,12 +243,12 @@ def cloud(dataset, calibration=None, *, out=None, format=None, sensor_pose=None,
 
     request = CloudRequest.from_options(options.COMMANDS["cloud"].given(locals()), scans.load(dataset))
     checked = verdicts.check(calibration, request.calibration, folder=dataset, folder_hash=request.data.content_hash())
-    cal, data = checked.calibration, request.data
+    cal, (data, bent) = checked.calibration, _bent(request.data, checked.calibration)
     points, index = clouds.points_in_base(data.motions(), cal.sensor2flange, data.profiles)
     sd = None if cal.covariance is None else clouds.point_sd(np.concatenate(data.profiles, axis=0), cal.sensor2flange,
                                                               cal.covariance)
     result = CloudResult(points, index, sd, data.ids, data.skipped, None if out is None else str(out), request.format,
-                         cal.source, FRAME[data.mounts.sphere], checked.notes, checked.status)
+                         cal.source, FRAME[data.mounts.sphere], [*checked.notes, *bent], checked.status)
     if out is not None:
         _write_cloud(result, out, request.format)
     return result
@@ -266,12 +282,14 @@ def validate(dataset, calibration=None, *, plot=None, exclude=0.0, sensor_pose=N
     request = ValidateRequest.from_options(given, scans.load(folder) if with_profiles else datasets.load(folder))
     sha = request.data.content_hash()
     checked = verdicts.check(calibration, request.calibration, folder=folder, folder_hash=sha)
-    cal, data = checked.calibration, request.data
+    cal, data, bent = checked.calibration, request.data, []
     own = None if cal.dataset_sha256 is None else cal.dataset_sha256 == sha
+    if with_profiles:
+        data, bent = _bent(data, cal)
     result = (validation.validate_scan(data, cal, request.exclude, own) if with_profiles
               else validation.validate_centres(data, cal, own))
     result = dataclasses.replace(result, frame={"world": "base", "flange": "flange", "positioner": "table"}[
-        data.mounts.sphere], notes=[*checked.notes, *result.notes], status=checked.status)
+        data.mounts.sphere], notes=[*checked.notes, *bent, *result.notes], status=checked.status)
     if request.limits is not None:
         result = dataclasses.replace(result, acceptance=validation.accept(result, request.limits))
     if plot is not None:

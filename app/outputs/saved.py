@@ -73,6 +73,9 @@ class Calibration:
     positioner_axes : tuple of handeye.model.chain.mounts.Axis
         The positioner's axes the calibration estimated (robot base, all angles zero); empty when
         it held them as set up (or has no positioner).
+    bend : handeye.model.geometry.profile_bend.Bend or None
+        The sensor's depth bend the calibration corrected its profiles by (``cleaning.bend``), which other
+        scans of the same sensor are corrected by too (``cloud``, ``validate``); None where none was applied.
     """
 
     sensor2flange: np.ndarray
@@ -84,6 +87,7 @@ class Calibration:
     sensor_mount: str = "flange"
     positioner_axes: tuple = ()
     own_axes: np.ndarray | None = None
+    bend: object = None
 
     def user_frame(self):
         """The calibration of the frame the user's files are in, for writing it out: the sensor's
@@ -256,8 +260,19 @@ def from_document(doc, file):
     source = str(file) + (" (handeye's turned frame, as files before sensor_frame \"own\" were written)"
                           if own is not None and frame == "profiles" else "")
     cal = Calibration(m, _covariance(doc, file), source, doc.get("dataset"), sha if isinstance(sha, str) else None,
-                      converged, _mount(doc, file), _positioner(doc, file))
+                      converged, _mount(doc, file), _positioner(doc, file), bend=_bend(doc, file))
     return cal.from_user_frame(own) if frame == "own" else dataclasses.replace(cal, own_axes=own)
+
+
+def _bend(doc, file):
+    """The depth bend the file's calibration applied (``cleaning.bend``), or None."""
+    from handeye.model.geometry import profile_bend
+
+    cleaning = doc.get("cleaning")
+    try:
+        return profile_bend.from_saved(cleaning.get("bend") if isinstance(cleaning, dict) else None)
+    except ValueError as exc:
+        raise CalibrationFileError(file, str(exc), "cleaning.bend") from None
 
 
 def _own_axes(doc, file):

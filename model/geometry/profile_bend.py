@@ -192,8 +192,28 @@ class Bend:
         """JSON-ready summary."""
         return {"degree": self.degree, "applied": self.applied, "why": self.why, "bend_mm": self.bend_mm, "f": self.f,
                 "p_value": self.p_value, "slope": self.slope, "depths_mm": list(self.depths), "profiles": len(self.rows),
-                "beta_mm": [float(b) for b in self.beta],
+                "beta_mm": [float(b) for b in self.beta], "offset_mm": float(self.offset),
                 "beta_sd_mm": [float(s) for s in np.sqrt(np.clip(np.diag(self.covariance), 0, None))]}
+
+
+def from_saved(saved):
+    """The applied bend a saved calibration's ``cleaning.bend`` (:meth:`Bend.to_dict`) states, to correct other
+    scans of the same sensor with (:meth:`Bend.corrected`); None where none was applied. Raises ValueError naming
+    the key that does not hold what it should."""
+    if not isinstance(saved, dict) or saved.get("applied") is not True:
+        return None
+    try:
+        degree, depths = int(saved["degree"]), tuple(float(v) for v in saved["depths_mm"])
+        beta, offset = np.array(saved["beta_mm"], float), float(saved["offset_mm"])
+    except KeyError as exc:
+        raise ValueError(f"no {exc.args[0]} (a file written before the bend was saved whole: calibrate again)") from None
+    except (TypeError, ValueError):
+        raise ValueError("degree, depths_mm, beta_mm and offset_mm must be numbers") from None
+    if not (1 <= degree <= MAX_DEGREE and beta.shape == (degree,) and len(depths) == 2 and depths[0] < depths[1]
+            and np.all(np.isfinite(beta)) and np.all(np.isfinite(depths)) and np.isfinite(offset)):
+        raise ValueError(f"not a bend: degree 1-{MAX_DEGREE} with as many finite beta_mm, depths_mm lo < hi")
+    return Bend(degree, beta, np.zeros((degree, degree)), depths, offset, float(saved.get("f", np.nan)),
+                float(saved.get("p_value", np.nan)), float(saved.get("bend_mm", np.nan)), True, ())
 
 
 def _basis(z, m, depths):
