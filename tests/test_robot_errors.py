@@ -306,3 +306,20 @@ def test_repeated_effect_options_add_up_and_a_repeat_is_named(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path / "x"), "--robot", "ur10e", "--effect", "link_lengths=a2:0.3",
                  "--effect", "link_lengths=a2:0.1"]) == EXIT_BAD_INPUT
     assert "a2 given twice" in capsys.readouterr().err
+
+
+def test_a_robot_effect_beside_the_radius_is_no_centre_correction(tmp_path):
+    """The search named link_lengths with sphere_radius on an independent generator's UR10e cell, and the report's
+    note on the radius's sd corrected the centres by every fitted effect, the robot's too: exit 3 (AttributeError).
+    Only data effects correct the centres."""
+    import types
+
+    from handeye.app.engine import describe
+
+    data = handeye.simulate(tmp_path / "c", robot="ur10e", profiles=True, seed=2).dataset
+    mask = np.ones(len(data), bool)
+    fit = types.SimpleNamespace(params={"link_lengths": np.zeros(3), "sphere_radius": np.array([0.01])})
+    y, ids = describe._corrected_y(data, mask, fit, data.sphere_diameter / 2)
+    only = types.SimpleNamespace(params={"sphere_radius": np.array([0.01])})
+    np.testing.assert_array_equal(y, describe._corrected_y(data, mask, only, data.sphere_diameter / 2)[0])
+    assert len(ids) == len(data)

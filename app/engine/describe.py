@@ -334,7 +334,8 @@ def _corrected_y(dataset, mask, extended, radius):
     xs = dataset.centre_in_sensor[mask]
     with np.errstate(all="ignore"):
         for name, params in extended.params.items():
-            xs, _ = catalogue.correct(name, xs, radius, params)
+            if catalogue.get(name).KIND == "data":  # a robot effect corrects the flange, not the centres
+                xs, _ = catalogue.correct(name, xs, radius, params)
     return np.abs(xs[:, 1]), [i for i, u in zip(dataset.ids, mask) if u]
 
 

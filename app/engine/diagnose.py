@@ -79,6 +79,8 @@ class Procedure:
         the steps taken, why a candidate's fit was implausible.
     robot_alternatives : str or None
         Other robot effects as good as those named (:mod:`handeye.app.engine.robot_choice`).
+    robot_rivals : tuple of (str, ndarray (4, 4))
+        Their labels and sensor poses.
     configuration : str or None
         Excluded samples that are a configuration group (:mod:`handeye.app.engine.configuration_group`).
     """
@@ -94,6 +96,7 @@ class Procedure:
     steps: list = dataclasses.field(default_factory=list)
     implausible: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
+    robot_rivals: tuple = ()
     centre_unknown: bool = False
     configuration: str | None = None
     detail: bool = True
@@ -196,8 +199,8 @@ def _base_fit(dataset, sigma, structure, mask, sensor2flange):
 def _robot_choice(run, structure, fit):
     """The robot effects compared as alternatives (:func:`handeye.app.engine.robot_choice.compare`);
     a step recorded when another combination replaces the searched one."""
-    chosen, new, run.robot_alternatives = robot_choice.compare(run.prob, structure, fit, run.mask, run.alpha,
-                                                               run.centre_unknown)
+    chosen, new, run.robot_alternatives, run.robot_rivals = robot_choice.compare(run.prob, structure, fit, run.mask,
+                                                                                 run.alpha, run.centre_unknown)
     if set(chosen.data_effects) != set(structure.data_effects) or chosen.centre != structure.centre:
         robot = [n for n in chosen.data_effects if effects.get(n).KIND == "robot"]
         label = "+".join(("sphere_center",) * (chosen.centre and not run.centre_unknown) + tuple(robot))
@@ -554,7 +557,7 @@ def _report(run, structure, fit, flips, outliers):
                    for i, b, a, u in zip(d.ids, run.before_norms, np.linalg.norm(prob.raw(fit.e), axis=1), mask)],
         screened_out_first=[e.id for e in run.screening.excluded],
         unexplained=". ".join(t.rstrip(".") for t in (_unexplained(after, prob.sigma), robot_choice.unmodelled(d)) if t),
-        robot_alternatives=run.robot_alternatives, configuration=run.configuration,
+        robot_alternatives=run.robot_alternatives, robot_rivals=run.robot_rivals, configuration=run.configuration,
         always_absorbed=tuple(sorted(prob.robot_always)),
         cleaning=cleaning_summary(d))
 

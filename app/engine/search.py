@@ -46,14 +46,17 @@ import numpy as np
 from handeye.app.engine import cell_stage, diagnose
 from handeye.app.engine.agreement import UNEXPLAINED, same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
-from handeye.app.engine.levels import AGREE_SD, AT_NOISE, POWER_WARN_GROWTH
-from handeye.model.common.rotation import pose_distance
+from handeye.app.engine.levels import AGREE_SD, AMBIGUOUS, AT_NOISE, POWER_WARN_GROWTH
+from handeye.model.common.rotation import pose_distance, rotvec_from_matrix
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import spread
+from handeye.model.fit.power import SHIFT_FLOOR, WIDEN_SD
 
 #: Effects the search names that are not a model the stages can take: sign flips are samples; the
 #: positioner's axes are the cell stage's (``--unknowns ...+positioner``).
 NOT_A_MODEL = ("sign_flip", "positioner_axes")
+#: How the warning of models the search could not tell apart begins (:func:`with_rivals`).
+RIVALS_WARNING = "the robot's errors are not settled: other models"
 #: How the warning of a widened uncertainty begins (:func:`with_power`).
 POWER_WARNING = "the data lack the power to see every effect (few samples, much noise): the 1 sd is widened"
 
@@ -121,7 +124,37 @@ def _decided(request, dataset, result, refit, found, searched):
         result = _against_search(result, found, dataset, request)  # another model, or samples --keep-all keeps
     if len(dataset) > ROW_CHUNK:
         return dataclasses.replace(result, warnings=[*result.warnings, _subsample_note(len(dataset))])
+    result = with_rivals(result, found.robot_rivals)
     return with_power(result, _statement(result, found, cell_stage.dataset_at(result, dataset)))
+
+
+def with_rivals(result, rivals):
+    """``result`` with its sd widened to hold the poses of the models the search could not tell from its own
+    (``rivals``: ``(label, sensor2flange)``, :func:`handeye.app.engine.robot_choice.compare`'s, within a BIC of
+    :data:`~handeye.app.engine.levels.AMBIGUOUS`): each rival's shift ``s`` adds ``s s^T / WIDEN_SD^2`` to the
+    pose's covariance, so that every rival lies within :data:`~handeye.model.fit.power.WIDEN_SD` of the added
+    sd (as a suggested bend's pose does); shifts within the floor's third are no widening. A robot's length error
+    the search took for a taught centre off (an independent generator's UR10e, 0.13 mm of noise) had exited 0
+    0.34 mm, 7 sd, from the truth; its rival, the length error, lay 0.30 mm away."""
+    if not rivals or not result.converged or result.covariance is None:
+        return result
+    base, added, said = np.asarray(result.sensor2flange, float), np.zeros((6, 6)), []
+    for label, pose in rivals:
+        pose = np.asarray(pose, float)
+        shift = np.r_[pose[:3, 3] - base[:3, 3], rotvec_from_matrix(base[:3, :3].T @ pose[:3, :3])]
+        d = pose_distance(pose, base, result.covariance, result.parameter_names)
+        if d["translation_mm"] <= SHIFT_FLOOR[0] / WIDEN_SD and d["rotation_deg"] <= SHIFT_FLOOR[1] / WIDEN_SD:
+            continue
+        added += np.outer(shift, shift) / WIDEN_SD**2
+        said.append(f"{label} at {d['translation_mm']:.2g} mm / {d['rotation_deg']:.2g} deg"
+                    + (f" ({d['sd']:.2g} sd)" if d["sd"] is not None else ""))
+    if not said:
+        return result
+    uncertainty = result.uncertainty.widened(added, ("tx", "ty", "tz", "wx", "wy", "wz"))
+    return dataclasses.replace(result, uncertainty=uncertainty, warnings=[*result.warnings, (
+        f"{RIVALS_WARNING}, {', '.join(said)} from this pose, explain the data about as well (a BIC within "
+        f"{AMBIGUOUS:g}); the 1 sd is widened to hold each within {WIDEN_SD:g} sd (poses that differ more in reach "
+        "and arm configuration would tell them apart: handeye plan --robot)")])
 
 
 def searched_samples(dataset):

@@ -32,6 +32,7 @@ from handeye.app.common.errors import RequestError
 from handeye.model.chain import own_frame
 from handeye.model.chain.names import SENSOR_MOUNTS
 from handeye.model.common.rotation import pose_sd
+from handeye.model.geometry import profile_bend
 from handeye.model.readers.tables import PARSE_ERRORS, parse_problem
 
 #: Largest |R^T R - I| entry accepted in a saved rotation (it was written with 17 digits).
@@ -266,8 +267,6 @@ def from_document(doc, file):
 
 def _bend(doc, file):
     """The depth bend the file's calibration applied (``cleaning.bend``), or None."""
-    from handeye.model.geometry import profile_bend
-
     cleaning = doc.get("cleaning")
     try:
         return profile_bend.from_saved(cleaning.get("bend") if isinstance(cleaning, dict) else None)

@@ -93,6 +93,8 @@ class DiagnosisResult(ResultProtocol):
     robot_alternatives : str or None
         Other robot effects that explain the data about as well as those named (their BIC and
         how far the sensor pose moves with them; :mod:`handeye.app.engine.robot_choice`), or None.
+    robot_rivals : tuple of (str, ndarray (4, 4))
+        Those alternatives' labels and sensor poses (handeye's frame, the mount's), which calibrate's sd holds.
     cleaning : dict or None
         What profile cleaning dropped, as :attr:`CalibrationResult.cleaning
         <handeye.app.present.results.CalibrationResult>` (``{'applied': False}`` with
@@ -141,6 +143,7 @@ class DiagnosisResult(ResultProtocol):
     centre_fitted: bool = True
     inconsistent: list = dataclasses.field(default_factory=list)
     robot_alternatives: str | None = None
+    robot_rivals: tuple = dataclasses.field(default=(), repr=False)
     always_absorbed: tuple = ()
     unknowns: str = "sensor"
     against_calibrate: str | None = None
