@@ -47,6 +47,18 @@ def test_a_link_length_taken_for_a_taught_centre_is_in_the_sd(tmp_path):
     assert any(w.startswith("the robot's errors are not settled") for w in r.warnings), r.warnings
 
 
+def test_samples_a_joint_offset_moves_are_no_gross_errors(tmp_path):
+    """UR5e with joints, 17 poses in three orientations, 0.14 mm of point noise, j5 0.085 deg off: the five samples of
+    one orientation were excluded as gross errors (F 129-244) and calibrate exited 0 3.4 sd (a component) from the
+    truth. Kept as an alternative (configuration_group._many_excluded), the search names joint_offsets and every
+    one passes the outlier test."""
+    out, truth = _cell(tmp_path, "joint_offsets", 21)
+    r = handeye.calibrate(out, unknowns=truth["unknowns"])
+    z, mm, deg = _away(r, truth)
+    assert r.converged and np.max(np.abs(z)) < 3, (z, mm, deg)
+    assert "joint_offsets" in {e.name for e in r.effects or []} and not r.excluded, (r.effects, r.excluded)
+
+
 @pytest.fixture(scope="module")
 def radius_beside_lengths(tmp_path_factory):
     """UR10e, a3 0.59 mm short (the generator's first draw order): the search names link_lengths with
