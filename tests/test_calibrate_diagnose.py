@@ -44,7 +44,7 @@ def test_the_noise_test_against_the_stated_noise(tmp_path):
     assert clean.noise_test is None or clean.noise_test.passed
     real = handeye.calibrate("thesis-real", no_loo=True)
     assert not real.noise_test.passed and real.noise_test.ratio > 5
-    assert any("stated noise" in w and "handeye diagnose" in w for w in real.warnings)
+    assert any("assumed noise" in w and "handeye diagnose" in w for w in real.warnings)
     loose = handeye.calibrate("thesis-real", no_loo=True, sigma=5.0)  # a user who states 5 mm
     assert loose.noise_test.passed and loose.noise_test.nominal.startswith("5 mm")
     s = handeye.simulate(tmp_path / "n", seed=3, n_poses=20)
