@@ -82,8 +82,24 @@ GAP_MM = 3.0
 TUKEY_C = 4.685
 
 
+class Drops:
+    """What a cleaning dropped, counted and said (``dropped``: ``(reason, count)`` pairs, ``n_points``): a
+    profile's (:class:`Cleaning`) and a cloud's (:class:`handeye.model.geometry.sphere_cloud.CloudFit`)."""
+
+    @property
+    def n_dropped(self):
+        return int(sum(n for _, n in self.dropped))
+
+    def describe(self):
+        """The drops in words, e.g. ``'312 of 1,280 points dropped: off the arc 310, isolated 2'``."""
+        if not self.n_dropped:
+            return "nothing dropped"
+        why = ", ".join(f"{name} {n:,}" for name, n in self.dropped if n)
+        return f"{self.n_dropped:,} of {self.n_points:,} points dropped: {why}"
+
+
 @dataclasses.dataclass(frozen=True)
-class Cleaning:
+class Cleaning(Drops):
     """What cleaning did to one profile.
 
     Attributes
@@ -109,25 +125,14 @@ class Cleaning:
     circle: circle.Circle | None = None
     scale_mm: float = float("nan")
 
-    @property
-    def n_dropped(self):
-        return int(sum(n for _, n in self.dropped))
-
-    def describe(self):
-        """The drops in words, e.g. ``'312 of 1,280 points dropped: off the arc 310, isolated 2'``."""
-        if not self.n_dropped:
-            return "nothing dropped"
-        why = ", ".join(f"{name} {n:,}" for name, n in self.dropped if n)
-        return f"{self.n_dropped:,} of {self.n_points:,} points dropped: {why}"
-
     def to_dict(self):
         return {"points": self.n_points, "dropped": self.n_dropped, "status": self.status,
                 "reasons": {name: n for name, n in self.dropped if n},
                 "scale_mm": None if not np.isfinite(self.scale_mm) else float(self.scale_mm)}
 
 
-def _seed(points):
-    """A generator seeded by the profile's own bytes: the same profile, the same draws."""
+def seeded(points):
+    """A generator seeded by the points' own bytes (a profile's, a cloud's): the same points, the same draws."""
     return np.random.default_rng(int.from_bytes(hashlib.blake2b(np.ascontiguousarray(points).tobytes(),
                                                                 digest_size=8).digest(), "little"))
 
@@ -136,7 +141,7 @@ def _distances(x, z, c):
     return np.hypot(x - c.x, z - c.z) - c.r
 
 
-def _robust_scale(d):
+def robust_scale(d):
     """``1.4826 MAD`` of the distances ``d`` (mm) within WINDOW_MM, at least SCALE_FLOOR_MM."""
     near = np.abs(d[np.abs(d) < WINDOW_MM])
     return max(1.4826 * float(np.median(near)) if near.size >= 3 else WINDOW_MM, SCALE_FLOOR_MM)
@@ -217,12 +222,12 @@ def tukey_fit(x, z, start, max_iter=50):
         The circle and the robust scale s of the distances from it (mm).
     """
     p = np.array([start.x, start.z, start.r], float)
-    s = _robust_scale(_distances(x, z, start))
+    s = robust_scale(_distances(x, z, start))
     for _ in range(max_iter):
         dx, dz = x - p[0], z - p[1]
         rho = np.maximum(np.hypot(dx, dz), 1e-300)
         d = rho - p[2]
-        s = _robust_scale(d)
+        s = robust_scale(d)
         u = d / (TUKEY_C * s)
         w = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         if np.count_nonzero(w) < 3:
@@ -236,7 +241,7 @@ def tukey_fit(x, z, start, max_iter=50):
         if np.max(np.abs(step)) < 1e-10 * max(1.0, abs(p[2])):
             break
     fitted = circle.Circle(float(p[0]), float(p[1]), float(abs(p[2])))
-    return fitted, _robust_scale(_distances(x, z, fitted))
+    return fitted, robust_scale(_distances(x, z, fitted))
 
 
 def _isolated(x, z, c, keep):
@@ -296,13 +301,13 @@ def clean(points, radius):
     if fast is not None:
         return fast
     need = max(MIN_ARC_POINTS, int(np.ceil(MIN_ARC_FRACTION * k)))
-    best, n_best, wider = ransac(x, z, radius, _seed(pts))
+    best, n_best, wider = ransac(x, z, radius, seeded(pts))
     seed, status = (wider, "wider") if wider is not None else (best, "cleaned")
     if seed is None or (wider is None and n_best < need):
         return Cleaning(np.zeros(k, bool), k, "no arc", (("off the arc", k),))
     fitted, s = tukey_fit(x, z, seed)
     if status == "cleaned" and fitted.r > radius * (1 + RADIUS_TOL) + BAND_MM:
-        fitted, s = seed, _robust_scale(_distances(x, z, seed))  # the M-step ran wide: the prior's circle
+        fitted, s = seed, robust_scale(_distances(x, z, seed))  # the M-step ran wide: the prior's circle
     near = np.abs(_distances(x, z, fitted)) <= K_SD * s
     lone = _isolated(x, z, fitted, near)
     keep = near & ~lone

@@ -31,7 +31,6 @@ diameter differs from it by more than :data:`DIAMETER_SD` of its sd and
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 
 import numpy as np
 
@@ -62,7 +61,7 @@ class CloudError(InputError):
 
 
 @dataclasses.dataclass(frozen=True)
-class CloudFit:
+class CloudFit(profile_clean.Drops):
     """The sphere fitted to one cloud.
 
     Attributes
@@ -105,37 +104,14 @@ class CloudFit:
     cap_deg: float
 
     @property
-    def n_dropped(self):
-        return int(sum(n for _, n in self.dropped))
-
-    @property
     def status(self):
         return "cleaned" if self.n_dropped else "clean"
-
-    def describe(self):
-        """The drops in words, as a profile's (:meth:`handeye.model.geometry.profile_clean.Cleaning.describe`)."""
-        if not self.n_dropped:
-            return "nothing dropped"
-        why = ", ".join(f"{name} {n:,}" for name, n in self.dropped if n)
-        return f"{self.n_dropped:,} of {self.n_points:,} points dropped: {why}"
 
     def to_dict(self):
         return {"points": self.n_points, "dropped": self.n_dropped, "status": self.status,
                 "reasons": {name: n for name, n in self.dropped if n}, "scale_mm": float(self.scale_mm),
                 "diameter_mm": 2 * self.radius, "diameter_sd_mm": 2 * self.radius_sd, "radius_held": self.radius_held,
                 "cap_deg": self.cap_deg, "centre_sd_mm": np.sqrt(np.diag(self.covariance)).tolist()}
-
-
-def _seed(points):
-    """A generator seeded by the cloud's own bytes: the same cloud, the same draws."""
-    digest = hashlib.blake2b(np.ascontiguousarray(points).tobytes(), digest_size=8).digest()
-    return np.random.default_rng(int.from_bytes(digest, "little"))
-
-
-def _scale(d):
-    """``1.4826 MAD`` of radial deviations ``d`` (mm) within WINDOW_MM, at least SCALE_FLOOR_MM (a profile's scale)."""
-    near = np.abs(d[np.abs(d) < profile_clean.WINDOW_MM])
-    return max(1.4826 * float(np.median(near)) if near.size >= 3 else profile_clean.WINDOW_MM, profile_clean.SCALE_FLOOR_MM)
 
 
 def _deviations(q, c, r):
@@ -204,7 +180,7 @@ def _tukey(q, c, r, free_radius):
     """Tukey's biweight fit from ``(c, r)``: ``(c, r, s)`` with ``s`` the robust scale of the deviations."""
     for _ in range(30):
         d, _ = _deviations(q, c, r)
-        s = _scale(d)
+        s = profile_clean.robust_scale(d)
         u = d / (profile_clean.TUKEY_C * s)
         w = np.where(np.abs(u) < 1, (1 - u**2) ** 2, 0.0)
         if np.count_nonzero(w) < 4:
@@ -214,7 +190,7 @@ def _tukey(q, c, r, free_radius):
         c, r = c_new, r_new
         if moved < 1e-10 * (1.0 + abs(r)):
             break
-    return c, r, _scale(_deviations(q, c, r)[0])
+    return c, r, profile_clean.robust_scale(_deviations(q, c, r)[0])
 
 
 def _plane_scale(q):
@@ -229,7 +205,7 @@ def _inliers(q, radius):
     fast = _fast(q)
     if fast is not None:
         return fast
-    best, n_best = ransac(q, radius, _seed(q))
+    best, n_best = ransac(q, radius, profile_clean.seeded(q))
     if best is None or n_best < MIN_FRACTION * len(q):
         plane = _plane_scale(q)
         if plane <= BAND_MM:
