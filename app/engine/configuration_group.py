@@ -122,26 +122,16 @@ def examine(run, structure, fit, allowed, steps):
     if found is None:
         _reinstated(run, structure, fit, allowed)
         return _many_excluded(run, structure, fit, allowed, steps)
-    search, final_outliers, summaries = steps
     members = found.group.members & allowed
-    saved = (run.mask, copy.deepcopy(run.steps), copy.deepcopy(run.tested), dict(run.absorbed), list(run.implausible),
-             dict(run.prob.robot_free))
-    run.mask = run.mask | members
-    trial = run.prob.fit(structure, run.mask, fit.x, fit.params)
-    trial_structure, trial = search(run, structure, trial)
-    kept = final_outliers(run.prob, trial_structure, trial, run.mask.copy(), run.alpha, allowed)
-    run.mask = kept[2]
-    f_stat, p = _group_test(run, kept[0], kept[1], members)
-    if not np.any(members & ~kept[2]) and p >= run.alpha:
+    saved, kept, (f_stat, p), passed = _kept(run, structure, fit, members, allowed, steps)
+    if passed:
         _void_trials(run, kept[1])
         run.configuration = (f"{found.said()}; kept: with {_named(run.prob, kept[0], kept[1])} every sample of the "
                              f"group passes the outlier test, and the group as a whole (F = {f_stat:.3g}, p = {p:.2g})")
         run.steps.append({"step": f"configuration group kept ({found.group.label})",
-                          **summaries(run.prob, kept[0], kept[1], run.mask, run.detail)})
+                          **steps[2](run.prob, kept[0], kept[1], run.mask, run.detail)})
         return kept
-    run.mask, run.steps, run.tested, run.absorbed, run.implausible = saved[:5]
-    run.prob.robot_free.clear()
-    run.prob.robot_free.update(saved[5])
+    _restore(run, saved)
     robot = [e.NAME for e in effects.catalogue("robot") if e.available(run.prob.d)]
     tried = (f"with the group kept, the search ({', '.join(robot)} among its candidates) names "
              f"{_named(run.prob, kept[0], kept[1])}, and the group does not fit: the outlier test excludes "
@@ -171,7 +161,24 @@ def _many_excluded(run, structure, fit, allowed, steps):
     if (n < MANY_EXCLUDED[0] or n < MANY_EXCLUDED[1] * len(run.mask)
             or not any(e.available(run.prob.d) for e in effects.catalogue("robot"))):
         return None
-    search, final_outliers, summaries = steps
+    saved, kept, (f_stat, p), passed = _kept(run, structure, fit, members, allowed, steps)
+    if passed and kept[0].data_effects:
+        run.configuration = (f"the {n} samples the outlier test excluded are no gross errors: with "
+                             f"{_named(run.prob, kept[0], kept[1])} every one passes the outlier test, and the group as "
+                             f"a whole (F = {f_stat:.3g}, p = {p:.2g})")
+        run.steps.append({"step": f"{n} excluded samples kept", **steps[2](run.prob, kept[0], kept[1], run.mask,
+                                                                            run.detail)})
+        return kept
+    _restore(run, saved)
+    return None
+
+
+def _kept(run, structure, fit, members, allowed, steps):
+    """The alternative "``members`` kept" fitted by the search itself (``steps``: :func:`examine`'s): the samples
+    reinstated, the catalogue searched on every sample, the final outlier test run. Returns ``(saved, kept, (F, p),
+    passed)``: the run's state before it (for :func:`_restore`), the final outlier test's result, the group's test,
+    and whether every member passes the outlier test and the group as a whole."""
+    search, final_outliers, _ = steps
     saved = (run.mask, copy.deepcopy(run.steps), copy.deepcopy(run.tested), dict(run.absorbed), list(run.implausible),
              dict(run.prob.robot_free))
     run.mask = run.mask | members
@@ -179,14 +186,11 @@ def _many_excluded(run, structure, fit, allowed, steps):
     kept = final_outliers(run.prob, trial_structure, trial, run.mask.copy(), run.alpha, allowed)
     run.mask = kept[2]
     f_stat, p = _group_test(run, kept[0], kept[1], members)
-    if not np.any(members & ~kept[2]) and p >= run.alpha and trial_structure.data_effects:
-        run.configuration = (f"the {n} samples the outlier test excluded are no gross errors: with "
-                             f"{_named(run.prob, kept[0], kept[1])} every one passes the outlier test, and the group as "
-                             f"a whole (F = {f_stat:.3g}, p = {p:.2g})")
-        run.steps.append({"step": f"{n} excluded samples kept", **summaries(run.prob, kept[0], kept[1], run.mask,
-                                                                             run.detail)})
-        return kept
+    return saved, kept, (f_stat, p), bool(not np.any(members & ~kept[2]) and p >= run.alpha)
+
+
+def _restore(run, saved):
+    """The run's state as :func:`_kept` found it."""
     run.mask, run.steps, run.tested, run.absorbed, run.implausible = saved[:5]
     run.prob.robot_free.clear()
     run.prob.robot_free.update(saved[5])
-    return None

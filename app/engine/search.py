@@ -47,7 +47,7 @@ from handeye.app.engine import cell_stage, diagnose
 from handeye.app.engine.agreement import UNEXPLAINED, same_pose
 from handeye.app.engine.describe import STRUCTURE_WARNING, command_argument
 from handeye.app.engine.levels import AGREE_SD, AMBIGUOUS, AT_NOISE, POWER_WARN_GROWTH
-from handeye.model.common.rotation import pose_distance, rotvec_from_matrix
+from handeye.model.common.rotation import chart_shift, pose_distance
 from handeye.model.fit.calibration import ROW_CHUNK
 from handeye.model.fit.extended import spread
 from handeye.model.fit.power import SHIFT_FLOOR, WIDEN_SD
@@ -141,7 +141,7 @@ def with_rivals(result, rivals):
     base, added, said = np.asarray(result.sensor2flange, float), np.zeros((6, 6)), []
     for label, pose in rivals:
         pose = np.asarray(pose, float)
-        shift = np.r_[pose[:3, 3] - base[:3, 3], rotvec_from_matrix(base[:3, :3].T @ pose[:3, :3])]
+        shift = chart_shift(pose, base)
         d = pose_distance(pose, base, result.covariance, result.parameter_names)
         if d["translation_mm"] <= SHIFT_FLOOR[0] / WIDEN_SD and d["rotation_deg"] <= SHIFT_FLOOR[1] / WIDEN_SD:
             continue

@@ -19,7 +19,7 @@ from handeye.app.common.errors import CalibrationInputError
 from handeye.app.engine import slips
 from handeye.app.engine.levels import AMBIGUOUS, P_SLIP, P_SUSPECT, SIDE_MOVE_SD
 from handeye.model import effects as catalogue
-from handeye.model.common.rotation import pose_distance, rotvec_from_matrix, transform_distance
+from handeye.model.common.rotation import chart_shift, pose_distance, transform_distance
 from handeye.model.common.statistics import chi2_survival, f_survival
 from handeye.model.datasets import observations
 from handeye.model.design import robot_gate
@@ -30,7 +30,7 @@ def _mahalanobis(dataset, given, other):
     """Distance of the pose of ``other`` from that of ``given`` (centre-model minima) in the
     standard deviations of ``given``'s pose (:func:`handeye.app.engine.slips.pose_covariance`)."""
     a, b = given.sensor2flange, other.sensor2flange
-    delta = np.concatenate([b[:3, 3] - a[:3, 3], rotvec_from_matrix(a[:3, :3].T @ b[:3, :3])])  # chart: t, w
+    delta = chart_shift(b, a)
     return float(np.sqrt(delta @ np.linalg.solve(slips.pose_covariance(dataset, "sensor", given), delta)))
 
 

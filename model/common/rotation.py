@@ -100,6 +100,12 @@ def pose_sd(covariance):
     return sd[:3], np.degrees(sd[3:6])
 
 
+def chart_shift(given, estimate):
+    """The step (6,) of the local chart at ``estimate`` (4x4) that reaches ``given`` (4x4): translation (mm, the
+    mount's frame), then rotation (rad, about the estimate's own axes: ``R_given = R_estimate exp([w]x)``)."""
+    return np.concatenate([given[:3, 3] - estimate[:3, 3], rotvec_from_matrix(estimate[:3, :3].T @ given[:3, :3])])
+
+
 def pose_distance(given, estimate, covariance=None, names=None):
     """How far ``given`` (4x4) lies from ``estimate`` (4x4): translation (mm), rotation (deg) and,
     with the estimate's covariance on the local chart (``names`` tx..wz), the Mahalanobis
@@ -110,7 +116,7 @@ def pose_distance(given, estimate, covariance=None, names=None):
         return out
     idx = [list(names).index(n) for n in ("tx", "ty", "tz", "wx", "wy", "wz")]
     cov = np.asarray(covariance, float)[np.ix_(idx, idx)]
-    delta = np.concatenate([given[:3, 3] - estimate[:3, 3], rotvec_from_matrix(estimate[:3, :3].T @ given[:3, :3])])
+    delta = chart_shift(given, estimate)
     d2 = float(delta @ np.linalg.pinv(cov) @ delta)
     out.update(sd=float(np.sqrt(max(d2, 0.0))), p_value=float(chi2_survival(d2, 6)))
     return out
