@@ -240,6 +240,11 @@ class Samples:
         return inv, {name: -inv[:, None] @ dm @ inv[:, None] for name, dm in d.items()}
 
     @functools.cached_property
+    def _flange2base(self):
+        """The flange poses (N, 4, 4), the motions of a chain whose positioner axes are free (once, not per step)."""
+        return np.asarray(self.d.flange2base(), float)
+
+    @functools.cached_property
     def _reported_over_nominal(self):
         """``F_rep T(q)^-1`` of every sample (N, 4, 4), the same at every evaluation."""
         return self.d.flange2base() @ np.linalg.inv(self.d.robot_model.flange2base(self.d.joints))
@@ -268,7 +273,7 @@ class Samples:
         the centre (:meth:`robot_motion`)."""
         xs = self.measured(structure, rows)
         take = (lambda a: a) if rows is None else (lambda a: a[rows])
-        f2b = take(self.d.flange2base()) if structure.axes else take(self.f2b)
+        f2b = take(self._flange2base) if structure.axes else take(self.f2b)
         robot_names = [n for n in structure.data_effects if effects.get(n).KIND == "robot"]
         robot = {}
         if robot_names:
